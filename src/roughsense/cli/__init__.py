@@ -1,0 +1,102 @@
+"""The ``roughsense`` command: a thin typer app.
+
+Each command lives in its own module in this package and exposes ``register(app)``; modules are
+discovered here so that adding a command never edits a shared file. This module owns the one
+place where errors become exit codes: a :class:`RoughsenseError` (or an OS error about a user's
+file) is one line on stderr and exit 2; a traceback only with ``--debug``.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import pkgutil
+import sys
+import traceback
+
+import typer
+
+from ..errors import RoughsenseError
+
+app = typer.Typer(
+    name="roughsense",
+    help=(
+        "Estimate perceived macroscopic roughness from contact images of a compliant pad "
+        "(Yanwari & Okamoto, Sensors 2025): features, PLS models, perception data, simulation, the study and the rig."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+)
+
+_state = {"debug": bool(os.environ.get("ROUGHSENSE_DEBUG"))}
+
+
+@app.callback()
+def _global_options(
+    debug: bool = typer.Option(False, "--debug", help="Show full tracebacks instead of one-line errors."),
+) -> None:
+    if debug:
+        _state["debug"] = True
+
+
+def _register_commands() -> None:
+    modules = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+    registered = []
+    for name in modules:
+        module = importlib.import_module(f"{__name__}.{name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            registered.append((getattr(module, "ORDER", 100), name, register))
+    for _, _, register in sorted(registered):
+        register(app)
+
+
+_register_commands()
+
+
+def _fail(message: str) -> int:
+    print(f"roughsense: error: {message}", file=sys.stderr)
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI and return its exit code (tests call this directly).
+
+    typer handles its own usage errors (exit 2) and ``--help``; everything the library raises
+    surfaces here and is turned into one line.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    if "--debug" in args:
+        _state["debug"] = True
+    try:
+        app(args=args, prog_name="roughsense", standalone_mode=True)
+        return 0
+    except SystemExit as exc:
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else _fail(str(code)))
+    except KeyboardInterrupt:
+        print("roughsense: interrupted", file=sys.stderr)
+        return 130
+    except RoughsenseError as exc:
+        if _state["debug"]:
+            traceback.print_exc()
+        return _fail(str(exc))
+    except OSError as exc:
+        if _state["debug"]:
+            traceback.print_exc()
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        return _fail(f"{where}{exc.strerror or exc}")
+    except Exception as exc:  # a bug: still one line, but say how to get the traceback
+        if _state["debug"]:
+            traceback.print_exc()
+            return 1
+        print(f"roughsense: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)", file=sys.stderr)
+        return 1
+    finally:
+        _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))
+
+
+def run() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

@@ -1,0 +1,467 @@
+"""The study folder: the one data contract between the sources (simulator, rig) and the analysis.
+
+Layout (see DESIGN.md)::
+
+    study.toml      [study] name, reference_specimen; [sensor] px_per_mm, roi; [protocol] forces_n
+    specimens.csv   specimen, shape, wavelength_mm, geometry columns
+    manifest.csv    image, specimen, pad, force_n, repetition [, nominal_force_n, contact_fraction, timestamp]
+    ratings.csv     participant, session, specimen, rating
+    images/         image files; manifest paths are relative to the folder
+
+Every reader here validates and raises :class:`~roughsense.errors.InputError` naming the file and line,
+so nothing downstream has to re-check. Every writer is atomic.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import atomic
+from .errors import ConfigError, InputError, OutputExistsError
+
+STUDY_TOML = "study.toml"
+SPECIMENS_CSV = "specimens.csv"
+MANIFEST_CSV = "manifest.csv"
+RATINGS_CSV = "ratings.csv"
+IMAGES_DIR = "images"
+
+DEFAULT_PX_PER_MM = 34.9
+DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
+DEFAULT_REFERENCE = "R3"
+
+MANIFEST_COLUMNS = ("image", "specimen", "pad", "force_n", "repetition")
+SPECIMEN_COLUMNS = ("specimen", "shape", "wavelength_mm")
+RATING_COLUMNS = ("participant", "session", "specimen", "rating")
+SHAPES = ("rectangular", "circular", "sinusoidal", "random", "other")
+
+Roi = str | tuple[int, int, int, int]
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def csv_line(index: int) -> int:
+    """Line number in the file of DataFrame row ``index`` (line 1 is the header)."""
+    return int(index) + 2
+
+
+def read_table(
+    path: str | os.PathLike[str],
+    required: Sequence[str],
+    *,
+    numeric: Sequence[str] = (),
+    positive: Sequence[str] = (),
+    integer: Sequence[str] = (),
+    text: Sequence[str] = (),
+) -> pd.DataFrame:
+    """Read a CSV and check columns and values, naming the line of the first bad cell.
+
+    ``text`` columns are kept as strings (so specimen "3" stays "3", and participant IDs keep leading zeros).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    dtypes = {name: str for name in set(text) | {"image", "specimen", "pad", "participant", "shape"}}
+    try:
+        frame = pd.read_csv(path, dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""])
+    except pd.errors.EmptyDataError:
+        raise InputError("is empty; expected a header line", path=path) from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"is not a readable CSV ({first})", path=path) from None
+    frame.columns = [str(c).strip() for c in frame.columns]
+    missing = [c for c in required if c not in frame.columns]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}", path=path)
+    for column in required:
+        blank = frame[column].isna()
+        if blank.any():
+            raise InputError("empty value", path=path, row=csv_line(np.flatnonzero(blank)[0]), column=column)
+    for column in dict.fromkeys([*numeric, *positive, *integer]):
+        if column not in frame.columns:
+            continue
+        values = pd.to_numeric(frame[column], errors="coerce")
+        bad = values.isna() & frame[column].notna()
+        bad |= ~np.isfinite(values.fillna(0.0))
+        if bad.any():
+            i = np.flatnonzero(bad)[0]
+            raise InputError(f"not a finite number: {frame[column].iloc[i]!r}", path=path, row=csv_line(i), column=column)
+        if column in positive:
+            nonpos = values <= 0
+            if nonpos.any():
+                i = np.flatnonzero(nonpos)[0]
+                raise InputError(f"must be positive, got {values.iloc[i]:g}", path=path, row=csv_line(i), column=column)
+        if column in integer:
+            frac = values.notna() & (values != np.round(values))
+            if frac.any():
+                i = np.flatnonzero(frac)[0]
+                raise InputError(f"must be a whole number, got {values.iloc[i]:g}", path=path, row=csv_line(i), column=column)
+            frame[column] = values.astype("Int64") if values.isna().any() else values.astype(np.int64)
+        else:
+            frame[column] = values.astype(float)
+    for column in text:
+        if column in frame.columns:
+            frame[column] = frame[column].str.strip()
+    return frame
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class SensorSettings:
+    """How images of this study are turned into lines: camera scale and where the contact band is."""
+
+    px_per_mm: float = DEFAULT_PX_PER_MM
+    roi: Roi = "center"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.px_per_mm, (int, float)) and math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
+            raise ConfigError(f"px_per_mm must be a positive number, got {self.px_per_mm!r}")
+        object.__setattr__(self, "roi", parse_roi(self.roi))
+
+
+def parse_roi(value: object) -> Roi:
+    """Accept "center", "auto", "X,Y,W,H" or a 4-sequence of non-negative ints (W, H positive)."""
+    if isinstance(value, str):
+        text = value.strip().lower()
+        if text in ("center", "centre"):
+            return "center"
+        if text == "auto":
+            return "auto"
+        parts = [p.strip() for p in text.split(",")]
+    elif isinstance(value, Sequence):
+        parts = list(value)
+    else:
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {value!r}")
+    if len(parts) != 4:
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {value!r}")
+    try:
+        numbers = [float(p) for p in parts]
+    except (TypeError, ValueError):
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {value!r}") from None
+    if any(n != int(n) for n in numbers):
+        raise ConfigError(f"ROI values must be whole pixels, got {value!r}")
+    x, y, w, h = (int(n) for n in numbers)
+    if x < 0 or y < 0 or w <= 0 or h <= 0:
+        raise ConfigError(f"ROI needs X,Y >= 0 and W,H > 0, got {value!r}")
+    return (x, y, w, h)
+
+
+def nominal_force_label(force_n: float) -> str:
+    """Condition label of a nominal force: 1.0 -> "1N", 2.5 -> "2.5N"."""
+    return f"{force_n:g}N"
+
+
+# --------------------------------------------------------------------------- the study
+
+
+@dataclass
+class Study:
+    """A validated study folder held in memory (images stay on disk and are streamed)."""
+
+    root: Path
+    name: str
+    reference_specimen: str
+    sensor: SensorSettings
+    forces_n: tuple[float, ...]
+    specimens: pd.DataFrame
+    manifest: pd.DataFrame
+    ratings: pd.DataFrame | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def image_paths(self) -> list[Path]:
+        return [self.root / p for p in self.manifest["image"]]
+
+    @property
+    def pads(self) -> list[str]:
+        return list(dict.fromkeys(self.manifest["pad"]))
+
+    @property
+    def specimen_names(self) -> list[str]:
+        return list(self.specimens["specimen"])
+
+    def condition_labels(self) -> list[str]:
+        return [nominal_force_label(f) for f in self.forces_n]
+
+
+def _read_config(root: Path) -> dict:
+    path = root / STUDY_TOML
+    if not path.is_file():
+        raise InputError("file not found (every study folder needs study.toml)", path=path)
+    try:
+        with path.open("rb") as handle:
+            return tomllib.load(handle)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"is not valid TOML ({exc})", path=path) from None
+
+
+def _sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
+    sensor = config.get("sensor", {})
+    try:
+        return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", "center"))
+    except ConfigError as exc:
+        raise InputError(f"[sensor] {exc.message}", path=path) from None
+
+
+def read_specimens(path: str | os.PathLike[str]) -> pd.DataFrame:
+    path = Path(path)
+    frame = read_table(path, SPECIMEN_COLUMNS, positive=["wavelength_mm"], text=["specimen", "shape"])
+    dup = frame["specimen"].duplicated()
+    if dup.any():
+        i = np.flatnonzero(dup)[0]
+        raise InputError(f"specimen {frame['specimen'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="specimen")
+    bad_shape = ~frame["shape"].str.lower().isin(SHAPES)
+    if bad_shape.any():
+        i = np.flatnonzero(bad_shape)[0]
+        raise InputError(
+            f"unknown shape {frame['shape'].iloc[i]!r}; expected one of {', '.join(SHAPES)}",
+            path=path, row=csv_line(i), column="shape",
+        )
+    frame["shape"] = frame["shape"].str.lower()
+    return frame
+
+
+def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str] | None = None) -> pd.DataFrame:
+    path = Path(path)
+    frame = read_table(
+        path,
+        MANIFEST_COLUMNS,
+        positive=["force_n", *(["nominal_force_n"] if _has_column(path, "nominal_force_n") else [])],
+        integer=["repetition"],
+        numeric=["contact_fraction"],
+        text=["image", "specimen", "pad"],
+    )
+    if known_specimens is not None:
+        known = set(known_specimens)
+        unknown = ~frame["specimen"].isin(known)
+        if unknown.any():
+            i = np.flatnonzero(unknown)[0]
+            raise InputError(
+                f"unknown specimen {frame['specimen'].iloc[i]!r} (not in {SPECIMENS_CSV})",
+                path=path, row=csv_line(i), column="specimen",
+            )
+    dup = frame["image"].duplicated()
+    if dup.any():
+        i = np.flatnonzero(dup)[0]
+        raise InputError(f"image {frame['image'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="image")
+    return frame
+
+
+def _has_column(path: Path, column: str) -> bool:
+    try:
+        with path.open(encoding="utf-8") as handle:
+            header = handle.readline()
+    except OSError:
+        return False
+    return column in [c.strip() for c in header.strip().split(",")]
+
+
+def assign_nominal_forces(manifest: pd.DataFrame, forces_n: Sequence[float], path: Path | None = None) -> pd.DataFrame:
+    """Give each image its nominal force (the condition), from the column or the nearest protocol force.
+
+    The scale reading (``force_n``) scatters around the nominal force; a reading nearer to no protocol
+    force than half the spacing is refused rather than silently binned.
+    """
+    manifest = manifest.copy()
+    forces = np.asarray(sorted(forces_n), dtype=float)
+    if "nominal_force_n" in manifest.columns:
+        nominal = manifest["nominal_force_n"].to_numpy(float)
+        off = ~np.isin(nominal, forces)
+        if off.any():
+            i = np.flatnonzero(off)[0]
+            raise InputError(
+                f"nominal force {nominal[i]:g} N is not one of the protocol forces {', '.join(f'{f:g}' for f in forces)}",
+                path=path, row=csv_line(i), column="nominal_force_n",
+            )
+    else:
+        measured = manifest["force_n"].to_numpy(float)
+        nearest = np.abs(measured[:, None] - forces[None, :]).argmin(axis=1)
+        nominal = forces[nearest]
+        spacing = np.min(np.diff(forces)) if forces.size > 1 else forces[0]
+        far = np.abs(measured - nominal) > 0.5 * spacing
+        if far.any():
+            i = np.flatnonzero(far)[0]
+            raise InputError(
+                f"force {measured[i]:g} N is far from every protocol force ({', '.join(f'{f:g}' for f in forces)})",
+                path=path, row=csv_line(i), column="force_n",
+            )
+    manifest["nominal_force_n"] = nominal
+    manifest["condition"] = [nominal_force_label(f) for f in nominal]
+    return manifest
+
+
+def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
+    """Structural read of ratings.csv; perception.py adds the domain checks (reference, gaps)."""
+    return read_table(path, RATING_COLUMNS, positive=["rating"], text=["participant", "session", "specimen"])
+
+
+def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
+    """Read and validate a study folder. Raises InputError naming the first problem found."""
+    root = Path(root)
+    if not root.is_dir():
+        raise InputError("study folder not found", path=root)
+    config = _read_config(root)
+    toml_path = root / STUDY_TOML
+    study_cfg = config.get("study", {})
+    sensor = _sensor_from_config(config, toml_path)
+    forces = config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N))
+    try:
+        forces_n = tuple(float(f) for f in forces)
+    except (TypeError, ValueError):
+        raise InputError(f"[protocol] forces_n must be a list of numbers, got {forces!r}", path=toml_path) from None
+    if not forces_n or any(not math.isfinite(f) or f <= 0 for f in forces_n) or len(set(forces_n)) != len(forces_n):
+        raise InputError(f"[protocol] forces_n must be distinct positive numbers, got {forces!r}", path=toml_path)
+
+    specimens = read_specimens(root / SPECIMENS_CSV)
+    manifest_path = root / MANIFEST_CSV
+    manifest = read_manifest(manifest_path, known_specimens=specimens["specimen"])
+    manifest = assign_nominal_forces(manifest, forces_n, manifest_path)
+    if check_images:
+        for i, rel in enumerate(manifest["image"]):
+            if not (root / rel).is_file():
+                raise InputError(f"image file not found: {rel}", path=manifest_path, row=csv_line(i), column="image")
+
+    ratings = None
+    ratings_path = root / RATINGS_CSV
+    if ratings_path.exists():
+        ratings = read_ratings_table(ratings_path)
+        unknown = ~ratings["specimen"].isin(set(specimens["specimen"]))
+        if unknown.any():
+            i = np.flatnonzero(unknown)[0]
+            raise InputError(
+                f"unknown specimen {ratings['specimen'].iloc[i]!r} (not in {SPECIMENS_CSV})",
+                path=ratings_path, row=csv_line(i), column="specimen",
+            )
+    elif require_ratings:
+        raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
+
+    reference = str(study_cfg.get("reference_specimen", DEFAULT_REFERENCE))
+    return Study(
+        root=root,
+        name=str(study_cfg.get("name", root.name)),
+        reference_specimen=reference,
+        sensor=sensor,
+        forces_n=forces_n,
+        specimens=specimens,
+        manifest=manifest,
+        ratings=ratings,
+        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol")},
+    )
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, str):
+        escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+        return f'"{escaped}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def dump_toml(tables: Mapping[str, Mapping[str, object]]) -> str:
+    """Tiny TOML writer for flat tables of scalars and lists (all study.toml needs)."""
+    lines: list[str] = []
+    for table, values in tables.items():
+        lines.append(f"[{table}]")
+        for key, value in values.items():
+            lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+class StudyWriter:
+    """Writes a study folder atomically, file by file. Used by both the simulator and the rig.
+
+    A non-empty folder is refused unless ``force`` (then files roughsense writes are replaced, and
+    nothing else is touched) or ``resume`` (the rig appends to its own earlier session).
+    """
+
+    def __init__(self, root: str | os.PathLike[str], *, force: bool = False, resume: bool = False) -> None:
+        self.root = Path(root)
+        self.force = force
+        if self.root.exists() and not self.root.is_dir():
+            raise OutputExistsError("exists and is not a folder", path=self.root)
+        if self.root.is_dir() and any(self.root.iterdir()) and not (force or resume):
+            raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=self.root)
+        self.root.mkdir(parents=True, exist_ok=True)
+        (self.root / IMAGES_DIR).mkdir(exist_ok=True)
+
+    def write_config(
+        self,
+        *,
+        name: str,
+        reference_specimen: str = DEFAULT_REFERENCE,
+        sensor: SensorSettings = SensorSettings(),
+        forces_n: Sequence[float] = DEFAULT_FORCES_N,
+        extra: Mapping[str, Mapping[str, object]] | None = None,
+    ) -> Path:
+        roi = sensor.roi if isinstance(sensor.roi, str) else list(sensor.roi)
+        tables: dict[str, Mapping[str, object]] = {
+            "study": {"name": name, "reference_specimen": reference_specimen},
+            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi},
+            "protocol": {"forces_n": [float(f) for f in forces_n]},
+        }
+        tables.update(extra or {})
+        return atomic.write_text(self.root / STUDY_TOML, dump_toml(tables))
+
+    def write_specimens(self, specimens: pd.DataFrame) -> Path:
+        missing = [c for c in SPECIMEN_COLUMNS if c not in specimens.columns]
+        if missing:
+            raise ValueError(f"specimens table lacks {missing}")
+        return atomic.write_csv(self.root / SPECIMENS_CSV, specimens)
+
+    def write_manifest(self, manifest: pd.DataFrame) -> Path:
+        missing = [c for c in MANIFEST_COLUMNS if c not in manifest.columns]
+        if missing:
+            raise ValueError(f"manifest lacks {missing}")
+        return atomic.write_csv(self.root / MANIFEST_CSV, manifest)
+
+    def append_manifest_row(self, row: Mapping[str, object]) -> Path:
+        """Append one row by rewriting the file atomically: a crash never leaves half a row."""
+        path = self.root / MANIFEST_CSV
+        new = pd.DataFrame([dict(row)])
+        if path.exists():
+            old = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str}, keep_default_na=False, na_values=[""])
+            new = pd.concat([old, new], ignore_index=True)
+        return self.write_manifest(new)
+
+    def write_ratings(self, ratings: pd.DataFrame) -> Path:
+        return atomic.write_csv(self.root / RATINGS_CSV, ratings)
+
+    def image_path(self, name: str) -> Path:
+        return self.root / IMAGES_DIR / name
+
+    def write_image(self, name: str, image: np.ndarray) -> str:
+        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path."""
+        import cv2  # local: the study contract should not pay for OpenCV at import
+
+        target = self.image_path(name)
+        if target.exists() and not self.force:
+            raise OutputExistsError("already exists; refusing to overwrite a captured image", path=target)
+        ext = target.suffix.lower() or ".png"
+        array = np.ascontiguousarray(image)
+        if array.ndim == 3 and array.shape[2] == 3:
+            array = array[:, :, ::-1]  # OpenCV stores BGR; callers hand us RGB
+        ok, encoded = cv2.imencode(ext, array)
+        if not ok:
+            raise InputError(f"could not encode image as {ext}", path=target)
+        atomic.write_bytes(target, encoded.tobytes())
+        return f"{IMAGES_DIR}/{name}"

@@ -1,0 +1,126 @@
+"""The foundation: one error family, atomic writes and the study-folder contract."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from roughsense import atomic
+from roughsense.errors import InputError, OutputExistsError, RoughsenseError
+from roughsense.study import (
+    SensorSettings,
+    StudyWriter,
+    assign_nominal_forces,
+    parse_roi,
+    read_study,
+    read_table,
+)
+
+
+def test_error_names_file_row_and_column(tmp_path):
+    err = InputError("not a number", path=tmp_path / "a.csv", row=3, column="rating")
+    assert str(err) == f"{tmp_path / 'a.csv'}, row 3, column 'rating': not a number"
+    assert isinstance(err, RoughsenseError)
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.csv"
+    with pytest.raises(ZeroDivisionError):
+        with atomic.atomic_open(target) as handle:
+            handle.write("partial")
+            1 / 0
+    assert list(tmp_path.iterdir()) == []
+    atomic.write_text(target, "whole\n")
+    assert target.read_text() == "whole\n"
+
+
+def test_check_can_write_refuses_existing_without_force(tmp_path):
+    target = tmp_path / "model.json"
+    target.write_text("{}")
+    with pytest.raises(OutputExistsError):
+        atomic.check_can_write(target)
+    assert atomic.check_can_write(target, force=True) == target
+
+
+def test_read_table_names_the_line_of_a_bad_value(tmp_path):
+    path = tmp_path / "ratings.csv"
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\nP1,2,R2,abc\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and info.value.column == "rating"
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [("center", "center"), ("auto", "auto"), ("10,20,300,40", (10, 20, 300, 40)), ([0, 0, 5, 5], (0, 0, 5, 5))],
+)
+def test_parse_roi(text, expected):
+    assert parse_roi(text) == expected
+
+
+@pytest.mark.parametrize("text", ["1,2,3", "a,b,c,d", "0,0,0,5", "-1,0,5,5", "1.5,0,5,5"])
+def test_parse_roi_rejects(text):
+    with pytest.raises(RoughsenseError):
+        parse_roi(text)
+
+
+def test_nominal_force_is_nearest_protocol_force():
+    manifest = pd.DataFrame({"force_n": [0.93, 2.08, 3.2]})
+    out = assign_nominal_forces(manifest, (1.0, 2.0, 3.0))
+    assert list(out["condition"]) == ["1N", "2N", "3N"]
+    with pytest.raises(InputError):
+        assign_nominal_forces(pd.DataFrame({"force_n": [4.2]}), (1.0, 2.0, 3.0))
+
+
+def _write_minimal_study(root):
+    import numpy as np
+
+    writer = StudyWriter(root)
+    writer.write_config(name="t", sensor=SensorSettings(px_per_mm=20.0, roi=(0, 0, 64, 8)))
+    writer.write_specimens(pd.DataFrame({"specimen": ["R2", "R3"], "shape": ["rectangular"] * 2, "wavelength_mm": [2.0, 3.0]}))
+    rows = []
+    for specimen in ("R2", "R3"):
+        rel = writer.write_image(f"{specimen}.png", np.full((8, 64), 128, np.uint8))
+        rows.append({"image": rel, "specimen": specimen, "pad": "smooth", "force_n": 1.02, "repetition": 1})
+    writer.write_manifest(pd.DataFrame(rows))
+    return writer
+
+
+def test_study_round_trip(tmp_path):
+    _write_minimal_study(tmp_path / "s")
+    study = read_study(tmp_path / "s")
+    assert study.sensor == SensorSettings(px_per_mm=20.0, roi=(0, 0, 64, 8))
+    assert study.forces_n == (1.0, 2.0, 3.0)
+    assert list(study.manifest["condition"]) == ["1N", "1N"]
+    assert all(p.is_file() for p in study.image_paths)
+
+
+def test_study_writer_refuses_non_empty_folder(tmp_path):
+    root = tmp_path / "s"
+    root.mkdir()
+    (root / "notes.txt").write_text("mine")
+    with pytest.raises(OutputExistsError):
+        StudyWriter(root)
+    StudyWriter(root, force=True)
+    assert (root / "notes.txt").read_text() == "mine"
+
+
+def test_study_with_unknown_specimen_names_the_row(tmp_path):
+    _write_minimal_study(tmp_path / "s")
+    manifest = tmp_path / "s" / "manifest.csv"
+    manifest.write_text(manifest.read_text().replace("R3", "R9"))
+    with pytest.raises(InputError) as info:
+        read_study(tmp_path / "s")
+    assert info.value.row == 3 and "R9" in str(info.value)
+
+
+def test_cli_error_is_one_line_exit_2(run_cli, tmp_path):
+    from roughsense.cli import app
+
+    @app.command("_boom", hidden=True)
+    def _boom() -> None:
+        raise InputError("bad thing", path=tmp_path / "x.csv", row=2)
+
+    code, out, err = run_cli("_boom")
+    assert code == 2
+    assert err.strip().count("\n") == 0 and "x.csv, row 2: bad thing" in err
+    assert "Traceback" not in err
