@@ -124,3 +124,14 @@ def test_cli_error_is_one_line_exit_2(run_cli, tmp_path):
     assert code == 2
     assert err.strip().count("\n") == 0 and "x.csv, row 2: bad thing" in err
     assert "Traceback" not in err
+
+
+def test_atomic_files_get_the_usual_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        path = atomic.write_text(tmp_path / "shared.csv", "a\n")
+    finally:
+        os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o644

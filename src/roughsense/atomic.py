@@ -15,6 +15,13 @@ from typing import IO
 from .errors import OutputExistsError, RoughsenseError
 
 
+def _default_file_mode() -> int:
+    """The mode ``open()`` would give a new file (0666 minus the umask); mkstemp alone gives 0600."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def check_can_write(path: str | os.PathLike[str], *, force: bool = False) -> Path:
     """Refuse to replace an existing file unless ``force``: user data is never overwritten silently."""
     target = Path(path)
@@ -39,6 +46,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
         raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
     tmp = Path(tmp_name)
     try:
+        os.chmod(tmp, _default_file_mode())
         if "b" in mode:
             handle = os.fdopen(fd, mode)
         else:

@@ -1,0 +1,74 @@
+"""Calibrate the simulator's trial-to-trial noise against the paper's regime (not a test; see docs/simulator.md).
+
+Renders the paper's study in memory (no PNG files), extracts the paper's features with roughsense.sensor
+(1900 x 150 centre crop, gray, middle row, |FFT| at 45 frequencies 0.1-1.0 mm^-1, area-normalised), runs LOO PLS
+with roughsense.pls (components 1..20, the minimum-RMSE count) against the paper's perceived roughness, and
+prints the mean per-specimen RMSE per pad and condition. The paper: fingerprint single-force ~0.2-0.3,
+smooth lower, combined lower still.
+
+    .venv/bin/python scripts/calibrate_sim.py [--scale 1.0] [--seed 0] [--repetitions 10] [--jobs 2]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pandas as pd
+
+from roughsense.pls import pls_cv
+from roughsense.sensor import spatial_spectrum
+from roughsense.sim.panel import paper_perceived
+from roughsense.sim.simulate import SimulationConfig, plan_trials, render_trial
+
+
+def _features(trial):
+    frame, _ = render_trial(trial)
+    return spatial_spectrum(frame)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scale", type=float, default=1.0, help="multiply every bench spread by this")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repetitions", type=int, default=10)
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--camera", nargs="*", default=[], help="camera overrides, e.g. read_noise_dn=4")
+    args = parser.parse_args()
+
+    config = SimulationConfig(seed=args.seed, repetitions=args.repetitions)
+    config = dataclasses.replace(config, bench=config.bench.scaled(args.scale))
+    if args.camera:
+        overrides = {k: float(v) for k, v in (item.split("=") for item in args.camera)}
+        config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, **overrides))
+    pads, specimens = config.validate()
+    trials = plan_trials(config, pads, specimens)
+    with ProcessPoolExecutor(args.jobs) as pool:
+        X_all = np.array(list(pool.map(_features, trials, chunksize=8)))
+    meta = pd.DataFrame({"pad": [t.pad.name for t in trials], "specimen": [t.specimen.name for t in trials],
+                         "force": [t.nominal_force_n for t in trials], "rep": [t.repetition for t in trials]})
+    target = paper_perceived()["perceived_gmean"]
+    rows = []
+    for pad in config.pads:
+        blocks = {}
+        for force in config.forces_n:
+            sel = (meta["pad"] == pad) & (meta["force"] == force)
+            blocks[f"{force:g}N"] = (X_all[sel.to_numpy()], meta[sel].reset_index(drop=True))
+        first_meta = next(iter(blocks.values()))[1]
+        blocks["combined"] = (np.hstack([b[0] for b in blocks.values()]), first_meta)
+        for condition, (X, m) in blocks.items():
+            y = target.loc[m["specimen"]].to_numpy(float)
+            result = pls_cv(X, y, max_components=20)
+            a = int(np.argmin(result.rmse[1:]) + 1)
+            pred = result.predictions[:, a]
+            err = pd.Series((pred - y) ** 2).groupby(m["specimen"].to_numpy()).mean() ** 0.5
+            rows.append({"pad": pad, "condition": condition, "components": a,
+                         "overall_rmse": float(result.rmse[a]), "mean_specimen_rmse": float(err.mean())})
+    table = pd.DataFrame(rows)
+    print(f"bench scale {args.scale:g}, seed {args.seed}, camera overrides {args.camera or 'none'}")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+
+
+if __name__ == "__main__":
+    main()

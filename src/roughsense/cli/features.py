@@ -1,0 +1,98 @@
+"""``roughsense features``: contact images (or a study folder) -> a CSV of spatial spectra."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import ConfigError
+from ._common import parse_float_list, progress
+
+ORDER = 10
+
+
+def _band(text: str) -> tuple[float, float]:
+    values = parse_float_list(text, name="band")
+    if len(values) != 2:
+        raise ConfigError(f"--band needs two numbers F_MIN,F_MAX in mm^-1, got {text!r}")
+    return values[0], values[1]
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("features")
+    def features(
+        out: Annotated[
+            Path,
+            typer.Option("--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency in mm^-1."),
+        ],
+        images: Annotated[
+            list[Path] | None,
+            typer.Argument(metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False),
+        ] = None,
+        study: Annotated[
+            Path | None,
+            typer.Option("--study", help="A study folder: use its manifest's images and carry the manifest's columns along."),
+        ] = None,
+        px_per_mm: Annotated[
+            float | None,
+            typer.Option("--px-per-mm", help="Camera scale in px/mm along the line. Default: the study's, else 34.9 (the paper's 349 px/cm).", show_default=False),
+        ] = None,
+        roi: Annotated[
+            str | None,
+            typer.Option(
+                "--roi",
+                help="Crop: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band with the most "
+                "horizontal texture) or X,Y,W,H in px. Default: the study's, else center.",
+                show_default=False,
+            ),
+        ] = None,
+        rows: Annotated[int, typer.Option("--rows", help="Average the N central rows of the crop (1 = the paper's middle row).")] = 1,
+        band: Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")] = "0.1,1.0",
+        n_freqs: Annotated[int, typer.Option("--n-freqs", help="Number of evenly spaced frequencies in the band.")] = 45,
+        window: Annotated[str, typer.Option("--window", help="Taper before the DFT: 'hann' (default) or 'none' (the paper's literal choice).")] = "hann",
+        jobs: Annotated[int, typer.Option("--jobs", "-j", help="Decoding threads; -1 uses every core.")] = -1,
+        force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
+    ) -> None:
+        """Turn contact images into normalised spatial spectra (the paper's section 3.2).
+
+        Each image is cropped, converted to gray (MATLAB weights) and reduced to its middle row; the amplitude spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. Nothing is written if any image fails; the error names that file.
+        """
+        import pandas as pd
+
+        from ..atomic import check_can_write, write_csv
+        from ..sensor import SpatialSpectrum
+        from ..study import read_study
+
+        if study is not None and images:
+            raise ConfigError("give either IMAGE... or --study DIR, not both")
+        if study is None and not images:
+            raise ConfigError("no images given; pass IMAGE... or --study DIR")
+        check_can_write(out, force=force)
+        f_min, f_max = _band(band)
+
+        if study is not None:
+            loaded = read_study(study)
+            table = loaded.manifest.reset_index(drop=True)
+            paths = loaded.image_paths
+            px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
+            roi = loaded.sensor.roi if roi is None else roi
+        else:
+            paths = list(images)
+            table = pd.DataFrame({"image": [str(p) for p in paths]})
+        spectrum = SpatialSpectrum(
+            px_per_mm=34.9 if px_per_mm is None else px_per_mm,
+            roi="center" if roi is None else roi,
+            rows=rows,
+            f_min_per_mm=f_min,
+            f_max_per_mm=f_max,
+            n_freqs=n_freqs,
+            n_jobs=jobs,
+            window=window,
+        ).fit()
+        names = list(spectrum.get_feature_names_out())
+        spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
+        features = pd.DataFrame(spectra, columns=names)
+        carried = table.drop(columns=[c for c in names if c in table.columns])
+        write_csv(out, pd.concat([carried, features], axis=1))
+        typer.echo(f"wrote {len(paths)} x {len(names)} features to {out}")

@@ -1,0 +1,57 @@
+"""``roughsense simulate``: the digital twin writes a study folder (see docs/simulator.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from ._common import parse_float_list, parse_name_list, progress
+
+ORDER = 40
+
+_DEFAULT_SPECIMENS = "R2,R2.5,R3,R3.5,R4,R4.5,R5,C2,C2.5,C3,C3.5,C4,C4.5,C5"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("simulate")
+    def simulate(
+        out: Path = typer.Option(..., "--out", help="Study folder to write (must be empty or new, unless --force)."),
+        seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
+        pads: str = typer.Option("smooth,fingerprint", "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
+        specimens: str = typer.Option(
+            _DEFAULT_SPECIMENS, "--specimens",
+            help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens, in mm: "
+                 "rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, "
+                 "rand:CORRELATION_LENGTH:RMS[:SEED]. Example: R3,sin:3:0.5,rect:3.5:0.8.",
+        ),
+        forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
+        repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
+        fingerprint_period_mm: float = typer.Option(1.0, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
+        ridge_height_mm: float = typer.Option(0.2, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        jobs: int | None = typer.Option(None, "--jobs", help="Worker processes [default: all cores]. Results do not depend on it."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty folder, replacing files of the same name (nothing is deleted)."),
+    ) -> None:
+        """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
+
+        The defaults are the paper's full study: 2 pads x 14 specimens x 3 forces x 10 repetitions = 840 images,
+        and 10 participants x 3 sessions x 13 specimens = 390 ratings (R3 is the reference). Try a new pad or
+        specimen before building it, e.g. --fingerprint-period-mm 0.5 or --specimens R3,sin:3:0.5.
+        """
+        from ..errors import ConfigError
+        from ..sim import SimulationConfig, SimulationRun
+
+        if jobs is not None and jobs < 1:
+            raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+        config = SimulationConfig(
+            pads=tuple(parse_name_list(pads)),
+            specimens=tuple(parse_name_list(specimens)),
+            forces_n=tuple(parse_float_list(forces, name="forces")),
+            repetitions=repetitions,
+            seed=seed,
+            fingerprint_period_mm=fingerprint_period_mm,
+            ridge_height_mm=ridge_height_mm,
+        )
+        run = SimulationRun(out, config, force=force, jobs=jobs)
+        for _ in progress(run, total=run.total, description="simulating"):
+            pass
+        typer.echo(f"wrote {run.total} images, {len(run.specimens)} specimens and the panel's ratings to {run.root}")

@@ -1,0 +1,426 @@
+"""PLS1 by SIMPLS, as MATLAB's ``plsregress`` computes it, and exact fast cross-validation.
+
+The paper (section 3.3) regresses perceived roughness on spatial spectra with ``plsregress``: X centred
+but not scaled, y centred, SIMPLS (de Jong 1993). :class:`SIMPLS` reproduces that model; one fit holds
+the coefficients of every component count 1..A so the cross-validation curve needs no refits.
+
+:func:`pls_cv` is exact, not approximate: SIMPLS for one response needs only the centred cross-products
+X'X and X'y, and a training fold's cross-products differ from the full data's by a low-rank term (the
+held-out rows and the shift of the mean). So every fold's model is computed from the shared p x p
+matrix ``G = Xc'Xc`` plus per-fold corrections, and all folds advance together: each component costs one
+batched product ``R @ G`` over the folds' weight vectors, instead of one refit per fold.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .errors import ConfigError, InputError
+
+__all__ = ["SIMPLS", "PLSCVResult", "pls_cv", "PLSInputError", "PLSConfigError"]
+
+
+class PLSInputError(InputError, ValueError):
+    """Bad data for PLS; also a ValueError so scikit-learn tooling (and its checks) recognise it."""
+
+
+class PLSConfigError(ConfigError, ValueError):
+    """An impossible PLS option (too many components, a bad CV scheme); also a ValueError for scikit-learn."""
+
+
+# A covariance vector this much smaller than the first one is rounding noise: the Krylov space
+# of (X'X, X'y) is exhausted and a further component would be arbitrary.
+_EXHAUSTED_RTOL = 1e-12
+
+
+def _validate_xy(estimator, X, y, *, reset: bool = True):
+    """scikit-learn's validation, re-raised as our error family with the same (sklearn-checked) message."""
+    try:
+        X, y = validate_data(estimator, X, y, y_numeric=True, ensure_min_samples=3, dtype=np.float64, reset=reset)
+    except PLSConfigError:
+        raise
+    except ValueError as exc:
+        raise PLSInputError(str(exc)) from None
+    _check_target(y)
+    return X, y
+
+
+def _check_target(y: np.ndarray) -> None:
+    if np.ptp(y) == 0:
+        raise PLSInputError(f"y is constant ({y[0]:g} for all {y.size} samples); PLS needs a response that varies")
+
+
+def _gram_rank(lam: np.ndarray, n: int, p: int) -> int:
+    """Numerical rank from the eigenvalues of the centred Gram matrix X0'X0.
+
+    Eigenvalues below ``10 max(n, p) eps lam_max`` are rounding noise of the eigensolver (its absolute
+    error is of order ``p eps lam_max``), so those directions carry no usable component.
+    """
+    if lam.size == 0 or not lam.max() > 0:
+        return 0
+    return int((lam > 10 * max(n, p) * np.finfo(float).eps * lam.max()).sum())
+
+
+def _max_components(X0: np.ndarray) -> tuple[int, int]:
+    """Largest component count the centred data support: min(n-1, p, numerical rank)."""
+    n, p = X0.shape
+    rank = _gram_rank(np.linalg.eigvalsh(X0.T @ X0), n, p)
+    return min(n - 1, p, rank), rank
+
+
+_BLAS = None
+_USE_EIGH = True
+
+
+def _single_threaded_blas():
+    """A context that limits BLAS to one thread (the controller is built once: scanning libraries is slow)."""
+    global _BLAS
+    if _BLAS is None:
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1, user_api="blas")
+
+
+class SIMPLS(RegressorMixin, BaseEstimator):
+    """PLS1 regression by SIMPLS, numerically the model of MATLAB ``plsregress(X, y, A)``.
+
+    X is centred, not scaled; y is centred. After ``fit`` the attributes mirror plsregress:
+
+    - ``coef_`` (p,) and ``intercept_``: BETA for ``n_components`` (BETA = [intercept_; coef_]);
+    - ``coef_path_`` (p, A) and ``intercept_path_`` (A,): the model with k = 1..A components
+      (column k-1), so ``predict(X, n_components=k)`` needs no refit;
+    - ``x_weights_`` (p, A): stats.W, with ``x_scores_ = (X - x_mean_) @ x_weights_``;
+    - ``x_loadings_`` (p, A): XL; ``y_loadings_`` (A,): YL; ``x_scores_`` (n, A): XS (unit-norm columns);
+      ``y_scores_`` (n, A): YS;
+    - ``pct_var_`` (2, A): PCTVAR, fractions of X and y variance explained per component (not percent,
+      exactly as plsregress returns them).
+
+    Signs follow the paper's eq. (2), r = s/||s||; MATLAB's SVD may flip a component's weights, scores and
+    loadings together, which leaves the coefficients unchanged.
+    """
+
+    def __init__(self, n_components: int = 2):
+        self.n_components = n_components
+
+    def fit(self, X, y):
+        k = self.n_components
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise PLSConfigError(f"n_components must be a positive whole number, got {k!r}")
+        X, y = _validate_xy(self, X, y)
+        n, p = X.shape
+        self.x_mean_ = X.mean(axis=0)
+        self.y_mean_ = float(y.mean())
+        X0 = X - self.x_mean_
+        y0 = y - self.y_mean_
+        k_max, rank = _max_components(X0)
+        if k > k_max:
+            raise PLSConfigError(
+                f"n_components={k} is more than the data support ({k_max}: n_samples={n}, n_features={p}, "
+                f"rank of centred X={rank})"
+            )
+        self._simpls(X0, y0, int(k))
+        return self
+
+    def _simpls(self, X0: np.ndarray, y0: np.ndarray, A: int) -> None:
+        """SIMPLS on centred data, step for step as plsregress does it (for a single response)."""
+        n, p = X0.shape
+        W = np.zeros((p, A))
+        P = np.zeros((p, A))
+        Q = np.zeros(A)
+        T = np.zeros((n, A))
+        U = np.zeros((n, A))
+        V = np.zeros((p, A))
+        cov = X0.T @ y0
+        cov_norm0 = np.linalg.norm(cov)
+        if not cov_norm0 > 0:
+            raise PLSInputError("y is uncorrelated with every column of X (X'y = 0); PLS finds no direction")
+        for a in range(A):
+            s = np.linalg.norm(cov)
+            if not s > _EXHAUSTED_RTOL * cov_norm0:
+                raise PLSConfigError(
+                    f"n_components={A} is more than the data support: after {a} components X'y is exhausted "
+                    f"(y is already fitted exactly in that subspace)"
+                )
+            r = cov / s
+            t = X0 @ r
+            t_norm = np.linalg.norm(t)
+            t = t / t_norm
+            P[:, a] = X0.T @ t
+            Q[a] = y0 @ t
+            W[:, a] = r / t_norm
+            T[:, a] = t
+            u = y0.copy()  # plsregress: YS column, orthogonalised against earlier X scores
+            if a:
+                u -= T[:, :a] @ (T[:, :a].T @ u)
+            U[:, a] = u
+            v = P[:, a].copy()
+            for _ in range(2):  # re-orthogonalise, as plsregress does, for stability
+                v -= V[:, :a] @ (V[:, :a].T @ v)
+            v /= np.linalg.norm(v)
+            V[:, a] = v
+            cov = cov - v * (v @ cov)
+            cov = cov - V[:, : a + 1] @ (V[:, : a + 1].T @ cov)
+        self.x_weights_ = W
+        self.x_loadings_ = P
+        self.y_loadings_ = Q
+        self.x_scores_ = T
+        self.y_scores_ = U
+        self.coef_path_ = np.cumsum(W * Q, axis=1)
+        self.intercept_path_ = self.y_mean_ - self.x_mean_ @ self.coef_path_
+        self.coef_ = np.ascontiguousarray(self.coef_path_[:, -1])
+        self.intercept_ = float(self.intercept_path_[-1])
+        self.pct_var_ = np.vstack([(P**2).sum(axis=0) / (X0**2).sum(), Q**2 / (y0 @ y0)])
+
+    def predict(self, X, n_components: int | None = None):
+        """Predictions of the model with ``n_components`` (default: all fitted) components."""
+        check_is_fitted(self, "coef_path_")
+        try:
+            X = validate_data(self, X, reset=False, dtype=np.float64)
+        except ValueError as exc:
+            raise PLSInputError(str(exc)) from None
+        k = self._component_index(n_components)
+        return linear_predict(X, self.coef_path_[:, k], self.intercept_path_[k])
+
+    def _component_index(self, n_components: int | None) -> int:
+        A = self.coef_path_.shape[1]
+        if n_components is None:
+            return A - 1
+        if isinstance(n_components, bool) or not isinstance(n_components, (int, np.integer)) or not 1 <= n_components <= A:
+            raise PLSConfigError(f"n_components must be a whole number in 1..{A} for this fit, got {n_components!r}")
+        return int(n_components) - 1
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.single_output = True
+        tags.target_tags.multi_output = False
+        return tags
+
+
+def linear_predict(X: np.ndarray, coef: np.ndarray, intercept: float) -> np.ndarray:
+    """The one prediction formula, shared by the estimator and loaded model files (bit-identical results)."""
+    return np.asarray(X, dtype=np.float64) @ np.ascontiguousarray(coef, dtype=np.float64) + float(intercept)
+
+
+# --------------------------------------------------------------------------- cross-validation
+
+
+@dataclass(frozen=True)
+class PLSCVResult:
+    """Cross-validated PLS1 for component counts 0..max (index = number of components).
+
+    ``rmse[0]`` and ``predictions[:, 0]`` belong to the model that predicts the training fold's mean.
+    ``folds[i]`` is the fold that held sample i out; ``test_indices`` lists each fold's samples.
+    ``rmse_se`` is the standard error of the RMSE (delta method on the per-fold mean squared errors).
+    """
+
+    rmse: np.ndarray
+    rmse_se: np.ndarray
+    predictions: np.ndarray
+    best_n_components: int
+    one_se_n_components: int
+    folds: np.ndarray
+    scheme: str
+    fold_mse: np.ndarray = field(repr=False)
+
+    @property
+    def max_components(self) -> int:
+        return self.rmse.size - 1
+
+    @property
+    def n_folds(self) -> int:
+        return self.fold_mse.shape[0]
+
+    @property
+    def test_indices(self) -> list[np.ndarray]:
+        return [np.flatnonzero(self.folds == f) for f in range(self.n_folds)]
+
+
+def _fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
+    """Fold id per sample, 0..F-1, for LOO, leave-one-group-out or shuffled K-fold."""
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (n,):
+            raise PLSInputError(f"groups has {groups.size} entries for {n} samples")
+        if cv not in (None, "logo", "loso"):
+            raise PLSConfigError(f"groups= gives leave-one-group-out; cv={cv!r} cannot be combined with it")
+        _, ids = np.unique(groups, return_inverse=True)
+        if ids.max() < 1:
+            raise PLSConfigError("leave-one-group-out needs at least 2 groups")
+        return ids.astype(np.intp), "leave-one-group-out"
+    if cv is None or cv == "loo":
+        return np.arange(n, dtype=np.intp), "leave-one-out"
+    if isinstance(cv, (int, np.integer)) and not isinstance(cv, bool):
+        if not 2 <= cv <= n:
+            raise PLSConfigError(f"K-fold needs 2 <= k <= n_samples={n}, got k={cv}")
+        rng = np.random.default_rng(random_state)
+        ids = np.empty(n, dtype=np.intp)
+        for f, part in enumerate(np.array_split(rng.permutation(n), int(cv))):
+            ids[part] = f
+        return ids, f"{int(cv)}-fold"
+    raise PLSConfigError(f"cv must be 'loo', a whole number of folds, or None with groups=; got {cv!r}")
+
+
+def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None) -> PLSCVResult:
+    """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
+
+    ``cv="loo"`` is the paper's leave-one-out; an int k gives shuffled K-fold (seeded by ``random_state``);
+    ``groups=`` gives leave-one-group-out (e.g. leave-one-specimen-out; the default ``cv`` then means that).
+    The result equals refitting :class:`SIMPLS` on every training fold, to rounding.
+    """
+    if groups is not None and cv == "loo":
+        cv = None
+    try:
+        X, y = validate_data(SIMPLS(), X, y, y_numeric=True, ensure_min_samples=3, dtype=np.float64, reset=True)
+    except ValueError as exc:
+        raise PLSInputError(str(exc)) from None
+    _check_target(y)
+    if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
+        raise PLSConfigError(f"max_components must be a positive whole number, got {max_components!r}")
+    A = int(max_components)
+    n = X.shape[0]
+    fid, scheme = _fold_ids(n, cv, groups, random_state)
+    # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
+    with _single_threaded_blas():
+        pred = _cv_predictions(X, y, fid, A)
+    F = int(fid.max()) + 1
+    m = np.bincount(fid, minlength=F)
+    order = np.argsort(fid, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(m)[:-1]])
+    err2 = (pred - y[:, None]) ** 2
+    rmse = np.sqrt(err2.mean(axis=0))
+    fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
+    if F > 1:
+        se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)
+        rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
+    else:  # pragma: no cover - _fold_ids never yields one fold
+        rmse_se = np.zeros_like(rmse)
+    best = int(np.argmin(rmse[1:])) + 1
+    within = np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])
+    one_se = int(within[0]) + 1
+    return PLSCVResult(
+        rmse=rmse,
+        rmse_se=rmse_se,
+        predictions=pred,
+        best_n_components=best,
+        one_se_n_components=one_se,
+        folds=fid,
+        scheme=scheme,
+        fold_mse=fold_mse,
+    )
+
+
+def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np.ndarray:
+    """Out-of-fold predictions (n, A+1) of every fold's PLS1 model, all folds advanced together.
+
+    PLS1 with k components is the least-squares fit restricted to the Krylov space
+    K_k(S, s) of the centred cross-products S = X'X, s = X'y (Helland 1988); SIMPLS, NIPALS and
+    Lanczos/conjugate gradients are different bases of the same space and give the same coefficients.
+    Here each fold runs Lanczos with full reorthogonalisation on its own S_f, s_f, and the
+    coefficients are accumulated by the D-Lanczos (conjugate-gradient) recurrences, so only the
+    held-out samples' projections are ever formed, never a p-vector of coefficients per component.
+
+    S_f is the full data's G = Xc'Xc minus a low-rank term (held-out rows and the shift of the
+    mean). In the eigenvectors of G, G is diagonal, so S_f w costs O(p) per fold.
+    """
+    n, p = X.shape
+    F = int(fid.max()) + 1
+    m = np.bincount(fid, minlength=F)
+    n_train = n - m
+    Xc = X - X.mean(axis=0)
+    yc = y - y.mean()
+    if _USE_EIGH and p <= n:
+        lam, E = np.linalg.eigh(Xc.T @ Xc)
+        Z = Xc @ E  # samples in the eigenvector coordinates of G; Z'Z = diag(lam) to rounding
+    else:  # wide data: the row space has at most n dimensions, and the SVD finds them cheaply
+        U, sv, _ = np.linalg.svd(Xc, full_matrices=False)
+        Z, lam = U * sv, sv**2
+    rank = _gram_rank(lam, n, p)
+    k_max = min(n - 1, p, rank)
+    k_fold = int(n_train.min()) - 1
+    if A > min(k_max, k_fold):
+        raise PLSConfigError(
+            f"max_components={A} is more than the data support (n_samples={n}, n_features={p}, rank={rank}, "
+            f"smallest training fold={int(n_train.min())} samples: at most {min(k_max, k_fold)} components)"
+        )
+    dim = Z.shape[1]  # nothing is truncated: null directions simply never enter a Krylov space
+
+    # Sums over each fold's held-out rows: sort by fold once, then one reduceat per use.
+    order = np.argsort(fid, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(m)[:-1]])
+    loo = bool(np.all(m == 1)) and bool(np.all(order == np.arange(n)))
+
+    def fold_sum(M: np.ndarray) -> np.ndarray:
+        return M if loo else np.add.reduceat(M[order], starts, axis=0)
+
+    def per_sample(M: np.ndarray) -> np.ndarray:
+        return M if loo else M[fid]
+
+    nt = n_train.astype(float)
+    d = -fold_sum(Z) / nt[:, None]  # each training fold's mean, in centred rotated coordinates (F, r)
+    e = -fold_sum(yc) / nt  # each training fold's mean of yc (F,)
+    s0 = (Z.T @ yc)[None, :] - fold_sum(Z * yc[:, None]) - nt[:, None] * d * e[:, None]  # X'y per fold
+    s0_norm = np.sqrt(np.einsum("fp,fp->f", s0, s0))
+    if not np.all(s0_norm > 0):
+        f = int(np.flatnonzero(~(s0_norm > 0))[0])
+        raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
+    exhausted = _EXHAUSTED_RTOL * lam.max()
+
+    pred = np.empty((n, A + 1))
+    pred[:, 0] = y.mean() + per_sample(e)
+    W = np.empty((F, A + 1, dim))  # each fold's orthonormal Lanczos basis of its Krylov space
+    np.divide(s0, s0_norm[:, None], out=W[:, 0])
+    x, tmp = np.empty((F, dim)), np.empty((F, dim))
+    back = np.empty((F, 1, dim))
+    loo_scale = 1.0 + 1.0 / nt
+    beta_prev = np.zeros(F)
+    eta = np.ones(F)
+    zeta = s0_norm.copy()
+    pi = np.zeros(n)  # held-out sample's projection on the current CG direction
+    for k in range(A):
+        w = W[:, k]
+        # x = S_f w = (G - X_I'X_I - n_t d d') w; d'w = -sum_I(z_i'w)/n_t, so only u_i = z_i'w is needed.
+        u = np.einsum("ip,ip->i", Z, per_sample(w))
+        u_fold = fold_sum(u)
+        np.multiply(lam, w, out=x)
+        if loo:  # d = -z_i/n_t: both corrections are one rank-1 term
+            np.multiply(Z, (u * loo_scale)[:, None], out=tmp)
+        else:
+            tmp[:] = fold_sum(Z * u[:, None])
+            tmp -= d * u_fold[:, None]
+        x -= tmp
+        alpha = np.einsum("fp,fp->f", w, x)
+        # D-Lanczos (CG) update of the coefficients, seen only through the held-out samples:
+        # (z_i - d_f)'w = u_i + u_fold_f / n_t.
+        if k:
+            lam_k = beta_prev / eta
+            eta = alpha - lam_k * beta_prev
+            zeta = -lam_k * zeta
+            pi = (u + per_sample(u_fold / nt) - per_sample(beta_prev) * pi) / per_sample(eta)
+        else:
+            eta = alpha
+            pi = (u + per_sample(u_fold / nt)) / per_sample(eta)
+        pred[:, k + 1] = pred[:, k] + per_sample(zeta) * pi
+        if k + 1 == A:
+            break
+        # Next Lanczos vector: three-term recurrence, then full reorthogonalisation.
+        x -= alpha[:, None] * w
+        if k:
+            x -= beta_prev[:, None] * W[:, k - 1]
+        Wk = W[:, : k + 1]
+        for _ in range(2):
+            np.matmul(np.matmul(Wk, x[:, :, None]).transpose(0, 2, 1), Wk, out=back)
+            x -= back[:, 0]
+        beta = np.sqrt(np.einsum("fp,fp->f", x, x))
+        if not np.all(beta > exhausted):
+            f = int(np.flatnonzero(~(beta > exhausted))[0])
+            raise PLSConfigError(
+                f"max_components={A} is more than CV fold {f} supports: its Krylov space is exhausted "
+                f"after {k + 1} components"
+            )
+        np.divide(x, beta[:, None], out=W[:, k + 1])
+        beta_prev = beta
+    return pred

@@ -1,0 +1,150 @@
+"""The report's figures (matplotlib, Agg backend): the paper's Figs. 7-9 and a calibration plot.
+
+Each function returns a Figure so tests and users can inspect it; ``save_png`` writes it atomically.
+"""
+from __future__ import annotations
+
+import io
+import os
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .. import atomic  # noqa: E402
+
+SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
+
+
+def save_png(figure, path: str | os.PathLike[str], *, dpi: int = 110) -> bytes:
+    """Render to PNG bytes, write them atomically and return them (for embedding)."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight", metadata={"Software": None})
+    plt.close(figure)
+    data = buffer.getvalue()
+    atomic.write_bytes(path, data)
+    return data
+
+
+def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:
+    def key(name: str):
+        shape = shapes.get(name, "other")
+        rank = SHAPE_ORDER.index(shape) if shape in SHAPE_ORDER else len(SHAPE_ORDER)
+        digits = "".join(ch for ch in name if ch.isdigit() or ch == ".")
+        try:
+            size = float(digits)
+        except ValueError:
+            size = 0.0
+        return (rank, size, name)
+
+    return sorted(dict.fromkeys(specimens), key=key)
+
+
+def spectra_figure(mean_spectra: pd.DataFrame, freq_columns: list[str], pad: str, shapes: dict[str, str]):
+    """Fig. 7: mean normalised amplitude spectrum per specimen, one panel per force and shape."""
+    data = mean_spectra[mean_spectra["pad"] == pad]
+    conditions = list(dict.fromkeys(data["condition"]))
+    shape_list = [s for s in SHAPE_ORDER if s in set(shapes.get(sp, "other") for sp in data["specimen"])]
+    fig, axes = plt.subplots(len(shape_list), len(conditions), figsize=(4.2 * len(conditions), 3.0 * len(shape_list)),
+                             squeeze=False, sharex=True, sharey=True)
+    freq = np.array([float(c) for c in freq_columns])
+    for row, shape in enumerate(shape_list):
+        names = [s for s in _specimen_order(data["specimen"], shapes) if shapes.get(s, "other") == shape]
+        colours = plt.cm.viridis(np.linspace(0, 0.9, max(len(names), 1)))
+        for col, condition in enumerate(conditions):
+            ax = axes[row, col]
+            for colour, name in zip(colours, names):
+                line = data[(data["specimen"] == name) & (data["condition"] == condition)]
+                if len(line):
+                    ax.plot(freq, line[freq_columns].to_numpy()[0], color=colour, lw=1.2, label=name)
+            ax.set_title(f"{pad} pad, {condition}, {shape}", fontsize=9)
+            ax.grid(alpha=0.3)
+            if row == len(shape_list) - 1:
+                ax.set_xlabel("spatial frequency (mm$^{-1}$)")
+            if col == 0:
+                ax.set_ylabel("normalised amplitude")
+        axes[row, -1].legend(fontsize=7, ncol=2, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def cv_curves_figure(cv_table: pd.DataFrame, chosen: pd.DataFrame):
+    """Fig. 8: cross-validated RMSE against the number of components, chosen count circled."""
+    pads = list(dict.fromkeys(cv_table["pad"]))
+    conditions = list(dict.fromkeys(cv_table["condition"]))
+    fig, axes = plt.subplots(1, len(pads), figsize=(6.0 * len(pads), 3.8), squeeze=False, sharey=True)
+    styles = {"loo": "-", "loso": "--"}
+    colours = dict(zip(conditions, plt.cm.tab10.colors))
+    for ax, pad in zip(axes[0], pads):
+        for (condition, cv), curve in cv_table[cv_table["pad"] == pad].groupby(["condition", "cv"], sort=False):
+            curve = curve[curve["n_components"] >= 1]
+            ax.plot(curve["n_components"], curve["rmse"], styles.get(cv, "-"), color=colours[condition],
+                    lw=1.3, label=f"{condition} ({cv.upper()})")
+            pick = chosen[(chosen.pad == pad) & (chosen.condition == condition) & (chosen.cv == cv)]
+            if len(pick):
+                n = int(pick["best_n_components"].iloc[0])
+                value = curve.loc[curve["n_components"] == n, "rmse"]
+                if len(value):
+                    ax.plot([n], [float(value.iloc[0])], "o", mfc="none", mec="red", ms=9)
+        ax.set_title(f"{pad} pad")
+        ax.set_xlabel("number of PLS components")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+    axes[0, 0].set_ylabel("cross-validated RMSE")
+    fig.tight_layout()
+    return fig
+
+
+def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shapes: dict[str, str]):
+    """Fig. 9: OVL per specimen (top) and SD of perception vs predictions (bottom), per shape."""
+    data = results[results["pad"] == pad]
+    shape_list = [s for s in SHAPE_ORDER if s in set(shapes.get(sp, "other") for sp in data["specimen"])]
+    conditions = list(dict.fromkeys(data["condition"]))
+    fig, axes = plt.subplots(2, len(shape_list), figsize=(5.0 * len(shape_list), 6.0), squeeze=False)
+    human_sd = perceived.set_index("specimen")["sd"]
+    for col, shape in enumerate(shape_list):
+        names = [s for s in _specimen_order(data["specimen"], shapes) if shapes.get(s, "other") == shape]
+        x = np.arange(len(names))
+        for condition, marker in zip(conditions, "osD^v"):
+            rows = data[data["condition"] == condition].set_index("specimen").reindex(names)
+            axes[0, col].plot(x, rows["ovl"], marker=marker, lw=1, label=condition)
+            axes[1, col].plot(x, rows["pred_sd"], marker=marker, lw=1, label=f"prediction {condition}")
+        axes[1, col].plot(x, human_sd.reindex(names), "k-", marker="*", lw=2, label="participants")
+        for row, label in ((0, "OVL"), (1, "SD")):
+            axes[row, col].set_xticks(x, names)
+            axes[row, col].set_ylabel(label)
+            axes[row, col].grid(alpha=0.3)
+            axes[row, col].set_title(f"{pad} pad, {shape}: {label}", fontsize=9)
+        axes[0, col].set_ylim(0, 1)
+        axes[0, col].legend(fontsize=7)
+        axes[1, col].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame, cv: str):
+    """Predicted mean ± SD against perceived roughness, with the identity line."""
+    pads = list(dict.fromkeys(results["pad"]))
+    conditions = list(dict.fromkeys(results["condition"]))
+    fig, axes = plt.subplots(1, len(pads), figsize=(5.0 * len(pads), 4.6), squeeze=False, sharey=True)
+    truth = perceived.set_index("specimen")["gmean"]
+    top = float(np.nanmax([truth.max(), (results["pred_mean"] + results["pred_sd"]).max()])) * 1.08
+    for ax, pad in zip(axes[0], pads):
+        ax.plot([0, top], [0, top], color="0.5", lw=1, label="identity")
+        for offset, (condition, marker) in zip(np.linspace(-0.02, 0.02, len(conditions)), zip(conditions, "osD^v")):
+            rows = results[(results.pad == pad) & (results.condition == condition)]
+            x = truth.reindex(rows["specimen"]).to_numpy() + offset
+            ax.errorbar(x, rows["pred_mean"], yerr=rows["pred_sd"], fmt=marker, ms=4, capsize=2, lw=0.8, label=condition)
+        ax.set_xlim(0, top)
+        ax.set_ylim(0, top)
+        ax.set_aspect("equal")
+        ax.set_xlabel("perceived roughness (geometric mean)")
+        ax.set_title(f"{pad} pad ({cv.upper()})")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0, 0].set_ylabel("predicted roughness (mean ± SD)")
+    fig.tight_layout()
+    return fig

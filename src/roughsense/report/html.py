@@ -1,0 +1,131 @@
+"""Write a study analysis as a report folder: a self-contained index.html, CSV tables and PNG figures.
+
+Everything is rendered in memory first and only then written, file by file and atomically, so a
+failure in the analysis or a figure leaves no half-written report. index.html embeds its figures
+as data URIs so it opens offline and can be mailed as one file.
+"""
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import os
+from pathlib import Path
+
+import jinja2
+import pandas as pd
+
+from .. import __version__, atomic, reference
+from ..errors import OutputExistsError
+from . import figures, tables
+
+REPORT_FILES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "components.csv")
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.PackageLoader("roughsense.report", "templates"),
+        autoescape=jinja2.select_autoescape(["html", "j2"]),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+
+
+def _check_out_dir(out_dir: Path, force: bool) -> None:
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputExistsError("exists and is not a folder", path=out_dir)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
+        raise OutputExistsError("report folder exists and is not empty; pass --force to replace the report in it", path=out_dir)
+
+
+def _csv_bytes(frame: pd.DataFrame) -> bytes:
+    return frame.to_csv(index=False, lineterminator="\n", float_format="%.6g").encode("utf-8")
+
+
+def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
+    """Every file of the report, by name, as bytes."""
+    meta = dict(meta or {})
+    files: dict[str, bytes] = {}
+    specimens = figures._specimen_order(analysis.perceived["specimen"], analysis.shapes)
+    has_loso = any(f.cv == "loso" for f in analysis.fits)
+    cv_schemes = ["loo", "loso"] if has_loso else ["loo"]
+    results = {cv: analysis.results(cv) for cv in cv_schemes}
+    files["results.csv"] = _csv_bytes(results["loo"])
+    if has_loso:
+        files["results_loso.csv"] = _csv_bytes(results["loso"])
+    files["cv.csv"] = _csv_bytes(analysis.cv_table())
+    files["tests.csv"] = _csv_bytes(analysis.tests)
+    chosen = analysis.chosen_components()
+    files["components.csv"] = _csv_bytes(chosen)
+
+    freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
+    figure_list = []
+
+    def add_figure(name: str, fig, caption: str) -> None:
+        import io
+
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
+        figures.plt.close(fig)
+        files[name] = buffer.getvalue()
+        figure_list.append({"name": name, "caption": caption,
+                            "data": base64.b64encode(files[name]).decode("ascii")})
+
+    for pad in analysis.pads:
+        add_figure(f"spectra_{pad}.png",
+                   figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
+                   f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).")
+    add_figure("cv_curves.png", figures.cv_curves_figure(analysis.cv_table(), chosen),
+               "Cross-validated RMSE against the number of PLS components; red circles mark the chosen count (cf. Fig. 8).")
+    for pad in analysis.pads:
+        add_figure(f"ovl_sd_{pad}.png", figures.ovl_sd_figure(results["loo"], analysis.perceived, pad, analysis.shapes),
+                   f"OVL per specimen and SD of participants vs predictions, {pad} pad, LOO (cf. Fig. 9).")
+    for cv in cv_schemes:
+        add_figure(f"predicted_vs_perceived_{cv}.png",
+                   figures.predicted_vs_perceived_figure(results[cv], analysis.perceived, cv),
+                   f"Predicted (mean ± SD over repetitions) against perceived roughness, {cv.upper()}; grey: identity.")
+
+    sections = []
+    for cv in cv_schemes:
+        summaries = {column: analysis.summary(cv, column) for column in ("ovl", "rmse")}
+        pads = []
+        for pad in analysis.pads:
+            pads.append({
+                "pad": pad,
+                "tables": [
+                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens),
+                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl"),
+                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse"),
+                ],
+            })
+        sections.append({"cv": cv, "pads": pads})
+
+    template = _environment().get_template("report.html.j2")
+    html = template.render(
+        title=f"roughsense report: {analysis.study_name}",
+        study_name=analysis.study_name,
+        version=__version__,
+        generated=meta.pop("generated", _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")),
+        meta=meta,
+        citation=reference.PAPER_CITATION,
+        headline=tables.headline_table(analysis),
+        components=tables.components_table(chosen),
+        tests=tables.tests_table(analysis.tests),
+        sections=sections,
+        figures=figure_list,
+        max_components=analysis.max_components,
+        reference_specimen=analysis.reference_specimen,
+    )
+    files["index.html"] = html.encode("utf-8")
+    return files
+
+
+def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False) -> Path:
+    out_dir = Path(out_dir)
+    _check_out_dir(out_dir, force)
+    files = render_report(analysis, meta=meta)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # index.html last: its presence means the rest of the report is complete.
+    for name in sorted(files, key=lambda n: n == "index.html"):
+        atomic.write_bytes(out_dir / name, files[name])
+    return out_dir / "index.html"

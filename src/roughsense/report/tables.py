@@ -1,0 +1,193 @@
+"""Report tables in the paper's layout, each of our values next to the paper's where it reports one.
+
+A table is a plain dict (title, caption, columns, rows of cells); a cell is ``{"ours": str, "paper": str}``
+so the template can show both without knowing what the numbers mean.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .. import reference
+
+CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", "combined": "Dataset combination"}
+
+
+def _num(value, digits: int = 2) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "—"
+    return f"{float(value):.{digits}f}"
+
+
+def _pm(mean, sd, digits: int = 2) -> str:
+    if mean is None or (isinstance(mean, float) and math.isnan(mean)):
+        return "—"
+    if sd is None or (isinstance(sd, float) and math.isnan(sd)):
+        return _num(mean, digits)
+    return f"{float(mean):.{digits}f} ± {float(sd):.{digits}f}"
+
+
+def _cell(ours: str, paper: str | None = None) -> dict:
+    return {"ours": ours, "paper": paper}
+
+
+def _paper_lookup() -> pd.DataFrame:
+    return reference.paper_results().set_index(["pad", "specimen", "condition"])
+
+
+def _paper_value(paper: pd.DataFrame, key: tuple, column: str):
+    if key in paper.index:
+        return paper.loc[key, column]
+    return None
+
+
+def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, specimens: list[str]) -> dict:
+    """Tables 1/4: perceived and predicted roughness, mean ± SD."""
+    paper = _paper_lookup()
+    paper_perceived = reference.perceived_roughness().set_index("specimen")
+    conditions = list(dict.fromkeys(results["condition"]))
+    ours = results[results.pad == pad].set_index(["specimen", "condition"])
+    human = perceived.set_index("specimen")
+    rows = []
+    for specimen in specimens:
+        row = [_cell(specimen)]
+        h = human.loc[specimen] if specimen in human.index else None
+        p = paper_perceived.loc[specimen] if specimen in paper_perceived.index else None
+        row.append(_cell(_pm(h["gmean"], h["sd"]) if h is not None else "—",
+                         _pm(p["perceived_gmean"], p["perceived_sd"]) if p is not None else None))
+        for condition in conditions:
+            key = (specimen, condition)
+            value = _pm(ours.loc[key, "pred_mean"], ours.loc[key, "pred_sd"]) if key in ours.index else "—"
+            pm = _paper_value(paper, (pad, specimen, condition), "pred_mean")
+            ps = _paper_value(paper, (pad, specimen, condition), "pred_sd")
+            row.append(_cell(value, _pm(pm, ps) if pm is not None else None))
+        rows.append(row)
+    return {
+        "title": f"Perceived and predicted roughness, {pad} pad (mean ± SD)",
+        "caption": "Our value, with the paper's (Tables 1 and 4) beneath it where the paper reports one.",
+        "columns": ["Specimen", "Perceived"] + [CONDITION_TITLES.get(c, c) for c in conditions],
+        "rows": rows,
+    }
+
+
+def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specimens: list[str], column: str) -> dict:
+    """Tables 2/5 (OVL) and 3/6 (RMSE) with the rectangular / circular / overall summary rows."""
+    paper = _paper_lookup()
+    conditions = list(dict.fromkeys(results["condition"]))
+    ours = results[results.pad == pad].set_index(["specimen", "condition"])
+    rows = []
+    for specimen in specimens:
+        row = [_cell(specimen)]
+        for condition in conditions:
+            key = (specimen, condition)
+            value = _num(ours.loc[key, column]) if key in ours.index else "—"
+            pv = _paper_value(paper, (pad, specimen, condition), column)
+            row.append(_cell(value, _num(pv) if pv is not None else None))
+        rows.append(row)
+    paper_rows = reference.paper_results()
+    paper_rows = paper_rows[paper_rows.pad == pad]
+    shapes = dict(zip(reference.perceived_roughness()["specimen"], reference.perceived_roughness()["shape"]))
+    for group in summary["group"].drop_duplicates():
+        row = [_cell(f"{group}: mean ± SD")]
+        for condition in conditions:
+            s = summary[(summary.pad == pad) & (summary.condition == condition) & (summary.group == group)]
+            value = _pm(s["mean"].iloc[0], s["sd"].iloc[0]) if len(s) else "—"
+            pv = paper_rows[paper_rows.condition == condition]
+            if group != "all":
+                pv = pv[pv.specimen.map(shapes) == group]
+            vals = pv[column].dropna().to_numpy(float)
+            row.append(_cell(value, _pm(vals.mean(), vals.std(ddof=1)) if vals.size > 1 else None))
+        rows.append(row)
+    name = {"ovl": "Overlap coefficient (OVL)", "rmse": "Root mean squared error (RMSE)"}[column]
+    return {
+        "title": f"{name}, {pad} pad",
+        "caption": ("Per specimen, then mean ± SD (sample SD) over specimens. The paper's summary rows are recomputed "
+                    "from its rounded per-specimen values. " + ("OVL is undefined for the reference, which participants did not rate."
+                                                                if column == "ovl" else "")),
+        "columns": ["Specimen"] + [CONDITION_TITLES.get(c, c) for c in conditions],
+        "rows": rows,
+    }
+
+
+def components_table(chosen: pd.DataFrame) -> dict:
+    rows = []
+    for (pad, condition), group in chosen.groupby(["pad", "condition"], sort=False):
+        cells = [_cell(pad), _cell(condition)]
+        for cv in ("loo", "loso"):
+            g = group[group.cv == cv]
+            if len(g):
+                best, one_se, rmse = g.iloc[0][["best_n_components", "one_se_n_components", "cv_rmse"]]
+                paper_n = reference.PAPER_BEST_N_COMPONENTS.get((pad, condition)) if cv == "loo" else None
+                cells.append(_cell(str(int(best)), str(paper_n) if paper_n is not None else None))
+                cells.append(_cell(str(int(one_se))))
+                cells.append(_cell(f"{rmse:.4f}"))
+            else:
+                cells += [_cell("—")] * 3
+        rows.append(cells)
+    return {
+        "title": "Number of PLS components chosen by cross-validation",
+        "caption": ("Argmin of the CV RMSE over 1..max (the paper's rule), the one-standard-error choice, and the CV RMSE at "
+                    "the argmin. The paper's LOO choices (Section 4) are beneath ours."),
+        "columns": ["Pad", "Condition", "LOO: components", "LOO: 1-SE", "LOO: RMSE",
+                    "LOSO: components", "LOSO: 1-SE", "LOSO: RMSE"],
+        "rows": rows,
+    }
+
+
+def tests_table(tests: pd.DataFrame) -> dict:
+    paper = reference.PAPER_TESTS
+    rows = []
+    for _, t in tests.iterrows():
+        comparison = str(t["comparison"])
+        key = comparison
+        paper_entry = paper.get(key) if t.get("cv", "loo") == "loo" else None
+        paper_w = paper_p = None
+        if paper_entry is not None:
+            w, p, _, relation = paper_entry
+            paper_w, paper_p = f"{w:g}", f"{'< ' if relation == '<' else ''}{p:.2g}"
+        rows.append([
+            _cell(str(t.get("cv", "loo")).upper()),
+            _cell(comparison),
+            _cell(f"{t['statistic']:g}", paper_w),
+            _cell(f"{t['p']:.2g}"),
+            _cell(f"{t['p_adjusted']:.2g}", paper_p),
+        ])
+    return {
+        "title": "Wilcoxon signed-rank tests on per-specimen RMSE",
+        "caption": ("W is the sum of the ranks of positive differences (MATLAB signrank); p is exact for small n. "
+                    "Combined vs single force: Bonferroni ×3 per pad. Smooth vs fingerprint: per condition, unadjusted "
+                    "(the paper tests the combined condition). The paper's W and adjusted p are beneath ours."),
+        "columns": ["CV", "Comparison", "W", "p", "p (adjusted)"],
+        "rows": rows,
+    }
+
+
+def headline_table(analysis) -> dict:
+    """Mean per-specimen RMSE and OVL per pad x condition: LOO, LOSO and the paper's."""
+    paper = reference.paper_results()
+    rows = []
+    loo = analysis.results("loo")
+    has_loso = any(f.cv == "loso" for f in analysis.fits)
+    loso = analysis.results("loso") if has_loso else None
+    for (pad, condition), g in loo.groupby(["pad", "condition"], sort=False):
+        p = paper[(paper.pad == pad) & (paper.condition == condition)]
+        cells = [_cell(pad), _cell(condition),
+                 _cell(_num(g["rmse"].mean()), _num(p["rmse"].mean()) if len(p) else None),
+                 _cell(_num(np.nanmean(g["ovl"])), _num(p["ovl"].mean()) if len(p) else None)]
+        if loso is not None:
+            h = loso[(loso.pad == pad) & (loso.condition == condition)]
+            cells += [_cell(_num(h["rmse"].mean())), _cell(_num(np.nanmean(h["ovl"])))]
+        rows.append(cells)
+    columns = ["Pad", "Condition", "LOO: mean RMSE", "LOO: mean OVL"]
+    if loso is not None:
+        columns += ["LOSO: mean RMSE", "LOSO: mean OVL"]
+    return {
+        "title": "At a glance",
+        "caption": ("Mean over specimens of the per-specimen RMSE and OVL. LOO is the paper's protocol (nine other images of "
+                    "the held-out specimen stay in training); leave-one-specimen-out (LOSO) predicts a specimen never seen "
+                    "in training and is the honest estimate of generalisation. The paper's LOO values are beneath ours."),
+        "columns": columns,
+        "rows": rows,
+    }

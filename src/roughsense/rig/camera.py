@@ -1,0 +1,143 @@
+"""Frames from anything OpenCV's VideoCapture opens: a camera index, a video file or an image sequence.
+
+A file or an image sequence stands in for the camera, which is what makes capture testable without a
+bench. Frames are returned as RGB (the convention of :meth:`StudyWriter.write_image` and of the sensor).
+
+Stale frames: a camera driver queues a few frames, so the frame returned by ``read()`` right after the
+operator has set the force can show the pad *before* the force was reached. :meth:`FrameSource.read_fresh`
+therefore drops ``discard`` queued frames first. A file has no stale frames (every frame is the next
+piece of the recording), so the default drops frames only for live devices.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import ConfigError, InputError
+
+#: Frames dropped before a capture on a live device: V4L2 queues 4 buffers by default, plus the one in flight.
+DEVICE_DISCARD = 5
+
+_STREAM = re.compile(r"^[a-z][a-z0-9+.-]*://", re.IGNORECASE)
+
+
+@contextlib.contextmanager
+def _quiet_opencv():
+    """OpenCV logs failed opens to stderr; the CLI's one-line error is the only message we want."""
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is None:
+        yield
+        return
+    previous = logging.getLogLevel()
+    logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        logging.setLogLevel(previous)
+
+
+def _describe(spec: str | int) -> tuple[str | int, bool]:
+    """(argument for VideoCapture, is it a live device?)."""
+    if isinstance(spec, int):
+        return spec, True
+    text = str(spec).strip()
+    if text.isdigit():
+        return int(text), True
+    if text.startswith("/dev/") or _STREAM.match(text):
+        return text, True
+    return text, False
+
+
+class FrameSource:
+    """One open video source. Use as a context manager; frames are (H, W, 3) uint8 RGB."""
+
+    def __init__(self, spec: str | int, *, discard: int | None = None) -> None:
+        target, self.is_device = _describe(spec)
+        self.name = str(spec)
+        if discard is None:
+            discard = DEVICE_DISCARD if self.is_device else 0
+        if discard < 0:
+            raise ConfigError(f"frames to discard must be >= 0, got {discard}")
+        self.discard = int(discard)
+        if not self.is_device and "%" not in str(target) and not Path(target).exists():
+            raise InputError("video source not found (expected a camera index, a video file or an image pattern)",
+                             path=self.name)
+        with _quiet_opencv():
+            self._cap = cv2.VideoCapture(target)
+            opened = self._cap.isOpened()
+        if not opened:
+            self._cap.release()
+            raise InputError("cannot open video source (OpenCV VideoCapture refused it)", path=self.name)
+        if self.is_device:
+            # Not every backend honours this; the explicit discard covers the others.
+            self._cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)
+        self.frames_read = 0
+
+    # ------------------------------------------------------------------ reading
+
+    def grab(self) -> bool:
+        """Advance one frame without decoding it to an array (cheap way to drop a frame)."""
+        with _quiet_opencv():
+            ok = bool(self._cap.grab())
+        if ok:
+            self.frames_read += 1
+        return ok
+
+    def read_next(self) -> np.ndarray | None:
+        """The next frame, or None at the end of a file or sequence."""
+        with _quiet_opencv():
+            ok, frame = self._cap.read()
+        if not ok or frame is None or frame.size == 0:
+            return None
+        self.frames_read += 1
+        return _to_rgb(frame)
+
+    def read_fresh(self) -> np.ndarray:
+        """Drop the queued (stale) frames, then return the next one; a source that yields nothing is an error."""
+        for _ in range(self.discard):
+            if not self.grab():
+                break
+        frame = self.read_next()
+        if frame is None:
+            where = "at its end" if not self.is_device else "no frame delivered"
+            raise InputError(f"video source yielded no frame ({where}, after {self.frames_read} frame(s))",
+                             path=self.name)
+        return frame
+
+    def __iter__(self):
+        while (frame := self.read_next()) is not None:
+            yield frame
+
+    # ------------------------------------------------------------------ lifetime
+
+    def close(self) -> None:
+        self._cap.release()
+
+    def __enter__(self) -> FrameSource:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        kind = "device" if self.is_device else "file"
+        return f"FrameSource({self.name!r}, {kind}, discard={self.discard})"
+
+
+def _to_rgb(frame: np.ndarray) -> np.ndarray:
+    """RGB as a reversed-channel view of OpenCV's BGR buffer: no copy of a 1080p frame per update."""
+    if frame.ndim == 2:
+        return cv2.cvtColor(frame, cv2.COLOR_GRAY2RGB)
+    if frame.shape[2] == 4:
+        return cv2.cvtColor(frame, cv2.COLOR_BGRA2RGB)
+    return frame[:, :, ::-1]
+
+
+def open_source(spec: str | int | os.PathLike[str], *, discard: int | None = None) -> FrameSource:
+    """Open ``spec``: "0" (camera index), "/dev/video2", "rtsp://...", "run.avi" or "frames/img_%04d.png"."""
+    return FrameSource(os.fspath(spec) if isinstance(spec, os.PathLike) else spec, discard=discard)

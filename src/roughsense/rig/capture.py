@@ -1,0 +1,297 @@
+"""The acquisition protocol of section 3.2, resumable and loss-free.
+
+For each repetition the pad is loaded to each protocol force in turn (1, 2, 3 N) and one image is taken
+at each. Every image and every manifest row is written atomically, image first, so an interruption loses
+at most the frame in progress. A rerun reads the manifest and captures only the (repetition, force)
+steps that have no row yet for this specimen and pad: ``repetitions`` is the target total, not a count
+to add.
+
+Orphans: an image written just before a crash has no manifest row. It is left where it is (never
+overwritten or adopted: its force reading was lost with the row), reported, and the retaken frame gets
+the next free name (``..._2N-2.png``). Only manifest rows define the study, so orphans are inert.
+"""
+from __future__ import annotations
+
+import fcntl
+import math
+import re
+import sys
+import tomllib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import study as st
+from ..errors import ConfigError, InputError, OutputExistsError
+from .camera import FrameSource
+from .scale import ForceInput
+
+#: Manifest columns the rig writes (``nominal_force_n`` keeps the condition exact whatever the scale read).
+RIG_COLUMNS = ("image", "specimen", "pad", "force_n", "nominal_force_n", "repetition", "timestamp")
+LOCK_FILE = ".capture.lock"
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+
+
+@dataclass
+class CaptureResult:
+    root: Path
+    captured: list[str] = field(default_factory=list)
+    already_done: int = 0
+    orphans: list[str] = field(default_factory=list)
+    specimen_incomplete: bool = False
+
+
+def check_name(value: str, option: str) -> str:
+    """Specimen and pad names go into file names: letters, digits, '.', '_' and '-' only."""
+    if not _NAME.match(value or ""):
+        raise ConfigError(f"--{option} {value!r}: use letters, digits, '.', '_' or '-' (it becomes part of file names)")
+    return value
+
+
+def image_name(specimen: str, pad: str, repetition: int, nominal_force_n: float, attempt: int = 1) -> str:
+    base = f"{specimen}_{pad}_r{repetition:02d}_{st.nominal_force_label(nominal_force_n)}"
+    return f"{base}.png" if attempt == 1 else f"{base}-{attempt}.png"
+
+
+def force_window(forces_n: Sequence[float]) -> dict[float, tuple[float, float]]:
+    """Accepted readings per step: within half the protocol spacing, the rule study.py uses to bin readings."""
+    forces = sorted(forces_n)
+    spacing = min(np.diff(forces)) if len(forces) > 1 else forces[0]
+    half = 0.5 * float(spacing)
+    return {f: (max(f - half, 1e-9), f + half) for f in forces}
+
+
+# --------------------------------------------------------------------------- the folder
+
+
+@dataclass
+class _Folder:
+    """What is already in ``root``, read before anything is captured (and before anything is written)."""
+
+    root: Path
+    is_new: bool
+    forces_n: tuple[float, ...]
+    sensor: st.SensorSettings
+    manifest: pd.DataFrame
+    specimens: pd.DataFrame | None
+
+
+def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
+    if root.exists() and not root.is_dir():
+        raise OutputExistsError("exists and is not a folder", path=root)
+    toml_path = root / st.STUDY_TOML
+    if not toml_path.exists():
+        if root.is_dir() and not _is_blank(root):
+            raise OutputExistsError("folder is not empty and has no study.toml; capture into a new folder or a study folder",
+                                    path=root)
+        forces = tuple(float(f) for f in (forces_n or st.DEFAULT_FORCES_N))
+        sensor = st.SensorSettings(px_per_mm=st.DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
+                                   roi="center" if roi is None else roi)
+        _check_forces(forces)
+        return _Folder(root, True, forces, sensor, pd.DataFrame(columns=RIG_COLUMNS), None)
+
+    try:
+        config = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"is not valid TOML ({exc})", path=toml_path) from None
+    stored_forces = tuple(float(f) for f in config.get("protocol", {}).get("forces_n", st.DEFAULT_FORCES_N))
+    sensor = st._sensor_from_config(config, toml_path)
+    if forces_n is not None and tuple(sorted(map(float, forces_n))) != tuple(sorted(stored_forces)):
+        raise ConfigError(
+            f"--forces {','.join(f'{f:g}' for f in forces_n)} differs from this study's protocol "
+            f"{','.join(f'{f:g}' for f in stored_forces)} in {toml_path}; omit --forces to use it"
+        )
+    if px_per_mm is not None and not math.isclose(float(px_per_mm), sensor.px_per_mm):
+        raise ConfigError(f"--px-per-mm {px_per_mm:g} differs from {sensor.px_per_mm:g} in {toml_path}; omit it or edit the file")
+    if roi is not None and st.parse_roi(roi) != sensor.roi:
+        raise ConfigError(f"--roi {roi} differs from {sensor.roi!r} in {toml_path}; omit it or edit the file")
+    _check_forces(stored_forces)
+
+    manifest_path = root / st.MANIFEST_CSV
+    if manifest_path.exists():
+        manifest = st.read_manifest(manifest_path)
+        if len(manifest) and "nominal_force_n" not in manifest.columns:
+            raise InputError("has no nominal_force_n column: it was not written by the rig, so the rig will not extend it",
+                             path=manifest_path)
+    else:
+        manifest = pd.DataFrame(columns=RIG_COLUMNS)
+    specimens_path = root / st.SPECIMENS_CSV
+    specimens = _read_specimens_loose(specimens_path) if specimens_path.exists() else None
+    return _Folder(root, False, stored_forces, sensor, manifest, specimens)
+
+
+def _is_blank(root: Path) -> bool:
+    """Empty but for what an interrupted first capture leaves: the lock file and an empty images/ folder."""
+    for entry in root.iterdir():
+        if entry.name == LOCK_FILE:
+            continue
+        if entry.name == st.IMAGES_DIR and entry.is_dir() and not any(entry.iterdir()):
+            continue
+        return False
+    return True
+
+
+def _check_forces(forces: Sequence[float]) -> None:
+    if not forces or any(not math.isfinite(f) or f <= 0 for f in forces) or len(set(forces)) != len(forces):
+        raise ConfigError(f"protocol forces must be distinct positive numbers, got {list(forces)}")
+
+
+def _read_specimens_loose(path: Path) -> pd.DataFrame:
+    """specimens.csv as text, blanks allowed: the rig may have left shape/wavelength for the user to fill in."""
+    frame = st.read_table(path, ["specimen"], text=["specimen", "shape"])
+    frame = frame.astype(object).where(frame.notna(), "")
+    for column in st.SPECIMEN_COLUMNS:
+        if column not in frame.columns:
+            frame[column] = ""
+    return frame
+
+
+def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelength_mm: float | None) -> tuple[pd.DataFrame | None, bool]:
+    """specimens.csv with ``specimen`` added or its blanks filled; (None if unchanged, is it still incomplete)."""
+    path = folder.root / st.SPECIMENS_CSV
+    table = folder.specimens if folder.specimens is not None else pd.DataFrame(columns=list(st.SPECIMEN_COLUMNS))
+    given = {"shape": shape or "", "wavelength_mm": "" if wavelength_mm is None else f"{wavelength_mm:g}"}
+    hits = np.flatnonzero(table["specimen"].astype(str).to_numpy() == specimen)
+    if hits.size == 0:
+        row = {c: "" for c in table.columns}
+        row.update(specimen=specimen, **given)
+        merged = pd.concat([table, pd.DataFrame([row])], ignore_index=True)
+        return merged, not all(given.values())
+    i = int(hits[0])
+    merged = table.copy()
+    changed = False
+    for column, value in given.items():
+        current = str(merged.at[i, column]).strip()
+        if not value:
+            continue
+        same = (current == value) if column == "shape" else (current != "" and math.isclose(float(current), float(value)))
+        if current and not same:
+            raise ConfigError(
+                f"specimen {specimen!r} has {column} {current}; --{column.replace('_', '-')} says {value} "
+                "(edit specimens.csv if the file is wrong)", path=path, row=st.csv_line(i), column=column,
+            )
+        if not current:
+            merged.at[i, column] = value
+            changed = True
+    incomplete = any(str(merged.at[i, c]).strip() == "" for c in ("shape", "wavelength_mm"))
+    return (merged if changed else None), incomplete
+
+
+def _lock(root: Path):
+    """One capture per folder at a time; the OS drops the lock if the process dies, so no stale locks."""
+    handle = open(root / LOCK_FILE, "a")  # noqa: SIM115 - held for the session
+    try:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        raise OutputExistsError("another capture is writing into this folder", path=root) from None
+    return handle
+
+
+# --------------------------------------------------------------------------- the protocol
+
+
+def plan_steps(manifest: pd.DataFrame, specimen: str, pad: str, forces_n: Sequence[float], repetitions: int) -> list[tuple[int, float]]:
+    """The (repetition, nominal force) steps still missing for this specimen and pad, in protocol order."""
+    done: set[tuple[int, float]] = set()
+    if len(manifest):
+        mine = manifest[(manifest["specimen"].astype(str) == specimen) & (manifest["pad"].astype(str) == pad)]
+        done = {(int(r), float(f)) for r, f in zip(mine["repetition"], mine["nominal_force_n"])}
+    return [(r, float(f)) for r in range(1, repetitions + 1) for f in forces_n if (r, float(f)) not in done]
+
+
+def capture_session(
+    root: str | Path,
+    *,
+    source: FrameSource,
+    force_input: ForceInput,
+    specimen: str,
+    pad: str,
+    repetitions: int = 10,
+    forces_n: Sequence[float] | None = None,
+    px_per_mm: float | None = None,
+    roi: str | None = None,
+    shape: str | None = None,
+    wavelength_mm: float | None = None,
+    log: Callable[[str], None] | None = None,
+    clock: Callable[[], datetime] = lambda: datetime.now(timezone.utc),
+) -> CaptureResult:
+    """Run (or resume) the protocol for one specimen on one pad, writing into the study folder ``root``.
+
+    ``forces_n``, ``px_per_mm`` and ``roi`` default to the folder's study.toml (or the paper's values in a
+    new folder); a value that contradicts study.toml is refused. Nothing is written until the first frame
+    is in hand, so a source or scale that fails at once leaves the folder as it was.
+    """
+    log = log or (lambda text: print(text, file=sys.stderr, flush=True))
+    root = Path(root)
+    check_name(specimen, "specimen")
+    check_name(pad, "pad")
+    if repetitions < 1:
+        raise ConfigError(f"--repetitions must be at least 1, got {repetitions}")
+    if shape is not None and shape.lower() not in st.SHAPES:
+        raise ConfigError(f"--shape {shape!r}: expected one of {', '.join(st.SHAPES)}")
+    if wavelength_mm is not None and not (math.isfinite(wavelength_mm) and wavelength_mm > 0):
+        raise ConfigError(f"--wavelength-mm must be positive, got {wavelength_mm:g}")
+    lock = _lock(root) if root.is_dir() else None
+    try:
+        folder = _inspect(root, forces_n, px_per_mm, roi)
+        forces = tuple(float(f) for f in (forces_n or folder.forces_n))
+        specimens_update, incomplete = _merge_specimen(folder, specimen, shape.lower() if shape else None, wavelength_mm)
+        window = force_window(folder.forces_n)
+        steps = plan_steps(folder.manifest, specimen, pad, forces, repetitions)
+        result = CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
+                               specimen_incomplete=incomplete)
+        writer: st.StudyWriter | None = None
+        for repetition, nominal in steps:
+            label = f"[{specimen}/{pad} rep {repetition}/{repetitions}] "
+            force_n = force_input.read_force(nominal, low_n=window[nominal][0], high_n=window[nominal][1], label=label)
+            frame = source.read_fresh()
+            stamp = clock().astimezone(timezone.utc).isoformat(timespec="milliseconds")
+            if writer is None:
+                if lock is None:
+                    root.mkdir(parents=True, exist_ok=True)
+                    lock = _lock(root)
+                writer = _start_writing(folder, specimens_update)
+            name, skipped = _free_name(writer, specimen, pad, repetition, nominal)
+            result.orphans.extend(skipped)
+            for orphan in skipped:
+                log(f"  images/{orphan} has no manifest row (interrupted earlier): kept, not reused")
+            rel = writer.write_image(name, frame)
+            writer.append_manifest_row({
+                "image": rel, "specimen": specimen, "pad": pad, "force_n": round(force_n, 6),
+                "nominal_force_n": nominal, "repetition": repetition, "timestamp": stamp,
+            })
+            result.captured.append(rel)
+            log(f"  saved {rel} at {force_n:.3f} N")
+        if writer is None and specimens_update is not None and not folder.is_new:
+            # Nothing left to capture, but --shape/--wavelength-mm completed the specimen's row.
+            st.StudyWriter(root, resume=True).write_specimens(specimens_update)
+        return result
+    finally:
+        if lock is not None:
+            lock.close()
+
+
+def _start_writing(folder: _Folder, specimens_update: pd.DataFrame | None) -> st.StudyWriter:
+    writer = st.StudyWriter(folder.root, resume=True)
+    if not (folder.root / st.STUDY_TOML).exists():
+        writer.write_config(name=folder.root.resolve().name, sensor=folder.sensor, forces_n=folder.forces_n)
+    if specimens_update is not None:
+        writer.write_specimens(specimens_update)
+    if not (folder.root / st.MANIFEST_CSV).exists():
+        writer.write_manifest(pd.DataFrame(columns=list(RIG_COLUMNS)))
+    return writer
+
+
+def _free_name(writer: st.StudyWriter, specimen: str, pad: str, repetition: int, nominal: float) -> tuple[str, list[str]]:
+    skipped = []
+    attempt = 1
+    while writer.image_path(name := image_name(specimen, pad, repetition, nominal, attempt)).exists():
+        skipped.append(name)
+        attempt += 1
+    return name, skipped

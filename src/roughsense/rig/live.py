@@ -1,0 +1,120 @@
+"""Live scoring: the predicted roughness of whatever the pad is pressed on, updated continuously.
+
+The scoring function is passed in (the CLI builds it from a model file), so the rig stays independent
+of the analysis. Frames are read in order; on a camera the driver queue is kept at one frame
+(see :mod:`.camera`), so as long as scoring keeps up with the camera the score is of a fresh frame.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError, RoughsenseError
+from .camera import FrameSource, open_source
+
+
+def live_scores(
+    source: FrameSource | str | int,
+    score_frame: Callable[[np.ndarray], float],
+    *,
+    max_frames: int | None = None,
+    min_interval_s: float = 0.0,
+) -> Iterator[tuple[float, float]]:
+    """Yield ``(timestamp_s, score)`` per scored frame; ``timestamp_s`` is Unix time at the frame's arrival.
+
+    ``score_frame`` gets an (H, W, 3) uint8 RGB frame. Frames arriving sooner than ``min_interval_s``
+    after the last scored one are dropped undecoded. A :class:`RoughsenseError` from ``score_frame`` (for
+    example a frame smaller than the model's ROI) stops the loop as an InputError naming the source and
+    the frame. The loop ends at the end of a file, after ``max_frames`` scores, or when the consumer stops.
+    """
+    if max_frames is not None and max_frames < 1:
+        raise ValueError("max_frames must be at least 1")
+    own = not isinstance(source, FrameSource)
+    frames = open_source(source) if own else source
+    try:
+        scored = 0
+        last = -float("inf")
+        while max_frames is None or scored < max_frames:
+            if min_interval_s > 0 and time.monotonic() - last < min_interval_s:
+                if not frames.grab():
+                    return
+                continue
+            frame = frames.read_next()
+            if frame is None:
+                return
+            now = time.monotonic()
+            stamp = time.time()
+            try:
+                score = float(score_frame(frame))
+            except RoughsenseError as exc:
+                height, width = frame.shape[:2]
+                raise InputError(f"frame {frames.frames_read} ({width}x{height} px): {exc.message}",
+                                 path=frames.name) from exc
+            last = now
+            scored += 1
+            yield stamp, score
+    finally:
+        if own:
+            frames.close()
+
+
+@dataclass
+class LiveSummary:
+    updates: int
+    last_score: float | None
+    updates_per_s: float
+
+
+def render_live(
+    scores: Iterable[tuple[float, float]],
+    *,
+    console=None,
+    label: str = "perceived roughness",
+    refresh_per_second: float = 20.0,
+) -> LiveSummary:
+    """Show the latest score, its recent range and the update rate on the terminal until ``scores`` ends.
+
+    Ctrl-C ends the display cleanly and returns the summary so far.
+    """
+    from rich.console import Console
+    from rich.live import Live
+    from rich.table import Table
+
+    console = console or Console(stderr=True)
+    recent: list[float] = []
+    times: list[float] = []
+    count = 0
+    first = last_t = None
+
+    def view() -> Table:
+        table = Table.grid(padding=(0, 2))
+        table.add_column(justify="right", style="bold")
+        table.add_column()
+        if not recent:
+            table.add_row(label, "waiting for the first frame...")
+            return table
+        rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
+        table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]")
+        table.add_row("last 2 s", f"{min(recent):.3f} .. {max(recent):.3f}")
+        table.add_row("updates", f"{count} ({rate:.1f}/s)")
+        return table
+
+    try:
+        with Live(view(), console=console, refresh_per_second=refresh_per_second, transient=False) as live:
+            for stamp, score in scores:
+                count += 1
+                first = stamp if first is None else first
+                last_t = stamp
+                recent.append(score)
+                times.append(stamp)
+                while times and times[-1] - times[0] > 2.0:
+                    times.pop(0)
+                    recent.pop(0)
+                live.update(view())
+    except KeyboardInterrupt:
+        pass
+    span = (last_t - first) if count > 1 else 0.0
+    return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0)

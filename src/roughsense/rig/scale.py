@@ -1,0 +1,238 @@
+"""The measured pressing force: typed by the operator, or read from a digital scale over a serial port.
+
+The paper reads a kitchen scale "at the moment each image was captured" (section 2.1). Scales report a
+mass; the pad presses with a weight, so grams become newtons with standard gravity.
+
+Scale line format (one reading per line, ``\\r\\n`` or ``\\n``)::
+
+    [FLAG,]...[sign][number][ ]unit        e.g.  "ST,GS,+00102.35 g"   "US,+0.0512kg"   "1.003 N"   "-0.4g"
+
+- ``unit`` is ``g``, ``kg``, ``N`` or ``mN`` (case-insensitive) and is required: a bare number could be
+  grams or newtons, a factor of 100 apart, so it is ignored rather than guessed.
+- ``FLAG`` is any two-letter token before the number, separated by commas or spaces. ``ST`` means stable,
+  ``US`` unstable, ``OL`` overload. A reading flagged ``US`` or ``OL`` is skipped and the next one waited
+  for; a line with no stability flag counts as stable (many scales only stream settled values).
+- A line that does not match (a partial line after a buffer flush, a banner) is skipped.
+"""
+from __future__ import annotations
+
+import math
+import re
+import sys
+import time
+from dataclasses import dataclass
+from typing import IO, Protocol
+
+from ..errors import ConfigError, InputError
+
+#: Standard gravity (m/s^2): converts a scale's mass reading into the pressing force.
+STANDARD_GRAVITY = 9.80665
+DEFAULT_BAUD = 9600
+
+_UNIT_TO_N = {"g": STANDARD_GRAVITY / 1000.0, "kg": STANDARD_GRAVITY, "n": 1.0, "mn": 1e-3}
+_READING = re.compile(
+    r"^(?P<prefix>(?:[A-Za-z]{2}[\s,]+)*)"  # flags such as ST, US, GS, NT
+    r"(?P<sign>[+-])?\s*(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>kg|mn|g|n)$",
+    re.IGNORECASE,
+)
+_UNSTABLE_FLAGS = {"US", "OL"}
+
+
+@dataclass(frozen=True)
+class ScaleReading:
+    force_n: float
+    stable: bool
+    flags: tuple[str, ...]
+    raw: str
+
+
+def parse_scale_line(line: str | bytes) -> ScaleReading | None:
+    """Parse one line of a scale's output (format in the module docstring); None if it is not a reading."""
+    if isinstance(line, bytes):
+        line = line.decode("ascii", errors="replace")
+    text = line.strip().strip("\x00").strip()
+    match = _READING.match(text)
+    if match is None:
+        return None
+    flags = tuple(f.upper() for f in re.findall(r"[A-Za-z]{2}", match["prefix"]))
+    value = float(match["number"]) * _UNIT_TO_N[match["unit"].lower()]
+    if match["sign"] == "-":
+        value = -value
+    return ScaleReading(force_n=value, stable=not (_UNSTABLE_FLAGS & set(flags)), flags=flags, raw=text)
+
+
+def parse_typed_force(text: str, nominal_force_n: float) -> float:
+    """What the operator typed: empty -> the nominal force; "2.01" is newtons; "205 g" / "0.205 kg" convert."""
+    text = text.strip()
+    if not text:
+        return float(nominal_force_n)
+    try:
+        value = float(text)
+    except ValueError:
+        reading = parse_scale_line(text)
+        if reading is None:
+            raise _Retry(f"force {text!r} is not a number (type newtons such as 2.01, or 205 g, or 0.205 kg)") from None
+        value = reading.force_n
+    if not math.isfinite(value):
+        raise _Retry(f"force {text!r} is not a finite number")
+    return value
+
+
+class _Retry(Exception):
+    """A reading the operator can correct: asked again on a terminal, fatal otherwise."""
+
+
+class ForceInput(Protocol):
+    name: str
+
+    def read_force(self, nominal_force_n: float, *, low_n: float, high_n: float, label: str = "") -> float: ...
+
+    def close(self) -> None: ...
+
+
+class _OperatorInput:
+    """Shared prompting: the operator sets the force, the reading is checked against the step's range."""
+
+    name = "<stdin>"
+
+    def __init__(self, *, stdin: IO[str] | None = None, prompt_out: IO[str] | None = None) -> None:
+        self._stdin = stdin
+        self._out = prompt_out
+
+    @property
+    def stdin(self) -> IO[str]:
+        return self._stdin if self._stdin is not None else sys.stdin
+
+    @property
+    def out(self) -> IO[str]:
+        return self._out if self._out is not None else sys.stderr
+
+    @property
+    def interactive(self) -> bool:
+        isatty = getattr(self.stdin, "isatty", None)
+        return bool(isatty and isatty())
+
+    def ask(self, prompt: str) -> str:
+        print(prompt, end="", file=self.out, flush=True)
+        line = self.stdin.readline()
+        if not line:
+            print(file=self.out, flush=True)  # end the prompt line so the error stands on its own
+            raise InputError("input ended before the operator answered (stdin closed)", path="<stdin>")
+        if not self.interactive:
+            print(line.rstrip("\n"), file=self.out, flush=True)  # a log of piped input reads like a session
+        return line.rstrip("\r\n")
+
+    def read_force(self, nominal_force_n: float, *, low_n: float, high_n: float, label: str = "") -> float:
+        while True:
+            try:
+                value = self._read_once(nominal_force_n, label)
+                if not low_n <= value <= high_n:
+                    raise _Retry(
+                        f"{value:.4g} N is outside {low_n:.4g}..{high_n:.4g} N, the range for the {nominal_force_n:g} N step"
+                    )
+                return value
+            except _Retry as problem:
+                if not self.interactive:
+                    raise InputError(str(problem), path=self.name) from None
+                print(f"  {problem}; try again", file=self.out, flush=True)
+
+    def _read_once(self, nominal_force_n: float, label: str) -> float:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class ManualForce(_OperatorInput):
+    """The operator reads the scale and types the force; Enter alone takes the nominal force."""
+
+    def _read_once(self, nominal_force_n: float, label: str) -> float:
+        text = self.ask(f"{label}set {nominal_force_n:g} N, then type the force read (N, or g/kg) [Enter = {nominal_force_n:g}]: ")
+        return parse_typed_force(text, nominal_force_n)
+
+
+class SerialScale(_OperatorInput):
+    """A scale streaming readings on a serial port (pyserial). The operator presses Enter once the force is set.
+
+    Readings queued before Enter are flushed, so the value taken is one measured after the force was set.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud: int = DEFAULT_BAUD,
+        *,
+        timeout_s: float = 5.0,
+        stdin: IO[str] | None = None,
+        prompt_out: IO[str] | None = None,
+    ) -> None:
+        super().__init__(stdin=stdin, prompt_out=prompt_out)
+        import serial  # local: only the serial path needs pyserial
+
+        if not timeout_s > 0:
+            raise ConfigError(f"--timeout-s must be positive, got {timeout_s:g}")
+        self.name = port
+        self.timeout_s = float(timeout_s)
+        try:
+            self._port = serial.Serial(port=port, baudrate=baud, timeout=min(0.25, self.timeout_s))
+        except (serial.SerialException, ValueError, OSError) as exc:
+            raise InputError(f"cannot open the scale's serial port ({exc})", path=port) from None
+        self._serial_error = serial.SerialException
+
+    def _read_once(self, nominal_force_n: float, label: str) -> float:
+        self.ask(f"{label}set {nominal_force_n:g} N on the stage, then press Enter to capture: ")
+        return self.read_stable().force_n
+
+    def read_stable(self) -> ScaleReading:
+        """The first stable reading after flushing queued input; InputError if the port stays silent."""
+        try:
+            self._port.reset_input_buffer()
+            deadline = time.monotonic() + self.timeout_s
+            last: str | None = None
+            while time.monotonic() < deadline:
+                raw = self._port.readline()
+                if not raw:
+                    continue
+                reading = parse_scale_line(raw)
+                last = raw.decode("ascii", errors="replace").strip()
+                if reading is not None and reading.stable:
+                    return reading
+        except (self._serial_error, OSError) as exc:
+            raise InputError(f"lost the scale's serial port ({exc})", path=self.name) from None
+        if last is None:
+            raise InputError(f"the scale sent nothing for {self.timeout_s:g} s (is it on and streaming?)", path=self.name)
+        raise InputError(f"no stable reading from the scale within {self.timeout_s:g} s (last line: {last!r})", path=self.name)
+
+    def close(self) -> None:
+        self._port.close()
+
+
+def open_force_input(
+    spec: str,
+    *,
+    timeout_s: float = 5.0,
+    stdin: IO[str] | None = None,
+    prompt_out: IO[str] | None = None,
+) -> ManualForce | SerialScale:
+    """``manual`` or ``serial:PORT[:BAUD]`` (e.g. ``serial:/dev/ttyUSB0:9600``)."""
+    text = spec.strip()
+    if text.lower() == "manual":
+        return ManualForce(stdin=stdin, prompt_out=prompt_out)
+    if text.lower().startswith("serial:"):
+        rest = text[len("serial:"):]
+        port, baud = rest, DEFAULT_BAUD
+        head, sep, tail = rest.rpartition(":")
+        if sep and tail.isdigit():
+            port, baud = head, int(tail)
+        if not port:
+            raise ConfigError(f"--force-input {spec!r}: give the port, e.g. serial:/dev/ttyUSB0:9600")
+        if baud <= 0:
+            raise ConfigError(f"--force-input {spec!r}: baud rate must be positive")
+        return SerialScale(port, baud, timeout_s=timeout_s, stdin=stdin, prompt_out=prompt_out)
+    raise ConfigError(f"--force-input must be 'manual' or 'serial:PORT[:BAUD]', got {spec!r}")

@@ -1,0 +1,383 @@
+"""Contact image -> spatial spectrum: the predictors X of the paper (section 3.2).
+
+crop the contact band -> gray (MATLAB weights) -> middle row (or mean of the N central rows) ->
+remove the line mean -> Hann window -> amplitude of the DFT evaluated exactly at an evenly spaced grid
+of spatial frequencies (mm^-1) -> normalise to unit trapezoid area over mm^-1.
+
+Only the rows that are used are converted to gray, so the work after decoding is a few thousand
+multiply-adds per image; decoding is the floor, and :meth:`SpatialSpectrum.iter_transform` overlaps it
+over threads while holding only a handful of images in memory. The choices the paper leaves open are
+explained in docs/sensor.md.
+"""
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from sklearn.base import BaseEstimator, TransformerMixin
+
+from .errors import ConfigError, InputError
+from .images import GRAY_WEIGHTS_RGB, as_image, load_gray, to_gray
+from .study import DEFAULT_PX_PER_MM, Roi, parse_roi
+
+__all__ = [
+    "CENTER_CROP_PX",
+    "SpatialSpectrum",
+    "combine_forces",
+    "frequency_grid",
+    "line_amplitude",
+    "load_gray",
+    "resolve_roi",
+    "spatial_spectrum",
+]
+
+#: The paper's crop: 1900 x 150 px (width, height), centred on the 1920 x 1080 frame.
+CENTER_CROP_PX = (1900, 150)
+WINDOWS = ("hann", "none")
+FEATURE_VERSION = 1
+
+
+def frequency_grid(f_min_per_mm: float = 0.1, f_max_per_mm: float = 1.0, n_freqs: int = 45) -> np.ndarray:
+    """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0)."""
+    _check_band(f_min_per_mm, f_max_per_mm, n_freqs)
+    return np.linspace(float(f_min_per_mm), float(f_max_per_mm), int(n_freqs))
+
+
+def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
+    try:
+        lo, hi = float(f_min_per_mm), float(f_max_per_mm)
+    except (TypeError, ValueError):
+        raise ConfigError(f"band must be two numbers, got {f_min_per_mm!r}, {f_max_per_mm!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
+    if isinstance(n_freqs, bool) or not isinstance(n_freqs, (int, np.integer)) or n_freqs < 2:
+        raise ConfigError(f"n_freqs must be a whole number >= 2, got {n_freqs!r}")
+
+
+# --------------------------------------------------------------------------- the spectrum of one line
+
+
+@lru_cache(maxsize=16)
+def _dft_basis(width_px: int, px_per_mm: float, freqs: tuple[float, ...], window: str) -> np.ndarray:
+    """(2K, W) real matrix: windowed cos and sin rows at the K grid frequencies, scaled to sine amplitude.
+
+    Evaluating the DFT directly at the grid frequencies is the limit of infinite zero-padding: it needs
+    no interpolation between FFT bins, and costs K*W multiply-adds (45 x 1900 for the paper).
+    """
+    x_mm = (np.arange(width_px) - (width_px - 1) / 2.0) / px_per_mm  # centred: phases stay small
+    taper = np.hanning(width_px) if window == "hann" else np.ones(width_px)
+    gain = 2.0 / taper.sum()  # a sinusoid of amplitude A reads A at its own frequency
+    phase = 2.0 * np.pi * np.outer(np.asarray(freqs), x_mm)
+    basis = np.vstack([np.cos(phase) * taper, np.sin(phase) * taper]) * gain
+    basis.setflags(write=False)
+    return basis
+
+
+def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = "hann") -> np.ndarray:
+    """Amplitude spectrum of one gray-level line at the given frequencies, before normalisation.
+
+    The mean is removed first, so brightness offsets and the DC leakage into the band vanish.
+    """
+    line = np.asarray(line, dtype=np.float64)
+    freqs = tuple(float(f) for f in np.asarray(freq_per_mm, dtype=np.float64))
+    basis = _dft_basis(line.shape[-1], float(px_per_mm), freqs, window)
+    centred = line - line.mean(axis=-1, keepdims=True)
+    parts = basis @ centred.T if centred.ndim > 1 else basis @ centred
+    k = len(freqs)
+    return np.hypot(parts[:k], parts[k:]).T
+
+
+def _normalise(amplitude: np.ndarray, freq_per_mm: np.ndarray, name: str | None, where: str) -> np.ndarray:
+    area = np.trapezoid(amplitude, freq_per_mm)
+    if not (np.isfinite(area) and area > 0):
+        raise InputError(f"{where}no texture along the line (flat gray level); the spectrum cannot be normalised", path=name)
+    return amplitude / area
+
+
+# --------------------------------------------------------------------------- crop and line
+
+
+def _check_px_per_mm(px_per_mm) -> float:
+    try:
+        value = float(px_per_mm)
+    except (TypeError, ValueError):
+        raise ConfigError(f"px_per_mm must be a positive number, got {px_per_mm!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"px_per_mm must be a positive number, got {px_per_mm!r}")
+    return value
+
+
+#: ``auto`` looks at every 2nd row and every 4th column: the band is ~150 rows tall and its texture spans
+#: many pixels, so 1/8 of the frame locates it to a row while costing a few % of decoding.
+AUTO_STRIDE_ROWS, AUTO_STRIDE_COLS = 2, 4
+
+
+def _auto_band(pixels: np.ndarray, height_px: int) -> int:
+    """Top row of the ``height_px``-row window with the most horizontal texture.
+
+    Texture of a row = mean squared difference of gray levels AUTO_STRIDE_COLS px apart along it;
+    the best window maximises the sum over its rows (a box filter), the first one on ties.
+    """
+    total_rows = pixels.shape[0]
+    cols = AUTO_STRIDE_COLS if pixels.shape[1] >= 8 * AUTO_STRIDE_COLS else 1
+    gray = to_gray(pixels[::AUTO_STRIDE_ROWS, ::cols])
+    energy = np.mean(np.square(np.diff(gray, axis=1)), axis=1)
+    energy = np.repeat(energy, AUTO_STRIDE_ROWS)[:total_rows]
+    window_sum = np.convolve(energy, np.ones(height_px), mode="valid")
+    return int(np.argmax(window_sum))
+
+
+def resolve_roi(roi: Roi, pixels: np.ndarray, *, name=None, where: str = "") -> tuple[int, int, int, int]:
+    """The crop (x, y, w, h) in pixels for this image; refuse crops that do not fit."""
+    height, width = pixels.shape[:2]
+    roi = parse_roi(roi)
+    if roi == "center":
+        crop_w, crop_h = CENTER_CROP_PX
+        if width < crop_w or height < crop_h:
+            raise InputError(
+                f"{where}image is {width}x{height} px, smaller than the {crop_w}x{crop_h} px centre crop; "
+                "pass --roi X,Y,W,H or --roi auto",
+                path=name,
+            )
+        return ((width - crop_w) // 2, (height - crop_h) // 2, crop_w, crop_h)
+    if roi == "auto":
+        crop_w, crop_h = min(CENTER_CROP_PX[0], width), min(CENTER_CROP_PX[1], height)
+        if width < 2:
+            raise InputError(f"{where}image is {width}x{height} px, too narrow to find the contact band", path=name)
+        return ((width - crop_w) // 2, _auto_band(pixels, crop_h), crop_w, crop_h)
+    x, y, w, h = roi
+    if x + w > width or y + h > height:
+        raise InputError(
+            f"{where}ROI {x},{y},{w},{h} reaches outside the image ({width}x{height} px)", path=name
+        )
+    return roi
+
+
+def extract_line(pixels: np.ndarray, box: tuple[int, int, int, int], rows: int, *, name=None, where: str = "") -> np.ndarray:
+    """Gray level along the middle row of the crop, or the mean of its ``rows`` central rows.
+
+    The central rows start at (h - rows) // 2, so one row of a 150-row crop is row 74 (MATLAB's
+    ``round(end/2)``). Only those rows are converted to gray: cropping comes before the colour work.
+    """
+    x, y, w, h = box
+    if rows > h:
+        raise InputError(f"{where}rows {rows} is more than the crop height ({h} px)", path=name)
+    top = y + (h - rows) // 2
+    gray = to_gray(pixels[top : top + rows, x : x + w])
+    line = gray.mean(axis=0) if rows > 1 else gray[0]
+    if not np.all(np.isfinite(line)):
+        raise InputError(f"{where}image contains NaN or infinite values in the crop", path=name)
+    return line
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Validated settings, shared read-only by the worker threads."""
+
+    px_per_mm: float
+    roi: Roi
+    rows: int
+    freq_per_mm: np.ndarray
+    window: str
+
+    @classmethod
+    def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window) -> _Plan:
+        px = _check_px_per_mm(px_per_mm)
+        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
+            raise ConfigError(f"rows must be a whole number >= 1, got {rows!r}")
+        if window not in WINDOWS:
+            raise ConfigError(f"window must be one of {', '.join(WINDOWS)}, got {window!r}")
+        roi = parse_roi(roi)
+        crop_h = CENTER_CROP_PX[1] if roi == "center" else roi[3] if not isinstance(roi, str) else None
+        if crop_h is not None and rows > crop_h:
+            raise ConfigError(f"rows {rows} is more than the crop height ({crop_h} px)")
+        freqs = frequency_grid(f_min_per_mm, f_max_per_mm, n_freqs)
+        if freqs[-1] >= px / 2:
+            raise ConfigError(
+                f"f_max {freqs[-1]:g} mm^-1 is not below the Nyquist frequency {px / 2:g} mm^-1 of {px:g} px/mm"
+            )
+        return cls(px, roi, int(rows), freqs, window)
+
+    def spectrum(self, image, index: int | None = None) -> np.ndarray:
+        is_file = isinstance(image, (str, os.PathLike))
+        name = image if is_file else None
+        where = "" if is_file or index is None else f"image {index} of the batch: "
+        pixels = as_image(image, name=where.rstrip(": ") or None)
+        box = resolve_roi(self.roi, pixels, name=name, where=where)
+        line_mm = box[2] / self.px_per_mm
+        min_mm = 1.0 / self.freq_per_mm[0]
+        if line_mm < min_mm * (1 - 1e-12):
+            raise InputError(
+                f"{where}the line is {line_mm:.3g} mm long ({box[2]} px at {self.px_per_mm:g} px/mm), shorter than "
+                f"1/f_min = {min_mm:.3g} mm, so it cannot resolve the band",
+                path=name,
+            )
+        line = extract_line(pixels, box, self.rows, name=name, where=where)
+        amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
+        return _normalise(amplitude, self.freq_per_mm, name, where)
+
+
+def spatial_spectrum(
+    image,
+    *,
+    px_per_mm: float = DEFAULT_PX_PER_MM,
+    roi: Roi = "center",
+    rows: int = 1,
+    f_min_per_mm: float = 0.1,
+    f_max_per_mm: float = 1.0,
+    n_freqs: int = 45,
+    window: str = "hann",
+) -> np.ndarray:
+    """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid."""
+    plan = _Plan.build(px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window)
+    return plan.spectrum(image)
+
+
+def combine_forces(spectra_by_force: Sequence[np.ndarray]) -> np.ndarray:
+    """Concatenate the spectra of one trial at each force (1 N, 2 N, 3 N): (n, 3 * n_freqs), as in the paper."""
+    blocks = [np.atleast_2d(np.asarray(s, dtype=np.float64)) for s in spectra_by_force]
+    if not blocks:
+        raise InputError("combine_forces needs at least one block of spectra")
+    n_rows = {b.shape[0] for b in blocks}
+    if len(n_rows) != 1 or any(b.ndim != 2 for b in blocks):
+        raise InputError(
+            f"combine_forces needs the same number of trials at every force, got shapes {[b.shape for b in blocks]}"
+        )
+    return np.hstack(blocks)
+
+
+# --------------------------------------------------------------------------- the scikit-learn transformer
+
+
+class SpatialSpectrum(TransformerMixin, BaseEstimator):
+    """scikit-learn transformer: a list of contact images (paths or arrays) -> (n, n_freqs) spectra.
+
+    Stateless: ``fit`` only validates the settings and records the grid in ``freq_per_mm_``, so it can
+    sit in front of a regressor in a Pipeline and be cross-validated like any other step.
+    ``n_jobs`` threads overlap decoding (OpenCV releases the GIL); ``-1`` uses every core.
+    """
+
+    def __init__(
+        self,
+        px_per_mm: float = DEFAULT_PX_PER_MM,
+        roi: Roi = "center",
+        rows: int = 1,
+        f_min_per_mm: float = 0.1,
+        f_max_per_mm: float = 1.0,
+        n_freqs: int = 45,
+        n_jobs: int = 1,
+        window: str = "hann",
+    ) -> None:
+        self.px_per_mm = px_per_mm
+        self.roi = roi
+        self.rows = rows
+        self.f_min_per_mm = f_min_per_mm
+        self.f_max_per_mm = f_max_per_mm
+        self.n_freqs = n_freqs
+        self.n_jobs = n_jobs
+        self.window = window
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.requires_fit = False
+        tags.input_tags.two_d_array = False
+        return tags
+
+    def _plan(self) -> _Plan:
+        return _Plan.build(
+            self.px_per_mm, self.roi, self.rows, self.f_min_per_mm, self.f_max_per_mm, self.n_freqs, self.window
+        )
+
+    def _jobs(self) -> int:
+        n = self.n_jobs
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n == 0 or n < -1:
+            raise ConfigError(f"n_jobs must be a positive whole number or -1, got {n!r}")
+        return (os.cpu_count() or 1) if n == -1 else int(n)
+
+    def fit(self, X=None, y=None) -> SpatialSpectrum:
+        self.freq_per_mm_ = self._plan().freq_per_mm
+        self._jobs()
+        return self
+
+    def transform(self, X) -> np.ndarray:
+        n_freqs = self._plan().freq_per_mm.size
+        rows = list(self.iter_transform(X))
+        return np.vstack(rows) if rows else np.empty((0, n_freqs))
+
+    def iter_transform(self, images: Iterable) -> Iterator[np.ndarray]:
+        """Yield one spectrum per image, in order, holding at most ~2 x n_jobs decoded images at a time."""
+        plan = self._plan()
+        jobs = self._jobs()
+        numbered = enumerate(images)
+        if jobs == 1:
+            for index, image in numbered:
+                yield plan.spectrum(image, index)
+            return
+        pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="roughsense-decode")
+        pending: deque = deque()
+        try:
+            for index, image in numbered:
+                pending.append(pool.submit(plan.spectrum, image, index))
+                if len(pending) >= 2 * jobs:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for future in pending:
+                future.cancel()
+            pool.shutdown(wait=True, cancel_futures=True)
+
+    def get_feature_names_out(self, input_features=None) -> np.ndarray:
+        """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float."""
+        return np.asarray([repr(float(f)) for f in self._plan().freq_per_mm], dtype=object)
+
+    def feature_definition(self) -> dict:
+        """JSON-able record of everything needed to recompute these features from the same images."""
+        plan = self._plan()
+        roi = plan.roi if isinstance(plan.roi, str) else list(plan.roi)
+        return {
+            "kind": "roughsense.SpatialSpectrum",
+            "version": FEATURE_VERSION,
+            "px_per_mm": plan.px_per_mm,
+            "roi": roi,
+            "center_crop_px": list(CENTER_CROP_PX) if roi in ("center", "auto") else None,
+            "rows": plan.rows,
+            "row_selection": "rows (h - rows) // 2 ... + rows - 1 of the crop, averaged",
+            "gray_weights_rgb": list(GRAY_WEIGHTS_RGB),
+            "intensity_scale": "uint8 / 255, uint16 / 65535, float as is",
+            "f_min_per_mm": float(plan.freq_per_mm[0]),
+            "f_max_per_mm": float(plan.freq_per_mm[-1]),
+            "n_freqs": int(plan.freq_per_mm.size),
+            "freq_per_mm": [float(f) for f in plan.freq_per_mm],
+            "dc_removal": "subtract line mean",
+            "window": plan.window,
+            "evaluation": "direct DFT at the grid frequencies (no zero-padding, no interpolation)",
+            "amplitude_scale": "2 / sum(window)",
+            "normalisation": "trapezoid area over mm^-1 equals 1",
+        }
+
+    @classmethod
+    def from_definition(cls, definition: dict, *, n_jobs: int = 1) -> SpatialSpectrum:
+        """Rebuild the transformer from :meth:`feature_definition` (e.g. one stored in a model file)."""
+        try:
+            if definition.get("kind") != "roughsense.SpatialSpectrum" or definition.get("version") != FEATURE_VERSION:
+                raise KeyError("kind/version")
+            roi = definition["roi"]
+            return cls(
+                px_per_mm=float(definition["px_per_mm"]),
+                roi=roi if isinstance(roi, str) else tuple(int(v) for v in roi),
+                rows=int(definition["rows"]),
+                f_min_per_mm=float(definition["f_min_per_mm"]),
+                f_max_per_mm=float(definition["f_max_per_mm"]),
+                n_freqs=int(definition["n_freqs"]),
+                n_jobs=n_jobs,
+                window=str(definition.get("window", "hann")),
+            )
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ConfigError(f"not a usable SpatialSpectrum feature definition ({exc})") from None

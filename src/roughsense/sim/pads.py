@@ -1,0 +1,82 @@
+"""The compliant pads: PVC plastisol blocks, smooth or with fingerprint-like ridges parallel to the gratings."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+
+YOUNG_PA = 0.17e6  # PVC plastisol, paper section 2.2
+POISSON = 0.49  # nearly incompressible rubber-like solid (DESIGN.md)
+DEFAULT_FINGERPRINT_PERIOD_MM = 1.0  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
+DEFAULT_RIDGE_HEIGHT_MM = 0.2  # not in the paper; chosen (DESIGN.md), see docs/simulator.md
+RIDGE_EDGE_MM = 0.05  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
+PAD_NAMES = ("smooth", "fingerprint")
+
+
+@dataclass(frozen=True)
+class Pad:
+    """A pad's material and surface relief along the image line (heights in mm, top of the ridges at 0)."""
+
+    name: str
+    period_mm: float | None = None  # ridge period; None for the smooth pad
+    ridge_height_mm: float = 0.0
+    young_pa: float = YOUNG_PA
+    poisson: float = POISSON
+
+    def __post_init__(self) -> None:
+        if self.period_mm is not None and not (math.isfinite(self.period_mm) and self.period_mm > 0):
+            raise ConfigError(f"pad {self.name!r}: the ridge period must be a positive number of mm, got {self.period_mm!r}")
+        if not (math.isfinite(self.ridge_height_mm) and self.ridge_height_mm >= 0):
+            raise ConfigError(f"pad {self.name!r}: the ridge height must be >= 0 mm, got {self.ridge_height_mm!r}")
+
+    @property
+    def contact_modulus_pa(self) -> float:
+        """E* = E / (1 - nu^2): the plane-strain modulus of a half-space against a rigid body."""
+        return self.young_pa / (1.0 - self.poisson**2)
+
+    @property
+    def has_ridges(self) -> bool:
+        return self.period_mm is not None and self.ridge_height_mm > 0
+
+    def height_mm(self, x_mm: np.ndarray, period_mm: float | None = None) -> np.ndarray:
+        """Relief of the pad at ``x_mm``: a square wave of equal ridges and grooves with rounded edges.
+
+        ``period_mm`` overrides the nominal period (the solver may stretch it slightly to fit its periodic domain).
+        """
+        x = np.asarray(x_mm, dtype=float)
+        if not self.has_ridges:
+            return np.zeros_like(x)
+        period = self.period_mm if period_mm is None else period_mm
+        # Smoothed square wave from its Fourier series, so the rounding is exact whatever the grid.
+        phase = 2.0 * math.pi * x / period
+        wave = np.zeros_like(x)
+        for m in range(1, 200, 2):
+            damping = math.exp(-0.5 * (2.0 * math.pi * m * RIDGE_EDGE_MM / period) ** 2)
+            if damping < 1e-6:
+                break
+            sign = 1.0 if m % 4 == 1 else -1.0
+            wave += sign * (4.0 / (math.pi * m)) * damping * np.cos(m * phase)
+        # wave ~ +1 on ridges, -1 in grooves
+        return 0.5 * self.ridge_height_mm * (wave - 1.0)
+
+    def table_row(self) -> dict:
+        return {"pad": self.name, "ridge_period_mm": self.period_mm or 0.0, "ridge_height_mm": self.ridge_height_mm,
+                "young_pa": self.young_pa, "poisson": self.poisson}
+
+
+def make_pad(name: str, *, fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM,
+             ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM) -> Pad:
+    """``smooth`` or ``fingerprint`` (with a configurable ridge period and height)."""
+    key = name.strip().lower()
+    if key == "smooth":
+        return Pad("smooth")
+    if key == "fingerprint":
+        if not (math.isfinite(fingerprint_period_mm) and fingerprint_period_mm > 0):
+            raise ConfigError(f"fingerprint period must be a positive number of mm, got {fingerprint_period_mm:g}")
+        if not (math.isfinite(ridge_height_mm) and ridge_height_mm > 0):
+            raise ConfigError(f"fingerprint ridge height must be a positive number of mm, got {ridge_height_mm:g}")
+        return Pad("fingerprint", period_mm=float(fingerprint_period_mm), ridge_height_mm=float(ridge_height_mm))
+    raise ConfigError(f"unknown pad {name!r}; expected one of {', '.join(PAD_NAMES)}")

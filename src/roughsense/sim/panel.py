@@ -1,0 +1,129 @@
+"""Simulated participants: magnitude estimates of each specimen relative to the reference R3 (= 1).
+
+Model (log scale): rating = G_s * exp(mu_s + b_ps + e_psk), with a participant-by-specimen offset b ~ N(0, v_b)
+(people differ in how rough a given grating feels to them) and session noise e ~ N(0, v_e). Per specimen, the
+total log-variance v = v_b + v_e and the offset mu_s are calibrated so that the paper's aggregation (median over
+sessions, then geometric mean over participants) equals the paper's value G_s in expectation, and the expected SD
+across participants' medians equals the paper's SD. Specimens outside the paper use a power law of groove width
+fitted to the paper's values, and are labelled ``model``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from .specimens import PRESETS, Specimen
+
+REFERENCE = "R3"
+SESSION_SHARE = 0.3  # share of the log-variance that is session-to-session (not participant) noise
+MODEL_CV = 0.25  # relative SD across participants for model-based specimens (median CV of the paper's values)
+RATING_DECIMALS = 2
+_CALIBRATION_PANELS = 4000
+
+
+@lru_cache(maxsize=1)
+def paper_perceived() -> pd.DataFrame:
+    """The paper's perceived roughness (gmean, SD across participants), shipped in ``roughsense.data.paper``."""
+    with resources.files("roughsense.data.paper").joinpath("perceived_roughness.csv").open("r", encoding="utf-8") as fh:
+        frame = pd.read_csv(fh, dtype={"specimen": str, "shape": str})
+    return frame.set_index("specimen")
+
+
+@lru_cache(maxsize=1)
+def power_law() -> dict[str, tuple[float, float]]:
+    """Perceived roughness = a * groove_width_mm ** b, fitted (least squares in logs) per profile family.
+
+    "sharp" is fitted on the rectangular gratings, "rounded" on the circular ones (used for sinusoidal and random).
+    """
+    paper = paper_perceived()
+    fits = {}
+    for family, shape in (("sharp", "rectangular"), ("rounded", "circular")):
+        rows = paper[paper["shape"] == shape]
+        width = np.array([PRESETS[s].groove_width_mm for s in rows.index])
+        b, log_a = np.polyfit(np.log(width), np.log(rows["perceived_gmean"].to_numpy(float)), 1)
+        fits[family] = (float(math.exp(log_a)), float(b))
+    return fits
+
+
+@dataclass(frozen=True)
+class Percept:
+    gmean: float
+    sd: float
+    source: str  # "paper" or "model"
+
+
+def percept(specimen: Specimen) -> Percept:
+    """Expected aggregated rating and its spread across participants for one specimen."""
+    paper = paper_perceived()
+    if specimen.preset and specimen.name in paper.index:
+        row = paper.loc[specimen.name]
+        sd = float(row["perceived_sd"]) if pd.notna(row["perceived_sd"]) else 0.0
+        return Percept(float(row["perceived_gmean"]), sd, "paper")
+    a, b = power_law()["sharp" if specimen.shape == "rectangular" else "rounded"]
+    gmean = a * specimen.groove_width_mm**b
+    return Percept(float(gmean), MODEL_CV * float(gmean), "model")
+
+
+def _standard_draws(participants: int, sessions: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(20250425)  # fixed: the calibration is a property of the model, not of a run
+    z_b = rng.standard_normal((_CALIBRATION_PANELS, participants))
+    z_e = np.median(rng.standard_normal((_CALIBRATION_PANELS, participants, sessions)), axis=2)
+    return z_b, z_e
+
+
+@lru_cache(maxsize=256)
+def log_parameters(gmean: float, sd: float, participants: int = 10, sessions: int = 3) -> tuple[float, float, float]:
+    """(mu, v_b, v_e) such that E[aggregate] = gmean and E[SD of participants' medians] = sd."""
+    if sd <= 0:
+        return 0.0, 0.0, 0.0
+    z_b, z_e = _standard_draws(participants, sessions)
+
+    def moments(v: float) -> tuple[float, float]:
+        logs = math.sqrt((1 - SESSION_SHARE) * v) * z_b + math.sqrt(SESSION_SHARE * v) * z_e
+        mu = -math.log(np.mean(np.exp(logs.mean(axis=1))))
+        medians = gmean * np.exp(mu + logs)
+        return mu, float(np.mean(medians.std(axis=1, ddof=1)))
+
+    lo, hi = 0.0, 4.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if moments(mid)[1] < sd:
+            lo = mid
+        else:
+            hi = mid
+    v = 0.5 * (lo + hi)
+    mu, _ = moments(v)
+    return mu, (1 - SESSION_SHARE) * v, SESSION_SHARE * v
+
+
+def draw_log_ratings(gmean: float, sd: float, rng: np.random.Generator, *, panels: int = 1,
+                     participants: int = 10, sessions: int = 3) -> np.ndarray:
+    """Ratings of ``panels`` independent panels, shape (panels, participants, sessions)."""
+    mu, v_b, v_e = log_parameters(float(gmean), float(sd), participants, sessions)
+    b = rng.normal(0.0, math.sqrt(v_b), (panels, participants, 1))
+    e = rng.normal(0.0, math.sqrt(v_e), (panels, participants, sessions))
+    return gmean * np.exp(mu + b + e)
+
+
+def simulate_panel(specimens: list[Specimen], rng: np.random.Generator, *, participants: int = 10,
+                   sessions: int = 3, reference: str = REFERENCE) -> pd.DataFrame:
+    """ratings.csv rows: every participant rates every specimen but the reference in each session."""
+    rows = []
+    rated = [s for s in specimens if s.name != reference]
+    draws = {}
+    for specimen in rated:
+        p = percept(specimen)
+        draws[specimen.name] = draw_log_ratings(p.gmean, p.sd, rng, participants=participants, sessions=sessions)[0]
+    session_order = [rng.permutation(len(rated)) for _ in range(participants * sessions)]
+    for i in range(participants):
+        for k in range(sessions):
+            for j in session_order[i * sessions + k]:  # specimens were presented in random order
+                name = rated[j].name
+                rating = max(round(float(draws[name][i, k]), RATING_DECIMALS), 10.0**-RATING_DECIMALS)
+                rows.append({"participant": f"P{i + 1:02d}", "session": k + 1, "specimen": name, "rating": rating})
+    return pd.DataFrame(rows, columns=["participant", "session", "specimen", "rating"])

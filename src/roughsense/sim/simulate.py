@@ -1,0 +1,280 @@
+"""Run the simulated experiment and write it as a study folder (the same contract the rig writes).
+
+Randomness: every mount, exposure and the panel get their own ``SeedSequence`` child keyed by the master seed and
+the *names* of pad, specimen, repetition and force, so results do not depend on ``jobs``, on scheduling, or on
+which other specimens are in the run.
+"""
+from __future__ import annotations
+
+import math
+import os
+import zlib
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import ConfigError
+from ..study import SensorSettings, StudyWriter
+from . import contact
+from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
+from .optics import Camera, render
+from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
+from .panel import REFERENCE, percept, simulate_panel
+from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
+
+SUBSAMPLES_PER_PX = 7
+NO_CONTACT_GAP_MM = 1e3
+PRESSURE_LEVELS = 6  # local pressures solved per trial; the line blends them (see trial_line)  # beyond the specimen's ends nothing touches the pad
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Everything that defines a simulated study. Defaults are the paper's full study (840 images)."""
+
+    pads: tuple[str, ...] = ("smooth", "fingerprint")
+    specimens: tuple[str, ...] = PAPER_SPECIMENS
+    forces_n: tuple[float, ...] = (1.0, 2.0, 3.0)
+    repetitions: int = 10
+    seed: int = 0
+    fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM
+    ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM
+    participants: int = 10
+    sessions: int = 3
+    name: str = "simulated"
+    camera: Camera = field(default_factory=Camera)
+    bench: BenchNoise = field(default_factory=BenchNoise)
+
+    def validate(self) -> tuple[list[Pad], list[Specimen]]:
+        """Check every option before anything is written; returns the resolved pads and specimens."""
+        if not self.pads:
+            raise ConfigError("--pads: give at least one pad (smooth, fingerprint)")
+        if not self.specimens:
+            raise ConfigError("--specimens: give at least one specimen")
+        if not self.forces_n:
+            raise ConfigError("--forces: give at least one force")
+        for f in self.forces_n:
+            if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
+                raise ConfigError(f"--forces: every force must be a positive number of newtons, got {f!r}")
+        if len(set(self.forces_n)) != len(self.forces_n):
+            raise ConfigError("--forces: forces must be distinct")
+        if self.repetitions < 1:
+            raise ConfigError(f"--repetitions must be at least 1, got {self.repetitions}")
+        if self.seed < 0:
+            raise ConfigError(f"--seed must be >= 0, got {self.seed}")
+        if self.participants < 2 or self.sessions < 1:
+            raise ConfigError("the panel needs at least 2 participants and 1 session")
+        pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
+                for p in self.pads]
+        specimens = [parse_specimen(s) for s in self.specimens]
+        for kind, names in (("pad", [p.name for p in pads]), ("specimen", [s.name for s in specimens])):
+            dup = {n for n in names if names.count(n) > 1}
+            if dup:
+                raise ConfigError(f"{kind} {sorted(dup)[0]!r} is listed twice")
+        return pads, specimens
+
+    def toml_table(self) -> dict:
+        cam, bench = asdict(self.camera), asdict(self.bench)
+        table = {"seed": int(self.seed), "simulator": "roughsense.sim", "pads": list(self.pads),
+                 "repetitions": int(self.repetitions), "fingerprint_period_mm": float(self.fingerprint_period_mm),
+                 "ridge_height_mm": float(self.ridge_height_mm), "participants": int(self.participants),
+                 "sessions": int(self.sessions)}
+        table.update({f"camera_{k}": v for k, v in cam.items()})
+        table.update({f"bench_{k}": v for k, v in bench.items()})
+        return table
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One exposure, fully specified: a worker renders it without drawing anything but sensor noise."""
+
+    image: str
+    pad: Pad
+    specimen: Specimen
+    nominal_force_n: float
+    repetition: int
+    mount: Mount
+    exposure: Exposure
+    noise_key: tuple[int, ...]
+    seed: int
+    camera: Camera
+
+
+def _key(text: str) -> int:
+    return zlib.crc32(text.encode("utf-8"))
+
+
+def _rng(seed: int, *key: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in ".-" else "_" for c in name)
+
+
+def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequence[Specimen]) -> list[Trial]:
+    """All exposures in acquisition order: per pad and specimen, mount ``repetition`` times, step the forces up."""
+    trials = []
+    forces = sorted(config.forces_n)
+    for pad in pads:
+        for specimen in specimens:
+            for rep in range(1, config.repetitions + 1):
+                mount_key = (1, _key(pad.name), _key(specimen.name), rep)
+                mount = draw_mount(_rng(config.seed, *mount_key), config.bench, pad.period_mm if pad.has_ridges else None)
+                for force in forces:
+                    fkey = int(round(force * 1e6))
+                    exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
+                    name = f"{pad.name}_{_safe(specimen.name)}_{force:g}N_r{rep:02d}.png"
+                    trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
+                                        (3, *mount_key[1:], fkey), config.seed, config.camera))
+    return trials
+
+
+def _solve_gap(pad: Pad, specimen: Specimen, phase_mm: float, pressure_pa: float) -> tuple[float, np.ndarray]:
+    length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm if pad.has_ridges else None,
+                                                 max_length_mm=SPECIMEN_LENGTH_MM)
+    n = contact.grid_points(length)
+    x = np.arange(n) * (length / n)
+    height = specimen.height_mm(x)
+    if pad.has_ridges:
+        height = height + pad.height_mm(x - phase_mm, period_mm=pad_period)
+    solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa)
+    return length, solution.gap_mm
+
+
+def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
+    """Brightness of each pixel column of the line (0..1) and the fraction of the line in contact.
+
+    A tilted or warped specimen presses harder in some places. The pressure varies slowly compared with the
+    grating period, so the line is treated as locally periodic: the contact is solved at a few pressures spanning
+    the local range, and each point blends the two nearest solutions by its local pressure (hat weights).
+    """
+    cam, pad, spec, mount = trial.camera, trial.pad, trial.specimen, trial.mount
+    p_mean = contact.nominal_pressure_pa(trial.exposure.force_true_n)
+    w_px = cam.width_px
+    x_mm = (np.arange(w_px * SUBSAMPLES_PER_PX) + 0.5) / (cam.px_per_mm * SUBSAMPLES_PER_PX)
+    start = (cam.field_mm - SPECIMEN_LENGTH_MM) / 2.0 + mount.shift_mm
+    u = x_mm - start  # position along the specimen
+    on = (u >= 0) & (u <= SPECIMEN_LENGTH_MM)
+    u_spec = np.linspace(0.0, SPECIMEN_LENGTH_MM, 501)
+    mean = float(mount.local_pressure(u_spec, SPECIMEN_LENGTH_MM).mean())
+    local = mount.local_pressure(np.clip(u, 0.0, SPECIMEN_LENGTH_MM), SPECIMEN_LENGTH_MM) / mean
+    lo, hi = float(local[on].min()) if on.any() else 1.0, float(local[on].max()) if on.any() else 1.0
+    count = 1 if hi - lo < 0.02 else int(min(PRESSURE_LEVELS, 2 + math.ceil((hi - lo) / 0.15)))
+    levels = np.linspace(lo, hi, count) if count > 1 else np.array([1.0])
+    brightness = np.zeros_like(x_mm)
+    touching = np.zeros_like(x_mm)
+    for i, level in enumerate(levels):
+        if count == 1:
+            weight = np.ones_like(x_mm)
+        else:  # piecewise-linear (hat) weights in local pressure
+            weight = np.clip(1.0 - np.abs(local - level) / (levels[1] - levels[0]), 0.0, 1.0)
+        length, gap = _solve_gap(pad, spec, mount.pad_phase_mm, p_mean * level)
+        grid = np.arange(gap.size + 1) * (length / gap.size)
+        g = np.interp(np.mod(u, length), grid, np.append(gap, gap[0]))
+        g = np.where(on, g, NO_CONTACT_GAP_MM)
+        brightness += weight * cam.contrast(g)
+        touching += weight * (g <= 0)
+    line = brightness.reshape(w_px, SUBSAMPLES_PER_PX).mean(axis=1)
+    return line, float(touching.mean())
+
+
+def render_trial(trial: Trial) -> tuple[np.ndarray, float]:
+    """The 8-bit frame of one trial and its ground-truth contact fraction."""
+    line, fraction = trial_line(trial)
+    center = trial.camera.height_px / 2.0 + trial.mount.band_shift_px
+    frame = render(trial.camera, line, band_center_px=center, lighting=trial.exposure.lighting,
+                   rng=_rng(trial.seed, *trial.noise_key), spots=trial.mount.spots)
+    return frame, fraction
+
+
+_WRITERS: dict[tuple[str, bool], StudyWriter] = {}
+
+
+def _write_trial(args: tuple[str, bool, Trial]) -> tuple[str, float]:
+    root, force, trial = args
+    writer = _WRITERS.get((root, force))
+    if writer is None:  # each worker reopens the folder the parent already checked and created
+        writer = _WRITERS[(root, force)] = StudyWriter(root, force=force, resume=True)
+    frame, fraction = render_trial(trial)
+    return writer.write_image(trial.image, frame), fraction
+
+
+def simulate_study(out: str | os.PathLike[str], config: SimulationConfig = SimulationConfig(), *,
+                   force: bool = False, jobs: int | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> Path:
+    """Simulate the experiment and write the study folder ``out``; returns its path.
+
+    ``progress(done, total)`` is called after each image; the library itself prints nothing.
+    """
+    run = SimulationRun(out, config, force=force, jobs=jobs)
+    for done, _ in enumerate(run, start=1):
+        if progress:
+            progress(done, run.total)
+    return run.root
+
+
+class SimulationRun:
+    """A simulation checked and ready to run: iterate it to render the images (one item per image written).
+
+    Construction validates every option and refuses a non-empty folder (without ``force``) before anything is
+    written, so a bad call leaves no partial output. The CLI wraps the iteration in its progress bar.
+    """
+
+    def __init__(self, out: str | os.PathLike[str], config: SimulationConfig = SimulationConfig(), *,
+                 force: bool = False, jobs: int | None = None) -> None:
+        self.config = config
+        self.pads, self.specimens = config.validate()
+        self.jobs = max(1, int(jobs if jobs is not None else (os.cpu_count() or 1)))
+        self.trials = plan_trials(config, self.pads, self.specimens)
+        self.force = force
+        self.writer = StudyWriter(out, force=force)  # refuses a non-empty folder unless force; never deletes
+        self.root = self.writer.root
+
+    @property
+    def total(self) -> int:
+        return len(self.trials)
+
+    def _write_tables(self) -> None:
+        config, writer = self.config, self.writer
+        writer.write_config(name=config.name, reference_specimen=REFERENCE,
+                            sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi="center"),
+                            forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
+        table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s).source} for s in self.specimens])
+        writer.write_specimens(table)
+        writer.write_ratings(simulate_panel(self.specimens, _rng(config.seed, 4), participants=config.participants,
+                                            sessions=config.sessions, reference=REFERENCE))
+
+    def __iter__(self) -> Iterator[str]:
+        self._write_tables()
+        tasks = [(str(self.root), self.force, t) for t in self.trials]
+        results: list[tuple[str, float]] = []
+        if self.jobs == 1 or len(tasks) < 2:
+            for result in map(_write_trial, tasks):
+                results.append(result)
+                yield result[0]
+        else:
+            with ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks))) as pool:
+                for result in pool.map(_write_trial, tasks, chunksize=4):
+                    results.append(result)
+                    yield result[0]
+        trials = self.trials
+        manifest = pd.DataFrame({
+            "image": [r[0] for r in results],
+            "specimen": [t.specimen.name for t in trials],
+            "pad": [t.pad.name for t in trials],
+            "force_n": [t.exposure.force_read_n for t in trials],
+            "nominal_force_n": [t.nominal_force_n for t in trials],
+            "repetition": [t.repetition for t in trials],
+            "contact_fraction": [round(r[1], 6) for r in results],
+            "true_force_n": [round(t.exposure.force_true_n, 6) for t in trials],
+        })
+        self.writer.write_manifest(manifest)  # last: a study without its manifest is visibly incomplete
+
+
+def with_image_size(config: SimulationConfig, width_px: int, height_px: int) -> SimulationConfig:
+    """Same study on a smaller frame (tests): the field shrinks, the scale in px/mm stays."""
+    return replace(config, camera=replace(config.camera, width_px=int(width_px), height_px=int(height_px)))

@@ -1,0 +1,190 @@
+"""Rigid grating specimens: the paper's fourteen presets and user specs for new ones.
+
+Heights are in mm along the image line (x), ridges along y, with the highest point at 0 and valleys negative,
+so a profile can be added to the pad's relief and handed to the contact solver as one composite surface.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+
+SPECIMEN_LENGTH_MM = 50.0
+SPECIMEN_WIDTH_MM = 10.0
+DEFAULT_GROOVE_DEPTH_MM = 1.0  # not in the paper (DESIGN.md); deep enough that the pad never reaches the floor
+SHAPES = ("rectangular", "circular", "sinusoidal", "random")
+PAPER_WAVELENGTHS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """One grating. ``wavelength_mm`` is the period (for random gratings: the correlation length)."""
+
+    name: str
+    shape: str
+    wavelength_mm: float
+    groove_depth_mm: float = float("nan")  # rectangular: groove depth
+    ridge_width_mm: float = float("nan")  # rectangular: land width
+    diameter_mm: float = float("nan")  # circular: cylinder diameter (= wavelength)
+    amplitude_mm: float = float("nan")  # sinusoidal: amplitude; random: rms height
+    seed: int = 0  # random: seed of its (fixed, printed-once) profile
+    preset: bool = False
+
+    def __post_init__(self) -> None:
+        if self.shape not in SHAPES:
+            raise ConfigError(f"unknown specimen shape {self.shape!r}; expected one of {', '.join(SHAPES)}")
+        _positive("wavelength", self.wavelength_mm, self.name)
+        if self.shape == "rectangular":
+            _positive("groove depth", self.groove_depth_mm, self.name)
+            _positive("ridge width", self.ridge_width_mm, self.name)
+            if self.ridge_width_mm >= self.wavelength_mm:
+                raise ConfigError(f"specimen {self.name!r}: ridge width must be smaller than the wavelength")
+        if self.shape in ("sinusoidal", "random"):
+            _positive("amplitude", self.amplitude_mm, self.name)
+
+    @property
+    def period_mm(self) -> float:
+        """Length after which the profile repeats (random gratings repeat once per specimen)."""
+        return SPECIMEN_LENGTH_MM if self.shape == "random" else self.wavelength_mm
+
+    @property
+    def groove_width_mm(self) -> float:
+        """Width of the valley a fingertip can sink into: the groove, or half a period for rounded profiles."""
+        if self.shape == "rectangular":
+            return self.wavelength_mm - self.ridge_width_mm
+        return self.wavelength_mm / 2.0
+
+    def height_mm(self, x_mm: np.ndarray) -> np.ndarray:
+        """Surface height at ``x_mm`` (periodic with ``period_mm``); 0 is the top of the ridges."""
+        x = np.mod(np.asarray(x_mm, dtype=float), self.period_mm)
+        lam = self.wavelength_mm
+        if self.shape == "rectangular":
+            # land centred at lam/2 so that a period starts and ends in a groove
+            land = np.abs(x - lam / 2.0) <= self.ridge_width_mm / 2.0
+            return np.where(land, 0.0, -self.groove_depth_mm)
+        if self.shape == "circular":
+            radius = lam / 2.0
+            u = x - lam / 2.0
+            return np.sqrt(np.maximum(radius * radius - u * u, 0.0)) - radius
+        if self.shape == "sinusoidal":
+            return self.amplitude_mm * (np.cos(2.0 * math.pi * (x - lam / 2.0) / lam) - 1.0)
+        return self._random_height(x)
+
+    def _random_height(self, x: np.ndarray) -> np.ndarray:
+        # Gaussian random profile with Gaussian autocorrelation of length `wavelength_mm`, periodic over the specimen.
+        n = 4096
+        length = SPECIMEN_LENGTH_MM
+        rng = np.random.default_rng(self.seed)
+        k = np.fft.rfftfreq(n, d=length / n)
+        spectrum = np.exp(-((math.pi * k * self.wavelength_mm) ** 2) / 4.0)
+        spectrum[0] = 0.0
+        coeff = spectrum * (rng.standard_normal(k.size) + 1j * rng.standard_normal(k.size))
+        profile = np.fft.irfft(coeff, n)
+        profile *= self.amplitude_mm / max(profile.std(), 1e-300)
+        profile -= profile.max()
+        grid = np.arange(n + 1) * length / n
+        return np.interp(x, grid, np.append(profile, profile[0]))
+
+    def table_row(self) -> dict:
+        """The specimens.csv row: shape, wavelength and every geometry column (blank where it does not apply)."""
+        return {
+            "specimen": self.name,
+            "shape": self.shape,
+            "wavelength_mm": self.wavelength_mm,
+            "groove_width_mm": self.groove_width_mm,
+            "groove_depth_mm": self.groove_depth_mm,
+            "ridge_width_mm": self.ridge_width_mm,
+            "diameter_mm": self.diameter_mm,
+            "amplitude_mm": self.amplitude_mm,
+            "length_mm": SPECIMEN_LENGTH_MM,
+            "width_mm": SPECIMEN_WIDTH_MM,
+        }
+
+
+def _positive(what: str, value: float, name: str) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ConfigError(f"specimen {name!r}: {what} must be a positive number of mm, got {value!r}")
+
+
+def rectangular(wavelength_mm: float, *, groove_depth_mm: float = DEFAULT_GROOVE_DEPTH_MM,
+                ridge_width_mm: float | None = None, name: str | None = None) -> Specimen:
+    _positive("wavelength", wavelength_mm, name or "rect")
+    ridge = wavelength_mm / 2.0 if ridge_width_mm is None else ridge_width_mm
+    return Specimen(name or f"rect:{wavelength_mm:g}", "rectangular", float(wavelength_mm),
+                    groove_depth_mm=float(groove_depth_mm), ridge_width_mm=float(ridge))
+
+
+def circular(diameter_mm: float, *, name: str | None = None) -> Specimen:
+    _positive("diameter", diameter_mm, name or "circ")
+    return Specimen(name or f"circ:{diameter_mm:g}", "circular", float(diameter_mm), diameter_mm=float(diameter_mm))
+
+
+def sinusoidal(wavelength_mm: float, amplitude_mm: float, *, name: str | None = None) -> Specimen:
+    return Specimen(name or f"sin:{wavelength_mm:g}:{amplitude_mm:g}", "sinusoidal", float(wavelength_mm),
+                    amplitude_mm=float(amplitude_mm))
+
+
+def random_grating(correlation_mm: float, rms_mm: float, *, seed: int = 0, name: str | None = None) -> Specimen:
+    return Specimen(name or f"rand:{correlation_mm:g}:{rms_mm:g}:{seed}", "random", float(correlation_mm),
+                    amplitude_mm=float(rms_mm), seed=int(seed))
+
+
+def _preset_table() -> dict[str, Specimen]:
+    table = {}
+    for lam in PAPER_WAVELENGTHS_MM:
+        label = f"{lam:g}"
+        table[f"R{label}"] = Specimen(f"R{label}", "rectangular", lam, groove_depth_mm=DEFAULT_GROOVE_DEPTH_MM,
+                                      ridge_width_mm=lam / 2.0, preset=True)
+        table[f"C{label}"] = Specimen(f"C{label}", "circular", lam, diameter_mm=lam, preset=True)
+    return table
+
+
+PRESETS: dict[str, Specimen] = _preset_table()
+PAPER_SPECIMENS: tuple[str, ...] = tuple([f"R{lam:g}" for lam in PAPER_WAVELENGTHS_MM]
+                                         + [f"C{lam:g}" for lam in PAPER_WAVELENGTHS_MM])
+
+SPEC_HELP = (
+    "A preset (R2, R2.5, ..., R5, C2, ..., C5) or a spec: rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "
+    "circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, rand:CORRELATION_LENGTH:RMS[:SEED] (all in mm)."
+)
+
+
+def parse_specimen(text: str) -> Specimen:
+    """A preset name or a spec like ``sin:3.0:0.5`` (see :data:`SPEC_HELP`)."""
+    text = text.strip()
+    if text in PRESETS:
+        return PRESETS[text]
+    upper = text.upper()
+    if upper in PRESETS:
+        return PRESETS[upper]
+    kind, _, rest = text.partition(":")
+    kind = kind.lower()
+    arity = {"rect": (1, 3), "circ": (1, 1), "sin": (2, 2), "rand": (2, 3)}
+    if not rest or kind not in arity:
+        raise ConfigError(f"unknown specimen {text!r}. {SPEC_HELP}")
+    parts = rest.split(":")
+    lo, hi = arity[kind]
+    if not lo <= len(parts) <= hi:
+        raise ConfigError(f"specimen {text!r}: {kind} takes {lo}" + (f" to {hi}" if hi > lo else "") + f" numbers. {SPEC_HELP}")
+    try:
+        numbers = [float(p) for p in parts]
+    except ValueError:
+        raise ConfigError(f"specimen {text!r}: {rest!r} is not a list of numbers. {SPEC_HELP}") from None
+    for value in numbers[:2] if kind != "rect" else numbers:
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(f"specimen {text!r}: every size must be a positive number of mm, got {value:g}")
+    if kind == "rect":
+        depth = numbers[1] if len(numbers) > 1 else DEFAULT_GROOVE_DEPTH_MM
+        ridge = numbers[2] if len(numbers) > 2 else None
+        return rectangular(numbers[0], groove_depth_mm=depth, ridge_width_mm=ridge, name=text)
+    if kind == "circ":
+        return circular(numbers[0], name=text)
+    if kind == "sin":
+        return sinusoidal(numbers[0], numbers[1], name=text)
+    seed = numbers[2] if len(numbers) > 2 else 0.0
+    if seed != int(seed) or seed < 0:
+        raise ConfigError(f"specimen {text!r}: the seed must be a whole number >= 0")
+    return random_grating(numbers[0], numbers[1], seed=int(seed), name=text)

@@ -1,0 +1,177 @@
+"""``roughsense features`` at the command line: CSV contract, study folders and every bad input."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+from roughsense.sensor import frequency_grid, spatial_spectrum
+from roughsense.study import SensorSettings, StudyWriter
+
+PX_PER_MM = 34.9
+
+
+def grating_frame(wavelength_mm, width_px=1920, height_px=1080, px_per_mm=PX_PER_MM):
+    x_mm = np.arange(width_px) / px_per_mm
+    line = 0.5 + 0.35 * np.tanh(3 * np.sin(2 * np.pi * x_mm / wavelength_mm))
+    return np.tile(np.round(255 * line).astype(np.uint8), (height_px, 1))
+
+
+def write_png(path: Path, pixels) -> Path:
+    assert cv2.imwrite(str(path), pixels)
+    return path
+
+
+@pytest.fixture
+def images(tmp_path):
+    return [write_png(tmp_path / f"grating_{w}mm.png", grating_frame(w)) for w in (2.0, 3.0, 5.0)]
+
+
+def test_features_csv_has_image_column_and_round_tripping_grid(run_cli, tmp_path, images):
+    out = tmp_path / "features.csv"
+    code, stdout, err = run_cli("features", *images, "--out", out, "--jobs", "2")
+    assert code == 0, err
+    table = pd.read_csv(out)
+    assert list(table.columns[:1]) == ["image"] and len(table.columns) == 46
+    headers = np.array([float(c) for c in table.columns[1:]])
+    np.testing.assert_array_equal(headers, frequency_grid())
+    assert list(table["image"]) == [str(p) for p in images]
+    for path, row in zip(images, table.iloc[:, 1:].to_numpy()):
+        np.testing.assert_allclose(row, spatial_spectrum(path), rtol=1e-12)
+    peaks = headers[table.iloc[:, 1:].to_numpy().argmax(axis=1)]
+    np.testing.assert_allclose(peaks, [0.5, 1 / 3, 0.2], atol=(0.9 / 44) / 2 + 1e-12)
+
+
+def test_features_options_reach_the_library(run_cli, tmp_path, images):
+    out = tmp_path / "f.csv"
+    args = ["--px-per-mm", "30", "--roi", "5,400,1800,120", "--rows", "7", "--band", "0.15,0.9", "--n-freqs", "20", "--window", "none"]
+    code, _, err = run_cli("features", images[1], "--out", out, *args)
+    assert code == 0, err
+    table = pd.read_csv(out)
+    np.testing.assert_array_equal([float(c) for c in table.columns[1:]], frequency_grid(0.15, 0.9, 20))
+    expected = spatial_spectrum(
+        images[1], px_per_mm=30, roi=(5, 400, 1800, 120), rows=7, f_min_per_mm=0.15, f_max_per_mm=0.9, n_freqs=20, window="none"
+    )
+    np.testing.assert_allclose(table.iloc[0, 1:].to_numpy(float), expected, rtol=1e-12)
+
+
+def _study(root: Path, px_per_mm: float) -> Path:
+    writer = StudyWriter(root)
+    writer.write_config(name="tiny", sensor=SensorSettings(px_per_mm=px_per_mm, roi="auto"))
+    writer.write_specimens(pd.DataFrame({"specimen": ["R2", "R3"], "shape": ["rectangular"] * 2, "wavelength_mm": [2.0, 3.0]}))
+    rows = []
+    for specimen, wavelength_mm in (("R2", 2.0), ("R3", 3.0)):
+        for force_n in (1.0, 2.0):
+            name = writer.write_image(f"{specimen}_{force_n:g}N.png", grating_frame(wavelength_mm, 800, 300, px_per_mm))
+            rows.append({"image": name, "specimen": specimen, "pad": "A", "force_n": force_n + 0.02, "repetition": 1})
+    writer.write_manifest(pd.DataFrame(rows))
+    return root
+
+
+def test_features_for_a_study_carry_the_manifest_and_use_its_sensor_settings(run_cli, tmp_path):
+    study = _study(tmp_path / "study", px_per_mm=20.0)
+    out = tmp_path / "features.csv"
+    code, _, err = run_cli("features", "--study", study, "--out", out)
+    assert code == 0, err
+    table = pd.read_csv(out)
+    manifest = pd.read_csv(study / "manifest.csv")
+    assert list(table.columns[:5]) == list(manifest.columns)
+    pd.testing.assert_frame_equal(table[manifest.columns], manifest)
+    assert list(table["condition"]) == ["1N", "2N", "1N", "2N"]
+    features = table[[c for c in table.columns if c[0].isdigit()]].to_numpy(float)
+    for rel, row in zip(table["image"], features):
+        np.testing.assert_allclose(row, spatial_spectrum(study / rel, px_per_mm=20.0, roi="auto"), rtol=1e-12)
+    # an explicit option overrides the study's setting
+    code, _, err = run_cli("features", "--study", study, "--out", out, "--force", "--px-per-mm", "25")
+    assert code == 0, err
+    row = pd.read_csv(out).iloc[0][[c for c in table.columns if c[0].isdigit()]].to_numpy(float)
+    np.testing.assert_allclose(row, spatial_spectrum(study / table["image"][0], px_per_mm=25.0, roi="auto"), rtol=1e-12)
+
+
+def _assert_clean_failure(result, out: Path, *names: str):
+    code, stdout, err = result
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("roughsense: error: "), err
+    assert "Traceback" not in err
+    for name in names:
+        assert name in lines[0]
+    assert not out.exists()
+    assert not list(out.parent.glob(f".{out.name}.*"))  # no temporary left behind
+
+
+@pytest.mark.parametrize(
+    "case",
+    ["corrupt", "truncated", "empty", "missing", "small", "roi-outside", "short-line", "rows"],
+)
+def test_bad_image_in_a_batch_names_the_file_and_writes_nothing(run_cli, tmp_path, images, case):
+    bad = tmp_path / f"bad_{case}.png"
+    extra: list[str] = []
+    if case == "corrupt":
+        bad.write_bytes(b"\x89PNG\r\n\x1a\n" + b"garbage" * 50)
+    elif case == "truncated":
+        data = images[0].read_bytes()
+        bad.write_bytes(data[: len(data) // 2])
+    elif case == "empty":
+        bad.write_bytes(b"")
+    elif case == "small":
+        write_png(bad, grating_frame(3.0, 1280, 720)[:100])
+    elif case == "roi-outside":
+        write_png(bad, grating_frame(3.0, 1920, 400))
+        extra = ["--roi", "0,300,1900,150"]
+    elif case == "short-line":
+        write_png(bad, grating_frame(3.0, 300, 200))
+        extra = ["--roi", "auto"]
+    elif case == "rows":  # the auto crop is only as tall as the image
+        write_png(bad, grating_frame(3.0, 1920, 100))
+        extra = ["--roi", "auto", "--rows", "120"]
+    out = tmp_path / "features.csv"
+    result = run_cli("features", images[0], bad, images[1], "--out", out, "--jobs", "2", *extra)
+    _assert_clean_failure(result, out, bad.name)
+
+
+@pytest.mark.parametrize("value", ["0", "-34.9", "nan"])
+def test_px_per_mm_must_be_positive(run_cli, tmp_path, images, value):
+    out = tmp_path / "features.csv"
+    _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--px-per-mm={value}"), out, "px_per_mm")
+
+
+@pytest.mark.parametrize("args, words", [(["--band", "1.0,0.1"], ["band"]), (["--band", "0.1"], ["--band"]), (["--roi", "1,2,3"], ["ROI"]), (["--n-freqs", "1"], ["n_freqs"]), (["--rows", "151"], ["rows 151", "150 px"]), (["--roi", "0,0,1900,20", "--rows", "21"], ["rows 21"])])
+def test_bad_options_fail_cleanly(run_cli, tmp_path, images, args, words):
+    out = tmp_path / "features.csv"
+    _assert_clean_failure(run_cli("features", images[0], "--out", out, *args), out, *words)
+
+
+def test_existing_output_needs_force(run_cli, tmp_path, images):
+    out = tmp_path / "features.csv"
+    out.write_text("mine\n")
+    code, _, err = run_cli("features", images[0], "--out", out)
+    assert code == 2 and str(out) in err and "--force" in err
+    assert out.read_text() == "mine\n"
+    code, _, err = run_cli("features", images[0], "--out", out, "--force")
+    assert code == 0, err
+    assert pd.read_csv(out).shape == (1, 46)
+
+
+def test_images_and_study_are_exclusive_and_one_is_needed(run_cli, tmp_path, images):
+    out = tmp_path / "features.csv"
+    _assert_clean_failure(run_cli("features", images[0], "--study", tmp_path, "--out", out), out, "--study")
+    _assert_clean_failure(run_cli("features", "--out", out), out, "IMAGE")
+
+
+def test_study_with_a_broken_image_names_it(run_cli, tmp_path):
+    study = _study(tmp_path / "study", px_per_mm=20.0)
+    broken = study / "images" / "R3_2N.png"
+    broken.write_bytes(broken.read_bytes()[:200])
+    out = tmp_path / "features.csv"
+    _assert_clean_failure(run_cli("features", "--study", study, "--out", out), out, "R3_2N.png")
+
+
+def test_help_documents_the_options(run_cli):
+    code, stdout, _ = run_cli("features", "--help")
+    assert code == 0
+    for option in ("--px-per-mm", "--roi", "--rows", "--band", "--n-freqs", "--jobs", "--study", "--out", "--force"):
+        assert option in stdout

@@ -1,0 +1,178 @@
+"""The study analysis, checked against independent refits (scikit-learn), scipy and closed forms.
+
+The study here is synthetic and in memory: spectra with a peak at 1/wavelength plus noise, and
+ratings drawn around the paper's perceived roughness, so the analysis runs in seconds.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import integrate, stats
+from sklearn.cross_decomposition import PLSRegression
+
+from roughsense import reference
+from roughsense.errors import InputError
+from roughsense.evaluation import analyse_study
+from roughsense.study import SensorSettings, Study
+
+FREQS = np.linspace(0.1, 1.0, 45)
+FREQ_COLUMNS = [repr(float(f)) for f in FREQS]
+
+
+def synthetic_study(*, repetitions: int = 6, seed: int = 0, pads=("smooth", "fingerprint")):
+    rng = np.random.default_rng(seed)
+    perceived = reference.perceived_roughness()
+    specimens = perceived[["specimen", "shape", "wavelength_mm"]].copy()
+    rows = []
+    for pad in pads:
+        for _, spec in specimens.iterrows():
+            peak = 1.0 / spec.wavelength_mm * (1.05 if spec["shape"] == "circular" else 1.0)
+            for rep in range(1, repetitions + 1):
+                jitter = rng.normal(0, 0.02)
+                for force in (1.0, 2.0, 3.0):
+                    spectrum = np.exp(-0.5 * ((FREQS - peak - jitter) / (0.04 + 0.01 * force)) ** 2)
+                    if pad == "fingerprint":
+                        spectrum += 0.5 * np.exp(-0.5 * ((FREQS - 1.0) / 0.03) ** 2)
+                    spectrum += rng.normal(0, 0.05, FREQS.size) ** 2
+                    spectrum /= np.trapezoid(spectrum, FREQS)
+                    rows.append({"image": f"images/{pad}_{spec.specimen}_{rep}_{force:g}.png", "specimen": spec.specimen,
+                                 "pad": pad, "force_n": force, "repetition": rep, "nominal_force_n": force,
+                                 "condition": f"{force:g}N", **dict(zip(FREQ_COLUMNS, spectrum))})
+    features = pd.DataFrame(rows)
+    ratings = []
+    for participant in range(1, 11):
+        scale = rng.lognormal(0, 0.2)
+        for session in range(1, 4):
+            for _, p in perceived.iterrows():
+                if p.specimen == "R3":
+                    continue
+                ratings.append({"participant": f"P{participant}", "session": str(session), "specimen": p.specimen,
+                                "rating": p.perceived_gmean * scale * rng.lognormal(0, 0.1)})
+    manifest = features[["image", "specimen", "pad", "force_n", "repetition", "nominal_force_n", "condition"]]
+    study = Study(root=__import__("pathlib").Path("/nonexistent"), name="synthetic", reference_specimen="R3",
+                  sensor=SensorSettings(), forces_n=(1.0, 2.0, 3.0), specimens=specimens, manifest=manifest,
+                  ratings=pd.DataFrame(ratings))
+    return study, features
+
+
+@pytest.fixture(scope="module")
+def analysis_and_inputs():
+    study, features = synthetic_study()
+    analysis = analyse_study(study, features=features, max_components=8)
+    return analysis, study, features
+
+
+def _gmean_of_medians(ratings: pd.DataFrame) -> pd.Series:
+    medians = ratings.groupby(["specimen", "participant"])["rating"].median()
+    return medians.groupby("specimen").apply(lambda m: float(np.exp(np.log(m).mean())))
+
+
+def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
+    analysis, study, features = analysis_and_inputs
+    fit = analysis.fit("smooth", "2N", "loo")
+    rows = features[(features.pad == "smooth") & (features.condition == "2N")].reset_index(drop=True)
+    gmean = _gmean_of_medians(study.ratings)
+    gmean["R3"] = 1.0
+    X = rows[FREQ_COLUMNS].to_numpy()
+    y = rows["specimen"].map(gmean).to_numpy()
+    expected = np.empty(len(y))
+    for i in range(len(y)):
+        keep = np.arange(len(y)) != i
+        model = PLSRegression(n_components=fit.best_n_components, scale=False).fit(X[keep], y[keep])
+        expected[i] = model.predict(X[i : i + 1]).ravel()[0]
+    got = fit.predictions.merge(rows[["specimen", "repetition"]].assign(expected=expected), on=["specimen", "repetition"])
+    np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-6, atol=1e-9)
+    # The chosen count is the argmin of the CV curve over 1..max.
+    assert fit.best_n_components == 1 + int(np.argmin(fit.cv_rmse[1:]))
+
+
+def test_loso_never_trains_on_the_held_out_specimen(analysis_and_inputs):
+    analysis, study, features = analysis_and_inputs
+    fit = analysis.fit("fingerprint", "1N", "loso")
+    rows = features[(features.pad == "fingerprint") & (features.condition == "1N")].reset_index(drop=True)
+    gmean = _gmean_of_medians(study.ratings)
+    gmean["R3"] = 1.0
+    X, y = rows[FREQ_COLUMNS].to_numpy(), rows["specimen"].map(gmean).to_numpy()
+    held = rows["specimen"] == "C4"
+    model = PLSRegression(n_components=fit.best_n_components, scale=False).fit(X[~held], y[~held])
+    expected = model.predict(X[held]).ravel()
+    got = fit.predictions[fit.predictions.specimen == "C4"].sort_values("repetition")["prediction"].to_numpy()
+    np.testing.assert_allclose(got, expected[np.argsort(rows.loc[held, "repetition"].to_numpy())], rtol=1e-6)
+
+
+def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs):
+    analysis, study, _ = analysis_and_inputs
+    fit = analysis.fit("smooth", "combined", "loo")
+    perceived = analysis.perceived.set_index("specimen")
+    for specimen in ("R2", "C5"):
+        preds = fit.predictions.loc[fit.predictions.specimen == specimen, "prediction"].to_numpy()
+        row = fit.table.set_index("specimen").loc[specimen]
+        g, s = perceived.loc[specimen, "gmean"], perceived.loc[specimen, "sd"]
+        assert row["rmse"] == pytest.approx(np.sqrt(np.mean((preds - g) ** 2)), rel=1e-9)
+        assert row["pred_mean"] == pytest.approx(preds.mean(), rel=1e-9)
+        assert row["pred_sd"] == pytest.approx(preds.std(ddof=1), rel=1e-9)
+        m2, s2 = preds.mean(), preds.std(ddof=1)
+        numeric, _ = integrate.quad(lambda x: min(stats.norm.pdf(x, g, s), stats.norm.pdf(x, m2, s2)), -10, 10,
+                                    points=[g, m2], limit=200)
+        assert row["ovl"] == pytest.approx(numeric, abs=1e-6)
+    assert np.isnan(fit.table.set_index("specimen").loc["R3", "ovl"])
+
+
+def test_combined_uses_all_three_forces_of_a_trial(analysis_and_inputs):
+    analysis, _, _ = analysis_and_inputs
+    fit = analysis.fit("smooth", "combined", "loo")
+    assert len(fit.predictions) == 14 * 6
+    assert analysis.cv_table().query("condition == 'combined' and cv == 'loo' and pad == 'smooth'").shape[0] == 9
+
+
+def test_signed_rank_tests_match_scipy(analysis_and_inputs):
+    analysis, _, _ = analysis_and_inputs
+    results = analysis.results("loo")
+    tests = analysis.tests.set_index(["cv", "comparison"])
+    for pad in ("smooth", "fingerprint"):
+        comb = results[(results.pad == pad) & (results.condition == "combined")].set_index("specimen")["rmse"]
+        one = results[(results.pad == pad) & (results.condition == "1N")].set_index("specimen")["rmse"].reindex(comb.index)
+        row = tests.loc[("loo", f"{pad}: combined vs 1N")]
+        diff = comb.to_numpy() - one.to_numpy()
+        expected = stats.wilcoxon(diff, method="exact" if np.count_nonzero(diff) <= 15 else "approx")
+        ranks = stats.rankdata(np.abs(diff[diff != 0]))
+        assert row["statistic"] == pytest.approx(ranks[diff[diff != 0] > 0].sum())
+        assert row["p"] == pytest.approx(expected.pvalue, rel=1e-6)
+        assert row["p_adjusted"] == pytest.approx(min(1.0, 3 * expected.pvalue), rel=1e-6)
+    assert ("loo", "combined: smooth vs fingerprint") in tests.index
+
+
+def test_results_follow_the_paper_schema(analysis_and_inputs):
+    analysis, _, _ = analysis_and_inputs
+    paper = reference.paper_results()
+    for cv in ("loo", "loso"):
+        results = analysis.results(cv)
+        assert list(results.columns) == list(paper.columns)
+        assert set(map(tuple, results[["pad", "specimen", "condition"]].to_numpy())) == set(
+            map(tuple, paper[["pad", "specimen", "condition"]].to_numpy())
+        )
+
+
+def test_summary_rows_are_mean_and_sample_sd(analysis_and_inputs):
+    analysis, study, _ = analysis_and_inputs
+    summary = analysis.summary("loo", "rmse").set_index(["pad", "condition", "group"])
+    results = analysis.results("loo")
+    rect = results[(results.pad == "smooth") & (results.condition == "1N") & results.specimen.str.startswith("R")]
+    row = summary.loc[("smooth", "1N", "rectangular")]
+    assert row["mean"] == pytest.approx(rect["rmse"].mean())
+    assert row["sd"] == pytest.approx(rect["rmse"].std(ddof=1))
+
+
+def test_too_few_repetitions_is_a_clear_error():
+    study, features = synthetic_study(repetitions=3)
+    features = features[~((features.specimen == "C3") & (features.repetition > 1))]
+    with pytest.raises(InputError, match="too few repetitions.*C3"):
+        analyse_study(study, features=features, max_components=4)
+
+
+def test_missing_ratings_is_a_clear_error():
+    study, features = synthetic_study(repetitions=2)
+    study.ratings = None
+    with pytest.raises(InputError, match="ratings"):
+        analyse_study(study, features=features, max_components=2)

@@ -1,0 +1,94 @@
+"""Frame sources: a video file and an image sequence stand in for the camera."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from roughsense.errors import InputError
+from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
+
+
+def write_video(path, n_frames=12, size=(64, 48)):
+    """A short MJPG clip whose frames differ (a gray ramp per frame); returns the path."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, size)
+    assert writer.isOpened()
+    for k in range(n_frames):
+        frame = np.zeros((size[1], size[0], 3), np.uint8)
+        frame[..., 0] = 20 * k
+        frame[..., 1] = 250 - 20 * k
+        frame[:, : size[0] // 2, 2] = 10 * k
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def decoded_frames(path):
+    """Every frame as OpenCV decodes it, converted to RGB: the independent reference."""
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame[:, :, ::-1])
+    capture.release()
+    return frames
+
+
+def test_video_file_frames_are_rgb_in_order(tmp_path):
+    video = write_video(tmp_path / "clip.avi")
+    reference = decoded_frames(video)
+    assert len(reference) == 12
+    with open_source(video) as source:
+        assert not source.is_device and source.discard == 0
+        frames = list(source)
+    assert len(frames) == 12
+    for got, want in zip(frames, reference):
+        np.testing.assert_array_equal(got, want)
+    # the ramp survives MJPG: frame k's blue channel is ~20k, so RGB order is right
+    assert abs(int(frames[5][0, -1, 2]) - 100) <= 3 and abs(int(frames[5][0, -1, 0]) - 0) <= 3
+
+
+def test_read_fresh_drops_the_queued_frames(tmp_path):
+    video = write_video(tmp_path / "clip.avi")
+    reference = decoded_frames(video)
+    with FrameSource(str(video), discard=2) as source:
+        taken = [source.read_fresh() for _ in range(4)]  # frames 2, 5, 8, 11
+        with pytest.raises(InputError, match=r"yielded no frame \(at its end, after 12 frame\(s\)\)"):
+            source.read_fresh()
+    for got, index in zip(taken, (2, 5, 8, 11)):
+        np.testing.assert_array_equal(got, reference[index])
+
+
+def test_image_sequence_pattern(tmp_path):
+    images = []
+    for k in range(3):
+        image = np.full((20, 30, 3), 40 * k + 10, np.uint8)
+        image[:, :, 0] = 200
+        cv2.imwrite(str(tmp_path / f"img_{k:03d}.png"), image)
+        images.append(image[:, :, ::-1])
+    with open_source(str(tmp_path / "img_%03d.png")) as source:
+        frames = list(source)
+    assert len(frames) == 3
+    for got, want in zip(frames, images):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_sources_that_do_not_open(tmp_path):
+    with pytest.raises(InputError, match="video source not found") as info:
+        open_source(tmp_path / "missing.avi")
+    assert str(info.value).startswith(str(tmp_path / "missing.avi"))
+    text = tmp_path / "notes.txt"
+    text.write_text("not a video\n")
+    with pytest.raises(InputError, match="cannot open video source"):
+        open_source(text)
+
+
+def test_live_devices_discard_by_default():
+    assert _describe("0") == (0, True)
+    assert _describe(2) == (2, True)
+    assert _describe("/dev/video2") == ("/dev/video2", True)
+    assert _describe("rtsp://cam.local/stream") == ("rtsp://cam.local/stream", True)
+    assert _describe("run_0001.avi") == ("run_0001.avi", False)
+    assert DEVICE_DISCARD >= 4  # V4L2's default queue is 4 buffers

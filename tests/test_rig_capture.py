@@ -1,0 +1,323 @@
+"""``roughsense capture`` with a video file standing in for the camera and forces typed on stdin."""
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import threading
+import time
+from datetime import datetime, timedelta, timezone
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+from roughsense.errors import InputError
+from roughsense.rig.capture import image_name, plan_steps
+from roughsense.study import StudyWriter, read_study
+
+G = 9.80665
+
+
+def write_video(path, n_frames=12, size=(64, 48)):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, size)
+    for k in range(n_frames):
+        frame = np.zeros((size[1], size[0], 3), np.uint8)
+        frame[..., 0] = 20 * k
+        frame[..., 1] = 250 - 20 * k
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def decoded_frames(path):
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while (item := capture.read())[0]:
+        frames.append(item[1])
+    capture.release()
+    return frames  # BGR, as cv2.imread returns the saved PNGs
+
+
+@pytest.fixture
+def video(tmp_path):
+    return write_video(tmp_path / "camera.avi")
+
+
+@pytest.fixture
+def typed(monkeypatch):
+    def feed(*lines: str) -> None:
+        monkeypatch.setattr("sys.stdin", io.StringIO("".join(f"{line}\n" for line in lines)))
+
+    return feed
+
+
+def capture_args(video, out, *extra):
+    return ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", *extra)
+
+
+def snapshot(folder):
+    return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_full_protocol_writes_a_valid_study(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    typed("", "2.05", "306 g", "0.98", "", "3.1")
+    code, stdout, stderr = run_cli(*capture_args(video, out, "--repetitions", "2", "--shape", "rectangular",
+                                                 "--wavelength-mm", "3"))
+    assert code == 0, stderr
+    assert "captured 6 image(s) of R3/fp" in stdout
+    study = read_study(out)
+    manifest = study.manifest
+    assert study.forces_n == (1.0, 2.0, 3.0) and study.sensor.px_per_mm == 34.9 and study.sensor.roi == "center"
+    assert study.specimens.to_dict("records") == [{"specimen": "R3", "shape": "rectangular", "wavelength_mm": 3.0}]
+    assert list(manifest["repetition"]) == [1, 1, 1, 2, 2, 2]
+    assert list(manifest["condition"]) == ["1N", "2N", "3N"] * 2
+    np.testing.assert_allclose(manifest["force_n"], [1.0, 2.05, 0.306 * G, 0.98, 2.0, 3.1], rtol=1e-6)
+    assert list(manifest["image"]) == [f"images/R3_fp_r{r:02d}_{f}N.png" for r in (1, 2) for f in (1, 2, 3)]
+    stamps = [datetime.fromisoformat(t) for t in manifest["timestamp"]]
+    assert all(s.utcoffset() == timedelta(0) for s in stamps) and stamps == sorted(stamps)
+    assert abs(datetime.now(timezone.utc) - stamps[-1]) < timedelta(minutes=5)
+    # each image is the next frame of the source, pixel for pixel
+    for rel, frame in zip(manifest["image"], decoded_frames(video)):
+        np.testing.assert_array_equal(cv2.imread(str(out / rel)), frame)
+
+
+def test_interrupted_run_resumes_without_touching_what_exists(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    args = capture_args(video, out, "--repetitions", "2", "--shape", "circular", "--wavelength-mm", "2.5")
+    typed("", "", "", "1.1")  # stdin ends during repetition 2
+    code, _, stderr = run_cli(*args)
+    assert_one_line_error(code, stderr, "<stdin>: input ended before the operator answered (stdin closed)")
+    assert len(read_study(out).manifest) == 4
+    before = snapshot(out)
+
+    typed("", "")
+    code, stdout, stderr = run_cli(*args)
+    assert code == 0, stderr
+    assert "4 step(s) were already captured; captured 2 image(s)" in stdout
+    after = snapshot(out)
+    for path, data in before.items():
+        if path.name != "manifest.csv":
+            assert after[path] == data, f"{path} changed on resume"
+    manifest = read_study(out).manifest
+    assert list(zip(manifest["repetition"], manifest["condition"])) == [
+        (1, "1N"), (1, "2N"), (1, "3N"), (2, "1N"), (2, "2N"), (2, "3N")
+    ]
+    assert manifest["force_n"].iloc[3] == 1.1
+
+    code, stdout, _ = run_cli(*args)  # complete: nothing to do, nothing read from stdin
+    assert code == 0 and "6 step(s) were already captured; captured 0 image(s)" in stdout
+    assert snapshot(out) == after
+
+    typed("", "", "")  # raising the target continues the count
+    code, _, _ = run_cli(*args[:-6], "--repetitions", "3")
+    assert code == 0
+    assert list(read_study(out).manifest["repetition"])[-3:] == [3, 3, 3]
+
+
+def test_crash_between_image_and_row_leaves_an_orphan_that_is_not_overwritten(tmp_path, video, run_cli, typed, monkeypatch):
+    out = tmp_path / "study"
+    args = capture_args(video, out, "--repetitions", "1", "--shape", "rectangular", "--wavelength-mm", "4")
+    real_append = StudyWriter.append_manifest_row
+    calls = []
+
+    def crash_on_second(self, row):
+        calls.append(row["image"])
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real_append(self, row)
+
+    monkeypatch.setattr(StudyWriter, "append_manifest_row", crash_on_second)
+    typed("", "", "")
+    code, _, stderr = run_cli(*args)
+    assert code == 130 and "rerun the same command to resume" in stderr
+    orphan = out / "images" / "R3_fp_r01_2N.png"
+    orphan_bytes = orphan.read_bytes()
+    assert list(read_study(out).manifest["image"]) == ["images/R3_fp_r01_1N.png"]
+    assert not [p for p in (out / "images").iterdir() if p.suffix == ".tmp"]
+
+    monkeypatch.setattr(StudyWriter, "append_manifest_row", real_append)
+    typed("", "")
+    code, stdout, stderr = run_cli(*args)
+    assert code == 0
+    assert "images/R3_fp_r01_2N.png has no manifest row" in stderr
+    assert orphan.read_bytes() == orphan_bytes
+    manifest = read_study(out).manifest
+    assert list(manifest["image"]) == ["images/R3_fp_r01_1N.png", "images/R3_fp_r01_2N-2.png", "images/R3_fp_r01_3N.png"]
+    # the rerun opened the source afresh, so the retake is its first frame
+    np.testing.assert_array_equal(cv2.imread(str(out / manifest["image"][1])), decoded_frames(video)[0])
+
+
+def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    typed("", "", "")
+    assert run_cli(*capture_args(video, out, "--repetitions", "1", "--shape", "rectangular", "--wavelength-mm", "3"))[0] == 0
+    typed("", "", "")
+    code, stdout, _ = run_cli("capture", "--source", video, "--out", out, "--specimen", "C2.5", "--pad", "fp",
+                              "--repetitions", "1")
+    assert code == 0 and "fill in shape and wavelength_mm for C2.5" in stdout
+    with pytest.raises(InputError, match=r"specimens.csv, row 3, column 'shape': empty value"):
+        read_study(out)
+    # completing the row from the command line fills the blanks only
+    code, stdout, _ = run_cli("capture", "--source", video, "--out", out, "--specimen", "C2.5", "--pad", "fp",
+                              "--repetitions", "1", "--shape", "circular", "--wavelength-mm", "2.5")
+    assert code == 0 and "fill in" not in stdout
+    study = read_study(out)
+    assert study.specimens.to_dict("records") == [
+        {"specimen": "R3", "shape": "rectangular", "wavelength_mm": 3.0},
+        {"specimen": "C2.5", "shape": "circular", "wavelength_mm": 2.5},
+    ]
+    assert list(study.manifest["specimen"]) == ["R3"] * 3 + ["C2.5"] * 3
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (("--forces", "1,2"), "--forces 1,2 differs from this study's protocol 1,2,3"),
+        (("--px-per-mm", "20"), "--px-per-mm 20 differs from 34.9"),
+        (("--shape", "circular"), "specimens.csv, row 2, column 'shape': specimen 'R3' has shape rectangular; --shape says circular"),
+        (("--wavelength-mm", "5"), "column 'wavelength_mm': specimen 'R3' has wavelength_mm 3; --wavelength-mm says 5"),
+    ],
+)
+def test_resume_refuses_contradicting_options(tmp_path, video, run_cli, typed, extra, message):
+    out = tmp_path / "study"
+    typed("", "", "")
+    run_cli(*capture_args(video, out, "--repetitions", "1", "--shape", "rectangular", "--wavelength-mm", "3"))
+    before = snapshot(out)
+    typed("", "", "")
+    code, _, stderr = run_cli(*capture_args(video, out, "--repetitions", "2", *extra))
+    assert code == 2 and message in stderr and len(stderr.strip().splitlines()) == 1
+    assert snapshot(out) == before
+
+
+# --------------------------------------------------------------------------- bad input at the CLI
+
+
+def assert_one_line_error(code, stderr, *fragments):
+    """Exit 2 and exactly one error line, the last one (operator prompts precede it on stderr)."""
+    assert code == 2
+    lines = stderr.strip().splitlines()
+    errors = [line for line in lines if line.startswith("roughsense:")]
+    assert errors == [lines[-1]] and lines[-1].startswith("roughsense: error: ")
+    assert "Traceback" not in stderr
+    for fragment in fragments:
+        assert fragment in lines[-1]
+
+
+def test_source_that_does_not_open(tmp_path, run_cli, typed):
+    typed("")
+    notes = tmp_path / "notes.txt"
+    notes.write_text("hello\n")
+    out = tmp_path / "study"
+    code, _, stderr = run_cli(*capture_args(notes, out))
+    assert_one_line_error(code, stderr, str(notes), "cannot open video source")
+    code, _, stderr = run_cli(*capture_args(tmp_path / "nope.avi", out))
+    assert_one_line_error(code, stderr, "nope.avi", "video source not found")
+    assert not out.exists()
+
+
+def test_force_that_is_not_a_number(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    typed("", "two")
+    code, _, stderr = run_cli(*capture_args(video, out, "--shape", "rectangular", "--wavelength-mm", "3"))
+    assert_one_line_error(code, stderr, "<stdin>: force 'two' is not a number")
+    assert list(read_study(out).manifest["image"]) == ["images/R3_fp_r01_1N.png"]
+
+
+def test_force_far_from_the_step_is_refused(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    typed("20")
+    code, _, stderr = run_cli(*capture_args(video, out))
+    assert_one_line_error(code, stderr, "20 N is outside 0.5..1.5 N, the range for the 1 N step")
+    assert not out.exists()  # nothing was captured, so nothing was written
+
+
+class EnterKey(io.StringIO):
+    """Operator input that runs ``before(n)`` ahead of answering the n-th prompt."""
+
+    def __init__(self, text, before):
+        super().__init__(text)
+        self.before = before
+        self.calls = 0
+
+    def readline(self, *args):
+        self.calls += 1
+        self.before(self.calls)
+        return super().readline(*args)
+
+
+def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
+    master, slave = os.openpty()
+    os.set_blocking(master, False)  # a full pty buffer must not block the scale thread
+    port = os.ttyname(slave)
+    out = tmp_path / "study"
+    stop = threading.Event()
+
+    def scale():
+        while not stop.is_set():
+            with contextlib.suppress(BlockingIOError):
+                os.write(master, b"ST,+00102.0 g\r\n")
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=scale, daemon=True)
+    thread.start()
+
+    def silence_from_second_prompt(n):  # the scale streams for the 1 N step, then goes quiet
+        if n == 2:
+            stop.set()
+            thread.join()
+
+    monkeypatch.setattr("sys.stdin", EnterKey("\n\n", silence_from_second_prompt))
+    try:
+        code, _, stderr = run_cli(*capture_args(video, out, "--force-input", f"serial:{port}", "--timeout-s", "1",
+                                                "--shape", "rectangular", "--wavelength-mm", "3"))
+    finally:
+        stop.set()
+        thread.join()
+        os.close(master)
+        os.close(slave)
+    assert_one_line_error(code, stderr, f"{port}: the scale sent nothing for 1 s")
+    manifest = read_study(out).manifest
+    assert list(manifest["image"]) == ["images/R3_fp_r01_1N.png"]
+    assert manifest["force_n"].iloc[0] == pytest.approx(0.102 * G, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--specimen", "R 3"), "--specimen 'R 3': use letters, digits"),
+        (("--pad", "../x"), "--pad '../x'"),
+        (("--repetitions", "0"), "--repetitions must be at least 1"),
+        (("--shape", "wavy"), "--shape 'wavy'"),
+        (("--force-input", "usb"), "--force-input must be 'manual' or 'serial:PORT[:BAUD]'"),
+        (("--forces", "1,x"), "--forces: 'x' is not a number"),
+    ],
+)
+def test_bad_options(tmp_path, video, run_cli, typed, args, message):
+    typed("")
+    base = {"--specimen": "R3", "--pad": "fp"}
+    base.update(dict(zip(args[::2], args[1::2])))
+    flat = [item for pair in base.items() for item in pair]
+    code, _, stderr = run_cli("capture", "--source", video, "--out", tmp_path / "s", *flat)
+    assert_one_line_error(code, stderr, message)
+    assert not (tmp_path / "s").exists()
+
+
+def test_refuses_a_folder_that_is_not_a_study(tmp_path, video, run_cli, typed):
+    (tmp_path / "photos").mkdir()
+    (tmp_path / "photos" / "holiday.jpg").write_bytes(b"x")
+    typed("")
+    code, _, stderr = run_cli(*capture_args(video, tmp_path / "photos"))
+    assert_one_line_error(code, stderr, "has no study.toml")
+
+
+def test_plan_fills_holes_in_protocol_order():
+    manifest = pd.DataFrame({
+        "specimen": ["R3", "R3", "R3", "C3"], "pad": ["fp", "fp", "flat", "fp"],
+        "repetition": [1, 1, 1, 1], "nominal_force_n": [1.0, 3.0, 2.0, 2.0],
+    })
+    assert plan_steps(manifest, "R3", "fp", (1.0, 2.0, 3.0), 2) == [(1, 2.0), (2, 1.0), (2, 2.0), (2, 3.0)]
+    assert image_name("R3", "fp", 7, 2.5) == "R3_fp_r07_2.5N.png"
+    assert image_name("R3", "fp", 12, 1.0, attempt=3) == "R3_fp_r12_1N-3.png"

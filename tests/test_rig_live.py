@@ -1,0 +1,88 @@
+"""Live scoring: every frame of a video source is scored in order, and a frame the model cannot take is reported."""
+from __future__ import annotations
+
+import io
+
+import cv2
+import numpy as np
+import pytest
+from rich.console import Console
+
+from roughsense.errors import ConfigError, InputError
+from roughsense.rig.camera import open_source
+from roughsense.rig.live import live_scores, render_live
+
+
+def write_video(path, n_frames=10, size=(64, 48)):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, size)
+    for k in range(n_frames):
+        frame = np.zeros((size[1], size[0], 3), np.uint8)
+        frame[..., 1] = 25 * k
+        frame[: size[1] // 2, :, 2] = 200
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def decoded_rgb(path):
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while (item := capture.read())[0]:
+        frames.append(item[1][:, :, ::-1])
+    return frames
+
+
+def red_minus_green(frame: np.ndarray) -> float:
+    """A score that depends on channel order, so a BGR/RGB mix-up would show."""
+    return float(frame[..., 0].mean() - frame[..., 1].mean())
+
+
+def test_scores_every_frame_in_order(tmp_path):
+    video = write_video(tmp_path / "live.avi")
+    expected = [red_minus_green(f) for f in decoded_rgb(video)]
+    results = list(live_scores(str(video), red_minus_green))
+    assert [score for _, score in results] == pytest.approx(expected, abs=1e-12)
+    stamps = [stamp for stamp, _ in results]
+    assert stamps == sorted(stamps)
+    assert expected[0] > 90 and expected[-1] < expected[0] - 200  # red top half, green ramps up
+
+
+def test_max_frames_and_rate_limit(tmp_path):
+    video = write_video(tmp_path / "live.avi")
+    expected = [red_minus_green(f) for f in decoded_rgb(video)]
+    assert [s for _, s in live_scores(str(video), red_minus_green, max_frames=3)] == pytest.approx(expected[:3])
+    # a long interval: the first frame is scored, the rest of the file is dropped undecoded
+    with open_source(video) as source:
+        assert [s for _, s in live_scores(source, red_minus_green, min_interval_s=60)] == pytest.approx(expected[:1])
+        assert source.frames_read == 10
+
+
+def test_frame_that_does_not_fit_the_model(tmp_path):
+    video = write_video(tmp_path / "live.avi")
+
+    def needs_1080p(frame):
+        if frame.shape[1] < 1900:
+            raise ConfigError(f"ROI 1900x150 px does not fit in a {frame.shape[1]}x{frame.shape[0]} px image")
+        return 0.0
+
+    with pytest.raises(InputError) as info:
+        list(live_scores(str(video), needs_1080p))
+    message = str(info.value)
+    assert message == f"{video}: frame 1 (64x48 px): ROI 1900x150 px does not fit in a 64x48 px image"
+    assert "\n" not in message
+
+
+def test_source_that_does_not_open_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="video source not found"):
+        next(live_scores(str(tmp_path / "gone.avi"), red_minus_green))
+
+
+def test_render_live_shows_the_last_score():
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=60, force_terminal=False, color_system=None)
+    stream = [(100.0 + 0.1 * k, 1.5 + 0.25 * k) for k in range(5)]
+    summary = render_live(iter(stream), console=console, label="roughness")
+    assert summary.updates == 5 and summary.last_score == 2.5
+    assert summary.updates_per_s == pytest.approx(10.0)
+    text = buffer.getvalue()
+    assert "roughness" in text and "2.500" in text and "1.500 .. 2.500" in text and "5 (10.0/s)" in text

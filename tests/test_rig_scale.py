@@ -1,0 +1,189 @@
+"""Force input: the scale line format, typed forces, and a pseudo-terminal standing in for a serial scale."""
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import threading
+import time
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as hs
+
+from roughsense.errors import ConfigError, InputError
+from roughsense.rig.scale import (
+    STANDARD_GRAVITY,
+    ManualForce,
+    SerialScale,
+    _Retry,
+    open_force_input,
+    parse_scale_line,
+    parse_typed_force,
+)
+
+G = 9.80665  # standard gravity, CGPM 1901 (exact by definition)
+
+
+class TTYInput(io.StringIO):
+    """Typed input that claims to be a terminal, so bad values are asked again instead of refused."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+# --------------------------------------------------------------------------- line format
+
+
+def test_standard_gravity_is_the_defined_value():
+    assert STANDARD_GRAVITY == G
+
+
+@given(
+    grams=hs.decimals(min_value="0.1", max_value="2000", places=2),
+    flag=hs.sampled_from(["", "ST,", "ST,GS,", "ST ", "ST, NT, "]),
+    sign=hs.sampled_from(["", "+", "+ "]),
+    pad_width=hs.integers(1, 9),
+    space=hs.sampled_from(["", " ", "  "]),
+    eol=hs.sampled_from(["", "\r\n", "\n"]),
+)
+def test_grams_become_newtons_whatever_the_framing(grams, flag, sign, pad_width, space, eol):
+    number = f"{grams:.2f}".rjust(pad_width, "0")
+    reading = parse_scale_line(f"{flag}{sign}{number}{space}g{eol}".encode())
+    assert reading is not None and reading.stable
+    assert reading.force_n == pytest.approx(float(grams) * G / 1000.0, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("line", "force_n", "stable"),
+    [
+        ("ST,+0.2040kg", 0.204 * G, True),
+        ("US,+00150.0 g", 0.150 * G, False),
+        ("OL,+9999.9 g", 9.9999 * G, False),
+        ("1.003 N", 1.003, True),
+        ("2005 mN", 2.005, True),
+        ("-0.4g", -0.0004 * G, True),
+        (".5 N", 0.5, True),
+    ],
+)
+def test_units_sign_and_stability(line, force_n, stable):
+    reading = parse_scale_line(line)
+    assert reading.force_n == pytest.approx(force_n, rel=1e-12)
+    assert reading.stable is stable
+
+
+@pytest.mark.parametrize("line", ["", "204.0", "ST,+204.0", "204.0 lb", "Scale v1.2 ready", "ST,+20", "+2x04 g", "12 g 3"])
+def test_lines_that_are_not_readings_are_skipped(line):
+    assert parse_scale_line(line) is None
+
+
+def test_typed_force_units_and_blank_takes_the_nominal():
+    assert parse_typed_force("", 2.0) == 2.0
+    assert parse_typed_force("  2.01 ", 2.0) == 2.01
+    assert parse_typed_force("205 g", 2.0) == pytest.approx(0.205 * G)
+    assert parse_typed_force("0.3kg", 3.0) == pytest.approx(0.3 * G)
+    for bad in ("abc", "2,0", "nan", "inf"):
+        with pytest.raises(_Retry):
+            parse_typed_force(bad, 2.0)
+
+
+# --------------------------------------------------------------------------- manual
+
+
+def test_manual_refuses_a_non_number_when_piped():
+    manual = ManualForce(stdin=io.StringIO("abc\n"), prompt_out=io.StringIO())
+    with pytest.raises(InputError, match=r"force 'abc' is not a number") as info:
+        manual.read_force(2.0, low_n=1.5, high_n=2.5)
+    assert str(info.value).startswith("<stdin>: ")
+
+
+def test_manual_asks_again_on_a_terminal():
+    prompts = io.StringIO()
+    manual = ManualForce(stdin=TTYInput("abc\n7\n2.2\n"), prompt_out=prompts)
+    assert manual.read_force(2.0, low_n=1.5, high_n=2.5) == 2.2
+    text = prompts.getvalue()
+    assert text.count("set 2 N") == 3
+    assert "'abc' is not a number" in text and "7 N is outside 1.5..2.5 N" in text
+
+
+def test_manual_closed_stdin_is_an_input_error():
+    manual = ManualForce(stdin=io.StringIO(""), prompt_out=io.StringIO())
+    with pytest.raises(InputError, match="stdin closed"):
+        manual.read_force(1.0, low_n=0.5, high_n=1.5)
+
+
+def test_force_input_spec():
+    assert isinstance(open_force_input("manual"), ManualForce)
+    for bad in ("scale", "serial:", "serial::9600"):
+        with pytest.raises(ConfigError):
+            open_force_input(bad)
+    with pytest.raises(InputError, match="cannot open the scale's serial port"):
+        open_force_input("serial:/dev/does-not-exist-rs:9600")
+
+
+# --------------------------------------------------------------------------- serial over a pseudo-terminal
+
+
+@pytest.fixture
+def pty_scale():
+    """A pseudo-terminal: the test writes scale lines to the master, the code reads the slave path."""
+    master, slave = os.openpty()
+    os.set_blocking(master, False)  # a full pty buffer must not block the writer (and the teardown join)
+    stop = threading.Event()
+    threads: list[threading.Thread] = []
+
+    def stream(lines: list[bytes], period_s: float = 0.01) -> None:
+        def run():
+            while not stop.is_set():
+                for line in lines:
+                    with contextlib.suppress(BlockingIOError):
+                        os.write(master, line)
+                time.sleep(period_s)
+
+        thread = threading.Thread(target=run, daemon=True)
+        thread.start()
+        threads.append(thread)
+
+    yield os.ttyname(slave), stream
+    stop.set()
+    for thread in threads:
+        thread.join()
+    os.close(master)
+    os.close(slave)
+
+
+def test_serial_takes_the_first_stable_reading(pty_scale):
+    path, stream = pty_scale
+    stream([b"US,+00150.0 g\r\n", b"noise\r\n", b"ST,+00204.0 g\r\n"])
+    prompts = io.StringIO()
+    scale = open_force_input(f"serial:{path}:19200", timeout_s=3, stdin=io.StringIO("\n"), prompt_out=prompts)
+    with scale:
+        assert isinstance(scale, SerialScale)
+        assert scale._port.baudrate == 19200
+        force = scale.read_force(2.0, low_n=1.5, high_n=2.5, label="[R3] ")
+    assert force == pytest.approx(0.204 * G, rel=1e-12)
+    assert "[R3] set 2 N on the stage, then press Enter" in prompts.getvalue()
+
+
+def test_serial_silent_port_times_out(pty_scale):
+    path, _ = pty_scale
+    with SerialScale(path, timeout_s=0.3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        with pytest.raises(InputError, match=r"the scale sent nothing for 0.3 s") as info:
+            scale.read_force(1.0, low_n=0.5, high_n=1.5)
+    assert str(info.value).startswith(f"{path}: ")
+
+
+def test_serial_never_stable_names_the_last_line(pty_scale):
+    path, stream = pty_scale
+    stream([b"US,+00101.0 g\r\n"])
+    with SerialScale(path, timeout_s=0.3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        with pytest.raises(InputError, match=r"no stable reading .* within 0.3 s \(last line: 'US,\+00101.0 g'\)"):
+            scale.read_force(1.0, low_n=0.5, high_n=1.5)
+
+
+def test_serial_reading_out_of_range_is_refused_when_piped(pty_scale):
+    path, stream = pty_scale
+    stream([b"ST,+00050.0 g\r\n"])
+    with SerialScale(path, timeout_s=2, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        with pytest.raises(InputError, match=r"0.4903 N is outside 1.5..2.5 N"):
+            scale.read_force(2.0, low_n=1.5, high_n=2.5)
