@@ -50,6 +50,7 @@ def main() -> None:
                          "force": [t.nominal_force_n for t in trials], "rep": [t.repetition for t in trials]})
     target = paper_perceived()["perceived_gmean"]
     rows = []
+    per_specimen = {}
     for pad in config.pads:
         blocks = {}
         for force in config.forces_n:
@@ -63,11 +64,14 @@ def main() -> None:
             a = int(np.argmin(result.rmse[1:]) + 1)
             pred = result.predictions[:, a]
             err = pd.Series((pred - y) ** 2).groupby(m["specimen"].to_numpy()).mean() ** 0.5
+            per_specimen[(pad, condition)] = err
             rows.append({"pad": pad, "condition": condition, "components": a,
                          "overall_rmse": float(result.rmse[a]), "mean_specimen_rmse": float(err.mean())})
     table = pd.DataFrame(rows)
     print(f"bench scale {args.scale:g}, seed {args.seed}, camera overrides {args.camera or 'none'}")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print("per-specimen RMSE:")
+    print(pd.DataFrame(per_specimen).T.to_string(float_format=lambda v: f"{v:.2f}"))
 
 
 if __name__ == "__main__":

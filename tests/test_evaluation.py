@@ -111,8 +111,8 @@ def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs)
         g, s = perceived.loc[specimen, "gmean"], perceived.loc[specimen, "sd"]
         assert row["rmse"] == pytest.approx(np.sqrt(np.mean((preds - g) ** 2)), rel=1e-9)
         assert row["pred_mean"] == pytest.approx(preds.mean(), rel=1e-9)
-        assert row["pred_sd"] == pytest.approx(preds.std(ddof=1), rel=1e-9)
-        m2, s2 = preds.mean(), preds.std(ddof=1)
+        assert row["pred_sd"] == pytest.approx(preds.std(ddof=0), rel=1e-9)  # population SD, as the paper's tables
+        m2, s2 = preds.mean(), preds.std(ddof=0)
         numeric, _ = integrate.quad(lambda x: min(stats.norm.pdf(x, g, s), stats.norm.pdf(x, m2, s2)), -10, 10,
                                     points=[g, m2], limit=200)
         assert row["ovl"] == pytest.approx(numeric, abs=1e-6)

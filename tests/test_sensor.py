@@ -313,6 +313,24 @@ def test_streaming_is_lazy_and_reports_the_failing_item():
         list(stream)
 
 
+@pytest.mark.parametrize(
+    "check",
+    [
+        "check_no_attributes_set_in_init",
+        "check_parameters_default_constructible",
+        "check_get_params_invariance",
+        "check_set_params",
+        "check_estimator_cloneable",
+        "check_estimator_repr",
+    ],
+)
+def test_passes_the_sklearn_checks_that_apply_to_an_image_list_transformer(check):
+    # The data-driven checks feed 2-D numeric arrays, which are not lists of images; these do not.
+    from sklearn.utils import estimator_checks
+
+    getattr(estimator_checks, check)("SpatialSpectrum", SpatialSpectrum())
+
+
 def test_sklearn_params_clone_and_feature_definition_round_trip():
     estimator = SpatialSpectrum(px_per_mm=20.0, roi=(0, 0, 400, 10), rows=2, n_freqs=30)
     assert estimator.get_params()["px_per_mm"] == 20.0

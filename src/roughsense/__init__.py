@@ -18,7 +18,7 @@ _LAZY = {
     "frequency_grid": "sensor",
     "SIMPLS": "pls",
     "pls_cv": "pls",
-    "overlap": "perception",
+    "overlap": "metrics",
     "read_study": "study",
     "StudyWriter": "study",
 }

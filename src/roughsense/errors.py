@@ -52,3 +52,10 @@ class ModelFileError(RoughsenseError):
 
 class OutputExistsError(RoughsenseError):
     """Refusing to overwrite something the user made; ``--force`` is the way through."""
+
+
+class RoughsenseWarning(UserWarning):
+    """Something the user should know where the work can still go on (a participant missed a session).
+
+    The CLI prints each as one ``roughsense: warning: ...`` line on stderr.
+    """

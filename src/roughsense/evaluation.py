@@ -22,6 +22,7 @@ from .study import Study
 
 CONDITIONS = ("1N", "2N", "3N", "combined")
 CV_SCHEMES = ("loo", "loso")
+PRED_SD_DDOF = 0
 RESULT_COLUMNS = ["pad", "specimen", "condition", "pred_mean", "pred_sd", "ovl", "rmse"]
 
 
@@ -118,7 +119,9 @@ def _condition_fit(
     best = int(result.best_n_components)
     predictions = meta[["specimen", "repetition"]].copy()
     predictions["prediction"] = result.predictions[:, best]
-    table = specimen_table(predictions, perceived)
+    # The paper's Tables 1-6 are consistent with the population SD of the predictions (RMSE^2 = bias^2 + SD^2
+    # holds for all 112 rows with ddof=0, 107 with ddof=1; docs/perception.md), so we report the same.
+    table = specimen_table(predictions, perceived, pred_sd_ddof=PRED_SD_DDOF)
     return ConditionFit(pad, condition, cv, np.asarray(result.rmse, float), best,
                         int(result.one_se_n_components), predictions, table)
 
@@ -174,7 +177,7 @@ def analyse_study(
     """Run the paper's whole analysis on a validated study; ``features`` may come from a cache."""
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
-    perceived = aggregate_ratings(study.ratings, study.reference_specimen)
+    perceived = aggregate_ratings(study.ratings, study.reference_specimen, path=study.root / "ratings.csv")
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     counts = features.groupby(["pad", "specimen", "condition"]).size()

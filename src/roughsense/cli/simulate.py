@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
         fingerprint_period_mm: float = typer.Option(1.0, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
         ridge_height_mm: float = typer.Option(0.2, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
-        jobs: int | None = typer.Option(None, "--jobs", help="Worker processes [default: all cores]. Results do not depend on it."),
+        jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
         force: bool = typer.Option(False, "--force", help="Write into a non-empty folder, replacing files of the same name (nothing is deleted)."),
     ) -> None:
         """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.

@@ -15,24 +15,27 @@ from ..errors import ConfigError
 from .optics import Lighting
 
 GRAVITY = 9.80665
+MAX_RIDGES = 128  # ridge height errors drawn per mount (the periodic contact domain holds at most this many)
 
 
 @dataclass(frozen=True)
 class BenchNoise:
-    force_set_sd_n: float = 0.05  # z-stage: how far the true force lands from the nominal one
-    scale_sd_n: float = 0.01  # kitchen scale error on top of its 1 g resolution
+    force_set_sd_n: float = 0.075  # z-stage: how far the true force lands from the nominal one
+    scale_sd_n: float = 0.015  # kitchen scale error on top of its 1 g resolution
     scale_resolution_g: float = 1.0
-    position_sd_mm: float = 0.6  # specimen placement along the line
-    band_position_sd_px: float = 8.0  # and across it (moves the band up or down in the frame)
-    tilt_sd: float = 0.25  # end-to-end relative pressure difference from a slightly tilted specimen
-    gain_sd: float = 0.06  # illumination drift
-    gradient_sd: float = 0.06
-    ripple_sd: float = 0.03  # slow uneven illumination along the line (wavelengths 15-60 mm)
+    position_sd_mm: float = 0.9  # specimen placement along the line
+    band_position_sd_px: float = 12.0  # and across it (moves the band up or down in the frame)
+    tilt_sd: float = 0.35  # end-to-end relative pressure difference from a slightly tilted specimen
+    gain_sd: float = 0.09  # illumination drift
+    gradient_sd: float = 0.09
+    ripple_sd: float = 0.045  # slow uneven illumination along the line (wavelengths 15-60 mm)
     ripple_count: int = 3
-    waviness_sd: float = 0.35  # relative pressure variation from a warped print / uneven pad (wavelengths 6-30 mm)
+    waviness_sd: float = 0.5  # relative pressure variation from a warped print / uneven pad (wavelengths 6-30 mm)
     waviness_count: int = 4
+    magnification_sd: float = 0.022  # camera scale per mount: working distance, focus, where the 45-degree view cuts
+    ridge_height_sd_mm: float = 0.025  # fingerprint ridges as cast: height differs ridge to ridge
     spots_per_mount: float = 12.0  # mean number of dust specks, bubbles and grease marks in the band
-    spot_strength: float = 0.5  # typical relative darkening (or brightening) of a spot
+    spot_strength: float = 0.75  # typical relative darkening (or brightening) of a spot
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -51,6 +54,8 @@ class Mount:
     band_shift_px: float
     tilt: float
     pad_phase_mm: float
+    magnification: float = 1.0  # true / nominal camera scale
+    ridge_offsets_mm: tuple[float, ...] = ()  # height error of the fingerprint ridges that meet this mount
     waviness: tuple[tuple[float, float, float], ...] = ()  # (relative amplitude, wavelength_mm, phase)
     spots: tuple[tuple[float, float, float, float], ...] = ()  # (x_mm, y_mm from band centre, size_mm, strength)
 
@@ -79,6 +84,9 @@ def draw_mount(rng: np.random.Generator, noise: BenchNoise, pad_period_mm: float
         band_shift_px=float(rng.normal(0.0, noise.band_position_sd_px)),
         tilt=float(rng.normal(0.0, noise.tilt_sd)),
         pad_phase_mm=phase,
+        magnification=float(max(1.0 + rng.normal(0.0, noise.magnification_sd), 0.5)),
+        ridge_offsets_mm=tuple(float(v) for v in rng.normal(0.0, noise.ridge_height_sd_mm, MAX_RIDGES))
+        if pad_period_mm else (),
         waviness=tuple(
             (float(rng.normal(0.0, noise.waviness_sd / math.sqrt(max(noise.waviness_count, 1)))),
              float(rng.uniform(6.0, 30.0)), float(rng.uniform(0, 2 * math.pi)))

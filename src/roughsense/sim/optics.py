@@ -34,10 +34,10 @@ class Camera:
     far_decay_mm: float = 0.4
     blur_sigma_px: float = 1.5  # lens blur (Gaussian)
     background_dn: float = 14.0  # pad body outside the band
-    band_floor_dn: float = 30.0  # band where nothing touches
-    contact_dn: float = 175.0  # band at full contact
+    band_floor_dn: float = 45.0  # band where nothing touches
+    contact_dn: float = 120.0  # band at full contact
     vignetting: float = 0.25  # relative fall-off at the frame's corners
-    read_noise_dn: float = 2.0
+    read_noise_dn: float = 12.0
     shot_noise_gain: float = 0.08  # variance per DN of signal (Poisson-like)
 
     def __post_init__(self) -> None:
@@ -133,4 +133,4 @@ def _add_spot(frame: np.ndarray, cx: float, cy: float, sigma: float, strength: f
         return
     gx = np.exp(-0.5 * ((np.arange(x0, x1) + 0.5 - cx) / sigma) ** 2).astype(np.float32)
     gy = np.exp(-0.5 * ((np.arange(y0, y1) + 0.5 - cy) / sigma) ** 2).astype(np.float32)
-    frame[y0:y1, x0:x1] *= 1.0 - np.float32(strength) * np.outer(gy, gx)
+    frame[y0:y1, x0:x1] *= 1.0 - np.float32(min(strength, 0.95)) * np.outer(gy, gx)  # a spot never inverts

@@ -41,10 +41,13 @@ class Pad:
     def has_ridges(self) -> bool:
         return self.period_mm is not None and self.ridge_height_mm > 0
 
-    def height_mm(self, x_mm: np.ndarray, period_mm: float | None = None) -> np.ndarray:
+    def height_mm(self, x_mm: np.ndarray, period_mm: float | None = None,
+                  ridge_offsets_mm: np.ndarray | None = None) -> np.ndarray:
         """Relief of the pad at ``x_mm``: a square wave of equal ridges and grooves with rounded edges.
 
         ``period_mm`` overrides the nominal period (the solver may stretch it slightly to fit its periodic domain).
+        ``ridge_offsets_mm[i]`` raises ridge i (centred at x = i * period), cycling through the array: cast ridges
+        are not all equally high.
         """
         x = np.asarray(x_mm, dtype=float)
         if not self.has_ridges:
@@ -60,7 +63,12 @@ class Pad:
             sign = 1.0 if m % 4 == 1 else -1.0
             wave += sign * (4.0 / (math.pi * m)) * damping * np.cos(m * phase)
         # wave ~ +1 on ridges, -1 in grooves
-        return 0.5 * self.ridge_height_mm * (wave - 1.0)
+        height = 0.5 * self.ridge_height_mm * (wave - 1.0)
+        if ridge_offsets_mm is not None and len(ridge_offsets_mm):
+            offsets = np.asarray(ridge_offsets_mm, dtype=float)
+            index = np.floor(x / period + 0.5).astype(np.int64) % offsets.size
+            height = height + offsets[index]
+        return height
 
     def table_row(self) -> dict:
         return {"pad": self.name, "ridge_period_mm": self.period_mm or 0.0, "ridge_height_mm": self.ridge_height_mm,

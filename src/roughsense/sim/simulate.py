@@ -28,7 +28,8 @@ from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_spec
 
 SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3
-PRESSURE_LEVELS = 6  # local pressures solved per trial; the line blends them (see trial_line)  # beyond the specimen's ends nothing touches the pad
+PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
+SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale  # beyond the specimen's ends nothing touches the pad
 
 
 @dataclass(frozen=True)
@@ -133,15 +134,17 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
     return trials
 
 
-def _solve_gap(pad: Pad, specimen: Specimen, phase_mm: float, pressure_pa: float) -> tuple[float, np.ndarray]:
+def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float) -> tuple[float, np.ndarray]:
     length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm if pad.has_ridges else None,
                                                  max_length_mm=SPECIMEN_LENGTH_MM)
     n = contact.grid_points(length)
     x = np.arange(n) * (length / n)
     height = specimen.height_mm(x)
     if pad.has_ridges:
-        height = height + pad.height_mm(x - phase_mm, period_mm=pad_period)
-    solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa)
+        ridges = max(1, round(length / pad_period))
+        offsets = np.asarray(mount.ridge_offsets_mm[:ridges]) if len(mount.ridge_offsets_mm) >= ridges else None
+        height = height + pad.height_mm(x - mount.pad_phase_mm, period_mm=pad_period, ridge_offsets_mm=offsets)
+    solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
     return length, solution.gap_mm
 
 
@@ -155,15 +158,16 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
     cam, pad, spec, mount = trial.camera, trial.pad, trial.specimen, trial.mount
     p_mean = contact.nominal_pressure_pa(trial.exposure.force_true_n)
     w_px = cam.width_px
-    x_mm = (np.arange(w_px * SUBSAMPLES_PER_PX) + 0.5) / (cam.px_per_mm * SUBSAMPLES_PER_PX)
-    start = (cam.field_mm - SPECIMEN_LENGTH_MM) / 2.0 + mount.shift_mm
+    px_per_mm = cam.px_per_mm * mount.magnification
+    x_mm = (np.arange(w_px * SUBSAMPLES_PER_PX) + 0.5) / (px_per_mm * SUBSAMPLES_PER_PX)
+    start = (w_px / px_per_mm - SPECIMEN_LENGTH_MM) / 2.0 + mount.shift_mm
     u = x_mm - start  # position along the specimen
     on = (u >= 0) & (u <= SPECIMEN_LENGTH_MM)
     u_spec = np.linspace(0.0, SPECIMEN_LENGTH_MM, 501)
     mean = float(mount.local_pressure(u_spec, SPECIMEN_LENGTH_MM).mean())
     local = mount.local_pressure(np.clip(u, 0.0, SPECIMEN_LENGTH_MM), SPECIMEN_LENGTH_MM) / mean
     lo, hi = float(local[on].min()) if on.any() else 1.0, float(local[on].max()) if on.any() else 1.0
-    count = 1 if hi - lo < 0.02 else int(min(PRESSURE_LEVELS, 2 + math.ceil((hi - lo) / 0.15)))
+    count = 1 if hi - lo < 0.02 else int(min(PRESSURE_LEVELS, 2 + math.ceil((hi - lo) / 0.2)))
     levels = np.linspace(lo, hi, count) if count > 1 else np.array([1.0])
     brightness = np.zeros_like(x_mm)
     touching = np.zeros_like(x_mm)
@@ -172,7 +176,7 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
             weight = np.ones_like(x_mm)
         else:  # piecewise-linear (hat) weights in local pressure
             weight = np.clip(1.0 - np.abs(local - level) / (levels[1] - levels[0]), 0.0, 1.0)
-        length, gap = _solve_gap(pad, spec, mount.pad_phase_mm, p_mean * level)
+        length, gap = _solve_gap(pad, spec, mount, p_mean * level)
         grid = np.arange(gap.size + 1) * (length / gap.size)
         g = np.interp(np.mod(u, length), grid, np.append(gap, gap[0]))
         g = np.where(on, g, NO_CONTACT_GAP_MM)

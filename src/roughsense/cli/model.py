@@ -1,0 +1,193 @@
+"""``roughsense fit`` and ``roughsense predict``: a PLS1 model from a study, and roughness from images."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import ConfigError
+from ._common import progress
+
+ORDER = 20
+
+CONDITIONS = ("1N", "2N", "3N", "combined")
+
+
+def _parse_cv(text: str):
+    """'loo' | 'loso' | K (shuffled K-fold) -> (label, cv argument for pls_cv)."""
+    value = text.strip().lower()
+    if value in ("loo", "loso"):
+        return value
+    try:
+        k = int(value)
+    except ValueError:
+        raise ConfigError(f"--cv must be loo, loso or a number of folds, got {text!r}") from None
+    if k < 2:
+        raise ConfigError(f"--cv K-fold needs K >= 2, got {k}")
+    return k
+
+
+def _curve_table(result, chosen: int):
+    import pandas as pd
+
+    marks = []
+    for k in range(result.rmse.size):
+        tags = []
+        if k == result.best_n_components:
+            tags.append("min")
+        if k == result.one_se_n_components:
+            tags.append("1-SE")
+        if k == chosen:
+            tags.append("chosen")
+        marks.append(", ".join(tags))
+    return pd.DataFrame(
+        {"components": range(result.rmse.size), "rmse": result.rmse, "rmse_se": result.rmse_se, "note": marks}
+    )
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("fit")
+    def fit(
+        study: Annotated[Path, typer.Option("--study", help="Study folder with images, manifest and ratings.")],
+        pad: Annotated[str, typer.Option("--pad", help="Which pad's images to use (a value of the manifest's pad column).")],
+        condition: Annotated[
+            str, typer.Option("--condition", help="Force condition: 1N, 2N, 3N, or combined (a trial's three spectra side by side).")
+        ],
+        out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (JSON).")],
+        max_components: Annotated[
+            int | None,
+            typer.Option(
+                "--max-components",
+                help="Largest number of PLS components to cross-validate. Default: 20, or fewer if the data support fewer.",
+                show_default=False,
+            ),
+        ] = None,
+        cv: Annotated[
+            str,
+            typer.Option("--cv", help="Cross-validation: loo (the paper's leave-one-out), loso (leave one specimen out) or K (shuffled K-fold)."),
+        ] = "loo",
+        rule: Annotated[
+            str, typer.Option("--rule", help="Component choice: min (lowest CV RMSE, the paper's rule) or 1se (fewest within one SE of it).")
+        ] = "min",
+        seed: Annotated[int, typer.Option("--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness).")] = 0,
+        jobs: Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")] = -1,
+        force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False,
+    ) -> None:
+        """Fit the paper's PLS1 model (SIMPLS, X centred) for one pad and force condition.
+
+        Spectra are computed from the study's images with its camera scale and ROI; the response is each
+        specimen's perceived roughness (geometric mean over participants). The number of components is
+        chosen by cross-validation; the CV curve is printed and stored in the model file with the feature
+        definition, so `roughsense predict` recomputes features exactly as here.
+        """
+        import numpy as np
+
+        from .. import dataset
+        from ..atomic import check_can_write
+        from ..modelfile import feature_definition_for, save_model
+        from ..pls import SIMPLS, pls_cv
+        from ..study import MANIFEST_CSV, read_study
+
+        if condition not in CONDITIONS:
+            raise ConfigError(f"--condition must be one of {', '.join(CONDITIONS)}, got {condition!r}")
+        if rule not in ("min", "1se"):
+            raise ConfigError(f"--rule must be min or 1se, got {rule!r}")
+        scheme = _parse_cv(cv)
+        if max_components is not None and max_components < 1:
+            raise ConfigError(f"--max-components must be at least 1, got {max_components}")
+        check_can_write(out, force=force)
+
+        loaded = read_study(study, require_ratings=True)
+        features = dataset.study_features(loaded, n_jobs=jobs, progress=progress)
+        X, meta = dataset.condition_matrix(features, pad, condition, source=loaded.root / MANIFEST_CSV)
+        y = dataset.targets(meta, dataset.perceived_roughness(loaded))
+        groups = meta["specimen"].to_numpy() if scheme == "loso" else None
+        n = len(y)
+        if scheme == "loo":
+            largest_fold = 1
+        elif scheme == "loso":
+            largest_fold = int(meta["specimen"].value_counts().max())
+        else:
+            largest_fold = -(-n // scheme)
+        supported = min(n - largest_fold - 1, X.shape[1])
+        if supported < 1:
+            raise ConfigError(f"too few samples ({n}) for {cv} cross-validation of pad {pad!r} at {condition}")
+        k_max = min(20, supported) if max_components is None else max_components
+        result = pls_cv(
+            X, y, max_components=k_max,
+            cv=None if scheme == "loso" else scheme, groups=groups, random_state=np.random.default_rng(seed),
+        )
+        chosen = result.best_n_components if rule == "min" else result.one_se_n_components
+        model = SIMPLS(n_components=chosen).fit(X, y)
+
+        conditions = dataset.conditions_of(condition)
+        definition = feature_definition_for(dataset.spectrum_for(loaded), conditions)
+        training = {
+            "study": loaded.name,
+            "study_path": str(study),
+            "pad": pad,
+            "condition": condition,
+            "n_samples": int(n),
+            "specimens": sorted(map(str, meta["specimen"].unique())),
+            "reference_specimen": loaded.reference_specimen,
+            "cv": scheme if isinstance(scheme, str) else f"{scheme}-fold",
+            "seed": int(seed),
+            "rule": rule,
+            "max_components": int(k_max),
+            "cv_rmse": [float(v) for v in result.rmse],
+            "cv_rmse_se": [float(v) for v in result.rmse_se],
+            "best_n_components": int(result.best_n_components),
+            "one_se_n_components": int(result.one_se_n_components),
+            "n_components": int(chosen),
+        }
+        save_model(out, model, feature_definition=definition, training=training, force=force)
+
+        table = _curve_table(result, chosen)
+        typer.echo(f"{loaded.name}: pad {pad}, {condition}, {n} samples x {X.shape[1]} features, {result.scheme} CV")
+        typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.5f}"))
+        typer.echo(
+            f"chosen: {chosen} components (CV RMSE {result.rmse[chosen]:.5f}; min at {result.best_n_components}, "
+            f"one-SE rule {result.one_se_n_components})"
+        )
+        typer.echo(f"wrote {out}")
+
+    @app.command("predict")
+    def predict(
+        model: Annotated[Path, typer.Argument(metavar="MODEL.json", help="A model file written by `roughsense fit`.")],
+        images: Annotated[
+            list[Path],
+            typer.Argument(
+                metavar="IMAGE...",
+                help="Contact images. A combined-force model takes them in groups of three: 1N, 2N, 3N (one trial per group).",
+            ),
+        ],
+        out: Annotated[Path | None, typer.Option("--out", "-o", help="CSV to write (one row per image or trial, column roughness). Default: print a table.")] = None,
+        jobs: Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")] = 1,
+        force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
+    ) -> None:
+        """Predict perceived roughness from contact images with a fitted model.
+
+        Features are recomputed with the model's own definition (camera scale, ROI, band, frequencies).
+        """
+        import pandas as pd
+
+        from ..atomic import check_can_write, write_csv
+        from ..modelfile import load_model
+        from ..scoring import group_images, score_images
+
+        if out is not None:
+            check_can_write(out, force=force)
+        loaded = load_model(model)
+        trials = group_images(loaded, images)
+        roughness = score_images(loaded, images, n_jobs=jobs)
+        if len(loaded.conditions) == 1:
+            table = pd.DataFrame({"image": [str(t[0]) for t in trials]})
+        else:
+            table = pd.DataFrame({f"image_{c}": [str(t[i]) for t in trials] for i, c in enumerate(loaded.conditions)})
+        table["roughness"] = roughness
+        if out is None:
+            typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
+        else:
+            write_csv(out, table, float_format="%.17g")
+            typer.echo(f"wrote {len(table)} prediction(s) to {out}")

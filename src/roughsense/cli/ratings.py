@@ -1,0 +1,140 @@
+"""``roughsense ratings`` (summarise magnitude estimates) and ``roughsense protocol`` (draw the orders)."""
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import ConfigError, RoughsenseWarning
+from ._common import parse_name_list
+
+ORDER = 30
+
+
+def _specimen_names(value: str) -> list[str]:
+    """A comma list, or a study's specimens.csv (its ``specimen`` column, in file order)."""
+    path = Path(value)
+    if value.lower().endswith(".csv") or path.is_file():
+        from ..study import read_specimens
+
+        return list(read_specimens(path)["specimen"])
+    names = parse_name_list(value)
+    if not names:
+        raise ConfigError("--specimens: no names given")
+    return names
+
+
+def _print_summary(summary, reference: str) -> None:
+    import math
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..perception import SD_DEFINITION
+
+    table = Table(title="Perceived roughness (magnitude estimation)")
+    table.add_column("specimen")
+    for name in ("gmean", "sd", "participants", "sessions"):
+        table.add_column(name, justify="right")
+    for row in summary.itertuples(index=False):
+        sd = "—" if math.isnan(row.sd) else f"{row.sd:.3f}"
+        if row.specimen == reference:
+            table.add_row(row.specimen, "1.000", sd, "reference", "—")
+        else:
+            table.add_row(row.specimen, f"{row.gmean:.3f}", sd, str(row.n_participants), str(row.n_sessions))
+    console = Console()
+    console.print(table)
+    console.print(SD_DEFINITION, soft_wrap=True, highlight=False)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("ratings")
+    def ratings(
+        ratings_file: Annotated[
+            Path,
+            typer.Argument(
+                metavar="RATINGS",
+                help="ratings.csv (participant, session, specimen, rating), a filled-in schedule CSV, "
+                "or a filled-in Markdown sheet (.md). Blank rating cells are trials not done.",
+                show_default=False,
+            ),
+        ],
+        out: Annotated[Path, typer.Option("--out", "-o", help="Summary CSV: specimen, gmean, sd, n_participants, n_sessions.")],
+        reference: Annotated[str, typer.Option("--reference", help="The reference specimen, fixed at 1.0 and never rated.")] = "R3",
+        specimens: Annotated[
+            str | None,
+            typer.Option("--specimens", help="A study's specimens.csv (or a comma list): refuse unknown specimens and order the rows.", show_default=False),
+        ] = None,
+        force: Annotated[bool, typer.Option("--force", help="Replace SUMMARY.csv if it exists.")] = False,
+    ) -> None:
+        """Summarise magnitude estimates into the perceived roughness of each specimen (section 3.1).
+
+        Per specimen: each participant's median over sessions, then the geometric mean over participants (gmean); sd is the sample SD (ddof=1) of those medians. The reference is written as gmean 1.0 with an empty sd. A participant missing a session or a trial is a warning on stderr and the summary goes on; a bad row is an error naming its line, and nothing is written.
+        """
+        from ..atomic import check_can_write, write_csv
+        from ..perception import aggregate_ratings, read_ratings
+
+        check_can_write(out, force=force)
+        names = _specimen_names(specimens) if specimens is not None else None
+        frame = read_ratings(ratings_file, specimens=names, reference=reference)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RoughsenseWarning)
+            summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
+        for item in caught:
+            if issubclass(item.category, RoughsenseWarning):
+                print(f"roughsense: warning: {item.message}", file=sys.stderr)
+            else:
+                warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
+        write_csv(out, summary)
+        _print_summary(summary, reference)
+        print(f"wrote {out}")
+
+    @app.command("protocol")
+    def protocol(
+        out: Annotated[Path, typer.Option("--out", "-o", help="Schedule CSV: participant, session, order, specimen, and an empty rating column to fill in.")],
+        seed: Annotated[int, typer.Option("--seed", help="Seed of the random orders (same seed, same schedule).")],
+        participants: Annotated[int, typer.Option("--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = 10,
+        sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = 3,
+        specimens: Annotated[
+            str | None,
+            typer.Option("--specimens", help="Comma list or a study's specimens.csv. Default: the paper's R2..R5, C2..C5.", show_default=False),
+        ] = None,
+        reference: Annotated[str, typer.Option("--reference", help="The reference specimen: never presented for rating.")] = "R3",
+        sheet: Annotated[
+            Path | None,
+            typer.Option("--sheet", help="Also write a printable sheet: .html (print from a browser) or .md (can be filled in and read back).", show_default=False),
+        ] = None,
+        force: Annotated[bool, typer.Option("--force", help="Replace existing output files.")] = False,
+    ) -> None:
+        """Draw randomised presentation orders for a magnitude-estimation experiment (section 3.1).
+
+        Every specimen except the reference appears once per session, in an order drawn afresh for every participant and session. Fill in the rating column of the schedule (or of a Markdown sheet) and pass it to `roughsense ratings` as it is.
+        """
+        import numpy as np
+
+        from ..atomic import check_can_write, write_csv, write_text
+        from ..perception import PAPER_SPECIMENS, make_schedule, render_sheet
+
+        fmt = None
+        if sheet is not None:
+            suffix = sheet.suffix.lower()
+            fmt = {".html": "html", ".htm": "html", ".md": "markdown", ".markdown": "markdown"}.get(suffix)
+            if fmt is None:
+                raise ConfigError(f"--sheet must end in .html or .md, got {sheet.name!r}")
+            if sheet.resolve() == out.resolve():
+                raise ConfigError("--sheet and --out must be different files")
+            check_can_write(sheet, force=force)
+        check_can_write(out, force=force)
+        names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
+        schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
+        text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name) if fmt else None
+        write_csv(out, schedule)
+        if text is not None:
+            write_text(sheet, text)
+        shown = schedule["specimen"].nunique()
+        print(f"wrote {out}: {participants} participants x {sessions} sessions x {shown} specimens (reference {reference} excluded)")
+        if sheet is not None:
+            print(f"wrote {sheet}")

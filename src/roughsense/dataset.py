@@ -1,0 +1,160 @@
+"""A study as regression data: spectra (X) per pad and force condition, perceived roughness (y).
+
+One row per image in :func:`study_features`; :func:`condition_matrix` selects a pad and a condition, and for
+"combined" puts a trial's 1 N, 2 N and 3 N spectra side by side (3 x 45 predictors, as in the paper);
+:func:`targets` maps each row's specimen to the perceived roughness (the geometric mean of the ratings).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+from .study import RATINGS_CSV, Study
+
+COMBINED = "combined"
+TRIAL_KEYS = ("specimen", "pad", "repetition")
+
+
+def spectrum_for(study: Study, *, n_jobs: int = 1):
+    """The SpatialSpectrum configured from the study's sensor settings (camera scale and ROI)."""
+    from .sensor import SpatialSpectrum
+
+    return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs).fit()
+
+
+def study_features(study: Study, *, n_jobs: int = 1, progress: Callable | None = None) -> pd.DataFrame:
+    """Manifest columns plus one column per grid frequency (named by the frequency in mm^-1).
+
+    ``progress(iterable, total=, description=)`` wraps the image stream (the CLI passes a rich bar).
+    """
+    spectrum = spectrum_for(study, n_jobs=n_jobs)
+    paths = study.image_paths
+    rows = spectrum.iter_transform(paths)
+    if progress is not None:
+        rows = progress(rows, total=len(paths), description="spectra")
+    X = np.vstack(list(rows)) if paths else np.empty((0, spectrum.freq_per_mm_.size))
+    names = [str(c) for c in spectrum.get_feature_names_out()]
+    spectra = pd.DataFrame(X, columns=names, index=study.manifest.index)
+    return pd.concat([study.manifest.reset_index(drop=True), spectra.reset_index(drop=True)], axis=1)
+
+
+def _is_frequency(name: object) -> bool:
+    try:
+        float(str(name))
+    except ValueError:
+        return False
+    return True
+
+
+def frequency_columns(features: pd.DataFrame) -> list[str]:
+    """The spectrum columns: those named by a number (a frequency in mm^-1), in order."""
+    return [c for c in features.columns if _is_frequency(c)]
+
+
+def conditions_of(condition: str, available: Sequence[str] = ("1N", "2N", "3N")) -> list[str]:
+    """The force conditions a model condition uses: ["2N"] for "2N", all three for "combined"."""
+    if condition == COMBINED:
+        return list(available)
+    return [condition]
+
+
+def condition_matrix(
+    features: pd.DataFrame, pad: str, condition: str, *, source=None
+) -> tuple[np.ndarray, pd.DataFrame]:
+    """(X, meta) for one pad and condition ("1N", "2N", "3N" or "combined").
+
+    For "combined", each trial (specimen, pad, repetition) contributes one row: its 1 N, 2 N and 3 N
+    spectra concatenated in that order. A trial missing a force (or holding two images of one) is refused.
+    ``meta`` has specimen, repetition and image (or image_1N, image_2N, image_3N for "combined").
+    ``source`` (e.g. the manifest's path) is named in errors.
+    """
+    freq = frequency_columns(features)
+    if not freq:
+        raise InputError("the feature table has no spectrum columns")
+    for column in ("pad", "condition", *TRIAL_KEYS, "image"):
+        if column not in features.columns:
+            raise InputError(f"the feature table lacks the column {column!r}")
+    at_pad = features[features["pad"].astype(str) == str(pad)]
+    if at_pad.empty:
+        pads = ", ".join(sorted(map(str, features["pad"].unique())))
+        raise InputError(f"no images of pad {pad!r} (pads in the study: {pads})", path=source)
+    present = sorted(map(str, at_pad["condition"].unique()), key=_force_order)
+    if condition != COMBINED:
+        if condition not in ("1N", "2N", "3N") and condition not in present:
+            raise InputError(f"unknown condition {condition!r}; expected 1N, 2N, 3N or combined", path=source)
+        rows = at_pad[at_pad["condition"] == condition]
+        if rows.empty:
+            raise InputError(
+                f"no images of pad {pad!r} at {condition} (conditions present: {', '.join(present)})", path=source
+            )
+        rows = rows.sort_values(["specimen", "repetition", "image"], kind="stable")
+        meta = rows[["specimen", "repetition", "image"]].reset_index(drop=True)
+        return rows[freq].to_numpy(np.float64), meta
+
+    forces = ["1N", "2N", "3N"]
+    rows = at_pad[at_pad["condition"].isin(forces)]
+    if rows.empty:
+        raise InputError(f"no images of pad {pad!r} at 1N, 2N or 3N for the combined condition", path=source)
+    counts = rows.groupby(["specimen", "repetition", "condition"]).size()
+    doubled = counts[counts > 1]
+    if not doubled.empty:
+        specimen, repetition, force = doubled.index[0]
+        raise InputError(
+            f"combined condition: specimen {specimen!r}, repetition {repetition} on pad {pad!r} has "
+            f"{doubled.iloc[0]} images at {force}; a trial needs exactly one image per force",
+            path=source,
+        )
+    wide = rows.pivot(index=["specimen", "repetition"], columns="condition", values="image")
+    for trial, images in wide.iterrows():
+        missing = [f for f in forces if f not in images.index or pd.isna(images[f])]
+        if missing:
+            specimen, repetition = trial
+            raise InputError(
+                f"combined condition: specimen {specimen!r}, repetition {repetition} on pad {pad!r} has no "
+                f"image at {', '.join(missing)}; every trial needs 1N, 2N and 3N",
+                path=source,
+            )
+    wide = wide.sort_index()
+    by_image = rows.set_index("image")[freq]
+    blocks = [by_image.loc[wide[f].to_numpy()].to_numpy(np.float64) for f in forces]
+    meta = wide.reset_index()[["specimen", "repetition"]].copy()
+    for f in forces:
+        meta[f"image_{f}"] = wide[f].to_numpy()
+    from .sensor import combine_forces
+
+    return combine_forces(blocks), meta
+
+
+def _force_order(label: str) -> float:
+    try:
+        return float(label.rstrip("N"))
+    except ValueError:
+        return float("inf")
+
+
+def targets(meta: pd.DataFrame, summary: pd.DataFrame) -> np.ndarray:
+    """Perceived roughness (``gmean``) of each row's specimen; a specimen without ratings is refused."""
+    if "specimen" not in summary.columns or "gmean" not in summary.columns:
+        raise InputError("the perceived-roughness table needs columns specimen and gmean")
+    lookup = dict(zip(summary["specimen"].astype(str), summary["gmean"].astype(float)))
+    specimens = meta["specimen"].astype(str)
+    missing = sorted(set(specimens) - set(lookup))
+    if missing:
+        raise InputError(f"no perceived roughness for specimen(s) {', '.join(missing)} (not in the ratings)")
+    y = specimens.map(lookup).to_numpy(np.float64)
+    if not np.all(np.isfinite(y)):
+        bad = specimens[~np.isfinite(y)].iloc[0]
+        raise InputError(f"perceived roughness of specimen {bad!r} is not a finite number")
+    return y
+
+
+def perceived_roughness(study: Study) -> pd.DataFrame:
+    """Aggregate the study's ratings (median over sessions, geometric mean over participants)."""
+    if study.ratings is None:
+        raise InputError("file not found (fitting a model needs participants' ratings)", path=study.root / "ratings.csv")
+    from .perception import aggregate_ratings  # written concurrently; imported only when needed
+
+    return aggregate_ratings(study.ratings, reference=study.reference_specimen, path=study.root / RATINGS_CSV)

@@ -1,0 +1,303 @@
+"""Model files: a fitted PLS1 model as a versioned, self-checking JSON document (never pickle).
+
+A model file is something users send each other, so loading it must never execute anything and must
+refuse, with one clear message naming the file, anything damaged, truncated, edited or from another
+version. The document::
+
+    {"format": "roughsense-model", "version": 1, "roughsense_version": "...",
+     "model":    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
+                  "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]]},
+     "features": {"spectrum": <SpatialSpectrum.feature_definition()>, "conditions": ["1N"] | ["1N","2N","3N"]},
+     "training": {study, pad, condition, cv, cv_rmse, best_n_components, ...},
+     "sha256":   hex digest of the canonical JSON of everything above}
+
+``coefficients[k-1]`` is the model with k components; the file predicts with ``n_components``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import atomic
+from .errors import ModelFileError
+from .pls import SIMPLS, linear_predict
+
+FORMAT = "roughsense-model"
+VERSION = 1
+KIND = "pls1-simpls"
+_TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
+
+
+@dataclass(frozen=True)
+class LoadedModel:
+    """A validated model document, ready to predict."""
+
+    path: Path | None
+    n_components: int
+    x_mean: np.ndarray
+    y_mean: float
+    coef_path: np.ndarray  # (p, A): column k-1 is the model with k components
+    intercept_path: np.ndarray  # (A,)
+    pct_var: np.ndarray  # (2, A)
+    features: dict
+    training: dict
+    roughsense_version: str
+
+    @property
+    def n_features(self) -> int:
+        return int(self.coef_path.shape[0])
+
+    @property
+    def conditions(self) -> list[str]:
+        """Force conditions, in the order a trial's images are concatenated (one for a single-force model)."""
+        return list(self.features["conditions"])
+
+    @property
+    def coef_(self) -> np.ndarray:
+        return self.coef_path[:, self.n_components - 1]
+
+    @property
+    def intercept_(self) -> float:
+        return float(self.intercept_path[self.n_components - 1])
+
+    def predict(self, X) -> np.ndarray:
+        """Predicted perceived roughness, exactly as the fitted :class:`SIMPLS` predicts it."""
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.n_features:
+            raise ModelFileError(
+                f"the model expects {self.n_features} features per sample, got shape {X.shape}", path=self.path
+            )
+        k = self.n_components - 1
+        return linear_predict(X, self.coef_path[:, k], self.intercept_path[k])
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _canonical(document: dict) -> bytes:
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def _digest(document: dict) -> str:
+    body = {k: v for k, v in document.items() if k != "sha256"}
+    return hashlib.sha256(_canonical(body)).hexdigest()
+
+
+def _floats(values) -> list:
+    return np.asarray(values, dtype=np.float64).tolist()
+
+
+def model_document(model: SIMPLS, *, feature_definition: dict, training: dict) -> dict:
+    """The JSON document of a fitted model (see the module docstring)."""
+    if not hasattr(model, "coef_path_"):
+        raise ModelFileError("the model is not fitted")
+    p, A = model.coef_path_.shape
+    features = _check_feature_definition(feature_definition, p, None)
+    document = {
+        "format": FORMAT,
+        "version": VERSION,
+        "roughsense_version": _version(),
+        "model": {
+            "kind": KIND,
+            "n_components": int(A),
+            "n_features": int(p),
+            "x_mean": _floats(model.x_mean_),
+            "y_mean": float(model.y_mean_),
+            "coefficients": _floats(model.coef_path_.T),
+            "intercepts": _floats(model.intercept_path_),
+            "pct_var": _floats(model.pct_var_),
+        },
+        "features": features,
+        "training": training,
+    }
+    try:
+        document["sha256"] = _digest(document)
+    except (TypeError, ValueError) as exc:
+        raise ModelFileError(f"the model or its metadata cannot be stored as JSON ({exc})") from None
+    return document
+
+
+def save_model(
+    path: str | os.PathLike[str], model: SIMPLS, *, feature_definition: dict, training: dict, force: bool = False
+) -> Path:
+    """Write the model file atomically; an existing file is replaced only with ``force``."""
+    target = atomic.check_can_write(path, force=force)
+    document = model_document(model, feature_definition=feature_definition, training=training)
+    text = json.dumps(document, indent=1, allow_nan=False) + "\n"
+    return atomic.write_text(target, text)
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def load_model(path: str | os.PathLike[str]) -> LoadedModel:
+    """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ModelFileError("model file not found", path=path) from None
+    except OSError as exc:
+        raise ModelFileError(f"cannot read the model file ({exc.strerror or exc})", path=path) from None
+    try:
+        document = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ModelFileError(f"is not a valid model file: damaged or truncated JSON ({exc})", path=path) from None
+    return model_from_document(document, path=path)
+
+
+def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    if not isinstance(document, dict) or document.get("format") != FORMAT:
+        fail(f"is not a roughsense model file (expected \"format\": \"{FORMAT}\")")
+    version = document.get("version")
+    if version != VERSION or isinstance(version, bool):
+        fail(f"model file version {version!r} is not supported (this roughsense {_version()} reads version {VERSION})")
+    missing = [k for k in _TOP_KEYS if k not in document]
+    if missing:
+        fail(f"model file lacks {', '.join(missing)}")
+    unknown = sorted(set(document) - set(_TOP_KEYS))
+    if unknown:
+        fail(f"model file has unknown field(s) {', '.join(unknown)}")
+    try:
+        digest = _digest(document)
+    except (TypeError, ValueError):
+        digest = None
+    if not isinstance(document["sha256"], str) or document["sha256"] != digest:
+        fail("model file is damaged or was edited: its checksum does not match its content")
+    if not isinstance(document["roughsense_version"], str):
+        fail("roughsense_version must be a string")
+
+    model = document["model"]
+    if not isinstance(model, dict):
+        fail("\"model\" must be an object")
+    expected = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
+    if set(model) != expected:
+        fail(f"\"model\" must have exactly the fields {', '.join(sorted(expected))}")
+    if model["kind"] != KIND:
+        fail(f"model kind {model['kind']!r} is not supported (expected {KIND!r})")
+    A, p = model["n_components"], model["n_features"]
+    for name, value in (("n_components", A), ("n_features", p)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            fail(f"model.{name} must be a positive whole number, got {value!r}")
+    x_mean = _array(model["x_mean"], (p,), "model.x_mean", path)
+    coef = _array(model["coefficients"], (A, p), "model.coefficients", path)
+    intercepts = _array(model["intercepts"], (A,), "model.intercepts", path)
+    pct_var = _array(model["pct_var"], (2, A), "model.pct_var", path)
+    y_mean = model["y_mean"]
+    if isinstance(y_mean, bool) or not isinstance(y_mean, (int, float)) or not math.isfinite(y_mean):
+        fail(f"model.y_mean must be a finite number, got {y_mean!r}")
+    features = _check_feature_definition(document["features"], p, path)
+    training = document["training"]
+    if not isinstance(training, dict):
+        fail("\"training\" must be an object")
+    return LoadedModel(
+        path=path,
+        n_components=A,
+        x_mean=x_mean,
+        y_mean=float(y_mean),
+        coef_path=np.ascontiguousarray(coef.T),
+        intercept_path=intercepts,
+        pct_var=pct_var,
+        features=features,
+        training=training,
+        roughsense_version=document["roughsense_version"],
+    )
+
+
+def _array(value, shape: tuple[int, ...], name: str, path: Path | None) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ModelFileError(f"{name} must be an array of numbers", path=path) from None
+    if array.shape != shape:
+        raise ModelFileError(f"{name} has shape {array.shape}, expected {shape}", path=path)
+    if not np.all(np.isfinite(array)):
+        raise ModelFileError(f"{name} holds a value that is not a finite number", path=path)
+    return array
+
+
+def _check_feature_definition(features, n_features: int, path: Path | None) -> dict:
+    """A feature definition: {"spectrum": {..., "n_freqs": k}, "conditions": [...]} with k x len(conditions) = p."""
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    if not isinstance(features, dict):
+        fail("the feature definition must be an object")
+    spectrum, conditions = features.get("spectrum"), features.get("conditions")
+    if not isinstance(spectrum, dict):
+        fail("the feature definition lacks its \"spectrum\" object")
+    if not isinstance(conditions, list) or not conditions or not all(isinstance(c, str) for c in conditions):
+        fail("the feature definition needs \"conditions\": a non-empty list of force conditions")
+    if len(set(conditions)) != len(conditions):
+        fail(f"the feature definition repeats a force condition: {conditions}")
+    n_freqs = spectrum.get("n_freqs")
+    if isinstance(n_freqs, bool) or not isinstance(n_freqs, int) or n_freqs < 1:
+        fail("the feature definition's spectrum needs a positive whole n_freqs")
+    if n_freqs * len(conditions) != n_features:
+        fail(
+            f"the feature definition gives {n_freqs} frequencies x {len(conditions)} condition(s), "
+            f"but the model has {n_features} coefficients"
+        )
+    return features
+
+
+def feature_definition_for(spectrum, conditions) -> dict:
+    """The feature definition of spectra from ``spectrum`` at the given force conditions, in order."""
+    return {"spectrum": spectrum.feature_definition(), "conditions": list(conditions)}
+
+
+def check_features(loaded: LoadedModel, feature_definition: dict) -> None:
+    """Refuse features computed differently from the model's (scale, ROI, band, frequencies, forces)."""
+    difference = _first_difference(loaded.features, feature_definition, "")
+    if difference is not None:
+        key, model_value, given = difference
+        raise ModelFileError(
+            f"the features differ from the model's: {key or 'definition'} is {_short(given)} here "
+            f"but {_short(model_value)} in the model",
+            path=loaded.path,
+        )
+
+
+def _short(value) -> str:
+    text = json.dumps(value) if not isinstance(value, str) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _first_difference(model_value, given, key: str):
+    if isinstance(model_value, dict) and isinstance(given, dict):
+        for name in sorted(set(model_value) | set(given)):
+            sub = f"{key}.{name}" if key else name
+            if name not in model_value or name not in given:
+                return sub, model_value.get(name), given.get(name)
+            found = _first_difference(model_value[name], given[name], sub)
+            if found:
+                return found
+        return None
+    if isinstance(model_value, (list, tuple)) and isinstance(given, (list, tuple)):
+        if len(model_value) != len(given):
+            return key, model_value, given
+        for a, b in zip(model_value, given):
+            if _first_difference(a, b, key):
+                return key, model_value, given
+        return None
+    numbers = (int, float, np.integer, np.floating)
+    if isinstance(model_value, numbers) and isinstance(given, numbers) and not isinstance(model_value, bool):
+        if math.isclose(float(model_value), float(given), rel_tol=1e-9, abs_tol=1e-12):
+            return None
+        return key, model_value, given
+    return None if model_value == given else (key, model_value, given)

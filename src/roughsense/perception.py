@@ -1,0 +1,402 @@
+"""Magnitude estimation (paper §3.1): validated ratings, the perceived-roughness targets, and the protocol.
+
+Participants rate each specimen against the reference (R3 = 1.0, never rated) in several sessions.
+Per specimen, each participant's ratings are reduced to their median over sessions, and the medians
+are combined by their geometric mean across participants -- the target the models learn. The SD
+reported beside it is the sample SD (ddof=1) of those per-participant medians (see ``SD_DEFINITION``).
+
+The protocol side draws the randomised presentation orders and renders a sheet for the experimenter;
+the schedule CSV has an empty ``rating`` column, so the filled-in schedule *is* a ratings file.
+"""
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import ConfigError, InputError, RoughsenseWarning
+from .study import DEFAULT_REFERENCE, RATING_COLUMNS, csv_line, read_table
+
+#: The paper's specimens: rectangular (R) and circular (C) gratings, wavelength 2-5 mm.
+PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5))
+
+SD_DEFINITION = (
+    "sd = sample standard deviation (ddof=1) across participants of each participant's median rating "
+    "over sessions (linear scale, not the geometric SD)"
+)
+
+SUMMARY_COLUMNS = ["specimen", "gmean", "sd", "n_participants", "n_sessions"]
+SCHEDULE_COLUMNS = ["participant", "session", "order", "specimen", "rating"]
+_TEXT_COLUMNS = ("participant", "session", "specimen")
+
+
+class MissingRatingsWarning(RoughsenseWarning):
+    """A participant has no rating for some specimen in some session; the median uses what there is."""
+
+
+def natural_key(name: object) -> tuple:
+    """Sort "R2.5" before "R10" and numbers as numbers ("P2" < "P10", session "2" < "10")."""
+    parts = re.split(r"(\d+(?:\.\d+)?)", str(name))
+    return tuple((0, float(p), "") if i % 2 else (1, 0.0, p) for i, p in enumerate(parts) if p != "")
+
+
+# --------------------------------------------------------------------------- reading and validation
+
+
+def _line(frame: pd.DataFrame, position: int) -> int | None:
+    """File line of the row at ``position`` (frames keep ``index + 2 == line``; see read_ratings)."""
+    label = frame.index[position]
+    return csv_line(label) if isinstance(label, (int, np.integer)) else None
+
+
+def _validate(
+    frame: pd.DataFrame,
+    *,
+    path: str | os.PathLike[str] | None,
+    reference: str,
+    specimens: Iterable[str] | None,
+) -> pd.DataFrame:
+    """Domain checks shared by files and in-memory frames; returns a clean copy (text keys, float ratings)."""
+    missing = [c for c in RATING_COLUMNS if c not in frame.columns]
+    if missing:
+        found = ", ".join(map(str, frame.columns)) or "nothing"
+        raise InputError(f"missing column(s) {', '.join(missing)}; found {found}", path=path)
+    frame = frame.copy()
+    for column in _TEXT_COLUMNS:
+        text = frame[column].map(lambda v: "" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v).strip())
+        blank = text == ""
+        if blank.any():
+            raise InputError("empty value", path=path, row=_line(frame, np.flatnonzero(blank)[0]), column=column)
+        frame[column] = text
+    raw = frame["rating"]
+    values = pd.to_numeric(raw, errors="coerce").astype(float)
+    blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
+    bad = (values.isna() & ~blank) | np.isinf(values)
+    if bad.any():
+        i = np.flatnonzero(bad)[0]
+        raise InputError(f"not a number: {raw.iloc[i]!r}", path=path, row=_line(frame, i), column="rating")
+    if blank.any():
+        i = np.flatnonzero(blank)[0]
+        raise InputError("empty rating", path=path, row=_line(frame, i), column="rating")
+    nonpositive = values <= 0
+    if nonpositive.any():
+        i = np.flatnonzero(nonpositive)[0]
+        raise InputError(
+            f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path, row=_line(frame, i), column="rating"
+        )
+    frame["rating"] = values
+    is_reference = frame["specimen"] == reference
+    if is_reference.any():
+        raise InputError(
+            f"{reference} is the reference (fixed at 1.0 by definition) and must not be rated",
+            path=path, row=_line(frame, np.flatnonzero(is_reference)[0]), column="specimen",
+        )
+    if specimens is not None:
+        known = set(specimens)
+        unknown = ~frame["specimen"].isin(known)
+        if unknown.any():
+            i = np.flatnonzero(unknown)[0]
+            raise InputError(
+                f"unknown specimen {frame['specimen'].iloc[i]!r}; expected one of {', '.join(sorted(known, key=natural_key))}",
+                path=path, row=_line(frame, i), column="specimen",
+            )
+    keys = list(_TEXT_COLUMNS)
+    duplicated = frame.duplicated(keys, keep="first")
+    if duplicated.any():
+        i = np.flatnonzero(duplicated)[0]
+        row = frame.iloc[i]
+        first = _line(frame, np.flatnonzero((frame[keys] == row[keys]).all(axis=1))[0])
+        raise InputError(
+            f"participant {row['participant']} rated {row['specimen']} twice in session {row['session']}"
+            + (f" (first on line {first})" if first is not None else ""),
+            path=path, row=_line(frame, i), column="specimen",
+        )
+    return frame
+
+
+def _read_markdown_sheet(path: Path) -> pd.DataFrame:
+    """Rows of every Markdown table whose header names the rating columns (a filled-in sheet).
+
+    The frame's index is ``line - 2`` so that errors name the line of the Markdown file.
+    """
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise InputError("is not UTF-8 text", path=path) from None
+    rows, index, header = [], [], None
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text.startswith("|"):
+            header = None
+            continue
+        cells = [c.strip() for c in text.strip("|").split("|")]
+        if header is None:
+            header = [c.lower() for c in cells]
+            continue
+        if all(re.fullmatch(r":?-+:?", c) for c in cells):
+            continue
+        if not set(RATING_COLUMNS) <= set(header):
+            continue
+        if len(cells) != len(header):
+            raise InputError(f"table row has {len(cells)} cells, the header has {len(header)}", path=path, row=number)
+        rows.append(dict(zip(header, cells)))
+        index.append(number - 2)
+    if not rows:
+        raise InputError(f"no table with columns {', '.join(RATING_COLUMNS)} found", path=path)
+    frame = pd.DataFrame(rows, index=index)
+    return frame.replace("", np.nan)
+
+
+def read_ratings(
+    path: str | os.PathLike[str],
+    *,
+    specimens: Iterable[str] | None = None,
+    reference: str = DEFAULT_REFERENCE,
+) -> pd.DataFrame:
+    """Read and validate ratings.csv -- or a filled-in schedule (CSV or Markdown sheet).
+
+    Rows whose ``rating`` cell is blank are not-yet-rated trials and are dropped (aggregation then warns
+    about the gap); anything else wrong is an :class:`InputError` naming the line. The returned frame
+    keeps ``index + 2 == line in the file`` and has columns participant, session, specimen (text) and
+    rating (float), plus any extra columns of the file.
+    """
+    path = Path(path)
+    if path.suffix.lower() in (".md", ".markdown"):
+        if not path.is_file():
+            raise InputError("file not found", path=path)
+        frame = _read_markdown_sheet(path)
+    else:
+        frame = read_table(path, (), text=_TEXT_COLUMNS)
+    if "rating" in frame.columns:
+        raw = frame["rating"]
+        blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
+        frame = frame[~blank]
+        if frame.empty:
+            raise InputError("has no ratings (every rating cell is empty)", path=path)
+    frame = _validate(frame, path=path, reference=reference, specimens=specimens)
+    return frame
+
+
+# --------------------------------------------------------------------------- aggregation
+
+
+def _warn_gaps(frame: pd.DataFrame, rated: Sequence[str], path) -> None:
+    """One warning per participant x session with missing trials, so the message names the gap."""
+    where = f"{path}: " if path is not None else ""
+    sessions = sorted(frame["session"].unique(), key=natural_key)
+    seen = frame.groupby(["participant", "session"])["specimen"].agg(set).to_dict()
+    for participant in sorted(frame["participant"].unique(), key=natural_key):
+        for session in sessions:
+            got = seen.get((participant, session), set())
+            if not got:
+                message = f"participant {participant} has no ratings in session {session}; medians use the other sessions"
+            else:
+                lacking = [s for s in rated if s not in got]
+                if not lacking:
+                    continue
+                message = f"participant {participant}, session {session}: no rating for {', '.join(lacking)}"
+            warnings.warn(where + message, MissingRatingsWarning, stacklevel=3)
+
+
+def aggregate_ratings(
+    ratings: pd.DataFrame,
+    reference: str = DEFAULT_REFERENCE,
+    *,
+    specimens: Sequence[str] | None = None,
+    path: str | os.PathLike[str] | None = None,
+    warn: bool = True,
+) -> pd.DataFrame:
+    """Per specimen: geometric mean over participants of each participant's median over sessions.
+
+    Columns specimen, gmean, sd, n_participants, n_sessions (``sd`` as in :data:`SD_DEFINITION`;
+    ``n_sessions`` = distinct sessions in which the specimen was rated). The reference is a row of its
+    own with gmean 1.0 and sd NaN. Rows follow ``specimens`` when given (each must then be rated),
+    else natural order (C2 < C2.5 < ... < R5). A participant missing a session or a trial gets a
+    :class:`MissingRatingsWarning` naming the gap (unless ``warn`` is false) and the analysis goes on.
+    ``path`` only labels errors and warnings; frame rows are taken to be file lines ``index + 2``.
+    """
+    frame = _validate(ratings, path=path, reference=reference, specimens=specimens)
+    if frame.empty:
+        raise InputError("no ratings to summarise", path=path)
+    rated = sorted(frame["specimen"].unique(), key=natural_key)
+    if specimens is not None:
+        order = list(dict.fromkeys(specimens))
+        unrated = [s for s in order if s != reference and s not in set(rated)]
+        if unrated:
+            raise InputError(f"no ratings at all for specimen(s) {', '.join(unrated)}", path=path)
+        rated = [s for s in order if s != reference]
+        if reference not in order:
+            order = [reference, *order]
+    else:
+        order = sorted([*rated, reference], key=natural_key)
+    if warn:
+        _warn_gaps(frame, rated, path)
+    medians = frame.groupby(["specimen", "participant"], sort=False)["rating"].median()
+    n_sessions = frame.groupby("specimen")["session"].nunique()
+    rows = []
+    for specimen in order:
+        if specimen == reference:
+            rows.append({"specimen": specimen, "gmean": 1.0, "sd": np.nan, "n_participants": 0, "n_sessions": 0})
+            continue
+        per_participant = medians.loc[specimen].to_numpy(dtype=float)
+        rows.append({
+            "specimen": specimen,
+            "gmean": float(np.exp(np.mean(np.log(per_participant)))),
+            "sd": float(np.std(per_participant, ddof=1)) if per_participant.size > 1 else np.nan,
+            "n_participants": int(per_participant.size),
+            "n_sessions": int(n_sessions.loc[specimen]),
+        })
+    summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
+    return summary.astype({"n_participants": np.int64, "n_sessions": np.int64})
+
+
+# --------------------------------------------------------------------------- protocol
+
+
+def participant_ids(count: int) -> list[str]:
+    """P01 ... P10: zero-padded so that they sort and read well on a sheet."""
+    width = max(2, len(str(count)))
+    return [f"P{i:0{width}d}" for i in range(1, count + 1)]
+
+
+def make_schedule(
+    specimens: Sequence[str],
+    participants: int | Sequence[str],
+    sessions: int,
+    reference: str = DEFAULT_REFERENCE,
+    rng: np.random.Generator | int | None = None,
+) -> pd.DataFrame:
+    """Presentation orders: every specimen but the reference once per session, shuffled afresh for
+    every participant and session from ``rng`` (a Generator, or a seed for one).
+
+    Columns participant, session, order, specimen and an empty ``rating`` column for the experimenter
+    to fill; the filled-in schedule is then read by :func:`read_ratings` as it is.
+    """
+    if rng is None:
+        raise ConfigError("make_schedule needs rng (a numpy Generator or a seed) so the orders can be reproduced")
+    rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    names = [str(s).strip() for s in specimens]
+    if any(not n for n in names):
+        raise ConfigError("specimen names must not be empty")
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ConfigError(f"specimen(s) listed twice: {', '.join(duplicates)}")
+    shown = [n for n in names if n != reference]
+    if not shown:
+        raise ConfigError(f"no specimens to present besides the reference {reference}")
+    if isinstance(participants, (int, np.integer)):
+        if participants < 1:
+            raise ConfigError(f"need at least one participant, got {participants}")
+        people = participant_ids(int(participants))
+    else:
+        people = [str(p).strip() for p in participants]
+        if not people or any(not p for p in people) or len(set(people)) != len(people):
+            raise ConfigError("participant IDs must be non-empty and distinct")
+    if int(sessions) < 1:
+        raise ConfigError(f"need at least one session, got {sessions}")
+    rows = []
+    for person in people:
+        for session in range(1, int(sessions) + 1):
+            for position, index in enumerate(rng.permutation(len(shown)), start=1):
+                rows.append((person, session, position, shown[index], np.nan))
+    return pd.DataFrame(rows, columns=SCHEDULE_COLUMNS)
+
+
+_HTML_SHEET = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>{{ title }}</title>
+<style>
+  body { font-family: system-ui, sans-serif; margin: 1.5cm; }
+  section { break-after: page; page-break-after: always; }
+  section:last-child { break-after: auto; page-break-after: auto; }
+  table { border-collapse: collapse; width: 100%; margin-top: 0.5em; }
+  th, td { border: 1px solid #444; padding: 0.45em 0.6em; text-align: left; }
+  td.rating { width: 35%; }
+  td.line, th.line { color: #777; font-size: 0.8em; width: 4em; }
+  .note { font-size: 0.9em; color: #333; }
+</style>
+</head>
+<body>
+{% for block in blocks %}
+<section>
+  <h1>{{ title }}</h1>
+  <h2>Participant {{ block.participant }} &middot; session {{ block.session }}</h2>
+  <p class="note">Reference <strong>{{ reference }}</strong> = 1.0 (may be touched at any time; not rated).
+  Press only &mdash; no sliding. Vision blocked. Rate how many times rougher than the reference each specimen feels
+  (any positive number). Type the ratings into the <code>rating</code> column of {{ csv_name }} at the line shown.</p>
+  <p class="note">Date: ____________ &nbsp; Experimenter: ____________</p>
+  <table>
+    <thead><tr><th class="line">line</th><th>order</th><th>specimen</th><th>rating</th></tr></thead>
+    <tbody>
+    {% for row in block.rows %}
+      <tr><td class="line">{{ row.line }}</td><td>{{ row.order }}</td><td>{{ row.specimen }}</td><td class="rating"></td></tr>
+    {% endfor %}
+    </tbody>
+  </table>
+</section>
+{% endfor %}
+</body>
+</html>
+"""
+
+
+def _blocks(schedule: pd.DataFrame) -> list[dict]:
+    missing = [c for c in ("participant", "session", "order", "specimen") if c not in schedule.columns]
+    if missing:
+        raise InputError(f"schedule lacks column(s) {', '.join(missing)}")
+    blocks: list[dict] = []
+    for position, row in enumerate(schedule.itertuples(index=False)):
+        key = (str(row.participant), str(row.session))
+        if not blocks or (blocks[-1]["participant"], blocks[-1]["session"]) != key:
+            blocks.append({"participant": key[0], "session": key[1], "rows": []})
+        blocks[-1]["rows"].append({"line": csv_line(position), "order": int(row.order), "specimen": str(row.specimen)})
+    return blocks
+
+
+def render_sheet(
+    schedule: pd.DataFrame,
+    fmt: str = "html",
+    *,
+    reference: str = DEFAULT_REFERENCE,
+    title: str = "Magnitude estimation of roughness",
+    csv_name: str = "the schedule CSV",
+) -> str:
+    """A printable sheet for the experimenter, one page per participant x session, rows in CSV order.
+
+    ``"html"`` prints well from a browser (with the schedule CSV line of each trial for typing the
+    ratings in); ``"markdown"`` is a plain-text sheet whose tables carry the rating columns, so the
+    filled-in Markdown file itself can be read back by :func:`read_ratings`.
+    """
+    blocks = _blocks(schedule)
+    if fmt == "html":
+        import jinja2
+
+        template = jinja2.Environment(autoescape=True, trim_blocks=True, lstrip_blocks=True).from_string(_HTML_SHEET)
+        return template.render(title=title, reference=reference, blocks=blocks, csv_name=csv_name)
+    if fmt not in ("markdown", "md"):
+        raise ConfigError(f"sheet format must be html or markdown, got {fmt!r}")
+
+    def cell(value: object) -> str:
+        text = str(value)
+        if "|" in text or "\n" in text:
+            raise ConfigError(f"cannot put {text!r} in a Markdown table cell")
+        return text
+
+    out = [f"# {title}", "",
+           f"Reference **{cell(reference)}** = 1.0 (may be touched at any time; not rated). Press only, no sliding; "
+           "vision blocked. Write how many times rougher than the reference each specimen feels (any positive number) "
+           "in the `rating` column. Leave a cell empty for a trial that did not happen.", ""]
+    for block in blocks:
+        out += [f"## Participant {cell(block['participant'])}, session {cell(block['session'])}", "",
+                "| participant | session | order | specimen | rating |", "|---|---|---|---|---|"]
+        out += [f"| {cell(block['participant'])} | {cell(block['session'])} | {r['order']} | {cell(r['specimen'])} |  |"
+                for r in block["rows"]]
+        out.append("")
+    return "\n".join(out)

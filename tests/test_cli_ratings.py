@@ -1,0 +1,134 @@
+"""``roughsense protocol`` and ``roughsense ratings`` end to end, including every bad-input path."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+
+def fill(schedule_path, out_path, *, drop=None, seed=0):
+    """Play the experimenter: type a rating into every row (optionally leave some blank)."""
+    schedule = pd.read_csv(schedule_path, dtype={"participant": str, "session": str, "specimen": str})
+    rng = np.random.default_rng(seed)
+    wavelength = schedule.specimen.str[1:].astype(float)
+    schedule["rating"] = np.round(wavelength / 3 * rng.lognormal(0, 0.2, len(schedule)), 3)
+    if drop is not None:
+        schedule.loc[drop(schedule), "rating"] = np.nan
+    schedule.to_csv(out_path, index=False)
+    return schedule
+
+
+def test_protocol_then_ratings_round_trip(tmp_path, run_cli):
+    schedule, sheet = tmp_path / "schedule.csv", tmp_path / "sheet.html"
+    code, out, err = run_cli("protocol", "--participants", 4, "--sessions", 3, "--seed", 5,
+                             "--out", schedule, "--sheet", sheet)
+    assert code == 0, err
+    assert "13 specimens" in out and "R3 excluded" in out and sheet.read_text().count("<section>") == 12
+    filled = fill(schedule, tmp_path / "filled.csv")
+    summary_path = tmp_path / "summary.csv"
+    code, out, err = run_cli("ratings", tmp_path / "filled.csv", "--out", summary_path)
+    assert code == 0, err
+    assert err == ""
+    summary = pd.read_csv(summary_path).set_index("specimen")
+    assert list(summary.columns) == ["gmean", "sd", "n_participants", "n_sessions"]
+    medians = filled.groupby(["specimen", "participant"])["rating"].median()
+    for specimen in ("R2", "C5"):
+        assert summary.loc[specimen, "gmean"] == pytest.approx(stats.gmean(medians.loc[specimen]), rel=1e-12)
+        assert summary.loc[specimen, "sd"] == pytest.approx(np.std(medians.loc[specimen], ddof=1), rel=1e-12)
+        assert summary.loc[specimen, "n_participants"] == 4 and summary.loc[specimen, "n_sessions"] == 3
+    assert summary.loc["R3", "gmean"] == 1.0 and np.isnan(summary.loc["R3", "sd"])
+    assert "sample standard deviation (ddof=1)" in out and "C4.5" in out
+
+
+def test_protocol_is_reproducible_from_the_seed(tmp_path, run_cli):
+    for name, seed in (("a", 1), ("b", 1), ("c", 2)):
+        assert run_cli("protocol", "--seed", seed, "--out", tmp_path / f"{name}.csv",
+                       "--sheet", tmp_path / f"{name}.md")[0] == 0
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    assert (tmp_path / "a.md").read_bytes() == (tmp_path / "b.md").read_bytes()
+    assert (tmp_path / "a.csv").read_bytes() != (tmp_path / "c.csv").read_bytes()
+    assert len(pd.read_csv(tmp_path / "a.csv")) == 10 * 3 * 13  # the paper's design by default
+
+
+def test_protocol_takes_specimens_from_a_study_file_and_a_custom_reference(tmp_path, run_cli):
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nS1,sinusoidal,1\nS2,sinusoidal,2\nS3,sinusoidal,3\n")
+    code, _, err = run_cli("protocol", "--participants", 2, "--sessions", 1, "--specimens", specimens,
+                           "--reference", "S2", "--seed", 0, "--out", tmp_path / "s.csv")
+    assert code == 0, err
+    assert sorted(set(pd.read_csv(tmp_path / "s.csv").specimen)) == ["S1", "S3"]
+
+
+def test_missing_session_is_one_warning_line_and_the_summary_goes_on(tmp_path, run_cli):
+    run_cli("protocol", "--participants", 3, "--sessions", 3, "--seed", 2, "--out", tmp_path / "s.csv")
+    fill(tmp_path / "s.csv", tmp_path / "filled.csv", drop=lambda s: (s.participant == "P02") & (s.session == "3"))
+    code, _, err = run_cli("ratings", tmp_path / "filled.csv", "--out", tmp_path / "summary.csv")
+    assert code == 0
+    lines = err.strip().splitlines()
+    assert lines == [f"roughsense: warning: {tmp_path / 'filled.csv'}: participant P02 has no ratings in session 3; "
+                     "medians use the other sessions"]
+    assert (tmp_path / "summary.csv").exists()
+
+
+GOOD = "participant,session,specimen,rating\nP1,1,R2,0.5\nP1,1,C2,1.5\nP2,1,R2,0.4\nP2,1,C2,1.1\n"
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (GOOD + "P3,1,R2,0\n", "row 6, column 'rating': a magnitude estimate must be positive, got 0"),
+        (GOOD + "P3,1,R2,lots\n", "row 6, column 'rating': not a number: 'lots'"),
+        (GOOD + "P3,1,R3,1\n", "row 6, column 'specimen': R3 is the reference"),
+        ("participant,session,rating\nP1,1,0.5\n", "missing column(s) specimen"),
+        (GOOD + "P3,1,Q7,1\n", "row 6, column 'specimen': unknown specimen 'Q7'"),
+    ],
+)
+def test_bad_ratings_are_one_line_exit_2_and_nothing_written(tmp_path, run_cli, text, expected):
+    path = tmp_path / "ratings.csv"
+    path.write_text(text)
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,3\nC2,circular,2\n")
+    code, out, err = run_cli("ratings", path, "--specimens", specimens, "--out", tmp_path / "summary.csv")
+    assert code == 2
+    assert err.startswith(f"roughsense: error: {path}") and expected in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "summary.csv").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ratings.csv", "specimens.csv"]
+
+
+def test_outputs_are_not_overwritten_without_force(tmp_path, run_cli):
+    path = tmp_path / "ratings.csv"
+    path.write_text(GOOD)
+    out = tmp_path / "summary.csv"
+    out.write_text("mine\n")
+    code, _, err = run_cli("ratings", path, "--out", out)
+    assert code == 2 and "--force" in err and out.read_text() == "mine\n"
+    assert run_cli("ratings", path, "--out", out, "--force")[0] == 0
+    assert out.read_text().startswith("specimen,gmean,sd,n_participants,n_sessions")
+    sheet = tmp_path / "sheet.md"
+    sheet.write_text("mine\n")
+    code, _, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "s.csv", "--sheet", sheet)
+    assert code == 2 and sheet.read_text() == "mine\n" and not (tmp_path / "s.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--sheet", "sheet.pdf"), "--sheet must end in .html or .md"),
+        (("--specimens", "R2,R2"), "listed twice"),
+        (("--specimens", "R3"), "besides the reference"),
+        (("--participants", "0"), "--participants"),
+    ],
+)
+def test_bad_protocol_options(tmp_path, run_cli, args, message):
+    code, _, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "s.csv",
+                           *[tmp_path / a if a.endswith(".pdf") else a for a in args])
+    assert code == 2 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_help_explains_both_commands(run_cli):
+    code, out, _ = run_cli("ratings", "--help")
+    assert code == 0 and "geometric mean" in out and "median" in out
+    code, out, _ = run_cli("protocol", "--help")
+    assert code == 0 and "reference" in out and "--seed" in out

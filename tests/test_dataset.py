@@ -1,0 +1,148 @@
+"""A study as regression data: features per image, condition matrices (incl. combined) and targets."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roughsense import dataset
+from roughsense.errors import InputError
+from roughsense.sensor import SpatialSpectrum, frequency_grid
+from roughsense.study import SensorSettings, StudyWriter, read_study
+
+PX_PER_MM = 20.0
+ROI = (0, 16, 600, 32)
+# Specimen -> grating wavelength (mm) and the perceived roughness the ratings will aggregate to.
+SPECIMENS = {"R1": 1.5, "R2": 2.0, "R3": 3.0, "R4": 4.0, "R5": 5.0, "C2": 2.5}
+FORCES_N = (1.0, 2.0, 3.0)
+
+
+def grating(wavelength_mm: float, force_n: float, rng: np.random.Generator, width_px: int = 600, height_px: int = 64):
+    """A small contact image: a grating whose contrast grows with force, plus sensor noise (8 bit)."""
+    x_mm = np.arange(width_px) / PX_PER_MM
+    line = 0.5 + (0.1 + 0.08 * force_n) * np.sign(np.sin(2 * np.pi * x_mm / wavelength_mm + 0.3))
+    frame = np.tile(line, (height_px, 1)) + 0.02 * rng.standard_normal((height_px, width_px))
+    return np.clip(np.round(255 * frame), 0, 255).astype(np.uint8)
+
+
+def make_study(root: Path, *, pads=("fingerprint",), repetitions: int = 3, seed: int = 0, drop=None) -> Path:
+    """A tiny but complete study folder (64 px high images, explicit ROI, ratings with reference R3).
+
+    ``drop`` = (specimen, pad, force_n, repetition) leaves that image out of the manifest.
+    """
+    rng = np.random.default_rng(seed)
+    writer = StudyWriter(root)
+    writer.write_config(name="tiny", sensor=SensorSettings(px_per_mm=PX_PER_MM, roi=ROI))
+    writer.write_specimens(pd.DataFrame({
+        "specimen": list(SPECIMENS),
+        "shape": ["circular" if s.startswith("C") else "rectangular" for s in SPECIMENS],
+        "wavelength_mm": list(SPECIMENS.values()),
+    }))
+    rows = []
+    for pad in pads:
+        for specimen, wavelength_mm in SPECIMENS.items():
+            for repetition in range(1, repetitions + 1):
+                for force_n in FORCES_N:
+                    if drop == (specimen, pad, force_n, repetition):
+                        continue
+                    name = writer.write_image(
+                        f"{pad}_{specimen}_{force_n:g}N_{repetition}.png", grating(wavelength_mm, force_n, rng)
+                    )
+                    rows.append({"image": name, "specimen": specimen, "pad": pad,
+                                 "force_n": force_n + 0.01 * rng.standard_normal(), "repetition": repetition})
+    writer.write_manifest(pd.DataFrame(rows))
+    ratings = []
+    for participant in ("P01", "P02", "P03"):
+        for session in (1, 2, 3):
+            for specimen, wavelength_mm in SPECIMENS.items():
+                if specimen == "R3":
+                    continue
+                value = (wavelength_mm / 3.0) ** 0.8 * np.exp(0.1 * rng.standard_normal())
+                ratings.append({"participant": participant, "session": session, "specimen": specimen, "rating": value})
+    writer.write_ratings(pd.DataFrame(ratings))
+    return root
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    return read_study(make_study(tmp_path_factory.mktemp("study") / "tiny", pads=("fingerprint", "smooth"), repetitions=2))
+
+
+@pytest.fixture(scope="module")
+def features(study):
+    return dataset.study_features(study)
+
+
+def test_features_are_the_sensor_spectra_of_each_manifest_image(study, features):
+    assert len(features) == len(study.manifest) == 2 * 6 * 2 * 3
+    freq = dataset.frequency_columns(features)
+    np.testing.assert_array_equal([float(c) for c in freq], frequency_grid())
+    for column in ("image", "specimen", "pad", "repetition", "condition"):
+        assert list(features[column]) == list(study.manifest[column])
+    spectrum = SpatialSpectrum(px_per_mm=PX_PER_MM, roi=ROI).fit()
+    for i in (0, 17, 70):
+        expected = spectrum.transform([study.root / features["image"][i]])[0]
+        np.testing.assert_allclose(features[freq].iloc[i].to_numpy(float), expected, rtol=1e-12)
+    # the grating's fundamental is where the spectrum peaks (within one grid step)
+    row = features[(features.specimen == "R2") & (features.condition == "2N")].iloc[0]
+    peak = float(freq[int(np.argmax(row[freq].to_numpy(float)))])
+    assert abs(peak - 1 / SPECIMENS["R2"]) <= 0.9 / 44
+
+
+def test_single_condition_matrix(features):
+    X, meta = dataset.condition_matrix(features, "smooth", "2N")
+    rows = features[(features.pad == "smooth") & (features.condition == "2N")]
+    assert X.shape == (12, 45) and len(meta) == 12
+    assert list(meta.columns) == ["specimen", "repetition", "image"]
+    freq = dataset.frequency_columns(features)
+    for i in range(len(meta)):
+        source = rows[rows.image == meta.image[i]]
+        np.testing.assert_array_equal(X[i], source[freq].to_numpy(float)[0])
+        assert source.specimen.iloc[0] == meta.specimen[i]
+
+
+def test_combined_matrix_concatenates_one_trials_three_forces(features):
+    X, meta = dataset.condition_matrix(features, "fingerprint", "combined")
+    assert X.shape == (12, 135)
+    assert list(meta.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N"]
+    freq = dataset.frequency_columns(features)
+    by_image = features.set_index("image")[freq]
+    for i, trial in meta.iterrows():
+        for j, force in enumerate(("1N", "2N", "3N")):
+            image = trial[f"image_{force}"]
+            assert f"_{trial.specimen}_{force}_{trial.repetition}." in image
+            np.testing.assert_array_equal(X[i, 45 * j : 45 * (j + 1)], by_image.loc[image].to_numpy(float))
+
+
+def test_combined_refuses_an_incomplete_trial(tmp_path):
+    root = make_study(tmp_path / "gap", repetitions=2, drop=("R4", "fingerprint", 2.0, 2))
+    features = dataset.study_features(read_study(root))
+    with pytest.raises(InputError, match=r"specimen 'R4', repetition 2 .* no image at 2N") as info:
+        dataset.condition_matrix(features, "fingerprint", "combined", source=root / "manifest.csv")
+    assert info.value.path == root / "manifest.csv"
+    X, _ = dataset.condition_matrix(features, "fingerprint", "1N")  # the single forces still work
+    assert X.shape == (12, 45)
+
+
+def test_unknown_pad_or_condition(features):
+    with pytest.raises(InputError, match="pads in the study: fingerprint, smooth"):
+        dataset.condition_matrix(features, "glass", "1N")
+    with pytest.raises(InputError, match="unknown condition"):
+        dataset.condition_matrix(features, "smooth", "5N")
+
+
+def test_targets_are_the_geometric_means(study):
+    summary = pd.DataFrame({"specimen": ["R1", "R3", "C2"], "gmean": [0.5, 1.0, 2.0], "sd": [0.1, np.nan, 0.2]})
+    meta = pd.DataFrame({"specimen": ["C2", "R1", "R3", "R1"], "repetition": [1, 1, 1, 2]})
+    np.testing.assert_array_equal(dataset.targets(meta, summary), [2.0, 0.5, 1.0, 0.5])
+    with pytest.raises(InputError, match="no perceived roughness for specimen"):
+        dataset.targets(pd.DataFrame({"specimen": ["R9"]}), summary)
+    # from the study's own ratings: the reference is 1, the others the geometric mean of participant medians
+    perceived = dataset.perceived_roughness(study)
+    ratings = study.ratings
+    r5 = ratings[ratings.specimen == "R5"].groupby("participant")["rating"].median()
+    got = perceived.set_index("specimen")["gmean"]
+    assert got["R3"] == 1.0
+    assert got["R5"] == pytest.approx(np.exp(np.log(r5).mean()))

@@ -1,0 +1,101 @@
+"""Specimens, pads and camera of the twin: the paper's geometry and the spec syntax for new parts."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from roughsense.errors import ConfigError
+from roughsense.sim.optics import Camera, Lighting, render
+from roughsense.sim.pads import make_pad
+from roughsense.sim.specimens import PAPER_SPECIMENS, PRESETS, parse_specimen
+
+
+def test_paper_presets():
+    assert PAPER_SPECIMENS == ("R2", "R2.5", "R3", "R3.5", "R4", "R4.5", "R5",
+                               "C2", "C2.5", "C3", "C3.5", "C4", "C4.5", "C5")
+    assert PRESETS["R3.5"].wavelength_mm == 3.5 and PRESETS["R3.5"].ridge_width_mm == 1.75
+    assert PRESETS["R3.5"].groove_depth_mm == 1.0  # DESIGN.md's choice
+    assert PRESETS["C4.5"].diameter_mm == 4.5
+
+
+@given(st.sampled_from(PAPER_SPECIMENS[:7]))
+def test_rectangular_grating_has_equal_ridges_and_grooves(name):
+    spec = PRESETS[name]
+    x = (np.arange(100000) + 0.5) * (spec.wavelength_mm / 100000)
+    h = spec.height_mm(x)
+    assert np.mean(h == 0) == pytest.approx(0.5, abs=1e-4)
+    assert set(np.unique(h)) == {0.0, -1.0}
+
+
+@given(st.sampled_from(PAPER_SPECIMENS[7:]), st.floats(0, 1))
+def test_circular_grating_is_touching_semicylinders(name, t):
+    spec = PRESETS[name]
+    radius = spec.wavelength_mm / 2
+    x = t * spec.wavelength_mm
+    expected = math.sqrt(max(radius**2 - (x - radius) ** 2, 0.0)) - radius
+    assert float(spec.height_mm(np.array([x]))[0]) == pytest.approx(expected, abs=1e-12)
+    assert float(spec.height_mm(np.array([0.0]))[0]) == pytest.approx(-radius)  # cylinders touch at their feet
+
+
+def test_specimen_specs():
+    sin = parse_specimen("sin:3.0:0.5")
+    assert (sin.shape, sin.wavelength_mm, sin.amplitude_mm) == ("sinusoidal", 3.0, 0.5)
+    x = np.linspace(0, 3, 301)
+    assert np.ptp(sin.height_mm(x)) == pytest.approx(1.0)  # peak to peak = 2 x amplitude
+    rect = parse_specimen("rect:3.5")
+    assert (rect.ridge_width_mm, rect.groove_depth_mm) == (1.75, 1.0)
+    assert parse_specimen("rect:4:0.5:1").groove_width_mm == 3.0
+    assert parse_specimen("circ:2.5").diameter_mm == 2.5
+    rand = parse_specimen("rand:1.5:0.2:7")
+    h = rand.height_mm(np.linspace(0, 50, 4001)[:-1])
+    assert h.std() == pytest.approx(0.2, rel=0.02) and h.max() == pytest.approx(0.0, abs=1e-3)
+    assert parse_specimen("c3") == PRESETS["C3"]
+
+
+@pytest.mark.parametrize("text", ["R7", "rect:0", "rect:-2", "sin:3", "circ:abc", "hex:3", "rect:3:1:3", "sin:3:0"])
+def test_bad_specimen_specs(text):
+    with pytest.raises(ConfigError):
+        parse_specimen(text)
+
+
+def test_fingerprint_pad_relief():
+    pad = make_pad("fingerprint")
+    n, length = 8000, 20.0
+    x = np.arange(n) * (length / n)
+    h = pad.height_mm(x)
+    assert h.max() == pytest.approx(0.0, abs=1e-6) and h.min() == pytest.approx(-0.2, abs=1e-6)
+    assert np.mean(h > -0.1) == pytest.approx(0.5, abs=1e-3)  # 0.5 mm ridges, 0.5 mm grooves
+    amplitude = np.abs(np.fft.rfft(h - h.mean()))
+    freq = np.fft.rfftfreq(n, d=length / n)
+    assert freq[np.argmax(amplitude)] == pytest.approx(1.0)  # a peak at 1 mm^-1 along the line
+    assert make_pad("fingerprint", fingerprint_period_mm=0.5).period_mm == 0.5
+    assert not make_pad("smooth").has_ridges
+    with pytest.raises(ConfigError):
+        make_pad("velvet")
+    with pytest.raises(ConfigError):
+        make_pad("fingerprint", fingerprint_period_mm=0.0)
+
+
+def test_default_camera_geometry():
+    cam = Camera()
+    assert (cam.width_px, cam.height_px, cam.px_per_mm) == (1920, 1080, 34.9)
+    assert cam.field_mm == pytest.approx(55.0, abs=0.05)  # 5.5 cm x 3.1 cm (paper section 2.1)
+    assert cam.height_px / cam.px_per_mm == pytest.approx(31.0, abs=0.1)
+    assert cam.band_height_px == pytest.approx(10 * math.cos(math.radians(45)) * 34.9)
+    assert cam.contrast(np.array([0.0]))[0] == pytest.approx(1.0)
+    assert cam.contrast(np.array([1.0]))[0] < 0.01
+
+
+def test_render_puts_the_band_in_the_middle_and_quantises():
+    cam = Camera(width_px=400, height_px=600, read_noise_dn=0.0, shot_noise_gain=0.0, vignetting=0.0,
+                 blur_sigma_px=0.0)
+    line = np.zeros(400)
+    line[100:200] = 1.0
+    frame = render(cam, line, band_center_px=300.0, lighting=Lighting(), rng=np.random.default_rng(0))
+    assert frame.dtype == np.uint8 and frame.shape == (600, 400)
+    assert frame[300, 150] == round(cam.contact_dn) and frame[300, 50] == round(cam.band_floor_dn)
+    assert frame[10, 150] == round(cam.background_dn)
