@@ -379,3 +379,42 @@ def test_shipped_samples_peak_at_their_named_wavelength():
     for path, spectrum in zip(paths, spectra):
         wavelength_mm = float(re.search(r"_([\d.]+)mm_", path.name).group(1))
         assert abs(grid[np.argmax(spectrum)] - 1 / wavelength_mm) <= (grid[1] - grid[0]) / 2 + 1e-12, path.name
+
+
+# --- decoding only the rows above the line ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_png_top_rows_decode_equals_full_decode(tmp_path, channels):
+    import cv2
+
+    from roughsense.images import decode_png_top_rows, png_size, read_bytes, read_image
+
+    rng = np.random.default_rng(channels)
+    shape = (90, 200) if channels == 1 else (90, 200, channels)
+    pixels = rng.integers(0, 256, size=shape, dtype=np.uint8)
+    path = tmp_path / f"c{channels}.png"
+    assert cv2.imwrite(str(path), pixels)
+    data = read_bytes(path)
+    assert png_size(data) == (90, 200)
+    top = decode_png_top_rows(data, 37)
+    full = read_image(path)
+    assert top.shape[:2] == (37, 200)
+    np.testing.assert_array_equal(top, full[:37])
+
+
+def test_spectrum_from_png_file_equals_spectrum_from_array(tmp_path):
+    import cv2
+
+    from roughsense.sensor import spatial_spectrum
+
+    rng = np.random.default_rng(7)
+    x_mm = np.arange(400) / 20.0
+    frame = (120 + 60 * np.sin(2 * np.pi * x_mm / 3.0))[None, :] + rng.normal(0, 5, (120, 400))
+    frame = np.clip(frame, 0, 255).astype(np.uint8)
+    rgb = np.dstack([frame, np.roll(frame, 3, axis=1), frame])
+    path = tmp_path / "frame.png"
+    assert cv2.imwrite(str(path), rgb[:, :, ::-1])
+    for rows in (1, 9):
+        kwargs = dict(px_per_mm=20.0, roi=(0, 30, 400, 40), rows=rows)
+        np.testing.assert_array_equal(spatial_spectrum(path, **kwargs), spatial_spectrum(rgb, **kwargs))

@@ -12,6 +12,7 @@ from roughsense.errors import ConfigError, OutputExistsError
 from roughsense.sim import SimulationConfig, SimulationRun, simulate_study
 from roughsense.sim.bench import BenchNoise
 from roughsense.sim.optics import Camera
+from roughsense.sim.simulate import COMPLETE_MARKER
 from roughsense.study import read_study
 
 SMALL = Camera(width_px=400, height_px=300)
@@ -37,7 +38,17 @@ def test_default_config_is_the_papers_full_study():
 
 
 def test_study_folder_follows_the_contract(tmp_path):
-    out = simulate_study(tmp_path / "s", _config(), jobs=1)
+    seen = {}
+
+    def progress(items, *, total, description):
+        seen["total"] = total
+        for i, item in enumerate(items, start=1):
+            seen["done"] = i
+            yield item
+
+    out = simulate_study(tmp_path / "s", _config(), jobs=1, progress=progress)
+    assert seen == {"total": 8, "done": 8}
+    assert (out / COMPLETE_MARKER).is_file()
     study = read_study(out, require_ratings=True)
     assert study.reference_specimen == "R3" and study.sensor.px_per_mm == 34.9 and study.sensor.roi == "center"
     assert study.forces_n == (1.0, 2.0)

@@ -18,6 +18,7 @@ _LAZY = {
     "frequency_grid": "sensor",
     "SIMPLS": "pls",
     "pls_cv": "pls",
+    "load_model": "modelfile",
     "overlap": "metrics",
     "read_study": "study",
     "StudyWriter": "study",

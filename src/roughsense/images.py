@@ -51,11 +51,8 @@ def _png_is_complete(data: np.ndarray) -> bool:
     return False
 
 
-def read_image(path: str | os.PathLike[str]) -> np.ndarray:
-    """Decode an image file to (H, W) gray or (H, W, 3) RGB in its own dtype (uint8, uint16 or float).
-
-    The RGB array is a reversed-channel view of OpenCV's BGR buffer: no copy of the full frame.
-    """
+def read_bytes(path: str | os.PathLike[str]) -> np.ndarray:
+    """The file's bytes, with the usual failures turned into one InputError naming the file."""
     path = Path(path)
     try:
         data = np.fromfile(path, dtype=np.uint8)
@@ -69,6 +66,66 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
         raise InputError("image file is empty", path=path)
     if bytes(data[: len(_PNG_SIGNATURE)]) == _PNG_SIGNATURE and not _png_is_complete(data):
         raise InputError("PNG file is truncated or corrupt", path=path)
+    return data
+
+
+def png_size(data: np.ndarray) -> tuple[int, int] | None:
+    """(height, width) from a PNG's IHDR if the top rows alone can be decoded, else None.
+
+    Only 8-bit gray, RGB and RGBA PNGs without interlacing qualify: their rows are stored top to
+    bottom, so the rows above the contact line can be decoded without the rest of the frame.
+    """
+    head = bytes(data[:33])
+    if len(head) < 33 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    bit_depth, colour_type, interlace = head[24], head[25], head[28]
+    if bit_depth != 8 or colour_type not in (0, 2, 6) or interlace != 0:
+        return None
+    return height, width
+
+
+def decode_png_top_rows(data: np.ndarray, stop_row: int) -> np.ndarray | None:
+    """Decode only rows [0, stop_row) of an eligible PNG (see :func:`png_size`); None if not possible.
+
+    PNG rows are filtered against the row above, so decoding must start at the top, but it can stop at
+    the last row the sensor uses: for the paper's centred crop that is half the inflate and unfilter work.
+    Pillow's decoder fills exactly the tile it is given, which is what makes the early stop possible.
+    """
+    import io
+
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(data.data)) as image:
+            width, height = image.size
+            if stop_row >= height or len(image.tile) != 1:
+                return None
+            tile = image.tile[0]
+            image._size = (width, stop_row)
+            extents = (0, 0, width, stop_row)
+            image.tile = [tile._replace(extents=extents) if hasattr(tile, "_replace") else (tile[0], extents, *tile[2:])]
+            image.load()
+            pixels = np.asarray(image)
+    except Exception:  # any surprise (a Pillow without these internals, an odd file): decode the usual way
+        return None
+    if pixels.shape[:2] != (stop_row, width):
+        return None
+    if pixels.ndim == 3:
+        pixels = pixels[:, :, :3]
+    return pixels
+
+
+def read_image(path: str | os.PathLike[str]) -> np.ndarray:
+    """Decode an image file to (H, W) gray or (H, W, 3) RGB in its own dtype (uint8, uint16 or float).
+
+    The RGB array is a reversed-channel view of OpenCV's BGR buffer: no copy of the full frame.
+    """
+    return decode(read_bytes(path), path)
+
+
+def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None) -> np.ndarray:
+    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit)."""
     cv2 = _opencv()
     image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
     if image is None:

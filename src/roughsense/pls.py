@@ -376,6 +376,7 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
     np.divide(s0, s0_norm[:, None], out=W[:, 0])
     x, tmp = np.empty((F, dim)), np.empty((F, dim))
     back = np.empty((F, 1, dim))
+    coef2 = np.empty((F, 1, 2))
     loo_scale = 1.0 + 1.0 / nt
     beta_prev = np.zeros(F)
     eta = np.ones(F)
@@ -408,10 +409,13 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
         if k + 1 == A:
             break
         # Next Lanczos vector: three-term recurrence, then full reorthogonalisation.
-        np.multiply(w, alpha[:, None], out=tmp)
-        x -= tmp
-        if k:
-            np.multiply(W[:, k - 1], beta_prev[:, None], out=tmp)
+        if k:  # x -= beta w_{k-1} + alpha w_k, as one batched product over the two adjacent rows of W
+            coef2[:, 0, 0] = beta_prev
+            coef2[:, 0, 1] = alpha
+            np.matmul(coef2, W[:, k - 1 : k + 1], out=back)
+            x -= back[:, 0]
+        else:
+            np.multiply(w, alpha[:, None], out=tmp)
             x -= tmp
         Wk = W[:, : k + 1]
         # One pass suffices after the three-term recurrence (it already removed the two large terms);
@@ -425,6 +429,6 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
                 f"max_components={A} is more than CV fold {f} supports: its Krylov space is exhausted "
                 f"after {k + 1} components"
             )
-        np.divide(x, beta[:, None], out=W[:, k + 1])
+        np.multiply(x, (1.0 / beta)[:, None], out=W[:, k + 1])
         beta_prev = beta
     return pred

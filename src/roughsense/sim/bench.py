@@ -34,6 +34,8 @@ class BenchNoise:
     waviness_count: int = 4
     magnification_sd: float = 0.022  # camera scale per mount: working distance, focus, where the 45-degree view cuts
     ridge_height_sd_mm: float = 0.025  # fingerprint ridges as cast: height differs ridge to ridge
+    ridge_visibility: float = 0.15  # fingerprint ridge edges seen whether or not they touch (refraction)
+    ridge_visibility_sd: float = 0.12  # ... and how much that varies with focus and compression, per exposure
     spots_per_mount: float = 12.0  # mean number of dust specks, bubbles and grease marks in the band
     spot_strength: float = 0.75  # typical relative darkening (or brightening) of a spot
 
@@ -44,7 +46,7 @@ class BenchNoise:
 
     def scaled(self, factor: float) -> "BenchNoise":
         """All spreads times ``factor`` (the calibration knob); resolutions and counts unchanged."""
-        keep = {"scale_resolution_g", "ripple_count", "waviness_count", "spots_per_mount"}
+        keep = {"scale_resolution_g", "ripple_count", "waviness_count", "spots_per_mount", "ridge_visibility"}
         return BenchNoise(**{k: (v if k in keep else v * factor) for k, v in vars(self).items()})
 
 
@@ -75,6 +77,7 @@ class Exposure:
     force_true_n: float
     force_read_n: float
     lighting: Lighting
+    ridge_visibility: float = 0.0
 
 
 def draw_mount(rng: np.random.Generator, noise: BenchNoise, pad_period_mm: float | None) -> Mount:
@@ -117,4 +120,5 @@ def draw_exposure(rng: np.random.Generator, noise: BenchNoise, nominal_force_n: 
         gradient=float(rng.normal(0.0, noise.gradient_sd)),
         ripple=ripple,
     )
-    return Exposure(true, reading, lighting)
+    visibility = abs(float(rng.normal(noise.ridge_visibility, noise.ridge_visibility_sd)))
+    return Exposure(true, reading, lighting, visibility)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import os
 import zlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import atomic
 from ..errors import ConfigError
 from ..study import SensorSettings, StudyWriter
 from . import contact
@@ -27,9 +28,10 @@ from .panel import REFERENCE, percept, simulate_panel
 from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
 
 SUBSAMPLES_PER_PX = 7
-NO_CONTACT_GAP_MM = 1e3
+NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
+COMPLETE_MARKER = ".simulation-complete"  # written last: a folder without it is an interrupted run
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
-SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale  # beyond the specimen's ends nothing touches the pad
+SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale
 
 
 @dataclass(frozen=True)
@@ -182,6 +184,12 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
         g = np.where(on, g, NO_CONTACT_GAP_MM)
         brightness += weight * cam.contrast(g)
         touching += weight * (g <= 0)
+    if pad.has_ridges and trial.exposure.ridge_visibility > 0:
+        # the ridges' flanks refract light into the camera wherever the pad is (it is longer than the field)
+        _, pad_period = contact.periodic_domain(spec.period_mm, pad.period_mm, max_length_mm=SPECIMEN_LENGTH_MM)
+        relief = pad.height_mm(u - mount.pad_phase_mm, period_mm=pad_period)
+        slope = np.abs(np.gradient(relief, x_mm))
+        brightness += trial.exposure.ridge_visibility * slope / max(float(slope.max()), 1e-12)
     line = brightness.reshape(w_px, SUBSAMPLES_PER_PX).mean(axis=1)
     return line, float(touching.mean())
 
@@ -207,17 +215,21 @@ def _write_trial(args: tuple[str, bool, Trial]) -> tuple[str, float]:
     return writer.write_image(trial.image, frame), fraction
 
 
-def simulate_study(out: str | os.PathLike[str], config: SimulationConfig = SimulationConfig(), *,
-                   force: bool = False, jobs: int | None = None,
-                   progress: Callable[[int, int], None] | None = None) -> Path:
+def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None = None, *,
+                   seed: int | None = None, force: bool = False, jobs: int | None = None,
+                   progress: Callable[..., Iterable] | None = None) -> Path:
     """Simulate the experiment and write the study folder ``out``; returns its path.
 
-    ``progress(done, total)`` is called after each image; the library itself prints nothing.
+    ``seed`` overrides ``config.seed``. ``progress(iterable, total=, description=)`` may wrap the image loop
+    (the CLI passes its progress bar, ``roughsense.cli._common.progress``); the library itself prints nothing.
     """
+    config = config if config is not None else SimulationConfig()
+    if seed is not None:
+        config = replace(config, seed=int(seed))
     run = SimulationRun(out, config, force=force, jobs=jobs)
-    for done, _ in enumerate(run, start=1):
-        if progress:
-            progress(done, run.total)
+    steps = progress(run, total=run.total, description="simulating") if progress else run
+    for _ in steps:
+        pass
     return run.root
 
 
@@ -253,6 +265,9 @@ class SimulationRun:
                                             sessions=config.sessions, reference=REFERENCE))
 
     def __iter__(self) -> Iterator[str]:
+        marker = self.root / COMPLETE_MARKER
+        if marker.is_file():  # our own marker from an earlier run into this folder (--force): no longer true
+            marker.unlink()
         self._write_tables()
         tasks = [(str(self.root), self.force, t) for t in self.trials]
         results: list[tuple[str, float]] = []
@@ -276,7 +291,8 @@ class SimulationRun:
             "contact_fraction": [round(r[1], 6) for r in results],
             "true_force_n": [round(t.exposure.force_true_n, 6) for t in trials],
         })
-        self.writer.write_manifest(manifest)  # last: a study without its manifest is visibly incomplete
+        self.writer.write_manifest(manifest)  # a study without its manifest is visibly incomplete
+        atomic.write_text(marker, f"seed = {self.config.seed}\nimages = {len(results)}\n")
 
 
 def with_image_size(config: SimulationConfig, width_px: int, height_px: int) -> SimulationConfig:
