@@ -91,6 +91,18 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert "Traceback" not in err
 
 
+def test_one_se_rule(run_cli, study_dir, data, tmp_path):
+    out = tmp_path / "m.json"
+    code, stdout, err = fit(run_cli, study_dir, out, "--condition", "3N", "--cv", "loso", "--rule", "1se", "--max-components", "6")
+    assert code == 0, err
+    X, y, meta = data("3N")
+    expected = pls_cv(X, y, max_components=6, groups=meta["specimen"].to_numpy())
+    assert f"chosen: {expected.one_se_n_components} components" in stdout
+    document = json.loads(out.read_text())
+    assert document["model"]["n_components"] == expected.one_se_n_components
+    assert document["training"]["rule"] == "1se" and document["training"]["cv"] == "loso"
+
+
 def test_kfold_is_reproducible_from_the_seed(run_cli, study_dir, tmp_path):
     outputs = []
     for name, seed in (("a", "5"), ("b", "5")):
@@ -122,7 +134,7 @@ def test_fit_bad_inputs(run_cli, study_dir, tmp_path):
     code, _, err = run_cli("fit", "--study", tmp_path / "nowhere", "--pad", "x", "--condition", "1N", "--out", out)
     assert code == 2 and "nowhere" in err and "study folder not found" in err
     code, _, err = run_cli("fit", "--study", study_dir, "--pad", "glass", "--condition", "1N", "--out", out)
-    assert code == 2 and "pad 'glass'" in err and "manifest.csv" in err
+    assert code == 2 and "pad 'glass'" in err and "manifest.csv" in err and "fingerprint" in err
     assert not out.exists()
     out.write_text("mine")
     code, _, err = fit(run_cli, study_dir, out, "--condition", "1N", "--max-components", "2")

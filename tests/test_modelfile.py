@@ -53,7 +53,7 @@ def test_round_trip_predicts_bit_identically(saved):
     np.testing.assert_array_equal(loaded.coef_path, model.coef_path_)
     np.testing.assert_array_equal(loaded.intercept_path, model.intercept_path_)
     np.testing.assert_array_equal(loaded.x_mean, model.x_mean_)
-    assert loaded.n_components == 4 and loaded.coef_ .shape == (45,)
+    assert loaded.n_components == 4 and loaded.coef_.shape == (45,)
     assert loaded.intercept_ == model.intercept_
     assert loaded.training == TRAINING and loaded.conditions == ["1N"]
     assert loaded.features["spectrum"] == json.loads(json.dumps(spectrum().feature_definition()))

@@ -185,6 +185,13 @@ def test_an_exhausted_krylov_space_is_refused_not_nan():
 # --------------------------------------------------------------------------- cross-validation
 
 
+def test_numerically_exhausted_spectra_are_refused_with_the_usable_count():
+    """Noise-free spectra of 14 specimens span ~15 directions; a 20th component would be rounding noise."""
+    X, y, _ = spectra(p=135, noise=1e-9, seed=5)
+    with pytest.raises(ConfigError, match=r"exhausted after (\d+) components.*use at most \1"):
+        pls_cv(X, y, max_components=20)
+
+
 def test_loo_equals_sklearn_cross_val_predict():
     X, y, _ = spectra(n_specimens=6, repetitions=5, p=25, seed=4)
     result = pls_cv(X, y, max_components=8, cv="loo")
@@ -196,7 +203,7 @@ def test_loo_equals_sklearn_cross_val_predict():
     assert result.rmse[0] == pytest.approx(np.sqrt(np.mean((loo_mean - y) ** 2)))
 
 
-@pytest.mark.parametrize("noise", [0.02, 1e-4])
+@pytest.mark.parametrize("noise", [0.02, 1e-4, 1e-6])
 @pytest.mark.parametrize("scheme", ["loo", "groups", "kfold"])
 def test_equals_refitting_every_fold(noise, scheme):
     """The paper's problem size (140 x 135) including ill-conditioned spectra: exact to 1e-6 relative."""

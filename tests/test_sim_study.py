@@ -127,3 +127,9 @@ def test_bad_options_fail_before_writing(tmp_path, change):
     with pytest.raises(ConfigError):
         SimulationRun(tmp_path / "x", dataclasses.replace(_config(), **change))
     assert not (tmp_path / "x").exists()
+
+
+def test_simulate_study_is_a_public_name():
+    import roughsense
+
+    assert roughsense.simulate_study is simulate_study

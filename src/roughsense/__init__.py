@@ -22,6 +22,7 @@ _LAZY = {
     "overlap": "metrics",
     "read_study": "study",
     "StudyWriter": "study",
+    "simulate_study": "sim",
 }
 
 __all__ = [

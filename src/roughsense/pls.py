@@ -35,6 +35,9 @@ class PLSConfigError(ConfigError, ValueError):
 # A covariance vector this much smaller than the first one is rounding noise: the Krylov space
 # of (X'X, X'y) is exhausted and a further component would be arbitrary.
 _EXHAUSTED_RTOL = 1e-12
+# The same for the cross-validation's Lanczos recurrence, whose next-vector norm beta lives on the scale
+# of X'X: below ~50 eps of its largest eigenvalue it is rounding noise of the products that form it.
+_KRYLOV_RTOL = 1e-14
 
 
 def _validate_xy(estimator, X, y, *, reset: bool = True):
@@ -368,7 +371,7 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
     if not np.all(s0_norm > 0):
         f = int(np.flatnonzero(~(s0_norm > 0))[0])
         raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
-    exhausted = _EXHAUSTED_RTOL * lam.max()
+    exhausted = _KRYLOV_RTOL * lam.max()
 
     pred = np.empty((n, A + 1))
     pred[:, 0] = y.mean() + per_sample(e)
@@ -426,8 +429,9 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
         if not np.all(beta > exhausted):
             f = int(np.flatnonzero(~(beta > exhausted))[0])
             raise PLSConfigError(
-                f"max_components={A} is more than CV fold {f} supports: its Krylov space is exhausted "
-                f"after {k + 1} components"
+                f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
+                f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
+                f"use at most {k + 1}"
             )
         np.multiply(x, (1.0 / beta)[:, None], out=W[:, k + 1])
         beta_prev = beta

@@ -81,10 +81,13 @@ def register(app: typer.Typer) -> None:
         chosen by cross-validation; the CV curve is printed and stored in the model file with the feature
         definition, so `roughsense predict` recomputes features exactly as here.
         """
+        import dataclasses
+
         import numpy as np
 
         from .. import dataset
         from ..atomic import check_can_write
+        from ..errors import InputError
         from ..modelfile import feature_definition_for, save_model
         from ..pls import SIMPLS, pls_cv
         from ..study import MANIFEST_CSV, read_study
@@ -99,8 +102,19 @@ def register(app: typer.Typer) -> None:
         check_can_write(out, force=force)
 
         loaded = read_study(study, require_ratings=True)
-        features = dataset.study_features(loaded, n_jobs=jobs, progress=progress)
-        X, meta = dataset.condition_matrix(features, pad, condition, source=loaded.root / MANIFEST_CSV)
+        manifest_path = loaded.root / MANIFEST_CSV
+        if pad not in loaded.pads:
+            raise InputError(f"no images of pad {pad!r} (pads in the study: {', '.join(loaded.pads)})", path=manifest_path)
+        # Only this pad's images at the forces the model uses need spectra.
+        needed = loaded.manifest["pad"].eq(pad) & loaded.manifest["condition"].isin(dataset.conditions_of(condition))
+        if not needed.any():
+            present = sorted(set(loaded.manifest.loc[loaded.manifest["pad"].eq(pad), "condition"]))
+            raise InputError(
+                f"no images of pad {pad!r} at {condition} (conditions present: {', '.join(present)})", path=manifest_path
+            )
+        subset = dataclasses.replace(loaded, manifest=loaded.manifest[needed].reset_index(drop=True))
+        features = dataset.study_features(subset, n_jobs=jobs, progress=progress)
+        X, meta = dataset.condition_matrix(features, pad, condition, source=manifest_path)
         y = dataset.targets(meta, dataset.perceived_roughness(loaded))
         groups = meta["specimen"].to_numpy() if scheme == "loso" else None
         n = len(y)
@@ -156,26 +170,41 @@ def register(app: typer.Typer) -> None:
     def predict(
         model: Annotated[Path, typer.Argument(metavar="MODEL.json", help="A model file written by `roughsense fit`.")],
         images: Annotated[
-            list[Path],
+            list[Path] | None,
             typer.Argument(
                 metavar="IMAGE...",
                 help="Contact images. A combined-force model takes them in groups of three: 1N, 2N, 3N (one trial per group).",
+                show_default=False,
             ),
-        ],
+        ] = None,
         out: Annotated[Path | None, typer.Option("--out", "-o", help="CSV to write (one row per image or trial, column roughness). Default: print a table.")] = None,
         jobs: Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")] = 1,
         force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
+        source: Annotated[str | None, typer.Option("--source", help="With --live: a camera index, video file or image-sequence pattern (anything OpenCV's VideoCapture opens).")] = None,
+        live: Annotated[bool, typer.Option("--live", help="Score frames from --source continuously and show the predicted roughness on the terminal (Ctrl-C stops).")] = False,
+        max_frames: Annotated[int | None, typer.Option("--max-frames", min=1, help="With --live: stop after this many scored frames.")] = None,
     ) -> None:
         """Predict perceived roughness from contact images with a fitted model.
 
         Features are recomputed with the model's own definition (camera scale, ROI, band, frequencies).
+        With --live --source SRC, a single-force model scores camera frames continuously.
         """
         import pandas as pd
 
         from ..atomic import check_can_write, write_csv
+        from ..errors import ConfigError
         from ..modelfile import load_model
         from ..scoring import group_images, score_images
 
+        if live or source is not None:
+            if not (live and source is not None):
+                raise ConfigError("live scoring needs both --live and --source SRC")
+            if images:
+                raise ConfigError("give either IMAGE... or --live --source SRC, not both")
+            _predict_live(load_model(model), source, max_frames)
+            return
+        if not images:
+            raise ConfigError("no images given: pass IMAGE... (or --live --source SRC)")
         if out is not None:
             check_can_write(out, force=force)
         loaded = load_model(model)
@@ -191,3 +220,25 @@ def register(app: typer.Typer) -> None:
         else:
             write_csv(out, table, float_format="%.17g")
             typer.echo(f"wrote {len(table)} prediction(s) to {out}")
+
+
+def _predict_live(loaded, source: str, max_frames: int | None) -> None:
+    """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
+    from ..errors import ConfigError
+    from ..rig.live import live_scores, render_live
+    from ..scoring import model_spectrum
+
+    if len(loaded.conditions) != 1:
+        raise ConfigError(
+            f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
+            "(fit one with --condition 1N, 2N or 3N)"
+        )
+    spectrum = model_spectrum(loaded)
+    plan = spectrum._plan()
+
+    def score_frame(rgb):
+        return float(loaded.predict(plan.spectrum(rgb)[None, :])[0])
+
+    summary = render_live(live_scores(source, score_frame, max_frames=max_frames))
+    last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
+    typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")

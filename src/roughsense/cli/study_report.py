@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
         _check_out_dir(out, force)  # fail before minutes of work, not after
         root = data if data is not None else _builtin_study(seed, jobs)
         study = read_study(root, require_ratings=True)
-        definition = dataset.feature_definition(study)
+        definition = dataset.spectrum_for(study).feature_definition()
         features, was_cached = cache.cached_frame(
             cache.features_key(study, definition),
             lambda: dataset.study_features(study, n_jobs=jobs, progress=progress),
