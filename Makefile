@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 study: $(STAMP)
-	$(BIN)/roughsense study --out report
+	$(BIN)/roughsense study --out report --force
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

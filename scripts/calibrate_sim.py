@@ -35,22 +35,32 @@ def main() -> None:
     parser.add_argument("--repetitions", type=int, default=10)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--camera", nargs="*", default=[], help="camera overrides, e.g. read_noise_dn=4")
+    parser.add_argument("--bench", nargs="*", default=[], help="bench overrides, e.g. ridge_visibility_sd=0.2")
+    parser.add_argument("--pads", default="smooth,fingerprint", help="comma-separated pads to calibrate")
+    parser.add_argument("--save", default=None, help="write the features and trial table to this .npz")
     args = parser.parse_args()
 
-    config = SimulationConfig(seed=args.seed, repetitions=args.repetitions)
+    config = SimulationConfig(seed=args.seed, repetitions=args.repetitions,
+                              pads=tuple(p.strip() for p in args.pads.split(",") if p.strip()))
     config = dataclasses.replace(config, bench=config.bench.scaled(args.scale))
     if args.camera:
         overrides = {k: float(v) for k, v in (item.split("=") for item in args.camera)}
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, **overrides))
+    if args.bench:
+        overrides = {k: float(v) for k, v in (item.split("=") for item in args.bench)}
+        config = dataclasses.replace(config, bench=dataclasses.replace(config.bench, **overrides))
     pads, specimens = config.validate()
     trials = plan_trials(config, pads, specimens)
     with ProcessPoolExecutor(args.jobs) as pool:
         X_all = np.array(list(pool.map(_features, trials, chunksize=8)))
     meta = pd.DataFrame({"pad": [t.pad.name for t in trials], "specimen": [t.specimen.name for t in trials],
                          "force": [t.nominal_force_n for t in trials], "rep": [t.repetition for t in trials]})
+    if args.save:
+        np.savez(args.save, X=X_all, pad=meta["pad"].to_numpy(str), specimen=meta["specimen"].to_numpy(str),
+                 force=meta["force"].to_numpy(float), rep=meta["rep"].to_numpy(int))
     target = paper_perceived()["perceived_gmean"]
     rows = []
-    per_specimen = {}
+    per_specimen, pred_means = {}, {}
     for pad in config.pads:
         blocks = {}
         for force in config.forces_n:
@@ -65,6 +75,7 @@ def main() -> None:
             pred = result.predictions[:, a]
             err = pd.Series((pred - y) ** 2).groupby(m["specimen"].to_numpy()).mean() ** 0.5
             per_specimen[(pad, condition)] = err
+            pred_means[(pad, condition)] = pd.Series(pred).groupby(m["specimen"].to_numpy()).mean()
             rows.append({"pad": pad, "condition": condition, "components": a,
                          "overall_rmse": float(result.rmse[a]), "mean_specimen_rmse": float(err.mean())})
     table = pd.DataFrame(rows)
@@ -72,6 +83,10 @@ def main() -> None:
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print("per-specimen RMSE:")
     print(pd.DataFrame(per_specimen).T.to_string(float_format=lambda v: f"{v:.2f}"))
+    print("per-specimen mean prediction (target: the paper's perceived roughness):")
+    means = pd.DataFrame(pred_means).T
+    means.loc[("target", ""), :] = target.loc[means.columns].to_numpy(float)
+    print(means.to_string(float_format=lambda v: f"{v:.2f}"))
 
 
 if __name__ == "__main__":

@@ -12,15 +12,35 @@ ORDER = 5
 DEFAULT_SEED = 2025
 
 
+def _simulator_fingerprint() -> str:
+    """A hash of the simulator's own source and data: a changed twin never reuses a stale cached study."""
+    import hashlib
+    from importlib import resources
+
+    digest = hashlib.sha256()
+    for package in ("roughsense.sim", "roughsense.data.paper"):
+        for item in sorted(resources.files(package).iterdir(), key=lambda p: p.name):
+            if item.name.endswith((".py", ".csv")):
+                digest.update(item.name.encode())
+                digest.update(item.read_bytes())
+    return digest.hexdigest()[:12]
+
+
 def _builtin_study(seed: int, jobs: int) -> Path:
-    """The simulated paper study, generated once per seed into the cache and reused after that."""
-    from .. import __version__
+    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after."""
+    import shutil
+
     from ..cache import cache_dir
     from ..sim import simulate as sim
 
-    root = cache_dir() / f"simulated-study-seed{seed}-v{__version__}"
+    prefix = f"simulated-study-seed{seed}-"
+    root = cache_dir() / f"{prefix}{_simulator_fingerprint()}"
     if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
         return root
+    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
+    for stale in cache_dir().glob(f"{prefix}*"):
+        if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
+            shutil.rmtree(stale, ignore_errors=True)
     typer.echo(f"Simulating the paper's study (seed {seed}) into {root} (first use only)...", err=True)
     sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
     return root

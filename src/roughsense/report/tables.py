@@ -29,7 +29,13 @@ def _pm(mean, sd, digits: int = 2) -> str:
     return f"{float(mean):.{digits}f} ± {float(sd):.{digits}f}"
 
 
+GROUP_TITLES = {"rectangular": "Rectangular", "circular": "Circular", "all": "Overall"}
+
+
 def _cell(ours: str, paper: str | None = None) -> dict:
+    """A table cell; a paper value that is missing or NaN (the paper reports nothing there) is not shown."""
+    if paper is not None and paper.strip() in ("", "—", "nan"):
+        paper = None
     return {"ours": ours, "paper": paper}
 
 
@@ -89,8 +95,9 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
     paper_rows = reference.paper_results()
     paper_rows = paper_rows[paper_rows.pad == pad]
     shapes = dict(zip(reference.perceived_roughness()["specimen"], reference.perceived_roughness()["shape"]))
-    for group in summary["group"].drop_duplicates():
-        row = [_cell(f"{group}: mean ± SD")]
+    order = {"rectangular": 0, "circular": 1, "all": 99}
+    for group in sorted(summary["group"].drop_duplicates(), key=lambda g: (order.get(g, 50), g)):
+        row = [_cell(f"{GROUP_TITLES.get(group, group.capitalize())}: mean ± SD")]
         for condition in conditions:
             s = summary[(summary.pad == pad) & (summary.condition == condition) & (summary.group == group)]
             value = _pm(s["mean"].iloc[0], s["sd"].iloc[0]) if len(s) else "—"
