@@ -9,7 +9,7 @@ import typer
 from ._common import progress
 
 ORDER = 5
-DEFAULT_SEED = 2025
+DEFAULT_SEED = 0
 
 
 def _simulator_fingerprint() -> str:
