@@ -88,3 +88,54 @@ def test_study_with_too_few_repetitions_says_so(run_cli, tmp_path, monkeypatch):
     code, _, err = run_cli("study", "--data", study, "--out", tmp_path / "r")
     assert code == 2 and "too few repetitions" in err and "manifest.csv" in err
     assert not (tmp_path / "r").exists()
+
+
+def _video_of(images, path, size=None):
+    import cv2
+
+    first = cv2.imread(str(images[0]))
+    height, width = first.shape[:2] if size is None else size
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (width, height))
+    for image in images:
+        frame = cv2.imread(str(image))
+        writer.write(cv2.resize(frame, (width, height)) if size is not None else frame)
+    writer.release()
+    return path
+
+
+def test_predict_live_scores_a_video_like_the_still_images(run_cli, small_study, tmp_path):
+    model = tmp_path / "m.json"
+    code, _, err = run_cli("fit", "--study", small_study, "--pad", "smooth", "--condition", "2N",
+                           "--max-components", "3", "--out", model)
+    assert code == 0, err
+    manifest = pd.read_csv(small_study / "manifest.csv")
+    images = [small_study / p for p in manifest.loc[manifest["nominal_force_n"] == 2.0, "image"].iloc[:4]]
+    video = _video_of(images, tmp_path / "clip.avi")
+    code, out, err = run_cli("predict", model, "--live", "--source", video, "--max-frames", "4")
+    assert code == 0, err
+    assert "4 update(s)" in out
+    # The live score of the last frame is the still-image score of the same (JPEG-compressed) frame.
+    code, still, _ = run_cli("predict", model, images[-1])
+    last_live = float(out.split("last roughness")[1].split()[0])
+    last_still = float(still.splitlines()[-1].split()[-1])
+    assert last_live == pytest.approx(last_still, abs=0.05)
+
+
+def test_predict_live_refuses_frames_that_do_not_fit_the_model(run_cli, small_study, tmp_path):
+    model = tmp_path / "m.json"
+    assert run_cli("fit", "--study", small_study, "--pad", "smooth", "--condition", "1N",
+                   "--max-components", "2", "--out", model)[0] == 0
+    manifest = pd.read_csv(small_study / "manifest.csv")
+    video = _video_of([small_study / manifest["image"].iloc[0]] * 2, tmp_path / "small.avi", size=(120, 640))
+    code, _, err = run_cli("predict", model, "--live", "--source", video, "--max-frames", "2")
+    assert code == 2 and "small.avi" in err and "frame 1" in err and err.count("\n") == 1
+
+
+def test_predict_live_needs_a_source_and_a_single_force_model(run_cli, small_study, tmp_path):
+    model = tmp_path / "c.json"
+    assert run_cli("fit", "--study", small_study, "--pad", "smooth", "--condition", "combined",
+                   "--max-components", "2", "--out", model)[0] == 0
+    code, _, err = run_cli("predict", model, "--live")
+    assert code == 2 and "--source" in err
+    code, _, err = run_cli("predict", model, "--live", "--source", tmp_path / "none.avi")
+    assert code == 2 and "single-force" in err

@@ -1,0 +1,4 @@
+"""``python -m roughsense.cli``: the same as the ``roughsense`` command."""
+from . import run
+
+run()
