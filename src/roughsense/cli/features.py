@@ -62,7 +62,7 @@ def register(app: typer.Typer) -> None:
 
         from ..atomic import check_can_write, write_csv
         from ..sensor import SpatialSpectrum
-        from ..study import read_study
+        from ..study import DEFAULT_PX_PER_MM, read_study
 
         if study is not None and images:
             raise ConfigError("give either IMAGE... or --study DIR, not both")
@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
             paths = list(images)
             table = pd.DataFrame({"image": [str(p) for p in paths]})
         spectrum = SpatialSpectrum(
-            px_per_mm=34.9 if px_per_mm is None else px_per_mm,
+            px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
             roi="center" if roi is None else roi,
             rows=rows,
             f_min_per_mm=f_min,
