@@ -7,6 +7,7 @@ prints the mean per-specimen RMSE per pad and condition. The paper: fingerprint 
 smooth lower, combined lower still.
 
     .venv/bin/python scripts/calibrate_sim.py [--scale 1.0] [--seed 0] [--repetitions 10] [--jobs 2]
+        [--pads smooth,fingerprint] [--camera key=value ...] [--bench key=value ...] [--save features.npz]
 """
 from __future__ import annotations
 

@@ -34,8 +34,8 @@ class BenchNoise:
     waviness_count: int = 4
     magnification_sd: float = 0.022  # camera scale per mount: working distance, focus, where the 45-degree view cuts
     ridge_height_sd_mm: float = 0.025  # fingerprint ridges as cast: height differs ridge to ridge
-    ridge_visibility: float = 0.15  # fingerprint ridge edges seen whether or not they touch (refraction)
-    ridge_visibility_sd: float = 0.12  # ... and how much that varies with focus and compression, per exposure
+    ridge_visibility: float = 0.5  # fingerprint ridges seen through the pad where it does not touch (refraction)
+    ridge_visibility_sd: float = 0.35  # ... and how much that varies with focus and light, per exposure
     spots_per_mount: float = 12.0  # mean number of dust specks, bubbles and grease marks in the band
     spot_strength: float = 0.75  # typical relative darkening (or brightening) of a spot
 

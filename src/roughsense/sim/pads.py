@@ -12,7 +12,7 @@ YOUNG_PA = 0.17e6  # PVC plastisol, paper section 2.2
 POISSON = 0.49  # nearly incompressible rubber-like solid (DESIGN.md)
 DEFAULT_FINGERPRINT_PERIOD_MM = 1.0  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
 DEFAULT_RIDGE_HEIGHT_MM = 0.2  # not in the paper; chosen (DESIGN.md), see docs/simulator.md
-RIDGE_EDGE_MM = float(__import__('os').environ.get('RS_EDGE', 0.05))  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
+RIDGE_EDGE_MM = 0.05  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
 PAD_NAMES = ("smooth", "fingerprint")
 
 
@@ -62,10 +62,8 @@ class Pad:
                 break
             sign = 1.0 if m % 4 == 1 else -1.0
             wave += sign * (4.0 / (math.pi * m)) * damping * np.cos(m * phase)
-        # wave ~ +1 on ridge crests, -1 in groove bottoms; scaled so that crest to trough is the ridge height
-        crest = sum((1.0 if m % 4 == 1 else -1.0) * (4.0 / (math.pi * m))
-                    * math.exp(-0.5 * (2.0 * math.pi * m * RIDGE_EDGE_MM / period) ** 2) for m in range(1, 200, 2))
-        height = 0.5 * self.ridge_height_mm * (wave / crest - 1.0)
+        # wave ~ +1 on ridges, -1 in grooves
+        height = 0.5 * self.ridge_height_mm * (wave - 1.0)
         if ridge_offsets_mm is not None and len(ridge_offsets_mm):
             offsets = np.asarray(ridge_offsets_mm, dtype=float)
             index = np.floor(x / period + 0.5).astype(np.int64) % offsets.size

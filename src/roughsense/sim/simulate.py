@@ -185,11 +185,15 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
         brightness += weight * cam.contrast(g)
         touching += weight * (g <= 0)
     if pad.has_ridges and trial.exposure.ridge_visibility > 0:
-        # the ridges' flanks refract light into the camera wherever the pad is (it is longer than the field)
+        # Where the pad is not in optical contact, its ridged surface is still seen through the pad: each ridge is a
+        # small cylindrical lens that bends light into the camera, a flat groove bottom is not (a 1 mm^-1 pattern
+        # along the whole pad, which is longer than the field). Optical contact wipes it out (index-matched there).
+        # Its fundamental sits at the band's upper edge, so its exposure-to-exposure strength rescales the whole
+        # area-normalised spectrum (docs/simulator.md, noise calibration).
         _, pad_period = contact.periodic_domain(spec.period_mm, pad.period_mm, max_length_mm=SPECIMEN_LENGTH_MM)
         relief = pad.height_mm(u - mount.pad_phase_mm, period_mm=pad_period)
-        slope = np.abs(np.gradient(relief, x_mm))
-        brightness += trial.exposure.ridge_visibility * slope / max(float(slope.max()), 1e-12)
+        crests = 1.0 + relief / pad.ridge_height_mm  # 1 on the crests, 0 in the grooves
+        brightness += trial.exposure.ridge_visibility * crests * np.clip(1.0 - brightness, 0.0, 1.0)
     line = brightness.reshape(w_px, SUBSAMPLES_PER_PX).mean(axis=1)
     return line, float(touching.mean())
 
