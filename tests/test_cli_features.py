@@ -175,3 +175,29 @@ def test_help_documents_the_options(run_cli):
     assert code == 0
     for option in ("--px-per-mm", "--roi", "--rows", "--band", "--n-freqs", "--jobs", "--study", "--out", "--force"):
         assert option in stdout
+
+
+@pytest.mark.parametrize("extra", [[], ["--roi", "auto"]])
+@pytest.mark.parametrize("where", [0.3, 0.5, 0.9])
+def test_png_with_damaged_image_data_is_refused_whatever_rows_are_read(tmp_path, images, capfd, extra, where):
+    """A PNG whose chunk structure is intact but whose compressed data is damaged: one line, even from libpng."""
+    from roughsense.cli import main
+
+    data = bytearray(images[0].read_bytes())
+    middle = int(len(data) * where)
+    data[middle : middle + 64] = bytes(b ^ 0x5A for b in data[middle : middle + 64])
+    bad = tmp_path / "damaged.png"
+    bad.write_bytes(bytes(data))
+    out = tmp_path / "features.csv"
+    code = main(["features", str(bad), "--out", str(out), *extra])
+    captured = capfd.readouterr()  # file-descriptor level: a codec printing to stderr would show here
+    assert code == 2
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "damaged.png" in lines[0] and "CRC" in lines[0], captured.err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("roi", ["nan,0,10,10", "0,inf,10,10", "1e400,0,5,5"])
+def test_non_finite_roi_is_a_clean_error(run_cli, tmp_path, images, roi):
+    out = tmp_path / "features.csv"
+    _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--roi={roi}"), out, "ROI")

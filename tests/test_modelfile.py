@@ -171,3 +171,10 @@ def test_score_images_recomputes_the_models_features(tmp_path):
     np.testing.assert_array_equal(score_images(loaded, images), expected)
     with pytest.raises(InputError, match="groups of 3.*got 4 image"):
         score_images(loaded, images[:4])
+
+
+def test_deeply_nested_json_is_a_damaged_file_not_a_crash(tmp_path):
+    bad = tmp_path / "deep.json"
+    bad.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ModelFileError, match="damaged or truncated"):
+        mf.load_model(bad)

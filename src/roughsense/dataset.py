@@ -25,12 +25,15 @@ def spectrum_for(study: Study, *, n_jobs: int = 1):
     return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs).fit()
 
 
-def study_features(study: Study, *, n_jobs: int = 1, progress: Callable | None = None) -> pd.DataFrame:
+def study_features(
+    study: Study, *, n_jobs: int = 1, progress: Callable | None = None, spectrum=None
+) -> pd.DataFrame:
     """Manifest columns plus one column per grid frequency (named by the frequency in mm^-1).
 
     ``progress(iterable, total=, description=)`` wraps the image stream (the CLI passes a rich bar).
+    ``spectrum`` overrides the study's own sensor settings (a fitted SpatialSpectrum).
     """
-    spectrum = spectrum_for(study, n_jobs=n_jobs)
+    spectrum = spectrum if spectrum is not None else spectrum_for(study, n_jobs=n_jobs)
     paths = study.image_paths
     rows = spectrum.iter_transform(paths)
     if progress is not None:

@@ -153,7 +153,7 @@ def load_model(path: str | os.PathLike[str]) -> LoadedModel:
         raise ModelFileError(f"cannot read the model file ({exc.strerror or exc})", path=path) from None
     try:
         document = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ModelFileError(f"is not a valid model file: damaged or truncated JSON ({exc})", path=path) from None
     return model_from_document(document, path=path)
 

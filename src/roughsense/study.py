@@ -147,6 +147,8 @@ def parse_roi(value: object) -> Roi:
         numbers = [float(p) for p in parts]
     except (TypeError, ValueError):
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {value!r}") from None
+    if not all(math.isfinite(n) for n in numbers):
+        raise ConfigError(f"ROI values must be finite whole pixels, got {value!r}")
     if any(n != int(n) for n in numbers):
         raise ConfigError(f"ROI values must be whole pixels, got {value!r}")
     x, y, w, h = (int(n) for n in numbers)

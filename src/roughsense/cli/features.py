@@ -62,6 +62,7 @@ def register(app: typer.Typer) -> None:
 
         from ..atomic import check_can_write, write_csv
         from ..sensor import SpatialSpectrum
+        from ..dataset import study_features
         from ..study import DEFAULT_PX_PER_MM, read_study
 
         if study is not None and images:
@@ -71,15 +72,10 @@ def register(app: typer.Typer) -> None:
         check_can_write(out, force=force)
         f_min, f_max = _band(band)
 
-        if study is not None:
-            loaded = read_study(study)
-            table = loaded.manifest.reset_index(drop=True)
-            paths = loaded.image_paths
+        loaded = read_study(study) if study is not None else None
+        if loaded is not None:
             px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
             roi = loaded.sensor.roi if roi is None else roi
-        else:
-            paths = list(images)
-            table = pd.DataFrame({"image": [str(p) for p in paths]})
         spectrum = SpatialSpectrum(
             px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
             roi="center" if roi is None else roi,
@@ -90,9 +86,14 @@ def register(app: typer.Typer) -> None:
             n_jobs=jobs,
             window=window,
         ).fit()
-        names = list(spectrum.get_feature_names_out())
-        spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
-        features = pd.DataFrame(spectra, columns=names)
-        carried = table.drop(columns=[c for c in names if c in table.columns])
-        write_csv(out, pd.concat([carried, features], axis=1))
+        if loaded is not None:
+            paths = loaded.image_paths
+            table = study_features(loaded, spectrum=spectrum, progress=progress)
+        else:
+            paths = list(images)
+            names = list(spectrum.get_feature_names_out())
+            spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
+            table = pd.concat([pd.DataFrame({"image": [str(p) for p in paths]}), pd.DataFrame(spectra, columns=names)], axis=1)
+        write_csv(out, table)
+        names = spectrum.get_feature_names_out()
         typer.echo(f"wrote {len(paths)} x {len(names)} features to {out}")
