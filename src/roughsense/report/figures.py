@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .. import atomic  # noqa: E402
+from .. import atomic, reference  # noqa: E402
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
@@ -41,6 +41,16 @@ def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:
         return (rank, size, name)
 
     return sorted(dict.fromkeys(specimens), key=key)
+
+
+def _paper_rows(pad: str, condition: str) -> pd.DataFrame:
+    """The paper's per-specimen results for one pad and condition, indexed by specimen (empty if none)."""
+    table = reference.paper_results()
+    return table[(table.pad == pad) & (table.condition == condition)].set_index("specimen")
+
+
+def _paper_perceived() -> pd.Series:
+    return reference.perceived_roughness().set_index("specimen")["perceived_gmean"]
 
 
 def spectra_figure(mean_spectra: pd.DataFrame, freq_columns: list[str], pad: str, shapes: dict[str, str]):
@@ -113,6 +123,9 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
             axes[0, col].plot(x, rows["ovl"], marker=marker, lw=1, label=condition)
             axes[1, col].plot(x, rows["pred_sd"], marker=marker, lw=1, label=f"prediction {condition}")
         axes[1, col].plot(x, human_sd.reindex(names), "k-", marker="*", lw=2, label="participants")
+        paper = _paper_rows(pad, "combined").reindex(names)
+        if paper["ovl"].notna().any():
+            axes[0, col].plot(x, paper["ovl"], ":", color="0.45", marker=".", lw=1.5, label="paper, combined")
         for row, label in ((0, "OVL"), (1, "SD")):
             axes[row, col].set_xticks(x, names)
             axes[row, col].set_ylabel(label)
@@ -138,6 +151,10 @@ def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame
             rows = results[(results.pad == pad) & (results.condition == condition)]
             x = truth.reindex(rows["specimen"]).to_numpy() + offset
             ax.errorbar(x, rows["pred_mean"], yerr=rows["pred_sd"], fmt=marker, ms=4, capsize=2, lw=0.8, label=condition)
+        paper = _paper_rows(pad, "combined")
+        if len(paper):
+            ax.plot(_paper_perceived().reindex(paper.index), paper["pred_mean"], "x", color="0.45", ms=5,
+                    label="paper, combined")
         ax.set_xlim(0, top)
         ax.set_ylim(0, top)
         ax.set_aspect("equal")
