@@ -48,6 +48,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     code, stdout2, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4", "--force")
     assert code == 0, err
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), results)
+    assert "<dd>from cache</dd>" in (out / "index.html").read_text()
 
 
 def test_study_refuses_a_non_empty_report_folder(run_cli, small_study, tmp_path):
@@ -139,3 +140,18 @@ def test_predict_live_needs_a_source_and_a_single_force_model(run_cli, small_stu
     assert code == 2 and "--source" in err
     code, _, err = run_cli("predict", model, "--live", "--source", tmp_path / "none.avi")
     assert code == 2 and "single-force" in err
+
+
+def test_a_participant_missing_a_session_is_one_warning_line_and_in_the_report(run_cli, study_copy, tmp_path, monkeypatch):
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    ratings = pd.read_csv(study_copy / "ratings.csv", dtype=str)
+    first = ratings.iloc[0]
+    gap = (ratings.participant == first.participant) & (ratings.session == first.session)
+    ratings[~gap].to_csv(study_copy / "ratings.csv", index=False)
+    out = tmp_path / "r"
+    code, _, err = run_cli("study", "--data", study_copy, "--out", out, "--max-components", "3", "--no-loso")
+    assert code == 0, err
+    warnings_lines = [line for line in err.splitlines() if line.startswith("roughsense: warning:")]
+    assert warnings_lines and first.participant in warnings_lines[0]
+    assert "Traceback" not in err and ".py:" not in err  # no raw Python warning with a source line
+    assert first.participant in (out / "index.html").read_text().split("<dt>warnings</dt>")[1][:400]

@@ -87,18 +87,31 @@ def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
     assert fit.best_n_components == 1 + int(np.argmin(fit.cv_rmse[1:]))
 
 
-def test_loso_never_trains_on_the_held_out_specimen(analysis_and_inputs):
+def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inputs):
+    """Nested LOSO, recomputed with scikit-learn: inner LOSO over the other specimens picks k, then refit."""
     analysis, study, features = analysis_and_inputs
     fit = analysis.fit("fingerprint", "1N", "loso")
     rows = features[(features.pad == "fingerprint") & (features.condition == "1N")].reset_index(drop=True)
     gmean = _gmean_of_medians(study.ratings)
     gmean["R3"] = 1.0
     X, y = rows[FREQ_COLUMNS].to_numpy(), rows["specimen"].map(gmean).to_numpy()
-    held = rows["specimen"] == "C4"
-    model = PLSRegression(n_components=fit.best_n_components, scale=False).fit(X[~held], y[~held])
+    specimens = rows["specimen"].to_numpy()
+    held = specimens == "C4"
+    Xr, yr, sr = X[~held], y[~held], specimens[~held]
+    max_k = min(8, len(yr) - 6 - 1)
+    inner_sse = np.zeros(max_k + 1)
+    for other in np.unique(sr):
+        test = sr == other
+        for k in range(1, max_k + 1):
+            model = PLSRegression(n_components=k, scale=False).fit(Xr[~test], yr[~test])
+            inner_sse[k] += np.sum((model.predict(Xr[test]).ravel() - yr[test]) ** 2)
+    k_expected = 1 + int(np.argmin(inner_sse[1:]))
+    assert fit.nested_n_components["C4"] == k_expected
+    model = PLSRegression(n_components=k_expected, scale=False).fit(Xr, yr)
     expected = model.predict(X[held]).ravel()
     got = fit.predictions[fit.predictions.specimen == "C4"].sort_values("repetition")["prediction"].to_numpy()
     np.testing.assert_allclose(got, expected[np.argsort(rows.loc[held, "repetition"].to_numpy())], rtol=1e-6)
+    assert set(fit.nested_n_components) == set(np.unique(specimens))
 
 
 def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs):

@@ -12,6 +12,7 @@ from scipy import integrate, optimize, stats
 
 import roughsense
 from roughsense import reference
+from roughsense.reference import PAPER_SUMMARIES as PRINTED_SUMMARIES
 from roughsense.errors import ConfigError, InputError
 from roughsense.metrics import (
     compare_conditions,
@@ -180,22 +181,6 @@ def test_specimen_table_reproduces_a_published_row_from_a_sample_with_its_moment
 
 
 # Summary rows as printed in the paper: (pad, column, condition, group) -> (mean, sd).
-PRINTED_SUMMARIES = {
-    **{("fingerprint", "ovl", c, g): v for g, values in {
-        "rectangular": [(0.52, 0.20), (0.54, 0.20), (0.53, 0.20), (0.55, 0.13)],
-        "circular": [(0.58, 0.12), (0.58, 0.11), (0.58, 0.11), (0.57, 0.14)],
-        "all": [(0.56, 0.15), (0.56, 0.15), (0.56, 0.16), (0.56, 0.13)],
-    }.items() for c, v in zip(("1N", "2N", "3N", "combined"), values)},
-    **{("fingerprint", "rmse", c, "all"): v for c, v in
-       zip(("1N", "2N", "3N", "combined"), [(0.26, 0.11), (0.25, 0.09), (0.25, 0.10), (0.21, 0.07)])},
-    **{("smooth", "ovl", c, g): v for g, values in {
-        "rectangular": [(0.65, 0.16), (0.63, 0.18), (0.60, 0.19), (0.64, 0.20)],
-        "circular": [(0.53, 0.16), (0.55, 0.15), (0.49, 0.11), (0.50, 0.17)],
-        "all": [(0.59, 0.17), (0.59, 0.16), (0.55, 0.16), (0.57, 0.19)],
-    }.items() for c, v in zip(("1N", "2N", "3N", "combined"), values)},
-    **{("smooth", "rmse", c, "all"): v for c, v in
-       zip(("1N", "2N", "3N", "combined"), [(0.16, 0.05), (0.18, 0.05), (0.16, 0.05), (0.13, 0.03)])},
-}
 
 
 def test_summary_rows_of_tables_2_3_5_6_from_the_per_specimen_values(paper):

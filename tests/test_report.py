@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from html.parser import HTMLParser
 from pathlib import Path
 
 import pandas as pd
@@ -27,7 +28,7 @@ def report_dir(tmp_path_factory):
 
 def test_report_files_and_schemas(report_dir):
     names = {p.name for p in report_dir.iterdir()}
-    assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv"} <= names
+    assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv"} <= names
     assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png"} <= names
     paper_columns = list(reference.paper_results().columns)
     assert list(pd.read_csv(report_dir / "results.csv").columns) == paper_columns
@@ -40,13 +41,84 @@ def test_report_files_and_schemas(report_dir):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_report_shows_paper_values_beside_ours(report_dir):
+class _Tables(HTMLParser):
+    """The report's tables by title: rows of (ours, paper) cells, read back from the HTML."""
+
+    def __init__(self):
+        super().__init__()
+        self.tables, self._title, self._row, self._cell, self._in = {}, "", None, None, None
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "h3":
+            self._in, self._title = "title", ""
+        elif tag == "table":
+            self.tables[self._title] = []
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th"):
+            self._cell, self._in = ["", ""], "ours"
+        elif tag == "span" and ("class", "paper") in attrs and self._in == "ours":
+            self._in = "paper"
+
+    def handle_endtag(self, tag):
+        if tag == "h3":
+            self._in = None
+        elif tag in ("td", "th"):
+            self._row.append(tuple(c.strip() for c in self._cell))
+            self._in = None
+        elif tag == "tr":
+            self.tables[self._title].append(self._row)
+        elif tag == "span" and self._in == "paper":
+            self._in = "ours"
+
+    def handle_data(self, data):
+        if self._in == "title":
+            self._title += data
+        elif self._in == "ours":
+            self._cell[0] += data
+        elif self._in == "paper":
+            self._cell[1] += data
+
+
+def _rows(html: str, title: str) -> list[dict]:
+    parser = _Tables()
+    parser.feed(html)
+    rows = parser.tables[title]
+    header = [c[0] for c in rows[0]]
+    return [dict(zip(header, row)) for row in rows[1:]]
+
+
+def _table(html: str, title: str) -> dict:
+    """Rows keyed by their first cell (the specimen, or the pad)."""
+    return {row.pop(next(iter(row)))[0]: row for row in _rows(html, title)}
+
+
+def test_report_shows_the_papers_values_in_the_right_cells(report_dir):
     html = (report_dir / "index.html").read_text()
-    # Table 3, fingerprint R2 at 1 N: RMSE 0.49; Table 1, C5 perceived 1.72 ± 0.64; LOO choice of 12 components.
-    assert '<span class="paper">0.49</span>' in html
-    assert '<span class="paper">1.72 ± 0.64</span>' in html
-    assert '<span class="paper">12</span>' in html
-    assert html.count("<table>") >= 2 + 2 * 2 * 3 + 1  # glance, components, 2 CV x 2 pads x 3, tests
+    rmse = _table(html, "Root mean squared error (RMSE), fingerprint pad, LOO")
+    assert rmse["R2"]["Dataset 1 N"][1] == "0.49" and rmse["C5"]["Dataset combination"][1] == "0.31"
+    assert _table(html, "Root mean squared error (RMSE), smooth pad, LOO")["R2"]["Dataset 1 N"][1] == "0.26"
+    # Summary rows: the values the paper prints (Table 5's rectangular row does not follow from its own cells).
+    ovl = _table(html, "Overlap coefficient (OVL), smooth pad, LOO")
+    assert ovl["Rectangular: mean ± SD"]["Dataset 1 N"][1] == "0.65 ± 0.16"
+    assert ovl["R3"]["Dataset 1 N"] == ("—", "")  # no OVL for the reference, ours or the paper's
+    assert rmse["Overall: mean ± SD"]["Dataset combination"][1] == "0.21 ± 0.07"
+    assert rmse["Rectangular: mean ± SD"]["Dataset 1 N"][1] == ""  # Table 3 prints no rectangular row
+    perceived = _table(html, "Perceived and predicted roughness, fingerprint pad, LOO (mean ± SD)")
+    assert perceived["C5"]["Perceived"][1] == "1.72 ± 0.64"
+    assert perceived["R2"]["Dataset 2 N"][1] == "0.75 ± 0.23"
+    # Under LOSO the paper has no predictions: only its perceived values appear.
+    loso = _table(html, "Perceived and predicted roughness, fingerprint pad, LOSO (mean ± SD)")
+    assert loso["C5"]["Perceived"][1] == "1.72 ± 0.64"
+    assert all(cells[c][1] == "" for cells in loso.values() for c in cells if c.startswith("Dataset"))
+    components = _table(html, "Number of PLS components chosen by cross-validation")
+    assert components["fingerprint"]["LOO: components"][1] == "12"  # rows keyed by pad: the last one, combined
+    assert components["fingerprint"]["LOO: RMSE"][1] == "0.22326"
+    tests = {row["Comparison"][0]: row for row in _rows(html, "Wilcoxon signed-rank tests on per-specimen RMSE")
+             if row["CV"][0] == "LOO"}
+    assert tests["fingerprint: combined vs 1N"]["p (adjusted)"][1] == "0.0048"
+    assert tests["fingerprint: combined vs 3N"]["p"][1] == "0.00012"  # the paper's 1.2e-4 is unadjusted
+    assert html.count("<table>") >= 2 + 2 * 2 * 3 + 1  # summary, components, 2 CV x 2 pads x 3, tests
     assert "src=\"http" not in html and "href=\"http" not in html  # self-contained, offline
 
 

@@ -12,6 +12,7 @@ import os
 import pkgutil
 import sys
 import traceback
+import warnings
 
 import typer
 
@@ -30,6 +31,7 @@ app = typer.Typer(
 )
 
 _state = {"debug": bool(os.environ.get("ROUGHSENSE_DEBUG"))}
+_python_showwarning = warnings.showwarning
 
 
 @app.callback()
@@ -55,6 +57,16 @@ def _register_commands() -> None:
 _register_commands()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """roughsense's own warnings are one line like its errors; anything else keeps Python's format."""
+    from ..errors import RoughsenseWarning
+
+    if issubclass(category, RoughsenseWarning):
+        print(f"roughsense: warning: {message}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
 def _fail(message: str) -> int:
     print(f"roughsense: error: {message}", file=sys.stderr)
     return 2
@@ -69,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if "--debug" in args:
         _state["debug"] = True
+    warnings.showwarning = _show_warning
     try:
         app(args=args, prog_name="roughsense", standalone_mode=True)
         return 0
@@ -95,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     finally:
         _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))
+        warnings.showwarning = _python_showwarning
 
 
 def run() -> None:

@@ -65,7 +65,10 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
+        import warnings
+
         from .. import cache, dataset
+        from ..errors import RoughsenseWarning
         from ..evaluation import CV_SCHEMES, analyse_study
         from ..report import write_report
         from ..report.html import _check_out_dir
@@ -80,16 +83,22 @@ def register(app: typer.Typer) -> None:
             cache.features_key(study, definition),
             lambda: dataset.study_features(study, n_jobs=jobs, progress=progress),
         )
-        analysis = analyse_study(
-            study, features=features, max_components=max_components,
-            cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
-        )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RoughsenseWarning)
+            analysis = analyse_study(
+                study, features=features, max_components=max_components,
+                cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
+            )
+        for warning in caught:  # shown once on the terminal, and kept in the report
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
         meta = {
             "study folder": str(Path(root).resolve()),
             "source": "built-in simulated study (digital twin), seed %d" % seed if data is None else "user data",
             "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
             "features": "from cache" if was_cached else "extracted",
         }
+        if caught:
+            meta["warnings"] = "; ".join(str(w.message) for w in caught)
         index = write_report(analysis, out, meta=meta, force=force)
         loo = analysis.results("loo")
         for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):

@@ -82,28 +82,33 @@ def spectra_figure(mean_spectra: pd.DataFrame, freq_columns: list[str], pad: str
 
 
 def cv_curves_figure(cv_table: pd.DataFrame, chosen: pd.DataFrame):
-    """Fig. 8: cross-validated RMSE against the number of components, chosen count circled."""
+    """Fig. 8: cross-validated RMSE against the number of components, one panel per CV scheme and pad."""
     pads = list(dict.fromkeys(cv_table["pad"]))
+    schemes = list(dict.fromkeys(cv_table["cv"]))
     conditions = list(dict.fromkeys(cv_table["condition"]))
-    fig, axes = plt.subplots(1, len(pads), figsize=(6.0 * len(pads), 3.8), squeeze=False, sharey=True)
-    styles = {"loo": "-", "loso": "--"}
+    fig, axes = plt.subplots(len(schemes), len(pads), figsize=(6.0 * len(pads), 3.6 * len(schemes)),
+                             squeeze=False, sharex=True)
     colours = dict(zip(conditions, plt.cm.tab10.colors))
-    for ax, pad in zip(axes[0], pads):
-        for (condition, cv), curve in cv_table[cv_table["pad"] == pad].groupby(["condition", "cv"], sort=False):
-            curve = curve[curve["n_components"] >= 1]
-            ax.plot(curve["n_components"], curve["rmse"], styles.get(cv, "-"), color=colours[condition],
-                    lw=1.3, label=f"{condition} ({cv.upper()})")
-            pick = chosen[(chosen.pad == pad) & (chosen.condition == condition) & (chosen.cv == cv)]
-            if len(pick):
-                n = int(pick["best_n_components"].iloc[0])
-                value = curve.loc[curve["n_components"] == n, "rmse"]
-                if len(value):
-                    ax.plot([n], [float(value.iloc[0])], "o", mfc="none", mec="red", ms=9)
-        ax.set_title(f"{pad} pad")
-        ax.set_xlabel("number of PLS components")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
-    axes[0, 0].set_ylabel("cross-validated RMSE")
+    for row, cv in enumerate(schemes):
+        for ax, pad in zip(axes[row], pads):
+            for condition in conditions:
+                curve = cv_table[(cv_table.pad == pad) & (cv_table.cv == cv) & (cv_table.condition == condition)]
+                curve = curve[curve["n_components"] >= 1]
+                if curve.empty:
+                    continue
+                ax.plot(curve["n_components"], curve["rmse"], "-", color=colours[condition], lw=1.3, label=condition)
+                pick = chosen[(chosen.pad == pad) & (chosen.condition == condition) & (chosen.cv == cv)]
+                if len(pick):
+                    n = int(pick["best_n_components"].iloc[0])
+                    value = curve.loc[curve["n_components"] == n, "rmse"]
+                    if len(value):
+                        ax.plot([n], [float(value.iloc[0])], "o", mfc="none", mec="red", ms=9)
+            ax.set_title(f"{pad} pad, {cv.upper()}")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, ncol=2)
+            if row == len(schemes) - 1:
+                ax.set_xlabel("number of PLS components")
+        axes[row, 0].set_ylabel("cross-validated RMSE")
     fig.tight_layout()
     return fig
 

@@ -18,7 +18,8 @@ from .. import __version__, atomic, reference
 from ..errors import OutputExistsError
 from . import figures, tables
 
-REPORT_FILES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "components.csv")
+REPORT_FILES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "components.csv",
+                "predictions.csv")
 
 
 def _environment() -> jinja2.Environment:
@@ -55,6 +56,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         files["results_loso.csv"] = _csv_bytes(results["loso"])
     files["cv.csv"] = _csv_bytes(analysis.cv_table())
     files["tests.csv"] = _csv_bytes(analysis.tests)
+    files["predictions.csv"] = _csv_bytes(analysis.predictions())
     chosen = analysis.chosen_components()
     files["components.csv"] = _csv_bytes(chosen)
 
@@ -76,7 +78,8 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
                    figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
                    f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).")
     add_figure("cv_curves.png", figures.cv_curves_figure(analysis.cv_table(), chosen),
-               "Cross-validated RMSE against the number of PLS components; red circles mark the chosen count (cf. Fig. 8).")
+               "Cross-validated RMSE against the number of PLS components, LOO (top) and LOSO (bottom); red circles mark "
+               "the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the training mean.")
     for pad in analysis.pads:
         add_figure(f"ovl_sd_{pad}.png", figures.ovl_sd_figure(results["loo"], analysis.perceived, pad, analysis.shapes),
                    f"OVL per specimen and SD of participants vs predictions, {pad} pad, LOO (cf. Fig. 9).")
@@ -93,9 +96,9 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
             pads.append({
                 "pad": pad,
                 "tables": [
-                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens),
-                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl"),
-                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse"),
+                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv),
+                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl", cv),
+                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse", cv),
                 ],
             })
         sections.append({"cv": cv, "pads": pads})
@@ -109,7 +112,9 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         meta=meta,
         citation=reference.PAPER_CITATION,
         headline=tables.headline_table(analysis),
-        components=tables.components_table(chosen),
+        components=tables.components_table(
+            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}
+        ),
         tests=tables.tests_table(analysis.tests),
         sections=sections,
         figures=figure_list,
