@@ -148,6 +148,18 @@ def test_fit_needs_ratings(run_cli, tmp_path):
     assert code == 2 and "ratings.csv" in err
 
 
+def test_fit_names_the_ratings_file_when_a_specimen_was_never_rated(run_cli, tmp_path):
+    root = make_study(tmp_path / "s", repetitions=2)
+    ratings = pd.read_csv(root / "ratings.csv")
+    ratings[ratings.specimen != "C2"].to_csv(root / "ratings.csv", index=False)
+    out = tmp_path / "m.json"
+    code, _, err = fit(run_cli, root, out, "--condition", "1N")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert err.strip() == (f"roughsense: error: {root / 'ratings.csv'}: "
+                           "no perceived roughness for specimen(s) C2 (not in the ratings)")
+    assert not out.exists()
+
+
 def test_predict_bad_inputs(run_cli, study_dir, tmp_path):
     model = tmp_path / "m.json"
     code, _, err = fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3")

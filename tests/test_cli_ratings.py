@@ -132,3 +132,23 @@ def test_help_explains_both_commands(run_cli):
     assert code == 0 and "geometric mean" in out and "median" in out
     code, out, _ = run_cli("protocol", "--help")
     assert code == 0 and "reference" in out and "--seed" in out
+
+
+def test_extra_fields_through_the_cli(tmp_path, run_cli):
+    """A value beyond the header is one error naming the line; a spreadsheet's trailing commas are harmless."""
+    shifted = tmp_path / "shifted.csv"
+    shifted.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\nP2,1,R2,0.4,9\n")
+    code, _, err = run_cli("ratings", shifted, "--out", tmp_path / "bad.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"roughsense: error: {shifted}, row 3: 5 fields but the header has 4 (extra value '9')")
+    assert not (tmp_path / "bad.csv").exists()
+
+    plain, commas = tmp_path / "plain.csv", tmp_path / "commas.csv"
+    plain.write_text(GOOD)
+    commas.write_text("".join(line + ",\n" for line in GOOD.splitlines()))
+    assert run_cli("ratings", plain, "--out", tmp_path / "plain_summary.csv")[0] == 0
+    code, _, err = run_cli("ratings", commas, "--out", tmp_path / "commas_summary.csv")
+    assert code == 0, err
+    assert (tmp_path / "commas_summary.csv").read_bytes() == (tmp_path / "plain_summary.csv").read_bytes()
+    summary = pd.read_csv(tmp_path / "commas_summary.csv").set_index("specimen")
+    assert summary.loc["C2", "gmean"] == pytest.approx(np.sqrt(1.5 * 1.1), rel=1e-12)

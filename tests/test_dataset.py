@@ -139,6 +139,9 @@ def test_targets_are_the_geometric_means(study):
     np.testing.assert_array_equal(dataset.targets(meta, summary), [2.0, 0.5, 1.0, 0.5])
     with pytest.raises(InputError, match="no perceived roughness for specimen"):
         dataset.targets(pd.DataFrame({"specimen": ["R9"]}), summary)
+    with pytest.raises(InputError) as info:  # the ratings file, when known, is named
+        dataset.targets(pd.DataFrame({"specimen": ["R9", "R1"]}), summary, path=study.root / "ratings.csv")
+    assert str(info.value) == f"{study.root / 'ratings.csv'}: no perceived roughness for specimen(s) R9 (not in the ratings)"
     # from the study's own ratings: the reference is 1, the others the geometric mean of participant medians
     perceived = dataset.perceived_roughness(study)
     ratings = study.ratings

@@ -1,11 +1,12 @@
 """The foundation: one error family, atomic writes and the study-folder contract."""
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from roughsense import atomic
-from roughsense.errors import InputError, OutputExistsError, RoughsenseError
+from roughsense.errors import ConfigError, InputError, OutputExistsError, RoughsenseError
 from roughsense.study import (
     SensorSettings,
     StudyWriter,
@@ -135,3 +136,39 @@ def test_atomic_files_get_the_usual_permissions(tmp_path):
     finally:
         os.umask(umask)
     assert path.stat().st_mode & 0o777 == 0o644
+
+
+def test_manifest_with_trailing_commas_reads_as_without(tmp_path):
+    _write_minimal_study(tmp_path / "s")
+    plain = read_study(tmp_path / "s")
+    for name in ("manifest.csv", "specimens.csv"):
+        path = tmp_path / "s" / name
+        path.write_text("".join(line + ",\n" for line in path.read_text().splitlines()))
+    commas = read_study(tmp_path / "s")
+    pd.testing.assert_frame_equal(commas.manifest, plain.manifest)
+    pd.testing.assert_frame_equal(commas.specimens, plain.specimens)
+    assert list(commas.manifest["image"]) == ["images/R2.png", "images/R3.png"]
+
+
+def test_manifest_row_with_an_extra_value_names_its_line(tmp_path):
+    _write_minimal_study(tmp_path / "s")
+    manifest = tmp_path / "s" / "manifest.csv"
+    lines = manifest.read_text().splitlines()
+    lines[2] += ",smooth"  # one row too long: pandas would have shifted it under the header
+    manifest.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as info:
+        read_study(tmp_path / "s")
+    assert info.value.path == manifest and info.value.row == 3
+    assert info.value.message == "6 fields but the header has 5 (extra value 'smooth')"
+
+
+def test_number_errors_quote_the_cell_not_numpy(tmp_path):
+    path = tmp_path / "specimens.csv"
+    path.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,inf\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["specimen", "shape", "wavelength_mm"], positive=["wavelength_mm"])
+    assert info.value.message == "not a finite number: 'inf'" and info.value.row == 3
+    with pytest.raises(ConfigError, match=r"px_per_mm must be a positive number, got inf$"):
+        SensorSettings(px_per_mm=np.float64("inf"))
+    with pytest.raises(ConfigError, match=r"got 0,0,-1,5$"):
+        parse_roi([np.int64(0), np.int64(0), np.int64(-1), np.int64(5)])

@@ -138,6 +138,52 @@ def test_missing_column_and_unknown_specimen(tmp_path):
         read_ratings(write(tmp_path, "participant,session,specimen,rating\nP1,1,R2,\n"))
 
 
+def trailing_commas(text: str, *, header: bool) -> str:
+    lines = text.splitlines()
+    return "\n".join([lines[0] + ("," if header else ""), *(line + "," for line in lines[1:])]) + "\n"
+
+
+@pytest.mark.parametrize("header", [False, True])
+def test_a_trailing_comma_on_every_line_is_read_as_without(tmp_path, header):
+    plain = aggregate_ratings(read_ratings(write(tmp_path, GOOD)))
+    frame = read_ratings(write(tmp_path, trailing_commas(GOOD, header=header), "commas.csv"))
+    assert list(frame.columns) == ["participant", "session", "specimen", "rating"]
+    summary = aggregate_ratings(frame)
+    pd.testing.assert_frame_equal(summary, plain)
+    gmean = summary.set_index("specimen")["gmean"]
+    assert gmean["R2"] == pytest.approx(np.sqrt(0.5 * 0.4), rel=1e-12)
+    assert gmean["C2"] == pytest.approx(np.sqrt(1.5 * 1.1), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "text, row, value",
+    [
+        ("participant,session,specimen,rating\nP1,1,R2,0.5,9\nP2,1,R2,0.4,9\n", 2, "9"),  # pandas' index shift
+        (GOOD + "P3,1,R2,0.7,,x\n", 6, "x"),  # extra empty fields are fine, a value after them is not
+        (trailing_commas(GOOD, header=False) + "P3,1,R2,0.7,2\n", 6, "2"),
+        (trailing_commas(GOOD, header=True) + "P3,1,R2,0.7,2\n", 6, "2"),  # a nameless column holds no data
+    ],
+)
+def test_a_row_with_an_extra_value_names_its_line(tmp_path, text, row, value):
+    with pytest.raises(InputError, match=f"header has 4 \\(extra value '{value}'\\)") as info:
+        read_ratings(write(tmp_path, text))
+    assert info.value.row == row and info.value.column is None
+
+
+@pytest.mark.parametrize("cell", ["inf", "-Infinity", "nan", "1e999"])
+def test_not_a_number_quotes_the_cell_as_written(tmp_path, cell):
+    with pytest.raises(InputError) as info:
+        read_ratings(write(tmp_path, GOOD + f"P3,1,R2,{cell}\n"))
+    assert info.value.message == f"not a number: '{cell}'" and info.value.row == 6
+
+
+def test_not_a_number_in_memory_is_formatted_not_numpy_repr():
+    frame = ratings_frame({("P1", "R2"): [0.5, np.inf]})
+    with pytest.raises(InputError) as info:
+        aggregate_ratings(frame)
+    assert info.value.message == "not a number: inf" and info.value.row == 3
+
+
 def test_blank_rating_cells_are_trials_not_done(tmp_path):
     frame = read_ratings(write(tmp_path, GOOD + "P3,1,R2,\nP3,1,C2,2.0\n"))
     assert len(frame) == 5 and frame.index[-1] + 2 == 7  # rows keep their file line

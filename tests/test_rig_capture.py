@@ -12,10 +12,13 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as hs
 
 from roughsense.errors import InputError
 from roughsense.rig.capture import image_name, plan_steps
-from roughsense.study import StudyWriter, read_study
+from roughsense.sensor import resolve_roi
+from roughsense.study import StudyWriter, read_study, roi_misfit
 
 G = 9.80665
 
@@ -54,7 +57,8 @@ def typed(monkeypatch):
 
 
 def capture_args(video, out, *extra):
-    return ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", *extra)
+    # The test video is 64x48 px, too small for the default 1900x150 px centre crop: "auto" fits any frame.
+    return ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", "--roi", "auto", *extra)
 
 
 def snapshot(folder):
@@ -70,7 +74,7 @@ def test_full_protocol_writes_a_valid_study(tmp_path, video, run_cli, typed):
     assert "captured 6 image(s) of R3/fp" in stdout
     study = read_study(out)
     manifest = study.manifest
-    assert study.forces_n == (1.0, 2.0, 3.0) and study.sensor.px_per_mm == 34.9 and study.sensor.roi == "center"
+    assert study.forces_n == (1.0, 2.0, 3.0) and study.sensor.px_per_mm == 34.9 and study.sensor.roi == "auto"
     assert study.specimens.to_dict("records") == [{"specimen": "R3", "shape": "rectangular", "wavelength_mm": 3.0}]
     assert list(manifest["repetition"]) == [1, 1, 1, 2, 2, 2]
     assert list(manifest["condition"]) == ["1N", "2N", "3N"] * 2
@@ -321,3 +325,81 @@ def test_plan_fills_holes_in_protocol_order():
     assert plan_steps(manifest, "R3", "fp", (1.0, 2.0, 3.0), 2) == [(1, 2.0), (2, 1.0), (2, 2.0), (2, 3.0)]
     assert image_name("R3", "fp", 7, 2.5) == "R3_fp_r07_2.5N.png"
     assert image_name("R3", "fp", 12, 1.0, attempt=3) == "R3_fp_r12_1N-3.png"
+
+
+# --------------------------------------------------------------------------- frame size vs the study's ROI
+
+
+def write_frames(folder, width, height, n_frames=3):
+    """An image sequence (exact frame size, unlike codecs that round it) standing in for the camera."""
+    folder.mkdir()
+    for k in range(n_frames):
+        cv2.imwrite(str(folder / f"img_{k:04d}.png"), np.full((height, width, 3), 40 * k, np.uint8))
+    return str(folder / "img_%04d.png")
+
+
+def test_frame_smaller_than_the_centre_crop_is_refused_before_anything_is_written(tmp_path, video, run_cli, typed):
+    out = tmp_path / "study"
+    typed("")
+    code, _, stderr = run_cli("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp")
+    assert_one_line_error(code, stderr, f"{video}: frame is 64x48 px", "1900x150 px centre crop")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("size", "roi", "ok"),
+    [
+        ((1900, 150), "center", True),  # exactly the centre crop
+        ((1900, 149), "center", False),
+        ((1899, 150), "center", False),
+        ((2, 1), "auto", True),  # auto clips the crop to the frame: any frame two pixels wide will do
+        ((1, 8), "auto", False),
+        ((40, 30), "0,0,40,30", True),  # an explicit ROI that fills the frame
+        ((40, 30), "1,0,40,30", False),
+        ((40, 30), "0,0,40,31", False),
+    ],
+)
+def test_frame_size_rule_at_its_boundaries(tmp_path, run_cli, typed, size, roi, ok):
+    source = write_frames(tmp_path / "frames", *size)
+    out = tmp_path / "study"
+    typed("", "", "")
+    code, stdout, stderr = run_cli("capture", "--source", source, "--out", out, "--specimen", "R3", "--pad", "fp",
+                                   "--repetitions", "1", "--roi", roi, "--shape", "rectangular", "--wavelength-mm", "3")
+    if ok:
+        assert code == 0, stderr
+        study = read_study(out)  # the analysis's own crop rule accepts every saved frame
+        for path in study.image_paths:
+            resolve_roi(study.sensor.roi, cv2.imread(str(path)))
+    else:
+        assert_one_line_error(code, stderr, f"frame is {size[0]}x{size[1]} px")
+        assert not out.exists()
+
+
+def test_resumed_session_with_a_smaller_camera_changes_nothing(tmp_path, run_cli, typed):
+    out = tmp_path / "study"
+    big = write_frames(tmp_path / "big", 64, 48)
+    typed("", "", "")
+    args = ("--out", out, "--specimen", "R3", "--pad", "fp", "--shape", "rectangular", "--wavelength-mm", "3")
+    code, _, stderr = run_cli("capture", "--source", big, *args, "--repetitions", "1", "--roi", "8,8,48,32")
+    assert code == 0, stderr
+    before = snapshot(out)
+    small = write_frames(tmp_path / "small", 48, 36)
+    typed("", "", "")
+    code, _, stderr = run_cli("capture", "--source", small, *args, "--repetitions", "2")
+    assert_one_line_error(code, stderr, small, "frame is 48x36 px, ROI 8,8,48,32 reaches outside it")
+    assert snapshot(out) == before
+    assert len(read_study(out).manifest) == 3
+
+
+_ROIS = hs.one_of(hs.sampled_from(["center", "auto"]), hs.tuples(*[hs.integers(0, 40)] * 2, *[hs.integers(1, 40)] * 2))
+
+
+@given(roi=_ROIS, width=hs.integers(1, 2000), height=hs.integers(1, 200))
+def test_study_roi_rule_agrees_with_the_sensor(roi, width, height):
+    """The rig checks frames with study.roi_misfit; it must accept exactly what the analysis can crop."""
+    try:
+        resolve_roi(roi, np.zeros((height, width), np.uint8))
+        accepted = True
+    except InputError:
+        accepted = False
+    assert accepted == (roi_misfit(roi, width, height) is None)

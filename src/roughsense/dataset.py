@@ -6,6 +6,7 @@ One row per image in :func:`study_features`; :func:`condition_matrix` selects a 
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -138,19 +139,22 @@ def _force_order(label: str) -> float:
         return float("inf")
 
 
-def targets(meta: pd.DataFrame, summary: pd.DataFrame) -> np.ndarray:
-    """Perceived roughness (``gmean``) of each row's specimen; a specimen without ratings is refused."""
+def targets(meta: pd.DataFrame, summary: pd.DataFrame, *, path: str | os.PathLike[str] | None = None) -> np.ndarray:
+    """Perceived roughness (``gmean``) of each row's specimen; a specimen without ratings is refused.
+
+    ``path`` (the ratings file ``summary`` came from, e.g. ``study.root / "ratings.csv"``) only labels errors.
+    """
     if "specimen" not in summary.columns or "gmean" not in summary.columns:
-        raise InputError("the perceived-roughness table needs columns specimen and gmean")
+        raise InputError("the perceived-roughness table needs columns specimen and gmean", path=path)
     lookup = dict(zip(summary["specimen"].astype(str), summary["gmean"].astype(float)))
     specimens = meta["specimen"].astype(str)
     missing = sorted(set(specimens) - set(lookup))
     if missing:
-        raise InputError(f"no perceived roughness for specimen(s) {', '.join(missing)} (not in the ratings)")
+        raise InputError(f"no perceived roughness for specimen(s) {', '.join(missing)} (not in the ratings)", path=path)
     y = specimens.map(lookup).to_numpy(np.float64)
     if not np.all(np.isfinite(y)):
         bad = specimens[~np.isfinite(y)].iloc[0]
-        raise InputError(f"perceived roughness of specimen {bad!r} is not a finite number")
+        raise InputError(f"perceived roughness of specimen {bad!r} is not a finite number", path=path)
     return y
 
 

@@ -254,7 +254,7 @@ def analyse_study(
     for pad, condition, cv in iterator:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition)
-            y = dataset.targets(meta, perceived)
+            y = dataset.targets(meta, perceived, path=study.root / "ratings.csv")
             matrices[(pad, condition)] = (X, y, meta)
         X, y, meta = matrices[(pad, condition)]
         analysis.fits.append(_condition_fit(X, y, meta, perceived, pad, condition, cv, max_components))

@@ -54,6 +54,15 @@ def _line(frame: pd.DataFrame, position: int) -> int | None:
     return csv_line(label) if isinstance(label, (int, np.integer)) else None
 
 
+def _cell_text(value: object) -> str:
+    """A cell as the user wrote it: text quoted verbatim, a number with ``:g`` (never numpy's repr)."""
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return f"{value:g}"
+    return repr(value)
+
+
 def _validate(
     frame: pd.DataFrame,
     *,
@@ -79,7 +88,7 @@ def _validate(
     bad = (values.isna() & ~blank) | np.isinf(values)
     if bad.any():
         i = np.flatnonzero(bad)[0]
-        raise InputError(f"not a number: {raw.iloc[i]!r}", path=path, row=_line(frame, i), column="rating")
+        raise InputError(f"not a number: {_cell_text(raw.iloc[i])}", path=path, row=_line(frame, i), column="rating")
     if blank.any():
         i = np.flatnonzero(blank)[0]
         raise InputError("empty rating", path=path, row=_line(frame, i), column="rating")
@@ -171,7 +180,7 @@ def read_ratings(
             raise InputError("file not found", path=path)
         frame = _read_markdown_sheet(path)
     else:
-        frame = read_table(path, (), text=_TEXT_COLUMNS)
+        frame = read_table(path, (), text=(*_TEXT_COLUMNS, "rating"))  # rating as text: errors quote the cell
     if "rating" in frame.columns:
         raw = frame["rating"]
         blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")

@@ -339,7 +339,8 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
     Xc = X - X.mean(axis=0)
     yc = y - y.mean()
     # Rotate onto the right singular vectors of Xc: there G is diagonal, and the rotation is orthogonal,
-    # so weights and predictions keep their accuracy (unlike an eigendecomposition of G itself).
+    # so weights and predictions keep their accuracy (an eigendecomposition of G instead lost ~1e5x
+    # at spectra noise 1e-6: it is only accurate relative to the largest eigenvalue).
     U, sv, _ = np.linalg.svd(Xc, full_matrices=False)
     Z, lam = U * sv, sv**2  # samples in the rotated coordinates; Z'Z = diag(lam)
     rank = _svd_rank(sv, n, p)
@@ -373,31 +374,42 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
         raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
     exhausted = _KRYLOV_RTOL * lam.max()
 
-    pred = np.empty((n, A + 1))
-    pred[:, 0] = y.mean() + per_sample(e)
-    W = np.empty((F, A + 1, dim))  # each fold's orthonormal Lanczos basis of its Krylov space
-    np.divide(s0, s0_norm[:, None], out=W[:, 0])
-    x, tmp = np.empty((F, dim)), np.empty((F, dim))
+    pred = np.empty((A + 1, n))  # component-major while filling: each step writes one contiguous row
+    pred[0] = y.mean() + per_sample(e)
+    # V[j] holds every fold's j-th Lanczos vector (component-major, so the elementwise work runs over
+    # contiguous (F, r) blocks); Vf is the same memory fold by fold, for the batched products.
+    # At step k, slots 0..k hold the basis, slot k+1 the fold's downdate vector, slot k+2 the next vector.
+    V = np.empty((A + 3, F, dim))
+    Vf = V.transpose(1, 0, 2)
+    np.divide(s0, s0_norm[:, None], out=V[0])
+    lam_rows = np.tile(lam, (F, 1))  # a same-shape operand is ~2x faster than a broadcast one
     back = np.empty((F, 1, dim))
-    coef2 = np.empty((F, 1, 2))
+    coef = np.zeros((F, 1, A + 3))  # combination coefficients of the batched products
     loo_scale = 1.0 + 1.0 / nt
     beta_prev = np.zeros(F)
     eta = np.ones(F)
     zeta = s0_norm.copy()
     pi = np.zeros(n)  # held-out sample's projection on the current CG direction
+    u_hist = np.empty((A, n))  # u_i = z_i'w_k of every step
     for k in range(A):
-        w = W[:, k]
-        # x = S_f w = (G - X_I'X_I - n_t d d') w; d'w = -sum_I(z_i'w)/n_t, so only u_i = z_i'w is needed.
-        u = np.einsum("ip,ip->i", Z, per_sample(w))
-        u_fold = fold_sum(u)
-        np.multiply(lam, w, out=x)
-        if loo:  # d = -z_i/n_t: both corrections are one rank-1 term
-            np.multiply(Z, (u * loo_scale)[:, None], out=tmp)
+        w = V[k]
+        # S_f w = (G - X_I'X_I - n_t d d') w; d'w = -sum_I(z_i'w)/n_t, so only u_i = z_i'w is needed.
+        # (For LOO the previous step's reorthogonalisation product already gave it.)
+        u = u_hist[k] if loo and k else np.einsum("ip,ip->i", Z, per_sample(w))
+        u_hist[k] = u
+        x = V[k + 2]
+        np.multiply(w, lam_rows, out=x)  # G w, to which the downdate and the three-term step are applied
+        down = V[k + 1]
+        if loo:  # d = -z_i/n_t: both corrections are one rank-1 term, c_i z_i with c_i = u_i (1 + 1/n_t)
+            down[...] = Z
+            c_down = u * loo_scale
+            u_fold = u
+            alpha = np.einsum("fp,fp->f", w, x) - c_down * u
         else:
-            tmp[:] = fold_sum(Z * u[:, None])
-            tmp -= d * u_fold[:, None]
-        x -= tmp
-        alpha = np.einsum("fp,fp->f", w, x)
+            u_fold = fold_sum(u)
+            np.subtract(fold_sum(Z * u[:, None]), d * u_fold[:, None], out=down)
+            c_down = 1.0
+            alpha = np.einsum("fp,fp->f", w, x) - np.einsum("fp,fp->f", w, down)
         # D-Lanczos (CG) update of the coefficients, seen only through the held-out samples:
         # (z_i - d_f)'w = u_i + u_fold_f / n_t.
         if k:
@@ -408,31 +420,59 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
         else:
             eta = alpha
             pi = (u + per_sample(u_fold / nt)) / per_sample(eta)
-        pred[:, k + 1] = pred[:, k] + per_sample(zeta) * pi
+        np.add(pred[k], per_sample(zeta) * pi, out=pred[k + 1])
         if k + 1 == A:
             break
-        # Next Lanczos vector: three-term recurrence, then full reorthogonalisation.
-        if k:  # x -= beta w_{k-1} + alpha w_k, as one batched product over the two adjacent rows of W
-            coef2[:, 0, 0] = beta_prev
-            coef2[:, 0, 1] = alpha
-            np.matmul(coef2, W[:, k - 1 : k + 1], out=back)
-            x -= back[:, 0]
+        # Next Lanczos vector. Downdate and three-term recurrence in one batched product over the
+        # adjacent slots (w_{k-1}, w_k, downdate): x = G w - beta w_{k-1} - alpha w_k - c down.
+        c3 = coef[:, :, :3]
+        c3[:, 0, 0] = beta_prev
+        c3[:, 0, 1] = alpha
+        c3[:, 0, 2] = c_down
+        if k:
+            np.matmul(c3, Vf[:, k - 1 : k + 2], out=back)
         else:
-            np.multiply(w, alpha[:, None], out=tmp)
-            x -= tmp
-        Wk = W[:, : k + 1]
-        # One pass suffices after the three-term recurrence (it already removed the two large terms);
-        # the tests hold it to refits of SIMPLS on ill-conditioned spectra.
-        np.matmul(np.matmul(Wk, x[:, :, None]).transpose(0, 2, 1), Wk, out=back)
+            np.matmul(c3[:, :, 1:], Vf[:, 0:2], out=back)
         x -= back[:, 0]
-        beta = np.sqrt(np.einsum("fp,fp->f", x, x))
-        if not np.all(beta > exhausted):
-            f = int(np.flatnonzero(~(beta > exhausted))[0])
-            raise PLSConfigError(
-                f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
-                f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
-                f"use at most {k + 1}"
-            )
-        np.multiply(x, (1.0 / beta)[:, None], out=W[:, k + 1])
+        # Full reorthogonalisation, one classical Gram-Schmidt pass (the three-term step already removed
+        # the two large terms). One product gives the coefficients h = W'x together with x'x, so
+        # beta^2 = x'x - h'h (Pythagoras; h is rounding-sized, so nothing cancels), and a second product
+        # forms the new unit vector (x - W h) / beta directly: no separate subtract, norm and scale passes.
+        g = np.matmul(Vf[:, : k + 3], x[:, :, None])[:, :, 0]
+        h = g[:, : k + 1]
+        hh = np.square(h).sum(axis=1)
+        xx = g[:, k + 2]
+        cr = coef[:, :, : k + 3]
+        cr[:, 0, k + 1] = 0.0  # the downdate slot
+        if np.all(hh <= 0.25 * xx):
+            beta = np.sqrt(xx - hh)
+            _check_krylov_step(beta, exhausted, A, k)
+            inv = 1.0 / beta
+            np.multiply(h, -inv[:, None], out=cr[:, 0, : k + 1])
+            cr[:, 0, k + 2] = inv
+            np.matmul(cr, Vf[:, : k + 3], out=back)
+            V[k + 1] = back[:, 0]
+            if loo:  # z_i'w_{k+1} = (z_i'x - sum_j (z_i'w_j) h_j) / beta, z_i'x from the product above
+                u_hist[k + 1] = (g[:, k + 1] - np.einsum("kf,fk->f", u_hist[: k + 1], h)) * inv
+        else:  # never seen: so much was removed that Pythagoras would cancel; take the norm itself
+            np.negative(h, out=cr[:, 0, : k + 1])
+            cr[:, 0, k + 2] = 1.0
+            np.matmul(cr, Vf[:, : k + 3], out=back)
+            beta = np.sqrt(np.einsum("fp,fp->f", back[:, 0], back[:, 0]))
+            _check_krylov_step(beta, exhausted, A, k)
+            np.divide(back[:, 0], beta[:, None], out=V[k + 1])
+            if loo:
+                u_hist[k + 1] = np.einsum("ip,ip->i", Z, V[k + 1])
         beta_prev = beta
-    return pred
+    return np.ascontiguousarray(pred.T)
+
+
+def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int) -> None:
+    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted."""
+    if not beta.min() > exhausted:  # also catches NaN
+        f = int(np.flatnonzero(~(beta > exhausted))[0])
+        raise PLSConfigError(
+            f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
+            f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
+            f"use at most {k + 1}"
+        )

@@ -24,7 +24,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 
 from .errors import ConfigError, InputError
 from .images import GRAY_WEIGHTS_RGB, as_image, decode, decode_png_top_rows, load_gray, png_size, read_bytes, to_gray
-from .study import DEFAULT_PX_PER_MM, Roi, parse_roi
+from .study import CENTER_CROP_PX, DEFAULT_PX_PER_MM, Roi, parse_roi
 
 __all__ = [
     "CENTER_CROP_PX",
@@ -37,8 +37,6 @@ __all__ = [
     "spatial_spectrum",
 ]
 
-#: The paper's crop: 1900 x 150 px (width, height), centred on the 1920 x 1080 frame.
-CENTER_CROP_PX = (1900, 150)
 WINDOWS = ("hann", "none")
 FEATURE_VERSION = 1
 

@@ -13,6 +13,7 @@ so nothing downstream has to re-check. Every writer is atomic.
 """
 from __future__ import annotations
 
+import csv
 import math
 import os
 import tomllib
@@ -36,6 +37,10 @@ DEFAULT_PX_PER_MM = 34.9
 DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
 DEFAULT_REFERENCE = "R3"
 
+#: What roi="center" means: a 1900 x 150 px (width, height) crop centred on the frame -- the paper's crop of
+#: its 1920 x 1080 camera. Part of the study contract, so the rig can check frames without the sensor code.
+CENTER_CROP_PX = (1900, 150)
+
 MANIFEST_COLUMNS = ("image", "specimen", "pad", "force_n", "repetition")
 SPECIMEN_COLUMNS = ("specimen", "shape", "wavelength_mm")
 RATING_COLUMNS = ("participant", "session", "specimen", "rating")
@@ -50,6 +55,35 @@ Roi = str | tuple[int, int, int, int]
 def csv_line(index: int) -> int:
     """Line number in the file of DataFrame row ``index`` (line 1 is the header)."""
     return int(index) + 2
+
+
+def _check_row_widths(path: Path) -> None:
+    """Refuse a data row with non-empty fields beyond the header's, naming its line.
+
+    pandas would take the first column as the index and shift every value one column left (or, with
+    ``index_col=False``, drop the extras with only a warning). Empty extra fields -- a spreadsheet's
+    trailing delimiter -- are accepted. Undecodable or malformed files are left for pandas to report.
+    """
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            reader = csv.reader(handle, skipinitialspace=True)
+            header = next(reader, None)
+            if header is None:
+                return
+            while header and not header[-1].strip():
+                header.pop()  # the header's own trailing delimiter names no column
+            width = len(header)
+            start = reader.line_num + 1
+            for row in reader:
+                extra = [value for value in row[width:] if value.strip()]
+                if extra:
+                    raise InputError(
+                        f"{len(row)} fields but the header has {width} (extra value {extra[0].strip()!r})",
+                        path=path, row=start,
+                    )
+                start = reader.line_num + 1
+    except (UnicodeDecodeError, csv.Error):
+        return
 
 
 def read_table(
@@ -68,15 +102,22 @@ def read_table(
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path=path)
-    dtypes = {name: str for name in set(text) | {"image", "specimen", "pad", "participant", "shape"}}
+    # Numeric columns are read as text too, so an error quotes the cell as written ('inf', not np.float64(inf)).
+    dtypes = {name: str for name in {*text, *numeric, *positive, *integer, "image", "specimen", "pad", "participant", "shape"}}
+    _check_row_widths(path)
     try:
-        frame = pd.read_csv(path, dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""])
+        # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
+        frame = pd.read_csv(path, dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""],
+                            index_col=False)
     except pd.errors.EmptyDataError:
         raise InputError("is empty; expected a header line", path=path) from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"is not a readable CSV ({first})", path=path) from None
     frame.columns = [str(c).strip() for c in frame.columns]
+    # A trailing delimiter on the header too gives a nameless, empty column: drop it.
+    nameless = [c for c in frame.columns if c.startswith("Unnamed: ") and frame[c].isna().all()]
+    frame = frame.drop(columns=nameless)
     missing = [c for c in required if c not in frame.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}", path=path)
@@ -124,7 +165,8 @@ class SensorSettings:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.px_per_mm, (int, float)) and math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
-            raise ConfigError(f"px_per_mm must be a positive number, got {self.px_per_mm!r}")
+            shown = f"{self.px_per_mm:g}" if isinstance(self.px_per_mm, (int, float)) else repr(self.px_per_mm)
+            raise ConfigError(f"px_per_mm must be a positive number, got {shown}")
         object.__setattr__(self, "roi", parse_roi(self.roi))
 
 
@@ -140,21 +182,52 @@ def parse_roi(value: object) -> Roi:
     elif isinstance(value, Sequence):
         parts = list(value)
     else:
-        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {value!r}")
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
     if len(parts) != 4:
-        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {value!r}")
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
     try:
         numbers = [float(p) for p in parts]
     except (TypeError, ValueError):
-        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {value!r}") from None
+        raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {_roi_text(value)}") from None
     if not all(math.isfinite(n) for n in numbers):
-        raise ConfigError(f"ROI values must be finite whole pixels, got {value!r}")
+        raise ConfigError(f"ROI values must be finite whole pixels, got {_roi_text(value)}")
     if any(n != int(n) for n in numbers):
-        raise ConfigError(f"ROI values must be whole pixels, got {value!r}")
+        raise ConfigError(f"ROI values must be whole pixels, got {_roi_text(value)}")
     x, y, w, h = (int(n) for n in numbers)
     if x < 0 or y < 0 or w <= 0 or h <= 0:
-        raise ConfigError(f"ROI needs X,Y >= 0 and W,H > 0, got {value!r}")
+        raise ConfigError(f"ROI needs X,Y >= 0 and W,H > 0, got {_roi_text(value)}")
     return (x, y, w, h)
+
+
+def _roi_text(value: object) -> str:
+    """The ROI as the user gave it (a sequence of numpy numbers must not print as np.int64(...))."""
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, Sequence):
+        return ",".join(str(v) for v in value)
+    return repr(value)
+
+
+def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
+    """Why a ``width_px`` x ``height_px`` frame cannot yield this ROI's crop, or None if it can.
+
+    The size rule of :func:`roughsense.sensor.resolve_roi`, so that a source can check its frames
+    before recording a session the analysis would refuse.
+    """
+    roi = parse_roi(roi)
+    if roi == "center":
+        crop_w, crop_h = CENTER_CROP_PX
+        if width_px < crop_w or height_px < crop_h:
+            return f"smaller than the {crop_w}x{crop_h} px centre crop of roi 'center'"
+        return None
+    if roi == "auto":
+        if width_px < 2 or height_px < 1:
+            return "too small to find the contact band (roi 'auto')"
+        return None
+    x, y, w, h = roi
+    if x + w > width_px or y + h > height_px:
+        return f"ROI {x},{y},{w},{h} reaches outside it"
+    return None
 
 
 def nominal_force_label(force_n: float) -> str:
@@ -441,7 +514,9 @@ class StudyWriter:
         path = self.root / MANIFEST_CSV
         new = pd.DataFrame([dict(row)])
         if path.exists():
-            old = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str}, keep_default_na=False, na_values=[""])
+            old = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str}, keep_default_na=False, na_values=[""],
+                              index_col=False)  # a hand-edited file's trailing commas must not shift the columns
+            old = old.drop(columns=[c for c in old.columns if str(c).startswith("Unnamed: ") and old[c].isna().all()])
             new = pd.concat([old, new], ignore_index=True)
         return self.write_manifest(new)
 

@@ -90,7 +90,7 @@ def register(app: typer.Typer) -> None:
         from ..errors import InputError
         from ..modelfile import feature_definition_for, save_model
         from ..pls import SIMPLS, pls_cv
-        from ..study import MANIFEST_CSV, read_study
+        from ..study import MANIFEST_CSV, RATINGS_CSV, read_study
 
         if condition not in CONDITIONS:
             raise ConfigError(f"--condition must be one of {', '.join(CONDITIONS)}, got {condition!r}")
@@ -115,7 +115,7 @@ def register(app: typer.Typer) -> None:
         subset = dataclasses.replace(loaded, manifest=loaded.manifest[needed].reset_index(drop=True))
         features = dataset.study_features(subset, n_jobs=jobs, progress=progress)
         X, meta = dataset.condition_matrix(features, pad, condition, source=manifest_path)
-        y = dataset.targets(meta, dataset.perceived_roughness(loaded))
+        y = dataset.targets(meta, dataset.perceived_roughness(loaded), path=loaded.root / RATINGS_CSV)
         groups = meta["specimen"].to_numpy() if scheme == "loso" else None
         n = len(y)
         if scheme == "loo":

@@ -251,6 +251,7 @@ def capture_session(
             label = f"[{specimen}/{pad} rep {repetition}/{repetitions}] "
             force_n = force_input.read_force(nominal, low_n=window[nominal][0], high_n=window[nominal][1], label=label)
             frame = source.read_fresh()
+            _check_frame(frame, folder.sensor.roi, source)
             stamp = clock().astimezone(timezone.utc).isoformat(timespec="milliseconds")
             if writer is None:
                 if lock is None:
@@ -275,6 +276,17 @@ def capture_session(
     finally:
         if lock is not None:
             lock.close()
+
+
+def _check_frame(frame: np.ndarray, roi: st.Roi, source: FrameSource) -> None:
+    """Refuse a frame the analysis could not crop (wrong camera resolution) before any of it is written."""
+    height, width = frame.shape[:2]
+    problem = st.roi_misfit(roi, width, height)
+    if problem is not None:
+        raise InputError(
+            f"frame is {width}x{height} px, {problem}; set the camera's resolution or the study's roi",
+            path=getattr(source, "name", None),
+        )
 
 
 def _start_writing(folder: _Folder, specimens_update: pd.DataFrame | None) -> st.StudyWriter:
