@@ -172,3 +172,17 @@ def test_number_errors_quote_the_cell_not_numpy(tmp_path):
         SensorSettings(px_per_mm=np.float64("inf"))
     with pytest.raises(ConfigError, match=r"got 0,0,-1,5$"):
         parse_roi([np.int64(0), np.int64(0), np.int64(-1), np.int64(5)])
+
+
+def test_blank_lines_keep_line_numbers_honest(tmp_path):
+    path = tmp_path / "ratings.csv"
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\n\nP1,2,R2,abc\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and "blank line" in str(info.value)
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\nP1,2,R2,abc\n\n\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and info.value.column == "rating"  # trailing blank lines are ignored
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\n\n")
+    assert len(read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])) == 1

@@ -440,7 +440,7 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
         # forms the new unit vector (x - W h) / beta directly: no separate subtract, norm and scale passes.
         g = np.matmul(Vf[:, : k + 3], x[:, :, None])[:, :, 0]
         h = g[:, : k + 1]
-        hh = np.square(h).sum(axis=1)
+        hh = np.einsum("fk,fk->f", h, h)
         xx = g[:, k + 2]
         cr = coef[:, :, : k + 3]
         cr[:, 0, k + 1] = 0.0  # the downdate slot

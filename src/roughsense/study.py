@@ -107,8 +107,9 @@ def read_table(
     _check_row_widths(path)
     try:
         # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
+        # skip_blank_lines=False keeps DataFrame row i on file line i + 2, so every error names the right line.
         frame = pd.read_csv(path, dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""],
-                            index_col=False)
+                            index_col=False, skip_blank_lines=False)
     except pd.errors.EmptyDataError:
         raise InputError("is empty; expected a header line", path=path) from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
@@ -118,6 +119,12 @@ def read_table(
     # A trailing delimiter on the header too gives a nameless, empty column: drop it.
     nameless = [c for c in frame.columns if c.startswith("Unnamed: ") and frame[c].isna().all()]
     frame = frame.drop(columns=nameless)
+    blank_rows = frame.isna().all(axis=1).to_numpy()
+    if blank_rows.any():
+        last = len(blank_rows) - np.argmin(blank_rows[::-1]) if not blank_rows.all() else 0
+        if blank_rows[:last].any():
+            raise InputError("blank line inside the table; remove it", path=path, row=csv_line(np.flatnonzero(blank_rows)[0]))
+        frame = frame.iloc[:last]  # blank lines at the end of the file are harmless
     missing = [c for c in required if c not in frame.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}", path=path)

@@ -192,7 +192,6 @@ def register(app: typer.Typer) -> None:
         import pandas as pd
 
         from ..atomic import check_can_write, write_csv
-        from ..errors import ConfigError
         from ..modelfile import load_model
         from ..scoring import group_images, score_images
 
@@ -224,7 +223,6 @@ def register(app: typer.Typer) -> None:
 
 def _predict_live(loaded, source: str, max_frames: int | None) -> None:
     """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
-    from ..errors import ConfigError
     from ..rig.live import live_scores, render_live
     from ..scoring import model_spectrum
 
