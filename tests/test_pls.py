@@ -218,6 +218,15 @@ def test_equals_refitting_every_fold(noise, scheme):
     assert result.best_n_components == int(np.argmin(rmse[1:])) + 1
 
 
+@pytest.mark.parametrize("cv", ["loo", 7])
+def test_nearly_noise_free_spectra_at_the_usable_component_count(cv):
+    """Noise 1e-8: the Krylov space of 14 specimens is nearly exhausted at 15 components, where Lanczos
+    loses orthogonality fastest (converged Ritz values); the reorthogonalisation must keep it exact."""
+    X, y, _ = spectra(p=135, noise=1e-8, seed=5)
+    result = pls_cv(X, y, max_components=15, cv=cv, random_state=1)
+    assert rel_err(result.predictions, refit_predictions(X, y, result.folds, 15)) < 1e-6
+
+
 def test_equals_ikpls_fast_cross_validation():
     from ikpls.fast_cross_validation.numpy import PLS
 
