@@ -309,3 +309,35 @@ def test_invariances(scale, shift, x_shift, seed):
     perm = rng.permutation(15)
     permuted = pls_cv(X[perm], y[perm], max_components=4)
     assert np.allclose(permuted.predictions, base.predictions[perm], rtol=1e-8, atol=1e-9)
+
+
+def test_loo_equals_sklearn_at_the_papers_size():
+    """140 x 135 combined-force-like spectra, up to 20 components: scikit-learn refits, fold by fold."""
+    X, y, _ = spectra(p=135, noise=1e-4, seed=5)
+    result = pls_cv(X, y, max_components=20, cv="loo")
+    for k in (1, 8, 20):
+        expected = cross_val_predict(PLSRegression(n_components=k, scale=False), X, y, cv=LeaveOneOut()).ravel()
+        assert rel_err(result.predictions[:, k], expected) < 1e-6
+
+
+def test_y_scores_follow_plsregress():
+    """plsregress: YS(:, a) = y0 * q_a, orthogonalised against the earlier X scores, so XS' YS is lower triangular."""
+    X, y, _ = spectra(n_specimens=5, repetitions=4, p=12, seed=2)
+    model = SIMPLS(n_components=5).fit(X, y)
+    y0 = y - y.mean()
+    T, U, Q = model.x_scores_, model.y_scores_, model.y_loadings_
+    assert np.allclose(U[:, 0], y0 * Q[0])
+    for a in range(1, 5):
+        expected = y0 * Q[a] - T[:, :a] @ (T[:, :a].T @ (y0 * Q[a]))
+        assert np.allclose(U[:, a], expected)
+    assert np.allclose(np.triu(T.T @ U, k=1), 0, atol=1e-10)
+
+
+def test_cap_stops_the_curve_where_the_data_run_out():
+    X, y, _ = spectra(p=135, noise=1e-9, seed=5)
+    with pytest.raises(ConfigError) as info:
+        pls_cv(X, y, max_components=20)
+    supported = info.value.supported
+    capped = pls_cv(X, y, max_components=20, cap=True)
+    assert capped.max_components == supported < 20
+    np.testing.assert_array_equal(capped.rmse, pls_cv(X, y, max_components=supported).rmse)

@@ -137,7 +137,7 @@ def _loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max
         rest = specimens[~held]
         largest_inner_fold = int(pd.Series(rest).value_counts().max())
         usable = _usable_components(len(rest) - largest_inner_fold, X.shape[1], max_components)
-        inner = pls_cv(X[~held], y[~held], max_components=usable, groups=rest)
+        inner = pls_cv(X[~held], y[~held], max_components=usable, groups=rest, cap=True)
         k = int(inner.best_n_components)
         chosen[str(specimen)] = k
         predictions[held] = outer.predictions[held, k]
@@ -155,14 +155,14 @@ def _condition_fit(
         raise InputError(f"{pad} {condition}: too few samples for {cv.upper()} cross-validation ({len(y)} trials)")
     nested: dict[str, int] = {}
     if cv == "loo":
-        result = pls_cv(X, y, max_components=usable, cv="loo")
+        result = pls_cv(X, y, max_components=usable, cv="loo", cap=True)
         out_of_fold = result.predictions[:, result.best_n_components]
     else:
         if len(np.unique(specimens)) < 4:
             raise InputError(f"{pad} {condition}: leave-one-specimen-out needs at least 4 specimens "
                              "(3 to choose the components of each held-out one)")
-        result = pls_cv(X, y, max_components=usable, groups=specimens)
-        out_of_fold, nested = _loso_nested(X, y, specimens, result, usable)
+        result = pls_cv(X, y, max_components=usable, groups=specimens, cap=True)
+        out_of_fold, nested = _loso_nested(X, y, specimens, result, result.max_components)
     image_columns = [c for c in meta.columns if c.startswith("image")]
     predictions = meta[["specimen", "repetition"]].copy()
     predictions["image"] = meta[image_columns].astype(str).agg(";".join, axis=1)

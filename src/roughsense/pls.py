@@ -29,7 +29,14 @@ class PLSInputError(InputError, ValueError):
 
 
 class PLSConfigError(ConfigError, ValueError):
-    """An impossible PLS option (too many components, a bad CV scheme); also a ValueError for scikit-learn."""
+    """An impossible PLS option (too many components, a bad CV scheme); also a ValueError for scikit-learn.
+
+    ``supported`` is set when the problem is too many components: the largest count the data support.
+    """
+
+    def __init__(self, message: str, *, supported: int | None = None) -> None:
+        super().__init__(message)
+        self.supported = supported
 
 
 # A covariance vector this much smaller than the first one is rounding noise: the Krylov space
@@ -164,7 +171,7 @@ class SIMPLS(RegressorMixin, BaseEstimator):
             Q[a] = y0 @ t
             W[:, a] = r / t_norm
             T[:, a] = t
-            u = y0.copy()  # plsregress: YS column, orthogonalised against earlier X scores
+            u = y0 * Q[a]  # plsregress: YS(:, a) = Y0 * q_a, then orthogonalised against earlier X scores
             if a:
                 u -= T[:, :a] @ (T[:, :a].T @ u)
             U[:, a] = u
@@ -275,13 +282,23 @@ def _fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
     raise PLSConfigError(f"cv must be 'loo', a whole number of folds, or None with groups=; got {cv!r}")
 
 
-def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None) -> PLSCVResult:
+def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
+           cap: bool = False) -> PLSCVResult:
     """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
 
     ``cv="loo"`` is the paper's leave-one-out; an int k gives shuffled K-fold (seeded by ``random_state``);
     ``groups=`` gives leave-one-group-out (e.g. leave-one-specimen-out; the default ``cv`` then means that).
     The result equals refitting :class:`SIMPLS` on every training fold, to rounding.
+    ``cap=True`` treats ``max_components`` as an upper bound: if the data (or the smallest training fold)
+    support fewer components, the curve stops there instead of raising -- for a default, not a user's choice.
     """
+    if cap:
+        try:
+            return pls_cv(X, y, max_components, cv, groups, random_state)
+        except PLSConfigError as exc:
+            if not exc.supported or exc.supported >= max_components:
+                raise
+            return pls_cv(X, y, exc.supported, cv, groups, random_state, cap=True)
     if groups is not None and cv == "loo":
         cv = None
     try:
@@ -304,11 +321,8 @@ def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=N
     err2 = (pred - y[:, None]) ** 2
     rmse = np.sqrt(err2.mean(axis=0))
     fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
-    if F > 1:
-        se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)
-        rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
-    else:  # pragma: no cover - _fold_ids never yields one fold
-        rmse_se = np.zeros_like(rmse)
+    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # _fold_ids always gives at least 2 folds
+    rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
     best = int(np.argmin(rmse[1:])) + 1
     within = np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])
     one_se = int(within[0]) + 1
@@ -354,7 +368,8 @@ def _cv_predictions(X: np.ndarray, y: np.ndarray, fid: np.ndarray, A: int) -> np
     if A > min(k_max, k_fold):
         raise PLSConfigError(
             f"max_components={A} is more than the data support (n_samples={n}, n_features={p}, rank={rank}, "
-            f"smallest training fold={int(n_train.min())} samples: at most {min(k_max, k_fold)} components)"
+            f"smallest training fold={int(n_train.min())} samples: at most {min(k_max, k_fold)} components)",
+            supported=min(k_max, k_fold),
         )
     dim = Z.shape[1]  # nothing is truncated: null directions simply never enter a Krylov space
 
@@ -487,5 +502,6 @@ def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int) -> No
         raise PLSConfigError(
             f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
             f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
-            f"use at most {k + 1}"
+            f"use at most {k + 1}",
+            supported=k + 1,
         )

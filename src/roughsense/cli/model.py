@@ -131,7 +131,9 @@ def register(app: typer.Typer) -> None:
         result = pls_cv(
             X, y, max_components=k_max,
             cv=None if scheme == "loso" else scheme, groups=groups, random_state=np.random.default_rng(seed),
+            cap=max_components is None,  # the default 20 is an upper bound; a user's explicit count is not
         )
+        k_max = result.max_components
         chosen = result.best_n_components if rule == "min" else result.one_se_n_components
         model = SIMPLS(n_components=chosen).fit(X, y)
 
