@@ -71,11 +71,11 @@ def register(app: typer.Typer) -> None:
         from ..errors import RoughsenseWarning
         from ..evaluation import CV_SCHEMES, analyse_study
         from ..report import write_report
-        from ..report.html import _check_out_dir
+        from ..report.html import check_report_dir
         from ..study import read_study
 
         started = time.perf_counter()
-        _check_out_dir(out, force)  # fail before minutes of work, not after
+        check_report_dir(out, force)  # fail before minutes of work, not after
         root = data if data is not None else _builtin_study(seed, jobs)
         study = read_study(root, require_ratings=True)
         definition = dataset.spectrum_for(study).feature_definition()

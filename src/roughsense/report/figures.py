@@ -1,11 +1,10 @@
 """The report's figures (matplotlib, Agg backend): the paper's Figs. 7-9 and a calibration plot.
 
-Each function returns a Figure so tests and users can inspect it; ``save_png`` writes it atomically.
+Each function returns a Figure so tests and users can inspect it; ``png_bytes`` renders it for the report.
 """
 from __future__ import annotations
 
 import io
-import os
 
 import matplotlib
 
@@ -14,19 +13,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .. import atomic, reference  # noqa: E402
+from .. import reference  # noqa: E402
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
 
-def save_png(figure, path: str | os.PathLike[str], *, dpi: int = 110) -> bytes:
-    """Render to PNG bytes, write them atomically and return them (for embedding)."""
+def png_bytes(figure, *, dpi: int = 110) -> bytes:
+    """Render a figure to PNG bytes and close it (no timestamp metadata, so reruns give the same bytes)."""
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight", metadata={"Software": None})
     plt.close(figure)
-    data = buffer.getvalue()
-    atomic.write_bytes(path, data)
-    return data
+    return buffer.getvalue()
 
 
 def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:

@@ -18,10 +18,6 @@ from .. import __version__, atomic, reference
 from ..errors import OutputExistsError
 from . import figures, tables
 
-REPORT_FILES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "components.csv",
-                "predictions.csv")
-
-
 def _environment() -> jinja2.Environment:
     return jinja2.Environment(
         loader=jinja2.PackageLoader("roughsense.report", "templates"),
@@ -32,7 +28,7 @@ def _environment() -> jinja2.Environment:
     )
 
 
-def _check_out_dir(out_dir: Path, force: bool) -> None:
+def check_report_dir(out_dir: Path, force: bool) -> None:
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputExistsError("exists and is not a folder", path=out_dir)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
@@ -64,12 +60,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     figure_list = []
 
     def add_figure(name: str, fig, caption: str) -> None:
-        import io
-
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
-        figures.plt.close(fig)
-        files[name] = buffer.getvalue()
+        files[name] = figures.png_bytes(fig)
         figure_list.append({"name": name, "caption": caption,
                             "data": base64.b64encode(files[name]).decode("ascii")})
 
@@ -127,7 +118,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
 
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False) -> Path:
     out_dir = Path(out_dir)
-    _check_out_dir(out_dir, force)
+    check_report_dir(out_dir, force)
     files = render_report(analysis, meta=meta)
     out_dir.mkdir(parents=True, exist_ok=True)
     # index.html last: its presence means the rest of the report is complete.
