@@ -8,32 +8,9 @@ import pytest
 from roughsense.errors import InputError
 from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
 
-
-def write_video(path, n_frames=12, size=(64, 48)):
-    """A short MJPG clip whose frames differ (a gray ramp per frame); returns the path."""
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, size)
-    assert writer.isOpened()
-    for k in range(n_frames):
-        frame = np.zeros((size[1], size[0], 3), np.uint8)
-        frame[..., 0] = 20 * k
-        frame[..., 1] = 250 - 20 * k
-        frame[:, : size[0] // 2, 2] = 10 * k
-        writer.write(frame)
-    writer.release()
-    return path
+from .videos import decoded_frames, write_video
 
 
-def decoded_frames(path):
-    """Every frame as OpenCV decodes it, converted to RGB: the independent reference."""
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame[:, :, ::-1])
-    capture.release()
-    return frames
 
 
 def test_video_file_frames_are_rgb_in_order(tmp_path):

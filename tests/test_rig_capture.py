@@ -20,27 +20,11 @@ from roughsense.rig.capture import image_name, plan_steps
 from roughsense.sensor import resolve_roi
 from roughsense.study import StudyWriter, read_study, roi_misfit
 
+from .videos import decoded_frames, write_video
+
 G = 9.80665
 
 
-def write_video(path, n_frames=12, size=(64, 48)):
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, size)
-    for k in range(n_frames):
-        frame = np.zeros((size[1], size[0], 3), np.uint8)
-        frame[..., 0] = 20 * k
-        frame[..., 1] = 250 - 20 * k
-        writer.write(frame)
-    writer.release()
-    return path
-
-
-def decoded_frames(path):
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    while (item := capture.read())[0]:
-        frames.append(item[1])
-    capture.release()
-    return frames  # BGR, as cv2.imread returns the saved PNGs
 
 
 @pytest.fixture
@@ -84,7 +68,7 @@ def test_full_protocol_writes_a_valid_study(tmp_path, video, run_cli, typed):
     assert all(s.utcoffset() == timedelta(0) for s in stamps) and stamps == sorted(stamps)
     assert abs(datetime.now(timezone.utc) - stamps[-1]) < timedelta(minutes=5)
     # each image is the next frame of the source, pixel for pixel
-    for rel, frame in zip(manifest["image"], decoded_frames(video)):
+    for rel, frame in zip(manifest["image"], decoded_frames(video, rgb=False)):
         np.testing.assert_array_equal(cv2.imread(str(out / rel)), frame)
 
 
@@ -151,7 +135,7 @@ def test_crash_between_image_and_row_leaves_an_orphan_that_is_not_overwritten(tm
     manifest = read_study(out).manifest
     assert list(manifest["image"]) == ["images/R3_fp_r01_1N.png", "images/R3_fp_r01_2N-2.png", "images/R3_fp_r01_3N.png"]
     # the rerun opened the source afresh, so the retake is its first frame
-    np.testing.assert_array_equal(cv2.imread(str(out / manifest["image"][1])), decoded_frames(video)[0])
+    np.testing.assert_array_equal(cv2.imread(str(out / manifest["image"][1])), decoded_frames(video, rgb=False)[0])
 
 
 def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path, video, run_cli, typed):
