@@ -27,8 +27,14 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--pads", "velvet"), "unknown pad 'velvet'"),
     (("--forces", "1,0"), "--forces: '0' must be positive"),
     (("--forces", "1,x"), "not a number"),
-    (("--repetitions", "0"), "--repetitions must be at least 1"),
-    (("--fingerprint-period-mm", "-1"), "period must be a positive"),
+    (("--repetitions", "0"), "--repetitions must be a whole number, at least 1"),
+    (("--fingerprint-period-mm", "-1"), "--fingerprint-period-mm must be a positive"),
+    (("--fingerprint-period-mm", "-1", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
+    (("--fingerprint-period-mm", "0", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
+    (("--fingerprint-period-mm", "nan", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
+    (("--ridge-height-mm", "inf", "--pads", "smooth"), "--ridge-height-mm must be a positive"),
+    (("--forces", "1,1.0000001"), "too close to tell apart"),
+    (("--seed", "-1"), "--seed must be"),
     (("--jobs", "0"), "--jobs must be at least 1"),
 ])
 def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
@@ -39,19 +45,61 @@ def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     assert not out.exists()  # nothing written
 
 
+def _tree(root):
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+_SMALL = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+
+
 def test_non_empty_folder_needs_force_and_keeps_user_files(run_cli, tmp_path):
     out = tmp_path / "s"
     out.mkdir()
     (out / "mine.csv").write_text("a,b\n1,2\n")
-    args = ("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1",
-            "--jobs", "1")
-    code, _, err = run_cli(*args)
+    code, _, err = run_cli("simulate", "--out", out, *_SMALL)
     assert code == 2 and "not empty" in err and "--force" in err
     assert [p.name for p in out.iterdir()] == ["mine.csv"]
-    code, _, err = run_cli(*args, "--force")
+    code, _, err = run_cli("simulate", "--out", out, *_SMALL, "--force")  # not a simulated study: still refused
+    assert code == 2 and "not a simulated study" in err and len(err.strip().splitlines()) == 1
+    assert [p.name for p in out.iterdir()] == ["mine.csv"]
+    sim = tmp_path / "sim"
+    assert run_cli("simulate", "--out", sim, *_SMALL, "--seed", "1")[0] == 0
+    (sim / "mine.csv").write_text("a,b\n1,2\n")
+    code, _, err = run_cli("simulate", "--out", sim, *_SMALL, "--force")  # an earlier simulation: replaced
     assert code == 0, err
-    assert (out / "mine.csv").read_text() == "a,b\n1,2\n"
-    assert len(read_study(out).manifest) == 1
+    assert (sim / "mine.csv").read_text() == "a,b\n1,2\n"
+    assert len(read_study(sim).manifest) == 1 and read_study(sim).extra["simulation"]["seed"] == 0
+
+
+def test_force_leaves_a_rig_study_untouched(run_cli, tmp_path):
+    import numpy as np
+    import pandas as pd
+
+    from roughsense.study import SensorSettings, StudyWriter
+
+    rig = StudyWriter(tmp_path / "rig")
+    rig.write_config(name="bench", sensor=SensorSettings(px_per_mm=34.9))
+    rig.write_specimens(pd.DataFrame({"specimen": ["R2"], "shape": ["rectangular"], "wavelength_mm": [2.0]}))
+    image = rig.write_image("smooth_R2_2N_r01.png", np.full((300, 400), 7, dtype=np.uint8))
+    rig.write_manifest(pd.DataFrame({"image": [image], "specimen": ["R2"], "pad": ["smooth"], "force_n": [2.0],
+                                     "repetition": [1]}))
+    rig.write_ratings(pd.DataFrame({"participant": ["P01"], "session": [1], "specimen": ["R2"], "rating": [0.4]}))
+    before = _tree(rig.root)
+    code, _, err = run_cli("simulate", "--out", rig.root, *_SMALL, "--force")
+    assert code == 2
+    assert err.startswith("roughsense: error:") and "not a simulated study" in err
+    assert len(err.strip().splitlines()) == 1
+    assert _tree(rig.root) == before
+
+
+def test_close_forces_into_an_earlier_simulation_change_nothing(run_cli, tmp_path):
+    sim = tmp_path / "sim"
+    assert run_cli("simulate", "--out", sim, *_SMALL)[0] == 0
+    before = _tree(sim)
+    code, _, err = run_cli("simulate", "--out", sim, "--pads", "smooth", "--specimens", "R2", "--repetitions", "1",
+                           "--forces", "1,1.0000001", "--force")
+    assert code == 2 and "1.0000001" in err
+    assert _tree(sim) == before
 
 
 def test_help_documents_specimen_specs(run_cli, monkeypatch):

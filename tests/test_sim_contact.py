@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from roughsense.errors import ConfigError
 from roughsense.sim import contact
 from roughsense.sim.pads import make_pad
 from roughsense.sim.specimens import PRESETS
@@ -107,6 +108,13 @@ def test_solution_is_complementary_and_balanced(seed, p):
     assert sol.pressure_pa.mean() == pytest.approx(p, rel=1e-9)
     assert (sol.pressure_pa >= 0).all() and (sol.gap_mm >= 0).all()
     assert (sol.gap_mm[sol.contact] == 0).all()
+    # ...and the same before the clean-up: the solver's own gap does not penetrate outside the contact, closes
+    # inside it, and its converged step carries the load without the final rescaling
+    tol = 1e-6 * np.ptp(h)
+    assert sol.raw_gap_mm[~sol.contact].min(initial=0.0) >= -tol
+    assert np.abs(sol.raw_gap_mm[sol.contact]).max() <= tol
+    assert sol.balance == pytest.approx(1.0, abs=1e-6)
+    assert sol.change < 1e-9
     # the elastic surface sits on the profile where it touches: u - h is constant over the contact
     u = np.fft.irfft(np.fft.rfft(sol.pressure_pa) * np.r_[0, 2 / (E_STAR * 2 * np.pi * k[1:])], n)
     lift = (u - h)[sol.contact]
@@ -120,3 +128,10 @@ def test_periodic_domain_holds_whole_periods():
     assert length == pytest.approx(17.5) and pad == pytest.approx(0.7)
     length, pad = contact.periodic_domain(3.0, 1 / math.pi)  # incommensurate: stretched to fit, by < 1 %
     assert length / pad == pytest.approx(round(length / pad)) and pad == pytest.approx(1 / math.pi, rel=0.01)
+
+
+def test_solver_that_runs_out_of_iterations_says_so():
+    x = _grid(3.0, 512)
+    with pytest.raises(contact.ContactNotConverged, match="did not converge in 3 iterations"):
+        contact.solve_periodic(0.01 * np.cos(2 * math.pi * x / 3.0), 3.0, 500.0, E_STAR, max_iter=3)
+    assert issubclass(contact.ContactNotConverged, ConfigError)  # one line at the CLI, exit 2

@@ -99,3 +99,24 @@ def test_render_puts_the_band_in_the_middle_and_quantises():
     assert frame.dtype == np.uint8 and frame.shape == (600, 400)
     assert frame[300, 150] == round(cam.contact_dn) and frame[300, 50] == round(cam.band_floor_dn)
     assert frame[10, 150] == round(cam.background_dn)
+
+
+@pytest.mark.parametrize("correlation_mm", [0.5, 1.0])
+def test_random_grating_has_the_stated_gaussian_autocorrelation(correlation_mm):
+    # exp(-(x/l)^2): e^-1 at lag l, e^-4 at lag 2l. 50 mm holds 50-100 correlation lengths; 40 profiles more.
+    n = 4096
+    step = 50.0 / n
+    acf = np.zeros(n)
+    for seed in range(40):
+        h = parse_specimen(f"rand:{correlation_mm:g}:0.1:{seed}").height_mm(np.arange(n) * step)
+        h = h - h.mean()
+        acf += np.fft.irfft(np.abs(np.fft.rfft(h)) ** 2, n)  # circular: the profile is periodic over the specimen
+    acf /= acf[0]
+    lag = np.arange(n) * step
+
+    def at(x):
+        return float(np.interp(x, lag, acf))
+
+    assert at(correlation_mm) == pytest.approx(math.exp(-1), abs=0.04)
+    assert at(correlation_mm / 2) == pytest.approx(math.exp(-0.25), abs=0.04)
+    assert at(2 * correlation_mm) == pytest.approx(math.exp(-4), abs=0.04)

@@ -113,12 +113,74 @@ def test_refuses_a_non_empty_folder_and_never_deletes(tmp_path):
     out = tmp_path / "s"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
+    for force in (False, True):  # --force replaces only an earlier simulation, never a folder of other files
+        with pytest.raises(OutputExistsError, match="not empty"):
+            SimulationRun(out, _config(), force=force)
+        assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    sim = tmp_path / "sim"
+    simulate_study(sim, _config(), jobs=1)
+    (sim / "notes.txt").write_text("mine")
     with pytest.raises(OutputExistsError):
-        SimulationRun(out, _config())
-    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
-    simulate_study(out, _config(pads=("smooth",)), force=True, jobs=1)
-    assert (out / "notes.txt").read_text() == "mine"
-    assert read_study(out).manifest.shape[0] == 4
+        SimulationRun(sim, _config())
+    simulate_study(sim, _config(pads=("smooth",)), force=True, jobs=1)
+    assert (sim / "notes.txt").read_text() == "mine"
+    assert read_study(sim).manifest.shape[0] == 4
+
+
+def test_force_never_writes_over_a_real_study(tmp_path):
+    from roughsense.study import SensorSettings, StudyWriter
+
+    rig = StudyWriter(tmp_path / "rig")
+    rig.write_config(name="bench", sensor=SensorSettings(px_per_mm=34.9), extra={"rig": {"camera": "C920"}})
+    rig.write_image("smooth_R2_2N_r01.png", np.full((300, 400), 7, dtype=np.uint8))
+    before = _files(rig.root)
+    with pytest.raises(OutputExistsError, match="not a simulated study"):
+        SimulationRun(rig.root, _config(pads=("smooth",), specimens=("R2",), forces_n=(2.0,)), force=True)
+    assert _files(rig.root) == before
+    # an interrupted simulation (only its empty images/ folder) may be re-run without --force... or with it
+    stub = tmp_path / "stub"
+    (stub / "images").mkdir(parents=True)
+    SimulationRun(stub, _config(), force=True)
+
+
+@pytest.mark.parametrize("forces", [(1.0, 1.0000001), (100.0001, 100.0002), (1e-7, 2e-7), (2.0, 2.0)])
+def test_forces_that_would_share_an_image_or_a_seed_are_refused(tmp_path, forces):
+    with pytest.raises(ConfigError, match="--forces"):
+        SimulationRun(tmp_path / "x", _config(forces_n=forces))
+    assert not (tmp_path / "x").exists()
+
+
+def test_specimens_whose_images_would_collide_are_refused(tmp_path):
+    with pytest.raises(ConfigError, match="same image"):
+        SimulationRun(tmp_path / "x", _config(specimens=("rect:3", "Rect:3")))
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("change", [dict(fingerprint_period_mm=-1.0), dict(fingerprint_period_mm=0.0),
+                                   dict(fingerprint_period_mm=math.nan), dict(ridge_height_mm=math.inf),
+                                   dict(ridge_height_mm=0.0), dict(seed=-1), dict(sessions=0)])
+def test_numeric_options_are_checked_even_when_no_pad_uses_them(tmp_path, change):
+    with pytest.raises(ConfigError):
+        SimulationRun(tmp_path / "x", _config(pads=("smooth",), **change))
+    assert not (tmp_path / "x").exists()
+
+
+def test_every_ridge_of_a_long_domain_gets_its_own_height_error():
+    from roughsense.sim.bench import MAX_RIDGES, draw_mount
+    from roughsense.sim.simulate import _ridges_in_domain, plan_trials
+
+    config = _config(pads=("fingerprint",), specimens=("rand:1:0.1",), forces_n=(1.0,), fingerprint_period_mm=0.2)
+    pads, specimens = config.validate()
+    assert _ridges_in_domain(pads[0], specimens[0]) == 250  # a 50 mm random grating under 0.2 mm ridges
+    mount = plan_trials(config, pads, specimens)[0].mount
+    offsets = np.asarray(mount.ridge_offsets_mm)
+    assert offsets.size == 250 and np.unique(offsets).size == 250
+    assert offsets.std() == pytest.approx(BenchNoise().ridge_height_sd_mm, rel=0.25)
+    # the extra ridges are drawn last, so a domain with few ridges draws exactly as before
+    short = draw_mount(np.random.default_rng(1), BenchNoise(), 1.0)
+    long = draw_mount(np.random.default_rng(1), BenchNoise(), 1.0, ridges=300)
+    assert long.ridge_offsets_mm[:MAX_RIDGES] == short.ridge_offsets_mm and len(long.ridge_offsets_mm) == 300
+    assert dataclasses.replace(long, ridge_offsets_mm=short.ridge_offsets_mm) == short
 
 
 @pytest.mark.parametrize("change", [dict(pads=("velvet",)), dict(specimens=("R9",)), dict(forces_n=(1.0, -2.0)),

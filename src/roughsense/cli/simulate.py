@@ -5,11 +5,11 @@ from pathlib import Path
 
 import typer
 
+from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
+from ..sim.specimens import PAPER_SPECIMENS
 from ._common import parse_float_list, parse_name_list, progress
 
 ORDER = 40
-
-_DEFAULT_SPECIMENS = "R2,R2.5,R3,R3.5,R4,R4.5,R5,C2,C2.5,C3,C3.5,C4,C4.5,C5"
 
 
 def register(app: typer.Typer) -> None:
@@ -17,19 +17,19 @@ def register(app: typer.Typer) -> None:
     def simulate(
         out: Path = typer.Option(..., "--out", help="Study folder to write (must be empty or new, unless --force)."),
         seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
-        pads: str = typer.Option("smooth,fingerprint", "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
+        pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
         specimens: str = typer.Option(
-            _DEFAULT_SPECIMENS, "--specimens",
+            ",".join(PAPER_SPECIMENS), "--specimens",
             help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens, in mm: "
                  "rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, "
                  "rand:CORRELATION_LENGTH:RMS[:SEED]. Example: R3,sin:3:0.5,rect:3.5:0.8.",
         ),
         forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
-        fingerprint_period_mm: float = typer.Option(1.0, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
-        ridge_height_mm: float = typer.Option(0.2, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
+        ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
-        force: bool = typer.Option(False, "--force", help="Write into a non-empty folder, replacing files of the same name (nothing is deleted)."),
+        force: bool = typer.Option(False, "--force", help="Write over an earlier simulated study, replacing files of the same name (nothing is deleted; a folder that is not a simulated study is refused)."),
     ) -> None:
         """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
 

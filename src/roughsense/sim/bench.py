@@ -7,7 +7,7 @@ exposure. Defaults are the calibration in docs/simulator.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from ..errors import ConfigError
 from .optics import Lighting
 
 GRAVITY = 9.80665
-MAX_RIDGES = 128  # ridge height errors drawn per mount (the periodic contact domain holds at most this many)
+MAX_RIDGES = 128  # ridge height errors drawn first per mount; a domain with more ridges draws the rest last
 
 
 @dataclass(frozen=True)
@@ -80,9 +80,15 @@ class Exposure:
     ridge_visibility: float = 0.0
 
 
-def draw_mount(rng: np.random.Generator, noise: BenchNoise, pad_period_mm: float | None) -> Mount:
+def draw_mount(rng: np.random.Generator, noise: BenchNoise, pad_period_mm: float | None, *,
+               ridges: int = MAX_RIDGES) -> Mount:
+    """One mount's placement, tilt, warp, spots and (for a ridged pad) the height error of each of ``ridges`` ridges.
+
+    The first ``MAX_RIDGES`` ridge errors are drawn before everything else and any further ones after, so the other
+    draws do not depend on how many ridges the contact domain holds (and earlier studies stay byte-identical).
+    """
     phase = float(rng.uniform(0.0, pad_period_mm)) if pad_period_mm else 0.0
-    return Mount(
+    mount = Mount(
         shift_mm=float(rng.normal(0.0, noise.position_sd_mm)),
         band_shift_px=float(rng.normal(0.0, noise.band_position_sd_px)),
         tilt=float(rng.normal(0.0, noise.tilt_sd)),
@@ -101,6 +107,10 @@ def draw_mount(rng: np.random.Generator, noise: BenchNoise, pad_period_mm: float
             for _ in range(int(rng.poisson(noise.spots_per_mount)))
         ),
     )
+    if pad_period_mm and ridges > MAX_RIDGES:
+        extra = rng.normal(0.0, noise.ridge_height_sd_mm, ridges - MAX_RIDGES)
+        mount = replace(mount, ridge_offsets_mm=mount.ridge_offsets_mm + tuple(float(v) for v in extra))
+    return mount
 
 
 def draw_exposure(rng: np.random.Generator, noise: BenchNoise, nominal_force_n: float) -> Exposure:

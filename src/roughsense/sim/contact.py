@@ -24,14 +24,27 @@ def nominal_pressure_pa(force_n: float) -> float:
     return force_n / (NOMINAL_AREA_MM2 * 1e-6)
 
 
+class ContactNotConverged(ConfigError):
+    """The solver ran out of iterations: the pad and profile chosen are beyond what it resolves."""
+
+
 @dataclass(frozen=True)
 class ContactSolution:
-    """Pressure (Pa) and gap (mm) on the periodic grid ``x_mm``."""
+    """Pressure (Pa) and gap (mm) on the periodic grid ``x_mm``.
+
+    ``gap_mm`` is clean (0 in contact, >= 0 elsewhere). The solver's own state is kept beside it so that tests can
+    check the physics rather than the clean-up: ``raw_gap_mm`` is the gap before clipping (~0 in contact, and no
+    penetration, >= 0 up to the tolerance, outside), ``balance`` the mean pressure over the target before the last
+    rescaling (1 when the converged step itself balances the load), ``change`` the last relative pressure change.
+    """
 
     x_mm: np.ndarray
     pressure_pa: np.ndarray
     gap_mm: np.ndarray
     iterations: int
+    raw_gap_mm: np.ndarray | None = None
+    balance: float = 1.0
+    change: float = 0.0
 
     @property
     def contact(self) -> np.ndarray:
@@ -46,7 +59,8 @@ def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: fl
                    *, tol: float = 1e-9, max_iter: int = 20000) -> ContactSolution:
     """Press a rigid periodic profile (heights in mm, peaks up) onto a half-space at a mean pressure.
 
-    Returns the contact pressure and the gap between the deformed pad and the profile.
+    Returns the contact pressure and the gap between the deformed pad and the profile. Raises
+    :class:`ContactNotConverged` if the relative pressure change is still above ``tol`` after ``max_iter`` steps.
     """
     h = np.asarray(height_mm, dtype=float)
     n = h.size
@@ -65,6 +79,7 @@ def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: fl
     g_old = 1.0
     delta = 0.0
     it = 0
+    balance, change, converged = 1.0, math.inf, False
     for it in range(1, max_iter + 1):
         gap = displacement(p) - s
         inside = p > 0
@@ -89,16 +104,21 @@ def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: fl
         if total <= 0:
             p = np.full(n, float(mean_pressure_pa))
             continue
+        balance = float(total / mean_pressure_pa)
         p *= mean_pressure_pa / total
         change = float(np.abs(p - p_prev).sum()) / (n * mean_pressure_pa)
         if change < tol and it > 2:
+            converged = True
             break
-    gap = displacement(p) - s
+    if not converged:
+        raise ContactNotConverged(f"the contact solver did not converge in {max_iter} iterations "
+                                  f"(relative pressure change {change:.1e}, tolerance {tol:.0e})")
+    raw = displacement(p) - s
     inside = p > 0
-    gap -= gap[inside].mean() if inside.any() else gap.min()
-    gap = np.where(inside, 0.0, np.maximum(gap, 0.0))
+    raw -= raw[inside].mean() if inside.any() else raw.min()
+    gap = np.where(inside, 0.0, np.maximum(raw, 0.0))
     x = np.arange(n) * (length_mm / n)
-    return ContactSolution(x, p, gap, it)
+    return ContactSolution(x, p, gap, it, raw_gap_mm=raw, balance=balance, change=change)
 
 
 def periodic_domain(specimen_period_mm: float, pad_period_mm: float | None, *, max_length_mm: float = 50.0

@@ -10,6 +10,7 @@ fitted to the paper's values, and are labelled ``model``.
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -110,16 +111,27 @@ def draw_log_ratings(gmean: float, sd: float, rng: np.random.Generator, *, panel
     return gmean * np.exp(mu + b + e)
 
 
-def simulate_panel(specimens: list[Specimen], rng: np.random.Generator, *, participants: int = 10,
-                   sessions: int = 3, reference: str = REFERENCE) -> pd.DataFrame:
-    """ratings.csv rows: every participant rates every specimen but the reference in each session."""
+def _rng(seed: int, spawn_key: tuple[int, ...], *key: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(*spawn_key, *key)))
+
+
+def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 10, sessions: int = 3,
+                   reference: str = REFERENCE, spawn_key: tuple[int, ...] = ()) -> pd.DataFrame:
+    """ratings.csv rows: every participant rates every specimen but the reference in each session.
+
+    Each specimen's ratings come from its own generator, keyed by ``seed``, ``spawn_key`` and the CRC32 of its name
+    (never Python's salted ``hash``), so they do not change when other specimens join the run; only the order of
+    presentation, which has no effect on the ratings, depends on the whole set.
+    """
     rows = []
     rated = [s for s in specimens if s.name != reference]
     draws = {}
     for specimen in rated:
         p = percept(specimen)
+        rng = _rng(seed, spawn_key, 1, zlib.crc32(specimen.name.encode("utf-8")))
         draws[specimen.name] = draw_log_ratings(p.gmean, p.sd, rng, participants=participants, sessions=sessions)[0]
-    session_order = [rng.permutation(len(rated)) for _ in range(participants * sessions)]
+    order_rng = _rng(seed, spawn_key, 2)
+    session_order = [order_rng.permutation(len(rated)) for _ in range(participants * sessions)]
     for i in range(participants):
         for k in range(sessions):
             for j in session_order[i * sessions + k]:  # specimens were presented in random order

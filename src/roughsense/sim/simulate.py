@@ -1,13 +1,15 @@
 """Run the simulated experiment and write it as a study folder (the same contract the rig writes).
 
-Randomness: every mount, exposure and the panel get their own ``SeedSequence`` child keyed by the master seed and
-the *names* of pad, specimen, repetition and force, so results do not depend on ``jobs``, on scheduling, or on
-which other specimens are in the run.
+Randomness: every mount, exposure and each specimen's panel ratings get their own ``SeedSequence`` child keyed by
+the master seed and the *names* of pad, specimen, repetition and force, so results do not depend on ``jobs``, on
+scheduling, or on which other specimens are in the run.
 """
 from __future__ import annotations
 
 import math
+import numbers
 import os
+import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -18,11 +20,11 @@ import numpy as np
 import pandas as pd
 
 from .. import atomic
-from ..errors import ConfigError
-from ..study import SensorSettings, StudyWriter
+from ..errors import ConfigError, OutputExistsError
+from ..study import IMAGES_DIR, STUDY_TOML, SensorSettings, StudyWriter
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
-from .optics import Camera, render
+from .optics import Camera, bin_to_pixels, render
 from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
 from .panel import REFERENCE, percept, simulate_panel
 from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
@@ -62,14 +64,16 @@ class SimulationConfig:
         for f in self.forces_n:
             if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
                 raise ConfigError(f"--forces: every force must be a positive number of newtons, got {f!r}")
-        if len(set(self.forces_n)) != len(self.forces_n):
-            raise ConfigError("--forces: forces must be distinct")
-        if self.repetitions < 1:
-            raise ConfigError(f"--repetitions must be at least 1, got {self.repetitions}")
-        if self.seed < 0:
-            raise ConfigError(f"--seed must be >= 0, got {self.seed}")
-        if self.participants < 2 or self.sessions < 1:
-            raise ConfigError("the panel needs at least 2 participants and 1 session")
+        _check_force_labels(self.forces_n)
+        # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
+        for option, value in (("--fingerprint-period-mm", self.fingerprint_period_mm),
+                              ("--ridge-height-mm", self.ridge_height_mm)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"{option} must be a positive number of mm, got {value!r}")
+        for option, value, least in (("--repetitions", self.repetitions, 1), ("--seed", self.seed, 0),
+                                     ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < least:
+                raise ConfigError(f"{option} must be a whole number, at least {least}, got {value!r}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
@@ -110,6 +114,41 @@ def _key(text: str) -> int:
     return zlib.crc32(text.encode("utf-8"))
 
 
+def force_label(force_n: float) -> str:
+    """How a force appears in image names (``2N``, ``2.5N``)."""
+    return f"{force_n:g}N"
+
+
+def force_key(force_n: float) -> int:
+    """A force's part of the seed keys (micronewtons)."""
+    return int(round(force_n * 1e6))
+
+
+def _check_force_labels(forces_n: Sequence[float]) -> None:
+    """Two forces that share an image name or a seed key would overwrite each other's images (or draws)."""
+    for what, label in (("image name", force_label), ("seed key", force_key)):
+        seen: dict[object, float] = {}
+        for f in forces_n:
+            if label(f) in seen:
+                other = seen[label(f)]
+                if other == f:
+                    raise ConfigError(f"--forces: {f:g} N is listed twice")
+                raise ConfigError(f"--forces: {other!r} N and {f!r} N are too close to tell apart (both give the "
+                                  f"{what} {label(f)!r}); give forces that differ in their first six significant digits")
+            seen[label(f)] = f
+
+
+def _check_unique_images(trials: Sequence["Trial"]) -> None:
+    """Planned image names must differ (also in case: a case-insensitive disk would merge them)."""
+    seen: dict[str, str] = {}
+    for t in trials:
+        key = t.image.casefold()
+        if key in seen:
+            raise ConfigError(f"two trials would write the same image {t.image!r} (and {seen[key]!r}): "
+                              "give specimens whose names differ by more than case or punctuation")
+        seen[key] = t.image
+
+
 def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
 
@@ -126,14 +165,23 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
         for specimen in specimens:
             for rep in range(1, config.repetitions + 1):
                 mount_key = (1, _key(pad.name), _key(specimen.name), rep)
-                mount = draw_mount(_rng(config.seed, *mount_key), config.bench, pad.period_mm if pad.has_ridges else None)
+                mount = draw_mount(_rng(config.seed, *mount_key), config.bench, pad.period_mm if pad.has_ridges else None,
+                                   ridges=_ridges_in_domain(pad, specimen))
                 for force in forces:
-                    fkey = int(round(force * 1e6))
+                    fkey = force_key(force)
                     exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
-                    name = f"{pad.name}_{_safe(specimen.name)}_{force:g}N_r{rep:02d}.png"
+                    name = f"{pad.name}_{_safe(specimen.name)}_{force_label(force)}_r{rep:02d}.png"
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
+
+
+def _ridges_in_domain(pad: Pad, specimen: Specimen) -> int:
+    """Fingerprint ridges in the periodic contact domain: each needs its own height error per mount."""
+    if not pad.has_ridges:
+        return 0
+    length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm, max_length_mm=SPECIMEN_LENGTH_MM)
+    return max(1, round(length / pad_period))
 
 
 def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float) -> tuple[float, np.ndarray]:
@@ -143,10 +191,16 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float) -
     x = np.arange(n) * (length / n)
     height = specimen.height_mm(x)
     if pad.has_ridges:
-        ridges = max(1, round(length / pad_period))
-        offsets = np.asarray(mount.ridge_offsets_mm[:ridges]) if len(mount.ridge_offsets_mm) >= ridges else None
+        ridges = _ridges_in_domain(pad, specimen)
+        if len(mount.ridge_offsets_mm) < ridges:  # plan_trials draws one per ridge: never silently drop them
+            raise RuntimeError(f"mount has {len(mount.ridge_offsets_mm)} ridge height errors for {ridges} ridges")
+        offsets = np.asarray(mount.ridge_offsets_mm[:ridges])
         height = height + pad.height_mm(x - mount.pad_phase_mm, period_mm=pad_period, ridge_offsets_mm=offsets)
-    solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
+    try:
+        solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
+    except contact.ContactNotConverged as exc:
+        raise ConfigError(f"pad {pad.name!r} on specimen {specimen.name!r} at {pressure_pa:.0f} Pa: {exc.message}; "
+                          "try a smoother specimen or a different pad") from None
     return length, solution.gap_mm
 
 
@@ -194,8 +248,7 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
         relief = pad.height_mm(u - mount.pad_phase_mm, period_mm=pad_period)
         crests = 1.0 + relief / pad.ridge_height_mm  # 1 on the crests, 0 in the grooves
         brightness += trial.exposure.ridge_visibility * crests * np.clip(1.0 - brightness, 0.0, 1.0)
-    line = brightness.reshape(w_px, SUBSAMPLES_PER_PX).mean(axis=1)
-    return line, float(touching.mean())
+    return bin_to_pixels(brightness, w_px), float(touching.mean())
 
 
 def render_trial(trial: Trial) -> tuple[np.ndarray, float]:
@@ -250,7 +303,10 @@ class SimulationRun:
         self.pads, self.specimens = config.validate()
         self.jobs = max(1, int(jobs if jobs is not None else (os.cpu_count() or 1)))
         self.trials = plan_trials(config, self.pads, self.specimens)
+        _check_unique_images(self.trials)
         self.force = force
+        if force:
+            check_overwritable(out)
         self.writer = StudyWriter(out, force=force)  # refuses a non-empty folder unless force; never deletes
         self.root = self.writer.root
 
@@ -265,8 +321,9 @@ class SimulationRun:
                             forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
         table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s).source} for s in self.specimens])
         writer.write_specimens(table)
-        writer.write_ratings(simulate_panel(self.specimens, _rng(config.seed, 4), participants=config.participants,
-                                            sessions=config.sessions, reference=REFERENCE))
+        writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=(4,),
+                                            participants=config.participants, sessions=config.sessions,
+                                            reference=REFERENCE))
 
     def __iter__(self) -> Iterator[str]:
         marker = self.root / COMPLETE_MARKER
@@ -297,6 +354,32 @@ class SimulationRun:
         })
         self.writer.write_manifest(manifest)  # a study without its manifest is visibly incomplete
         atomic.write_text(marker, f"seed = {self.config.seed}\nimages = {len(results)}\n")
+
+
+def is_simulated_study(root: str | os.PathLike[str]) -> bool:
+    """True if ``root`` holds a study.toml with a ``[simulation]`` table (the simulator wrote it)."""
+    try:
+        with (Path(root) / STUDY_TOML).open("rb") as handle:
+            return isinstance(tomllib.load(handle).get("simulation"), dict)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return False
+
+
+def check_overwritable(root: str | os.PathLike[str]) -> None:
+    """``--force`` replaces an earlier simulation's files, never a real study's or other user files' folder.
+
+    A folder is fine if it is new, empty (an empty ``images/`` counts as empty: a run stopped before its first
+    file), or a simulated study.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        return
+    images = root / IMAGES_DIR
+    entries = [p for p in root.iterdir() if not (p == images and p.is_dir() and not any(p.iterdir()))]
+    if entries and not is_simulated_study(root):
+        raise OutputExistsError("folder is not empty and is not a simulated study (no study.toml with a "
+                                "[simulation] table); --force only replaces an earlier simulation, so choose a new "
+                                "or empty folder", path=root)
 
 
 def with_image_size(config: SimulationConfig, width_px: int, height_px: int) -> SimulationConfig:

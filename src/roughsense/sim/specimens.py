@@ -74,12 +74,14 @@ class Specimen:
         return self._random_height(x)
 
     def _random_height(self, x: np.ndarray) -> np.ndarray:
-        # Gaussian random profile with Gaussian autocorrelation of length `wavelength_mm`, periodic over the specimen.
+        # Gaussian random profile with Gaussian autocorrelation exp(-(x/l)^2), l = `wavelength_mm`, periodic over the
+        # specimen. Its power spectrum is proportional to exp(-(pi k l)^2) (k in cycles/mm), so the amplitude of each
+        # Fourier coefficient is the square root of that.
         n = 4096
         length = SPECIMEN_LENGTH_MM
         rng = np.random.default_rng(self.seed)
         k = np.fft.rfftfreq(n, d=length / n)
-        spectrum = np.exp(-((math.pi * k * self.wavelength_mm) ** 2) / 4.0)
+        spectrum = np.exp(-((math.pi * k * self.wavelength_mm) ** 2) / 2.0)
         spectrum[0] = 0.0
         coeff = spectrum * (rng.standard_normal(k.size) + 1j * rng.standard_normal(k.size))
         profile = np.fft.irfft(coeff, n)
