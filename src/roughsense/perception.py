@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import ConfigError, InputError, RoughsenseWarning
-from .study import DEFAULT_REFERENCE, RATING_COLUMNS, csv_line, read_table
+from .study import DEFAULT_REFERENCE, RATING_COLUMNS, csv_line, read_table, refuse_unknown
 
 #: The paper's specimens: rectangular (R) and circular (C) gratings, wavelength 2-5 mm.
 PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5))
@@ -107,13 +107,8 @@ def _validate(
         )
     if specimens is not None:
         known = set(specimens)
-        unknown = ~frame["specimen"].isin(known)
-        if unknown.any():
-            i = np.flatnonzero(unknown)[0]
-            raise InputError(
-                f"unknown specimen {frame['specimen'].iloc[i]!r}; expected one of {', '.join(sorted(known, key=natural_key))}",
-                path=path, row=_line(frame, i), column="specimen",
-            )
+        refuse_unknown(frame, "specimen", known, path, line=lambda i: _line(frame, i),
+                       hint=f"expected one of {', '.join(sorted(known, key=natural_key))}")
     keys = list(_TEXT_COLUMNS)
     duplicated = frame.duplicated(keys, keep="first")
     if duplicated.any():

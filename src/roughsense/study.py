@@ -57,6 +57,16 @@ def csv_line(index: int) -> int:
     return int(index) + 2
 
 
+def refuse_unknown(frame: pd.DataFrame, column: str, known, path: Path | None, *, hint: str,
+                   line=csv_line) -> None:
+    """Refuse the first value of ``column`` not in ``known``, naming its line; ``hint`` says where names come from."""
+    known = set(known)
+    unknown = ~frame[column].isin(known)
+    if unknown.any():
+        i = int(np.flatnonzero(unknown)[0])
+        raise InputError(f"unknown {column} {frame[column].iloc[i]!r} ({hint})", path=path, row=line(i), column=column)
+
+
 def _check_row_widths(path: Path) -> None:
     """Refuse a data row with non-empty fields beyond the header's, naming its line.
 
@@ -323,14 +333,7 @@ def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str
         text=["image", "specimen", "pad"],
     )
     if known_specimens is not None:
-        known = set(known_specimens)
-        unknown = ~frame["specimen"].isin(known)
-        if unknown.any():
-            i = np.flatnonzero(unknown)[0]
-            raise InputError(
-                f"unknown specimen {frame['specimen'].iloc[i]!r} (not in {SPECIMENS_CSV})",
-                path=path, row=csv_line(i), column="specimen",
-            )
+        refuse_unknown(frame, "specimen", known_specimens, path, hint=f"not in {SPECIMENS_CSV}")
     dup = frame["image"].duplicated()
     if dup.any():
         i = np.flatnonzero(dup)[0]
@@ -416,13 +419,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     ratings_path = root / RATINGS_CSV
     if ratings_path.exists():
         ratings = read_ratings_table(ratings_path)
-        unknown = ~ratings["specimen"].isin(set(specimens["specimen"]))
-        if unknown.any():
-            i = np.flatnonzero(unknown)[0]
-            raise InputError(
-                f"unknown specimen {ratings['specimen'].iloc[i]!r} (not in {SPECIMENS_CSV})",
-                path=ratings_path, row=csv_line(i), column="specimen",
-            )
+        refuse_unknown(ratings, "specimen", specimens["specimen"], ratings_path, hint=f"not in {SPECIMENS_CSV}")
     elif require_ratings:
         raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
 
