@@ -68,14 +68,18 @@ def _gmean_of_medians(ratings: pd.DataFrame) -> pd.Series:
     return medians.groupby("specimen").apply(lambda m: float(np.exp(np.log(m).mean())))
 
 
+def _regression_data(study, features, pad: str, condition: str):
+    """Rows, X and y of one pad and condition, built independently of roughsense.dataset."""
+    rows = features[(features.pad == pad) & (features.condition == condition)].reset_index(drop=True)
+    gmean = _gmean_of_medians(study.ratings)
+    gmean["R3"] = 1.0
+    return rows, rows[FREQ_COLUMNS].to_numpy(), rows["specimen"].map(gmean).to_numpy()
+
+
 def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
     analysis, study, features = analysis_and_inputs
     fit = analysis.fit("smooth", "2N", "loo")
-    rows = features[(features.pad == "smooth") & (features.condition == "2N")].reset_index(drop=True)
-    gmean = _gmean_of_medians(study.ratings)
-    gmean["R3"] = 1.0
-    X = rows[FREQ_COLUMNS].to_numpy()
-    y = rows["specimen"].map(gmean).to_numpy()
+    rows, X, y = _regression_data(study, features, "smooth", "2N")
     expected = np.empty(len(y))
     for i in range(len(y)):
         keep = np.arange(len(y)) != i
@@ -91,10 +95,7 @@ def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inpu
     """Nested LOSO, recomputed with scikit-learn: inner LOSO over the other specimens picks k, then refit."""
     analysis, study, features = analysis_and_inputs
     fit = analysis.fit("fingerprint", "1N", "loso")
-    rows = features[(features.pad == "fingerprint") & (features.condition == "1N")].reset_index(drop=True)
-    gmean = _gmean_of_medians(study.ratings)
-    gmean["R3"] = 1.0
-    X, y = rows[FREQ_COLUMNS].to_numpy(), rows["specimen"].map(gmean).to_numpy()
+    rows, X, y = _regression_data(study, features, "fingerprint", "1N")
     specimens = rows["specimen"].to_numpy()
     held = specimens == "C4"
     Xr, yr, sr = X[~held], y[~held], specimens[~held]
