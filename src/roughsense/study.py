@@ -152,7 +152,7 @@ def read_text(path: Path, *, max_bytes: int | None = None) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
-        raise InputError(f"is not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}); save it as UTF-8",
+        raise InputError(f"is not UTF-8 text (byte 0x{raw[exc.start]:02x}); save it as UTF-8",
                          path=path, row=line) from None
 
 
@@ -552,6 +552,8 @@ def image_path_problem(relative: str, root: Path) -> tuple[Path | None, str | No
         return None, "contains a NUL character"
     if PurePosixPath(text).is_absolute() or PureWindowsPath(text).is_absolute() or PureWindowsPath(text).drive:
         return None, f"{text!r} is an absolute path; manifest image paths are relative to the study folder"
+    if ".." in re.split(r"[/\\]", text):
+        return None, f"{text!r} leads outside the study folder ('..' is not allowed in manifest image paths)"
     try:
         resolved = (root / text).resolve()
     except (OSError, RuntimeError, ValueError) as exc:

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError, RoughsenseWarning
-from ._common import parse_name_list
+from ._common import check_seed, parse_name_list
 
 ORDER = 30
 
@@ -118,6 +118,7 @@ def register(app: typer.Typer) -> None:
         from ..atomic import check_can_write, write_csv, write_text
         from ..perception import PAPER_SPECIMENS, make_schedule, render_sheet
 
+        check_seed(seed)
         fmt = None
         if sheet is not None:
             suffix = sheet.suffix.lower()
