@@ -57,7 +57,7 @@ Roi = str | tuple[int, int, int, int]
 DEFAULT_MAX_PIXELS = 100_000_000
 
 #: Largest force accepted anywhere (manifest readings, protocol forces, --forces). A fingertip presses with
-#: a few newtons (the paper: 1-3 N); 100 N is 1 kg-force per cm^2 on a 50 x 10 mm specimen, far beyond it.
+#: a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa, about the pad's own modulus.
 MAX_FORCE_N = 100.0
 
 #: Largest repetition number: bounds the work a manifest or an option can ask for (the paper uses 10).
