@@ -16,7 +16,7 @@ import warnings
 
 import typer
 
-from ..errors import RoughsenseError
+from ..errors import RoughsenseError, one_line
 
 app = typer.Typer(
     name="roughsense",
@@ -62,13 +62,13 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     from ..errors import RoughsenseWarning
 
     if issubclass(category, RoughsenseWarning):
-        print(f"roughsense: warning: {message}", file=sys.stderr)
+        print(f"roughsense: warning: {one_line(message)}", file=sys.stderr)
     else:
         _python_showwarning(message, category, filename, lineno, file, line)
 
 
 def _fail(message: str) -> int:
-    print(f"roughsense: error: {message}", file=sys.stderr)
+    print(f"roughsense: error: {one_line(message)}", file=sys.stderr)
     return 2
 
 
@@ -104,7 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         if _state["debug"]:
             traceback.print_exc()
             return 1
-        print(f"roughsense: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)", file=sys.stderr)
+        print(f"roughsense: internal error: {type(exc).__name__}: {one_line(exc)} (rerun with --debug for details)",
+              file=sys.stderr)
         return 1
     finally:
         _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))

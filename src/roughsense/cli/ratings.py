@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import ConfigError, RoughsenseWarning
+from ..errors import ConfigError, RoughsenseWarning, one_line
 from ._common import check_seed, parse_name_list
 
 ORDER = 30
@@ -87,7 +87,7 @@ def register(app: typer.Typer) -> None:
             summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
         for item in caught:
             if issubclass(item.category, RoughsenseWarning):
-                print(f"roughsense: warning: {item.message}", file=sys.stderr)
+                print(f"roughsense: warning: {one_line(item.message)}", file=sys.stderr)
             else:
                 warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
         write_csv(out, summary)
