@@ -632,9 +632,14 @@ def drop_unrated(frame: pd.DataFrame) -> pd.DataFrame:
     """
     if "rating" not in frame.columns:
         return frame
-    raw = frame["rating"]
-    blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
-    return frame[~blank.to_numpy(bool)]
+    blank = np.fromiter((_is_blank(v) for v in frame["rating"].to_numpy(object)), dtype=bool, count=len(frame))
+    return frame[~blank]
+
+
+def _is_blank(value: object) -> bool:
+    if isinstance(value, str):
+        return not value.strip()
+    return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
 
 
 def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
