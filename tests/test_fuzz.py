@@ -27,6 +27,8 @@ from hypothesis import strategies as st
 
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
+pytestmark = pytest.mark.slow  # in CI all the same (`make test` runs every test); about 20-40 s in all
+
 CSV_FILES = ("manifest.csv", "specimens.csv", "ratings.csv")
 
 HOSTILE_CELLS = [

@@ -37,6 +37,16 @@ def sandbox(base, tmp_path):
     return root
 
 
+@pytest.fixture()
+def quick_figures(monkeypatch):
+    """Skip rasterising the report's figures (test_report covers them); the tables are what these tests compare."""
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+
+    monkeypatch.setattr(figures, "png_bytes", lambda figure, dpi=110: (plt.close(figure), b"\x89PNG")[1])
+
+
 def tree(root: Path) -> dict[str, tuple[int, int]]:
     """Every file under ``root`` with its size and mtime: what a run may not change outside its --out."""
     return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)
@@ -269,7 +279,8 @@ def test_a_truncated_cache_entry_is_recomputed(tmp_path, monkeypatch):
         assert cache.cached_frame("k", compute)[1]  # repaired
 
 
-def test_study_over_a_truncated_cache_entry_gives_the_same_report(run_cli, sandbox, tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_study_over_a_truncated_cache_entry_gives_the_same_report(run_cli, sandbox, tmp_path, monkeypatch, quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     assert run_cli(*study_args(sandbox, tmp_path / "r1"))[0] == 0
     (entry,) = (tmp_path / "cache" / "features").glob("*.csv")
@@ -459,7 +470,8 @@ def test_a_model_file_over_10_mb_is_refused_without_reading_it(run_cli, base, tm
     assert "larger than 10 MB" in line and not reads
 
 
-def test_a_blank_rating_means_the_same_to_ratings_and_study(run_cli, sandbox, tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_a_blank_rating_means_the_same_to_ratings_and_study(run_cli, sandbox, tmp_path, monkeypatch, quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     ratings = pd.read_csv(sandbox / "ratings.csv", dtype=str, keep_default_na=False)
     ratings.loc[0, "rating"] = ""
