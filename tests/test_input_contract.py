@@ -193,12 +193,14 @@ def real_gray_png(width: int, height: int) -> bytes:
 def no_decoding(monkeypatch):
     """Fail the test if anything tries to decode pixels."""
     import roughsense.images as images
+    import roughsense.sensor as sensor  # imported first: it binds decode_png_top_rows by name
 
     def refuse(*args, **kwargs):
         raise AssertionError("an image was decoded")
 
     monkeypatch.setattr(images, "_opencv", refuse)
-    monkeypatch.setattr(images, "decode_png_top_rows", refuse)
+    for module in (images, sensor):
+        monkeypatch.setattr(module, "decode_png_top_rows", refuse)
 
 
 def test_a_tiny_png_claiming_60000_squared_pixels_is_refused_before_decoding(run_cli, tmp_path, no_decoding):
@@ -221,12 +223,23 @@ def test_a_real_large_image_in_a_small_file_is_refused_before_decoding(run_cli, 
 def test_the_pixel_limit_is_configurable(run_cli, sandbox, tmp_path):
     image = next((sandbox / "images").iterdir())
     assert one_error(*run_cli("features", image, "--out", tmp_path / "f.csv", "--max-pixels", "1000")[::2])
-    assert run_cli("features", image, "--out", tmp_path / "g.csv", "--max-pixels", str(1920 * 170))[0] == 0
+    code, _, err = run_cli("features", image, "--out", tmp_path / "g.csv", "--max-pixels", str(1920 * 170))
+    assert code == 0, err
     text = (sandbox / "study.toml").read_text().replace("[sensor]\n", "[sensor]\nmax_pixels = 300000\n")
     (sandbox / "study.toml").write_text(text)
     line = one_error(*run_cli("features", "--study", sandbox, "--out", tmp_path / "h.csv")[::2])
     assert "above the limit of 0.3 Mpx" in line
     assert run_cli("features", "--study", sandbox, "--out", tmp_path / "i.csv", "--max-pixels", "400000")[0] == 0
+
+
+def test_a_file_too_large_for_any_image_within_the_limit_is_not_read(run_cli, tmp_path, no_decoding, monkeypatch):
+    huge = tmp_path / "huge.png"
+    huge.write_bytes(png_claiming(100, 100))
+    with huge.open("r+b") as handle:
+        handle.truncate(8 * 1000 + (16 << 20) + 1)  # sparse: 16 MB of nothing after a small header
+    monkeypatch.setattr(np, "fromfile", lambda *a, **k: pytest.fail("the file was read"))
+    line = one_error(*run_cli("features", huge, "--out", tmp_path / "f.csv", "--max-pixels", "1000")[::2])
+    assert "more than any image within the pixel limit" in line
 
 
 @pytest.mark.parametrize("ext", [".png", ".jpg", ".tif", ".bmp"])

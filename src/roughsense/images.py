@@ -63,10 +63,21 @@ def _png_is_complete(data: np.ndarray) -> bool:
     return False
 
 
-def read_bytes(path: str | os.PathLike[str]) -> np.ndarray:
+def max_file_bytes(max_pixels: int) -> int:
+    """Largest image file read for a pixel limit: 8 bytes per pixel (16-bit RGBA, stored raw) plus 16 MB of headers
+    and metadata. A bigger file cannot be an image within the limit, so it is refused before it is read whole."""
+    return 8 * int(max_pixels) + (16 << 20)
+
+
+def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """The file's bytes, with the usual failures turned into one InputError naming the file."""
     path = Path(path)
     try:
+        size = os.stat(path).st_size
+        if size > max_file_bytes(max_pixels):
+            raise InputError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel limit of "
+                             f"{max_pixels / 1e6:.3g} Mpx can take; raise [sensor] max_pixels if it is genuine",
+                             path=path)
         data = np.fromfile(path, dtype=np.uint8)
     except FileNotFoundError:
         raise InputError("image file not found", path=path) from None
@@ -254,7 +265,7 @@ def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
 
     The RGB array is a reversed-channel view of OpenCV's BGR buffer: no copy of the full frame.
     """
-    return decode(read_bytes(path), path, max_pixels=max_pixels)
+    return decode(read_bytes(path, max_pixels=max_pixels), path, max_pixels=max_pixels)
 
 
 def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,

@@ -215,7 +215,7 @@ class _Plan:
         where = "" if is_file or index is None else f"image {index} of the batch: "
         pixels = box = None
         if is_file:
-            data = read_bytes(image)
+            data = read_bytes(image, max_pixels=self.max_pixels)
             check_pixels(data, self.max_pixels, image)  # before any decoding: a small file may claim gigapixels
             pixels, box = self._top_rows_only(data, name)
             if pixels is None:
