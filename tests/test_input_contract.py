@@ -503,3 +503,18 @@ def test_a_blank_rating_means_the_same_to_ratings_and_study(run_cli, sandbox, tm
     kept = ratings.iloc[1:].astype({"rating": float})
     expected = kept[kept["specimen"] == blank["specimen"]].groupby("participant")["rating"].median()
     assert summary.loc[blank["specimen"], "gmean"] == pytest.approx(float(np.exp(np.log(expected).mean())))
+
+
+@given(st.text(alphabet=st.characters(exclude_categories=("Cs",)), max_size=30))
+@settings(max_examples=200)
+def test_study_toml_strings_round_trip_whatever_they_hold(text):
+    """The writer's TOML escapes quotes, backslashes and control characters (a folder name may hold any)."""
+    import tomllib
+
+    assert tomllib.loads(contract.dump_toml({"study": {"name": text}}))["study"]["name"] == text
+
+
+def test_a_non_default_pixel_limit_is_written_to_study_toml(tmp_path):
+    writer = contract.StudyWriter(tmp_path / "s")
+    writer.write_config(name="s", sensor=contract.SensorSettings(max_pixels=5000))
+    assert contract.read_config(tmp_path / "s" / "study.toml")["sensor"]["max_pixels"] == 5000

@@ -731,8 +731,11 @@ def _toml_value(value: object) -> str:
         return str(int(value))
     if isinstance(value, (float, np.floating)):
         return repr(float(value))
-    if isinstance(value, str):
-        escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+    if isinstance(value, str):  # a TOML basic string: quotes, backslashes and control characters escaped
+        escaped = "".join(
+            "\\" + ch if ch in '"\\' else f"\\u{ord(ch):04X}" if ord(ch) < 0x20 or ord(ch) == 0x7F else ch
+            for ch in value
+        )
         return f'"{escaped}"'
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
@@ -779,7 +782,8 @@ class StudyWriter:
         roi = sensor.roi if isinstance(sensor.roi, str) else list(sensor.roi)
         tables: dict[str, Mapping[str, object]] = {
             "study": {"name": name, "reference_specimen": reference_specimen},
-            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi},
+            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi,
+                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != DEFAULT_MAX_PIXELS else {})},
             "protocol": {"forces_n": [float(f) for f in forces_n]},
         }
         tables.update(extra or {})
