@@ -75,6 +75,6 @@ def register(app: typer.Typer) -> None:
         for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
             typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
                        f"{analysis.fit(pad, condition, 'loo').best_n_components} components (LOO)")
-        where = f" (the built-in study, seed {seed}: --data builtin --seed {seed}, or --study builtin for fit)" if builtin else ""
+        where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
