@@ -73,3 +73,17 @@ def test_a_warning_inside_a_stage_starts_a_new_line(announce_at_once, capsys):
             _show_warning(RoughsenseWarning("participant P3 missed a session"), RoughsenseWarning, "x.py", 1)
     lines = capsys.readouterr().err.splitlines()
     assert lines == ["roughsense: cross-validating (3) ...", "roughsense: warning: participant P3 missed a session"]
+
+
+def test_on_a_terminal_a_bar_with_count_and_estimate(monkeypatch, capsys):
+    import io
+
+    from rich.console import Console
+
+    screen = io.StringIO()
+    monkeypatch.setattr(_common, "_interactive", lambda: True)
+    monkeypatch.setattr(_common, "_console", lambda: Console(file=screen, force_terminal=True, width=100))
+    assert list(_common.progress(_slow(3), total=3, description="simulating")) == [0, 1, 2]
+    drawn = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.getvalue())
+    assert "simulating" in drawn and "3/3" in drawn and "eta" in drawn
+    assert capsys.readouterr().err == ""  # the bar, not the log line
