@@ -45,6 +45,7 @@ def test_fit_and_features_take_builtin_with_seed(run_cli, cache, tmp_path, monke
     assert list(features["image"]) == list(manifest["image"])
 
 
+@pytest.mark.slow
 def test_study_prints_the_folder_it_used(run_cli, cache, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, err = run_cli("study", "--data", "builtin", "--seed", SEED, "--out", "r", "--max-components", "2",
