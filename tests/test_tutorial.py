@@ -71,3 +71,12 @@ def test_every_sh_block_runs(tmp_path):
     assert set(results["specimen"]) == {"R2", "R3", "R4", "R5", "C3"} and set(results["pad"]) == {"fingerprint"}
     prediction = pd.read_csv(work / "my-prediction.csv")
     assert len(prediction) == 1 and prediction["roughness"].between(0.0, 5.0).all()
+
+
+def test_the_samples_readme_suggests_a_command_the_tutorial_runs():
+    readme = (Path(roughsense.__file__).parent / "data" / "samples" / "README.txt").read_text()
+    suggested = [line.strip() for line in readme.splitlines() if line.strip().startswith("roughsense ")]
+    assert suggested, "the samples' README suggests no command"
+    run = "\n".join(blocks("sh"))
+    for command in suggested:
+        assert command.replace("features.csv", "sample-features.csv") in run, command
