@@ -390,3 +390,79 @@ def test_the_undamaged_base_passes_every_command(run_cli, base, monkeypatch, qui
             assert code == 0, (command, err)
             assert_boring(code, err)
             assert not [line for line in err.splitlines() if line.startswith("roughsense: warning:")], err
+
+
+# --------------------------------------------------------------------------- model files
+
+json_values = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(-(10**20), 10**20), st.floats(allow_nan=False, allow_infinity=False),
+              st.text(max_size=6)),
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=4), inner, max_size=3)),
+    max_leaves=12,
+)
+
+
+@pytest.fixture(scope="module")
+def model_document(base, tmp_path_factory):
+    import json
+
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("model") / "m.json"
+    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    return json.loads(path.read_text())
+
+
+def _locations(node, prefix=()):
+    """Every (container, key) in a JSON document, so an edit can reach any depth."""
+    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, child in items:
+        yield prefix + (key,)
+        yield from _locations(child, prefix + (key,))
+
+
+@NO_RAW_WARNINGS
+@settings(FUZZ, max_examples=max(60, EXAMPLES))
+@given(data=st.data(), resign=st.booleans(), delete=st.booleans())
+def test_edited_model_files_load_or_are_refused_in_one_message(base, model_document, data, resign, delete):
+    """Any edit of a model file, even one whose checksum is recomputed, loads or raises ModelFileError; a model
+    that loads scores an image or refuses with a RoughsenseError (its feature definition is checked)."""
+    import json
+
+    from roughsense.errors import ModelFileError, RoughsenseError
+    from roughsense.modelfile import _digest, load_model
+    from roughsense.scoring import model_spectrum
+
+    document = json.loads(json.dumps(model_document))
+    places = list(_locations(document))
+    where = data.draw(st.sampled_from(places))
+    parent = document
+    for key in where[:-1]:
+        parent = parent[key]
+    if delete:
+        del parent[where[-1]]
+    else:
+        parent[where[-1]] = data.draw(json_values)
+    if resign and isinstance(document, dict):
+        try:
+            document["sha256"] = _digest(document)
+        except (TypeError, ValueError):
+            pass
+    path = Path(tempfile.mkdtemp(prefix="roughsense-model-")) / "m.json"
+    try:
+        path.write_text(json.dumps(document))
+        try:
+            loaded = load_model(path)
+        except ModelFileError as exc:
+            assert "\n" not in str(exc) and str(path) in str(exc)
+        else:
+            assert loaded.n_components >= 1 and loaded.coef_path.shape == (loaded.n_features, loaded.intercept_path.size)
+            image = sorted((base / "images").glob("*_2N_*.png"))[0]
+            try:
+                score = loaded.predict(model_spectrum(loaded).transform([image]))
+            except RoughsenseError as exc:
+                assert "\n" not in str(exc)
+            else:
+                assert score.shape == (1,)
+    finally:
+        shutil.rmtree(path.parent, ignore_errors=True)
