@@ -294,7 +294,7 @@ def test_a_truncated_cache_entry_is_recomputed(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_study_over_a_truncated_cache_entry_gives_the_same_report(run_cli, sandbox, tmp_path, monkeypatch, quick_figures):
+def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_place(run_cli, sandbox, tmp_path, monkeypatch, quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     assert run_cli(*study_args(sandbox, tmp_path / "r1"))[0] == 0
     (entry,) = (tmp_path / "cache" / "features").glob("*.csv")
@@ -304,6 +304,18 @@ def test_study_over_a_truncated_cache_entry_gives_the_same_report(run_cli, sandb
     html = (tmp_path / "r2" / "index.html").read_text()
     assert "extracted" in html and "from cache" not in html
     assert (tmp_path / "r1" / "results.csv").read_bytes() == (tmp_path / "r2" / "results.csv").read_bytes()
+    assert run_cli(*study_args(sandbox, tmp_path / "r3"))[0] == 0
+    assert "from cache" in (tmp_path / "r3" / "index.html").read_text()  # the repaired entry is used again
+
+    # An image replaced in place by another's bytes, its mtime set back: not served from the cache.
+    images = contract.read_study(sandbox).image_paths
+    stat = images[0].stat()
+    images[0].write_bytes(images[-1].read_bytes())
+    os.utime(images[0], ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert run_cli(*study_args(sandbox, tmp_path / "r4"))[0] == 0
+    html = (tmp_path / "r4" / "index.html").read_text()
+    assert "extracted" in html and "from cache" not in html
+    assert (tmp_path / "r1" / "predictions.csv").read_bytes() != (tmp_path / "r4" / "predictions.csv").read_bytes()
 
 
 def test_an_image_rewritten_in_place_with_its_mtime_restored_gets_a_new_key(sandbox):
