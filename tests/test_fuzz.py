@@ -21,6 +21,7 @@ import zlib
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -209,12 +210,16 @@ def image_edit(index, kind, fraction, data):
             path.write_bytes(BOMB)
         elif kind == "garbage":
             path.write_bytes(data)
-        elif kind == "jpeg":
-            image = cv2.imdecode(__import__("numpy").frombuffer(raw, "uint8"), cv2.IMREAD_UNCHANGED)
+        elif kind in ("jpeg", "tiff", "bmp", "png16"):  # another format (or depth), then maybe cut short
+            image = cv2.imdecode(np.frombuffer(raw, "uint8"), cv2.IMREAD_UNCHANGED)
             if image is not None:
-                path.write_bytes(cv2.imencode(".jpg", image)[1].tobytes())
+                if kind == "png16":
+                    image = image.astype(np.uint16) * 257
+                encoded = cv2.imencode({"jpeg": ".jpg", "tiff": ".tif", "bmp": ".bmp", "png16": ".png"}[kind],
+                                       image)[1].tobytes()
+                path.write_bytes(encoded if fraction > 0.5 else encoded[: int(len(encoded) * fraction * 2)])
         elif kind == "tiny":
-            path.write_bytes(cv2.imencode(".png", __import__("numpy").zeros((3, 3), "uint8"))[1].tobytes())
+            path.write_bytes(cv2.imencode(".png", np.zeros((3, 3), "uint8"))[1].tobytes())
         elif kind == "delete":
             path.unlink()
         elif kind == "symlink_out":
@@ -259,7 +264,8 @@ mutations = st.one_of(
               st.sampled_from(["3", '"x"', "[1, 2]", "true"])),
     st.builds(toml_nested, st.sampled_from([2, 50, 3000])),
     st.builds(image_edit, st.integers(0, 30),
-              st.sampled_from(["truncate", "flip", "bomb", "garbage", "jpeg", "tiny", "delete", "symlink_out", "folder"]),
+              st.sampled_from(["truncate", "flip", "bomb", "garbage", "jpeg", "tiff", "bmp", "png16", "tiny", "delete",
+                               "symlink_out", "folder"]),
               fractions, blobs),
     st.builds(rename_everywhere, st.sampled_from(["pad", "specimen", "participant"]),
               st.sampled_from(["smooth", "R2", "P01"]), st.sampled_from(RENAMES)),
@@ -268,6 +274,21 @@ mutations = st.one_of(
 
 
 # --------------------------------------------------------------------------- running and judging
+
+
+@pytest.fixture
+def run_cli(capfd):
+    """Like conftest's run_cli, but capturing file descriptors 1 and 2: a codec library writing to stderr
+    directly (libpng, libjpeg, libtiff) would break the one-line promise without passing through Python."""
+    from roughsense.cli import main
+
+    def _run(*args):
+        capfd.readouterr()
+        code = main([str(a) for a in args])
+        captured = capfd.readouterr()
+        return code, captured.out, captured.err
+
+    return _run
 
 
 def snapshot(root: Path) -> dict[str, tuple]:
