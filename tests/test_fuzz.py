@@ -349,7 +349,7 @@ def run_example(run_cli, base: Path, changes, command: str, monkeypatch) -> None
         for change in changes:
             try:
                 change(study)
-            except (OSError, UnicodeError, ValueError, IndexError, ZeroDivisionError, csv.Error):
+            except (OSError, UnicodeError, ValueError, IndexError, ZeroDivisionError, csv.Error, cv2.error):
                 pass  # an earlier change left nothing this one can edit (a deleted file, a folder, other bytes)
         out = top / "out"
         monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(top / "cache"))
