@@ -104,8 +104,8 @@ def test_new_specimens_get_model_ratings(tmp_path):
     config = _config(pads=("smooth",), specimens=("R3", "sin:3:0.3", "rand:1.5:0.2"), forces_n=(1.0,))
     study = read_study(simulate_study(tmp_path / "n", config, jobs=1))
     sources = study.specimens.set_index("specimen")["ratings_source"]
-    assert dict(sources) == {"R3": "paper", "sin:3:0.3": "model", "rand:1.5:0.2": "model"}
-    assert set(study.ratings["specimen"]) == {"sin:3:0.3", "rand:1.5:0.2"}
+    assert dict(sources) == {"R3": "paper", "sin_3_0.3": "model", "rand_1.5_0.2": "model"}
+    assert set(study.ratings["specimen"]) == {"sin_3_0.3", "rand_1.5_0.2"}
     assert set(study.specimens["shape"]) == {"rectangular", "sinusoidal", "random"}
 
 

@@ -7,7 +7,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
-from ._common import progress
+from ._common import check_seed, progress
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -101,6 +101,7 @@ def register(app: typer.Typer) -> None:
         if rule not in ("min", "1se"):
             raise ConfigError(f"--rule must be min or 1se, got {rule!r}")
         scheme = _parse_cv(cv)
+        check_seed(seed)
         if max_components is not None and max_components < 1:
             raise ConfigError(f"--max-components must be at least 1, got {max_components}")
         check_can_write(out, force=force)

@@ -16,6 +16,7 @@ import pandas as pd
 
 from .. import __version__, atomic, reference
 from ..errors import OutputExistsError
+from ..study import check_name
 from . import figures, tables
 
 def _environment() -> jinja2.Environment:
@@ -60,6 +61,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     figure_list = []
 
     def add_figure(name: str, fig, caption: str) -> None:
+        check_name(name, what="report file name")  # built from pad names: the study contract's name rule
         files[name] = figures.png_bytes(fig)
         figure_list.append({"name": name, "caption": caption,
                             "data": base64.b64encode(files[name]).decode("ascii")})

@@ -21,7 +21,7 @@ import pandas as pd
 
 from .. import atomic
 from ..errors import ConfigError, OutputExistsError
-from ..study import IMAGES_DIR, STUDY_TOML, SensorSettings, StudyWriter
+from ..study import IMAGES_DIR, MAX_FORCE_N, MAX_REPETITION, STUDY_TOML, SensorSettings, StudyWriter, check_name
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
@@ -62,8 +62,9 @@ class SimulationConfig:
         if not self.forces_n:
             raise ConfigError("--forces: give at least one force")
         for f in self.forces_n:
-            if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
-                raise ConfigError(f"--forces: every force must be a positive number of newtons, got {f!r}")
+            if not (isinstance(f, (int, float)) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= MAX_FORCE_N):
+                raise ConfigError(f"--forces: every force must be a positive number of newtons up to {MAX_FORCE_N:g}, "
+                                  f"got {f!r}")
         _check_force_labels(self.forces_n)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
         for option, value in (("--fingerprint-period-mm", self.fingerprint_period_mm),
@@ -74,6 +75,8 @@ class SimulationConfig:
                                      ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
             if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < least:
                 raise ConfigError(f"{option} must be a whole number, at least {least}, got {value!r}")
+        if self.repetitions > MAX_REPETITION:
+            raise ConfigError(f"--repetitions must be at most {MAX_REPETITION}, got {self.repetitions}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
@@ -153,8 +156,6 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
 
 
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in ".-" else "_" for c in name)
 
 
 def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequence[Specimen]) -> list[Trial]:
@@ -170,7 +171,8 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
                 for force in forces:
                     fkey = force_key(force)
                     exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
-                    name = f"{pad.name}_{_safe(specimen.name)}_{force_label(force)}_r{rep:02d}.png"
+                    name = f"{check_name(pad.name, what='pad')}_{check_name(specimen.name, what='specimen')}_" \
+                           f"{force_label(force)}_r{rep:02d}.png"
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
@@ -361,7 +363,7 @@ def is_simulated_study(root: str | os.PathLike[str]) -> bool:
     try:
         with (Path(root) / STUDY_TOML).open("rb") as handle:
             return isinstance(tomllib.load(handle).get("simulation"), dict)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
         return False
 
 
