@@ -32,6 +32,8 @@ SPECIMENS_CSV = "specimens.csv"
 MANIFEST_CSV = "manifest.csv"
 RATINGS_CSV = "ratings.csv"
 IMAGES_DIR = "images"
+#: Written last by the simulator: a study.toml with a [simulation] table but no marker is an interrupted run.
+COMPLETE_MARKER = ".simulation-complete"
 
 DEFAULT_PX_PER_MM = 34.9
 DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
@@ -389,6 +391,13 @@ def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     return read_table(path, RATING_COLUMNS, positive=["rating"], text=["participant", "session", "specimen"])
 
 
+def check_simulation_complete(root: Path, config: Mapping) -> None:
+    """Refuse a simulated study whose run never finished: its files may come from two different runs."""
+    if isinstance(config.get("simulation"), dict) and not (root / COMPLETE_MARKER).is_file():
+        raise InputError(f"simulated study is incomplete (no {COMPLETE_MARKER}: the simulation was interrupted); "
+                         f"rerun `roughsense simulate --out {root} --force`", path=root)
+
+
 def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
     """Read and validate a study folder. Raises InputError naming the first problem found."""
     root = Path(root)
@@ -396,6 +405,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
         raise InputError("study folder not found", path=root)
     config = _read_config(root)
     toml_path = root / STUDY_TOML
+    check_simulation_complete(root, config)
     study_cfg = config.get("study", {})
     sensor = _sensor_from_config(config, toml_path)
     forces = config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N))

@@ -27,7 +27,11 @@ def _simulator_fingerprint() -> str:
 
 
 def _builtin_study(seed: int, jobs: int) -> Path:
-    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after."""
+    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after.
+
+    The simulator builds it beside its cache entry and swaps it in whole, so a killed run leaves no entry (only a
+    partial sibling the next run removes), never a half-written one that later runs would trust.
+    """
     import shutil
 
     from ..cache import cache_dir
@@ -35,7 +39,7 @@ def _builtin_study(seed: int, jobs: int) -> Path:
 
     prefix = f"simulated-study-seed{seed}-"
     root = cache_dir() / f"{prefix}{_simulator_fingerprint()}"
-    if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
+    if sim.is_complete_simulation(root):
         return root
     # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
     for stale in cache_dir().glob(f"{prefix}*"):
