@@ -34,6 +34,7 @@ def _builtin_study(seed: int, jobs: int) -> Path:
     """
     import shutil
 
+    from .. import atomic
     from ..cache import cache_dir
     from ..sim import simulate as sim
 
@@ -45,6 +46,8 @@ def _builtin_study(seed: int, jobs: int) -> Path:
     for stale in cache_dir().glob(f"{prefix}*"):
         if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
             shutil.rmtree(stale, ignore_errors=True)
+    for partial in cache_dir().glob(f".{prefix}*{atomic.PARTIAL_TAG}*"):  # killed runs of any simulator version
+        atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
     typer.echo(f"Simulating the paper's study (seed {seed}) into {root} (first use only)...", err=True)
     sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
     return root
