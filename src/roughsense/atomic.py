@@ -230,14 +230,17 @@ class FolderSwap:
     """
 
     def __init__(self, target: str | os.PathLike[str], *, owned=lambda rel: True) -> None:
-        import shutil
         import weakref
 
         self.target = _swap_target(target)
         self.owned = owned
         if self.target.exists() and not self.target.is_dir():
             raise OutputExistsError("exists and is not a folder", path=Path(target))
-        if self.target.exists() and Path.cwd().resolve().is_relative_to(self.target.resolve()):
+        try:
+            cwd = Path.cwd().resolve()
+        except OSError:  # the working folder was deleted: it cannot be inside the target
+            cwd = None
+        if self.target.exists() and cwd is not None and cwd.is_relative_to(self.target.resolve()):
             raise OutputExistsError("is the folder you are working in (or holds it); choose another output folder",
                                     path=Path(target))
         carried = foreign_files(self.target, owned)
@@ -252,7 +255,7 @@ class FolderSwap:
             os.chmod(self.path, 0o777 & ~_umask())
         except OSError as exc:
             raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=Path(target)) from None
-        self._cleanup = weakref.finalize(self, shutil.rmtree, str(self.path), True)
+        self._cleanup = weakref.finalize(self, _remove_if_owner, str(self.path), os.getpid())
 
     def commit(self) -> Path:
         """Swap the built folder in; the old content (minus the user's files, carried over) is then deleted."""
@@ -298,6 +301,14 @@ def staged_folder(target: str | os.PathLike[str], *, owned=lambda rel: True) -> 
         swap.abort()
         raise
     swap.commit()
+
+
+def _remove_if_owner(path: str, pid: int) -> None:
+    """Delete a staging folder, but only from the process that made it (never from a forked worker's copy)."""
+    import shutil
+
+    if os.getpid() == pid:
+        shutil.rmtree(path, ignore_errors=True)
 
 
 def _umask() -> int:

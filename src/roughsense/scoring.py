@@ -2,6 +2,8 @@
 
 The model file carries its feature definition, so the spectra are recomputed exactly as in training;
 a combined-force model takes each trial's images in the order of its conditions (1 N, 2 N, 3 N).
+:func:`score_images` trusts that order; the ``groups_from_*`` functions build it from what a user gives
+(a manifest, one flag per force) and refuse what contradicts a slot.
 """
 from __future__ import annotations
 
