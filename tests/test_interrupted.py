@@ -171,6 +171,21 @@ def _staged_images(out: Path) -> int:
     return sum(len(list((p / "images").glob("*.png"))) for p in out.parent.glob(f".{out.name}{atomic.PARTIAL_TAG}*"))
 
 
+def test_simulate_force_replaces_the_whole_study_and_keeps_the_users_files(tmp_path):
+    out = simulate_study(tmp_path / "sim", _config(seed=1), jobs=1)
+    (out / "notes.txt").write_text("mine")
+    (out / "images" / "my-photo.jpg").write_bytes(b"\xff\xd8 not the simulator's")
+    smaller = SimulationConfig(pads=("smooth",), specimens=("R2",), forces_n=(2.0,), repetitions=1, seed=5,
+                               camera=Camera(width_px=400, height_px=300), participants=3, sessions=1)
+    simulate_study(out, smaller, force=True, jobs=1)
+    study = read_study(out)
+    assert sorted(p.name for p in (out / "images").iterdir()) == ["my-photo.jpg", "smooth_R2_2N_r01.png"]
+    assert list(study.manifest["image"]) == ["images/smooth_R2_2N_r01.png"]
+    assert set(study.ratings["specimen"]) == {"R2"} and study.extra["simulation"]["seed"] == 5
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "images" / "my-photo.jpg").read_bytes() == b"\xff\xd8 not the simulator's"
+
+
 @pytest.mark.slow
 def test_simulate_force_killed_midway_leaves_the_old_study_whole(tmp_path):
     out = simulate_study(tmp_path / "sim", _config(seed=1), jobs=1)
