@@ -402,3 +402,16 @@ def test_study_out_on_an_unwritable_place_fails_before_the_analysis(tmp_path, ru
         assert code == 2 and len(err.strip().splitlines()) == 1
         assert f"{out}: cannot write here" in err and "no-such-study" not in err  # --out is checked first
         assert time.perf_counter() - started < 5.0 and stdout == ""
+
+
+def test_a_killed_writer_leaves_no_temporary_file_for_long(tmp_path):
+    target = tmp_path / "model.json"
+    dead = tmp_path / f".model.json.{_dead_pid()}.abcd1234.tmp"
+    live = tmp_path / f".model.json.{os.getppid()}.efgh5678.tmp"
+    legacy = tmp_path / ".model.json.ijkl9012.tmp"  # no process id: nobody can tell whose it is, so it stays
+    for path in (dead, live, legacy):
+        path.write_text("half")
+        assert atomic.is_temporary(path)
+    atomic.write_text(target, "whole")
+    assert target.read_text() == "whole"
+    assert not dead.exists() and live.exists() and legacy.exists()

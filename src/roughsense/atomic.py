@@ -43,7 +43,8 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
     parent = target.parent if str(target.parent) else Path(".")
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
+        _remove_dead_temporaries(parent, target.name)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=parent)
     except OSError as exc:
         raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
     tmp = Path(tmp_name)
@@ -64,6 +65,17 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def _remove_dead_temporaries(parent: Path, name: str) -> None:
+    """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
+    import glob
+
+    for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
+        pid = path.name[len(name) + 2:].split(".", 1)[0]
+        if pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid)):
+            with contextlib.suppress(OSError):
+                path.unlink()
 
 
 def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
