@@ -55,6 +55,7 @@ def check_report_dir(out_dir: Path, force: bool) -> None:
 
 def open_report_dir(out_dir: str | os.PathLike[str], force: bool) -> atomic.FolderSwap:
     """Check ``out_dir`` and create its staging folder: an unwritable place fails here, before any analysis."""
+    atomic.clean_leftovers(out_dir)  # first: a killed swap's old folder may have to come back
     check_report_dir(Path(out_dir), force)
     return atomic.FolderSwap(out_dir, owned=report_owned)
 

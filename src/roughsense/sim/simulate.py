@@ -309,6 +309,7 @@ class SimulationRun:
         _check_unique_images(self.trials)
         self.force = force
         self.root = Path(out)
+        atomic.clean_leftovers(self.root)  # first: a killed swap's old folder may have to come back
         check_overwritable(self.root, force=force)
         # Built beside the target and swapped in whole when complete; creating it now checks the place is writable.
         self._swap = atomic.FolderSwap(self.root, owned=simulation_owned(self.root))
