@@ -7,8 +7,11 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from roughsense import SIMPLS, dataset, pls_cv
+from roughsense.errors import InputError
 from roughsense.study import read_study
 from tests.test_dataset import make_study
 
@@ -292,3 +295,17 @@ def test_help_describes_both_commands(run_cli):
     code, out, _ = run_cli("predict", "--help")
     text = re.sub(r"[\s│]+", " ", out)  # rich wraps help text inside a box
     assert code == 0 and "--images-1n" in text and "--study" in text and "i-th image of each flag form one trial" in text
+
+
+@given(force_n=st.decimals(min_value="0.1", max_value="50", places=2).map(float),
+       style=st.sampled_from(["{pad}_{spec}_{f}N_r01.png", "{spec}_{pad}_r01_{f}N.png", "{spec}-{f}n-{pad}.tif"]),
+       spec=st.sampled_from(["R3", "C2.5", "sin_3_0.5", "rand_1.5_0.2"]))
+def test_the_force_a_file_name_states(force_n, style, spec):
+    from roughsense.scoring import check_slot, forces_in_name
+
+    name = style.format(pad="fingerprint", spec=spec, f=f"{force_n:g}")
+    assert forces_in_name(f"images/{name}") == {force_n}
+    check_slot(name, f"{force_n:g}N")  # its own slot: accepted
+    with pytest.raises(InputError, match="slot but its name says"):
+        check_slot(name, f"{force_n + 1:g}N")
+    assert forces_in_name(name.replace(f"{force_n:g}", "x")) == set()  # no force stated: nothing to contradict
