@@ -1,11 +1,13 @@
-"""Atomic writes: a failed run must never leave a partial file behind.
+"""Atomic writes: a failed or killed run must never leave a partial file or a mixed folder behind.
 
-Everything is written to a temporary file in the destination folder and then renamed over the
-target with :func:`os.replace`, which is atomic on POSIX within one file system.
+A file is written to a temporary sibling and renamed over the target with :func:`os.replace`, which is
+atomic on POSIX within one file system. A folder whose files only make sense together (a simulated study,
+a report) is built as a sibling folder and swapped in whole: :class:`FolderSwap` / :func:`staged_folder`.
 """
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import re
 import secrets
@@ -17,11 +19,15 @@ from typing import IO
 from .errors import OutputExistsError, RoughsenseError
 
 
-def _default_file_mode() -> int:
-    """The mode ``open()`` would give a new file (0666 minus the umask); mkstemp alone gives 0600."""
+def _umask() -> int:
     umask = os.umask(0)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
+
+
+def _default_file_mode() -> int:
+    """The mode ``open()`` would give a new file (0666 minus the umask); mkstemp alone gives 0600."""
+    return 0o666 & ~_umask()
 
 
 def check_can_write(path: str | os.PathLike[str], *, force: bool = False) -> Path:
@@ -69,8 +75,6 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
 
 def _remove_dead_temporaries(parent: Path, name: str) -> None:
     """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
-    import glob
-
     for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
         pid = path.name[len(name) + 2:].split(".", 1)[0]
         if pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid)):
@@ -110,11 +114,11 @@ PARTIAL_TAG = ".roughsense-partial-"
 RETIRED_TAG = ".roughsense-retired-"
 MAX_CARRIED_FILES = 1000  # beyond this, --out is somebody's working folder, not an output folder
 _RENAME_EXCHANGE = 2  # linux/fs.h
-_TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp(prefix=".NAME.", suffix=".tmp") in atomic_open
+_TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp in atomic_open (older versions: no PID)
 
 
 def is_temporary(path: str | os.PathLike[str]) -> bool:
-    """True for a temporary file of :func:`atomic_open` (``.NAME.XXXX.tmp``) or a staging/retired folder."""
+    """True for a temporary file of :func:`atomic_open` (``.NAME.PID.XXXXXXXX.tmp``) or a staging/retired folder."""
     name = Path(path).name
     return bool(_TEMP_FILE.match(name)) or PARTIAL_TAG in name or RETIRED_TAG in name
 
@@ -142,17 +146,11 @@ def leftovers(target: str | os.PathLike[str]) -> list[Path]:
     target = _swap_target(target)
     found = []
     for tag in (PARTIAL_TAG, RETIRED_TAG):
-        for path in target.parent.glob(f".{glob_escape(target.name)}{tag}*"):
+        for path in target.parent.glob(f".{glob.escape(target.name)}{tag}*"):
             pid = path.name[len(target.name) + 1 + len(tag):].split("-", 1)[0]
             if pid.isdigit() and not _pid_alive(int(pid)):
                 found.append(path)
     return sorted(found)
-
-
-def glob_escape(text: str) -> str:
-    import glob
-
-    return glob.escape(text)
 
 
 def clean_leftovers(target: str | os.PathLike[str]) -> None:
@@ -322,8 +320,3 @@ def _remove_if_owner(path: str, pid: int) -> None:
     if os.getpid() == pid:
         shutil.rmtree(path, ignore_errors=True)
 
-
-def _umask() -> int:
-    umask = os.umask(0)
-    os.umask(umask)
-    return umask
