@@ -186,17 +186,27 @@ def test_simulate_force_replaces_the_whole_study_and_keeps_the_users_files(tmp_p
     assert (out / "images" / "my-photo.jpg").read_bytes() == b"\xff\xd8 not the simulator's"
 
 
+_TINY = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+
+
 @pytest.mark.slow
-def test_simulate_force_killed_midway_leaves_the_old_study_whole(tmp_path):
-    out = simulate_study(tmp_path / "sim", _config(seed=1), jobs=1)
+def test_simulate_force_killed_midway_leaves_the_old_study_whole(tmp_path, run_cli):
+    out = tmp_path / "sim"
+    code, _, err = run_cli("simulate", "--out", out, *_TINY, "--seed", "1")
+    assert code == 0, err
     before = _files(out)
-    run = _python(_SIMULATE, str(out), "2", "30", "1")  # 120 images: killed after the first two
-    _kill_when(run, lambda: _staged_images(out) >= 2)
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    run = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(out), "--force",
+                            "--seed", "2", "--pads", "smooth", "--specimens", "R2,R3,C3", "--forces", "1,2,3",
+                            "--repetitions", "3", "--jobs", "1"],
+                           env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _kill_when(run, lambda: _staged_images(out) >= 2)  # killed after its first images
     assert _files(out) == before  # the old study, complete, not one new file in it
     assert read_study(out, require_ratings=True).extra["simulation"]["seed"] == 1
     assert len(atomic.leftovers(out)) == 1
     # the next run removes the dead run's partial folder and swaps in a complete new study
-    simulate_study(out, _config(seed=2), force=True, jobs=1)
+    code, _, err = run_cli("simulate", "--out", out, *_TINY, "--seed", "2", "--force")
+    assert code == 0, err
     assert atomic.leftovers(out) == [] and _siblings(out) == []
     assert read_study(out).extra["simulation"]["seed"] == 2 and (out / COMPLETE_MARKER).is_file()
 
