@@ -5,6 +5,10 @@ rendering into the folder, then idle for ever. Each worker therefore ties its li
 kernel sends it SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread polls the
 parent id. Both check that the parent is still the one that started the worker, since it may have died before
 the worker got that far.
+
+Linux delivers the signal when the *thread* that forked the worker ends, so a pool must be used from a thread
+that outlives it (the CLI uses it from the main thread; ``ProcessPoolExecutor`` forks its workers in the thread
+that submits the first task).
 """
 from __future__ import annotations
 
