@@ -35,6 +35,8 @@ SPECIMENS_CSV = "specimens.csv"
 MANIFEST_CSV = "manifest.csv"
 RATINGS_CSV = "ratings.csv"
 IMAGES_DIR = "images"
+#: Written last by the simulator: a study.toml with a [simulation] table but no marker is an interrupted run.
+COMPLETE_MARKER = ".simulation-complete"
 
 DEFAULT_PX_PER_MM = 34.9
 DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
@@ -451,10 +453,6 @@ def _short(value: object) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _read_config(root: Path) -> dict:
-    return read_config(root / STUDY_TOML)
-
-
 def _sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
     sensor = config.get("sensor", {})
     if not isinstance(sensor, Mapping):
@@ -671,6 +669,13 @@ def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     return frame
 
 
+def check_simulation_complete(root: Path, config: Mapping) -> None:
+    """Refuse a simulated study whose run never finished: its files may come from two different runs."""
+    if isinstance(config.get("simulation"), dict) and not (root / COMPLETE_MARKER).is_file():
+        raise InputError(f"simulated study is incomplete (no {COMPLETE_MARKER}: the simulation was interrupted); "
+                         f"rerun `roughsense simulate --out {root} --force`", path=root)
+
+
 def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
     """Read and validate a study folder. Raises InputError naming the first problem found."""
     root = Path(root)
@@ -678,6 +683,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
         raise InputError("study folder not found", path=root)
     toml_path = root / STUDY_TOML
     config = read_config(toml_path)
+    check_simulation_complete(root, config)
     study_cfg = config.get("study", {})
     sensor = _sensor_from_config(config, toml_path)
     forces_n = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
