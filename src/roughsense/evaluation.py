@@ -17,7 +17,7 @@ from . import dataset
 from .errors import InputError
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
 from .perception import aggregate_ratings
-from .pls import pls_cv
+from .pls import nested_group_predictions, pls_cv
 from .study import Study
 
 CONDITIONS = ("1N", "2N", "3N", "combined")
@@ -128,20 +128,13 @@ def _loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max
     """Nested leave-one-specimen-out: choose each held-out specimen's component count without it.
 
     The outer LOSO run already holds every held-out specimen's prediction at every count, so the nested
-    prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks.
+    prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks
+    (:func:`roughsense.pls.nested_group_predictions`, which the permutation control reuses).
     """
-    predictions = np.empty(len(y))
-    chosen: dict[str, int] = {}
-    for specimen in pd.unique(specimens):
-        held = specimens == specimen
-        rest = specimens[~held]
-        largest_inner_fold = int(pd.Series(rest).value_counts().max())
-        usable = _usable_components(len(rest) - largest_inner_fold, X.shape[1], max_components)
-        inner = pls_cv(X[~held], y[~held], max_components=usable, groups=rest, cap=True)
-        k = int(inner.best_n_components)
-        chosen[str(specimen)] = k
-        predictions[held] = outer.predictions[held, k]
-    return predictions, chosen
+    predictions, counts = nested_group_predictions(X, y[:, None], specimens,
+                                                   outer.predictions[None, :, : max_components + 1])
+    names = pd.unique(specimens)
+    return predictions[0], {str(name): int(k) for name, k in zip(names, counts[0])}
 
 
 def _condition_fit(
