@@ -478,14 +478,35 @@ def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np
         )
     dim = Z.shape[1]  # nothing is truncated: null directions simply never enter a Krylov space
 
-    # Sums over each fold's held-out rows: sort by fold once, then one reduceat per use.
-    order = np.argsort(fid, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(m)[:-1]])
-    loo = bool(np.all(m == 1)) and bool(np.all(order == np.arange(n)))
+    loo = bool(np.all(m == 1)) and bool(np.all(fid == np.arange(n)))
+
+    # Fold sums of scalars are products with the fold-membership matrix; those of rotated samples z_i go
+    # fold by fold (one small product per fold: a membership product would cost F times the arithmetic).
+    member = np.zeros((0, n) if loo else (F, n))
+    if not loo:
+        member[fid, np.arange(n)] = 1.0
+    members = [] if loo else [np.flatnonzero(fid == f) for f in range(F)]
+    Z_folds = [np.ascontiguousarray(Z[idx]) for idx in members]
 
     def fold_sum(M: np.ndarray) -> np.ndarray:
-        """(B, n, ...) per sample -> (B, F, ...) per fold."""
-        return M if loo else np.add.reduceat(M[:, order], starts, axis=1)
+        """(B, n) or (B, n, 1) per sample -> (B, F) or (B, F, 1) per fold."""
+        if loo:
+            return M
+        return M @ member.T if M.ndim == 2 else np.matmul(member, M)
+
+    def fold_sum_z(weights: np.ndarray) -> np.ndarray:
+        """Sum over each fold's samples of weights[b, i] z_i: (B, n) -> (B, F, r)."""
+        out = np.empty((weights.shape[0], F, Z.shape[1]))
+        for f, (idx, Zf) in enumerate(zip(members, Z_folds)):
+            np.matmul(weights[:, idx], Zf, out=out[:, f])
+        return out
+
+    def held_out_products(W: np.ndarray) -> np.ndarray:
+        """z_i'w of the fold that holds sample i out, for every target: W (B, F, r) -> (B, n)."""
+        out = np.empty((W.shape[0], n))
+        for f, (idx, Zf) in enumerate(zip(members, Z_folds)):
+            out[:, idx] = W[:, f] @ Zf.T
+        return out
 
     def per_sample(M: np.ndarray) -> np.ndarray:
         """(G, ...) per batch-fold -> (B, n, ...) per target and sample."""
@@ -493,11 +514,11 @@ def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np
         return M if loo else M[:, fid]
 
     nt = n_train.astype(float)
-    d = -fold_sum(Z[None])[0] / nt[:, None]  # each training fold's mean, in centred rotated coordinates (F, r)
+    d = -(Z if loo else member @ Z) / nt[:, None]  # each training fold's mean, in centred rotated coordinates (F, r)
     e = -fold_sum(Yc.T[:, :, None])[:, :, 0] / nt  # each training fold's mean of yc (B, F)
     # X'y per batch-fold: the full data's, minus the held-out rows', minus the shift of the mean.
-    s0 = ((Yc.T @ Z)[:, None, :] - fold_sum(Yc.T[:, :, None] * Z[None])
-          - (nt[:, None] * d)[None] * e[:, :, None]).reshape(G, dim)
+    held_z_y = Yc.T[:, :, None] * Z[None] if loo else fold_sum_z(Yc.T)
+    s0 = ((Yc.T @ Z)[:, None, :] - held_z_y - (nt[:, None] * d)[None] * e[:, :, None]).reshape(G, dim)
     s0_norm = np.sqrt(np.einsum("fp,fp->f", s0, s0))
     if not np.all(s0_norm > 0):
         f = int(np.flatnonzero(~(s0_norm > 0))[0]) % F
@@ -526,7 +547,10 @@ def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np
         w = V[k]
         # S_f w = (G - X_I'X_I - n_t d d') w; d'w = -sum_I(z_i'w)/n_t, so only u_i = z_i'w is needed.
         # (For LOO the previous step's reorthogonalisation product already gave it.)
-        u = u_hist[k] if loo and k else np.einsum("ip,bip->bi", Z, per_sample(w))
+        if loo:
+            u = u_hist[k] if k else np.einsum("ip,bip->bi", Z, per_sample(w))
+        else:  # z_i'w of the fold that holds i out: one product for all folds, then each sample's own fold
+            u = held_out_products(w.reshape(B, F, dim))
         u_hist[k] = u
         x = V[k + 2]
         np.multiply(w, lam_rows, out=x)  # G w, to which the downdate and the three-term step are applied
@@ -538,7 +562,7 @@ def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np
             alpha = np.einsum("fp,fp->f", w, x) - c_down * u.reshape(G)
         else:
             u_fold = fold_sum(u)
-            np.subtract(fold_sum(Z[None] * u[:, :, None]).reshape(G, dim), d_rows * u_fold.reshape(G, 1), out=down)
+            np.subtract(fold_sum_z(u).reshape(G, dim), d_rows * u_fold.reshape(G, 1), out=down)
             c_down = 1.0
             alpha = np.einsum("fp,fp->f", w, x) - np.einsum("fp,fp->f", w, down)
         # D-Lanczos (CG) update of the coefficients, seen only through the held-out samples:

@@ -46,6 +46,14 @@ def _builtin_study(seed: int, jobs: int) -> Path:
     return root
 
 
+def _source_label(simulation: dict | None, *, builtin: bool) -> str:
+    """"simulated" whenever study.toml has a [simulation] table, with its seed; "user data" otherwise."""
+    if simulation is None:
+        return "user data (no [simulation] table in study.toml)"
+    where = "built-in simulated study (digital twin)" if builtin else "simulated study (digital twin)"
+    return f"simulated: {where}, simulation seed {simulation.get('seed', 'not recorded')}"
+
+
 def register(app: typer.Typer) -> None:
     @app.command("study")
     def study_command(
@@ -57,6 +65,9 @@ def register(app: typer.Typer) -> None:
         no_loso: bool = typer.Option(False, "--no-loso", help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
         jobs: int = typer.Option(2, "--jobs", min=1, help="Worker threads/processes for image decoding and simulation."),
         force: bool = typer.Option(False, "--force", help="Replace the report files in an existing, non-empty --out folder."),
+        permutations: int = typer.Option(199, "--permutations", min=0,
+                                         help="Specimen-level shufflings per model for the permutation control "
+                                         "(0: skip it; at least 199 for p-values to 0.005)."),
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
@@ -88,12 +99,13 @@ def register(app: typer.Typer) -> None:
             analysis = analyse_study(
                 study, features=features, max_components=max_components,
                 cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
+                n_permutations=permutations, seed=seed,
             )
         for warning in caught:  # shown once on the terminal, and kept in the report
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
         meta = {
             "study folder": str(Path(root).resolve()),
-            "source": "built-in simulated study (digital twin), seed %d" % seed if data is None else "user data",
+            "source": _source_label(study.simulation, builtin=data is None),
             "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
             "features": "from cache" if was_cached else "extracted",
         }
