@@ -20,7 +20,7 @@ from .test_evaluation import synthetic_study
 @pytest.fixture(scope="module")
 def report_dir(tmp_path_factory):
     study, features = synthetic_study(repetitions=4, seed=3)
-    analysis = analyse_study(study, features=features, max_components=6)
+    analysis = analyse_study(study, features=features, max_components=6, n_permutations=9)
     out = tmp_path_factory.mktemp("report") / "report"
     write_report(analysis, out, meta={"source": "synthetic test study"})
     return out
@@ -31,8 +31,16 @@ def test_report_files_and_schemas(report_dir):
     assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv"} <= names
     assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png"} <= names
     paper_columns = list(reference.paper_results().columns)
-    assert list(pd.read_csv(report_dir / "results.csv").columns) == paper_columns
-    assert list(pd.read_csv(report_dir / "results_loso.csv").columns) == paper_columns
+    for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
+        assert list(pd.read_csv(report_dir / name).columns) == paper_columns + ["predictive_sd", "ovl_predictive"]
+    controls = pd.read_csv(report_dir / "controls.csv")
+    assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
+                                          "n_permutations"]
+    assert len(controls) == 2 * 4 * 2 and (controls["n_permutations"] == 9).all()
+    claims = pd.read_csv(report_dir / "claims.csv")
+    assert list(claims.columns[:6]) == ["claim", "pad", "cv", "statistic", "p", "verdict"]
+    assert set(claims["verdict"]) <= {"reproduced", "not reproduced", "not testable"}
+    assert {"loo", "loso"} <= set(claims["cv"])
     cv = pd.read_csv(report_dir / "cv.csv")
     assert list(cv.columns) == ["pad", "condition", "cv", "n_components", "rmse"]
     assert set(cv["cv"]) == {"loo", "loso"}
@@ -127,7 +135,7 @@ def test_report_refuses_a_non_empty_folder_without_force(report_dir, tmp_path):
     mine.mkdir()
     (mine / "notes.txt").write_text("keep me")
     study, features = synthetic_study(repetitions=2, seed=4)
-    analysis = analyse_study(study, features=features, max_components=2, cv_schemes=("loo",))
+    analysis = analyse_study(study, features=features, max_components=2, cv_schemes=("loo",), n_permutations=0)
     with pytest.raises(OutputExistsError):
         write_report(analysis, mine)
     write_report(analysis, mine, force=True)
