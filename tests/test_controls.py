@@ -79,7 +79,7 @@ def test_batched_cv_equals_one_cv_per_target():
             np.testing.assert_allclose(batch.rmse[b], single.rmse, rtol=1e-9)
 
 
-@pytest.mark.parametrize("cv", ["loo", "loso"])
+@pytest.mark.parametrize("cv", ["loo", pytest.param("loso", marks=pytest.mark.slow)])
 def test_permutation_control_matches_sklearn_refits(small, cv):
     analysis, study, features = small
     rows, X, y = _regression_data(study, features, "smooth", "1N")
