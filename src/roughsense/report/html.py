@@ -158,7 +158,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
             chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}, paper_pads
         ),
         tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(reference.PAPER_PADS)),
-        claims=tables.claims_table(analysis.claims),
+        claims=tables.claims_table(analysis.claims, paper_pads),
         controls=tables.controls_report_table(analysis.controls),
         paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
         simulation=analysis.simulation,

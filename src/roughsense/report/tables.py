@@ -333,14 +333,21 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
     }
 
 
-def claims_table(claims: pd.DataFrame) -> dict:
-    """claims.csv as a table: each claim once per pad and CV scheme, our statistic, p and verdict."""
+def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
+    """claims.csv as a table: each claim once per pad and CV scheme, our statistic, p and verdict.
+
+    The paper's own figure for a claim is shown only where the study's design is the paper's (``paper_pads``:
+    the pads that qualify; None: all).
+    """
     rows = []
     for _, c in claims.iterrows():
+        pads = {"both": set(reference.PAPER_PADS), "": set()}.get(c["pad"], {c["pad"]})
+        allowed = paper_pads is None or (bool(paper_pads) and pads <= set(paper_pads))
         p = "—" if pd.isna(c["p"]) else f"{c['p']:.2g}"
         statistic = "—" if pd.isna(c["statistic"]) else f"{c['statistic']:.3g}"
         rows.append([_cell(c["claim"]), _cell(c["pad"] or "—"), _cell(str(c["cv"]).upper() if c["cv"] != "none" else "—"),
-                     _cell(statistic), _cell(p), _cell(c["verdict"]), _cell(c["detail"] or "", c["paper"] or None),
+                     _cell(statistic), _cell(p), _cell(c["verdict"]),
+                     _cell(c["detail"] or "", (c["paper"] or None) if allowed else None),
                      _cell(c["basis"])])
     return {
         "title": "The paper's claims, checked",
