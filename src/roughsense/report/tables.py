@@ -326,7 +326,8 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
                     "perceived values are permuted across specimens (every repetition of a specimen keeps one shared, "
                     "wrong value) and the whole CV, the choice of the number of components included, is rerun; p = "
                     "(1 + shufflings at least as good) / (1 + shufflings). A LOO model that does no better on shuffled "
-                    "targets is recognising specimens, not reading roughness."),
+                    "targets is recognising specimens, not reading roughness. With n shufflings the smallest attainable p is "
+                    "1/(n + 1), so p < 0.05 needs at least 20 (the default is 199)."),
         "columns": ["Pad", "Condition", "CV", "CV RMSE", "Training mean RMSE", "Shuffled: median RMSE",
                     "Permutation p", "Shufflings", "Verdict"],
         "rows": rows,
