@@ -115,3 +115,19 @@ def test_on_a_simulated_study_rating_claims_are_labelled_properties_of_the_simul
     assert basis[("ratings_rise", "none")].startswith("property of the simulator")
     assert "tuned" in basis[("rmse_below_sd", "loo")]
     assert basis[("aligns", "loo")] == "finding on simulated data"
+
+
+def test_a_tiny_study_still_gets_a_verdict_for_every_claim():
+    """Three specimens, one pad, LOO only: most claims cannot be tested, and the analysis says so instead of failing."""
+    study, features = synthetic_study(repetitions=2, seed=3, pads=("smooth",))
+    keep = ["R2", "R3", "C5"]
+    study.specimens = study.specimens[study.specimens.specimen.isin(keep)].reset_index(drop=True)
+    study.ratings = study.ratings[study.ratings.specimen.isin(keep)]
+    tiny = analyse_study(study, features=features[features.specimen.isin(keep)], max_components=1,
+                         cv_schemes=("loo",), n_permutations=5)
+    assert set(tiny.claims["verdict"]) <= {"reproduced", "not reproduced", "not testable"}
+    verdicts = tiny.claims.set_index("key")["verdict"]
+    for key in ("smooth_beats_fingerprint", "low_ovl_specimens", "circular_rougher", "aligns", "human_sd_grows"):
+        assert verdicts[key] == "not testable", key
+    # R2 and C5 are rated: each learns its spread from the other one alone.
+    assert tiny.results("loo").query("specimen != 'R3'")["ovl_predictive"].notna().all()

@@ -13,6 +13,8 @@ drawn from the paper's Table 1), and the LOO error level was tuned to land in th
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 from scipy import stats
@@ -68,6 +70,13 @@ PAPER_SAYS = {
 }
 
 RATING_CLAIMS = ("ratings_rise", "circular_rougher", "human_sd_grows")
+
+
+def _quiet(test, *args):
+    """A scipy test with its warnings (constant input, tiny samples) silenced: a NaN result says it all."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return test(*args)
 
 
 def _paper_text(key: str, pad: str) -> str:
@@ -151,7 +160,9 @@ def _ovl_same_across_forces(results, pad, cv):
     if len(series) < 3:
         return _untestable(key, pad, cv, "needs at least three conditions")
     frame = pd.DataFrame(series).dropna()
-    test = stats.friedmanchisquare(*[frame[c].to_numpy() for c in frame.columns])
+    if len(frame) < 2:
+        return _untestable(key, pad, cv, "needs at least 2 rated specimens")
+    test = _quiet(stats.friedmanchisquare, *[frame[c].to_numpy() for c in frame.columns])
     return _row(key, pad, cv, test.statistic, test.pvalue, REPRODUCED if test.pvalue >= ALPHA else NOT_REPRODUCED,
                 f"no difference detected: Friedman p >= {ALPHA} (absence of evidence, as the paper argues it)",
                 ", ".join(f"{c} {frame[c].mean():.2f}" for c in frame.columns))
@@ -163,6 +174,8 @@ def _ovl_pads_comparable(results, pads, cv):
         return _untestable(key, "both", cv, "needs both the smooth and the fingerprint pad")
     a, b = _by_condition(results, "smooth", "ovl"), _by_condition(results, "fingerprint", "ovl")
     conditions = [c for c in a if c in b]
+    if not conditions:
+        return _untestable(key, "both", cv, "the pads share no condition")
     diffs, ps = [], []
     for c in conditions:
         pair = pd.concat([a[c], b[c]], axis=1, join="inner").dropna()
@@ -191,7 +204,9 @@ def _sd_flat(results, perceived, pad, cv):
     rows = results[(results.pad == pad) & (results.condition == COMBINED)].dropna(subset=["sd"])
     if len(rows) < 4:
         return _untestable(key, pad, cv, "needs the combined condition and at least 4 rated specimens")
-    rho, p = stats.spearmanr(rows["gmean"], rows["pred_sd"])
+    rho, p = _quiet(stats.spearmanr, rows["gmean"], rows["pred_sd"])
+    if np.isnan(rho):
+        return _untestable(key, pad, cv, "the prediction SD or the perceived roughness is constant")
     grows = rho > 0 and p < ALPHA
     return _row(key, pad, cv, rho, p, NOT_REPRODUCED if grows else REPRODUCED,
                 f"the prediction SD does not rise with perceived roughness (not: rho > 0 and p < {ALPHA})",
@@ -203,7 +218,9 @@ def _aligns(results, pad, cv):
     rows = results[(results.pad == pad) & (results.condition == COMBINED)]
     if len(rows) < 4:
         return _untestable(key, pad, cv, "needs the combined condition and at least 4 specimens")
-    rho, p = stats.spearmanr(rows["gmean"], rows["pred_mean"])
+    rho, p = _quiet(stats.spearmanr, rows["gmean"], rows["pred_mean"])
+    if np.isnan(rho):
+        return _untestable(key, pad, cv, "the predictions or the perceived roughness are constant")
     return _row(key, pad, cv, rho, p, REPRODUCED if rho > 0 and p < ALPHA else NOT_REPRODUCED,
                 f"rho > 0 and p < {ALPHA} (all specimens, the reference included)", f"{len(rows)} specimens")
 
@@ -229,7 +246,7 @@ def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> 
     if not groups:
         rows.append(_untestable("ratings_rise", "", "none", "needs at least 3 specimens of a shape with a period"))
     else:
-        tests = [(g["shape"].iloc[0], *stats.spearmanr(g["wavelength_mm"], g["gmean"])) for g in groups]
+        tests = [(g["shape"].iloc[0], *_quiet(stats.spearmanr, g["wavelength_mm"], g["gmean"])) for g in groups]
         worst = max(tests, key=lambda t: t[2])
         ok = all(rho > 0 and p < ALPHA for _, rho, p in tests)
         rows.append(_row("ratings_rise", "", "none", worst[1], worst[2], REPRODUCED if ok else NOT_REPRODUCED,
@@ -251,7 +268,7 @@ def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> 
     if len(rated) < 4:
         rows.append(_untestable("human_sd_grows", "", "none", "needs at least 4 rated specimens"))
     else:
-        rho, p = stats.spearmanr(rated["gmean"], rated["sd"])
+        rho, p = _quiet(stats.spearmanr, rated["gmean"], rated["sd"])
         rows.append(_row("human_sd_grows", "", "none", rho, p, REPRODUCED if rho > 0 and p < ALPHA else NOT_REPRODUCED,
                          f"rho > 0 and p < {ALPHA}", f"{len(rated)} rated specimens"))
     return rows

@@ -99,6 +99,10 @@ def predictive_ovl(table: pd.DataFrame, perceived: pd.DataFrame, *, kind: str = 
     ovl, psd = [], []
     for _, row in table.iterrows():
         others = people.drop(index=row["specimen"], errors="ignore")
+        if not (others["gmean"].notna() & others["sd"].notna()).any():  # nobody else to learn the spread from
+            psd.append(float("nan"))
+            ovl.append(float("nan"))
+            continue
         model = SpreadModel(kind).fit(others["gmean"], others["sd"])
         width = model.predictive_sd(row["pred_mean"], row["pred_sd"])
         psd.append(width)
