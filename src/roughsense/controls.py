@@ -89,12 +89,13 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
     else:
         p = median = low = float("nan")
     beats_null = bool(rmse < null_rmse)
-    beats_permutation = bool(p < ALPHA)
+    # Without shufflings the permutation control is not run: left empty, and judged on the null model alone.
+    beats_permutation = bool(p < ALPHA) if n_permutations else None
     return {
         "pad": fit.pad, "condition": fit.condition, "cv": fit.cv, "rmse": rmse, "null_rmse": null_rmse,
         "permutation_p": p, "n_permutations": n_permutations, "n_components": int(fit.best_n_components),
         "permuted_rmse_median": median, "permuted_rmse_min": low, "beats_null": beats_null,
-        "beats_permutation": beats_permutation, "passes": beats_null and beats_permutation,
+        "beats_permutation": beats_permutation, "passes": beats_null and beats_permutation is not False,
     }
 
 

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from . import dataset
-from .errors import InputError
 from . import controls as _controls
-from . import reference
+from . import dataset, reference
+from .claims import evaluate_claims
+from .errors import InputError
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
 from .perception import aggregate_ratings
 from .pls import nested_group_predictions, pls_cv
@@ -322,7 +322,5 @@ def analyse_study(
     analysis.controls = _controls.controls_table(control_rows)
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
-    from .claims import evaluate_claims
-
     analysis.claims = evaluate_claims(analysis)
     return analysis
