@@ -359,6 +359,7 @@ def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
                     "property the simulator was given."),
         "columns": ["Claim", "Pad", "CV", "Statistic", "p", "Verdict", "Detail", "Basis"],
         "rows": rows,
+        "css": "text",
     }
 
 
