@@ -127,3 +127,10 @@ def test_a_model_that_only_recognises_specimens_fails_the_permutation_control():
     assert row["permutation_p"] > 0.2 and not row["passes"]
     loso = analysis.controls.set_index("cv").loc["loso"]
     assert not loso["passes"]
+
+
+def test_controls_are_identical_on_one_or_two_threads(small):
+    analysis, study, features = small
+    again = analyse_study(study, features=features, max_components=MAX_K, conditions=("1N",), n_permutations=3,
+                          seed=7, n_jobs=2)
+    pd.testing.assert_frame_equal(again.controls, analysis.controls, check_exact=True)

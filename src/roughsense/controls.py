@@ -13,12 +13,13 @@ them as one batch over one rotation of X, and through the same nested-selection 
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
 
-from .pls import nested_group_predictions, pls_cv_many
+from .pls import _single_threaded_blas, nested_group_predictions, pls_cv_many
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = 199
@@ -101,3 +102,25 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
 
 def controls_table(rows: list[dict]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=CONTROL_COLUMNS)
+
+
+def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable | None = None) -> pd.DataFrame:
+    """controls.csv for many models: each job is the arguments of :func:`control_row`.
+
+    The models are independent array work that releases the GIL, so ``n_jobs`` threads share them; BLAS is held
+    to one thread for the whole run (its own threads would only contend with ours, and one thread keeps every
+    product's rounding the same), and rows come back in job order: the table is identical for any ``n_jobs``.
+    """
+    jobs = list(jobs)
+
+    def one(job: tuple) -> dict:
+        return control_row(*job)
+
+    with _single_threaded_blas():
+        if n_jobs > 1 and len(jobs) > 1:
+            with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
+                rows = pool.map(one, jobs)
+                rows = list(progress(rows, total=len(jobs), description="controls") if progress else rows)
+        else:
+            rows = [one(job) for job in (progress(jobs, total=len(jobs), description="controls") if progress else jobs)]
+    return controls_table(rows)

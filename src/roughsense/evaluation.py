@@ -307,7 +307,7 @@ def analyse_study(
     jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
     iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
     matrices: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, pd.DataFrame]] = {}
-    control_rows: list[dict] = []
+    control_jobs: list[tuple] = []
     for pad, condition, cv in iterator:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition)
@@ -318,8 +318,8 @@ def analyse_study(
         analysis.fits.append(fit)
         specimens = meta["specimen"].astype(str).to_numpy()
         permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
-        control_rows.append(_controls.control_row(fit, X, y, specimens, permutations))
-    analysis.controls = _controls.controls_table(control_rows)
+        control_jobs.append((fit, X, y, specimens, permutations))
+    analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)

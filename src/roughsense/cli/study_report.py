@@ -69,7 +69,7 @@ def register(app: typer.Typer) -> None:
             analysis = analyse_study(
                 study, features=features, max_components=max_components,
                 cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
-                n_permutations=permutations, seed=seed,
+                n_permutations=permutations, seed=seed, n_jobs=jobs,
             )
         for warning in caught:  # shown once on the terminal, and kept in the report
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
