@@ -28,7 +28,7 @@ ALPHA = 0.05
 
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
-                   "beats_permutation", "passes"]
+                   "beats_permutation", "passes"]  # evaluation adds "seed"
 
 
 def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:

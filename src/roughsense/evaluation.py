@@ -320,6 +320,7 @@ def analyse_study(
         permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
         control_jobs.append((fit, X, y, specimens, permutations))
     analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    analysis.controls["seed"] = int(seed)  # the shufflings are default_rng(seed)'s: rerun with it to get them back
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)

@@ -324,7 +324,8 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
         "caption": ("CV RMSE over all trials of the out-of-fold predictions (LOO at the count the CV chose; LOSO nested). "
                     "Training mean: the RMSE of predicting each training fold's mean under the same folds. Shuffled: the "
                     "perceived values are permuted across specimens (every repetition of a specimen keeps one shared, "
-                    "wrong value) and the whole CV, the choice of the number of components included, is rerun; p = "
+                    "wrong value; drawn from numpy's default_rng(--seed), the seed column of controls.csv) and the "
+                    "whole CV, the choice of the number of components included, is rerun; p = "
                     "(1 + shufflings at least as good) / (1 + shufflings). A LOO model that does no better on shuffled "
                     "targets is recognising specimens, not reading roughness. With n shufflings the smallest attainable p is "
                     "1/(n + 1), so p < 0.05 needs at least 20 (the default is 199)."),
