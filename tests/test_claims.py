@@ -131,3 +131,38 @@ def test_a_tiny_study_still_gets_a_verdict_for_every_claim():
         assert verdicts[key] == "not testable", key
     # R2 and C5 are rated: each learns its spread from the other one alone.
     assert tiny.results("loo").query("specimen != 'R3'")["ovl_predictive"].notna().all()
+
+
+def test_the_descriptive_and_remaining_claims_follow_their_definitions(analysis):
+    cv = "loso"
+    means = {c: _rmse(analysis, cv, "smooth", c).mean() for c in ("1N", "2N", "3N", "combined")}
+    lowest = _claim(analysis, "combined_lowest_mean", "smooth", cv)
+    margin = means["combined"] - min(means["1N"], means["2N"], means["3N"])
+    assert lowest["statistic"] == pytest.approx(margin) and np.isnan(lowest["p"])
+    assert lowest["verdict"] == ("reproduced" if margin < 0 else "not reproduced")
+
+    comparable = _claim(analysis, "ovl_pads_comparable", "both", cv)
+    diffs, ps = [], []
+    for c in ("1N", "2N", "3N", "combined"):
+        a = _rmse(analysis, cv, "smooth", c, "ovl").dropna()
+        b = _rmse(analysis, cv, "fingerprint", c, "ovl").reindex(a.index)
+        diffs.append(abs(a.mean() - b.mean()))
+        ps.append(min(1.0, 4 * stats.wilcoxon(a.to_numpy() - b.to_numpy(), method="exact").pvalue))
+    assert comparable["statistic"] == pytest.approx(max(diffs)) and comparable["p"] == pytest.approx(min(ps))
+
+    low = _claim(analysis, "low_ovl_specimens", "fingerprint", cv)
+    r = analysis.results(cv)
+    cells = r[(r.pad == "fingerprint") & r.specimen.isin(["R2", "R2.5", "C5"])]["ovl"]
+    assert len(cells) == 12 and low["statistic"] == pytest.approx((cells < 0.5).mean())
+
+    flat = _claim(analysis, "sd_flat", "smooth", cv)
+    rows = r[(r.pad == "smooth") & (r.condition == "combined") & (r.specimen != "R3")]
+    gmean = analysis.perceived.set_index("specimen")["gmean"].reindex(rows["specimen"]).to_numpy()
+    rho, p = stats.spearmanr(gmean, rows["pred_sd"].to_numpy())
+    assert flat["statistic"] == pytest.approx(rho) and flat["p"] == pytest.approx(p)
+    assert flat["verdict"] == ("not reproduced" if rho > 0 and p < 0.05 else "reproduced")
+
+    grows = _claim(analysis, "human_sd_grows", "", "none")
+    rated = analysis.perceived.dropna(subset=["sd"])
+    rho, p = stats.spearmanr(rated["gmean"], rated["sd"])
+    assert grows["statistic"] == pytest.approx(rho) and grows["p"] == pytest.approx(p)
