@@ -411,6 +411,15 @@ class Study:
     def condition_labels(self) -> list[str]:
         return [nominal_force_label(f) for f in self.forces_n]
 
+    @property
+    def simulation(self) -> dict | None:
+        """The ``[simulation]`` table of study.toml (seed and settings) if a simulator wrote the folder, else None.
+
+        The analysis labels a study "simulated" from this table alone, so it never needs to import the simulator.
+        """
+        table = self.extra.get("simulation")
+        return dict(table) if isinstance(table, dict) else None
+
 
 #: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
 MAX_CONFIG_BYTES = 1_000_000
