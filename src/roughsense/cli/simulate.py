@@ -28,6 +28,11 @@ def register(app: typer.Typer) -> None:
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
         fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
         ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        ratings_from: str = typer.Option(
+            "paper", "--ratings-from",
+            help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
+                 "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
+        ),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
         force: bool = typer.Option(False, "--force", help="Write over an earlier simulated study, replacing files of the same name (nothing is deleted; a folder that is not a simulated study is refused)."),
     ) -> None:
@@ -50,6 +55,7 @@ def register(app: typer.Typer) -> None:
             seed=seed,
             fingerprint_period_mm=fingerprint_period_mm,
             ridge_height_mm=ridge_height_mm,
+            ratings_from=ratings_from.strip().lower(),
         )
         run = SimulationRun(out, config, force=force, jobs=jobs)
         for _ in progress(run, total=run.total, description="simulating"):
