@@ -126,12 +126,11 @@ def contact_pressures(specimen: Specimen, finger: Finger = FINGER, force_n: floa
     return length, out
 
 
-def subsurface_strain(pressure_pa: np.ndarray, length_mm: float, depth_mm: float, young_pa: float,
-                      poisson: float) -> np.ndarray:
-    """Compressive vertical strain at ``depth_mm`` under a periodic surface pressure (plane-strain half-space).
+def subsurface_stress(pressure_pa: np.ndarray, length_mm: float, depth_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_x, sigma_z) in Pa at ``depth_mm`` under a periodic surface pressure on a plane-strain half-space.
 
     Each pressure harmonic decays with depth as the Flamant kernel integrated over the surface gives (Johnson 1985,
-    eqs. 2.22-2.23 for a cosine load); the mean pressure gives sigma_x = sigma_z = -p, the long-wave limit.
+    section 2.8, a cosine load); the mean pressure gives sigma_x = sigma_z = -p, the long-wave limit.
     """
     p = np.asarray(pressure_pa, dtype=float)
     n = p.shape[-1]
@@ -141,9 +140,15 @@ def subsurface_strain(pressure_pa: np.ndarray, length_mm: float, depth_mm: float
     spectrum = sfft.rfft(p, axis=-1)
     sigma_z = -sfft.irfft(spectrum * (1.0 + kz) * decay, n, axis=-1)
     sigma_x = -sfft.irfft(spectrum * (1.0 - kz) * decay, n, axis=-1)
-    sigma_y = poisson * (sigma_x + sigma_z)  # plane strain
-    eps_z = (sigma_z - poisson * (sigma_x + sigma_y)) / young_pa
-    return -eps_z
+    return sigma_x, sigma_z
+
+
+def subsurface_strain(pressure_pa: np.ndarray, length_mm: float, depth_mm: float, young_pa: float,
+                      poisson: float) -> np.ndarray:
+    """Compressive vertical strain (positive in compression) at ``depth_mm``, plane strain (sigma_y = nu (sx + sz))."""
+    sigma_x, sigma_z = subsurface_stress(pressure_pa, length_mm, depth_mm)
+    sigma_y = poisson * (sigma_x + sigma_z)
+    return -(sigma_z - poisson * (sigma_x + sigma_y)) / young_pa
 
 
 def readout(specimen: Specimen, *, finger: Finger = FINGER, force_n: float | None = None) -> Readout:
