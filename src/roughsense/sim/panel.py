@@ -8,7 +8,7 @@ across participants' medians equals the paper's SD (``ratings_source = paper``).
 
 Every other specimen -- and, with ``ratings_from="physics"``, every specimen -- is felt by the simulated finger
 (:mod:`roughsense.sim.perception`): participant i reports exp(a_i) * (S / S_R3) ** (b * exp(c_i)) * exp(e_ik), with
-scale a_i and exponent c_i drawn once per person (so they are shared by all the specimens that person rates) and
+scale a_i and exponent c_i (mean-one factor exp(c_i)) drawn once per person (so they are shared by all the specimens that person rates) and
 session noise e_ik per specimen (``ratings_source = physics``).
 """
 from __future__ import annotations
@@ -128,11 +128,13 @@ def _rng(seed: int, spawn_key: tuple[int, ...], *key: int) -> np.random.Generato
 def draw_people(seed: int, spawn_key: tuple[int, ...], participants: int) -> tuple[np.ndarray, np.ndarray]:
     """Each participant's log scale a_i and exponent factor exp(c_i) (the finger model's people).
 
-    Keyed by the seed alone (not by any specimen), so a person is the same for every specimen they rate.
+    c_i ~ N(-exponent_sd^2 / 2, exponent_sd^2), so the factor averages 1 and the panel's expected log aggregate is
+    the model's exponent times log(S / S_R3). Keyed by the seed alone (not by any specimen), so a person is the
+    same for every specimen they rate.
     """
     psych = perception.PSYCHOPHYSICS
     z = _rng(seed, spawn_key, 3).standard_normal((participants, 2))
-    return psych.scale_sd * z[:, 0], np.exp(psych.exponent_sd * z[:, 1])
+    return psych.scale_sd * z[:, 0], np.exp(psych.exponent_sd * z[:, 1] - 0.5 * psych.exponent_sd**2)
 
 
 def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 10, sessions: int = 3,
