@@ -8,8 +8,8 @@ across participants' medians equals the paper's SD (``ratings_source = paper``).
 
 Every other specimen -- and, with ``ratings_from="physics"``, every specimen -- is felt by the simulated finger
 (:mod:`roughsense.sim.perception`): participant i reports exp(a_i) * (S / S_R3) ** (b * exp(c_i)) * exp(e_ik), with
-scale a_i and exponent c_i (mean-one factor exp(c_i)) drawn once per person (so they are shared by all the specimens that person rates) and
-session noise e_ik per specimen (``ratings_source = physics``).
+scale a_i and exponent c_i (mean-one factor exp(c_i)) drawn once per person (so they are shared by all the
+specimens that person rates) and session noise e_ik per specimen (``ratings_source = physics``).
 """
 from __future__ import annotations
 

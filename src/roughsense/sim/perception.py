@@ -10,15 +10,15 @@ Three stages, each after a published account of macroscopic roughness (spatial c
 2. **SA1 readout.** The surface pressure is carried to the receptors' depth through the plane-strain half-space
    (Flamant) kernels in Fourier form (Johnson 1985, section 2.8): a pressure harmonic P cos(kx) gives
    sigma_z = -P (1 + kz) e^(-kz), sigma_x = -P (1 - kz) e^(-kz), sigma_y = nu (sigma_x + sigma_z). The SA1 drive is
-   the compressive vertical strain there (Phillips & Johnson 1981), turned into a saturating firing rate
-   r = 1 - exp(-strain / saturation_strain). Roughness follows the *spatial variation* of SA1 firing (Connor &
-   Johnson 1992; Blake, Hsiao & Johnson 1997), summarised by the SD of r along the line: the root-mean-square
+   the compressive vertical strain there, turned into a saturating drive r = 1 - exp(-strain / saturation_strain)
+   (not rectified: tension between contacts lowers it; docs/simulator.md compares the alternatives). Roughness
+   follows the *spatial variation* of SA1 firing (Connor & Johnson 1992; Blake, Hsiao & Johnson 1997), summarised by the SD of r along the line: the root-mean-square
    difference between two receptors, averaged over all their separations, is sqrt(2) times that SD.
 3. **Magnitude estimation.** Relative to the reference R3 (felt at the exploration force), a participant reports
-   exp(a) * (S / S_R3) ** (b * exp(c)) with S the spatial variation; a ~ N(0, scale_sd^2) and c ~ N(0, exponent_sd^2)
-   are that participant's scale and exponent, drawn once per person (:mod:`roughsense.sim.panel`), and each session
-   adds N(0, session_sd^2) in logs. So people disagree most about specimens far from the reference, and the spread
-   across people follows from the model instead of being looked up.
+   exp(a) * (S / S_R3) ** (b * exp(c)) with S the spatial variation; a ~ N(0, scale_sd^2) is that person's scale,
+   c ~ N(-exponent_sd^2 / 2, exponent_sd^2) their exponent (exp(c) averages 1), both drawn once per person
+   (:mod:`roughsense.sim.panel`), and each session adds N(0, session_sd^2) in logs. So people disagree most about
+   specimens far from the reference, and the spread across people follows from the model, not from a table.
 
 The depth, the saturation strain and the exponent b were fitted to the paper's 13 rated specimens by
 ``scripts/fit_finger.py``, and the three spreads to the paper's SDs; the constants below are that script's output.

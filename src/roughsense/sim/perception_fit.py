@@ -4,8 +4,8 @@ The functions take the targets as arguments and read no table: ``scripts/fit_fin
 values and prints the constants committed in ``perception.py``; the tests run the leave-one-specimen-out check.
 
 Free parameters: the receptor depth (searched over the SA1 range 0.5-1.0 mm), the saturation strain (searched on
-a log grid over 3-30 %) and the psychophysical exponent (least squares in logs, through R3 = 1, in closed form). The contact
-does not depend on any of them, so it is solved once per specimen and the grid search is cheap.
+a log grid over 3-30 %) and the psychophysical exponent (least squares in logs, through R3 = 1, in closed form).
+The contact does not depend on any of them, so it is solved once per specimen and the grid search is cheap.
 """
 from __future__ import annotations
 
