@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from scipy import integrate
 
 from roughsense.errors import ConfigError
@@ -156,3 +158,32 @@ def test_roughness_rises_with_amplitude_at_fixed_wavelength(wavelength_mm):
     """Deeper corrugations of the same period feel rougher (sinusoids, amplitude 0.02-1 mm)."""
     values = [_magnitude(sinusoidal(wavelength_mm, a)) for a in (0.02, 0.05, 0.1, 0.2, 0.5, 1.0)]
     assert np.all(np.diff(values) > 0), values
+
+
+def test_the_finger_never_reads_the_papers_tables(monkeypatch):
+    """Physics ratings need no paper table at run time: with the reader broken they still come out, and the
+    finger's modules do not mention the shipped results."""
+    from roughsense.sim import panel, perception_fit
+
+    def refuse():
+        raise AssertionError("the paper's table was read")
+
+    monkeypatch.setattr(panel, "paper_perceived", refuse)
+    table = panel.simulate_panel([PRESETS[n] for n in ("R2", "R3", "C5")], 0, ratings_from="physics")
+    assert set(table["specimen"]) == {"R2", "C5"} and (table["rating"] > 0).all()
+    for module in (perception, perception_fit):
+        text = Path(module.__file__).read_text(encoding="utf-8")
+        assert "perceived_roughness" not in text and "data.paper" not in text and "paper_perceived" not in text
+
+
+@given(st.lists(st.floats(0.0, 1e5), min_size=8, max_size=64), st.floats(0.05, 3.0), st.integers(0, 63))
+def test_subsurface_stress_is_in_equilibrium_and_shift_equivariant(pressure, depth_mm, shift):
+    """At any depth the mean vertical stress carries the mean load, and moving the load moves the field."""
+    p = np.asarray(pressure)
+    length = 0.1 * p.size
+    sx, sz = perception.subsurface_stress(p, length, depth_mm)
+    assert sz.mean() == pytest.approx(-p.mean(), abs=1e-9 * max(1.0, p.max()))
+    k = shift % p.size
+    sx2, sz2 = perception.subsurface_stress(np.roll(p, k), length, depth_mm)
+    np.testing.assert_allclose(sz2, np.roll(sz, k), atol=1e-9 * max(1.0, p.max()))
+    np.testing.assert_allclose(sx2, np.roll(sx, k), atol=1e-9 * max(1.0, p.max()))
