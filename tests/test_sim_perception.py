@@ -155,7 +155,8 @@ def test_roughness_rises_with_finger_force(name):
 
 @pytest.mark.parametrize("wavelength_mm", [2.0, 3.0])
 def test_roughness_rises_with_amplitude_at_fixed_wavelength(wavelength_mm):
-    """Deeper corrugations of the same period feel rougher (sinusoids, amplitude 0.02-1 mm)."""
+    """Deeper corrugations of the same period feel rougher (sinusoids, amplitude 0.02-1 mm). Issue 12 lists this
+    finding without a source; docs/simulator.md says so."""
     values = [_magnitude(sinusoidal(wavelength_mm, a)) for a in (0.02, 0.05, 0.1, 0.2, 0.5, 1.0)]
     assert np.all(np.diff(values) > 0), values
 
