@@ -36,6 +36,7 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--forces", "1,1.0000001"), "too close to tell apart"),
     (("--seed", "-1"), "--seed must be"),
     (("--jobs", "0"), "--jobs must be at least 1"),
+    (("--ratings-from", "table"), "--ratings-from must be one of paper, physics, got 'table'"),
 ])
 def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     out = tmp_path / "s"
@@ -43,6 +44,18 @@ def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     assert code == 2
     assert err.startswith("roughsense: error:") and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()  # nothing written
+
+
+def test_ratings_from_physics_feels_every_specimen(run_cli, tmp_path):
+    out = tmp_path / "s"
+    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2,R3,sin:3:0.3",
+                           "--forces", "1", "--repetitions", "1", "--jobs", "1", "--ratings-from", "physics")
+    assert code == 0, err
+    study = read_study(out)
+    assert study.extra["simulation"]["ratings_from"] == "physics"
+    assert dict(study.specimens.set_index("specimen")["ratings_source"]) == {
+        "R2": "physics", "R3": "physics", "sin_3_0.3": "physics"}
+    assert set(study.ratings["specimen"]) == {"R2", "sin_3_0.3"}
 
 
 def _tree(root):

@@ -27,6 +27,11 @@ def register(app: typer.Typer) -> None:
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
         fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
         ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        ratings_from: str = typer.Option(
+            "paper", "--ratings-from",
+            help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
+                 "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
+        ),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
         force: bool = typer.Option(False, "--force", help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; files you added to it are kept; a folder that is not a simulated study is refused). An interrupted simulation is replaced without it."),
     ) -> None:
@@ -58,6 +63,7 @@ def register(app: typer.Typer) -> None:
             seed=seed,
             fingerprint_period_mm=fingerprint_period_mm,
             ridge_height_mm=ridge_height_mm,
+            ratings_from=ratings_from.strip().lower(),
         )
         run = SimulationRun(out, config, force=force, jobs=jobs)
         for _ in progress(run, total=run.total, description="simulating"):

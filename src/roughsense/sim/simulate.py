@@ -28,7 +28,7 @@ from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
 from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
-from .panel import REFERENCE, percept, simulate_panel
+from .panel import REFERENCE, check_ratings_from, percept, simulate_panel
 from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
 
 SUBSAMPLES_PER_PX = 7
@@ -53,6 +53,7 @@ class SimulationConfig:
     participants: int = 10
     sessions: int = 3
     name: str = "simulated"
+    ratings_from: str = "paper"  # "paper": the paper's values for its presets, the finger model otherwise; "physics"
     camera: Camera = field(default_factory=Camera)
     bench: BenchNoise = field(default_factory=BenchNoise)
 
@@ -69,6 +70,7 @@ class SimulationConfig:
                 raise ConfigError(f"--forces: every force must be a positive number of newtons up to {MAX_FORCE_N:g}, "
                                   f"got {f!r}")
         _check_force_labels(self.forces_n)
+        check_ratings_from(self.ratings_from)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
         for option, value in (("--fingerprint-period-mm", self.fingerprint_period_mm),
                               ("--ridge-height-mm", self.ridge_height_mm)):
@@ -94,7 +96,7 @@ class SimulationConfig:
         table = {"seed": int(self.seed), "simulator": "roughsense.sim", "pads": list(self.pads),
                  "repetitions": int(self.repetitions), "fingerprint_period_mm": float(self.fingerprint_period_mm),
                  "ridge_height_mm": float(self.ridge_height_mm), "participants": int(self.participants),
-                 "sessions": int(self.sessions)}
+                 "sessions": int(self.sessions), "ratings_from": str(self.ratings_from)}
         table.update({f"camera_{k}": v for k, v in cam.items()})
         table.update({f"bench_{k}": v for k, v in bench.items()})
         return table
@@ -326,11 +328,12 @@ class SimulationRun:
         writer.write_config(name=config.name, reference_specimen=REFERENCE,
                             sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi="center"),
                             forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
-        table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s).source} for s in self.specimens])
+        table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
+                              for s in self.specimens])
         writer.write_specimens(table)
         writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=(4,),
                                             participants=config.participants, sessions=config.sessions,
-                                            reference=REFERENCE))
+                                            reference=REFERENCE, ratings_from=config.ratings_from))
 
     def __iter__(self) -> Iterator[str]:
         try:
