@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.special import log_ndtr, ndtr
 
 from ..errors import ConfigError
 
@@ -29,7 +30,10 @@ class Camera:
     px_per_mm: float = PX_PER_MM
     contact_width_mm: float = 10.0  # the specimen's width, seen foreshortened at 45 degrees
     band_edge_px: float = 6.0  # softness of the band's upper and lower edges
-    gap_decay_mm: float = 0.02  # contrast ~ exp(-gap / delta): frustrated reflection fades within tens of um
+    wavelength_mm: float = 550e-6  # the light's (mid-visible) wavelength in vacuum
+    pad_index: float = 1.5  # refractive index of the PVC plastisol pad (air in the gap: 1.0)
+    incidence_deg: float = 45.0  # angle of the imaging rays on the contact face, inside the pad
+    micro_roughness_mm: float = 0.0005  # RMS of the local gap from the pad's and the sanded print's micro-roughness
     far_weight: float = 0.12  # faint view of the specimen through the pad where it does not touch
     far_decay_mm: float = 0.4
     blur_sigma_px: float = 1.5  # lens blur (Gaussian)
@@ -45,6 +49,15 @@ class Camera:
             raise ConfigError(f"image must be at least 16 x 16 px, got {self.width_px} x {self.height_px}")
         if not (math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
             raise ConfigError(f"px_per_mm must be positive, got {self.px_per_mm!r}")
+        for name in ("wavelength_mm", "pad_index"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"camera {name} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.micro_roughness_mm) and self.micro_roughness_mm >= 0):
+            raise ConfigError(f"camera micro_roughness_mm must be >= 0, got {self.micro_roughness_mm!r}")
+        if not self.pad_index * math.sin(math.radians(self.incidence_deg)) > 1.0:
+            raise ConfigError(f"no total internal reflection at {self.incidence_deg:g} degrees in a pad of index "
+                              f"{self.pad_index:g}: n sin(theta) must exceed 1 (the air's index)")
 
     @property
     def field_mm(self) -> float:
@@ -54,10 +67,40 @@ class Camera:
     def band_height_px(self) -> float:
         return self.contact_width_mm * math.cos(math.radians(VIEW_ANGLE_DEG)) * self.px_per_mm
 
+    @property
+    def evanescent_decay_mm(self) -> float:
+        """Intensity decay length of the evanescent field behind the pad's face, d = lambda / (4 pi kappa).
+
+        kappa = sqrt(n1^2 sin^2(theta) - n2^2) with n2 = 1 (air): the frustrated-reflection (and TIRF) result,
+        e.g. Axelrod 2001; 0.12 um for n1 = 1.5 at 45 degrees and 550 nm.
+        """
+        kappa = math.sqrt((self.pad_index * math.sin(math.radians(self.incidence_deg))) ** 2 - 1.0)
+        return self.wavelength_mm / (4.0 * math.pi * kappa)
+
+    def optical_contact(self, gap_mm: np.ndarray) -> np.ndarray:
+        """Fraction of the light coupled into the specimen at a mean-plane gap g, relative to g = 0.
+
+        The local gap is g + sigma * z, z ~ N(0, 1), clipped at 0 (the micro-asperities that reach the specimen are
+        in optical contact), and each local gap h couples exp(-h / d). Its mean over z is, in closed form,
+        Phi(-g/sigma) + exp(s^2 / 2 - g/d) Phi(g/sigma - s), s = sigma / d (evaluated in logs: s ~ 8).
+        """
+        g = np.maximum(np.asarray(gap_mm, dtype=float), 0.0)
+        d, sigma = self.evanescent_decay_mm, self.micro_roughness_mm
+        if sigma <= 0:
+            return np.exp(-g / d)
+        s = sigma / d
+        coupled = ndtr(-g / sigma) + np.exp(0.5 * s * s - g / d + log_ndtr(g / sigma - s))
+        at_contact = 0.5 + math.exp(0.5 * s * s + float(log_ndtr(-s)))
+        return coupled / at_contact
+
     def contrast(self, gap_mm: np.ndarray) -> np.ndarray:
-        """Brightness (0..1) of a point of the line from its gap: 1 in contact, fading as the pad lifts off."""
+        """Brightness (0..1) of a point of the line from its gap: 1 in contact, fading as the pad lifts off.
+
+        Optical contact (frustrated reflection through a ~1 um micro-rough interface) plus a faint view of the
+        specimen through the pad that fades over ``far_decay_mm``; docs/simulator.md, Optics.
+        """
         g = np.asarray(gap_mm, dtype=float)
-        return (1.0 - self.far_weight) * np.exp(-g / self.gap_decay_mm) + self.far_weight * np.exp(-g / self.far_decay_mm)
+        return (1.0 - self.far_weight) * self.optical_contact(g) + self.far_weight * np.exp(-g / self.far_decay_mm)
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
 COMPLETE_MARKER = ".simulation-complete"  # written last: a folder without it is an interrupted run
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
-SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale
+SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the ~0.5 um optical scale
 
 
 @dataclass(frozen=True)
