@@ -14,22 +14,12 @@ import argparse
 import dataclasses
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from roughsense.sim.bench import BenchNoise
-from roughsense.sim.optics import Camera
+from roughsense.sim.optics import Camera, apparent_contact_fraction
 from roughsense.sim.simulate import SimulationConfig, plan_trials, trial_line
 
 SPECIMENS = ("C2", "C3", "C4", "C5", "R2", "R3", "R4", "R5")
-
-
-def apparent_fraction(line: np.ndarray, camera) -> float:
-    """Fraction of pixel columns brighter than half-way from "nothing touches" to full contact, after the lens blur.
-
-    "Nothing touches" near the contact is the faint view of the specimen through the pad (``far_weight``)."""
-    line = np.asarray(line, dtype=float)
-    seen = gaussian_filter1d(line, camera.blur_sigma_px, mode="nearest") if camera.blur_sigma_px > 0 else line
-    return float(np.mean(seen > 0.5 * (1.0 + camera.far_weight)))
 
 
 def agreement(pads=("smooth",), specimens=SPECIMENS, forces_n=(1.0, 2.0, 3.0), camera=None) -> list[dict]:
@@ -42,7 +32,7 @@ def agreement(pads=("smooth",), specimens=SPECIMENS, forces_n=(1.0, 2.0, 3.0), c
     rows = []
     for trial in plan_trials(config, pads_, specimens_):
         line, true = trial_line(trial)
-        seen = apparent_fraction(line, trial.camera)
+        seen = apparent_contact_fraction(line, trial.camera)
         rows.append({"pad": trial.pad.name, "specimen": trial.specimen.name, "force_n": trial.nominal_force_n,
                      "true": true, "apparent": seen, "relative_error": seen / true - 1.0 if true > 0 else np.nan})
     return rows

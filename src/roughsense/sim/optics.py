@@ -159,6 +159,18 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
     return np.rint(frame).astype(np.uint8)
 
 
+def apparent_contact_fraction(line: np.ndarray, camera: Camera) -> float:
+    """Fraction of pixel columns that look in contact: brighter, after the lens blur, than half-way from "nothing
+    touches" (the faint view of the specimen through the pad, ``far_weight``) to full contact.
+
+    What one reads off the band; compared with the solver's contact in tests and scripts/contact_agreement.py.
+    """
+    line = np.asarray(line, dtype=float)
+    if camera.blur_sigma_px > 0:
+        line = gaussian_filter1d(line, camera.blur_sigma_px, mode="nearest")
+    return float(np.mean(line > 0.5 * (1.0 + camera.far_weight)))
+
+
 def bin_to_pixels(values: np.ndarray, width_px: int) -> np.ndarray:
     """Average ``width_px * s`` sub-pixel samples into ``width_px`` pixels (a pixel integrates its area)."""
     values = np.asarray(values, dtype=float)
