@@ -82,3 +82,30 @@ def test_apparent_contact_matches_the_solvers_contact():
     assert all(abs(errors[(s, f)]) <= 0.01 for s in ("R2", "R3", "R4", "R5") for f in (1.0, 2.0, 3.0))
     bare = _agreement(dataclasses.replace(camera, micro_roughness_mm=0.0), forces_n=(1.0,))
     assert max(abs(v) for v in bare.values()) <= 0.05
+
+
+def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
+    from roughsense.sensor import resolve_roi
+    from roughsense.sim.optics import Lighting, render
+
+    clean = dict(read_noise_dn=0.0, shot_noise_gain=0.0)
+    whole = Camera(stored_height_px=0, **clean)
+    cropped = Camera(**clean)
+    assert (cropped.frame_height_px, cropped.frame_top_px) == (320, 380)
+    line = np.clip(np.sin(np.arange(1920) / 9.0), 0.0, 1.0)
+    lighting = Lighting(gain=1.1, gradient=0.05, ripple=((0.03, 20.0, 0.4),))
+    spots = ((20.0, 1.5, 0.3, 0.6), (40.0, -3.0, 0.5, -0.4), (10.0, 12.0, 0.4, 0.8))  # the last one is cut away
+    kw = dict(band_center_px=540.0 + 17.0, lighting=lighting, spots=spots)
+    full = render(whole, line, rng=np.random.default_rng(0), **kw)
+    stored = render(cropped, line, rng=np.random.default_rng(0), **kw)
+    assert stored.shape == (320, 1920)
+    np.testing.assert_array_equal(stored, full[380:700])  # shading and vignetting are the whole sensor's
+    # the paper's centred 1900 x 150 crop is the same pixels in either frame
+    x, y, w, h = resolve_roi("center", full)
+    xs, ys, ws, hs = resolve_roi("center", stored)
+    np.testing.assert_array_equal(stored[ys:ys + hs, xs:xs + ws], full[y:y + h, x:x + w])
+    with pytest.raises(ConfigError, match="even number"):
+        Camera(stored_height_px=321)
+    with pytest.raises(ConfigError):
+        Camera(stored_height_px=8)
+    assert Camera(height_px=300).frame_height_px == 300  # a smaller sensor than the window: all of it

@@ -530,8 +530,11 @@ class StudyWriter:
     def image_path(self, name: str) -> Path:
         return self.root / IMAGES_DIR / name
 
-    def write_image(self, name: str, image: np.ndarray) -> str:
-        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path."""
+    def write_image(self, name: str, image: np.ndarray, *, params: Sequence[int] = ()) -> str:
+        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path.
+
+        ``params`` are OpenCV's ``imwrite`` flags (e.g. the PNG compression strategy); the file stays a standard one.
+        """
         import cv2  # local: the study contract should not pay for OpenCV at import
 
         target = self.image_path(name)
@@ -541,7 +544,7 @@ class StudyWriter:
         array = np.ascontiguousarray(image)
         if array.ndim == 3 and array.shape[2] == 3:
             array = array[:, :, ::-1]  # OpenCV stores BGR; callers hand us RGB
-        ok, encoded = cv2.imencode(ext, array)
+        ok, encoded = cv2.imencode(ext, array, list(params))
         if not ok:
             raise InputError(f"could not encode image as {ext}", path=target)
         atomic.write_bytes(target, encoded.tobytes())

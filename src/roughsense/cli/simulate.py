@@ -28,6 +28,7 @@ def register(app: typer.Typer) -> None:
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
         fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
         ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        stored_height_px: int = typer.Option(320, "--stored-height-px", help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the paper's centred crop is unchanged); 0 stores whole frames."),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
         force: bool = typer.Option(False, "--force", help="Write over an earlier simulated study, replacing files of the same name (nothing is deleted; a folder that is not a simulated study is refused)."),
     ) -> None:
@@ -37,8 +38,11 @@ def register(app: typer.Typer) -> None:
         and 10 participants x 3 sessions x 13 specimens = 390 ratings (R3 is the reference). Try a new pad or
         specimen before building it, e.g. --fingerprint-period-mm 0.5 or --specimens R3,sin:3:0.5.
         """
+        from dataclasses import replace
+
         from ..errors import ConfigError
         from ..sim import SimulationConfig, SimulationRun
+        from ..sim.optics import Camera
 
         if jobs is not None and jobs < 1:
             raise ConfigError(f"--jobs must be at least 1, got {jobs}")
@@ -50,6 +54,7 @@ def register(app: typer.Typer) -> None:
             seed=seed,
             fingerprint_period_mm=fingerprint_period_mm,
             ridge_height_mm=ridge_height_mm,
+            camera=replace(Camera(), stored_height_px=stored_height_px),
         )
         run = SimulationRun(out, config, force=force, jobs=jobs)
         for _ in progress(run, total=run.total, description="simulating"):

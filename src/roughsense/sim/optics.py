@@ -27,6 +27,10 @@ class Camera:
 
     width_px: int = WIDTH_PX
     height_px: int = HEIGHT_PX
+    # Rows kept per stored frame, centred on the sensor (0: all): the band (247 px) plus 3 SD of its placement on
+    # each side. A camera's sensor window (AOI) would write the same frame; the paper's centred 1900 x 150 crop of
+    # it is the crop of the full frame (docs/simulator.md, "Frames on disk").
+    stored_height_px: int = 320
     px_per_mm: float = PX_PER_MM
     contact_width_mm: float = 10.0  # the specimen's width, seen foreshortened at 45 degrees
     band_edge_px: float = 6.0  # softness of the band's upper and lower edges
@@ -49,6 +53,12 @@ class Camera:
             raise ConfigError(f"image must be at least 16 x 16 px, got {self.width_px} x {self.height_px}")
         if not (math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
             raise ConfigError(f"px_per_mm must be positive, got {self.px_per_mm!r}")
+        stored = self.stored_height_px
+        if not (isinstance(stored, (int, float)) and float(stored).is_integer() and (stored == 0 or stored >= 16)):
+            raise ConfigError(f"stored_height_px must be 0 (the whole frame) or at least 16, got {self.stored_height_px!r}")
+        if (self.height_px - self.frame_height_px) % 2:
+            raise ConfigError(f"stored_height_px {self.stored_height_px} and height_px {self.height_px} must differ by an "
+                              "even number of rows, so that the stored frame is centred on the sensor")
         for name in ("wavelength_mm", "pad_index"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -58,6 +68,18 @@ class Camera:
         if not self.pad_index * math.sin(math.radians(self.incidence_deg)) > 1.0:
             raise ConfigError(f"no total internal reflection at {self.incidence_deg:g} degrees in a pad of index "
                               f"{self.pad_index:g}: n sin(theta) must exceed 1 (the air's index)")
+
+    @property
+    def frame_height_px(self) -> int:
+        """Rows of the stored frame: ``stored_height_px`` centred on the sensor, or all of them."""
+        if self.stored_height_px == 0 or self.stored_height_px >= self.height_px:
+            return int(self.height_px)
+        return int(self.stored_height_px)
+
+    @property
+    def frame_top_px(self) -> int:
+        """The sensor row the stored frame starts at."""
+        return int(self.height_px - self.frame_height_px) // 2
 
     @property
     def field_mm(self) -> float:
@@ -116,6 +138,8 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
            rng: np.random.Generator, spots: tuple[tuple[float, float, float, float], ...] = ()) -> np.ndarray:
     """Render an 8-bit gray frame from the line's brightness (0..1 per pixel column).
 
+    The frame holds the sensor rows ``camera.frame_top_px`` on (``camera.frame_height_px`` of them): shading and
+    band are those of the whole sensor, only the stored rows are drawn and noised. ``band_center_px`` is a sensor row.
     ``spots`` are dust specks, bubbles and smudges: (x_mm from the frame's left, y_mm from the band centre,
     size_mm, strength), each a Gaussian that darkens (strength > 0) or brightens the frame locally.
     """
@@ -144,12 +168,15 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
         band = gaussian_filter1d(band, sigma, mode="nearest")
 
     band_x = (camera.band_floor_dn + (camera.contact_dn - camera.band_floor_dn) * line) * shade_x
+    top = camera.frame_top_px
+    rows_kept = slice(top, top + camera.frame_height_px)
+    band, shade_y = band[rows_kept], shade_y[rows_kept]
     col_bg = (camera.background_dn * shade_y).astype(np.float32)
     col_band = (band * shade_y).astype(np.float32)
     frame = np.outer(col_bg * (1.0 - band.astype(np.float32)), shade_x.astype(np.float32))
     frame += np.outer(col_band, band_x.astype(np.float32))
     for x_mm0, y_mm0, size_mm, strength in spots:
-        _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px + y_mm0 * camera.px_per_mm,
+        _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px - top + y_mm0 * camera.px_per_mm,
                   size_mm * camera.px_per_mm, strength)
     # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
     noise = rng.standard_normal(frame.shape, dtype=np.float32)
