@@ -278,14 +278,16 @@ def _write_trial(args: tuple[str, bool, Trial]) -> tuple[str, float]:
 
 
 def png_params() -> tuple[int, ...]:
-    """How frames are encoded: PNG at zlib level 1 with Huffman coding only (no LZ77 match search).
+    """How frames are encoded: PNG, each row predicted by the "average" filter, Huffman coding only.
 
-    A noisy camera frame has almost no repeated strings, so the match search costs time and saves nothing: this is
-    lossless, ~35 % faster to encode and ~4 % smaller than OpenCV's default (BENCHMARKS.md, simulate).
+    A noisy camera frame has almost no repeated strings, so LZ77's match search costs time and saves nothing; and
+    the mean of the left and upper neighbours predicts a pixel with less residual noise (variance 1.5 sigma^2) than
+    OpenCV's default "sub" filter (2 sigma^2): ~4 % smaller at the same speed, lossless (BENCHMARKS.md, simulate).
     """
     import cv2
 
-    return (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY)
+    return (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+            cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_AVG)
 
 
 def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None = None, *,
