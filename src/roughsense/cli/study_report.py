@@ -37,7 +37,7 @@ def _builtin_study(seed: int, jobs: int) -> Path:
     root = cache_dir() / f"{prefix}{_simulator_fingerprint()}"
     if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
         return root
-    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
+    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 0.4 GB each).
     for stale in cache_dir().glob(f"{prefix}*"):
         if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
             shutil.rmtree(stale, ignore_errors=True)
