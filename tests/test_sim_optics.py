@@ -109,3 +109,20 @@ def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
     with pytest.raises(ConfigError):
         Camera(stored_height_px=8)
     assert Camera(height_px=300).frame_height_px == 300  # a smaller sensor than the window: all of it
+
+
+def test_stored_png_is_lossless_and_the_sensor_reads_it_like_the_frame(tmp_path):
+    from roughsense.images import read_image
+    from roughsense.sensor import spatial_spectrum
+    from roughsense.sim import simulate_study
+    from roughsense.sim.simulate import render_trial
+    from roughsense.study import read_study
+
+    config = SimulationConfig(pads=("fingerprint",), specimens=("C3",), forces_n=(2.0,), repetitions=1, seed=7,
+                              camera=Camera(width_px=1920))
+    study = read_study(simulate_study(tmp_path / "s", config, jobs=1))
+    path = study.image_paths[0]
+    frame, _ = render_trial(plan_trials(config, *config.validate())[0])
+    assert frame.shape == (320, 1920)
+    np.testing.assert_array_equal(read_image(path), frame)
+    np.testing.assert_array_equal(spatial_spectrum(path), spatial_spectrum(frame))  # partial PNG decode included
