@@ -31,7 +31,7 @@ def run_study(cache: Path, out: Path, src: Path | None = None) -> float:
     if src is not None:
         env["PYTHONPATH"] = os.pathsep.join([str(src.resolve()), *filter(None, [os.environ.get("PYTHONPATH")])])
     started = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force"], cwd=out.parent,
+    subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force"],
                    env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return time.perf_counter() - started
 
