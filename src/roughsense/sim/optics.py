@@ -180,10 +180,15 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
                   size_mm * camera.px_per_mm, strength)
     # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
     noise = rng.standard_normal(frame.shape, dtype=np.float32)
-    noise *= np.sqrt(np.float32(camera.read_noise_dn**2) + np.float32(camera.shot_noise_gain) * np.maximum(frame, 0))
+    sd = np.maximum(frame, np.float32(0.0))  # in place from here: the frame is the only large array per trial
+    sd *= np.float32(camera.shot_noise_gain)
+    sd += np.float32(camera.read_noise_dn**2)
+    np.sqrt(sd, out=sd)
+    noise *= sd
     frame += noise
     np.clip(frame, 0.0, 255.0, out=frame)
-    return np.rint(frame).astype(np.uint8)
+    np.rint(frame, out=frame)
+    return frame.astype(np.uint8)
 
 
 def apparent_contact_fraction(line: np.ndarray, camera: Camera) -> float:
