@@ -282,7 +282,7 @@ def png_params() -> tuple[int, ...]:
 
     A noisy camera frame has almost no repeated strings, so LZ77's match search costs time and saves nothing; and
     the mean of the left and upper neighbours predicts a pixel with less residual noise (variance 1.5 sigma^2) than
-    OpenCV's default "sub" filter (2 sigma^2): ~4 % smaller at the same speed, lossless (BENCHMARKS.md, simulate).
+    OpenCV's default "sub" filter (2 sigma^2): ~4 % smaller at the same speed, lossless (BENCHMARKS.md, first run).
     """
     import cv2
 
