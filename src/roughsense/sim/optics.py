@@ -2,7 +2,7 @@
 
 The clean image is separable -- (vignetting x illumination)(x, y) times (background(y) + band(y) * line(x)) --
 so blur and shading are applied to 1D profiles and the frame is two outer products. Only the sensor noise is
-drawn per pixel. That keeps a 1920 x 1080 frame at a few tens of milliseconds.
+drawn per pixel, and only for the rows stored (a window of the sensor round the band): a frame costs milliseconds.
 """
 from __future__ import annotations
 
@@ -104,7 +104,7 @@ class Camera:
 
         The local gap is g + sigma * z, z ~ N(0, 1), clipped at 0 (the micro-asperities that reach the specimen are
         in optical contact), and each local gap h couples exp(-h / d). Its mean over z is, in closed form,
-        Phi(-g/sigma) + exp(s^2 / 2 - g/d) Phi(g/sigma - s), s = sigma / d (evaluated in logs: s ~ 8).
+        Phi(-g/sigma) + exp(s^2 / 2 - g/d) Phi(g/sigma - s), s = sigma / d (evaluated in logs: s is about 4).
         """
         g = np.maximum(np.asarray(gap_mm, dtype=float), 0.0)
         d, sigma = self.evanescent_decay_mm, self.micro_roughness_mm
@@ -118,7 +118,7 @@ class Camera:
     def contrast(self, gap_mm: np.ndarray) -> np.ndarray:
         """Brightness (0..1) of a point of the line from its gap: 1 in contact, fading as the pad lifts off.
 
-        Optical contact (frustrated reflection through a ~1 um micro-rough interface) plus a faint view of the
+        Optical contact (frustrated reflection through a micro-rough interface, sigma ~0.5 um) plus a faint view of the
         specimen through the pad that fades over ``far_decay_mm``; docs/simulator.md, Optics.
         """
         g = np.asarray(gap_mm, dtype=float)
