@@ -2,9 +2,10 @@
 
 A small valid study (4 specimens x 2 repetitions x 3 forces, 400 x 30 px images, built once per module with the
 simulator) is copied per example and mutated by hypothesis: CSV cells, headers and rows, encodings, study.toml values
-and tables, image bytes, and names with path characters. Then a command runs in-process. The outcome must be exit 0
-(with at most ``roughsense: warning:`` lines on stderr) or exit 2 with exactly one ``roughsense: error:`` line, never a
-traceback or an internal error, and nothing outside ``--out`` (and the cache) may change.
+and tables, image bytes, and names with path characters. Then a command runs in-process (features --study, fit,
+ratings, protocol, predict --study, study). The outcome must be exit 0 or exit 2 with exactly one ``roughsense: error:``
+line; every stderr line is roughsense's own (warnings, notes, stage lines), never a traceback, an internal error or a
+library's message; and nothing outside ``--out`` (and the cache) may change.
 
 Budget: the module runs in well under a minute (fixed ``max_examples``, derandomised by the conftest profile).
 """
@@ -326,7 +327,7 @@ def example_folder(base: Path):
         shutil.rmtree(top, ignore_errors=True)
 
 
-def command_args(command: str, study: Path, out: Path) -> list:
+def command_args(command: str, study: Path, out: Path, model: Path | None = None) -> list:
     if command == "features":
         return ["features", "--study", study, "--out", out / "features.csv"]
     if command == "fit":
@@ -339,12 +340,14 @@ def command_args(command: str, study: Path, out: Path) -> list:
     if command == "protocol":
         return ["protocol", "--out", out / "schedule.csv", "--seed", "1", "--participants", "2", "--sessions", "1",
                 "--specimens", study / "specimens.csv"]
+    if command == "predict":
+        return ["predict", model, "--study", study, "--out", out / "predictions.csv"]
     if command == "study":
         return ["study", "--data", study, "--out", out / "report", "--max-components", "2", "--no-loso", "--jobs", "1"]
     raise AssertionError(command)
 
 
-def run_example(run_cli, base: Path, changes, command: str, monkeypatch) -> None:
+def run_example(run_cli, base: Path, changes, command: str, monkeypatch, model: Path | None = None) -> None:
     with example_folder(base) as (top, study):
         for change in changes:
             try:
@@ -354,7 +357,7 @@ def run_example(run_cli, base: Path, changes, command: str, monkeypatch) -> None
         out = top / "out"
         monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(top / "cache"))
         before = snapshot(top)
-        code, _, err = run_cli(*command_args(command, study, out))
+        code, _, err = run_cli(*command_args(command, study, out, model))
         event(f"{command}: exit {code}")  # pytest --hypothesis-show-statistics shows how often each outcome occurs
         assert_boring(code, err)
         after = snapshot(top)
@@ -376,12 +379,22 @@ FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=not os.environ
 NO_RAW_WARNINGS = pytest.mark.filterwarnings("error", "default::roughsense.errors.RoughsenseWarning")
 
 
+@pytest.fixture(scope="module")
+def combined_model(base, tmp_path_factory):
+    """A combined-force model of the undamaged study, for ``predict --study`` on damaged copies."""
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("combined") / "model.json"
+    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "combined", "--out", str(path)]) == 0
+    return path
+
+
 @NO_RAW_WARNINGS
 @FUZZ
 @given(changes=st.lists(mutations, min_size=1, max_size=3),
-       command=st.sampled_from(["features", "fit", "fit-combined", "ratings", "protocol"]))
-def test_damaged_study_folders_give_boring_outcomes(run_cli, base, monkeypatch, changes, command):
-    run_example(run_cli, base, changes, command, monkeypatch)
+       command=st.sampled_from(["features", "fit", "fit-combined", "ratings", "protocol", "predict"]))
+def test_damaged_study_folders_give_boring_outcomes(run_cli, base, combined_model, monkeypatch, changes, command):
+    run_example(run_cli, base, changes, command, monkeypatch, combined_model)
 
 
 @pytest.fixture()
@@ -402,12 +415,12 @@ def test_the_study_command_on_damaged_folders_is_boring(run_cli, base, monkeypat
 
 
 @NO_RAW_WARNINGS
-def test_the_undamaged_base_passes_every_command(run_cli, base, monkeypatch, quick_figures):
+def test_the_undamaged_base_passes_every_command(run_cli, base, combined_model, monkeypatch, quick_figures):
     """The fuzz starts from a folder every command accepts (else it would only ever test refusals)."""
-    for command in ("features", "fit", "fit-combined", "ratings", "protocol", "study"):
+    for command in ("features", "fit", "fit-combined", "ratings", "protocol", "predict", "study"):
         with example_folder(base) as (top, study):
             monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(top / "cache"))
-            code, _, err = run_cli(*command_args(command, study, top / "out"))
+            code, _, err = run_cli(*command_args(command, study, top / "out", combined_model))
             assert code == 0, (command, err)
             assert_boring(code, err)
             assert not [line for line in err.splitlines() if line.startswith("roughsense: warning:")], err

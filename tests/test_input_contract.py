@@ -353,9 +353,9 @@ def test_a_csv_that_is_not_utf8_is_one_line(run_cli, sandbox, tmp_path, file):
     path.write_bytes("\n".join(lines).encode("latin-1") + b"\n")
     line = one_error(*run_cli(*study_args(sandbox, tmp_path / "r"))[::2])
     assert f"{file}, row 3: is not UTF-8 text (byte 0xe9)" in line
-    line = one_error(*run_cli("ratings", sandbox / "ratings.csv", "--out", tmp_path / "s.csv")[::2]) \
-        if file == "ratings.csv" else None
-    assert line is None or "is not UTF-8" in line
+    if file == "ratings.csv":  # the same reader behind `roughsense ratings`
+        line = one_error(*run_cli("ratings", sandbox / "ratings.csv", "--out", tmp_path / "s.csv")[::2])
+        assert f"{file}, row 3: is not UTF-8 text (byte 0xe9)" in line
 
 
 @pytest.mark.parametrize("table", ["sensor", "study", "protocol"])
