@@ -166,3 +166,11 @@ def test_the_descriptive_and_remaining_claims_follow_their_definitions(analysis)
     rated = analysis.perceived.dropna(subset=["sd"])
     rho, p = stats.spearmanr(rated["gmean"], rated["sd"])
     assert grows["statistic"] == pytest.approx(rho) and grows["p"] == pytest.approx(p)
+
+
+def test_ratings_from_the_simulated_finger_are_labelled_as_the_finger_model():
+    study, features = synthetic_study(repetitions=2, seed=2, pads=("smooth",))
+    study.extra = {"simulation": {"seed": 4, "ratings_from": "physics"}}
+    simulated = analyse_study(study, features=features, max_components=2, n_permutations=0, cv_schemes=("loo",))
+    basis = simulated.claims.set_index(["key", "cv"])["basis"]
+    assert "simulated finger" in basis[("human_sd_grows", "none")] and "Table 1" not in basis[("human_sd_grows", "none")]

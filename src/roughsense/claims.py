@@ -278,7 +278,10 @@ def _basis(row: dict, simulation: dict | None) -> str:
     if simulation is None:
         return "finding"
     if row["key"] in RATING_CLAIMS:
-        return "property of the simulator (its default ratings for the paper's specimens are drawn from Table 1)"
+        if simulation.get("ratings_from", "paper") == "paper":
+            return "property of the simulator (its default ratings for the paper's specimens are drawn from Table 1)"
+        return ("property of the simulator (its ratings come from its simulated finger, ratings_from = "
+                f"{simulation.get('ratings_from')}: a model of people, not people)")
     if row["key"] == "rmse_below_sd" and row["cv"] == "loo":
         return "property of the simulator (its noise was tuned so LOO errors land in the paper's range)"
     return "finding on simulated data"

@@ -69,13 +69,19 @@ def plain_words(analysis) -> list[str]:
     """The report's opening paragraphs: what is a property of the simulator, what is a finding, what failed."""
     lines = []
     if analysis.simulation is not None:
+        if analysis.simulation.get("ratings_from", "paper") == "paper":
+            ratings = ("by default the simulated ratings of the paper's specimens are drawn from the paper's Table 1, so "
+                       "perceived roughness, its spread and every claim about the ratings agree with the paper because "
+                       "they were put in")
+        else:
+            ratings = (f"the ratings come from the simulator's finger model (ratings_from = "
+                       f"{analysis.simulation.get('ratings_from')}), so every claim about the ratings is a property of "
+                       "that model, not of people")
         lines.append(
             "This study is SIMULATED (study.toml has a [simulation] table; seed "
-            f"{analysis.simulation.get('seed', 'not recorded')}). Properties of the simulator, not findings: by default "
-            "the simulated ratings of the paper's specimens are drawn from the paper's Table 1, so perceived roughness, "
-            "its spread and every claim about the ratings agree with the paper because they were put in; and the "
-            "simulator's noise was tuned so that leave-one-out errors land in the paper's range, so LOO RMSE and OVL "
-            "close to the paper's confirm the tuning, not the method.")
+            f"{analysis.simulation.get('seed', 'not recorded')}). Properties of the simulator, not findings: {ratings}; "
+            "and the simulator's noise was tuned so that leave-one-out errors land in the paper's range, so LOO RMSE "
+            "and OVL close to the paper's confirm the tuning, not the method.")
         lines.append(
             "Findings (about the digital twin, not about real skin or a real rig): whether the spectra predict roughness "
             "for a specimen the model never saw (LOSO), whether models beat specimen-shuffled targets and the training "
