@@ -54,8 +54,8 @@ def test_ratings_from_physics_feels_every_specimen(run_cli, tmp_path):
     study = read_study(out)
     assert study.extra["simulation"]["ratings_from"] == "physics"
     assert dict(study.specimens.set_index("specimen")["ratings_source"]) == {
-        "R2": "physics", "R3": "physics", "sin:3:0.3": "physics"}
-    assert set(study.ratings["specimen"]) == {"R2", "sin:3:0.3"}
+        "R2": "physics", "R3": "physics", "sin_3_0.3": "physics"}
+    assert set(study.ratings["specimen"]) == {"R2", "sin_3_0.3"}
 
 
 def _tree(root):

@@ -105,8 +105,8 @@ def test_new_specimens_get_physics_ratings(tmp_path):
     study = read_study(simulate_study(tmp_path / "n", config, jobs=1))
     assert study.extra["simulation"]["ratings_from"] == "paper"
     sources = study.specimens.set_index("specimen")["ratings_source"]
-    assert dict(sources) == {"R3": "paper", "R2": "paper", "sin:3:0.3": "physics", "rand:1.5:0.2": "physics"}
-    assert set(study.ratings["specimen"]) == {"R2", "sin:3:0.3", "rand:1.5:0.2"}
+    assert dict(sources) == {"R3": "paper", "R2": "paper", "sin_3_0.3": "physics", "rand_1.5_0.2": "physics"}
+    assert set(study.ratings["specimen"]) == {"R2", "sin_3_0.3", "rand_1.5_0.2"}
     assert set(study.specimens["shape"]) == {"rectangular", "sinusoidal", "random"}
     # --ratings-from physics changes only the presets' ratings, never the images; same seed, same bytes
     physics = simulate_study(tmp_path / "p", dataclasses.replace(config, ratings_from="physics"), jobs=1)
@@ -115,7 +115,7 @@ def test_new_specimens_get_physics_ratings(tmp_path):
     before, after = _files(tmp_path / "n"), _files(physics)
     assert {k for k in before if before[k] != after[k]} == {"ratings.csv", "specimens.csv", "study.toml"}
     ratings = read_study(physics).ratings
-    for name in ("sin:3:0.3", "rand:1.5:0.2"):  # the physics specimens' ratings do not depend on the mode
+    for name in ("sin_3_0.3", "rand_1.5_0.2"):  # the physics specimens' ratings do not depend on the mode
         assert (ratings[ratings["specimen"] == name].sort_values(["participant", "session"])["rating"].tolist()
                 == study.ratings[study.ratings["specimen"] == name]
                 .sort_values(["participant", "session"])["rating"].tolist())

@@ -227,6 +227,13 @@ def analyse_study(
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
     perceived = aggregate_ratings(study.ratings, study.reference_specimen, path=study.root / "ratings.csv")
+    rated = perceived[perceived["specimen"] != study.reference_specimen]
+    lonely = rated[rated["n_participants"] < 2]
+    if not lonely.empty:
+        raise InputError(
+            f"specimen {lonely['specimen'].iloc[0]} is rated by only {int(lonely['n_participants'].iloc[0])} participant; "
+            "the analysis compares predictions with the spread across participants (SD, OVL), so every specimen "
+            "needs ratings from at least 2", path=study.root / "ratings.csv")
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     counts = features.groupby(["pad", "specimen", "condition"]).size()

@@ -15,7 +15,7 @@ ORDER = 40
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate(
-        out: Path = typer.Option(..., "--out", help="Study folder to write (must be empty or new, unless --force)."),
+        out: Path = typer.Option(..., "--out", help="Study folder to write (must be new, empty or an interrupted simulation, unless --force)."),
         seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
         pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
         specimens: str = typer.Option(
@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
                  "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
         ),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
-        force: bool = typer.Option(False, "--force", help="Write over an earlier simulated study, replacing files of the same name (nothing is deleted; a folder that is not a simulated study is refused)."),
+        force: bool = typer.Option(False, "--force", help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; files you added to it are kept; a folder that is not a simulated study is refused). An interrupted simulation is replaced without it."),
     ) -> None:
         """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
 

@@ -1,14 +1,16 @@
 """Write a study analysis as a report folder: a self-contained index.html, CSV tables and PNG figures.
 
-Everything is rendered in memory first and only then written, file by file and atomically, so a
-failure in the analysis or a figure leaves no half-written report. index.html embeds its figures
-as data URIs so it opens offline and can be mailed as one file.
+Everything is rendered in memory, written into a folder beside ``--out`` and swapped in whole
+(:class:`roughsense.atomic.FolderSwap`), so a failure or a kill never leaves a half-written report, and a
+report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
+URIs so it opens offline and can be mailed as one file.
 """
 from __future__ import annotations
 
 import base64
 import datetime as _dt
 import os
+import re
 from pathlib import Path
 
 import jinja2
@@ -16,6 +18,7 @@ import pandas as pd
 
 from .. import __version__, atomic, reference
 from ..errors import OutputExistsError
+from ..study import check_name
 from . import figures, tables
 
 def _environment() -> jinja2.Environment:
@@ -28,11 +31,34 @@ def _environment() -> jinja2.Environment:
     )
 
 
+REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
+                 "components.csv")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+)\.png$")
+
+
+def report_owned(rel: Path) -> bool:
+    """Is this entry of a report folder one the report writes? (Everything else is a user's and is kept.)"""
+    return len(rel.parts) == 1 and (rel.name in REPORT_TABLES or bool(_REPORT_FIGURE.match(rel.name)))
+
+
 def check_report_dir(out_dir: Path, force: bool) -> None:
+    """A non-empty folder needs ``force``, unless it holds only an unfinished report of roughsense's own."""
+    out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputExistsError("exists and is not a folder", path=out_dir)
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
+    if not out_dir.is_dir() or force:
+        return
+    entries = [p for p in out_dir.iterdir() if not atomic.is_temporary(p)]
+    unfinished = not (out_dir / "index.html").exists() and all(report_owned(Path(p.name)) for p in entries)
+    if entries and not unfinished:
         raise OutputExistsError("report folder exists and is not empty; pass --force to replace the report in it", path=out_dir)
+
+
+def open_report_dir(out_dir: str | os.PathLike[str], force: bool) -> atomic.FolderSwap:
+    """Check ``out_dir`` and create its staging folder: an unwritable place fails here, before any analysis."""
+    atomic.clean_leftovers(out_dir)  # first: a killed swap's old folder may have to come back
+    check_report_dir(Path(out_dir), force)
+    return atomic.FolderSwap(out_dir, owned=report_owned)
 
 
 def _csv_bytes(frame: pd.DataFrame) -> bytes:
@@ -60,6 +86,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     figure_list = []
 
     def add_figure(name: str, fig, caption: str) -> None:
+        check_name(name, what="report file name")  # built from pad names: the study contract's name rule
         files[name] = figures.png_bytes(fig)
         figure_list.append({"name": name, "caption": caption,
                             "data": base64.b64encode(files[name]).decode("ascii")})
@@ -116,12 +143,16 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     return files
 
 
-def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False) -> Path:
-    out_dir = Path(out_dir)
-    check_report_dir(out_dir, force)
-    files = render_report(analysis, meta=meta)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    # index.html last: its presence means the rest of the report is complete.
-    for name in sorted(files, key=lambda n: n == "index.html"):
-        atomic.write_bytes(out_dir / name, files[name])
-    return out_dir / "index.html"
+def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
+                 staging: atomic.FolderSwap | None = None) -> Path:
+    """Write the report folder whole; ``staging`` is the one :func:`open_report_dir` made before the analysis."""
+    swap = staging if staging is not None else open_report_dir(out_dir, force)
+    try:
+        files = render_report(analysis, meta=meta)
+        for name, data in files.items():
+            atomic.write_bytes(swap.path / name, data)
+    except BaseException:
+        swap.abort()
+        raise
+    swap.commit()
+    return Path(out_dir) / "index.html"

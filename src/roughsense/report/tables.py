@@ -206,10 +206,10 @@ def headline_table(analysis) -> dict:
         printed_ovl = reference.PAPER_SUMMARIES.get((pad, "ovl", condition, "all"))
         cells = [_cell(pad), _cell(condition),
                  _cell(_num(g["rmse"].mean()), _num(printed_rmse[0]) if printed_rmse else None),
-                 _cell(_num(np.nanmean(g["ovl"])), _num(printed_ovl[0]) if printed_ovl else None)]
+                 _cell(_num(_quiet_nanmean(g["ovl"])), _num(printed_ovl[0]) if printed_ovl else None)]
         if loso is not None:
             h = loso[(loso.pad == pad) & (loso.condition == condition)]
-            cells += [_cell(_num(h["rmse"].mean())), _cell(_num(np.nanmean(h["ovl"])))]
+            cells += [_cell(_num(h["rmse"].mean())), _cell(_num(_quiet_nanmean(h["ovl"])))]
         rows.append(cells)
     columns = ["Pad", "Condition", "LOO: mean RMSE", "LOO: mean OVL"]
     if loso is not None:
@@ -224,3 +224,10 @@ def headline_table(analysis) -> dict:
         "columns": columns,
         "rows": rows,
     }
+
+
+def _quiet_nanmean(values) -> float:
+    """Mean of the non-NaN values, NaN (without NumPy's RuntimeWarning on stderr) if there are none."""
+    array = np.asarray(values, dtype=float)
+    finite = array[~np.isnan(array)]
+    return float(finite.mean()) if finite.size else float("nan")

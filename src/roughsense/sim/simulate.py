@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import re
 import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -21,7 +21,9 @@ import pandas as pd
 
 from .. import atomic
 from ..errors import ConfigError, OutputExistsError
-from ..study import IMAGES_DIR, STUDY_TOML, SensorSettings, StudyWriter
+from ..study import (COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, MAX_FORCE_N, MAX_REPETITION, RATINGS_CSV,
+                     SPECIMENS_CSV, STUDY_TOML, SensorSettings, StudyWriter, check_name)
+from ..workers import process_pool
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
@@ -31,7 +33,8 @@ from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_spec
 
 SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
-COMPLETE_MARKER = ".simulation-complete"  # written last: a folder without it is an interrupted run
+SIMULATION_FILES = (STUDY_TOML, SPECIMENS_CSV, MANIFEST_CSV, RATINGS_CSV, COMPLETE_MARKER)
+_IMAGE_NAME = re.compile(r"^[A-Za-z0-9.\-_]+_[0-9.e+\-]+N_r[0-9]+\.png$")  # plan_trials' names
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
 SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale
 
@@ -63,8 +66,9 @@ class SimulationConfig:
         if not self.forces_n:
             raise ConfigError("--forces: give at least one force")
         for f in self.forces_n:
-            if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
-                raise ConfigError(f"--forces: every force must be a positive number of newtons, got {f!r}")
+            if not (isinstance(f, (int, float)) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= MAX_FORCE_N):
+                raise ConfigError(f"--forces: every force must be a positive number of newtons up to {MAX_FORCE_N:g}, "
+                                  f"got {f!r}")
         _check_force_labels(self.forces_n)
         check_ratings_from(self.ratings_from)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
@@ -76,6 +80,8 @@ class SimulationConfig:
                                      ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
             if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < least:
                 raise ConfigError(f"{option} must be a whole number, at least {least}, got {value!r}")
+        if self.repetitions > MAX_REPETITION:
+            raise ConfigError(f"--repetitions must be at most {MAX_REPETITION}, got {self.repetitions}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
@@ -155,8 +161,6 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
 
 
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in ".-" else "_" for c in name)
 
 
 def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequence[Specimen]) -> list[Trial]:
@@ -172,7 +176,8 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
                 for force in forces:
                     fkey = force_key(force)
                     exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
-                    name = f"{pad.name}_{_safe(specimen.name)}_{force_label(force)}_r{rep:02d}.png"
+                    name = f"{check_name(pad.name, what='pad')}_{check_name(specimen.name, what='specimen')}_" \
+                           f"{force_label(force)}_r{rep:02d}.png"
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
@@ -307,10 +312,12 @@ class SimulationRun:
         self.trials = plan_trials(config, self.pads, self.specimens)
         _check_unique_images(self.trials)
         self.force = force
-        if force:
-            check_overwritable(out)
-        self.writer = StudyWriter(out, force=force)  # refuses a non-empty folder unless force; never deletes
-        self.root = self.writer.root
+        self.root = Path(out)
+        atomic.clean_leftovers(self.root)  # first: a killed swap's old folder may have to come back
+        check_overwritable(self.root, force=force)
+        # Built beside the target and swapped in whole when complete; creating it now checks the place is writable.
+        self._swap = atomic.FolderSwap(self.root, owned=simulation_owned(self.root))
+        self.writer = StudyWriter(self._swap.path)
 
     @property
     def total(self) -> int:
@@ -329,18 +336,24 @@ class SimulationRun:
                                             reference=REFERENCE, ratings_from=config.ratings_from))
 
     def __iter__(self) -> Iterator[str]:
-        marker = self.root / COMPLETE_MARKER
-        if marker.is_file():  # our own marker from an earlier run into this folder (--force): no longer true
-            marker.unlink()
+        try:
+            yield from self._build()
+        except BaseException:
+            self._swap.abort()
+            raise
+        self._swap.commit()
+
+    def _build(self) -> Iterator[str]:
+        staging = self.writer.root
         self._write_tables()
-        tasks = [(str(self.root), self.force, t) for t in self.trials]
+        tasks = [(str(staging), False, t) for t in self.trials]
         results: list[tuple[str, float]] = []
         if self.jobs == 1 or len(tasks) < 2:
             for result in map(_write_trial, tasks):
                 results.append(result)
                 yield result[0]
         else:
-            with ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks))) as pool:
+            with process_pool(min(self.jobs, len(tasks))) as pool:
                 for result in pool.map(_write_trial, tasks, chunksize=4):
                     results.append(result)
                     yield result[0]
@@ -355,8 +368,8 @@ class SimulationRun:
             "contact_fraction": [round(r[1], 6) for r in results],
             "true_force_n": [round(t.exposure.force_true_n, 6) for t in trials],
         })
-        self.writer.write_manifest(manifest)  # a study without its manifest is visibly incomplete
-        atomic.write_text(marker, f"seed = {self.config.seed}\nimages = {len(results)}\n")
+        self.writer.write_manifest(manifest)
+        atomic.write_text(staging / COMPLETE_MARKER, f"seed = {self.config.seed}\nimages = {len(results)}\n")
 
 
 def is_simulated_study(root: str | os.PathLike[str]) -> bool:
@@ -364,25 +377,62 @@ def is_simulated_study(root: str | os.PathLike[str]) -> bool:
     try:
         with (Path(root) / STUDY_TOML).open("rb") as handle:
             return isinstance(tomllib.load(handle).get("simulation"), dict)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
         return False
 
 
-def check_overwritable(root: str | os.PathLike[str]) -> None:
-    """``--force`` replaces an earlier simulation's files, never a real study's or other user files' folder.
+def is_complete_simulation(root: str | os.PathLike[str]) -> bool:
+    return is_simulated_study(root) and (Path(root) / COMPLETE_MARKER).is_file()
 
-    A folder is fine if it is new, empty (an empty ``images/`` counts as empty: a run stopped before its first
-    file), or a simulated study.
+
+def check_overwritable(root: str | os.PathLike[str], *, force: bool = True) -> None:
+    """May a simulation replace ``root``? Refuses with :class:`OutputExistsError` if not.
+
+    Free to replace: a missing or empty folder (an empty ``images/`` counts as empty), one holding only
+    roughsense's own temporary files, or an interrupted simulation (a [simulation] table but no completion
+    marker). ``force`` also replaces a complete simulation -- never a real study or a folder of other files.
     """
     root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise OutputExistsError("exists and is not a folder", path=root)
     if not root.is_dir():
         return
     images = root / IMAGES_DIR
-    entries = [p for p in root.iterdir() if not (p == images and p.is_dir() and not any(p.iterdir()))]
-    if entries and not is_simulated_study(root):
+    entries = [p for p in root.iterdir()
+               if not (p == images and p.is_dir() and not any(p.iterdir())) and not atomic.is_temporary(p)]
+    if not entries:
+        return
+    simulated = is_simulated_study(root)
+    if simulated and not (root / COMPLETE_MARKER).is_file():
+        return  # roughsense's own interrupted run: replaced without --force (other files in it are kept)
+    if not force:
+        raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=root)
+    if not simulated:
         raise OutputExistsError("folder is not empty and is not a simulated study (no study.toml with a "
                                 "[simulation] table); --force only replaces an earlier simulation, so choose a new "
                                 "or empty folder", path=root)
+
+
+def simulation_owned(root: Path) -> Callable[[Path], bool]:
+    """Which entries of an earlier simulation in ``root`` are its own (replaced); the rest is a user's (kept).
+
+    Its tables and marker, and the images its manifest lists or that carry the simulator's image names.
+    """
+    listed: set[str] = set()
+    try:
+        manifest = pd.read_csv(root / MANIFEST_CSV, usecols=["image"], dtype=str, keep_default_na=False)
+        listed = {str(Path(p)) for p in manifest["image"]}
+    except (OSError, ValueError, pd.errors.ParserError, UnicodeDecodeError):
+        pass
+
+    def owned(rel: Path) -> bool:
+        parts = rel.parts
+        if len(parts) == 1:
+            return parts[0] in SIMULATION_FILES
+        return (len(parts) == 2 and parts[0] == IMAGES_DIR
+                and (str(rel) in listed or bool(_IMAGE_NAME.match(parts[1]))))
+
+    return owned
 
 
 def with_image_size(config: SimulationConfig, width_px: int, height_px: int) -> SimulationConfig:
