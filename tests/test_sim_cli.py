@@ -17,7 +17,14 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     assert list(study.manifest["image"]) == ["images/fingerprint_C3_1N_r01.png"]
     assert study.extra["simulation"]["fingerprint_period_mm"] == 0.5
     import cv2
-    assert cv2.imread(str(out / study.manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (1080, 1920)
+    # a sensor window of 320 rows centred on the 1080-row sensor, recorded with the simulation's settings
+    assert cv2.imread(str(out / study.manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (320, 1920)
+    assert study.extra["simulation"]["camera_stored_height_px"] == 320 and study.sensor.roi == "center"
+    whole = tmp_path / "w"
+    code, _, err = run_cli("simulate", "--out", whole, "--pads", "smooth", "--specimens", "R3", "--forces", "2",
+                           "--repetitions", "1", "--jobs", "1", "--stored-height-px", "0")
+    assert code == 0, err
+    assert cv2.imread(str(whole / read_study(whole).manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (1080, 1920)
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -37,6 +44,7 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--seed", "-1"), "--seed must be"),
     (("--jobs", "0"), "--jobs must be at least 1"),
     (("--ratings-from", "table"), "--ratings-from must be one of paper, physics, got 'table'"),
+    (("--stored-height-px", "321"), "even number of rows"),
 ])
 def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     out = tmp_path / "s"

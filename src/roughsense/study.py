@@ -411,6 +411,15 @@ class Study:
     def condition_labels(self) -> list[str]:
         return [nominal_force_label(f) for f in self.forces_n]
 
+    @property
+    def simulation(self) -> dict | None:
+        """The ``[simulation]`` table of study.toml (seed and settings) if a simulator wrote the folder, else None.
+
+        The analysis labels a study "simulated" from this table alone, so it never needs to import the simulator.
+        """
+        table = self.extra.get("simulation")
+        return dict(table) if isinstance(table, dict) else None
+
 
 #: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
 MAX_CONFIG_BYTES = 1_000_000
@@ -640,16 +649,19 @@ def _is_blank(value: object) -> bool:
     return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
 
 
-def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
+def read_ratings_table(path: str | os.PathLike[str], *, allow_empty: bool = False) -> pd.DataFrame:
     """Structural read of ratings.csv; perception.py adds the domain checks (reference, gaps).
 
-    Blank rating cells follow :func:`drop_unrated`; a file with no rating left is refused.
+    Blank rating cells follow :func:`drop_unrated`; a file with no rating left is refused unless ``allow_empty``
+    (a study of the reference specimen alone has nothing to rate, and only the analysis needs ratings).
     """
     path = Path(path)
     frame = read_table(path, ("participant", "session", "specimen"), text=["participant", "session", "specimen", "rating"])
     if "rating" not in frame.columns:
         raise InputError(f"missing column(s) rating; found {', '.join(frame.columns)}", path=path)
     frame = drop_unrated(frame)
+    if frame.empty and allow_empty:
+        return frame.assign(rating=pd.Series(dtype=float))
     if frame.empty:
         raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
     values = frame["rating"].map(_to_float)
@@ -709,7 +721,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     ratings = None
     ratings_path = root / RATINGS_CSV
     if ratings_path.exists():
-        ratings = read_ratings_table(ratings_path)
+        ratings = read_ratings_table(ratings_path, allow_empty=not require_ratings)
         refuse_unknown(ratings, "specimen", specimens["specimen"], ratings_path, hint=f"not in {SPECIMENS_CSV}")
     elif require_ratings:
         raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
@@ -824,8 +836,11 @@ class StudyWriter:
     def image_path(self, name: str) -> Path:
         return self.root / IMAGES_DIR / name
 
-    def write_image(self, name: str, image: np.ndarray) -> str:
-        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path."""
+    def write_image(self, name: str, image: np.ndarray, *, params: Sequence[int] = ()) -> str:
+        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path.
+
+        ``params`` are OpenCV's ``imwrite`` flags (e.g. the PNG compression strategy); the file stays a standard one.
+        """
         import cv2  # local: the study contract should not pay for OpenCV at import
 
         target = self.image_path(name)
@@ -835,7 +850,7 @@ class StudyWriter:
         array = np.ascontiguousarray(image)
         if array.ndim == 3 and array.shape[2] == 3:
             array = array[:, :, ::-1]  # OpenCV stores BGR; callers hand us RGB
-        ok, encoded = cv2.imencode(ext, array)
+        ok, encoded = cv2.imencode(ext, array, list(params))
         if not ok:
             raise InputError(f"could not encode image as {ext}", path=target)
         atomic.write_bytes(target, encoded.tobytes())

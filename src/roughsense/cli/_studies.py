@@ -56,7 +56,7 @@ def builtin_study(seed: int, jobs: int | None = None) -> Path:
     root = builtin_study_path(seed)
     if sim.is_complete_simulation(root):
         return root
-    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
+    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 0.4 GB each).
     for stale in cache_dir().glob(f"simulated-study-seed{seed}-*"):
         if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
             shutil.rmtree(stale, ignore_errors=True)

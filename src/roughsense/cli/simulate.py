@@ -32,6 +32,7 @@ def register(app: typer.Typer) -> None:
             help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
                  "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
         ),
+        stored_height_px: int = typer.Option(320, "--stored-height-px", help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the paper's centred crop is unchanged); 0 stores whole frames."),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
         force: bool = typer.Option(False, "--force", help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; files you added to it are kept; a folder that is not a simulated study is refused). An interrupted simulation is replaced without it."),
     ) -> None:
@@ -50,8 +51,11 @@ def register(app: typer.Typer) -> None:
 
         Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
         """
+        from dataclasses import replace
+
         from ..errors import ConfigError
         from ..sim import SimulationConfig, SimulationRun
+        from ..sim.optics import Camera
 
         if jobs is not None and jobs < 1:
             raise ConfigError(f"--jobs must be at least 1, got {jobs}")
@@ -64,6 +68,7 @@ def register(app: typer.Typer) -> None:
             fingerprint_period_mm=fingerprint_period_mm,
             ridge_height_mm=ridge_height_mm,
             ratings_from=ratings_from.strip().lower(),
+            camera=replace(Camera(), stored_height_px=stored_height_px),
         )
         run = SimulationRun(out, config, force=force, jobs=jobs)
         for _ in progress(run, total=run.total, description="simulating"):

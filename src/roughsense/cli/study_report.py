@@ -13,6 +13,14 @@ ORDER = 5
 DEFAULT_SEED = 0
 
 
+def _source_label(simulation: dict | None, *, builtin: bool) -> str:
+    """"simulated" whenever study.toml has a [simulation] table, with its seed; "user data" otherwise."""
+    if simulation is None:
+        return "user data (no [simulation] table in study.toml)"
+    where = "built-in simulated study (digital twin)" if builtin else "simulated study (digital twin)"
+    return f"simulated: {where}, simulation seed {simulation.get('seed', 'not recorded')}"
+
+
 def register(app: typer.Typer) -> None:
     @app.command("study")
     def study_command(
@@ -26,6 +34,9 @@ def register(app: typer.Typer) -> None:
         no_loso: bool = typer.Option(False, "--no-loso", help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
         jobs: int = typer.Option(2, "--jobs", min=1, help="Worker threads/processes for image decoding and simulation."),
         force: bool = typer.Option(False, "--force", help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
+        permutations: int = typer.Option(199, "--permutations", min=0,
+                                         help="Specimen-level shufflings per model for the permutation control "
+                                         "(0: skip it; at least 199 for p-values to 0.005)."),
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
@@ -42,7 +53,7 @@ def register(app: typer.Typer) -> None:
         staging = open_report_dir(out, force)
         try:
             index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                            no_loso=no_loso, jobs=jobs)
+                                            no_loso=no_loso, jobs=jobs, permutations=permutations)
         except BaseException:
             staging.abort()
             raise
@@ -52,7 +63,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
-             jobs: int) -> tuple[Path, Path, bool]:
+             jobs: int, permutations: int) -> tuple[Path, Path, bool]:
     """The analysis of a study (``--data`` or the built-in one), written through ``staging``.
 
     Returns index.html, the study folder and whether it is the built-in study.
@@ -78,12 +89,13 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         analysis = analyse_study(
             study, features=features, max_components=max_components,
             cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
+            n_permutations=permutations, seed=seed, n_jobs=jobs,
         )
     for warning in caught:  # shown once on the terminal, and kept in the report
         warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     meta = {
         "study folder": str(Path(root).resolve()),
-        "source": "built-in simulated study (digital twin), seed %d" % seed if builtin else "user data",
+        "source": _source_label(study.simulation, builtin=builtin),
         "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
         "features": "from cache" if was_cached else "extracted",
     }

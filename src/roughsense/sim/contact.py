@@ -56,11 +56,14 @@ class ContactSolution:
 
 
 def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: float, contact_modulus_pa: float,
-                   *, tol: float = 1e-9, max_iter: int = 20000) -> ContactSolution:
+                   *, tol: float = 1e-9, max_iter: int = 20000, initial_pressure_pa: np.ndarray | None = None
+                   ) -> ContactSolution:
     """Press a rigid periodic profile (heights in mm, peaks up) onto a half-space at a mean pressure.
 
     Returns the contact pressure and the gap between the deformed pad and the profile. Raises
     :class:`ContactNotConverged` if the relative pressure change is still above ``tol`` after ``max_iter`` steps.
+    ``initial_pressure_pa`` starts the iteration from a nearby solution (the same profile at another load, rescaled
+    to this one): the converged contact is the same, reached in fewer steps.
     """
     h = np.asarray(height_mm, dtype=float)
     n = h.size
@@ -75,6 +78,10 @@ def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: fl
 
     s = h - h.max()
     p = np.full(n, float(mean_pressure_pa))
+    if initial_pressure_pa is not None:
+        start = np.maximum(np.asarray(initial_pressure_pa, dtype=float), 0.0)
+        if start.shape == (n,) and start.sum() > 0:
+            p = start * (mean_pressure_pa / start.mean())
     t = np.zeros(n)
     g_old = 1.0
     delta = 0.0
