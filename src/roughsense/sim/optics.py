@@ -70,13 +70,19 @@ class Lighting:
 
 
 def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting: Lighting,
-           rng: np.random.Generator, spots: tuple[tuple[float, float, float, float], ...] = ()) -> np.ndarray:
+           rng: np.random.Generator, spots: tuple[tuple[float, float, float, float], ...] = (),
+           rows: tuple[int, int] | None = None) -> np.ndarray:
     """Render an 8-bit gray frame from the line's brightness (0..1 per pixel column).
 
     ``spots`` are dust specks, bubbles and smudges: (x_mm from the frame's left, y_mm from the band centre,
     size_mm, strength), each a Gaussian that darkens (strength > 0) or brightens the frame locally.
+    ``rows=(start, stop)`` returns only rows start..stop-1, bit-identical to those rows of the whole frame: the
+    noise of the rows above is still drawn (the generator fills row by row), nothing below is.
     """
     w, h = camera.width_px, camera.height_px
+    start, stop = (0, h) if rows is None else (int(rows[0]), int(rows[1]))
+    if not 0 <= start < stop <= h:
+        raise ValueError(f"rows must satisfy 0 <= start < stop <= {h}, got {rows}")
     line = np.asarray(line, dtype=float)
     if line.shape != (w,):
         raise ValueError(f"line must have {w} samples, got {line.shape}")
@@ -101,15 +107,15 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
         band = gaussian_filter1d(band, sigma, mode="nearest")
 
     band_x = (camera.band_floor_dn + (camera.contact_dn - camera.band_floor_dn) * line) * shade_x
-    col_bg = (camera.background_dn * shade_y).astype(np.float32)
-    col_band = (band * shade_y).astype(np.float32)
-    frame = np.outer(col_bg * (1.0 - band.astype(np.float32)), shade_x.astype(np.float32))
+    col_bg = (camera.background_dn * shade_y).astype(np.float32)[start:stop]
+    col_band = (band * shade_y).astype(np.float32)[start:stop]
+    frame = np.outer(col_bg * (1.0 - band.astype(np.float32)[start:stop]), shade_x.astype(np.float32))
     frame += np.outer(col_band, band_x.astype(np.float32))
     for x_mm0, y_mm0, size_mm, strength in spots:
         _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px + y_mm0 * camera.px_per_mm,
-                  size_mm * camera.px_per_mm, strength)
+                  size_mm * camera.px_per_mm, strength, first_row=start)
     # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
-    noise = rng.standard_normal(frame.shape, dtype=np.float32)
+    noise = rng.standard_normal((stop, w), dtype=np.float32)[start:]
     noise *= np.sqrt(np.float32(camera.read_noise_dn**2) + np.float32(camera.shot_noise_gain) * np.maximum(frame, 0))
     frame += noise
     np.clip(frame, 0.0, 255.0, out=frame)
@@ -125,12 +131,15 @@ def bin_to_pixels(values: np.ndarray, width_px: int) -> np.ndarray:
     return values.reshape(width_px, sub).mean(axis=1)
 
 
-def _add_spot(frame: np.ndarray, cx: float, cy: float, sigma: float, strength: float) -> None:
+def _add_spot(frame: np.ndarray, cx: float, cy: float, sigma: float, strength: float, *, first_row: int = 0) -> None:
+    """Darken a Gaussian spot at (cx, cy) in frame pixels; ``frame`` holds the rows from ``first_row`` on."""
     h, w = frame.shape
     r = int(math.ceil(4 * sigma))
-    x0, x1, y0, y1 = max(int(cx) - r, 0), min(int(cx) + r + 1, w), max(int(cy) - r, 0), min(int(cy) + r + 1, h)
+    x0, x1 = max(int(cx) - r, 0), min(int(cx) + r + 1, w)
+    y0, y1 = max(int(cy) - r, first_row), min(int(cy) + r + 1, first_row + h)
     if x0 >= x1 or y0 >= y1:
         return
     gx = np.exp(-0.5 * ((np.arange(x0, x1) + 0.5 - cx) / sigma) ** 2).astype(np.float32)
     gy = np.exp(-0.5 * ((np.arange(y0, y1) + 0.5 - cy) / sigma) ** 2).astype(np.float32)
-    frame[y0:y1, x0:x1] *= 1.0 - np.float32(min(strength, 0.95)) * np.outer(gy, gx)  # a spot never inverts
+    rows = slice(y0 - first_row, y1 - first_row)
+    frame[rows, x0:x1] *= 1.0 - np.float32(min(strength, 0.95)) * np.outer(gy, gx)  # a spot never inverts
