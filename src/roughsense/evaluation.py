@@ -222,8 +222,12 @@ def analyse_study(
     cv_schemes: Sequence[str] = CV_SCHEMES,
     n_jobs: int = 1,
     progress: Callable | None = None,
+    combined_forces: Sequence[str] | None = None,
 ) -> StudyAnalysis:
-    """Run the paper's whole analysis on a validated study; ``features`` may come from a cache."""
+    """Run the paper's whole analysis on a validated study; ``features`` may come from a cache.
+
+    ``combined_forces`` (condition labels) are the forces the "combined" condition concatenates; default 1N, 2N, 3N.
+    """
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
     perceived = aggregate_ratings(study.ratings, study.reference_specimen, path=study.root / "ratings.csv")
@@ -253,7 +257,7 @@ def analyse_study(
     matrices: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, pd.DataFrame]] = {}
     for pad, condition, cv in iterator:
         if (pad, condition) not in matrices:
-            X, meta = dataset.condition_matrix(features, pad, condition)
+            X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
             y = dataset.targets(meta, perceived, path=study.root / "ratings.csv")
             matrices[(pad, condition)] = (X, y, meta)
         X, y, meta = matrices[(pad, condition)]
