@@ -58,8 +58,12 @@ def simulation_config(cell: Cell) -> SimulationConfig:
     )
 
 
-def cell_features(cell: Cell) -> tuple[Study, pd.DataFrame]:
-    """The cell's study in memory (no images) and its feature table (manifest columns + spectrum)."""
+def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.DataFrame]:
+    """The cell's study in memory (no images) and its feature table (manifest columns + spectrum).
+
+    ``warm_start=False`` solves every contact from scratch, as ``simulate`` does: the features are then
+    bit-identical to those of the simulated study folder (tests compare them).
+    """
     config = simulation_config(cell)
     pads, specimens = config.validate()
     pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
@@ -68,7 +72,7 @@ def cell_features(cell: Cell) -> tuple[Study, pd.DataFrame]:
     roi = sensor_roi(camera.width_px, camera.height_px)
     spectrum = SpatialSpectrum(px_per_mm=camera.px_per_mm, roi=roi).fit()
     rows = line_rows(spectrum, camera.width_px, camera.height_px)
-    warm: dict = {}
+    warm: dict | None = {} if warm_start else None
     fractions = []
 
     def frames():

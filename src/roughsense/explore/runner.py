@@ -67,9 +67,10 @@ def _failure(cell: Cell, error: str) -> dict:
 
 def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None = None,
               scheduler: str | None = None, force: bool = False,
-              progress: Callable | None = None) -> SweepOutcome:
+              progress: Callable | None = None, task: Callable = run_cell) -> SweepOutcome:
     """Compute every unfinished cell of ``sweep`` into ``out``; ``progress(iterable, total=, description=)`` may
-    wrap the stream of finished cells (the CLI's bar). Failing cells are recorded, never raised."""
+    wrap the stream of finished cells (the CLI's bar). Failing cells are recorded, never raised. ``task`` computes
+    one cell (an importable function; tests replace it)."""
     started = time.perf_counter()
     store = ResultStore(out, sweep, force=force)  # refuses a wrong folder before any cluster starts
     if workers is not None and workers < 1:
@@ -81,7 +82,7 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
         todo = [c for c in sweep.cells if c.id not in done]
         outcome = SweepOutcome(Path(out), len(sweep.cells), len(sweep.cells) - len(todo), 0, dropped=dropped)
         if todo:
-            _compute(client, store, todo, outcome, progress)
+            _compute(client, store, todo, outcome, progress, task)
         store.write_failures(outcome.failures)
     finally:
         _close(client)
@@ -89,10 +90,10 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
     return outcome
 
 
-def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome, progress) -> None:
+def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome, progress, task) -> None:
     from distributed import as_completed
 
-    futures = client.map(run_cell, todo, key=[f"roughsense-cell-{c.id}" for c in todo], pure=False)
+    futures = client.map(task, todo, key=[f"roughsense-cell-{c.id}" for c in todo], pure=False)
     cells = {f.key: c for f, c in zip(futures, todo)}
     stream = as_completed(futures, loop=client.loop)
     if progress is not None:
