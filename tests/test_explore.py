@@ -171,6 +171,8 @@ def test_a_folder_of_another_sweep_or_of_user_files_is_refused(tmp_path):
     store = ResultStore(tmp_path / "out", first)
     store.prepare()
     (tmp_path / "out" / "results" / "cell-0123456789abcdef.parquet").write_bytes(b"stale")
+    with pytest.raises(OutputExistsError, match="not cells of this sweep"):  # e.g. from an older roughsense
+        ResultStore(tmp_path / "out", first).prepare()
     ResultStore(tmp_path / "out", first)  # the same sweep: resumes
     other = read_sweep(_sweep_file(tmp_path, TINY.replace("seeds = [0, 1]", "seeds = [5]"), "other.toml"))
     with pytest.raises(OutputExistsError, match="another sweep"):

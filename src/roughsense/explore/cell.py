@@ -167,6 +167,11 @@ def run_cell(cell: Cell) -> dict:
     """A Dask task: the cell's rows, or its one-line error (a failing cell never stops the sweep)."""
     started = time.perf_counter()
     try:
+        from .version import code_fingerprint
+
+        if cell.code and cell.code != code_fingerprint():
+            raise RoughsenseError(f"this worker runs different roughsense code ({code_fingerprint()}) from the client "
+                                  f"({cell.code}); install the same version on every worker")
         summary, per_specimen = cell_rows(cell)
         return {"cell": cell, "results": summary, "specimens": per_specimen, "error": None,
                 "seconds": time.perf_counter() - started}

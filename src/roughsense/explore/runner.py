@@ -56,7 +56,7 @@ def connect(workers: int | None = None, scheduler: str | None = None):
     n = default_workers() if workers is None else int(workers)
     if n < 1:
         raise ConfigError(f"--workers must be at least 1, got {n}")
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=logging.ERROR)
     return Client(cluster, set_as_default=False)
 

@@ -60,6 +60,7 @@ class ResultStore:
     def __init__(self, out: str | os.PathLike[str], sweep: Sweep, *, force: bool = False) -> None:
         self.root = Path(out)
         self.sweep = sweep
+        self.force = force
         if self.root.exists() and not self.root.is_dir():
             raise OutputExistsError("exists and is not a folder", path=self.root)
         self._check_owner(force)
@@ -82,19 +83,25 @@ class ResultStore:
             raise OutputExistsError("folder is not empty and holds no sweep (no sweep.toml); choose a new or empty "
                                     "folder, or pass --force to write into it", path=self.root)
 
+    def foreign(self) -> list[Path]:
+        """Cell files that are not cells of this sweep (another sweep's, or computed by another roughsense)."""
+        ours = {cell_file(c.id) for c in self.sweep.cells}
+        return [p for sub in (RESULTS_DIR, SPECIMENS_DIR) if (self.root / sub).is_dir()
+                for p in sorted((self.root / sub).glob("cell-*.parquet")) if p.name not in ours]
+
     def prepare(self) -> list[str]:
-        """Create the folder, copy the sweep file, drop result files of cells not in this sweep; returns their ids."""
+        """Create the folder, copy the sweep file, drop cell files not of this sweep (``force`` only); their ids."""
+        foreign = self.foreign()
+        if foreign and not self.force:
+            raise OutputExistsError(f"holds {len(foreign)} result files that are not cells of this sweep (another "
+                                    "sweep's, or computed by another version of roughsense); pass --force to replace "
+                                    "them", path=self.root)
         for sub in (RESULTS_DIR, SPECIMENS_DIR):
             (self.root / sub).mkdir(parents=True, exist_ok=True)
         atomic.write_bytes(self.root / SWEEP_COPY, self.sweep.path.read_bytes())
-        ours = {cell_file(c.id) for c in self.sweep.cells}
-        dropped = []
-        for sub in (RESULTS_DIR, SPECIMENS_DIR):
-            for path in (self.root / sub).glob("cell-*.parquet"):
-                if path.name not in ours:  # only reachable with --force over another sweep (see _check_owner)
-                    path.unlink()
-                    dropped.append(path.stem.removeprefix("cell-"))
-        return sorted(set(dropped))
+        for path in foreign:
+            path.unlink()
+        return sorted({p.stem.removeprefix("cell-") for p in foreign})
 
     def finished(self) -> set[str]:
         folder = self.root / RESULTS_DIR

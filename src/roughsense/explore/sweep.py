@@ -72,6 +72,7 @@ class Cell:
     height_px: int
     max_components: int
     cv: tuple[str, ...]
+    code: str = ""  # fingerprint of the twin and analysis that compute it (explore.version)
 
     def columns(self) -> dict:
         """The design as result columns: one scalar per design parameter (lists as text)."""
@@ -263,6 +264,9 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         if signature not in seen:
             seen.add(signature)
             points.append(point)
+    from .version import code_fingerprint
+
+    code = code_fingerprint()
     cells = []
     for point in points:
         specimens = point["specimens"]
@@ -277,6 +281,7 @@ def build_sweep(source: dict, path: Path) -> Sweep:
                 specimens=tuple(names), specimens_label=_label("specimens", specimens),
                 repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=participants,
                 sessions=sessions, width_px=cell_width, height_px=height_px, max_components=max_components, cv=cv,
+                code=code,
             )
             digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
             cells.append(Cell(id=digest, **content))
