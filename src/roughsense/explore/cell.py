@@ -115,15 +115,6 @@ def analyse_cell(cell: Cell):
                          cv_schemes=cell.cv, combined_forces=labels), study
 
 
-def _spread_column(analysis, study) -> dict | None:
-    """Per-specimen predictive OVL where the build has a spread model (``roughsense.SpreadModel``)."""
-    import roughsense
-
-    if not hasattr(roughsense, "SpreadModel"):
-        return None
-    return None  # wired once the spread model's interface is on main (see docs/explore.md)
-
-
 def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(summary rows: one per pad x condition x CV scheme, per-specimen rows) of one cell."""
     analysis, study = analyse_cell(cell)

@@ -48,8 +48,7 @@ def _describe(anchor: dict, skip: str | None = None) -> str:
 def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dict | None = None) -> Path:
     """Write index.html and summary.csv from the rows stored under ``out`` (finished cells only)."""
     out = Path(out)
-    store = ResultStore.__new__(ResultStore)  # reading only: the folder was checked when the sweep ran
-    store.root, store.sweep = out, sweep
+    store = ResultStore.reader(out, sweep)
     results = store.read()
     specimens = store.read(SPECIMENS_DIR)
     failures = pd.read_csv(out / FAILURES_CSV) if (out / FAILURES_CSV).is_file() else pd.DataFrame()

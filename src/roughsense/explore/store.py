@@ -65,6 +65,13 @@ class ResultStore:
             raise OutputExistsError("exists and is not a folder", path=self.root)
         self._check_owner(force)
 
+    @classmethod
+    def reader(cls, out: str | os.PathLike[str], sweep: Sweep) -> "ResultStore":
+        """Read access to a folder a sweep has run in (no ownership checks: nothing is written)."""
+        store = cls.__new__(cls)
+        store.root, store.sweep, store.force = Path(out), sweep, False
+        return store
+
     def _check_owner(self, force: bool) -> None:
         copy = self.root / SWEEP_COPY
         if not self.root.is_dir() or not any(self.root.iterdir()):
