@@ -23,13 +23,26 @@ from ..sim.optics import Camera
 from ..sim.panel import REFERENCE
 from ..sim.simulate import SimulationConfig, force_label, plan_trials, render_trial
 from ..study import CENTER_CROP_PX, SensorSettings, Study
-from .ratings import panel_ratings
+from .ratings import config_options, panel_ratings
 from .sweep import Cell
 
-RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "cv_rmse", "rmse_sd",
-                  "ovl_sd", "n_specimens"]
+
+
+def has_predictive_ovl() -> bool:
+    """Builds with a spread model (``roughsense.SpreadModel``) report the predictive OVL beside the paper's OVL."""
+    import roughsense
+
+    try:
+        return hasattr(roughsense, "SpreadModel")
+    except ImportError:
+        return False
+
+
+PREDICTIVE = ["ovl_predictive"] if has_predictive_ovl() else []
+RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", *PREDICTIVE, "cv_rmse",
+                  "rmse_sd", "ovl_sd", "n_specimens"]
 SPECIMEN_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "specimen", "shape", "wavelength_mm", "n_components",
-                    "gmean", "sd", "pred_mean", "pred_sd", "rmse", "ovl"]
+                    "gmean", "sd", "pred_mean", "pred_sd", "rmse", "ovl", *PREDICTIVE]
 
 
 def sensor_roi(width_px: int, height_px: int):
@@ -54,7 +67,7 @@ def simulation_config(cell: Cell) -> SimulationConfig:
         seed=cell.seed, participants=cell.participants, sessions=cell.sessions,
         fingerprint_period_mm=cell.fingerprint_period_mm or SimulationConfig.fingerprint_period_mm,
         ridge_height_mm=cell.ridge_height_mm or SimulationConfig.ridge_height_mm,
-        camera=Camera(width_px=cell.width_px, height_px=cell.height_px),
+        camera=Camera(width_px=cell.width_px, height_px=cell.height_px), **config_options(cell.ratings_from),
     )
 
 
@@ -132,6 +145,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
             "rmse_sd": float(table["rmse"].std(ddof=1)) if len(table) > 1 else math.nan,
             "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
             "n_specimens": int(len(table)),
+            **{c: float(rated[c].mean()) if c in rated.columns else math.nan for c in PREDICTIVE},
         })
         for row in table.itertuples(index=False):
             per_specimen.append({
@@ -141,6 +155,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
                 "n_components": int(fit.nested_n_components.get(str(row.specimen), fit.best_n_components)),
                 "gmean": row.gmean, "sd": row.sd, "pred_mean": row.pred_mean, "pred_sd": row.pred_sd,
                 "rmse": row.rmse, "ovl": row.ovl,
+                **{c: float(getattr(row, c, math.nan)) for c in PREDICTIVE},
             })
     design = cell.columns()
     design.pop("pad")  # the pad column comes from the analysis (the same value)

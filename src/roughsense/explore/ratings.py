@@ -20,6 +20,15 @@ def physics_available() -> bool:
     return "ratings_from" in inspect.signature(simulate_panel).parameters
 
 
+def config_options(ratings_from: str) -> dict:
+    """The ``SimulationConfig`` keyword for the ratings source, in builds whose config has one."""
+    from dataclasses import fields
+
+    from ..sim.simulate import SimulationConfig
+
+    return {"ratings_from": ratings_from} if "ratings_from" in {f.name for f in fields(SimulationConfig)} else {}
+
+
 def check_ratings_source(ratings_from: str) -> None:
     if ratings_from != "paper" and not physics_available():
         raise ConfigError("physics ratings are not available in this build")

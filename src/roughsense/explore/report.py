@@ -19,10 +19,10 @@ LIMITS = [
     "0.2 mm ridges) on the paper's fourteen gratings. Agreement with the paper there is a property of the calibration, "
     "not a finding; every other design is an extrapolation of the same physics (elastic half-space contact, gap-to-"
     "brightness optics, bench noise drawn as in the calibration).",
-    "With ratings_from = \"paper\", specimens outside the paper get a perceived roughness from a power law of groove "
-    "width fitted to the paper's panel: their targets are a model, so 'can it be measured' means 'does the sensor "
-    "track that model'. Physics-based ratings (ratings_from = \"physics\", where available) come from the simulated "
-    "finger instead and are equally unmeasured.",
+    "With ratings_from = \"paper\", only the paper's fourteen presets carry the paper's panel; every other specimen "
+    "gets its perceived roughness from the twin's model of perception (a fit to the paper's panel, or the simulated "
+    "finger where this build has it, which ratings_from = \"physics\" uses for every specimen). Those targets are "
+    "not measurements, so 'can it be measured' means 'does the sensor track the model'.",
     "The spectrum covers 0.1-1 mm^-1 (wavelengths 1-10 mm): a grating whose fundamental lies above 1 mm^-1 "
     "(wavelength below 1 mm) is seen only through its contact pattern's harmonics and aliasing of the pad relief.",
     "A shorter field is modelled as a narrower camera view of the same 50 x 10 mm contact; a physically smaller pad "
