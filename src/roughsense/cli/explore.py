@@ -13,7 +13,7 @@ ORDER = 45
 def register(app: typer.Typer) -> None:
     @app.command("explore")
     def explore(
-        sweep_file: Path = typer.Argument(..., metavar="SWEEP.toml", help="The sweep file ([sweep] settings, [axes] grid)."),
+        sweep_file: Path = typer.Argument(..., metavar="SWEEP.toml", help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
         workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
@@ -23,8 +23,10 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run every cell (grid point x seed) of a sweep of the digital twin, then write the sweep's report.
 
-        Each cell simulates its study in memory and runs the paper's analysis (LOO and nested LOSO). Finished cells
-        are kept: rerunning the same sweep computes only what is missing. A failing cell is recorded and skipped.
+        Each cell simulates its study in memory and runs the paper's analysis (LOO and nested LOSO).
+
+        Finished cells are kept: rerunning the same sweep computes only what is missing. A failing cell is recorded
+        and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
         """
         from ..errors import ConfigError
         from ..explore.report import write_explore_report
