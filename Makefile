@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: study test bench samples clean-venv
+.PHONY: study test bench samples dist clean-venv
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "roughsense needs Python >= 3.11"'
@@ -21,6 +21,9 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	for script in benchmarks/bench_*.py; do $(BIN)/python $$script || exit 1; done
+
+dist: $(STAMP)
+	$(BIN)/python -m build --outdir dist
 
 samples: $(STAMP)
 	$(BIN)/python scripts/make_samples.py

@@ -169,6 +169,16 @@ def test_score_images_recomputes_the_models_features(tmp_path):
     spectra = spectrum().transform(images)
     expected = model.predict(np.vstack([np.concatenate(spectra[0:3]), np.concatenate(spectra[3:6])]))
     np.testing.assert_array_equal(score_images(loaded, images), expected)
+    # A progress callback sees every image once and changes nothing in the result.
+    seen = []
+
+    def progress(items, *, total, description):
+        for item in items:
+            seen.append(description)
+            yield item
+
+    np.testing.assert_array_equal(score_images(loaded, images, progress=progress), expected)
+    assert len(seen) == len(images)
     with pytest.raises(InputError, match="groups of 3.*got 4 image"):
         score_images(loaded, images[:4])
 

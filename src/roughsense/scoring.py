@@ -44,13 +44,19 @@ def spectra_to_features(loaded: LoadedModel, spectra: np.ndarray) -> np.ndarray:
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
-def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, spectrum=None) -> np.ndarray:
+def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, spectrum=None,
+                 progress=None) -> np.ndarray:
     """Predicted perceived roughness, one value per image (per trial of k images for a k-force model).
 
     ``images`` are paths or arrays. Pass a prebuilt ``spectrum`` (from :func:`model_spectrum`) when
-    scoring frame after frame, so the feature check runs once.
+    scoring frame after frame, so the feature check runs once. ``progress(iterable, total=, description=)``
+    may wrap the image stream (the CLI passes its progress display).
     """
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
     spectrum = spectrum if spectrum is not None else model_spectrum(loaded, n_jobs=n_jobs)
-    return loaded.predict(spectra_to_features(loaded, spectrum.transform(images)))
+    if progress is None:
+        spectra = spectrum.transform(images)
+    else:
+        spectra = np.vstack(list(progress(spectrum.iter_transform(images), total=len(images), description="spectra")))
+    return loaded.predict(spectra_to_features(loaded, spectra))

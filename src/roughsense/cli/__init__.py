@@ -17,6 +17,7 @@ import warnings
 import typer
 
 from ..errors import RoughsenseError
+from ._common import close_line
 
 app = typer.Typer(
     name="roughsense",
@@ -27,16 +28,26 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
-    rich_markup_mode="rich",
+    rich_markup_mode="markdown",
 )
 
 _state = {"debug": bool(os.environ.get("ROUGHSENSE_DEBUG"))}
 _python_showwarning = warnings.showwarning
 
 
+def _show_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"roughsense {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _global_options(
     debug: bool = typer.Option(False, "--debug", help="Show full tracebacks instead of one-line errors."),
+    version: bool = typer.Option(False, "--version", callback=_show_version, is_eager=True,
+                                 help="Print the version and exit."),
 ) -> None:
     if debug:
         _state["debug"] = True
@@ -61,6 +72,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     """roughsense's own warnings are one line like its errors; anything else keeps Python's format."""
     from ..errors import RoughsenseWarning
 
+    close_line()
     if issubclass(category, RoughsenseWarning):
         print(f"roughsense: warning: {message}", file=sys.stderr)
     else:
@@ -68,6 +80,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 def _fail(message: str) -> int:
+    close_line()
     print(f"roughsense: error: {message}", file=sys.stderr)
     return 2
 
@@ -89,18 +102,22 @@ def main(argv: list[str] | None = None) -> int:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else _fail(str(code)))
     except KeyboardInterrupt:
+        close_line()
         print("roughsense: interrupted", file=sys.stderr)
         return 130
     except RoughsenseError as exc:
+        close_line()
         if _state["debug"]:
             traceback.print_exc()
         return _fail(str(exc))
     except OSError as exc:
+        close_line()
         if _state["debug"]:
             traceback.print_exc()
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         return _fail(f"{where}{exc.strerror or exc}")
     except Exception as exc:  # a bug: still one line, but say how to get the traceback
+        close_line()
         if _state["debug"]:
             traceback.print_exc()
             return 1

@@ -1,8 +1,11 @@
-"""Small helpers shared by the command modules: option parsing and progress display."""
+"""Small helpers shared by the command modules: option parsing, progress display, the built-in study."""
 from __future__ import annotations
 
 import sys
+import threading
+import time
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 from ..errors import ConfigError
@@ -29,16 +32,114 @@ def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
 
-def progress(items: Iterable[T], *, total: int | None = None, description: str = "") -> Iterator[T]:
-    """A rich progress bar on an interactive terminal, silence otherwise (logs and CI stay clean)."""
-    if not sys.stderr.isatty():
-        yield from items
-        return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+def _interactive() -> bool:
+    return sys.stderr.isatty()
 
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-    with Progress(*columns, transient=True) as bar:
+
+#: A step quicker than this shows nothing off a terminal: a short command (or a bad-input error) stays quiet.
+ANNOUNCE_AFTER_S = 2.0
+
+_lock = threading.RLock()
+_open: list[_LogLine] = []  # the stage whose log line is written without its end, if any
+
+
+def close_line() -> None:
+    """End an open stage line, so that an error or a warning printed now starts on a line of its own."""
+    with _lock:
+        if _open:
+            _open.clear()
+            print(file=sys.stderr, flush=True)
+
+
+class _LogLine:
+    """One stage off a terminal: ``roughsense: simulating (840) ... done in 91.2 s``.
+
+    The start is written once the stage has run ANNOUNCE_AFTER_S (from a timer, so a slow first item
+    counts too) and completed when the stage ends, so a log shows what is running and how long it took.
+    """
+
+    def __init__(self, description: str, total: int | None) -> None:
+        self.text = description if total is None else f"{description} ({total})"
+        self.total = total
+        self.started = time.perf_counter()
+        self.announced = self.ended = False
+        self.timer = threading.Timer(ANNOUNCE_AFTER_S, self._announce)
+        self.timer.daemon = True
+        self.timer.start()
+
+    def _announce(self) -> None:
+        with _lock:
+            if self.ended:
+                return
+            close_line()
+            print(f"roughsense: {self.text} ...", end="", file=sys.stderr, flush=True)
+            self.announced = True
+            _open.append(self)
+
+    def finish(self, done: int | None = None, *, failed: bool = False) -> None:
+        self.timer.cancel()
+        with _lock:
+            self.ended = True
+            if not (self.announced and _open and _open[-1] is self):  # quick, or closed by an error/warning
+                return
+            _open.clear()
+            elapsed = time.perf_counter() - self.started
+            if done is not None and self.total is not None and done < self.total:
+                failed = True
+            count = f" {done} of {self.total}," if failed and done is not None and self.total is not None else ""
+            text = f" stopped after{count} {elapsed:.1f} s" if failed else f" done in {elapsed:.1f} s"
+            print(text, file=sys.stderr, flush=True)
+
+
+def progress(items: Iterable[T], *, total: int | None = None, description: str = "") -> Iterator[T]:
+    """Show a long loop: a rich bar with an estimate on a terminal, one line on stderr otherwise.
+
+    Library functions take this as an optional ``progress`` callback and print nothing themselves.
+    """
+    if not _interactive():
+        line = _LogLine(description, total)
+        done = 0
+        try:
+            for item in items:
+                yield item
+                done += 1
+        finally:
+            line.finish(done)
+        return
+    from rich.progress import (
+        BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn,
+    )
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+               TextColumn("eta"), TimeRemainingColumn())
+    with Progress(*columns, transient=True, console=_console()) as bar:
         task = bar.add_task(description, total=total)
         for item in items:
             yield item
             bar.advance(task)
+
+
+@contextmanager
+def stage(description: str) -> Iterator[None]:
+    """A step with no count (writing a report): a spinner with the elapsed time, or one line."""
+    if not _interactive():
+        line = _LogLine(description, None)
+        try:
+            yield
+        except BaseException:
+            line.finish(failed=True)  # the error line that follows says why
+            raise
+        line.finish()
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), transient=True,
+                  console=_console()) as bar:
+        bar.add_task(description, total=None)
+        yield
+
+
+def _console():
+    from rich.console import Console
+
+    return Console(stderr=True)

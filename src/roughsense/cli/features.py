@@ -8,6 +8,7 @@ import typer
 
 from ..errors import ConfigError
 from ._common import parse_float_list, progress
+from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 10
 
@@ -31,9 +32,12 @@ def register(app: typer.Typer) -> None:
             typer.Argument(metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False),
         ] = None,
         study: Annotated[
-            Path | None,
-            typer.Option("--study", help="A study folder: use its manifest's images and carry the manifest's columns along."),
+            str | None,
+            typer.Option("--study", metavar=STUDY_METAVAR, show_default=False,
+                         help="A study folder: use its manifest's images and carry the manifest's columns along. "
+                         "builtin: the simulated paper study of --seed."),
         ] = None,
+        seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
         px_per_mm: Annotated[
             float | None,
             typer.Option("--px-per-mm", help="Camera scale in px/mm along the line. Default: the study's, else 34.9 (the paper's 349 px/cm).", show_default=False),
@@ -72,7 +76,7 @@ def register(app: typer.Typer) -> None:
         check_can_write(out, force=force)
         f_min, f_max = _band(band)
 
-        loaded = read_study(study) if study is not None else None
+        loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
         if loaded is not None:
             px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
             roi = loaded.sensor.roi if roi is None else roi

@@ -8,6 +8,7 @@ import typer
 
 from ..errors import ConfigError
 from ._common import progress
+from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
 
@@ -49,7 +50,10 @@ def _curve_table(result, chosen: int):
 def register(app: typer.Typer) -> None:
     @app.command("fit")
     def fit(
-        study: Annotated[Path, typer.Option("--study", help="Study folder with images, manifest and ratings.")],
+        study: Annotated[str, typer.Option(
+            "--study", metavar=STUDY_METAVAR,
+            help="Study folder with images, manifest and ratings, or builtin: the simulated paper study of --seed.",
+        )],
         pad: Annotated[str, typer.Option("--pad", help="Which pad's images to use (a value of the manifest's pad column).")],
         condition: Annotated[
             str, typer.Option("--condition", help="Force condition: 1N, 2N, 3N, or combined (a trial's three spectra side by side).")
@@ -70,7 +74,7 @@ def register(app: typer.Typer) -> None:
         rule: Annotated[
             str, typer.Option("--rule", help="Component choice: min (lowest CV RMSE, the paper's rule) or 1se (fewest within one SE of it).")
         ] = "min",
-        seed: Annotated[int, typer.Option("--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness).")] = 0,
+        seed: Annotated[int, typer.Option("--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")] = 0,
         jobs: Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")] = -1,
         force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False,
     ) -> None:
@@ -101,6 +105,7 @@ def register(app: typer.Typer) -> None:
             raise ConfigError(f"--max-components must be at least 1, got {max_components}")
         check_can_write(out, force=force)
 
+        study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
         loaded = read_study(study, require_ratings=True)
         manifest_path = loaded.root / MANIFEST_CSV
         if pad not in loaded.pads:
@@ -210,7 +215,7 @@ def register(app: typer.Typer) -> None:
             check_can_write(out, force=force)
         loaded = load_model(model)
         trials = group_images(loaded, images)
-        roughness = score_images(loaded, images, n_jobs=jobs)
+        roughness = score_images(loaded, images, n_jobs=jobs, progress=progress)
         if len(loaded.conditions) == 1:
             table = pd.DataFrame({"image": [str(t[0]) for t in trials]})
         else:

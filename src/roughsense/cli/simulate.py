@@ -19,10 +19,9 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
         pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
         specimens: str = typer.Option(
-            ",".join(PAPER_SPECIMENS), "--specimens",
-            help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens, in mm: "
-                 "rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, "
-                 "rand:CORRELATION_LENGTH:RMS[:SEED]. Example: R3,sin:3:0.5,rect:3.5:0.8.",
+            ",".join(PAPER_SPECIMENS), "--specimens", metavar="LIST", show_default=False,
+            help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
+                 "above). Default: the paper's 14, R2..R5 and C2..C5.",
         ),
         forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
@@ -36,6 +35,15 @@ def register(app: typer.Typer) -> None:
         The defaults are the paper's full study: 2 pads x 14 specimens x 3 forces x 10 repetitions = 840 images,
         and 10 participants x 3 sessions x 13 specimens = 390 ratings (R3 is the reference). Try a new pad or
         specimen before building it, e.g. --fingerprint-period-mm 0.5 or --specimens R3,sin:3:0.5.
+
+        Specs of new specimens for --specimens, all lengths in mm (brackets mark optional parts):
+
+        - rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]]: rectangular grating
+        - circ:DIAMETER: touching semi-cylinders
+        - sin:WAVELENGTH:AMPLITUDE: sinusoid
+        - rand:CORRELATION_LENGTH:RMS[:SEED]: random rough surface
+
+        Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
         """
         from ..errors import ConfigError
         from ..sim import SimulationConfig, SimulationRun

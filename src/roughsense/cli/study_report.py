@@ -6,51 +6,20 @@ from pathlib import Path
 
 import typer
 
-from ._common import progress
+from ._common import progress, stage
+from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
 DEFAULT_SEED = 0
 
 
-def _simulator_fingerprint() -> str:
-    """A hash of the simulator's own source and data: a changed twin never reuses a stale cached study."""
-    import hashlib
-    from importlib import resources
-
-    digest = hashlib.sha256()
-    for package in ("roughsense.sim", "roughsense.data.paper"):
-        for item in sorted(resources.files(package).iterdir(), key=lambda p: p.name):
-            if item.name.endswith((".py", ".csv")):
-                digest.update(item.name.encode())
-                digest.update(item.read_bytes())
-    return digest.hexdigest()[:12]
-
-
-def _builtin_study(seed: int, jobs: int) -> Path:
-    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after."""
-    import shutil
-
-    from ..cache import cache_dir
-    from ..sim import simulate as sim
-
-    prefix = f"simulated-study-seed{seed}-"
-    root = cache_dir() / f"{prefix}{_simulator_fingerprint()}"
-    if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
-        return root
-    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
-    for stale in cache_dir().glob(f"{prefix}*"):
-        if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
-            shutil.rmtree(stale, ignore_errors=True)
-    typer.echo(f"Simulating the paper's study (seed {seed}) into {root} (first use only)...", err=True)
-    sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
-    return root
-
-
 def register(app: typer.Typer) -> None:
     @app.command("study")
     def study_command(
-        data: Path = typer.Option(None, "--data", help="Study folder (study.toml, specimens.csv, manifest.csv, "
-                                  "ratings.csv, images/). Default: the built-in simulated study, generated on first use."),
+        data: str = typer.Option(None, "--data", metavar=STUDY_METAVAR, show_default=False,
+                                 help="Study folder (study.toml, specimens.csv, manifest.csv, ratings.csv, images/), "
+                                 "or builtin (the default): the paper's study simulated with --seed, generated on "
+                                 "first use and cached (a folder named builtin: ./builtin)."),
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
         seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Seed of the built-in simulated study (and any random draw)."),
         max_components: int = typer.Option(20, "--max-components", min=1, help="Largest number of PLS components tried by CV."),
@@ -76,7 +45,8 @@ def register(app: typer.Typer) -> None:
 
         started = time.perf_counter()
         check_report_dir(out, force)  # fail before minutes of work, not after
-        root = data if data is not None else _builtin_study(seed, jobs)
+        builtin = data is None or is_builtin(data)
+        root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
         study = read_study(root, require_ratings=True)
         definition = dataset.spectrum_for(study).feature_definition()
         features, was_cached = cache.cached_frame(
@@ -93,15 +63,18 @@ def register(app: typer.Typer) -> None:
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
         meta = {
             "study folder": str(Path(root).resolve()),
-            "source": "built-in simulated study (digital twin), seed %d" % seed if data is None else "user data",
+            "source": "built-in simulated study (digital twin), seed %d" % seed if builtin else "user data",
             "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
             "features": "from cache" if was_cached else "extracted",
         }
         if caught:
             meta["warnings"] = "; ".join(str(w.message) for w in caught)
-        index = write_report(analysis, out, meta=meta, force=force)
+        with stage("writing the report"):
+            index = write_report(analysis, out, meta=meta, force=force)
         loo = analysis.results("loo")
         for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
             typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
                        f"{analysis.fit(pad, condition, 'loo').best_n_components} components (LOO)")
+        where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
+        typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")

@@ -1,0 +1,71 @@
+"""Study folders named on the command line: a path, or ``builtin`` for the simulated paper study.
+
+``builtin`` is a reserved word wherever a study folder is accepted (``--data``, ``--study``): it names the
+paper's study as the digital twin simulates it with ``--seed``, generated once into the cache and reused.
+A real folder called ``builtin`` is reached as ``./builtin`` (any path with a separator is a path).
+"""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ._common import progress
+
+BUILTIN = "builtin"
+STUDY_METAVAR = "DIR|builtin"
+
+
+def is_builtin(value: str | os.PathLike[str] | None) -> bool:
+    return isinstance(value, str) and value == BUILTIN
+
+
+def simulator_fingerprint() -> str:
+    """A hash of the simulator's own source and data: a changed twin never reuses a stale cached study."""
+    import hashlib
+    from importlib import resources
+
+    digest = hashlib.sha256()
+    for package in ("roughsense.sim", "roughsense.data.paper"):
+        for item in sorted(resources.files(package).iterdir(), key=lambda p: p.name):
+            if item.name.endswith((".py", ".csv")):
+                digest.update(item.name.encode())
+                digest.update(item.read_bytes())
+    return digest.hexdigest()[:12]
+
+
+def builtin_study_path(seed: int) -> Path:
+    """Where the built-in study of ``seed`` lives (or will live) in the cache."""
+    from ..cache import cache_dir
+
+    return cache_dir() / f"simulated-study-seed{seed}-{simulator_fingerprint()}"
+
+
+def builtin_study(seed: int, jobs: int | None = None) -> Path:
+    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after."""
+    import shutil
+
+    from ..cache import cache_dir
+    from ..sim import simulate as sim
+
+    root = builtin_study_path(seed)
+    if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
+        return root
+    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
+    for stale in cache_dir().glob(f"simulated-study-seed{seed}-*"):
+        if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
+            shutil.rmtree(stale, ignore_errors=True)
+    print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
+          "later runs reuse it", file=sys.stderr, flush=True)
+    sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
+    return root
+
+
+def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None = None) -> Path:
+    """``builtin`` -> the built-in study of ``seed`` (simulated on first use); anything else is a path."""
+    if not is_builtin(value):
+        return Path(value)
+    if Path(BUILTIN).exists():
+        print(f"roughsense: note: {BUILTIN!r} names the built-in simulated study; for the folder here, "
+              f"write ./{BUILTIN}", file=sys.stderr)
+    return builtin_study(seed, jobs)

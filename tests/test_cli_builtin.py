@@ -1,0 +1,74 @@
+"""``builtin`` names the simulated paper study wherever a study folder is accepted; a real folder of that name
+is reached as ``./builtin``. The cache entry is faked with a small simulated study at the exact cache path."""
+from __future__ import annotations
+
+import shutil
+
+import pandas as pd
+import pytest
+
+from roughsense.cli._studies import builtin_study_path
+from roughsense.sim.simulate import COMPLETE_MARKER, SimulationConfig, simulate_study, with_image_size
+
+SEED = 7
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=SEED,
+                              participants=3, sessions=2)
+    return simulate_study(tmp_path_factory.mktemp("tiny") / "study", with_image_size(config, 1920, 170), jobs=1)
+
+
+@pytest.fixture
+def cache(tiny, tmp_path, monkeypatch):
+    """A cache whose built-in study of seed SEED is the tiny one (so nothing is simulated here)."""
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    root = builtin_study_path(SEED)
+    shutil.copytree(tiny, root)
+    assert (root / COMPLETE_MARKER).is_file()
+    return root
+
+
+def test_fit_and_features_take_builtin_with_seed(run_cli, cache, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli("fit", "--study", "builtin", "--seed", SEED, "--pad", "smooth", "--condition", "2N",
+                             "--max-components", "2", "--out", "m.json")
+    assert code == 0, err
+    import json
+
+    assert json.loads((tmp_path / "m.json").read_text())["training"]["study_path"] == str(cache)
+    code, _, err = run_cli("features", "--study", "builtin", "--seed", SEED, "--out", "f.csv")
+    assert code == 0, err
+    features = pd.read_csv(tmp_path / "f.csv")
+    manifest = pd.read_csv(cache / "manifest.csv")
+    assert list(features["image"]) == list(manifest["image"])
+
+
+@pytest.mark.slow
+def test_study_prints_the_folder_it_used(run_cli, cache, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli("study", "--data", "builtin", "--seed", SEED, "--out", "r", "--max-components", "2",
+                             "--no-loso")
+    assert code == 0, err
+    assert f"Study folder: {cache.resolve()}" in out
+    assert "builtin" in out.split("Study folder:")[1].splitlines()[0]
+    # The default (no --data) is the same study.
+    code, out2, err = run_cli("study", "--seed", SEED, "--out", "r", "--max-components", "2", "--no-loso", "--force")
+    assert code == 0, err
+    assert f"Study folder: {cache.resolve()}" in out2
+
+
+def test_a_real_folder_named_builtin_is_reached_as_dot_slash(run_cli, cache, tiny, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    mine = shutil.copytree(tiny, tmp_path / "builtin")
+    (mine / "manifest.csv").write_text(
+        "\n".join((tiny / "manifest.csv").read_text().splitlines()[:7]) + "\n")  # the first 6 images only
+    code, _, err = run_cli("features", "--study", "./builtin", "--out", "mine.csv")
+    assert code == 0, err
+    assert len(pd.read_csv(tmp_path / "mine.csv")) == 6
+    # The bare word is the built-in study, and says so because a folder of that name is here.
+    code, _, err = run_cli("features", "--study", "builtin", "--seed", SEED, "--out", "builtin.csv")
+    assert code == 0, err
+    assert "./builtin" in err
+    assert len(pd.read_csv(tmp_path / "builtin.csv")) == len(pd.read_csv(cache / "manifest.csv"))

@@ -1,0 +1,129 @@
+"""The package as a user receives it: ``python -m build`` makes a wheel and an sdist, both install into a clean
+venv with the report template, the paper's tables and the sample images, and ``roughsense --version`` works there.
+
+Marked ``package`` (and slow): it installs every dependency into a fresh venv (from the registry or its mirror,
+through pip's own cache), so ``make test`` leaves it out and CI runs it as its own step (``.ci/run``).
+Run it with ``python -m pytest -m package``.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import roughsense
+
+pytestmark = [pytest.mark.slow, pytest.mark.package]
+
+ROOT = Path(__file__).resolve().parents[1]
+VERSION = roughsense.__version__
+DATA = [
+    "roughsense/report/templates/report.html.j2",
+    "roughsense/data/paper/paper_results.csv",
+    "roughsense/data/paper/perceived_roughness.csv",
+    "roughsense/data/samples/README.txt",
+    "roughsense/data/samples/synthetic_grating_3mm_gray8_1920x1080.png",
+]
+SAMPLES = 5
+_ANYWHERE = shutil.ignore_patterns(".git", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis")
+_AT_TOP = {".venv", "build", "dist", "report", ".cache"}  # a checkout's outputs (src/roughsense/report is code)
+
+
+def _junk(folder: str, names: list[str]) -> set[str]:
+    top = {n for n in names if n in _AT_TOP} if Path(folder) == ROOT else set()
+    return top | _ANYWHERE(folder, names)
+
+
+def _run(args, **kwargs) -> subprocess.CompletedProcess:
+    result = subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=900, **kwargs)
+    assert result.returncode == 0, f"{' '.join(map(str, args))} failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+    return result
+
+
+@pytest.fixture(scope="module")
+def dist(tmp_path_factory) -> dict[str, Path]:
+    """Build from a clean copy, so a stale build/ folder in the checkout can never leak into the wheel."""
+    tmp = tmp_path_factory.mktemp("package")
+    source = shutil.copytree(ROOT, tmp / "source", ignore=_junk)
+    _run([sys.executable, "-m", "build", "--outdir", tmp / "dist", source])
+    wheels, sdists = list((tmp / "dist").glob("*.whl")), list((tmp / "dist").glob("*.tar.gz"))
+    assert len(wheels) == 1 and len(sdists) == 1
+    return {"wheel": wheels[0], "sdist": sdists[0], "tmp": tmp}
+
+
+@pytest.fixture(scope="module")
+def clean_venv(dist) -> Path:
+    """A venv with nothing but pip, and the wheel (with its dependencies) installed into it."""
+    env_dir = dist["tmp"] / "venv"
+    venv.EnvBuilder(with_pip=True, clear=True).create(env_dir)
+    _run([env_dir / "bin" / "python", "-m", "pip", "install", "--quiet", dist["wheel"]])
+    return env_dir
+
+
+def test_the_wheel_and_sdist_are_named_for_the_version(dist):
+    assert dist["wheel"].name == f"roughsense-{VERSION}-py3-none-any.whl"
+    assert dist["sdist"].name == f"roughsense-{VERSION}.tar.gz"
+
+
+def test_the_wheel_holds_the_data_and_the_entry_point(dist):
+    names = set(zipfile.ZipFile(dist["wheel"]).namelist())
+    assert set(DATA) <= names
+    assert sum(n.startswith("roughsense/data/samples/synthetic_grating_") for n in names) == SAMPLES
+    entry_points = zipfile.ZipFile(dist["wheel"]).read(f"roughsense-{VERSION}.dist-info/entry_points.txt").decode()
+    assert "roughsense = roughsense.cli:run" in entry_points
+    assert not any("/tests/" in n or n.startswith(("tests/", "build/")) for n in names)
+
+
+def test_the_sdist_holds_the_sources_docs_tests_and_example(dist):
+    prefix = f"roughsense-{VERSION}/"
+    names = {n.removeprefix(prefix) for n in tarfile.open(dist["sdist"]).getnames()}
+    expected = {"pyproject.toml", "README.md", "LICENSE", "Makefile", "docs/tutorial.md", "tests/test_tutorial.py",
+                "examples/my-study/study.toml", "examples/my-study/manifest.csv", "scripts/make_example_study.py",
+                *(f"src/{d}" for d in DATA)}
+    assert expected <= names, sorted(expected - names)
+    assert not any("__pycache__" in n for n in names)
+
+
+def _check_installed(env_dir: Path, work: Path) -> None:
+    """Run the installed command, away from the checkout, so nothing can be imported from the source tree."""
+    bin_dir = env_dir / "bin"
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROUGHSENSE_DEBUG")}
+    env["ROUGHSENSE_CACHE_DIR"] = str(work / "cache")
+    work.mkdir(parents=True, exist_ok=True)
+    version = _run([bin_dir / "roughsense", "--version"], cwd=work, env=env)
+    assert version.stdout.strip() == f"roughsense {VERSION}"
+    where = _run([bin_dir / "python", "-c", "import roughsense, pathlib; print(pathlib.Path(roughsense.__file__).parent)"],
+                 cwd=work, env=env).stdout.strip()
+    package = Path(where)
+    assert env_dir in package.parents, f"imported from {package}, not from the venv"
+    for name in DATA:
+        assert (package.parent / name).is_file(), name
+    samples = sorted((package / "data" / "samples").glob("synthetic_grating_*"))
+    assert len(samples) == SAMPLES
+    _run([bin_dir / "roughsense", "features", "--roi", "auto", "--out", "features.csv", *samples], cwd=work, env=env)
+    assert len((work / "features.csv").read_text().splitlines()) == SAMPLES + 1
+
+
+def test_the_wheel_installs_and_runs_in_a_clean_venv(clean_venv, dist, tmp_path):
+    _check_installed(clean_venv, tmp_path / "wheel")
+    # The report renders from the installed template, with the paper's published values from the installed tables.
+    study = shutil.copytree(ROOT / "examples" / "my-study", tmp_path / "my-study")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["ROUGHSENSE_CACHE_DIR"] = str(tmp_path / "cache")
+    _run([clean_venv / "bin" / "roughsense", "study", "--data", study, "--out", tmp_path / "report",
+          "--max-components", "2", "--no-loso"], cwd=tmp_path, env=env)
+    html = (tmp_path / "report" / "index.html").read_text()
+    assert "<html" in html.lower() and "paper" in html.lower()
+
+
+def test_the_sdist_installs_too(clean_venv, dist, tmp_path):
+    _run([clean_venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-deps", "--force-reinstall",
+          dist["sdist"]])
+    _check_installed(clean_venv, tmp_path / "sdist")
