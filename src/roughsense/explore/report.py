@@ -41,7 +41,7 @@ def _describe(anchor: dict, skip: str | None = None) -> str:
     for key, value in anchor.items():
         if key == skip or (isinstance(value, float) and math.isnan(value)):
             continue
-        parts.append(f"{key} = {value:g}" if isinstance(value, float) else f"{key} = {value}")
+        parts.append(f"{key} = {value:.4g}" if isinstance(value, float) else f"{key} = {value}")
     return ", ".join(parts)
 
 

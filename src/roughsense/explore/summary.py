@@ -226,7 +226,7 @@ def paper_questions(results: pd.DataFrame, specimens: pd.DataFrame, table: pd.Da
             values = sorted(values, reverse=True)
         elif base in values:
             values = [base] + [v for v in values if v != base]
-        designs = [(f"{column} = {v:g}" if isinstance(v, float) else f"{column} = {v}", _with(anchor, **{column: v}))
+        designs = [(f"{column} = {v:.4g}" if isinstance(v, float) else f"{column} = {v}", _with(anchor, **{column: v}))
                    for v in values]
         frame = pd.concat([compare(results, designs, condition_of(anchor), c) for c in sorted(set(results["cv"]))])
         judged = frame[frame["cv"] == cv]
