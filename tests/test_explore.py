@@ -80,6 +80,28 @@ def test_warm_started_contact_equals_the_cold_solution():
             assert warm.pressure_pa.mean() == pytest.approx(pressure)
             if iterations_at_most:  # flat lands: the contact set does not move, a warm start is nearly free
                 assert warm.iterations <= iterations_at_most < cold.iterations
+        # Starting from the answer itself: nothing to do (and no division by the zero residual).
+        again = contact.solve_periodic(height, length, 4000.0, modulus, tol=1e-6, initial_pressure_pa=first.pressure_pa)
+        assert np.max(np.abs(again.gap_mm - first.gap_mm)) < 1e-6
+
+
+def test_a_warm_start_that_cycles_restarts_cold(monkeypatch):
+    config = sim.SimulationConfig(pads=("smooth",), specimens=("C3",), repetitions=1, forces_n=(2.0,))
+    pads, specimens = config.validate()
+    trial = sim.plan_trials(config, pads, specimens)[0]
+    solve = contact.solve_periodic
+
+    def cycling(*args, initial_pressure_pa=None, **kwargs):
+        if initial_pressure_pa is not None:
+            raise contact.ContactNotConverged("cycling")
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(contact, "solve_periodic", cycling)
+    warm: dict = {}
+    line, fraction = sim.trial_line(trial, warm=warm)
+    assert warm  # solutions kept for the next trial
+    cold_line, cold_fraction = sim.trial_line(trial)
+    assert np.array_equal(line, cold_line) and fraction == cold_fraction
 
 
 # --------------------------------------------------------------------------- a cell is the study path in memory

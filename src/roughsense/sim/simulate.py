@@ -33,6 +33,7 @@ SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
 COMPLETE_MARKER = ".simulation-complete"  # written last: a folder without it is an interrupted run
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
+WARM_MAX_ITER = 500  # a warm-started solve needs tens of steps; past this it is cycling and restarts cold
 SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale
 
 
@@ -202,8 +203,15 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
         (repr(pad), repr(specimen))
     start = warm.get(key) if warm is not None else None
     try:
-        solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
-                                          initial_pressure_pa=start)
+        solution = None
+        if start is not None:
+            try:  # a start far from the answer (a much lower load) can make the iteration cycle: then start afresh
+                solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
+                                                  initial_pressure_pa=start, max_iter=WARM_MAX_ITER)
+            except contact.ContactNotConverged:
+                solution = None
+        if solution is None:
+            solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
     except contact.ContactNotConverged as exc:
         raise ConfigError(f"pad {pad.name!r} on specimen {specimen.name!r} at {pressure_pa:.0f} Pa: {exc.message}; "
                           "try a smoother specimen or a different pad") from None
