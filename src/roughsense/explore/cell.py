@@ -82,14 +82,15 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
     trials = plan_trials(config, pads, specimens)
     camera = config.camera
-    roi = sensor_roi(camera.width_px, camera.height_px)
+    height_px = getattr(camera, "frame_height_px", camera.height_px)  # the rows a frame holds (a sensor window)
+    roi = sensor_roi(camera.width_px, height_px)
     spectrum = SpatialSpectrum(px_per_mm=camera.px_per_mm, roi=roi).fit()
-    rows = line_rows(spectrum, camera.width_px, camera.height_px)
+    rows = line_rows(spectrum, camera.width_px, height_px)
     warm: dict | None = {} if warm_start else None
     fractions = []
 
     def frames():
-        frame = np.zeros((camera.height_px, camera.width_px), dtype=np.uint8)  # rows the sensor never reads stay 0
+        frame = np.zeros((height_px, camera.width_px), dtype=np.uint8)  # rows the sensor never reads stay 0
         for trial in trials:
             part, fraction = render_trial(trial, rows=rows, warm=warm)
             fractions.append(fraction)
