@@ -131,10 +131,10 @@ class ResultStore:
             path.unlink()  # every earlier failure has now been computed
 
     def read(self, sub: str = RESULTS_DIR) -> pd.DataFrame:
+        """Every cell file in the folder (after a run, exactly this sweep's finished cells: a run refuses others)."""
         schema = RESULT_SCHEMA if sub == RESULTS_DIR else SPECIMEN_SCHEMA
         files = sorted((self.root / sub).glob("cell-*.parquet"))
-        ours = {cell_file(c.id) for c in self.sweep.cells}
-        tables = [pq.read_table(p, schema=schema) for p in files if p.name in ours]
+        tables = [pq.read_table(p, schema=schema) for p in files]
         if not tables:
             return schema.empty_table().to_pandas()
         return pa.concat_tables(tables).to_pandas()
