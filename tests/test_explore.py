@@ -320,3 +320,22 @@ def test_explore_report_renders_in_headless_chromium(local_run):
         assert len(uncovered) >= 3  # this sweep answers none of the questions that need an axis
     finally:
         driver.quit()
+
+
+def test_combined_condition_over_other_forces():
+    from roughsense.dataset import condition_matrix
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for specimen in ("R2", "C3"):
+        for repetition in (1, 2):
+            for force in ("1N", "2N", "4N"):
+                rows.append({"image": f"{specimen}_{force}_{repetition}", "pad": "smooth", "specimen": specimen,
+                             "repetition": repetition, "condition": force, "0.1": rng.random(), "0.2": rng.random()})
+    features = pd.DataFrame(rows)
+    X, meta = condition_matrix(features, "smooth", "combined", combined_forces=["1N", "4N"])
+    single = {f: condition_matrix(features, "smooth", f)[0] for f in ("1N", "4N")}
+    assert np.array_equal(X, np.hstack([single["1N"], single["4N"]]))
+    assert list(meta.columns) == ["specimen", "repetition", "image_1N", "image_4N"]
+    with pytest.raises(Exception, match="every trial needs 1N, 3N"):
+        condition_matrix(features, "smooth", "combined", combined_forces=["1N", "3N"])
