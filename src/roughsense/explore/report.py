@@ -8,9 +8,9 @@ from pathlib import Path
 import pandas as pd
 
 from .. import atomic
-from ..report.explore_page import render_explore
+from ..report.explore_page import html_table, render_explore
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
-from .summary import DESIGN, axis_slice, best_design, judge_cv, paper_questions, seed_table, _match
+from .summary import DESIGN, _match, axis_slice, best_design, paper_questions, seed_table
 from .sweep import Sweep
 
 SUMMARY_CSV = "summary.csv"
@@ -80,8 +80,6 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
         for q in paper_questions(results, specimens, table):
             item = {"title": q.title, "covered": q.covered, "answer": q.answer, "how_to_cover": q.how_to_cover}
             if q.covered:
-                from ..report.explore_page import html_table
-
                 item["table"] = html_table(q.table, "", "")
             questions.append(item)
     summary = table[[*shown, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", "n_seeds"]] \
@@ -95,5 +93,3 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     atomic.write_bytes(out / REPORT, html)
     return out / REPORT
 
-
-__all__ = ["write_explore_report", "judge_cv"]

@@ -13,7 +13,7 @@ import math
 import numbers
 import os
 import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
@@ -291,7 +291,3 @@ def build_sweep(source: dict, path: Path) -> Sweep:
     varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
     return Sweep(path=path, name=name, axes=varying, cells=cells, cv=cv, source=source)
 
-
-def cell_record(cell: Cell) -> dict:
-    """A cell as plain data (for failure records)."""
-    return asdict(cell)
