@@ -5,7 +5,11 @@ The peer measured in the same run is the part of the job that is not roughsense'
 decoding (cv2.imread) of every image of the study, which any analysis of these images must pay.
 Each run is a fresh process, as a user would run it; peak RSS covers the process and its children.
 
-Run: .venv/bin/python benchmarks/bench_study.py [--warm-repeats 3] [--keep-cache DIR]
+The cold run also reports the simulated study's size on disk (issue 12: <= 40 s cold on 2 cores, <= 400 MB).
+``--peer-src DIR`` runs the same cold study with another checkout's sources (e.g. the code before issue 12) in the
+same run, as the peer of this one, each in its own empty cache.
+
+Run: .venv/bin/python benchmarks/bench_study.py [--warm-repeats 3] [--keep-cache DIR] [--peer-src OLD/src]
 """
 from __future__ import annotations
 
@@ -22,8 +26,10 @@ import time
 from pathlib import Path
 
 
-def run_study(cache: Path, out: Path) -> float:
+def run_study(cache: Path, out: Path, src: Path | None = None) -> float:
     env = dict(os.environ, ROUGHSENSE_CACHE_DIR=str(cache))
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(src.resolve()), *filter(None, [os.environ.get("PYTHONPATH")])])
     started = time.perf_counter()
     subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force"],
                    env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -41,10 +47,18 @@ def decode_all(study: Path) -> float:
     return time.perf_counter() - started
 
 
+def study_size(cache: Path) -> tuple[int, int]:
+    """Bytes and number of the cached study's files (images and tables)."""
+    files = [p for p in next(cache.glob("simulated-study-*")).rglob("*") if p.is_file()]
+    return sum(p.stat().st_size for p in files), len(files)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--warm-repeats", type=int, default=3)
     parser.add_argument("--keep-cache", type=Path, default=None, help="Use (and keep) this cache folder.")
+    parser.add_argument("--peer-src", type=Path, default=None,
+                        help="Also run the cold study with these sources (another checkout's src/) as the peer.")
     args = parser.parse_args()
     scratch = Path(tempfile.mkdtemp(prefix="roughsense-bench-study-"))
     cache = args.keep_cache or scratch / "cache"
@@ -55,6 +69,7 @@ def main() -> None:
         print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
               f"load average {load:.1f} at start")
         cold = run_study(cache, scratch / "report")
+        size, files = study_size(cache)
         warm = [run_study(cache, scratch / "report") for _ in range(args.warm_repeats)]
         study = next(cache.glob("simulated-study-*"))
         decode = decode_all(study)
@@ -62,6 +77,15 @@ def main() -> None:
         warm_median = statistics.median(warm)
         print(f"  empty cache (simulate 840 images + features + analysis + report): {cold:6.1f} s  "
               f"budget 120 s -> {cold / 120:.2f} of budget")
+        print(f"  simulated study on disk: {size / 1e6:6.0f} MB in {files} files      budget 400 MB -> "
+              f"{size / 400e6:.2f} of budget; cold budget 40 s -> {cold / 40:.2f}")
+        if args.peer_src is not None:
+            peer_cache = scratch / "peer-cache"
+            peer_cold = run_study(peer_cache, scratch / "peer-report", src=args.peer_src)
+            peer_size, _ = study_size(peer_cache)
+            shutil.rmtree(peer_cache, ignore_errors=True)
+            print(f"  peer {args.peer_src}: empty cache {peer_cold:6.1f} s, study {peer_size / 1e6:6.0f} MB -> "
+                  f"this / peer: time {cold / peer_cold:.2f}, size {size / peer_size:.2f}")
         print(f"  warm cache (median of {len(warm)}):                                {warm_median:6.1f} s  "
               f"budget  30 s -> {warm_median / 30:.2f} of budget")
         print(f"  peer: plain cv2.imread of the study's {len(list((study / 'images').iterdir()))} images: {decode:6.1f} s "

@@ -7,8 +7,11 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from roughsense import SIMPLS, dataset, pls_cv
+from roughsense.errors import InputError
 from roughsense.study import read_study
 from tests.test_dataset import make_study
 
@@ -59,7 +62,8 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "roughness"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "roughness"] and len(table) == len(images)
+    assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"2N"}
     np.testing.assert_allclose(table["roughness"], SIMPLS(k).fit(X, y).predict(X), rtol=1e-12)
 
     code, stdout, err = run_cli("predict", out, images[0], images[5])
@@ -77,18 +81,122 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     expected = pls_cv(X, y, max_components=5, groups=meta["specimen"].to_numpy())
     assert f"chosen: {expected.best_n_components} components" in stdout
     assert "leave-one-group-out" in stdout
-    images = [study_dir / meta[f"image_{f}"][i] for i in (0, 7) for f in ("1N", "2N", "3N")]
+    trials = [[study_dir / meta[f"image_{f}"][i] for f in ("1N", "2N", "3N")] for i in (0, 7)]
     pred = tmp_path / "p.csv"
-    code, _, err = run_cli("predict", out, *images, "--out", pred)
+    flags = [arg for slot, force in enumerate(("1n", "2n", "3n")) for arg in (f"--images-{force}", *(t[slot] for t in trials))]
+    code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "roughness"] and len(table) == 2
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "roughness"] and len(table) == 2
+    assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
+    assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
     np.testing.assert_allclose(table["roughness"], refit, rtol=1e-12)
-    code, _, err = run_cli("predict", out, *images[:4])
-    assert code == 2
-    assert "groups of 3" in err and "not a multiple of 3" in err
-    assert "Traceback" not in err
+
+    # the flags in another order, and --images-2n=FILE, give the same trials
+    reordered = ["--images-3n", *(t[2] for t in trials), f"--images-2n={trials[0][1]}", trials[1][1],
+                 "--images-1n", *(t[0] for t in trials)]
+    code, stdout, err = run_cli("predict", out, *reordered)
+    assert code == 0, err
+    assert f"{table['roughness'][1]:.6g}" in stdout
+
+    # from the manifest: every trial of the model's pad, grouped by (specimen, repetition) and force
+    by_study = tmp_path / "s.csv"
+    code, _, err = run_cli("predict", out, "--study", study_dir, "--out", by_study)
+    assert code == 0, err
+    grouped = pd.read_csv(by_study)
+    assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
+                                     "roughness"]
+    assert len(grouped) == len(meta) == 18
+    expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
+    for f in ("1N", "2N", "3N"):
+        assert list(grouped[f"image_{f}"]) == [str(study_dir / p) for p in expected_rows[f"image_{f}"]]
+    order = meta.sort_values(["specimen", "repetition"]).index.to_numpy()
+    np.testing.assert_allclose(grouped["roughness"], SIMPLS(expected.best_n_components).fit(X, y).predict(X[order]),
+                               rtol=1e-12)
+    code, _, err = run_cli("predict", out, "--study", study_dir, "--specimen", "C2", "--specimen", "R4", "--out",
+                           tmp_path / "two.csv")
+    assert code == 0, err
+    two = pd.read_csv(tmp_path / "two.csv")
+    assert list(two["specimen"]) == ["C2"] * 3 + ["R4"] * 3 and list(two["repetition"]) == [1, 2, 3] * 2
+
+
+def _one_line(code, err, *needles):
+    assert code == 2, err
+    assert err.startswith("roughsense: error:") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    for needle in needles:
+        assert needle in err, err
+
+
+def test_combined_model_refuses_what_it_cannot_group(run_cli, study_dir, data, tmp_path):
+    out = tmp_path / "combined.json"
+    assert fit(run_cli, study_dir, out, "--condition", "combined", "--max-components", "2")[0] == 0
+    _, _, meta = data("combined")
+    one, two, three = (study_dir / meta[f"image_{f}"][0] for f in ("1N", "2N", "3N"))
+    reps = [study_dir / meta["image_1N"][i] for i in range(3)]  # R?_1N_1.._3: the mis-grouping
+    # bare images carry no force slot: refused, with the two ways to give them
+    code, _, err = run_cli("predict", out, *reps)
+    _one_line(code, err, "bare images", "--study DIR", "--images-1n ... --images-2n ... --images-3n ...")
+    # a file whose name says another force than its slot
+    code, _, err = run_cli("predict", out, "--images-1n", one, "--images-2n", reps[1], "--images-3n", three)
+    _one_line(code, err, f"{reps[1].name!r} fills the 2N slot but its name says 1N")
+    # counts must match; every force of the model is needed; a force it does not use is refused
+    code, _, err = run_cli("predict", out, "--images-1n", one, reps[1], "--images-2n", two, "--images-3n", three)
+    _one_line(code, err, "2 at 1N, 1 at 2N, 1 at 3N")
+    code, _, err = run_cli("predict", out, "--images-1n", one, "--images-2n", two)
+    _one_line(code, err, "--images-3n is missing")
+    code, _, err = run_cli("predict", out, "--images-1n", one, "--images-2n", two, "--images-3n", three,
+                           "--images-4n", three)
+    _one_line(code, err, "not 4N")
+    code, _, err = run_cli("predict", out, "--images-1x", one)
+    _one_line(code, err, "--images-1x")
+    code, _, err = run_cli("predict", out, "--images-1n", one, "--images-2n", two, "--images-3n", three, "--bogus")
+    _one_line(code, err, "no such option: --bogus")
+    code, _, err = run_cli("predict", out, one, "--study", study_dir)
+    _one_line(code, err, "one way")
+    code, _, err = run_cli("predict", out, "--images-1n", one, "--specimen", "R3")
+    _one_line(code, err, "--specimen", "--study")
+    code, _, err = run_cli("predict", out, "--study", study_dir, "--specimen", "R9")
+    _one_line(code, err, "specimen 'R9'")
+
+
+def test_predict_from_a_manifest_refuses_a_row_that_contradicts_its_slot(run_cli, tmp_path):
+    root = make_study(tmp_path / "s", repetitions=2)
+    model = tmp_path / "m.json"
+    assert fit(run_cli, root, model, "--condition", "combined", "--max-components", "2")[0] == 0
+    manifest = pd.read_csv(root / "manifest.csv")
+    i = manifest.index[manifest["image"].str.contains("R3_2N_1")][0]
+    j = manifest.index[manifest["image"].str.contains("R3_1N_1")][0]
+    manifest.loc[[i, j], "image"] = manifest.loc[[j, i], "image"].to_numpy()  # two files swapped in the manifest
+    manifest.to_csv(root / "manifest.csv", index=False)
+    code, _, err = run_cli("predict", model, "--study", root)
+    _one_line(code, err, "manifest.csv", f"row {min(i, j) + 2}", "slot but its name says")
+    # a trial missing a force is named, not scored with a neighbour's image
+    manifest = manifest.drop(index=[i, j])
+    manifest.to_csv(root / "manifest.csv", index=False)
+    code, _, err = run_cli("predict", model, "--study", root)
+    _one_line(code, err, "specimen 'R3', repetition 1", "no image at 1N")
+    code, _, err = run_cli("predict", model, "--study", root, "--specimen", "C2")  # other specimens still score
+    assert code == 0, err
+
+
+def test_single_force_model_takes_images_or_a_study(run_cli, study_dir, data, tmp_path):
+    model = tmp_path / "m.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3")[0] == 0
+    X, y, meta = data("1N")
+    k = json.loads(model.read_text())["model"]["n_components"]
+    code, _, err = run_cli("predict", model, "--study", study_dir, "--specimen", "R2", "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    table = pd.read_csv(tmp_path / "p.csv")
+    rows = meta.index[meta["specimen"] == "R2"].to_numpy()
+    assert list(table["image"]) == [str(study_dir / p) for p in meta["image"][rows]]
+    assert list(table["repetition"]) == [1, 2, 3] and set(table["condition"]) == {"1N"}
+    np.testing.assert_allclose(table["roughness"], SIMPLS(k).fit(X, y).predict(X[rows]), rtol=1e-12)
+    code, _, err = run_cli("predict", model, "--images-1n", study_dir / meta["image"][0])
+    assert code == 0, err
+    wrong = next((study_dir / "images").glob("*_2N_1.png"))
+    code, _, err = run_cli("predict", model, wrong)  # a 1N model given a 2N image
+    _one_line(code, err, f"{wrong.name!r} fills the 1N slot but its name says 2N")
 
 
 def test_one_se_rule(run_cli, study_dir, data, tmp_path):
@@ -186,4 +294,18 @@ def test_help_describes_both_commands(run_cli):
     assert code == 0 and "--max-components" in out and "loso" in out
     code, out, _ = run_cli("predict", "--help")
     text = re.sub(r"[\s│]+", " ", out)  # rich wraps help text inside a box
-    assert code == 0 and "groups of three: 1N, 2N, 3N" in text
+    assert code == 0 and "--images-1n" in text and "--study" in text and "i-th image of each flag form one trial" in text
+
+
+@given(force_n=st.decimals(min_value="0.1", max_value="50", places=2).map(float),
+       style=st.sampled_from(["{pad}_{spec}_{f}N_r01.png", "{spec}_{pad}_r01_{f}N.png", "{spec}-{f}n-{pad}.tif"]),
+       spec=st.sampled_from(["R3", "C2.5", "sin_3_0.5", "rand_1.5_0.2"]))
+def test_the_force_a_file_name_states(force_n, style, spec):
+    from roughsense.scoring import check_slot, forces_in_name
+
+    name = style.format(pad="fingerprint", spec=spec, f=f"{force_n:g}")
+    assert forces_in_name(f"images/{name}") == {force_n}
+    check_slot(name, f"{force_n:g}N")  # its own slot: accepted
+    with pytest.raises(InputError, match="slot but its name says"):
+        check_slot(name, f"{force_n + 1:g}N")
+    assert forces_in_name(name.replace(f"{force_n:g}", "x")) == set()  # no force stated: nothing to contradict

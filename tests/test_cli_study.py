@@ -44,6 +44,11 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     assert set(tests["comparison"]) == {"smooth: combined vs 1N", "smooth: combined vs 2N", "smooth: combined vs 3N"}
     assert (tests["p_adjusted"] >= tests["p"]).all()
     assert "Report written to" in stdout
+    # A folder the simulator wrote is labelled simulated (with its seed) even when passed with --data.
+    html = (out / "index.html").read_text()
+    assert "simulated: simulated study (digital twin), simulation seed 11" in html and "user data" not in html
+    controls = pd.read_csv(out / "controls.csv")
+    assert len(controls) == 4 * 2 and (controls["n_permutations"] == 199).all()
     # A second run reuses the feature cache and gives the same numbers.
     code, stdout2, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4", "--force")
     assert code == 0, err

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 from html.parser import HTMLParser
 from pathlib import Path
@@ -20,10 +21,81 @@ from .test_evaluation import synthetic_study
 @pytest.fixture(scope="module")
 def report_dir(tmp_path_factory):
     study, features = synthetic_study(repetitions=4, seed=3)
-    analysis = analyse_study(study, features=features, max_components=6)
+    analysis = analyse_study(study, features=features, max_components=6, n_permutations=9)
     out = tmp_path_factory.mktemp("report") / "report"
     write_report(analysis, out, meta={"source": "synthetic test study"})
     return out
+
+
+@pytest.fixture(scope="module")
+def simulated_report_dir(tmp_path_factory):
+    """The same kind of study, but study.toml has a [simulation] table: every label must say so."""
+    study, features = synthetic_study(repetitions=2, seed=6)
+    study.extra = {"simulation": {"seed": 42, "simulator": "roughsense.sim", "repetitions": 2}}
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    out = tmp_path_factory.mktemp("simulated") / "report"
+    write_report(analysis, out, meta={"source": "synthetic test study"})
+    return out
+
+
+def _stamp_pixels(png: Path) -> int:
+    """Pixels in the colour of the 'SIMULATED DATA' stamp (#b00020)."""
+    import numpy as np
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    return int((np.abs(rgb - np.array([176, 0, 32])).sum(axis=2) < 40).sum())
+
+
+def test_simulated_and_real_studies_are_labelled(report_dir, simulated_report_dir):
+    real = (report_dir / "index.html").read_text()
+    simulated = (simulated_report_dir / "index.html").read_text()
+    assert 'id="simulated"' in simulated and re.search(r"simulation seed\s+42", simulated)
+    assert "drawn from the paper&#39;s Table 1" in simulated and "tuned" in simulated
+    assert 'id="simulated"' not in real and "SIMULATED" not in real and "user data" in real
+    for png in simulated_report_dir.glob("*.png"):  # every figure of a simulated study carries the stamp
+        assert _stamp_pixels(png) > 50, png.name
+    for png in report_dir.glob("*.png"):
+        assert _stamp_pixels(png) == 0, png.name
+    claims = pd.read_csv(simulated_report_dir / "claims.csv").set_index(["key", "cv"])
+    assert claims.loc[("ratings_rise", "none"), "basis"].startswith("property of the simulator")
+
+
+def test_paper_values_only_where_the_design_matches(tmp_path):
+    study, features = synthetic_study(repetitions=2, seed=8, pads=("smooth",))
+    keep = ["R2", "R3", "R4", "C3", "C5"]
+    study.specimens = study.specimens[study.specimens.specimen.isin(keep)].reset_index(drop=True)
+    study.ratings = study.ratings[study.ratings.specimen.isin(keep)]
+    features = features[features.specimen.isin(keep)]
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    assert analysis.paper_pads == () and "not the paper's 14" in analysis.paper_note
+    write_report(analysis, tmp_path / "custom")
+    html = (tmp_path / "custom" / "index.html").read_text()
+    assert html.count('id="paper-note"') == 1 and "not the paper&#39;s 14" in html
+    body = html.split("</header>")[1].replace('<span class="paper">beneath it</span>', "")
+    # The paper's own predictions keep their section (they are judged there, not compared with ours).
+    body = body.split('<h2 id="predictive">')[0] + body.split('<h2 id="components">')[1]
+    assert 'class="paper"' not in body
+
+
+def test_no_paper_values_on_the_loso_figure(report_dir):
+    from roughsense.report import figures
+
+    study, features = synthetic_study(repetitions=2, seed=6)
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    for cv, expected in (("loo", True), ("loso", False)):
+        fig = figures.predicted_vs_perceived_figure(analysis.results(cv), analysis.perceived, cv)
+        labels = {line.get_label() for ax in fig.axes for line in ax.get_lines()}
+        assert ("paper, combined" in labels) == expected
+        figures.plt.close(fig)
+
+
+def test_tables_say_their_predictions_are_out_of_fold(report_dir):
+    html = (report_dir / "index.html").read_text()
+    for title in ("Perceived and predicted roughness, smooth pad, LOO (mean ± SD)",
+                  "Root mean squared error (RMSE), fingerprint pad, LOSO"):
+        caption = html.split(title, 1)[1].split("</p>", 1)[0]
+        assert "out of fold" in caption and "does not say" in caption
 
 
 def test_report_files_and_schemas(report_dir):
@@ -31,8 +103,16 @@ def test_report_files_and_schemas(report_dir):
     assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv"} <= names
     assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png"} <= names
     paper_columns = list(reference.paper_results().columns)
-    assert list(pd.read_csv(report_dir / "results.csv").columns) == paper_columns
-    assert list(pd.read_csv(report_dir / "results_loso.csv").columns) == paper_columns
+    for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
+        assert list(pd.read_csv(report_dir / name).columns) == paper_columns + ["predictive_sd", "ovl_predictive"]
+    controls = pd.read_csv(report_dir / "controls.csv")
+    assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
+                                          "n_permutations"]
+    assert len(controls) == 2 * 4 * 2 and (controls["n_permutations"] == 9).all()
+    claims = pd.read_csv(report_dir / "claims.csv")
+    assert list(claims.columns[:6]) == ["claim", "pad", "cv", "statistic", "p", "verdict"]
+    assert set(claims["verdict"]) <= {"reproduced", "not reproduced", "not testable"}
+    assert {"loo", "loso"} <= set(claims["cv"])
     cv = pd.read_csv(report_dir / "cv.csv")
     assert list(cv.columns) == ["pad", "condition", "cv", "n_components", "rmse"]
     assert set(cv["cv"]) == {"loo", "loso"}
@@ -84,7 +164,7 @@ def _rows(html: str, title: str) -> list[dict]:
     parser = _Tables()
     parser.feed(html)
     rows = parser.tables[title]
-    header = [c[0] for c in rows[0]]
+    header = [c[0].removesuffix(" †") for c in rows[0]]  # † flags a model that fails its controls
     return [dict(zip(header, row)) for row in rows[1:]]
 
 
@@ -127,7 +207,7 @@ def test_report_refuses_a_non_empty_folder_without_force(report_dir, tmp_path):
     mine.mkdir()
     (mine / "notes.txt").write_text("keep me")
     study, features = synthetic_study(repetitions=2, seed=4)
-    analysis = analyse_study(study, features=features, max_components=2, cv_schemes=("loo",))
+    analysis = analyse_study(study, features=features, max_components=2, cv_schemes=("loo",), n_permutations=0)
     with pytest.raises(OutputExistsError):
         write_report(analysis, mine)
     write_report(analysis, mine, force=True)
@@ -142,7 +222,7 @@ def _chromium() -> tuple[str, str] | None:
 
 
 @pytest.mark.browser
-def test_report_renders_in_headless_chromium(report_dir):
+def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
     found = _chromium()
     if found is None:
         if os.environ.get("CI"):
@@ -171,8 +251,36 @@ def test_report_renders_in_headless_chromium(report_dir):
         assert len(images) >= 6
         widths = [driver.execute_script("return arguments[0].naturalWidth", img) for img in images]
         assert all(w > 100 for w in widths), widths  # every embedded PNG decoded
+        assert not driver.find_elements(By.ID, "simulated")  # real data: no simulated label anywhere
+        assert "SIMULATED" not in driver.find_element(By.TAG_NAME, "body").text
+        assert driver.find_element(By.ID, "claims").is_displayed()
         shot = report_dir / "screenshot.png"
         assert driver.save_screenshot(str(shot))
         assert shot.read_bytes()[:4] == b"\x89PNG"
+        # The simulated folder: a visible label at the top, and every figure's caption says so.
+        driver.get((simulated_report_dir / "index.html").resolve().as_uri())
+        label = driver.find_element(By.ID, "simulated")
+        assert label.is_displayed() and "Simulated data" in label.text and "42" in label.text
+        top = driver.find_element(By.ID, "plain-words").text
+        assert "Table 1" in top and "tuned" in top
+        captions = [c.text for c in driver.find_elements(By.TAG_NAME, "figcaption")]
+        assert captions and all(c.startswith("Simulated data.") for c in captions)
+        labelled = driver.execute_script(
+            "return document.querySelector('#simulated').getBoundingClientRect().top "
+            "< document.querySelector('#glance').getBoundingClientRect().top")
+        assert labelled  # the label comes before the results
     finally:
         driver.quit()
+
+
+def test_models_failing_their_controls_are_flagged_in_the_tables(report_dir):
+    controls = pd.read_csv(report_dir / "controls.csv")
+    html = (report_dir / "index.html").read_text()
+    parser = _Tables()
+    parser.feed(html)
+    for row in controls.itertuples():
+        title = f"Root mean squared error (RMSE), {row.pad} pad, {row.cv.upper()}"
+        header = {c[0].removesuffix(" †"): c[0].endswith("†") for c in parser.tables[title][0]}
+        from roughsense.report.tables import CONDITION_TITLES
+
+        assert header[CONDITION_TITLES[row.condition]] == (not row.passes), (title, row.condition)

@@ -277,7 +277,7 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
     [
         (("--specimen", "R 3"), "--specimen 'R 3': use letters, digits"),
         (("--pad", "../x"), "--pad '../x'"),
-        (("--repetitions", "0"), "--repetitions must be at least 1"),
+        (("--repetitions", "0"), "--repetitions must be a whole number from 1"),
         (("--shape", "wavy"), "--shape 'wavy'"),
         (("--force-input", "usb"), "--force-input must be 'manual' or 'serial:PORT[:BAUD]'"),
         (("--forces", "1,x"), "--forces: 'x' is not a number"),

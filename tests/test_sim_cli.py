@@ -17,7 +17,14 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     assert list(study.manifest["image"]) == ["images/fingerprint_C3_1N_r01.png"]
     assert study.extra["simulation"]["fingerprint_period_mm"] == 0.5
     import cv2
-    assert cv2.imread(str(out / study.manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (1080, 1920)
+    # a sensor window of 320 rows centred on the 1080-row sensor, recorded with the simulation's settings
+    assert cv2.imread(str(out / study.manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (320, 1920)
+    assert study.extra["simulation"]["camera_stored_height_px"] == 320 and study.sensor.roi == "center"
+    whole = tmp_path / "w"
+    code, _, err = run_cli("simulate", "--out", whole, "--pads", "smooth", "--specimens", "R3", "--forces", "2",
+                           "--repetitions", "1", "--jobs", "1", "--stored-height-px", "0")
+    assert code == 0, err
+    assert cv2.imread(str(whole / read_study(whole).manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (1080, 1920)
 
 
 @pytest.mark.parametrize(("args", "message"), [
@@ -36,6 +43,8 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--forces", "1,1.0000001"), "too close to tell apart"),
     (("--seed", "-1"), "--seed must be"),
     (("--jobs", "0"), "--jobs must be at least 1"),
+    (("--ratings-from", "table"), "--ratings-from must be one of paper, physics, got 'table'"),
+    (("--stored-height-px", "321"), "even number of rows"),
 ])
 def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     out = tmp_path / "s"
@@ -43,6 +52,18 @@ def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
     assert code == 2
     assert err.startswith("roughsense: error:") and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()  # nothing written
+
+
+def test_ratings_from_physics_feels_every_specimen(run_cli, tmp_path):
+    out = tmp_path / "s"
+    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2,R3,sin:3:0.3",
+                           "--forces", "1", "--repetitions", "1", "--jobs", "1", "--ratings-from", "physics")
+    assert code == 0, err
+    study = read_study(out)
+    assert study.extra["simulation"]["ratings_from"] == "physics"
+    assert dict(study.specimens.set_index("specimen")["ratings_source"]) == {
+        "R2": "physics", "R3": "physics", "sin_3_0.3": "physics"}
+    assert set(study.ratings["specimen"]) == {"R2", "sin_3_0.3"}
 
 
 def _tree(root):

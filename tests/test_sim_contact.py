@@ -135,3 +135,19 @@ def test_solver_that_runs_out_of_iterations_says_so():
     with pytest.raises(contact.ContactNotConverged, match="did not converge in 3 iterations"):
         contact.solve_periodic(0.01 * np.cos(2 * math.pi * x / 3.0), 3.0, 500.0, E_STAR, max_iter=3)
     assert issubclass(contact.ContactNotConverged, ConfigError)  # one line at the CLI, exit 2
+
+
+@pytest.mark.parametrize("name", ["C3", "R4"])
+def test_warm_start_reaches_the_same_contact_in_fewer_steps(name):
+    pad = make_pad("fingerprint")
+    length, pad_period = contact.periodic_domain(PRESETS[name].period_mm, pad.period_mm)
+    n = contact.grid_points(length)
+    x = _grid(length, n)
+    h = PRESETS[name].height_mm(x) + pad.height_mm(x - 0.3, period_mm=pad_period)
+    low = contact.solve_periodic(h, length, 2600.0, E_STAR, tol=1e-8)
+    cold = contact.solve_periodic(h, length, 3400.0, E_STAR, tol=1e-8)
+    warm = contact.solve_periodic(h, length, 3400.0, E_STAR, tol=1e-8, initial_pressure_pa=low.pressure_pa)
+    assert warm.iterations < cold.iterations
+    assert np.array_equal(warm.contact, cold.contact)
+    assert np.abs(warm.gap_mm - cold.gap_mm).max() < 1e-6 * np.ptp(h)  # within the solver's tolerance
+    assert warm.pressure_pa.mean() == pytest.approx(3400.0)

@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.errors import ConfigError
 from roughsense.sim import panel
 from roughsense.sim.specimens import PAPER_SPECIMENS, PRESETS, parse_specimen
 
@@ -32,18 +33,56 @@ def test_panel_table_has_the_paper_design():
     assert (table["rating"] > 0).all()
 
 
-def test_model_based_specimens_follow_the_fitted_power_law():
-    a, b = panel.power_law()["sharp"]
-    spec = parse_specimen("rect:3.2")
-    p = panel.percept(spec)
-    assert p.source == "model" and p.gmean == pytest.approx(a * 1.6**b)
+def test_default_panel_is_unchanged_for_the_papers_presets():
+    """The default study's ratings (seed 0 and 1, the simulator's spawn key) are byte-identical to those before
+    the finger model existed (issue 12: ``--ratings-from paper`` keeps today's behaviour for the presets)."""
+    import hashlib
+
+    specimens = [PRESETS[s] for s in PAPER_SPECIMENS]
+    expected = {0: "f6c807e4a24bdc581fb8a68b6fb72872b1a4e09fce55639ca6a0313a549d88bb",
+                1: "58ff67d2593e43ab9f776e5f28daae0427d4192d9265a9b204e98dab1257933a"}
+    for seed, digest in expected.items():
+        for kwargs in ({}, {"ratings_from": "paper"}):
+            table = panel.simulate_panel(specimens, seed, spawn_key=(4,), **kwargs)
+            assert hashlib.sha256(table.to_csv(index=False).encode()).hexdigest() == digest
+
+
+def test_ratings_source_per_specimen():
+    from roughsense.sim import perception
+
     assert panel.percept(PRESETS["R4"]).source == "paper"
-    # the fit follows the paper's values: within 20 % of every inner rectangular grating's perceived roughness
-    for lam in (2.5, 3.0, 3.5, 4.0, 4.5):
-        assert a * (lam / 2) ** b == pytest.approx(PAPER.loc[f"R{lam:g}", "perceived_gmean"], rel=0.2)
-    a_r, b_r = panel.power_law()["rounded"]
-    assert panel.percept(parse_specimen("sin:3:0.5")).gmean == pytest.approx(a_r * 1.5**b_r)
-    assert b > 0 and b_r > 0  # wider grooves feel rougher
+    assert panel.percept(PRESETS["R4"]).gmean == PAPER.loc["R4", "perceived_gmean"]
+    for spec in (parse_specimen("rect:3.2"), parse_specimen("sin:3:0.5"), parse_specimen("rand:1.5:0.2")):
+        p = panel.percept(spec)
+        assert p.source == "physics" and p.gmean == pytest.approx(perception.magnitude(spec))
+    physics = panel.percept(PRESETS["R4"], ratings_from="physics")
+    assert physics.source == "physics" and physics.gmean == pytest.approx(perception.magnitude(PRESETS["R4"]))
+    # depth matters now (the old power law of groove width rated a shallow sinusoid like a deep one)
+    assert panel.percept(parse_specimen("sin:3:0.05")).gmean < panel.percept(parse_specimen("sin:3:0.5")).gmean
+    with pytest.raises(ConfigError, match="ratings-from"):
+        panel.percept(PRESETS["R4"], ratings_from="table")
+    with pytest.raises(ConfigError, match="ratings-from"):
+        panel.simulate_panel([PRESETS["R4"]], 0, ratings_from="")
+
+
+def test_physics_panels_aggregate_to_the_models_percept():
+    """Over 300 seeded panels: the paper's aggregation (median over sessions, geometric mean over people) centres
+    on the model's typical rating, the SD across people's medians on its spread, and each person's scale is shared
+    by the specimens they rate (their medians for two specimens correlate across people)."""
+    specs = [parse_specimen("rect:4:1:1.5"), parse_specimen("sin:3:0.3")]
+    aggregated, sds, pairs = {s.name: [] for s in specs}, {s.name: [] for s in specs}, []
+    for seed in range(300):
+        table = panel.simulate_panel(specs, seed)
+        medians = table.groupby(["specimen", "participant"])["rating"].median().unstack("participant")
+        for s in specs:
+            aggregated[s.name].append(np.exp(np.log(medians.loc[s.name]).mean()))
+            sds[s.name].append(medians.loc[s.name].std(ddof=1))
+        pairs.append(np.corrcoef(np.log(medians.loc[specs[0].name]), np.log(medians.loc[specs[1].name]))[0, 1])
+    for s in specs:
+        p = panel.percept(s)
+        assert np.exp(np.mean(np.log(aggregated[s.name]))) == pytest.approx(p.gmean, rel=0.03)
+        assert np.mean(sds[s.name]) == pytest.approx(p.sd, rel=0.15)
+    assert np.mean(pairs) > 0.3
 
 
 def test_a_specimens_ratings_do_not_depend_on_the_other_specimens():
@@ -57,3 +96,12 @@ def test_a_specimens_ratings_do_not_depend_on_the_other_specimens():
     pd.testing.assert_frame_equal(with_r2, c5([n for n in PAPER_SPECIMENS if n != "R2"]))
     pd.testing.assert_frame_equal(with_r2, c5(["C5"]))
     assert not np.array_equal(with_r2["rating"], c5(PAPER_SPECIMENS, seed=8)["rating"])  # the seed still matters
+
+
+def test_physics_ratings_do_not_depend_on_the_other_specimens():
+    def one(names, seed=7):
+        table = panel.simulate_panel([parse_specimen(n) for n in names], seed, ratings_from="physics")
+        rows = table[table["specimen"] == "sin:3:0.5"].sort_values(["participant", "session"])
+        return rows[["participant", "session", "rating"]].reset_index(drop=True)
+
+    pd.testing.assert_frame_equal(one(["sin:3:0.5", "R2", "C5"]), one(["sin:3:0.5"]))

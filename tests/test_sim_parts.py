@@ -92,7 +92,7 @@ def test_default_camera_geometry():
 
 def test_render_puts_the_band_in_the_middle_and_quantises():
     cam = Camera(width_px=400, height_px=600, read_noise_dn=0.0, shot_noise_gain=0.0, vignetting=0.0,
-                 blur_sigma_px=0.0)
+                 blur_sigma_px=0.0, stored_height_px=0)
     line = np.zeros(400)
     line[100:200] = 1.0
     frame = render(cam, line, band_center_px=300.0, lighting=Lighting(), rng=np.random.default_rng(0))

@@ -100,13 +100,28 @@ def test_ground_truth_contact_fraction_on_a_quiet_bench(tmp_path, force_n, short
     assert study.manifest["force_n"][0] == pytest.approx(force_n, abs=0.005)  # only the scale's 1 g steps remain
 
 
-def test_new_specimens_get_model_ratings(tmp_path):
-    config = _config(pads=("smooth",), specimens=("R3", "sin:3:0.3", "rand:1.5:0.2"), forces_n=(1.0,))
+def test_new_specimens_get_physics_ratings(tmp_path):
+    config = _config(pads=("smooth",), specimens=("R3", "R2", "sin:3:0.3", "rand:1.5:0.2"), forces_n=(1.0,))
     study = read_study(simulate_study(tmp_path / "n", config, jobs=1))
+    assert study.extra["simulation"]["ratings_from"] == "paper"
     sources = study.specimens.set_index("specimen")["ratings_source"]
-    assert dict(sources) == {"R3": "paper", "sin:3:0.3": "model", "rand:1.5:0.2": "model"}
-    assert set(study.ratings["specimen"]) == {"sin:3:0.3", "rand:1.5:0.2"}
+    assert dict(sources) == {"R3": "paper", "R2": "paper", "sin_3_0.3": "physics", "rand_1.5_0.2": "physics"}
+    assert set(study.ratings["specimen"]) == {"R2", "sin_3_0.3", "rand_1.5_0.2"}
     assert set(study.specimens["shape"]) == {"rectangular", "sinusoidal", "random"}
+    # --ratings-from physics changes only the presets' ratings, never the images; same seed, same bytes
+    physics = simulate_study(tmp_path / "p", dataclasses.replace(config, ratings_from="physics"), jobs=1)
+    again = simulate_study(tmp_path / "q", dataclasses.replace(config, ratings_from="physics"), jobs=1)
+    assert _files(physics) == _files(again)
+    before, after = _files(tmp_path / "n"), _files(physics)
+    assert {k for k in before if before[k] != after[k]} == {"ratings.csv", "specimens.csv", "study.toml"}
+    ratings = read_study(physics).ratings
+    for name in ("sin_3_0.3", "rand_1.5_0.2"):  # the physics specimens' ratings do not depend on the mode
+        assert (ratings[ratings["specimen"] == name].sort_values(["participant", "session"])["rating"].tolist()
+                == study.ratings[study.ratings["specimen"] == name]
+                .sort_values(["participant", "session"])["rating"].tolist())
+    with pytest.raises(ConfigError, match="ratings-from"):
+        SimulationRun(tmp_path / "bad", dataclasses.replace(config, ratings_from="paper+physics"))
+    assert not (tmp_path / "bad").exists()
 
 
 def test_refuses_a_non_empty_folder_and_never_deletes(tmp_path):

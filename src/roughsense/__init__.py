@@ -18,6 +18,8 @@ _LAZY = {
     "frequency_grid": "sensor",
     "SIMPLS": "pls",
     "pls_cv": "pls",
+    "pls_cv_many": "pls",
+    "SpreadModel": "spread",
     "load_model": "modelfile",
     "overlap": "metrics",
     "read_study": "study",

@@ -1,12 +1,16 @@
-"""Atomic writes: a failed run must never leave a partial file behind.
+"""Atomic writes: a failed or killed run must never leave a partial file or a mixed folder behind.
 
-Everything is written to a temporary file in the destination folder and then renamed over the
-target with :func:`os.replace`, which is atomic on POSIX within one file system.
+A file is written to a temporary sibling and renamed over the target with :func:`os.replace`, which is
+atomic on POSIX within one file system. A folder whose files only make sense together (a simulated study,
+a report) is built as a sibling folder and swapped in whole: :class:`FolderSwap` / :func:`staged_folder`.
 """
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
+import re
+import secrets
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,11 +19,15 @@ from typing import IO
 from .errors import OutputExistsError, RoughsenseError
 
 
-def _default_file_mode() -> int:
-    """The mode ``open()`` would give a new file (0666 minus the umask); mkstemp alone gives 0600."""
+def _umask() -> int:
     umask = os.umask(0)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
+
+
+def _default_file_mode() -> int:
+    """The mode ``open()`` would give a new file (0666 minus the umask); mkstemp alone gives 0600."""
+    return 0o666 & ~_umask()
 
 
 def check_can_write(path: str | os.PathLike[str], *, force: bool = False) -> Path:
@@ -41,7 +49,8 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
     parent = target.parent if str(target.parent) else Path(".")
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
+        _remove_dead_temporaries(parent, target.name)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp", dir=parent)
     except OSError as exc:
         raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
     tmp = Path(tmp_name)
@@ -64,6 +73,15 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
         raise
 
 
+def _remove_dead_temporaries(parent: Path, name: str) -> None:
+    """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
+    for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
+        pid = path.name[len(name) + 2:].split(".", 1)[0]
+        if pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid)):
+            with contextlib.suppress(OSError):
+                path.unlink()
+
+
 def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     with atomic_open(path, "wb") as handle:
         handle.write(data)
@@ -83,3 +101,222 @@ def write_csv(path: str | os.PathLike[str], frame, **to_csv_kwargs) -> Path:
     with atomic_open(path, "w") as handle:
         frame.to_csv(handle, **to_csv_kwargs)
     return Path(path)
+
+
+# --------------------------------------------------------------------------- whole folders
+#
+# A study or a report is many files that only make sense together, so it is never rewritten file by file in
+# place: it is built in a sibling folder on the same file system, whose name says it is roughsense's own
+# unfinished work (``.NAME.roughsense-partial-PID-XXXX``), and swapped in whole. A killed run leaves at worst
+# such a sibling; the next run into the same target deletes it (its process is gone) without asking for --force.
+
+PARTIAL_TAG = ".roughsense-partial-"
+RETIRED_TAG = ".roughsense-retired-"
+MAX_CARRIED_FILES = 1000  # beyond this, --out is somebody's working folder, not an output folder
+_RENAME_EXCHANGE = 2  # linux/fs.h
+_TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp in atomic_open (older versions: no PID)
+
+
+def is_temporary(path: str | os.PathLike[str]) -> bool:
+    """True for a temporary file of :func:`atomic_open` (``.NAME.PID.XXXXXXXX.tmp``) or a staging/retired folder."""
+    name = Path(path).name
+    return bool(_TEMP_FILE.match(name)) or PARTIAL_TAG in name or RETIRED_TAG in name
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists but is not ours (EPERM)
+        return True
+    return True
+
+
+def _swap_target(target: str | os.PathLike[str]) -> Path:
+    """The real folder to replace: absolute, a symlinked folder replaced where it really lives."""
+    path = Path(os.path.abspath(target))
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def leftovers(target: str | os.PathLike[str]) -> list[Path]:
+    """Staging and retired siblings of ``target`` left by roughsense runs that are no longer running."""
+    target = _swap_target(target)
+    found = []
+    for tag in (PARTIAL_TAG, RETIRED_TAG):
+        for path in target.parent.glob(f".{glob.escape(target.name)}{tag}*"):
+            pid = path.name[len(target.name) + 1 + len(tag):].split("-", 1)[0]
+            if pid.isdigit() and not _pid_alive(int(pid)):
+                found.append(path)
+    return sorted(found)
+
+
+def clean_leftovers(target: str | os.PathLike[str]) -> None:
+    """Finish what a killed run left beside ``target``.
+
+    A retired folder when ``target`` is missing is the previous content, caught between the two renames of a
+    swap without ``renameat2``: it is put back. Everything else of roughsense's own is deleted.
+    """
+    import shutil
+
+    target = _swap_target(target)
+    for path in leftovers(target):
+        if RETIRED_TAG in path.name and not target.exists() and not target.is_symlink():
+            try:
+                os.rename(path, target)
+                continue
+            except OSError:
+                pass
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def foreign_files(target: Path, owned) -> list[Path]:
+    """Paths under ``target`` (relative) that ``owned`` does not claim: what a user put there."""
+    found: list[Path] = []
+    if not target.is_dir():
+        return found
+    for folder, dirs, files in os.walk(target):
+        rel_folder = Path(folder).relative_to(target)
+        for name in list(dirs):
+            rel = rel_folder / name
+            if owned(rel) or os.path.islink(os.path.join(folder, name)):
+                dirs.remove(name)
+                if not owned(rel):
+                    found.append(rel)  # a symlinked folder is carried over as a link, never followed
+            elif not any(os.scandir(os.path.join(folder, name))):
+                found.append(rel)  # an empty folder of the user's
+        for name in files:
+            rel = rel_folder / name
+            if not owned(rel) and not is_temporary(rel):
+                found.append(rel)
+    return found
+
+
+def _carry_over(old: Path, new: Path, owned) -> None:
+    """Give ``new`` the user's files of ``old`` as hard links (copies across devices): both hold them until the swap."""
+    import shutil
+
+    for rel in foreign_files(old, owned):
+        src, dst = old / rel, new / rel
+        if dst.exists() or dst.is_symlink():
+            continue  # roughsense writes this name itself: the new one wins (the user passed --force)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        if src.is_symlink():
+            os.symlink(os.readlink(src), dst)
+        elif src.is_dir():
+            dst.mkdir()
+        else:
+            try:
+                os.link(src, dst)
+            except OSError:
+                shutil.copy2(src, dst)
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swap two paths (Linux renameat2 RENAME_EXCHANGE); False where that is not available."""
+    import ctypes
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd = -100
+    result = renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), ctypes.c_uint(_RENAME_EXCHANGE))
+    return result == 0
+
+
+class FolderSwap:
+    """Build a replacement for the folder ``target`` beside it, then swap it in whole.
+
+    ``owned(relative_path)`` says which entries of the old folder are roughsense's output (they are replaced);
+    every other entry is a user's and is carried into the new folder (hard links, so both folders hold it until
+    the swap). Creating the staging folder first doubles as the check that ``target`` can be written at all.
+    """
+
+    def __init__(self, target: str | os.PathLike[str], *, owned=lambda rel: True) -> None:
+        import weakref
+
+        self.target = _swap_target(target)
+        self.owned = owned
+        if self.target.exists() and not self.target.is_dir():
+            raise OutputExistsError("exists and is not a folder", path=Path(target))
+        try:
+            cwd = Path.cwd().resolve()
+        except OSError:  # the working folder was deleted: it cannot be inside the target
+            cwd = None
+        if self.target.exists() and cwd is not None and cwd.is_relative_to(self.target.resolve()):
+            raise OutputExistsError("is the folder you are working in (or holds it); choose another output folder",
+                                    path=Path(target))
+        carried = foreign_files(self.target, owned)
+        if len(carried) > MAX_CARRIED_FILES:
+            raise OutputExistsError(f"holds {len(carried)} files that roughsense did not write; choose an output "
+                                    "folder of its own", path=Path(target))
+        clean_leftovers(self.target)
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+            self.path = Path(tempfile.mkdtemp(prefix=f".{self.target.name}{PARTIAL_TAG}{os.getpid()}-",
+                                              dir=self.target.parent))
+            os.chmod(self.path, 0o777 & ~_umask())
+        except OSError as exc:
+            raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=Path(target)) from None
+        self._cleanup = weakref.finalize(self, _remove_if_owner, str(self.path), os.getpid())
+
+    def commit(self) -> Path:
+        """Swap the built folder in; the old content (minus the user's files, carried over) is then deleted."""
+        import shutil
+
+        try:
+            _carry_over(self.target, self.path, self.owned)
+            if not self.target.exists():
+                os.rename(self.path, self.target)
+            elif self.target.is_dir() and not any(self.target.iterdir()):
+                os.rmdir(self.target)
+                os.rename(self.path, self.target)
+            elif _exchange(self.path, self.target):
+                pass  # self.path now holds the old folder, still under roughsense's partial name
+            else:
+                # Killed between these two renames, the next run finds no target and puts the retired one back.
+                retired = self.target.parent / f".{self.target.name}{RETIRED_TAG}{os.getpid()}-{secrets.token_hex(4)}"
+                os.rename(self.target, retired)
+                os.rename(self.path, self.target)
+                os.rename(retired, self.path)
+        except OSError as exc:
+            self.abort()
+            raise RoughsenseError(f"cannot replace the folder: {exc.strerror or exc}", path=self.target) from None
+        self._cleanup.detach()
+        shutil.rmtree(self.path, ignore_errors=True)
+        return self.target
+
+    def abort(self) -> None:
+        self._cleanup()
+
+
+@contextlib.contextmanager
+def staged_folder(target: str | os.PathLike[str], *, owned=lambda rel: True) -> Iterator[Path]:
+    """``with staged_folder(out) as tmp:`` write everything into ``tmp``; on a clean exit it becomes ``out``.
+
+    On an exception nothing changes at ``out``; on a kill, a ``.out.roughsense-partial-*`` sibling remains and
+    the next run into ``out`` removes it.
+    """
+    swap = FolderSwap(target, owned=owned)
+    try:
+        yield swap.path
+    except BaseException:
+        swap.abort()
+        raise
+    swap.commit()
+
+
+def _remove_if_owner(path: str, pid: int) -> None:
+    """Delete a staging folder, but only from the process that made it (never from a forked worker's copy)."""
+    import shutil
+
+    if os.getpid() == pid:
+        shutil.rmtree(path, ignore_errors=True)
+

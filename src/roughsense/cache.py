@@ -2,11 +2,13 @@
 
 The cache is ``$ROUGHSENSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/roughsense``, else ``~/.cache/roughsense``.
 Entries are keyed by content, so a stale entry is never reused: features are keyed by the manifest,
-the sensor settings and every image's size and modification time.
+the sensor settings and every image's size, mtime, ctime and inode; each entry carries a checksum and one
+that fails it is recomputed.
 """
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 from collections.abc import Callable
@@ -25,30 +27,63 @@ def cache_dir() -> Path:
     return Path(base) / "roughsense"
 
 
+#: Bumped whenever what an entry holds changes: older entries are then simply not found.
+CACHE_FORMAT = 2
+_CHECKSUM_PREFIX = b"#sha256="
+
+
+def image_fingerprint(path: Path) -> str:
+    """What identifies one image's bytes without reading them: size, mtime_ns, ctime_ns, inode and device.
+
+    ``ctime`` cannot be set back by a user (``touch -d`` and ``os.utime`` move only atime and mtime, and
+    themselves update ctime), so an image rewritten in place with its old mtime restored still gets a new key.
+    """
+    stat = path.stat()
+    return f"{stat.st_size}:{stat.st_mtime_ns}:{stat.st_ctime_ns}:{stat.st_ino}:{stat.st_dev}"
+
+
 def features_key(study, feature_definition: dict) -> str:
     digest = hashlib.sha256()
+    digest.update(f"format {CACHE_FORMAT}\n".encode())
     digest.update(str(Path(study.root).resolve()).encode())
     digest.update(json.dumps(feature_definition, sort_keys=True, default=str).encode())
     digest.update((Path(study.root) / "manifest.csv").read_bytes())
-    for path in study.image_paths:
-        stat = path.stat()
-        digest.update(f"{path.name}:{stat.st_size}:{stat.st_mtime_ns}".encode())
+    for relative, path in zip(study.manifest["image"], study.image_paths):
+        digest.update(f"{relative}\0{image_fingerprint(path)}\n".encode())
     return digest.hexdigest()[:24]
 
 
+def _verified_body(raw: bytes) -> bytes | None:
+    """The entry's CSV if its trailing checksum line matches it, else None (truncated, edited or damaged)."""
+    cut = raw.rfind(b"\n" + _CHECKSUM_PREFIX)
+    if cut < 0 or not raw.endswith(b"\n"):
+        return None
+    body, trailer = raw[: cut + 1], raw[cut + 1 :].strip()
+    expected = trailer[len(_CHECKSUM_PREFIX):].decode("ascii", errors="replace")
+    return body if hashlib.sha256(body).hexdigest() == expected else None
+
+
 def cached_frame(key: str, compute: Callable[[], pd.DataFrame], *, kind: str = "features") -> tuple[pd.DataFrame, bool]:
-    """Return (frame, was_cached). Stored as pickle-free CSV with text columns kept as text."""
+    """Return (frame, was_cached). Stored as pickle-free CSV with text columns kept as text.
+
+    Each entry ends with a line holding the SHA-256 of the CSV above it. An entry that fails it (cut short by
+    a full disk, damaged, edited) is recomputed and replaced, never trusted: a bad cache must not produce an
+    error that blames the user's correct files.
+    """
     path = cache_dir() / kind / f"{key}.csv"
     if path.is_file():
         try:
-            frame = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str, "condition": str},
-                                keep_default_na=False, na_values=[""])
-            return frame, True
+            body = _verified_body(path.read_bytes())
+            if body is not None:
+                frame = pd.read_csv(io.BytesIO(body), dtype={"image": str, "specimen": str, "pad": str, "condition": str},
+                                    keep_default_na=False, na_values=[""])
+                return frame, True
         except (OSError, ValueError, pd.errors.ParserError):
             pass  # a damaged cache entry is simply recomputed
     frame = compute()
     try:
-        atomic.write_csv(path, frame, float_format="%.17g")
+        body = frame.to_csv(index=False, lineterminator="\n", float_format="%.17g").encode("utf-8")
+        atomic.write_bytes(path, body + _CHECKSUM_PREFIX + hashlib.sha256(body).hexdigest().encode() + b"\n")
     except Exception:  # the cache is an optimisation: never fail the run because it cannot be written
         pass
     return frame, False

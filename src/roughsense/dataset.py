@@ -23,7 +23,8 @@ def spectrum_for(study: Study, *, n_jobs: int = 1):
     """The SpatialSpectrum configured from the study's sensor settings (camera scale and ROI)."""
     from .sensor import SpatialSpectrum
 
-    return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs).fit()
+    return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs,
+                           max_pixels=study.sensor.max_pixels).fit()
 
 
 def study_features(

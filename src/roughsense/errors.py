@@ -9,6 +9,11 @@ import os
 from pathlib import Path
 
 
+def one_line(text: str) -> str:
+    """``text`` with line breaks and other control characters escaped: a message quoting a user's cell stays one line."""
+    return "".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in str(text))
+
+
 class RoughsenseError(Exception):
     """A problem with the user's input, files or options (never a bug in roughsense)."""
 

@@ -13,17 +13,22 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from . import dataset
+from . import controls as _controls
+from . import dataset, reference
+from .claims import evaluate_claims
 from .errors import InputError
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
 from .perception import aggregate_ratings
-from .pls import pls_cv
+from .pls import nested_group_predictions, pls_cv
+from .spread import paper_predictive, predictive_ovl
 from .study import Study
 
 CONDITIONS = ("1N", "2N", "3N", "combined")
 CV_SCHEMES = ("loo", "loso")
 PRED_SD_DDOF = 0
-RESULT_COLUMNS = ["pad", "specimen", "condition", "pred_mean", "pred_sd", "ovl", "rmse"]
+#: The paper's schema first (paper_results.csv), then our additions; columns are only ever added.
+RESULT_COLUMNS = ["pad", "specimen", "condition", "pred_mean", "pred_sd", "ovl", "rmse", "predictive_sd",
+                  "ovl_predictive"]
 
 
 @dataclass
@@ -57,6 +62,19 @@ class StudyAnalysis:
     fits: list[ConditionFit] = field(default_factory=list)
     tests: pd.DataFrame = field(default_factory=pd.DataFrame)
     max_components: int = 20
+    #: One row per pad x condition x CV scheme (controls.CONTROL_COLUMNS): permutation test and null model.
+    controls: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: The paper's claims, each with our statistic, p and verdict (claims.CLAIM_COLUMNS).
+    claims: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: The paper's published predictions with the predictive OVL of a spread model (spread.paper_predictive).
+    paper_predictive: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: The study's [simulation] table (seed and settings) when a simulator wrote it; None for real data.
+    simulation: dict | None = None
+    #: Whether the paper's per-specimen values describe this study, per pad, and why not where they do not.
+    paper_pads: tuple[str, ...] = ()
+    paper_note: str = ""
+    seed: int = 0
+    wavelengths: dict[str, float] = field(default_factory=dict)
 
     def fit(self, pad: str, condition: str, cv: str = "loo") -> ConditionFit:
         for item in self.fits:
@@ -108,6 +126,10 @@ class StudyAnalysis:
             for f in self.fits
         ])
 
+    @property
+    def simulated(self) -> bool:
+        return self.simulation is not None
+
     def summary(self, cv: str, column: str) -> pd.DataFrame:
         """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition."""
         results = self.results(cv)
@@ -128,20 +150,13 @@ def _loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max
     """Nested leave-one-specimen-out: choose each held-out specimen's component count without it.
 
     The outer LOSO run already holds every held-out specimen's prediction at every count, so the nested
-    prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks.
+    prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks
+    (:func:`roughsense.pls.nested_group_predictions`, which the permutation control reuses).
     """
-    predictions = np.empty(len(y))
-    chosen: dict[str, int] = {}
-    for specimen in pd.unique(specimens):
-        held = specimens == specimen
-        rest = specimens[~held]
-        largest_inner_fold = int(pd.Series(rest).value_counts().max())
-        usable = _usable_components(len(rest) - largest_inner_fold, X.shape[1], max_components)
-        inner = pls_cv(X[~held], y[~held], max_components=usable, groups=rest, cap=True)
-        k = int(inner.best_n_components)
-        chosen[str(specimen)] = k
-        predictions[held] = outer.predictions[held, k]
-    return predictions, chosen
+    predictions, counts = nested_group_predictions(X, y[:, None], specimens,
+                                                   outer.predictions[None, :, : max_components + 1])
+    names = pd.unique(specimens)
+    return predictions[0], {str(name): int(k) for name, k in zip(names, counts[0])}
 
 
 def _condition_fit(
@@ -170,6 +185,7 @@ def _condition_fit(
     # The paper's Tables 1-6 are consistent with the population SD of the predictions (RMSE^2 = bias^2 + SD^2
     # holds for all 112 rows with ddof=0, 107 with ddof=1; docs/perception.md), so we report the same.
     table = specimen_table(predictions, perceived, pred_sd_ddof=PRED_SD_DDOF)
+    table = pd.concat([table, predictive_ovl(table, perceived)], axis=1)
     return ConditionFit(pad, condition, cv, np.asarray(result.rmse, float), int(result.best_n_components),
                         int(result.one_se_n_components), predictions, table, nested)
 
@@ -213,6 +229,33 @@ def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd
     return tests[front + [c for c in tests.columns if c not in front]]
 
 
+def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
+                        reference_specimen: str) -> tuple[tuple[str, ...], str]:
+    """The pads whose results may stand beside the paper's, and one note on why the others may not.
+
+    The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
+    with R3 as the reference; beside any other design they would read as a comparison that is not one.
+    """
+    paper_specimens = list(reference.perceived_roughness()["specimen"])
+    problems = []
+    if set(specimens) != set(paper_specimens):
+        problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
+                        f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
+    if list(conditions) != list(CONDITIONS):
+        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(CONDITIONS)}")
+    if reference_specimen != reference.REFERENCE_SPECIMEN:
+        problems.append(f"its reference is {reference_specimen}, the paper's {reference.REFERENCE_SPECIMEN}")
+    if problems:
+        return (), "The paper's values are not shown: " + "; ".join(problems) + "."
+    matching = tuple(p for p in pads if p in reference.PAPER_PADS)
+    others = [p for p in pads if p not in reference.PAPER_PADS]
+    note = ""
+    if others:
+        note = (f"The paper's values are not shown for the {', '.join(others)} pad(s): the paper tested only the "
+                f"{' and '.join(reference.PAPER_PADS)} pads.")
+    return matching, note
+
+
 def analyse_study(
     study: Study,
     *,
@@ -222,15 +265,27 @@ def analyse_study(
     cv_schemes: Sequence[str] = CV_SCHEMES,
     n_jobs: int = 1,
     progress: Callable | None = None,
+    n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
+    seed: int = 0,
     combined_forces: Sequence[str] | None = None,
 ) -> StudyAnalysis:
     """Run the paper's whole analysis on a validated study; ``features`` may come from a cache.
 
-    ``combined_forces`` (condition labels) are the forces the "combined" condition concatenates; default 1N, 2N, 3N.
+    Besides the paper's analysis: the controls of every model (``n_permutations`` specimen-level
+    shufflings drawn from ``seed``, and the training-mean model), the paper's claims with verdicts, and the
+    predictive OVL of our predictions and of the paper's published ones. ``combined_forces`` (condition labels) are
+    the forces the "combined" condition concatenates; default 1N, 2N, 3N.
     """
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
     perceived = aggregate_ratings(study.ratings, study.reference_specimen, path=study.root / "ratings.csv")
+    rated = perceived[perceived["specimen"] != study.reference_specimen]
+    lonely = rated[rated["n_participants"] < 2]
+    if not lonely.empty:
+        raise InputError(
+            f"specimen {lonely['specimen'].iloc[0]} is rated by only {int(lonely['n_participants'].iloc[0])} participant; "
+            "the analysis compares predictions with the spread across participants (SD, OVL), so every specimen "
+            "needs ratings from at least 2", path=study.root / "ratings.csv")
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     counts = features.groupby(["pad", "specimen", "condition"]).size()
@@ -251,16 +306,31 @@ def analyse_study(
         freq_per_mm=freq_per_mm,
         mean_spectra=mean_spectra,
         max_components=max_components,
+        simulation=study.simulation,
+        seed=int(seed),
+        wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
+            "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
     )
+    analysis.paper_pads, analysis.paper_note = paper_comparability(
+        study.specimen_names, study.pads, conditions, study.reference_specimen)
     jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
     iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
     matrices: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, pd.DataFrame]] = {}
+    control_jobs: list[tuple] = []
     for pad, condition, cv in iterator:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
             y = dataset.targets(meta, perceived, path=study.root / "ratings.csv")
             matrices[(pad, condition)] = (X, y, meta)
         X, y, meta = matrices[(pad, condition)]
-        analysis.fits.append(_condition_fit(X, y, meta, perceived, pad, condition, cv, max_components))
+        fit = _condition_fit(X, y, meta, perceived, pad, condition, cv, max_components)
+        analysis.fits.append(fit)
+        specimens = meta["specimen"].astype(str).to_numpy()
+        permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
+        control_jobs.append((fit, X, y, specimens, permutations))
+    analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    analysis.controls["seed"] = int(seed)  # the shufflings are default_rng(seed)'s: rerun with it to get them back
     analysis.tests = _signed_rank_tests(analysis, conditions)
+    analysis.paper_predictive = paper_predictive()
+    analysis.claims = evaluate_claims(analysis)
     return analysis

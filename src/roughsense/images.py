@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .study import DEFAULT_MAX_PIXELS
 
 #: MATLAB ``rgb2gray`` weights: the first row of the inverse NTSC (YIQ -> RGB) matrix, unrounded
 #: (0.2989, 0.5870, 0.1140 to four places). They sum to 1, so a neutral RGB image equals its gray version.
@@ -62,10 +63,21 @@ def _png_is_complete(data: np.ndarray) -> bool:
     return False
 
 
-def read_bytes(path: str | os.PathLike[str]) -> np.ndarray:
+def max_file_bytes(max_pixels: int) -> int:
+    """Largest image file read for a pixel limit: 8 bytes per pixel (16-bit RGBA, stored raw) plus 16 MB of headers
+    and metadata. A bigger file cannot be an image within the limit, so it is refused before it is read whole."""
+    return 8 * int(max_pixels) + (16 << 20)
+
+
+def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """The file's bytes, with the usual failures turned into one InputError naming the file."""
     path = Path(path)
     try:
+        size = os.stat(path).st_size
+        if size > max_file_bytes(max_pixels):
+            raise InputError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel limit of "
+                             f"{max_pixels / 1e6:.3g} Mpx can take; raise [sensor] max_pixels if it is genuine",
+                             path=path)
         data = np.fromfile(path, dtype=np.uint8)
     except FileNotFoundError:
         raise InputError("image file not found", path=path) from None
@@ -78,6 +90,127 @@ def read_bytes(path: str | os.PathLike[str]) -> np.ndarray:
     if bytes(data[: len(_PNG_SIGNATURE)]) == _PNG_SIGNATURE and not _png_is_complete(data):
         raise InputError("PNG file is truncated or corrupt (a chunk is cut short or fails its CRC)", path=path)
     return data
+
+
+def header_size(data: np.ndarray) -> tuple[int, int] | None:
+    """(width, height) in pixels from the file's header alone, or None if the format is not recognised.
+
+    Parsed by hand for PNG (IHDR), JPEG (the SOF marker), TIFF (the first IFD, the page OpenCV decodes) and
+    BMP; any other format is asked of Pillow, whose ``Image.open`` reads only the header. Nothing is decoded,
+    so a file claiming billions of pixels costs nothing to inspect.
+    """
+    raw = bytes(data[:32])
+    if raw[:8] == _PNG_SIGNATURE:
+        if len(raw) < 24 or raw[12:16] != b"IHDR":
+            return None
+        return int.from_bytes(raw[16:20], "big"), int.from_bytes(raw[20:24], "big")
+    if raw[:2] == b"\xff\xd8":
+        return _jpeg_size(data)
+    if raw[:4] in (b"II*\x00", b"MM\x00*"):
+        return _tiff_size(data)
+    if raw[:2] == b"BM" and len(raw) >= 26:
+        header_bytes = int.from_bytes(raw[14:18], "little")
+        if header_bytes == 12:  # OS/2 BITMAPCOREHEADER: 16-bit sizes
+            return int.from_bytes(raw[18:20], "little"), int.from_bytes(raw[20:22], "little")
+        width = int.from_bytes(raw[18:22], "little", signed=True)
+        height = int.from_bytes(raw[22:26], "little", signed=True)
+        return abs(width), abs(height)  # a negative height is a top-down bitmap
+    return _pillow_size(data)
+
+
+def _jpeg_size(data: np.ndarray) -> tuple[int, int] | None:
+    """Walk the JPEG markers up to the first start-of-frame (SOF0..SOF15 but DHT, JPG, DAC)."""
+    raw = data.data
+    size = len(raw)
+    pos = 2
+    while pos + 4 <= size:
+        if raw[pos] != 0xFF:
+            return None
+        marker = raw[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length
+            pos += 2
+            continue
+        length = int.from_bytes(raw[pos + 2 : pos + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            if pos + 9 > size:
+                return None
+            height = int.from_bytes(raw[pos + 5 : pos + 7], "big")
+            width = int.from_bytes(raw[pos + 7 : pos + 9], "big")
+            return width, height
+        if marker == 0xDA or length < 2:  # start of scan before any frame header: not a JPEG we know
+            return None
+        pos += 2 + length
+    return None
+
+
+def _tiff_size(data: np.ndarray) -> tuple[int, int] | None:
+    """ImageWidth (256) and ImageLength (257) from the first IFD of a classic TIFF."""
+    raw = data.data
+    order = "little" if bytes(raw[:2]) == b"II" else "big"
+    size = len(raw)
+    offset = int.from_bytes(raw[4:8], order)
+    if offset + 2 > size:
+        return None
+    count = int.from_bytes(raw[offset : offset + 2], order)
+    width = height = None
+    for k in range(count):
+        entry = offset + 2 + 12 * k
+        if entry + 12 > size:
+            return None
+        tag = int.from_bytes(raw[entry : entry + 2], order)
+        kind = int.from_bytes(raw[entry + 2 : entry + 4], order)
+        if tag in (256, 257):
+            value = int.from_bytes(raw[entry + 8 : entry + 10], order) if kind == 3 else int.from_bytes(
+                raw[entry + 8 : entry + 12], order)
+            if tag == 256:
+                width = value
+            else:
+                height = value
+    return (width, height) if width is not None and height is not None else None
+
+
+def _pillow_size(data: np.ndarray) -> tuple[int, int] | None:
+    import io
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # Pillow's own DecompressionBombWarning: our limit decides
+            with Image.open(io.BytesIO(data.data)) as image:
+                return tuple(image.size)
+    except Image.DecompressionBombError:  # more than twice Pillow's limit (about 179 Mpx)
+        return _HUGE
+    except Exception:  # not a format Pillow knows, or a damaged header
+        return None
+
+
+_HUGE = (1 << 31, 1 << 31)  # "larger than any limit": Pillow refused to report the size
+
+
+def check_pixels(data: np.ndarray, max_pixels: int, path: str | os.PathLike[str] | None = None) -> tuple[int, int]:
+    """Refuse an image whose header claims more than ``max_pixels`` pixels, before anything is decoded.
+
+    Returns (width, height). An image whose size cannot be read from its header is refused too: decoding it
+    would be the very risk this check exists to bound.
+    """
+    size = header_size(data)
+    if size is None:
+        raise InputError("not a readable image (expected PNG, JPEG, TIFF or BMP) or its header is damaged", path=path)
+    width, height = size
+    if width < 1 or height < 1:
+        raise InputError(f"image header gives an empty size ({width} x {height} px)", path=path)
+    if width * height > max_pixels:
+        raise InputError(
+            f"image is {width} x {height} px ({width * height / 1e6:.3g} Mpx), above the limit of "
+            f"{max_pixels / 1e6:.3g} Mpx; raise [sensor] max_pixels in study.toml (or --max-pixels) if it is genuine",
+            path=path,
+        )
+    return width, height
 
 
 def png_size(data: np.ndarray) -> tuple[int, int] | None:
@@ -127,18 +260,23 @@ def decode_png_top_rows(data: np.ndarray, stop_row: int) -> np.ndarray | None:
     return pixels
 
 
-def read_image(path: str | os.PathLike[str]) -> np.ndarray:
+def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """Decode an image file to (H, W) gray or (H, W, 3) RGB in its own dtype (uint8, uint16 or float).
 
     The RGB array is a reversed-channel view of OpenCV's BGR buffer: no copy of the full frame.
     """
-    return decode(read_bytes(path), path)
+    return decode(read_bytes(path, max_pixels=max_pixels), path, max_pixels=max_pixels)
 
 
-def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None) -> np.ndarray:
-    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit)."""
+def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,
+           max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`."""
+    check_pixels(data, max_pixels, path)
     cv2 = _opencv()
-    image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+    except cv2.error:
+        image = None
     if image is None:
         raise InputError("not a readable image (expected PNG, JPEG, TIFF or BMP) or the file is corrupt", path=path)
     if image.ndim == 3:
@@ -148,10 +286,10 @@ def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None) -> np.n
     return image
 
 
-def as_image(image, *, name: str | None = None) -> np.ndarray:
+def as_image(image, *, name: str | None = None, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """Accept a path or an array and return a decoded (H, W) or (H, W, 3) array; arrays are checked, not copied."""
     if isinstance(image, (str, os.PathLike)):
-        return read_image(image)
+        return read_image(image, max_pixels=max_pixels)
     array = np.asarray(image)
     where = name or "image array"
     if array.ndim == 3 and array.shape[2] == 1:

@@ -31,6 +31,8 @@ from .pls import SIMPLS, linear_predict
 FORMAT = "roughsense-model"
 VERSION = 1
 KIND = "pls1-simpls"
+#: Largest model file read. A model is (A + 4) x p numbers (p = 135 for a combined model): well under 1 MB.
+MAX_MODEL_BYTES = 10_000_000
 _TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
 
 
@@ -146,11 +148,17 @@ def load_model(path: str | os.PathLike[str]) -> LoadedModel:
     """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_MODEL_BYTES + 1)  # never more: a huge file is refused, not read whole
     except FileNotFoundError:
         raise ModelFileError("model file not found", path=path) from None
+    except IsADirectoryError:
+        raise ModelFileError("is a folder, expected a model file", path=path) from None
     except OSError as exc:
         raise ModelFileError(f"cannot read the model file ({exc.strerror or exc})", path=path) from None
+    if len(raw) > MAX_MODEL_BYTES:
+        raise ModelFileError(f"is larger than {MAX_MODEL_BYTES // 1_000_000} MB; a roughsense model file is a few "
+                             "hundred kB, so this is not one", path=path)
     try:
         document = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
@@ -165,7 +173,7 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
     if not isinstance(document, dict) or document.get("format") != FORMAT:
         fail(f"is not a roughsense model file (expected \"format\": \"{FORMAT}\")")
     version = document.get("version")
-    if version != VERSION or isinstance(version, bool):
+    if type(version) is not int or version != VERSION:  # 1.0 and true are not the integer 1
         fail(f"model file version {version!r} is not supported (this roughsense {_version()} reads version {VERSION})")
     missing = [k for k in _TOP_KEYS if k not in document]
     if missing:
@@ -219,7 +227,20 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
     )
 
 
+def _all_numbers(value) -> bool:
+    """Nested lists of JSON numbers only: no strings ("1.5" would convert), booleans or nulls."""
+    if isinstance(value, list):
+        return all(_all_numbers(v) for v in value)
+    return type(value) in (int, float)
+
+
 def _array(value, shape: tuple[int, ...], name: str, path: Path | None) -> np.ndarray:
+    try:
+        numbers = isinstance(value, list) and _all_numbers(value)
+    except RecursionError:
+        numbers = False
+    if not numbers:
+        raise ModelFileError(f"{name} must be an array of numbers", path=path)
     try:
         array = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):

@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 
 from .errors import ConfigError, InputError, RoughsenseWarning
-from .study import DEFAULT_REFERENCE, RATING_COLUMNS, csv_line, read_table, refuse_unknown
+from .study import (DEFAULT_REFERENCE, RATING_COLUMNS, check_name_column, csv_line, drop_unrated, read_table,
+                    refuse_unknown)
 
 #: The paper's specimens: rectangular (R) and circular (C) gratings, wavelength 2-5 mm.
 PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5))
@@ -82,6 +83,7 @@ def _validate(
         if blank.any():
             raise InputError("empty value", path=path, row=_line(frame, np.flatnonzero(blank)[0]), column=column)
         frame[column] = text
+        check_name_column(frame, column, Path(path) if path is not None else None, line=lambda i: _line(frame, i))
     raw = frame["rating"]
     values = pd.to_numeric(raw, errors="coerce").astype(float)
     blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
@@ -177,9 +179,7 @@ def read_ratings(
     else:
         frame = read_table(path, (), text=(*_TEXT_COLUMNS, "rating"))  # rating as text: errors quote the cell
     if "rating" in frame.columns:
-        raw = frame["rating"]
-        blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
-        frame = frame[~blank]
+        frame = drop_unrated(frame)
         if frame.empty:
             raise InputError("has no ratings (every rating cell is empty)", path=path)
     frame = _validate(frame, path=path, reference=reference, specimens=specimens)

@@ -12,6 +12,8 @@ import pandas as pd
 
 PAPER_CITATION = "Yanwari & Okamoto, Sensors 25:2598 (2025)"
 REFERENCE_SPECIMEN = "R3"
+#: The pads the paper tested (Tables 1-3 and 4-6).
+PAPER_PADS = ("fingerprint", "smooth")
 
 #: Number of PLS components chosen by leave-one-out CV (Section 4).
 PAPER_BEST_N_COMPONENTS = {

@@ -23,8 +23,12 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
 from .errors import ConfigError, InputError
-from .images import GRAY_WEIGHTS_RGB, as_image, decode, decode_png_top_rows, load_gray, png_size, read_bytes, to_gray
-from .study import CENTER_CROP_PX, DEFAULT_PX_PER_MM, Roi, parse_roi
+from .images import (GRAY_WEIGHTS_RGB, as_image, check_pixels, decode, decode_png_top_rows, load_gray, png_size,
+                     read_bytes, to_gray)
+from .study import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, Roi, check_max_pixels, parse_roi
+
+#: Pillow warns on stderr (DecompressionBombWarning) above this many pixels; larger PNGs go to OpenCV instead.
+_PILLOW_QUIET_PIXELS = 89_478_485
 
 __all__ = [
     "CENTER_CROP_PX",
@@ -183,10 +187,13 @@ class _Plan:
     rows: int
     freq_per_mm: np.ndarray
     window: str
+    max_pixels: int = DEFAULT_MAX_PIXELS
 
     @classmethod
-    def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window) -> _Plan:
+    def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window,
+              max_pixels=DEFAULT_MAX_PIXELS) -> _Plan:
         px = _check_px_per_mm(px_per_mm)
+        max_pixels = check_max_pixels(max_pixels)
         if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
             raise ConfigError(f"rows must be a whole number >= 1, got {rows!r}")
         if window not in WINDOWS:
@@ -200,7 +207,7 @@ class _Plan:
             raise ConfigError(
                 f"f_max {freqs[-1]:g} mm^-1 is not below the Nyquist frequency {px / 2:g} mm^-1 of {px:g} px/mm"
             )
-        return cls(px, roi, int(rows), freqs, window)
+        return cls(px, roi, int(rows), freqs, window, max_pixels)
 
     def spectrum(self, image, index: int | None = None) -> np.ndarray:
         is_file = isinstance(image, (str, os.PathLike))
@@ -208,10 +215,11 @@ class _Plan:
         where = "" if is_file or index is None else f"image {index} of the batch: "
         pixels = box = None
         if is_file:
-            data = read_bytes(image)
+            data = read_bytes(image, max_pixels=self.max_pixels)
+            check_pixels(data, self.max_pixels, image)  # before any decoding: a small file may claim gigapixels
             pixels, box = self._top_rows_only(data, name)
             if pixels is None:
-                pixels = decode(data, image)
+                pixels = decode(data, image, max_pixels=self.max_pixels)
         else:
             pixels = as_image(image, name=where.rstrip(": ") or None)
         if box is None:
@@ -237,8 +245,8 @@ class _Plan:
         if self.roi == "auto":
             return None, None
         size = png_size(data)
-        if size is None:
-            return None, None
+        if size is None or size[0] * size[1] > _PILLOW_QUIET_PIXELS:
+            return None, None  # above Pillow's own bomb limit it would warn on stderr; OpenCV decodes it quietly
         box = resolve_roi(self.roi, np.empty((*size, 0), dtype=np.uint8), name=name)
         x, y, w, h = box
         if self.rows > h:
@@ -298,7 +306,9 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         n_freqs: int = 45,
         n_jobs: int = 1,
         window: str = "hann",
+        max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
+        self.max_pixels = max_pixels
         self.px_per_mm = px_per_mm
         self.roi = roi
         self.rows = rows
@@ -316,7 +326,8 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     def _plan(self) -> _Plan:
         return _Plan.build(
-            self.px_per_mm, self.roi, self.rows, self.f_min_per_mm, self.f_max_per_mm, self.n_freqs, self.window
+            self.px_per_mm, self.roi, self.rows, self.f_min_per_mm, self.f_max_per_mm, self.n_freqs, self.window,
+            self.max_pixels,
         )
 
     def _jobs(self) -> int:
@@ -388,7 +399,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         }
 
     @classmethod
-    def from_definition(cls, definition: dict, *, n_jobs: int = 1) -> SpatialSpectrum:
+    def from_definition(cls, definition: dict, *, n_jobs: int = 1, max_pixels: int = DEFAULT_MAX_PIXELS) -> SpatialSpectrum:
         """Rebuild the transformer from :meth:`feature_definition` (e.g. one stored in a model file)."""
         try:
             if definition.get("kind") != "roughsense.SpatialSpectrum" or definition.get("version") != FEATURE_VERSION:
@@ -403,6 +414,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
                 n_freqs=int(definition["n_freqs"]),
                 n_jobs=n_jobs,
                 window=str(definition.get("window", "hann")),
+                max_pixels=max_pixels,
             )
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ConfigError(f"not a usable SpatialSpectrum feature definition ({exc})") from None

@@ -14,24 +14,29 @@ so nothing downstream has to re-check. Every writer is atomic.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
+import re
 import tomllib
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 import pandas as pd
 
 from . import atomic
-from .errors import ConfigError, InputError, OutputExistsError
+from .errors import ConfigError, InputError, OutputExistsError, RoughsenseWarning
 
 STUDY_TOML = "study.toml"
 SPECIMENS_CSV = "specimens.csv"
 MANIFEST_CSV = "manifest.csv"
 RATINGS_CSV = "ratings.csv"
 IMAGES_DIR = "images"
+#: Written last by the simulator: a study.toml with a [simulation] table but no marker is an interrupted run.
+COMPLETE_MARKER = ".simulation-complete"
 
 DEFAULT_PX_PER_MM = 34.9
 DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
@@ -47,6 +52,74 @@ RATING_COLUMNS = ("participant", "session", "specimen", "rating")
 SHAPES = ("rectangular", "circular", "sinusoidal", "random", "other")
 
 Roi = str | tuple[int, int, int, int]
+
+#: Largest image read, in pixels (width x height): a header claiming more is refused before decoding, so a
+#: small file that inflates to gigabytes (a "decompression bomb") cannot exhaust memory. 100 Mpx is above
+#: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
+DEFAULT_MAX_PIXELS = 100_000_000
+
+#: Largest force accepted anywhere (manifest readings, protocol forces, --forces). A fingertip presses with
+#: a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa, about the pad's own modulus.
+MAX_FORCE_N = 100.0
+
+#: Largest repetition number: bounds the work a manifest or an option can ask for (the paper uses 10).
+MAX_REPETITION = 10_000
+
+#: Longest name (see :func:`check_name`): file names built from two names and a suffix stay far below the
+#: 255-byte limit of common file systems.
+NAME_MAX_CHARS = 64
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+NAME_RULE = (f"letters, digits, '.', '_' and '-' only, starting with a letter or digit, "
+             f"at most {NAME_MAX_CHARS} characters")
+
+#: Every table and key study.toml may hold. ``None`` means any key: the ``[simulation]`` table is the
+#: simulator's own record of its settings. An unknown table or key is a warning naming it, so a typo such as
+#: ``roi_typo`` is noticed. Add a key here when a reader starts using it.
+CONFIG_KEYS: dict[str, frozenset[str] | None] = {
+    "study": frozenset({"name", "reference_specimen"}),
+    "sensor": frozenset({"px_per_mm", "roi", "max_pixels"}),
+    "protocol": frozenset({"forces_n"}),
+    "simulation": None,
+}
+
+
+# --------------------------------------------------------------------------- names
+
+
+def is_safe_name(value: object) -> bool:
+    """True if ``value`` may become part of a file name (see :data:`NAME_RULE`).
+
+    Names from data (pad, specimen, participant, session, condition) end up in file names: in images the
+    rig and the simulator write, in report figures. The rule leaves no room for a separator, ``..``, a
+    hidden file, an option-like leading ``-``, a control character or a name too long for the disk.
+    """
+    return isinstance(value, str) and len(value) <= NAME_MAX_CHARS and _NAME.fullmatch(value) is not None
+
+
+def check_name(value: object, *, path: str | os.PathLike[str] | None = None, row: int | None = None,
+               column: str | None = None, what: str = "name") -> str:
+    """Return ``value`` if it obeys the name rule, else raise one :class:`InputError` naming file, row, column.
+
+    The one gate for every name that can reach a path: readers call it where a name is read, and every
+    writer that builds a file name from data calls it again just before (a name can come from an option).
+    """
+    if is_safe_name(value):
+        return value
+    shown = repr(value) if len(str(value)) <= 80 else repr(str(value)[:77] + "...")
+    raise InputError(f"{what} {shown} is not allowed: use {NAME_RULE} (names become parts of file names)",
+                     path=path, row=row, column=column)
+
+
+def check_name_column(frame: pd.DataFrame, column: str, path: Path | None, *, line=None) -> None:
+    """Refuse the first value of ``column`` that breaks the name rule, naming its line."""
+    line = csv_line if line is None else line
+    if column not in frame.columns:
+        return
+    ok = frame[column].map(is_safe_name)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok.to_numpy(bool))[0])
+        check_name(frame[column].iloc[i], path=path, row=line(i), column=column, what=column)
 
 
 # --------------------------------------------------------------------------- tables
@@ -67,7 +140,25 @@ def refuse_unknown(frame: pd.DataFrame, column: str, known, path: Path | None, *
         raise InputError(f"unknown {column} {frame[column].iloc[i]!r} ({hint})", path=path, row=line(i), column=column)
 
 
-def _check_row_widths(path: Path) -> None:
+def read_text(path: Path, *, max_bytes: int | None = None) -> str:
+    """The file as UTF-8 text (a BOM is dropped); anything else is one InputError naming the line."""
+    try:
+        if max_bytes is not None and path.stat().st_size > max_bytes:
+            raise InputError(f"is larger than {max_bytes // 1_000_000} MB; refusing to read it", path=path)
+        raw = path.read_bytes()
+    except IsADirectoryError:
+        raise InputError("is a folder, expected a file", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise InputError(f"is not UTF-8 text (byte 0x{raw[exc.start]:02x}); save it as UTF-8",
+                         path=path, row=line) from None
+
+
+def _check_row_widths(path: Path, text: str) -> None:
     """Refuse a data row with non-empty fields beyond the header's, naming its line.
 
     pandas would take the first column as the index and shift every value one column left (or, with
@@ -75,7 +166,7 @@ def _check_row_widths(path: Path) -> None:
     trailing delimiter -- are accepted. Undecodable or malformed files are left for pandas to report.
     """
     try:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
+        with io.StringIO(text, newline="") as handle:
             reader = csv.reader(handle, skipinitialspace=True)
             header = next(reader, None)
             if header is None:
@@ -92,7 +183,7 @@ def _check_row_widths(path: Path) -> None:
                         path=path, row=start,
                     )
                 start = reader.line_num + 1
-    except (UnicodeDecodeError, csv.Error):
+    except csv.Error:
         return
 
 
@@ -104,25 +195,28 @@ def read_table(
     positive: Sequence[str] = (),
     integer: Sequence[str] = (),
     text: Sequence[str] = (),
+    maximum: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """Read a CSV and check columns and values, naming the line of the first bad cell.
 
     ``text`` columns are kept as strings (so specimen "3" stays "3", and participant IDs keep leading zeros).
+    ``maximum`` bounds numeric columns from above (an absurd force, a repetition number that overflows).
     """
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path=path)
     # Numeric columns are read as text too, so an error quotes the cell as written ('inf', not np.float64(inf)).
     dtypes = {name: str for name in {*text, *numeric, *positive, *integer, "image", "specimen", "pad", "participant", "shape"}}
-    _check_row_widths(path)
+    content = read_text(path)
+    _check_row_widths(path, content)
     try:
         # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
         # skip_blank_lines=False keeps DataFrame row i on file line i + 2, so every error names the right line.
-        frame = pd.read_csv(path, dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""],
+        frame = pd.read_csv(io.StringIO(content), dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""],
                             index_col=False, skip_blank_lines=False)
     except pd.errors.EmptyDataError:
         raise InputError("is empty; expected a header line", path=path) from None
-    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+    except (pd.errors.ParserError, ValueError, OverflowError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"is not a readable CSV ({first})", path=path) from None
     frame.columns = [str(c).strip() for c in frame.columns]
@@ -145,7 +239,10 @@ def read_table(
     for column in dict.fromkeys([*numeric, *positive, *integer]):
         if column not in frame.columns:
             continue
-        values = pd.to_numeric(frame[column], errors="coerce")
+        try:
+            values = pd.to_numeric(frame[column], errors="coerce").astype(float)
+        except (OverflowError, ValueError, TypeError):
+            values = frame[column].map(_to_float)
         bad = values.isna() & frame[column].notna()
         bad |= ~np.isfinite(values.fillna(0.0))
         if bad.any():
@@ -156,6 +253,13 @@ def read_table(
             if nonpos.any():
                 i = np.flatnonzero(nonpos)[0]
                 raise InputError(f"must be positive, got {values.iloc[i]:g}", path=path, row=csv_line(i), column=column)
+        limit = (maximum or {}).get(column)
+        if limit is not None:
+            high = values > limit
+            if high.any():
+                i = np.flatnonzero(high)[0]
+                raise InputError(f"must be at most {limit:g}, got {frame[column].iloc[i]}", path=path,
+                                 row=csv_line(i), column=column)
         if column in integer:
             frac = values.notna() & (values != np.round(values))
             if frac.any():
@@ -170,6 +274,13 @@ def read_table(
     return frame
 
 
+def _to_float(text: object) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError, OverflowError):
+        return float("nan")
+
+
 # --------------------------------------------------------------------------- settings
 
 
@@ -179,12 +290,26 @@ class SensorSettings:
 
     px_per_mm: float = DEFAULT_PX_PER_MM
     roi: Roi = "center"
+    max_pixels: int = DEFAULT_MAX_PIXELS
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.px_per_mm, (int, float)) and math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
-            shown = f"{self.px_per_mm:g}" if isinstance(self.px_per_mm, (int, float)) else repr(self.px_per_mm)
+        if not (is_number(self.px_per_mm) and math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
+            shown = f"{self.px_per_mm:g}" if is_number(self.px_per_mm) else repr(self.px_per_mm)
             raise ConfigError(f"px_per_mm must be a positive number, got {shown}")
         object.__setattr__(self, "roi", parse_roi(self.roi))
+        object.__setattr__(self, "max_pixels", check_max_pixels(self.max_pixels))
+
+
+def is_number(value: object) -> bool:
+    """A real number that is not a boolean (TOML's ``true`` is not 1 here)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_max_pixels(value: object, *, option: str = "max_pixels") -> int:
+    """A pixel limit: a positive whole number (see :data:`DEFAULT_MAX_PIXELS`)."""
+    if not (is_number(value) and math.isfinite(value) and value == int(value) and value >= 1):
+        raise ConfigError(f"{option} must be a positive whole number of pixels, got {value!r}")
+    return int(value)
 
 
 def parse_roi(value: object) -> Roi:
@@ -198,13 +323,15 @@ def parse_roi(value: object) -> Roi:
         parts = [p.strip() for p in text.split(",")]
     elif isinstance(value, Sequence):
         parts = list(value)
+        if any(isinstance(p, (bool, np.bool_)) for p in parts):
+            raise ConfigError(f"ROI values must be whole pixels, not true/false, got {_roi_text(value)}")
     else:
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
     if len(parts) != 4:
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
     try:
         numbers = [float(p) for p in parts]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {_roi_text(value)}") from None
     if not all(math.isfinite(n) for n in numbers):
         raise ConfigError(f"ROI values must be finite whole pixels, got {_roi_text(value)}")
@@ -284,29 +411,100 @@ class Study:
     def condition_labels(self) -> list[str]:
         return [nominal_force_label(f) for f in self.forces_n]
 
+    @property
+    def simulation(self) -> dict | None:
+        """The ``[simulation]`` table of study.toml (seed and settings) if a simulator wrote the folder, else None.
 
-def _read_config(root: Path) -> dict:
-    path = root / STUDY_TOML
+        The analysis labels a study "simulated" from this table alone, so it never needs to import the simulator.
+        """
+        table = self.extra.get("simulation")
+        return dict(table) if isinstance(table, dict) else None
+
+
+#: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
+MAX_CONFIG_BYTES = 1_000_000
+
+
+def read_config(path: str | os.PathLike[str]) -> dict:
+    """Parse study.toml and check its shape: known tables are tables; unknown tables and keys are warned about.
+
+    Values are checked by the readers that use them (:func:`_sensor_from_config`, :func:`parse_forces`).
+    """
+    path = Path(path)
     if not path.is_file():
         raise InputError("file not found (every study folder needs study.toml)", path=path)
+    text = read_text(path, max_bytes=MAX_CONFIG_BYTES)
     try:
-        with path.open("rb") as handle:
-            return tomllib.load(handle)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        config = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
         raise InputError(f"is not valid TOML ({exc})", path=path) from None
+    except RecursionError:
+        raise InputError("is not a study.toml: its values are nested too deeply", path=path) from None
+    for table, value in config.items():
+        if table not in CONFIG_KEYS:
+            kind = "table" if isinstance(value, dict) else "key"
+            warnings.warn(f"{path}: unknown {kind} {table!r} ignored (known tables: {', '.join(CONFIG_KEYS)})",
+                          RoughsenseWarning, stacklevel=2)
+            continue
+        if not isinstance(value, dict):
+            raise InputError(f"{table} must be a table ([{table}] followed by key = value lines), "
+                             f"got {type(value).__name__} {_short(value)}", path=path)
+        known = CONFIG_KEYS[table]
+        for key in value:
+            if known is not None and key not in known:
+                warnings.warn(f"{path}: unknown key {key!r} in [{table}] ignored (known: {', '.join(sorted(known))})",
+                              RoughsenseWarning, stacklevel=2)
+    return config
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
     sensor = config.get("sensor", {})
+    if not isinstance(sensor, Mapping):
+        raise InputError(f"sensor must be a table, got {type(sensor).__name__}", path=path)
     try:
-        return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", "center"))
+        return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", "center"),
+                              max_pixels=sensor.get("max_pixels", DEFAULT_MAX_PIXELS))
     except ConfigError as exc:
         raise InputError(f"[sensor] {exc.message}", path=path) from None
+
+
+def check_force(value: object, *, option: str = "force") -> float:
+    """One force in newtons: a number (not a boolean), finite, positive and at most :data:`MAX_FORCE_N`."""
+    if not is_number(value) or not math.isfinite(value) or not 0 < value <= MAX_FORCE_N:
+        shown = f"{value:g}" if is_number(value) else repr(value)
+        raise ConfigError(f"{option} must be a positive number of newtons up to {MAX_FORCE_N:g}, got {shown}")
+    return float(value)
+
+
+def parse_forces(value: object, *, path: Path | None = None) -> tuple[float, ...]:
+    """``[protocol] forces_n``: a non-empty list of distinct forces (see :func:`check_force`)."""
+    if not isinstance(value, (list, tuple)) or not value:
+        raise InputError(f"[protocol] forces_n must be a non-empty list of numbers, got {_short(value)}", path=path)
+    try:
+        forces = tuple(check_force(f, option="[protocol] forces_n: each force") for f in value)
+    except ConfigError as exc:
+        raise InputError(exc.message, path=path) from None
+    if len(set(forces)) != len(forces):
+        raise InputError(f"[protocol] forces_n lists a force twice: {_short(value)}", path=path)
+    return forces
+
+
+def check_repetitions(value: object, *, option: str = "--repetitions") -> int:
+    """A count of repetitions: a whole number from 1 to :data:`MAX_REPETITION`."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_REPETITION:
+        raise ConfigError(f"{option} must be a whole number from 1 to {MAX_REPETITION}, got {value!r}")
+    return int(value)
 
 
 def read_specimens(path: str | os.PathLike[str]) -> pd.DataFrame:
     path = Path(path)
     frame = read_table(path, SPECIMEN_COLUMNS, positive=["wavelength_mm"], text=["specimen", "shape"])
+    check_name_column(frame, "specimen", path)
     dup = frame["specimen"].duplicated()
     if dup.any():
         i = np.flatnonzero(dup)[0]
@@ -331,22 +529,71 @@ def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str
         integer=["repetition"],
         numeric=["contact_fraction"],
         text=["image", "specimen", "pad"],
+        maximum={"force_n": MAX_FORCE_N, "nominal_force_n": MAX_FORCE_N, "repetition": MAX_REPETITION},
     )
+    negative = frame["repetition"] < 0
+    if negative.any():
+        i = int(np.flatnonzero(negative.to_numpy(bool))[0])
+        raise InputError(f"must be a whole number >= 0, got {frame['repetition'].iloc[i]}", path=path,
+                         row=csv_line(i), column="repetition")
+    check_name_column(frame, "specimen", path)
+    check_name_column(frame, "pad", path)
     if known_specimens is not None:
         refuse_unknown(frame, "specimen", known_specimens, path, hint=f"not in {SPECIMENS_CSV}")
     dup = frame["image"].duplicated()
     if dup.any():
         i = np.flatnonzero(dup)[0]
         raise InputError(f"image {frame['image'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="image")
+    check_image_paths(frame["image"], path.parent, path)
     return frame
+
+
+def image_path_problem(relative: str, root: Path) -> tuple[Path | None, str | None]:
+    """(resolved path, None) for a manifest image path that stays inside ``root``, else (None, why not).
+
+    Symbolic links are followed, so a link inside ``images/`` that points elsewhere is refused like ``..``.
+    ``root`` must already be resolved.
+    """
+    text = str(relative)
+    if "\x00" in text:
+        return None, "contains a NUL character"
+    if PurePosixPath(text).is_absolute() or PureWindowsPath(text).is_absolute() or PureWindowsPath(text).drive:
+        return None, f"{text!r} is an absolute path; manifest image paths are relative to the study folder"
+    if ".." in re.split(r"[/\\]", text):
+        return None, f"{text!r} leads outside the study folder ('..' is not allowed in manifest image paths)"
+    try:
+        resolved = (root / text).resolve()
+    except (OSError, RuntimeError, ValueError) as exc:
+        return None, f"{text!r} cannot be resolved ({exc})"
+    if resolved == root or not resolved.is_relative_to(root):
+        return None, f"{text!r} leads outside the study folder (through '..' or a symbolic link)"
+    return resolved, None
+
+
+def check_image_paths(images: Iterable[str], root: Path, path: Path | None) -> None:
+    """Every manifest image path stays inside the study folder, and no two rows name the same file."""
+    try:
+        root = root.resolve()
+    except (OSError, RuntimeError) as exc:
+        raise InputError(f"cannot resolve the study folder ({exc})", path=root) from None
+    seen: dict[Path, int] = {}
+    for i, relative in enumerate(images):
+        resolved, problem = image_path_problem(relative, root)
+        if problem is not None:
+            raise InputError(problem, path=path, row=csv_line(i), column="image")
+        if resolved in seen:
+            first = seen[resolved]
+            raise InputError(f"{relative!r} names the same file as row {csv_line(first)}", path=path,
+                             row=csv_line(i), column="image")
+        seen[resolved] = i
 
 
 def _has_column(path: Path, column: str) -> bool:
     try:
-        with path.open(encoding="utf-8") as handle:
-            header = handle.readline()
-    except OSError:
-        return False
+        with path.open(encoding="utf-8-sig") as handle:
+            header = handle.readline(100_000)
+    except (OSError, UnicodeDecodeError):
+        return False  # read_table then names the real problem
     return column in [c.strip() for c in header.strip().split(",")]
 
 
@@ -384,9 +631,61 @@ def assign_nominal_forces(manifest: pd.DataFrame, forces_n: Sequence[float], pat
     return manifest
 
 
-def read_ratings_table(path: str | os.PathLike[str]) -> pd.DataFrame:
-    """Structural read of ratings.csv; perception.py adds the domain checks (reference, gaps)."""
-    return read_table(path, RATING_COLUMNS, positive=["rating"], text=["participant", "session", "specimen"])
+def drop_unrated(frame: pd.DataFrame) -> pd.DataFrame:
+    """The one rule for blank rating cells: a trial not (yet) done, dropped; aggregation warns about the gap.
+
+    Used by every ratings reader (``roughsense ratings``, ``study``, ``fit``), so a file means the same to all.
+    Frames keep their index (``index + 2`` is the file line) for later errors.
+    """
+    if "rating" not in frame.columns:
+        return frame
+    blank = np.fromiter((_is_blank(v) for v in frame["rating"].to_numpy(object)), dtype=bool, count=len(frame))
+    return frame[~blank]
+
+
+def _is_blank(value: object) -> bool:
+    if isinstance(value, str):
+        return not value.strip()
+    return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
+
+
+def read_ratings_table(path: str | os.PathLike[str], *, allow_empty: bool = False) -> pd.DataFrame:
+    """Structural read of ratings.csv; perception.py adds the domain checks (reference, gaps).
+
+    Blank rating cells follow :func:`drop_unrated`; a file with no rating left is refused unless ``allow_empty``
+    (a study of the reference specimen alone has nothing to rate, and only the analysis needs ratings).
+    """
+    path = Path(path)
+    frame = read_table(path, ("participant", "session", "specimen"), text=["participant", "session", "specimen", "rating"])
+    if "rating" not in frame.columns:
+        raise InputError(f"missing column(s) rating; found {', '.join(frame.columns)}", path=path)
+    frame = drop_unrated(frame)
+    if frame.empty and allow_empty:
+        return frame.assign(rating=pd.Series(dtype=float))
+    if frame.empty:
+        raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
+    values = frame["rating"].map(_to_float)
+    bad = ~np.isfinite(values.to_numpy(float))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"not a finite number: {frame['rating'].iloc[i]!r}", path=path,
+                         row=csv_line(frame.index[i]), column="rating")
+    nonpositive = values.to_numpy(float) <= 0
+    if nonpositive.any():
+        i = int(np.flatnonzero(nonpositive)[0])
+        raise InputError(f"must be positive, got {values.iloc[i]:g}", path=path,
+                         row=csv_line(frame.index[i]), column="rating")
+    frame = frame.assign(rating=values.astype(float))
+    for column in ("participant", "session", "specimen"):
+        check_name_column(frame, column, path, line=lambda i, f=frame: csv_line(f.index[i]))
+    return frame
+
+
+def check_simulation_complete(root: Path, config: Mapping) -> None:
+    """Refuse a simulated study whose run never finished: its files may come from two different runs."""
+    if isinstance(config.get("simulation"), dict) and not (root / COMPLETE_MARKER).is_file():
+        raise InputError(f"simulated study is incomplete (no {COMPLETE_MARKER}: the simulation was interrupted); "
+                         f"rerun `roughsense simulate --out {root} --force`", path=root)
 
 
 def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
@@ -394,21 +693,25 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     root = Path(root)
     if not root.is_dir():
         raise InputError("study folder not found", path=root)
-    config = _read_config(root)
     toml_path = root / STUDY_TOML
+    config = read_config(toml_path)
+    check_simulation_complete(root, config)
     study_cfg = config.get("study", {})
     sensor = _sensor_from_config(config, toml_path)
-    forces = config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N))
-    try:
-        forces_n = tuple(float(f) for f in forces)
-    except (TypeError, ValueError):
-        raise InputError(f"[protocol] forces_n must be a list of numbers, got {forces!r}", path=toml_path) from None
-    if not forces_n or any(not math.isfinite(f) or f <= 0 for f in forces_n) or len(set(forces_n)) != len(forces_n):
-        raise InputError(f"[protocol] forces_n must be distinct positive numbers, got {forces!r}", path=toml_path)
+    forces_n = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
+    name = study_cfg.get("name", root.name)
+    if not isinstance(name, str):
+        raise InputError(f"[study] name must be text, got {_short(name)}", path=toml_path)
+    reference = study_cfg.get("reference_specimen", DEFAULT_REFERENCE)
+    check_name(reference, path=toml_path, what="[study] reference_specimen")
 
     specimens = read_specimens(root / SPECIMENS_CSV)
+    if specimens.empty:
+        raise InputError("lists no specimens (only a header)", path=root / SPECIMENS_CSV)
     manifest_path = root / MANIFEST_CSV
     manifest = read_manifest(manifest_path, known_specimens=specimens["specimen"])
+    if manifest.empty:
+        raise InputError("lists no images (only a header); capture or simulate some first", path=manifest_path)
     manifest = assign_nominal_forces(manifest, forces_n, manifest_path)
     if check_images:
         for i, rel in enumerate(manifest["image"]):
@@ -418,15 +721,14 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     ratings = None
     ratings_path = root / RATINGS_CSV
     if ratings_path.exists():
-        ratings = read_ratings_table(ratings_path)
+        ratings = read_ratings_table(ratings_path, allow_empty=not require_ratings)
         refuse_unknown(ratings, "specimen", specimens["specimen"], ratings_path, hint=f"not in {SPECIMENS_CSV}")
     elif require_ratings:
         raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
 
-    reference = str(study_cfg.get("reference_specimen", DEFAULT_REFERENCE))
     return Study(
         root=root,
-        name=str(study_cfg.get("name", root.name)),
+        name=name,
         reference_specimen=reference,
         sensor=sensor,
         forces_n=forces_n,
@@ -447,8 +749,11 @@ def _toml_value(value: object) -> str:
         return str(int(value))
     if isinstance(value, (float, np.floating)):
         return repr(float(value))
-    if isinstance(value, str):
-        escaped = value.replace("\\", "\\\\").replace('"', '\\"')
+    if isinstance(value, str):  # a TOML basic string: quotes, backslashes and control characters escaped
+        escaped = "".join(
+            "\\" + ch if ch in '"\\' else f"\\u{ord(ch):04X}" if ord(ch) < 0x20 or ord(ch) == 0x7F else ch
+            for ch in value
+        )
         return f'"{escaped}"'
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
@@ -495,7 +800,8 @@ class StudyWriter:
         roi = sensor.roi if isinstance(sensor.roi, str) else list(sensor.roi)
         tables: dict[str, Mapping[str, object]] = {
             "study": {"name": name, "reference_specimen": reference_specimen},
-            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi},
+            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi,
+                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != DEFAULT_MAX_PIXELS else {})},
             "protocol": {"forces_n": [float(f) for f in forces_n]},
         }
         tables.update(extra or {})
@@ -530,8 +836,11 @@ class StudyWriter:
     def image_path(self, name: str) -> Path:
         return self.root / IMAGES_DIR / name
 
-    def write_image(self, name: str, image: np.ndarray) -> str:
-        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path."""
+    def write_image(self, name: str, image: np.ndarray, *, params: Sequence[int] = ()) -> str:
+        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path.
+
+        ``params`` are OpenCV's ``imwrite`` flags (e.g. the PNG compression strategy); the file stays a standard one.
+        """
         import cv2  # local: the study contract should not pay for OpenCV at import
 
         target = self.image_path(name)
@@ -541,7 +850,7 @@ class StudyWriter:
         array = np.ascontiguousarray(image)
         if array.ndim == 3 and array.shape[2] == 3:
             array = array[:, :, ::-1]  # OpenCV stores BGR; callers hand us RGB
-        ok, encoded = cv2.imencode(ext, array)
+        ok, encoded = cv2.imencode(ext, array, list(params))
         if not ok:
             raise InputError(f"could not encode image as {ext}", path=target)
         atomic.write_bytes(target, encoded.tobytes())

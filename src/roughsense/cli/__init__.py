@@ -16,7 +16,7 @@ import warnings
 
 import typer
 
-from ..errors import RoughsenseError
+from ..errors import RoughsenseError, one_line
 from ._common import close_line
 
 app = typer.Typer(
@@ -74,14 +74,14 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
     close_line()
     if issubclass(category, RoughsenseWarning):
-        print(f"roughsense: warning: {message}", file=sys.stderr)
+        print(f"roughsense: warning: {one_line(message)}", file=sys.stderr)
     else:
         _python_showwarning(message, category, filename, lineno, file, line)
 
 
 def _fail(message: str) -> int:
     close_line()
-    print(f"roughsense: error: {message}", file=sys.stderr)
+    print(f"roughsense: error: {one_line(message)}", file=sys.stderr)
     return 2
 
 
@@ -121,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         if _state["debug"]:
             traceback.print_exc()
             return 1
-        print(f"roughsense: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)", file=sys.stderr)
+        print(f"roughsense: internal error: {type(exc).__name__}: {one_line(exc)} (rerun with --debug for details)",
+              file=sys.stderr)
         return 1
     finally:
         _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))

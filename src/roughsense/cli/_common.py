@@ -28,6 +28,13 @@ def parse_float_list(text: str, *, name: str) -> list[float]:
     return values
 
 
+def check_seed(seed: int) -> int:
+    """A seed for numpy.random.default_rng: a whole number >= 0 (a negative one is refused by NumPy)."""
+    if seed < 0:
+        raise ConfigError(f"--seed must be a whole number >= 0, got {seed}")
+    return seed
+
+
 def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 

@@ -42,19 +42,26 @@ def builtin_study_path(seed: int) -> Path:
 
 
 def builtin_study(seed: int, jobs: int | None = None) -> Path:
-    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after."""
+    """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after.
+
+    The simulator builds it beside its cache entry and swaps it in whole, so a killed run leaves no entry (only a
+    partial sibling the next run removes), never a half-written one that later runs would trust.
+    """
     import shutil
 
+    from .. import atomic
     from ..cache import cache_dir
     from ..sim import simulate as sim
 
     root = builtin_study_path(seed)
-    if (root / "manifest.csv").is_file() and (root / sim.COMPLETE_MARKER).is_file():
+    if sim.is_complete_simulation(root):
         return root
-    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 1 GB each).
+    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 0.4 GB each).
     for stale in cache_dir().glob(f"simulated-study-seed{seed}-*"):
         if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
             shutil.rmtree(stale, ignore_errors=True)
+    for partial in cache_dir().glob(f".simulated-study-seed{seed}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
+        atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
     print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
           "later runs reuse it", file=sys.stderr, flush=True)
     sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)

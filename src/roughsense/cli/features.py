@@ -57,6 +57,11 @@ def register(app: typer.Typer) -> None:
         window: Annotated[str, typer.Option("--window", help="Taper before the DFT: 'hann' (default) or 'none' (the paper's literal choice).")] = "hann",
         jobs: Annotated[int, typer.Option("--jobs", "-j", help="Decoding threads; -1 uses every core.")] = -1,
         force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
+        max_pixels: Annotated[
+            int | None,
+            typer.Option("--max-pixels", help="Refuse images whose header claims more pixels (width x height) than this, "
+                         "before decoding. Default: the study's [sensor] max_pixels, else 100000000.", show_default=False),
+        ] = None,
     ) -> None:
         """Turn contact images into normalised spatial spectra (the paper's section 3.2).
 
@@ -67,12 +72,14 @@ def register(app: typer.Typer) -> None:
         from ..atomic import check_can_write, write_csv
         from ..sensor import SpatialSpectrum
         from ..dataset import study_features
-        from ..study import DEFAULT_PX_PER_MM, read_study
+        from ..study import DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, check_max_pixels, read_study
 
         if study is not None and images:
             raise ConfigError("give either IMAGE... or --study DIR, not both")
         if study is None and not images:
             raise ConfigError("no images given; pass IMAGE... or --study DIR")
+        if max_pixels is not None:
+            check_max_pixels(max_pixels, option="--max-pixels")
         check_can_write(out, force=force)
         f_min, f_max = _band(band)
 
@@ -80,6 +87,7 @@ def register(app: typer.Typer) -> None:
         if loaded is not None:
             px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
             roi = loaded.sensor.roi if roi is None else roi
+            max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
         spectrum = SpatialSpectrum(
             px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
             roi="center" if roi is None else roi,
@@ -89,6 +97,7 @@ def register(app: typer.Typer) -> None:
             n_freqs=n_freqs,
             n_jobs=jobs,
             window=window,
+            max_pixels=DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels,
         ).fit()
         if loaded is not None:
             paths = loaded.image_paths

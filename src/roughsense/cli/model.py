@@ -7,7 +7,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
-from ._common import progress
+from ._common import check_seed, progress
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -101,6 +101,7 @@ def register(app: typer.Typer) -> None:
         if rule not in ("min", "1se"):
             raise ConfigError(f"--rule must be min or 1se, got {rule!r}")
         scheme = _parse_cv(cv)
+        check_seed(seed)
         if max_components is not None and max_components < 1:
             raise ConfigError(f"--max-components must be at least 1, got {max_components}")
         check_can_write(out, force=force)
@@ -173,18 +174,23 @@ def register(app: typer.Typer) -> None:
         )
         typer.echo(f"wrote {out}")
 
-    @app.command("predict")
+    @app.command("predict", context_settings={"ignore_unknown_options": True})
     def predict(
         model: Annotated[Path, typer.Argument(metavar="MODEL.json", help="A model file written by `roughsense fit`.")],
         images: Annotated[
-            list[Path] | None,
+            list[str] | None,
             typer.Argument(
-                metavar="IMAGE...",
-                help="Contact images. A combined-force model takes them in groups of three: 1N, 2N, 3N (one trial per group).",
+                metavar="[IMAGE...] [--images-1n IMAGE... --images-2n IMAGE... --images-3n IMAGE...]",
+                help="Contact images. A single-force model scores each image. A combined model needs each image's "
+                     "force: give one --images-XN flag per force of the model, each followed by its images; the i-th "
+                     "image of each flag form one trial (or use --study).",
                 show_default=False,
             ),
         ] = None,
-        out: Annotated[Path | None, typer.Option("--out", "-o", help="CSV to write (one row per image or trial, column roughness). Default: print a table.")] = None,
+        study: Annotated[str | None, typer.Option("--study", metavar=STUDY_METAVAR, help="Score a study's images, grouped into trials by its manifest (the model's pad and forces); builtin: the simulated paper study of --seed.")] = None,
+        seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
+        specimens: Annotated[list[str] | None, typer.Option("--specimen", help="With --study: only this specimen (repeat for more).")] = None,
+        out: Annotated[Path | None, typer.Option("--out", "-o", help="CSV to write (one row per trial: images, pad, condition, roughness). Default: print a table.")] = None,
         jobs: Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")] = 1,
         force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
         source: Annotated[str | None, typer.Option("--source", help="With --live: a camera index, video file or image-sequence pattern (anything OpenCV's VideoCapture opens).")] = None,
@@ -194,38 +200,103 @@ def register(app: typer.Typer) -> None:
         """Predict perceived roughness from contact images with a fitted model.
 
         Features are recomputed with the model's own definition (camera scale, ROI, band, frequencies).
-        With --live --source SRC, a single-force model scores camera frames continuously.
+        A combined model scores trials: group their images with --study DIR [--specimen S] (from the manifest) or
+        with --images-1n ... --images-2n ... --images-3n ...; an image whose name says another force than its
+        slot (e.g. _1N_ in the 2N slot) is refused. With --live --source SRC, a single-force model scores camera
+        frames continuously.
         """
-        import pandas as pd
-
         from ..atomic import check_can_write, write_csv
         from ..modelfile import load_model
-        from ..scoring import group_images, score_images
+        from ..scoring import model_condition, model_pad, score_images
 
+        positional, by_condition = _split_image_flags(images or [])
+        given = [name for name, used in (("IMAGE...", positional), ("--images-XN", by_condition),
+                                         ("--study", study is not None)) if used]
         if live or source is not None:
             if not (live and source is not None):
                 raise ConfigError("live scoring needs both --live and --source SRC")
-            if images:
-                raise ConfigError("give either IMAGE... or --live --source SRC, not both")
+            if given:
+                raise ConfigError(f"give either {given[0]} or --live --source SRC, not both")
             _predict_live(load_model(model), source, max_frames)
             return
-        if not images:
-            raise ConfigError("no images given: pass IMAGE... (or --live --source SRC)")
+        if not given:
+            raise ConfigError("no images given: pass IMAGE..., --images-1n ... (one flag per force) or --study DIR "
+                              "(or --live --source SRC)")
+        if len(given) > 1:
+            raise ConfigError(f"give images one way: {given[0]} or {given[1]}, not both")
+        if specimens and study is None:
+            raise ConfigError("--specimen selects from a study: add --study DIR")
         if out is not None:
             check_can_write(out, force=force)
         loaded = load_model(model)
-        trials = group_images(loaded, images)
-        roughness = score_images(loaded, images, n_jobs=jobs, progress=progress)
+        if study is not None:
+            study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
+        trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
+        roughness = score_images(loaded, [image for trial in trials for image in trial], n_jobs=jobs,
+                                 progress=progress)
         if len(loaded.conditions) == 1:
-            table = pd.DataFrame({"image": [str(t[0]) for t in trials]})
+            table["image"] = [str(t[0]) for t in trials]
         else:
-            table = pd.DataFrame({f"image_{c}": [str(t[i]) for t in trials] for i, c in enumerate(loaded.conditions)})
+            for i, condition in enumerate(loaded.conditions):
+                table[f"image_{condition}"] = [str(t[i]) for t in trials]
+        table["pad"] = model_pad(loaded)
+        table["condition"] = model_condition(loaded)
         table["roughness"] = roughness
         if out is None:
             typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
         else:
             write_csv(out, table, float_format="%.17g")
             typer.echo(f"wrote {len(table)} prediction(s) to {out}")
+
+
+_IMAGE_FLAG = "--images-"
+
+
+def _split_image_flags(tokens: list[str]) -> tuple[list[Path], dict[str, list[Path]]]:
+    """Bare images, and the images after each ``--images-XN`` flag (up to the next flag), by condition "XN".
+
+    Click cannot give an option several values, so the command takes every token as an argument and splits here;
+    any other unknown ``--option`` is refused rather than taken for a file.
+    """
+    positional: list[Path] = []
+    by_condition: dict[str, list[Path]] = {}
+    current: list[Path] | None = None
+    for token in tokens:
+        if token.startswith(_IMAGE_FLAG):
+            label, _, first = token[len(_IMAGE_FLAG):].partition("=")
+            condition = label.upper()
+            try:
+                valid = condition.endswith("N") and float(condition[:-1]) > 0
+            except ValueError:
+                valid = False
+            if not valid:
+                raise ConfigError(f"{token.partition('=')[0]}: expected a force like --images-1n or --images-2.5n")
+            condition = f"{float(condition[:-1]):g}N"
+            current = by_condition.setdefault(condition, [])
+            if first:
+                current.append(Path(first))
+        elif token.startswith("-") and len(token) > 1 and not Path(token).exists():
+            raise ConfigError(f"no such option: {token}")
+        elif current is not None:
+            current.append(Path(token))
+        else:
+            positional.append(Path(token))
+    return positional, by_condition
+
+
+def _trials(loaded, positional, by_condition, study, specimens):
+    """The model's trials (tuples of images in its condition order) and the table's leading columns."""
+    import pandas as pd
+
+    from ..scoring import groups_from_flags, groups_from_images, groups_from_study
+
+    if study is not None:
+        from ..study import read_study
+
+        groups, meta = groups_from_study(loaded, read_study(study), specimens)
+        return groups, meta
+    groups = groups_from_flags(loaded, by_condition) if by_condition else groups_from_images(loaded, positional)
+    return groups, pd.DataFrame(index=range(len(groups)))
 
 
 def _predict_live(loaded, source: str, max_frames: int | None) -> None:

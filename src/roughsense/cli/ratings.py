@@ -8,23 +8,23 @@ from typing import Annotated
 
 import typer
 
-from ..errors import ConfigError, RoughsenseWarning
-from ._common import parse_name_list
+from ..errors import ConfigError, RoughsenseWarning, one_line
+from ._common import check_seed, parse_name_list
 
 ORDER = 30
 
 
 def _specimen_names(value: str) -> list[str]:
     """A comma list, or a study's specimens.csv (its ``specimen`` column, in file order)."""
+    from ..study import check_name, read_specimens
+
     path = Path(value)
     if value.lower().endswith(".csv") or path.is_file():
-        from ..study import read_specimens
-
         return list(read_specimens(path)["specimen"])
     names = parse_name_list(value)
     if not names:
         raise ConfigError("--specimens: no names given")
-    return names
+    return [check_name(name, what="--specimens: specimen") for name in names]
 
 
 def _print_summary(summary, reference: str) -> None:
@@ -76,8 +76,10 @@ def register(app: typer.Typer) -> None:
         """
         from ..atomic import check_can_write, write_csv
         from ..perception import aggregate_ratings, read_ratings
+        from ..study import check_name
 
         check_can_write(out, force=force)
+        check_name(reference, what="--reference")
         names = _specimen_names(specimens) if specimens is not None else None
         frame = read_ratings(ratings_file, specimens=names, reference=reference)
         with warnings.catch_warnings(record=True) as caught:
@@ -85,7 +87,7 @@ def register(app: typer.Typer) -> None:
             summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
         for item in caught:
             if issubclass(item.category, RoughsenseWarning):
-                print(f"roughsense: warning: {item.message}", file=sys.stderr)
+                print(f"roughsense: warning: {one_line(item.message)}", file=sys.stderr)
             else:
                 warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
         write_csv(out, summary)
@@ -117,7 +119,10 @@ def register(app: typer.Typer) -> None:
 
         from ..atomic import check_can_write, write_csv, write_text
         from ..perception import PAPER_SPECIMENS, make_schedule, render_sheet
+        from ..study import check_name
 
+        check_seed(seed)
+        check_name(reference, what="--reference")
         fmt = None
         if sheet is not None:
             suffix = sheet.suffix.lower()

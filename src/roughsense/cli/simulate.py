@@ -15,7 +15,7 @@ ORDER = 40
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate(
-        out: Path = typer.Option(..., "--out", help="Study folder to write (must be empty or new, unless --force)."),
+        out: Path = typer.Option(..., "--out", help="Study folder to write (must be new, empty or an interrupted simulation, unless --force)."),
         seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
         pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
         specimens: str = typer.Option(
@@ -27,8 +27,14 @@ def register(app: typer.Typer) -> None:
         repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
         fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
         ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
+        ratings_from: str = typer.Option(
+            "paper", "--ratings-from",
+            help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
+                 "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
+        ),
+        stored_height_px: int = typer.Option(320, "--stored-height-px", help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the paper's centred crop is unchanged); 0 stores whole frames."),
         jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
-        force: bool = typer.Option(False, "--force", help="Write over an earlier simulated study, replacing files of the same name (nothing is deleted; a folder that is not a simulated study is refused)."),
+        force: bool = typer.Option(False, "--force", help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; files you added to it are kept; a folder that is not a simulated study is refused). An interrupted simulation is replaced without it."),
     ) -> None:
         """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
 
@@ -45,8 +51,11 @@ def register(app: typer.Typer) -> None:
 
         Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
         """
+        from dataclasses import replace
+
         from ..errors import ConfigError
         from ..sim import SimulationConfig, SimulationRun
+        from ..sim.optics import Camera
 
         if jobs is not None and jobs < 1:
             raise ConfigError(f"--jobs must be at least 1, got {jobs}")
@@ -58,6 +67,8 @@ def register(app: typer.Typer) -> None:
             seed=seed,
             fingerprint_period_mm=fingerprint_period_mm,
             ridge_height_mm=ridge_height_mm,
+            ratings_from=ratings_from.strip().lower(),
+            camera=replace(Camera(), stored_height_px=stored_height_px),
         )
         run = SimulationRun(out, config, force=force, jobs=jobs)
         for _ in progress(run, total=run.total, description="simulating"):

@@ -13,6 +13,14 @@ ORDER = 5
 DEFAULT_SEED = 0
 
 
+def _source_label(simulation: dict | None, *, builtin: bool) -> str:
+    """"simulated" whenever study.toml has a [simulation] table, with its seed; "user data" otherwise."""
+    if simulation is None:
+        return "user data (no [simulation] table in study.toml)"
+    where = "built-in simulated study (digital twin)" if builtin else "simulated study (digital twin)"
+    return f"simulated: {where}, simulation seed {simulation.get('seed', 'not recorded')}"
+
+
 def register(app: typer.Typer) -> None:
     @app.command("study")
     def study_command(
@@ -25,7 +33,10 @@ def register(app: typer.Typer) -> None:
         max_components: int = typer.Option(20, "--max-components", min=1, help="Largest number of PLS components tried by CV."),
         no_loso: bool = typer.Option(False, "--no-loso", help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
         jobs: int = typer.Option(2, "--jobs", min=1, help="Worker threads/processes for image decoding and simulation."),
-        force: bool = typer.Option(False, "--force", help="Replace the report files in an existing, non-empty --out folder."),
+        force: bool = typer.Option(False, "--force", help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
+        permutations: int = typer.Option(199, "--permutations", min=0,
+                                         help="Specimen-level shufflings per model for the permutation control "
+                                         "(0: skip it; at least 199 for p-values to 0.005)."),
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
@@ -34,47 +45,66 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
-        import warnings
-
-        from .. import cache, dataset
-        from ..errors import RoughsenseWarning
-        from ..evaluation import CV_SCHEMES, analyse_study
-        from ..report import write_report
-        from ..report.html import check_report_dir
-        from ..study import read_study
+        from ..report import open_report_dir
 
         started = time.perf_counter()
-        check_report_dir(out, force)  # fail before minutes of work, not after
-        builtin = data is None or is_builtin(data)
-        root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
-        study = read_study(root, require_ratings=True)
-        definition = dataset.spectrum_for(study).feature_definition()
-        features, was_cached = cache.cached_frame(
-            cache.features_key(study, definition),
-            lambda: dataset.study_features(study, n_jobs=jobs, progress=progress),
-        )
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", RoughsenseWarning)
-            analysis = analyse_study(
-                study, features=features, max_components=max_components,
-                cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
-            )
-        for warning in caught:  # shown once on the terminal, and kept in the report
-            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
-        meta = {
-            "study folder": str(Path(root).resolve()),
-            "source": "built-in simulated study (digital twin), seed %d" % seed if builtin else "user data",
-            "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
-            "features": "from cache" if was_cached else "extracted",
-        }
-        if caught:
-            meta["warnings"] = "; ".join(str(w.message) for w in caught)
-        with stage("writing the report"):
-            index = write_report(analysis, out, meta=meta, force=force)
-        loo = analysis.results("loo")
-        for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
-            typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
-                       f"{analysis.fit(pad, condition, 'loo').best_n_components} components (LOO)")
+        # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
+        # occupied --out before minutes of work, not after.
+        staging = open_report_dir(out, force)
+        try:
+            index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
+                                            no_loso=no_loso, jobs=jobs, permutations=permutations)
+        except BaseException:
+            staging.abort()
+            raise
         where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
+
+
+def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
+             jobs: int, permutations: int) -> tuple[Path, Path, bool]:
+    """The analysis of a study (``--data`` or the built-in one), written through ``staging``.
+
+    Returns index.html, the study folder and whether it is the built-in study.
+    """
+    import warnings
+
+    from .. import cache, dataset
+    from ..errors import RoughsenseWarning
+    from ..evaluation import CV_SCHEMES, analyse_study
+    from ..report import write_report
+    from ..study import read_study
+
+    builtin = data is None or is_builtin(data)
+    root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
+    study = read_study(root, require_ratings=True)
+    definition = dataset.spectrum_for(study).feature_definition()
+    features, was_cached = cache.cached_frame(
+        cache.features_key(study, definition),
+        lambda: dataset.study_features(study, n_jobs=jobs, progress=progress),
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RoughsenseWarning)
+        analysis = analyse_study(
+            study, features=features, max_components=max_components,
+            cv_schemes=("loo",) if no_loso else CV_SCHEMES, progress=progress,
+            n_permutations=permutations, seed=seed, n_jobs=jobs,
+        )
+    for warning in caught:  # shown once on the terminal, and kept in the report
+        warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+    meta = {
+        "study folder": str(Path(root).resolve()),
+        "source": _source_label(study.simulation, builtin=builtin),
+        "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
+        "features": "from cache" if was_cached else "extracted",
+    }
+    if caught:
+        meta["warnings"] = "; ".join(str(w.message) for w in caught)
+    with stage("writing the report"):
+        index = write_report(analysis, out, meta=meta, staging=staging)
+    loo = analysis.results("loo")
+    for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
+        typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
+                   f"{analysis.fit(pad, condition, 'loo').best_n_components} components (LOO)")
+    return index, root, builtin

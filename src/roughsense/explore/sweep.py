@@ -167,7 +167,7 @@ def _check_value(path: Path, key: str, value, where: str):
         if len(rated) < 4:
             raise _error(path, f"{where}: give at least 4 specimens besides the reference R3 (leave-one-specimen-out "
                                "needs 3 to choose the components of each held-out one)")
-        return tuple(names)
+        return tuple(text.strip() for text in value)  # the specs as written: the simulator parses them again
     if key == "repetitions":
         return _whole(path, where, value, 2)
     if key == "ratings_from":

@@ -26,6 +26,13 @@ def png_bytes(figure, *, dpi: int = 110) -> bytes:
     return buffer.getvalue()
 
 
+def mark_simulated(figure, text: str = "SIMULATED DATA"):
+    """Stamp a figure in its corner, so a copied PNG of a simulated study never passes for real data."""
+    figure.text(0.003, 0.003, text, ha="left", va="bottom", fontsize=9, fontweight="bold", color="#b00020",
+                bbox={"boxstyle": "round,pad=0.25", "fc": "white", "ec": "#b00020", "alpha": 0.9})
+    return figure
+
+
 def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:
     def key(name: str):
         shape = shapes.get(name, "other")
@@ -110,8 +117,12 @@ def cv_curves_figure(cv_table: pd.DataFrame, chosen: pd.DataFrame):
     return fig
 
 
-def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shapes: dict[str, str]):
-    """Fig. 9: OVL per specimen (top) and SD of perception vs predictions (bottom), per shape."""
+def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shapes: dict[str, str], *,
+                  paper: bool = True):
+    """Fig. 9: OVL per specimen (top) and SD of perception vs predictions (bottom), per shape.
+
+    ``paper=False`` leaves the paper's values out (a study whose design is not the paper's, or LOSO results).
+    """
     data = results[results["pad"] == pad]
     shape_list = [s for s in SHAPE_ORDER if s in set(shapes.get(sp, "other") for sp in data["specimen"])]
     conditions = list(dict.fromkeys(data["condition"]))
@@ -125,9 +136,9 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
             axes[0, col].plot(x, rows["ovl"], marker=marker, lw=1, label=condition)
             axes[1, col].plot(x, rows["pred_sd"], marker=marker, lw=1, label=f"prediction {condition}")
         axes[1, col].plot(x, human_sd.reindex(names), "k-", marker="*", lw=2, label="participants")
-        paper = _paper_rows(pad, "combined").reindex(names)
-        if paper["ovl"].notna().any():
-            axes[0, col].plot(x, paper["ovl"], ":", color="0.45", marker=".", lw=1.5, label="paper, combined")
+        published = _paper_rows(pad, "combined").reindex(names)
+        if paper and published["ovl"].notna().any():
+            axes[0, col].plot(x, published["ovl"], ":", color="0.45", marker=".", lw=1.5, label="paper, combined")
         for row, label in ((0, "OVL"), (1, "SD")):
             axes[row, col].set_xticks(x, names)
             axes[row, col].set_ylabel(label)
@@ -140,8 +151,15 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
     return fig
 
 
-def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame, cv: str):
-    """Predicted mean ± SD against perceived roughness, with the identity line."""
+def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame, cv: str, *, paper=True):
+    """Predicted mean ± SD against perceived roughness, with the identity line.
+
+    The paper's (LOO) predictions are drawn only beside LOO results, and only for the pads ``paper`` allows
+    (True: all; False: none; or a collection of pad names).
+    """
+    def allowed(pad: str) -> bool:
+        return cv == "loo" and (paper is True or (paper is not False and pad in paper))
+
     pads = list(dict.fromkeys(results["pad"]))
     conditions = list(dict.fromkeys(results["condition"]))
     fig, axes = plt.subplots(1, len(pads), figsize=(5.0 * len(pads), 4.6), squeeze=False, sharey=True)
@@ -153,9 +171,9 @@ def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame
             rows = results[(results.pad == pad) & (results.condition == condition)]
             x = truth.reindex(rows["specimen"]).to_numpy() + offset
             ax.errorbar(x, rows["pred_mean"], yerr=rows["pred_sd"], fmt=marker, ms=4, capsize=2, lw=0.8, label=condition)
-        paper = _paper_rows(pad, "combined")
-        if len(paper):
-            ax.plot(_paper_perceived().reindex(paper.index), paper["pred_mean"], "x", color="0.45", ms=5,
+        published = _paper_rows(pad, "combined") if allowed(pad) else pd.DataFrame()
+        if len(published):
+            ax.plot(_paper_perceived().reindex(published.index), published["pred_mean"], "x", color="0.45", ms=5,
                     label="paper, combined")
         ax.set_xlim(0, top)
         ax.set_ylim(0, top)

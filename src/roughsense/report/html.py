@@ -1,14 +1,16 @@
 """Write a study analysis as a report folder: a self-contained index.html, CSV tables and PNG figures.
 
-Everything is rendered in memory first and only then written, file by file and atomically, so a
-failure in the analysis or a figure leaves no half-written report. index.html embeds its figures
-as data URIs so it opens offline and can be mailed as one file.
+Everything is rendered in memory, written into a folder beside ``--out`` and swapped in whole
+(:class:`roughsense.atomic.FolderSwap`), so a failure or a kill never leaves a half-written report, and a
+report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
+URIs so it opens offline and can be mailed as one file.
 """
 from __future__ import annotations
 
 import base64
 import datetime as _dt
 import os
+import re
 from pathlib import Path
 
 import jinja2
@@ -16,6 +18,7 @@ import pandas as pd
 
 from .. import __version__, atomic, reference
 from ..errors import OutputExistsError
+from ..study import check_name
 from . import figures, tables
 
 def _environment() -> jinja2.Environment:
@@ -28,15 +31,73 @@ def _environment() -> jinja2.Environment:
     )
 
 
+REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
+                 "components.csv")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+)\.png$")
+
+
+def report_owned(rel: Path) -> bool:
+    """Is this entry of a report folder one the report writes? (Everything else is a user's and is kept.)"""
+    return len(rel.parts) == 1 and (rel.name in REPORT_TABLES or bool(_REPORT_FIGURE.match(rel.name)))
+
+
 def check_report_dir(out_dir: Path, force: bool) -> None:
+    """A non-empty folder needs ``force``, unless it holds only an unfinished report of roughsense's own."""
+    out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputExistsError("exists and is not a folder", path=out_dir)
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
+    if not out_dir.is_dir() or force:
+        return
+    entries = [p for p in out_dir.iterdir() if not atomic.is_temporary(p)]
+    unfinished = not (out_dir / "index.html").exists() and all(report_owned(Path(p.name)) for p in entries)
+    if entries and not unfinished:
         raise OutputExistsError("report folder exists and is not empty; pass --force to replace the report in it", path=out_dir)
+
+
+def open_report_dir(out_dir: str | os.PathLike[str], force: bool) -> atomic.FolderSwap:
+    """Check ``out_dir`` and create its staging folder: an unwritable place fails here, before any analysis."""
+    atomic.clean_leftovers(out_dir)  # first: a killed swap's old folder may have to come back
+    check_report_dir(Path(out_dir), force)
+    return atomic.FolderSwap(out_dir, owned=report_owned)
 
 
 def _csv_bytes(frame: pd.DataFrame) -> bytes:
     return frame.to_csv(index=False, lineterminator="\n", float_format="%.6g").encode("utf-8")
+
+
+def plain_words(analysis) -> list[str]:
+    """The report's opening paragraphs: what is a property of the simulator, what is a finding, what failed."""
+    lines = []
+    if analysis.simulation is not None:
+        lines.append(
+            "This study is SIMULATED (study.toml has a [simulation] table; seed "
+            f"{analysis.simulation.get('seed', 'not recorded')}). Properties of the simulator, not findings: by default "
+            "the simulated ratings of the paper's specimens are drawn from the paper's Table 1, so perceived roughness, "
+            "its spread and every claim about the ratings agree with the paper because they were put in; and the "
+            "simulator's noise was tuned so that leave-one-out errors land in the paper's range, so LOO RMSE and OVL "
+            "close to the paper's confirm the tuning, not the method.")
+        lines.append(
+            "Findings (about the digital twin, not about real skin or a real rig): whether the spectra predict roughness "
+            "for a specimen the model never saw (LOSO), whether models beat specimen-shuffled targets and the training "
+            "mean (Controls), and which of the paper's claims hold under those checks (Claims).")
+    else:
+        lines.append("This study is user data (study.toml has no [simulation] table): every result below is a finding "
+                     "about these images and ratings.")
+    if not analysis.controls.empty:
+        failing = analysis.controls[~analysis.controls["passes"].astype(bool)]
+        if len(failing):
+            items = ", ".join(f"{r.pad} {r.condition} ({str(r.cv).upper()})" for r in failing.itertuples())
+            lines.append(f"{len(failing)} of {len(analysis.controls)} models fail their controls (no better than "
+                         f"specimen-shuffled targets and/or the training mean): {items}. A LOO model that fails is "
+                         "recognising specimens rather than reading roughness; a LOSO model that fails does not "
+                         "generalise to unseen specimens. Their RMSE and OVL are no evidence for the method.")
+        else:
+            lines.append("Every model beats both its controls (specimen-shuffled targets and the training mean).")
+    if not analysis.claims.empty:
+        counts = analysis.claims["verdict"].value_counts()
+        lines.append(", ".join(f"{int(counts.get(v, 0))} {v}" for v in ("reproduced", "not reproduced", "not testable"))
+                     + " of the paper's claims, by pad and CV scheme (Claims below).")
+    return lines
 
 
 def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
@@ -55,11 +116,20 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     files["predictions.csv"] = _csv_bytes(analysis.predictions())
     chosen = analysis.chosen_components()
     files["components.csv"] = _csv_bytes(chosen)
+    files["controls.csv"] = _csv_bytes(analysis.controls)
+    files["claims.csv"] = _csv_bytes(analysis.claims)
+    files["paper_predictive.csv"] = _csv_bytes(analysis.paper_predictive)
+    paper_pads = tuple(analysis.paper_pads)
+    simulated = analysis.simulation is not None
 
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
     figure_list = []
 
     def add_figure(name: str, fig, caption: str) -> None:
+        check_name(name, what="report file name")  # built from pad names: the study contract's name rule
+        if simulated:
+            figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
+            caption = "Simulated data. " + caption
         files[name] = figures.png_bytes(fig)
         figure_list.append({"name": name, "caption": caption,
                             "data": base64.b64encode(files[name]).decode("ascii")})
@@ -72,24 +142,32 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
                "Cross-validated RMSE against the number of PLS components, LOO (top) and LOSO (bottom); red circles mark "
                "the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the training mean.")
     for pad in analysis.pads:
-        add_figure(f"ovl_sd_{pad}.png", figures.ovl_sd_figure(results["loo"], analysis.perceived, pad, analysis.shapes),
+        add_figure(f"ovl_sd_{pad}.png", figures.ovl_sd_figure(results["loo"], analysis.perceived, pad, analysis.shapes,
+                                                             paper=pad in paper_pads),
                    f"OVL per specimen and SD of participants vs predictions, {pad} pad, LOO (cf. Fig. 9).")
     for cv in cv_schemes:
         add_figure(f"predicted_vs_perceived_{cv}.png",
-                   figures.predicted_vs_perceived_figure(results[cv], analysis.perceived, cv),
+                   figures.predicted_vs_perceived_figure(results[cv], analysis.perceived, cv, paper=paper_pads),
                    f"Predicted (mean ± SD over repetitions) against perceived roughness, {cv.upper()}; grey: identity.")
 
     sections = []
     for cv in cv_schemes:
-        summaries = {column: analysis.summary(cv, column) for column in ("ovl", "rmse")}
+        summaries = {column: analysis.summary(cv, column) for column in ("ovl", "rmse", "ovl_predictive")}
         pads = []
         for pad in analysis.pads:
+            flags = tables.control_flags(analysis.controls, pad, cv)
+            with_paper = pad in paper_pads
             pads.append({
                 "pad": pad,
                 "tables": [
-                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv),
-                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl", cv),
-                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse", cv),
+                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv,
+                                            paper_values=with_paper, flags=flags),
+                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl", cv,
+                                        paper_values=with_paper, flags=flags),
+                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse", cv,
+                                        paper_values=with_paper, flags=flags),
+                    tables.metric_table(results[cv], summaries["ovl_predictive"], pad, specimens, "ovl_predictive",
+                                        cv, paper_values=with_paper, flags=flags),
                 ],
             })
         sections.append({"cv": cv, "pads": pads})
@@ -102,11 +180,17 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         generated=meta.pop("generated", _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")),
         meta=meta,
         citation=reference.PAPER_CITATION,
-        headline=tables.headline_table(analysis),
+        headline=tables.headline_table(analysis, paper_pads),
         components=tables.components_table(
-            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}
+            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}, paper_pads
         ),
-        tests=tables.tests_table(analysis.tests),
+        tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(reference.PAPER_PADS)),
+        claims=tables.claims_table(analysis.claims, paper_pads),
+        controls=tables.controls_report_table(analysis.controls),
+        paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
+        simulation=analysis.simulation,
+        paper_note=analysis.paper_note,
+        findings=plain_words(analysis),
         sections=sections,
         figures=figure_list,
         max_components=analysis.max_components,
@@ -116,12 +200,16 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     return files
 
 
-def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False) -> Path:
-    out_dir = Path(out_dir)
-    check_report_dir(out_dir, force)
-    files = render_report(analysis, meta=meta)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    # index.html last: its presence means the rest of the report is complete.
-    for name in sorted(files, key=lambda n: n == "index.html"):
-        atomic.write_bytes(out_dir / name, files[name])
-    return out_dir / "index.html"
+def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
+                 staging: atomic.FolderSwap | None = None) -> Path:
+    """Write the report folder whole; ``staging`` is the one :func:`open_report_dir` made before the analysis."""
+    swap = staging if staging is not None else open_report_dir(out_dir, force)
+    try:
+        files = render_report(analysis, meta=meta)
+        for name, data in files.items():
+            atomic.write_bytes(swap.path / name, data)
+    except BaseException:
+        swap.abort()
+        raise
+    swap.commit()
+    return Path(out_dir) / "index.html"

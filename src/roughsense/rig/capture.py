@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import fcntl
 import math
-import re
 import sys
-import tomllib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -34,8 +32,6 @@ from .scale import ForceInput
 RIG_COLUMNS = ("image", "specimen", "pad", "force_n", "nominal_force_n", "repetition", "timestamp")
 LOCK_FILE = ".capture.lock"
 
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
-
 
 @dataclass
 class CaptureResult:
@@ -47,13 +43,15 @@ class CaptureResult:
 
 
 def check_name(value: str, option: str) -> str:
-    """Specimen and pad names go into file names: letters, digits, '.', '_' and '-' only."""
-    if not _NAME.match(value or ""):
-        raise ConfigError(f"--{option} {value!r}: use letters, digits, '.', '_' or '-' (it becomes part of file names)")
+    """Specimen and pad names go into file names: the study contract's one name rule (:func:`study.check_name`)."""
+    if not st.is_safe_name(value):
+        raise ConfigError(f"--{option} {value!r}: use {st.NAME_RULE} (it becomes part of file names)")
     return value
 
 
 def image_name(specimen: str, pad: str, repetition: int, nominal_force_n: float, attempt: int = 1) -> str:
+    st.check_name(specimen, what="specimen")
+    st.check_name(pad, what="pad")
     base = f"{specimen}_{pad}_r{repetition:02d}_{st.nominal_force_label(nominal_force_n)}"
     return f"{base}.png" if attempt == 1 else f"{base}-{attempt}.png"
 
@@ -95,11 +93,8 @@ def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
         _check_forces(forces)
         return _Folder(root, True, forces, sensor, pd.DataFrame(columns=RIG_COLUMNS), None)
 
-    try:
-        config = tomllib.loads(toml_path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"is not valid TOML ({exc})", path=toml_path) from None
-    stored_forces = tuple(float(f) for f in config.get("protocol", {}).get("forces_n", st.DEFAULT_FORCES_N))
+    config = st.read_config(toml_path)
+    stored_forces = st.parse_forces(config.get("protocol", {}).get("forces_n", list(st.DEFAULT_FORCES_N)), path=toml_path)
     sensor = st._sensor_from_config(config, toml_path)
     if forces_n is not None and tuple(sorted(map(float, forces_n))) != tuple(sorted(stored_forces)):
         raise ConfigError(
@@ -137,8 +132,10 @@ def _is_blank(root: Path) -> bool:
 
 
 def _check_forces(forces: Sequence[float]) -> None:
-    if not forces or any(not math.isfinite(f) or f <= 0 for f in forces) or len(set(forces)) != len(forces):
+    if not forces or len(set(forces)) != len(forces):
         raise ConfigError(f"protocol forces must be distinct positive numbers, got {list(forces)}")
+    for f in forces:
+        st.check_force(f, option="each protocol force")
 
 
 def _read_specimens_loose(path: Path) -> pd.DataFrame:
@@ -231,8 +228,7 @@ def capture_session(
     root = Path(root)
     check_name(specimen, "specimen")
     check_name(pad, "pad")
-    if repetitions < 1:
-        raise ConfigError(f"--repetitions must be at least 1, got {repetitions}")
+    st.check_repetitions(repetitions)
     if shape is not None and shape.lower() not in st.SHAPES:
         raise ConfigError(f"--shape {shape!r}: expected one of {', '.join(st.SHAPES)}")
     if wavelength_mm is not None and not (math.isfinite(wavelength_mm) and wavelength_mm > 0):

@@ -2,7 +2,7 @@
 
 The clean image is separable -- (vignetting x illumination)(x, y) times (background(y) + band(y) * line(x)) --
 so blur and shading are applied to 1D profiles and the frame is two outer products. Only the sensor noise is
-drawn per pixel. That keeps a 1920 x 1080 frame at a few tens of milliseconds.
+drawn per pixel, and only for the rows stored (a window of the sensor round the band): a frame costs milliseconds.
 """
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.special import log_ndtr, ndtr
 
 from ..errors import ConfigError
 
@@ -26,10 +27,17 @@ class Camera:
 
     width_px: int = WIDTH_PX
     height_px: int = HEIGHT_PX
+    # Rows kept per stored frame, centred on the sensor (0: all): the band (247 px) plus 3 SD of its placement on
+    # each side. A camera's sensor window (AOI) would write the same frame; the paper's centred 1900 x 150 crop of
+    # it is the crop of the full frame (docs/simulator.md, "Frames on disk").
+    stored_height_px: int = 320
     px_per_mm: float = PX_PER_MM
     contact_width_mm: float = 10.0  # the specimen's width, seen foreshortened at 45 degrees
     band_edge_px: float = 6.0  # softness of the band's upper and lower edges
-    gap_decay_mm: float = 0.02  # contrast ~ exp(-gap / delta): frustrated reflection fades within tens of um
+    wavelength_mm: float = 550e-6  # the light's (mid-visible) wavelength in vacuum
+    pad_index: float = 1.5  # refractive index of the PVC plastisol pad (air in the gap: 1.0)
+    incidence_deg: float = 45.0  # angle of the imaging rays on the contact face, inside the pad
+    micro_roughness_mm: float = 0.0005  # RMS of the local gap from the pad's and the sanded print's micro-roughness
     far_weight: float = 0.12  # faint view of the specimen through the pad where it does not touch
     far_decay_mm: float = 0.4
     blur_sigma_px: float = 1.5  # lens blur (Gaussian)
@@ -45,6 +53,33 @@ class Camera:
             raise ConfigError(f"image must be at least 16 x 16 px, got {self.width_px} x {self.height_px}")
         if not (math.isfinite(self.px_per_mm) and self.px_per_mm > 0):
             raise ConfigError(f"px_per_mm must be positive, got {self.px_per_mm!r}")
+        stored = self.stored_height_px
+        if not (isinstance(stored, (int, float)) and float(stored).is_integer() and (stored == 0 or stored >= 16)):
+            raise ConfigError(f"stored_height_px must be 0 (the whole frame) or at least 16, got {self.stored_height_px!r}")
+        if (self.height_px - self.frame_height_px) % 2:
+            raise ConfigError(f"stored_height_px {self.stored_height_px} and height_px {self.height_px} must differ by an "
+                              "even number of rows, so that the stored frame is centred on the sensor")
+        for name in ("wavelength_mm", "pad_index"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"camera {name} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.micro_roughness_mm) and self.micro_roughness_mm >= 0):
+            raise ConfigError(f"camera micro_roughness_mm must be >= 0, got {self.micro_roughness_mm!r}")
+        if not self.pad_index * math.sin(math.radians(self.incidence_deg)) > 1.0:
+            raise ConfigError(f"no total internal reflection at {self.incidence_deg:g} degrees in a pad of index "
+                              f"{self.pad_index:g}: n sin(theta) must exceed 1 (the air's index)")
+
+    @property
+    def frame_height_px(self) -> int:
+        """Rows of the stored frame: ``stored_height_px`` centred on the sensor, or all of them."""
+        if self.stored_height_px == 0 or self.stored_height_px >= self.height_px:
+            return int(self.height_px)
+        return int(self.stored_height_px)
+
+    @property
+    def frame_top_px(self) -> int:
+        """The sensor row the stored frame starts at."""
+        return int(self.height_px - self.frame_height_px) // 2
 
     @property
     def field_mm(self) -> float:
@@ -54,10 +89,40 @@ class Camera:
     def band_height_px(self) -> float:
         return self.contact_width_mm * math.cos(math.radians(VIEW_ANGLE_DEG)) * self.px_per_mm
 
+    @property
+    def evanescent_decay_mm(self) -> float:
+        """Intensity decay length of the evanescent field behind the pad's face, d = lambda / (4 pi kappa).
+
+        kappa = sqrt(n1^2 sin^2(theta) - n2^2) with n2 = 1 (air): the frustrated-reflection (and TIRF) result,
+        e.g. Axelrod 2001; 0.12 um for n1 = 1.5 at 45 degrees and 550 nm.
+        """
+        kappa = math.sqrt((self.pad_index * math.sin(math.radians(self.incidence_deg))) ** 2 - 1.0)
+        return self.wavelength_mm / (4.0 * math.pi * kappa)
+
+    def optical_contact(self, gap_mm: np.ndarray) -> np.ndarray:
+        """Fraction of the light coupled into the specimen at a mean-plane gap g, relative to g = 0.
+
+        The local gap is g + sigma * z, z ~ N(0, 1), clipped at 0 (the micro-asperities that reach the specimen are
+        in optical contact), and each local gap h couples exp(-h / d). Its mean over z is, in closed form,
+        Phi(-g/sigma) + exp(s^2 / 2 - g/d) Phi(g/sigma - s), s = sigma / d (evaluated in logs: s is about 4).
+        """
+        g = np.maximum(np.asarray(gap_mm, dtype=float), 0.0)
+        d, sigma = self.evanescent_decay_mm, self.micro_roughness_mm
+        if sigma <= 0:
+            return np.exp(-g / d)
+        s = sigma / d
+        coupled = ndtr(-g / sigma) + np.exp(0.5 * s * s - g / d + log_ndtr(g / sigma - s))
+        at_contact = 0.5 + math.exp(0.5 * s * s + float(log_ndtr(-s)))
+        return coupled / at_contact
+
     def contrast(self, gap_mm: np.ndarray) -> np.ndarray:
-        """Brightness (0..1) of a point of the line from its gap: 1 in contact, fading as the pad lifts off."""
+        """Brightness (0..1) of a point of the line from its gap: 1 in contact, fading as the pad lifts off.
+
+        Optical contact (frustrated reflection through a micro-rough interface, sigma ~0.5 um) plus a faint view of the
+        specimen through the pad that fades over ``far_decay_mm``; docs/simulator.md, Optics.
+        """
         g = np.asarray(gap_mm, dtype=float)
-        return (1.0 - self.far_weight) * np.exp(-g / self.gap_decay_mm) + self.far_weight * np.exp(-g / self.far_decay_mm)
+        return (1.0 - self.far_weight) * self.optical_contact(g) + self.far_weight * np.exp(-g / self.far_decay_mm)
 
 
 @dataclass(frozen=True)
@@ -74,15 +139,18 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
            rows: tuple[int, int] | None = None) -> np.ndarray:
     """Render an 8-bit gray frame from the line's brightness (0..1 per pixel column).
 
+    The frame holds the sensor rows ``camera.frame_top_px`` on (``camera.frame_height_px`` of them): shading and
+    band are those of the whole sensor, only the stored rows are drawn and noised. ``band_center_px`` is a sensor row.
     ``spots`` are dust specks, bubbles and smudges: (x_mm from the frame's left, y_mm from the band centre,
     size_mm, strength), each a Gaussian that darkens (strength > 0) or brightens the frame locally.
-    ``rows=(start, stop)`` returns only rows start..stop-1, bit-identical to those rows of the whole frame: the
-    noise of the rows above is still drawn (the generator fills row by row), nothing below is.
+    ``rows=(start, stop)`` returns only rows start..stop-1 of that frame, bit-identical to them: the noise of the
+    rows above is still drawn (the generator fills row by row), nothing below is (sweeps read one row per frame).
     """
     w, h = camera.width_px, camera.height_px
-    start, stop = (0, h) if rows is None else (int(rows[0]), int(rows[1]))
-    if not 0 <= start < stop <= h:
-        raise ValueError(f"rows must satisfy 0 <= start < stop <= {h}, got {rows}")
+    kept = camera.frame_height_px
+    start, stop = (0, kept) if rows is None else (int(rows[0]), int(rows[1]))
+    if not 0 <= start < stop <= kept:
+        raise ValueError(f"rows must satisfy 0 <= start < stop <= {kept}, got {rows}")
     line = np.asarray(line, dtype=float)
     if line.shape != (w,):
         raise ValueError(f"line must have {w} samples, got {line.shape}")
@@ -97,29 +165,49 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
         shade_x = shade_x * (1.0 + amplitude * np.sin(2.0 * math.pi * x_mm / wavelength_mm + phase))
     shade_y = np.exp(-k * y * y)
 
-    rows = np.arange(h) + 0.5
+    yc = np.arange(h) + 0.5  # row centres
     half = camera.band_height_px / 2.0
     edge = max(camera.band_edge_px, 1e-6)
-    band = 0.5 * (np.tanh((rows - band_center_px + half) / edge) - np.tanh((rows - band_center_px - half) / edge))
+    band = 0.5 * (np.tanh((yc - band_center_px + half) / edge) - np.tanh((yc - band_center_px - half) / edge))
     sigma = camera.blur_sigma_px
     if sigma > 0:
         line = gaussian_filter1d(line, sigma, mode="nearest")
         band = gaussian_filter1d(band, sigma, mode="nearest")
 
     band_x = (camera.band_floor_dn + (camera.contact_dn - camera.band_floor_dn) * line) * shade_x
-    col_bg = (camera.background_dn * shade_y).astype(np.float32)[start:stop]
-    col_band = (band * shade_y).astype(np.float32)[start:stop]
-    frame = np.outer(col_bg * (1.0 - band.astype(np.float32)[start:stop]), shade_x.astype(np.float32))
+    top = camera.frame_top_px
+    rows_kept = slice(top + start, top + stop)
+    band, shade_y = band[rows_kept], shade_y[rows_kept]
+    col_bg = (camera.background_dn * shade_y).astype(np.float32)
+    col_band = (band * shade_y).astype(np.float32)
+    frame = np.outer(col_bg * (1.0 - band.astype(np.float32)), shade_x.astype(np.float32))
     frame += np.outer(col_band, band_x.astype(np.float32))
     for x_mm0, y_mm0, size_mm, strength in spots:
-        _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px + y_mm0 * camera.px_per_mm,
+        _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px - top + y_mm0 * camera.px_per_mm,
                   size_mm * camera.px_per_mm, strength, first_row=start)
     # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
     noise = rng.standard_normal((stop, w), dtype=np.float32)[start:]
-    noise *= np.sqrt(np.float32(camera.read_noise_dn**2) + np.float32(camera.shot_noise_gain) * np.maximum(frame, 0))
+    sd = np.maximum(frame, np.float32(0.0))  # in place from here: the frame is the only large array per trial
+    sd *= np.float32(camera.shot_noise_gain)
+    sd += np.float32(camera.read_noise_dn**2)
+    np.sqrt(sd, out=sd)
+    noise *= sd
     frame += noise
     np.clip(frame, 0.0, 255.0, out=frame)
-    return np.rint(frame).astype(np.uint8)
+    np.rint(frame, out=frame)
+    return frame.astype(np.uint8)
+
+
+def apparent_contact_fraction(line: np.ndarray, camera: Camera) -> float:
+    """Fraction of pixel columns that look in contact: brighter, after the lens blur, than half-way from "nothing
+    touches" (the faint view of the specimen through the pad, ``far_weight``) to full contact.
+
+    What one reads off the band; compared with the solver's contact in tests and scripts/contact_agreement.py.
+    """
+    line = np.asarray(line, dtype=float)
+    if camera.blur_sigma_px > 0:
+        line = gaussian_filter1d(line, camera.blur_sigma_px, mode="nearest")
+    return float(np.mean(line > 0.5 * (1.0 + camera.far_weight)))
 
 
 def bin_to_pixels(values: np.ndarray, width_px: int) -> np.ndarray:

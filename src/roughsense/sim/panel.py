@@ -4,8 +4,12 @@ Model (log scale): rating = G_s * exp(mu_s + b_ps + e_psk), with a participant-b
 (people differ in how rough a given grating feels to them) and session noise e ~ N(0, v_e). Per specimen, the
 total log-variance v = v_b + v_e and the offset mu_s are calibrated so that the paper's aggregation (median over
 sessions, then geometric mean over participants) equals the paper's value G_s in expectation, and the expected SD
-across participants' medians equals the paper's SD. Specimens outside the paper use a power law of groove width
-fitted to the paper's values, and are labelled ``model``.
+across participants' medians equals the paper's SD (``ratings_source = paper``).
+
+Every other specimen -- and, with ``ratings_from="physics"``, every specimen -- is felt by the simulated finger
+(:mod:`roughsense.sim.perception`): participant i reports exp(a_i) * (S / S_R3) ** (b * exp(c_i)) * exp(e_ik), with
+scale a_i and exponent c_i (mean-one factor exp(c_i)) drawn once per person (so they are shared by all the
+specimens that person rates) and session noise e_ik per specimen (``ratings_source = physics``).
 """
 from __future__ import annotations
 
@@ -18,11 +22,13 @@ from importlib import resources
 import numpy as np
 import pandas as pd
 
-from .specimens import PRESETS, Specimen
+from ..errors import ConfigError
+from . import perception
+from .specimens import Specimen
 
 REFERENCE = "R3"
 SESSION_SHARE = 0.3  # share of the log-variance that is session-to-session (not participant) noise
-MODEL_CV = 0.25  # relative SD across participants for model-based specimens (median CV of the paper's values)
+RATINGS_FROM = ("paper", "physics")
 RATING_DECIMALS = 2
 _CALIBRATION_PANELS = 4000
 
@@ -35,39 +41,43 @@ def paper_perceived() -> pd.DataFrame:
     return frame.set_index("specimen")
 
 
-@lru_cache(maxsize=1)
-def power_law() -> dict[str, tuple[float, float]]:
-    """Perceived roughness = a * groove_width_mm ** b, fitted (least squares in logs) per profile family.
-
-    "sharp" is fitted on the rectangular gratings, "rounded" on the circular ones (used for sinusoidal and random).
-    """
-    paper = paper_perceived()
-    fits = {}
-    for family, shape in (("sharp", "rectangular"), ("rounded", "circular")):
-        rows = paper[paper["shape"] == shape]
-        width = np.array([PRESETS[s].groove_width_mm for s in rows.index])
-        b, log_a = np.polyfit(np.log(width), np.log(rows["perceived_gmean"].to_numpy(float)), 1)
-        fits[family] = (float(math.exp(log_a)), float(b))
-    return fits
-
-
 @dataclass(frozen=True)
 class Percept:
+    """Expected aggregated rating, its SD across participants, and where they come from ("paper" or "physics").
+
+    ``log_ratio`` is the finger's log(S / S_R3) for physics percepts (nan for the paper's values).
+    """
+
     gmean: float
     sd: float
-    source: str  # "paper" or "model"
+    source: str
+    log_ratio: float = float("nan")
 
 
-def percept(specimen: Specimen) -> Percept:
-    """Expected aggregated rating and its spread across participants for one specimen."""
-    paper = paper_perceived()
-    if specimen.preset and specimen.name in paper.index:
-        row = paper.loc[specimen.name]
-        sd = float(row["perceived_sd"]) if pd.notna(row["perceived_sd"]) else 0.0
-        return Percept(float(row["perceived_gmean"]), sd, "paper")
-    a, b = power_law()["sharp" if specimen.shape == "rectangular" else "rounded"]
-    gmean = a * specimen.groove_width_mm**b
-    return Percept(float(gmean), MODEL_CV * float(gmean), "model")
+def check_ratings_from(ratings_from: str) -> str:
+    if ratings_from not in RATINGS_FROM:
+        raise ConfigError(f"--ratings-from must be one of {', '.join(RATINGS_FROM)}, got {ratings_from!r}")
+    return ratings_from
+
+
+def percept(specimen: Specimen, *, ratings_from: str = "paper", sessions: int = 3) -> Percept:
+    """Expected aggregated rating and its spread across participants for one specimen.
+
+    ``ratings_from="paper"``: the paper's value for its rated presets, the finger model for anything else;
+    ``"physics"``: the finger model for every specimen.
+    """
+    check_ratings_from(ratings_from)
+    if ratings_from == "paper" and specimen.preset:
+        paper = paper_perceived()
+        if specimen.name in paper.index:
+            row = paper.loc[specimen.name]
+            sd = float(row["perceived_sd"]) if pd.notna(row["perceived_sd"]) else 0.0
+            return Percept(float(row["perceived_gmean"]), sd, "paper")
+    log_ratio = perception.log_ratio(specimen)
+    psych = perception.PSYCHOPHYSICS
+    gmean = math.exp(psych.exponent * log_ratio)
+    log_sd = psych.log_sd_of_medians(log_ratio, sessions)
+    return Percept(gmean, gmean * math.sqrt(math.expm1(log_sd**2)), "physics", log_ratio)
 
 
 def _standard_draws(participants: int, sessions: int) -> tuple[np.ndarray, np.ndarray]:
@@ -115,21 +125,48 @@ def _rng(seed: int, spawn_key: tuple[int, ...], *key: int) -> np.random.Generato
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(*spawn_key, *key)))
 
 
+def draw_people(seed: int, spawn_key: tuple[int, ...], participants: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each participant's log scale a_i and exponent factor exp(c_i) (the finger model's people).
+
+    c_i ~ N(-exponent_sd^2 / 2, exponent_sd^2), so the factor averages 1 and the panel's expected log aggregate is
+    the model's exponent times log(S / S_R3). Keyed by the seed alone (not by any specimen), so a person is the
+    same for every specimen they rate.
+    """
+    psych = perception.PSYCHOPHYSICS
+    z = _rng(seed, spawn_key, 3).standard_normal((participants, 2))
+    return psych.scale_sd * z[:, 0], np.exp(psych.exponent_sd * z[:, 1] - 0.5 * psych.exponent_sd**2)
+
+
 def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 10, sessions: int = 3,
-                   reference: str = REFERENCE, spawn_key: tuple[int, ...] = ()) -> pd.DataFrame:
+                   reference: str = REFERENCE, spawn_key: tuple[int, ...] = (),
+                   ratings_from: str = "paper") -> pd.DataFrame:
     """ratings.csv rows: every participant rates every specimen but the reference in each session.
 
-    Each specimen's ratings come from its own generator, keyed by ``seed``, ``spawn_key`` and the CRC32 of its name
-    (never Python's salted ``hash``), so they do not change when other specimens join the run; only the order of
-    presentation, which has no effect on the ratings, depends on the whole set.
+    ``ratings_from`` chooses the source per specimen as :func:`percept` does. Each specimen's draws come from its
+    own generator, keyed by ``seed``, ``spawn_key`` and the CRC32 of its name (never Python's salted ``hash``), so
+    they do not change when other specimens join the run; the finger model's people (scale and exponent) come
+    from one generator keyed by the seed. Only the order of presentation, which has no effect on the ratings,
+    depends on the whole set.
     """
+    check_ratings_from(ratings_from)
     rows = []
     rated = [s for s in specimens if s.name != reference]
     draws = {}
+    people = None
+    psych = perception.PSYCHOPHYSICS
     for specimen in rated:
-        p = percept(specimen)
+        p = percept(specimen, ratings_from=ratings_from, sessions=sessions)
         rng = _rng(seed, spawn_key, 1, zlib.crc32(specimen.name.encode("utf-8")))
-        draws[specimen.name] = draw_log_ratings(p.gmean, p.sd, rng, participants=participants, sessions=sessions)[0]
+        if p.source == "paper":
+            draws[specimen.name] = draw_log_ratings(p.gmean, p.sd, rng, participants=participants,
+                                                    sessions=sessions)[0]
+            continue
+        if people is None:
+            people = draw_people(seed, spawn_key, participants)
+        log_scale, exponent_factor = people
+        session = rng.normal(0.0, psych.session_sd, (participants, sessions))
+        log_rating = log_scale[:, None] + psych.exponent * exponent_factor[:, None] * p.log_ratio + session
+        draws[specimen.name] = np.exp(log_rating)
     order_rng = _rng(seed, spawn_key, 2)
     session_order = [order_rng.permutation(len(rated)) for _ in range(participants * sessions)]
     for i in range(participants):

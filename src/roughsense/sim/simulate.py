@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import re
 import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -21,20 +21,23 @@ import pandas as pd
 
 from .. import atomic
 from ..errors import ConfigError, OutputExistsError
-from ..study import IMAGES_DIR, STUDY_TOML, SensorSettings, StudyWriter
+from ..study import (COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, MAX_FORCE_N, MAX_REPETITION, RATINGS_CSV,
+                     SPECIMENS_CSV, STUDY_TOML, SensorSettings, StudyWriter, check_name)
+from ..workers import process_pool
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
 from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
-from .panel import REFERENCE, percept, simulate_panel
+from .panel import REFERENCE, check_ratings_from, percept, simulate_panel
 from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
 
 SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
-COMPLETE_MARKER = ".simulation-complete"  # written last: a folder without it is an interrupted run
+SIMULATION_FILES = (STUDY_TOML, SPECIMENS_CSV, MANIFEST_CSV, RATINGS_CSV, COMPLETE_MARKER)
+_IMAGE_NAME = re.compile(r"^[A-Za-z0-9.\-_]+_[0-9.e+\-]+N_r[0-9]+\.png$")  # plan_trials' names
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
 WARM_MAX_ITER = 500  # a warm-started solve needs tens of steps; past this it is cycling and restarts cold
-SOLVER_TOL = 1e-6  # relative pressure change at convergence: gaps to ~0.01 um, far below the 20 um optical scale
+SOLVER_TOL = 1e-5  # relative pressure change at convergence: lines within 1e-4 of 1e-6's (< 0.01 DN), BENCHMARKS.md
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,7 @@ class SimulationConfig:
     participants: int = 10
     sessions: int = 3
     name: str = "simulated"
+    ratings_from: str = "paper"  # "paper": the paper's values for its presets, the finger model otherwise; "physics"
     camera: Camera = field(default_factory=Camera)
     bench: BenchNoise = field(default_factory=BenchNoise)
 
@@ -63,9 +67,11 @@ class SimulationConfig:
         if not self.forces_n:
             raise ConfigError("--forces: give at least one force")
         for f in self.forces_n:
-            if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
-                raise ConfigError(f"--forces: every force must be a positive number of newtons, got {f!r}")
+            if not (isinstance(f, (int, float)) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= MAX_FORCE_N):
+                raise ConfigError(f"--forces: every force must be a positive number of newtons up to {MAX_FORCE_N:g}, "
+                                  f"got {f!r}")
         _check_force_labels(self.forces_n)
+        check_ratings_from(self.ratings_from)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
         for option, value in (("--fingerprint-period-mm", self.fingerprint_period_mm),
                               ("--ridge-height-mm", self.ridge_height_mm)):
@@ -75,6 +81,8 @@ class SimulationConfig:
                                      ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
             if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < least:
                 raise ConfigError(f"{option} must be a whole number, at least {least}, got {value!r}")
+        if self.repetitions > MAX_REPETITION:
+            raise ConfigError(f"--repetitions must be at most {MAX_REPETITION}, got {self.repetitions}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
@@ -89,7 +97,7 @@ class SimulationConfig:
         table = {"seed": int(self.seed), "simulator": "roughsense.sim", "pads": list(self.pads),
                  "repetitions": int(self.repetitions), "fingerprint_period_mm": float(self.fingerprint_period_mm),
                  "ridge_height_mm": float(self.ridge_height_mm), "participants": int(self.participants),
-                 "sessions": int(self.sessions)}
+                 "sessions": int(self.sessions), "ratings_from": str(self.ratings_from)}
         table.update({f"camera_{k}": v for k, v in cam.items()})
         table.update({f"bench_{k}": v for k, v in bench.items()})
         return table
@@ -154,8 +162,6 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
 
 
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in ".-" else "_" for c in name)
 
 
 def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequence[Specimen]) -> list[Trial]:
@@ -171,7 +177,8 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
                 for force in forces:
                     fkey = force_key(force)
                     exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
-                    name = f"{pad.name}_{_safe(specimen.name)}_{force_label(force)}_r{rep:02d}.png"
+                    name = f"{check_name(pad.name, what='pad')}_{check_name(specimen.name, what='specimen')}_" \
+                           f"{force_label(force)}_r{rep:02d}.png"
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
@@ -186,7 +193,14 @@ def _ridges_in_domain(pad: Pad, specimen: Specimen) -> int:
 
 
 def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
-               warm: dict | None = None) -> tuple[float, np.ndarray]:
+               start: contact.ContactSolution | None = None,
+               warm: dict | None = None) -> tuple[float, contact.ContactSolution]:
+    """The contact of one pressure level; ``start``, the same mount's solution at another level, warm-starts it.
+
+    ``warm`` (see :func:`trial_line`) holds the last solution of each set of surfaces across trials: it starts a
+    solve that has no ``start``. A warm start that has not converged after ``WARM_MAX_ITER`` steps (it can cycle
+    when far from the answer) is dropped and the solve starts afresh from uniform pressure.
+    """
     length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm if pad.has_ridges else None,
                                                  max_length_mm=SPECIMEN_LENGTH_MM)
     n = contact.grid_points(length)
@@ -201,13 +215,13 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
     # The surfaces in contact: the pad's relief depends on the mount only for a ridged pad.
     key = (repr(pad), repr(specimen), mount.pad_phase_mm, mount.ridge_offsets_mm) if pad.has_ridges else \
         (repr(pad), repr(specimen))
-    start = warm.get(key) if warm is not None else None
+    initial = start.pressure_pa if start is not None else (warm.get(key) if warm is not None else None)
     try:
         solution = None
-        if start is not None:
-            try:  # a start far from the answer (a much lower load) can make the iteration cycle: then start afresh
+        if initial is not None:
+            try:
                 solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
-                                                  initial_pressure_pa=start, max_iter=WARM_MAX_ITER)
+                                                  initial_pressure_pa=initial, max_iter=WARM_MAX_ITER)
             except contact.ContactNotConverged:
                 solution = None
         if solution is None:
@@ -217,16 +231,17 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
                           "try a smoother specimen or a different pad") from None
     if warm is not None:
         warm[key] = solution.pressure_pa
-    return length, solution.gap_mm
+    return length, solution
 
 
 def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, float]:
     """Brightness of each pixel column of the line (0..1) and the fraction of the line in contact.
 
-    ``warm``: a dict the caller keeps across the trials of one run; each contact solve then starts from the last
-    solution of the same surfaces (same answer within the solver's tolerance, several times faster). The result
-    then depends, at that tolerance, on which trials came before, so the study path leaves it off (its images must
-    not depend on ``jobs``); a sweep cell, which runs its trials in one fixed order, uses it.
+    ``warm``: a dict the caller keeps across the trials of one run; a trial's first contact solve (the later ones
+    start from the previous level) then starts from the last solution of the same surfaces in an earlier trial
+    (same answer within the solver's tolerance, in fewer steps). The result then depends, at that tolerance, on
+    which trials came before, so the study path leaves it off (its images must not depend on ``jobs``); a sweep
+    cell, which runs its trials in one fixed order, uses it.
 
     A tilted or warped specimen presses harder in some places. The pressure varies slowly compared with the
     grating period, so the line is treated as locally periodic: the contact is solved at a few pressures spanning
@@ -248,12 +263,14 @@ def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, f
     levels = np.linspace(lo, hi, count) if count > 1 else np.array([1.0])
     brightness = np.zeros_like(x_mm)
     touching = np.zeros_like(x_mm)
+    solution = None
     for i, level in enumerate(levels):
         if count == 1:
             weight = np.ones_like(x_mm)
         else:  # piecewise-linear (hat) weights in local pressure
             weight = np.clip(1.0 - np.abs(local - level) / (levels[1] - levels[0]), 0.0, 1.0)
-        length, gap = _solve_gap(pad, spec, mount, p_mean * level, warm)
+        length, solution = _solve_gap(pad, spec, mount, p_mean * level, start=solution, warm=warm)
+        gap = solution.gap_mm
         grid = np.arange(gap.size + 1) * (length / gap.size)
         g = np.interp(np.mod(u, length), grid, np.append(gap, gap[0]))
         g = np.where(on, g, NO_CONTACT_GAP_MM)
@@ -295,7 +312,20 @@ def _write_trial(args: tuple[str, bool, Trial]) -> tuple[str, float]:
     if writer is None:  # each worker reopens the folder the parent already checked and created
         writer = _WRITERS[(root, force)] = StudyWriter(root, force=force, resume=True)
     frame, fraction = render_trial(trial)
-    return writer.write_image(trial.image, frame), fraction
+    return writer.write_image(trial.image, frame, params=png_params()), fraction
+
+
+def png_params() -> tuple[int, ...]:
+    """How frames are encoded: PNG, each row predicted by the "average" filter, Huffman coding only.
+
+    A noisy camera frame has almost no repeated strings, so LZ77's match search costs time and saves nothing; and
+    the mean of the left and upper neighbours predicts a pixel with less residual noise (variance 1.5 sigma^2) than
+    OpenCV's default "sub" filter (2 sigma^2): ~4 % smaller at the same speed, lossless (BENCHMARKS.md, first run).
+    """
+    import cv2
+
+    return (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+            cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_AVG)
 
 
 def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None = None, *,
@@ -331,10 +361,12 @@ class SimulationRun:
         self.trials = plan_trials(config, self.pads, self.specimens)
         _check_unique_images(self.trials)
         self.force = force
-        if force:
-            check_overwritable(out)
-        self.writer = StudyWriter(out, force=force)  # refuses a non-empty folder unless force; never deletes
-        self.root = self.writer.root
+        self.root = Path(out)
+        atomic.clean_leftovers(self.root)  # first: a killed swap's old folder may have to come back
+        check_overwritable(self.root, force=force)
+        # Built beside the target and swapped in whole when complete; creating it now checks the place is writable.
+        self._swap = atomic.FolderSwap(self.root, owned=simulation_owned(self.root))
+        self.writer = StudyWriter(self._swap.path)
 
     @property
     def total(self) -> int:
@@ -345,25 +377,32 @@ class SimulationRun:
         writer.write_config(name=config.name, reference_specimen=REFERENCE,
                             sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi="center"),
                             forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
-        table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s).source} for s in self.specimens])
+        table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
+                              for s in self.specimens])
         writer.write_specimens(table)
         writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=(4,),
                                             participants=config.participants, sessions=config.sessions,
-                                            reference=REFERENCE))
+                                            reference=REFERENCE, ratings_from=config.ratings_from))
 
     def __iter__(self) -> Iterator[str]:
-        marker = self.root / COMPLETE_MARKER
-        if marker.is_file():  # our own marker from an earlier run into this folder (--force): no longer true
-            marker.unlink()
+        try:
+            yield from self._build()
+        except BaseException:
+            self._swap.abort()
+            raise
+        self._swap.commit()
+
+    def _build(self) -> Iterator[str]:
+        staging = self.writer.root
         self._write_tables()
-        tasks = [(str(self.root), self.force, t) for t in self.trials]
+        tasks = [(str(staging), False, t) for t in self.trials]
         results: list[tuple[str, float]] = []
         if self.jobs == 1 or len(tasks) < 2:
             for result in map(_write_trial, tasks):
                 results.append(result)
                 yield result[0]
         else:
-            with ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks))) as pool:
+            with process_pool(min(self.jobs, len(tasks))) as pool:
                 for result in pool.map(_write_trial, tasks, chunksize=4):
                     results.append(result)
                     yield result[0]
@@ -378,8 +417,8 @@ class SimulationRun:
             "contact_fraction": [round(r[1], 6) for r in results],
             "true_force_n": [round(t.exposure.force_true_n, 6) for t in trials],
         })
-        self.writer.write_manifest(manifest)  # a study without its manifest is visibly incomplete
-        atomic.write_text(marker, f"seed = {self.config.seed}\nimages = {len(results)}\n")
+        self.writer.write_manifest(manifest)
+        atomic.write_text(staging / COMPLETE_MARKER, f"seed = {self.config.seed}\nimages = {len(results)}\n")
 
 
 def is_simulated_study(root: str | os.PathLike[str]) -> bool:
@@ -387,25 +426,62 @@ def is_simulated_study(root: str | os.PathLike[str]) -> bool:
     try:
         with (Path(root) / STUDY_TOML).open("rb") as handle:
             return isinstance(tomllib.load(handle).get("simulation"), dict)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
         return False
 
 
-def check_overwritable(root: str | os.PathLike[str]) -> None:
-    """``--force`` replaces an earlier simulation's files, never a real study's or other user files' folder.
+def is_complete_simulation(root: str | os.PathLike[str]) -> bool:
+    return is_simulated_study(root) and (Path(root) / COMPLETE_MARKER).is_file()
 
-    A folder is fine if it is new, empty (an empty ``images/`` counts as empty: a run stopped before its first
-    file), or a simulated study.
+
+def check_overwritable(root: str | os.PathLike[str], *, force: bool = True) -> None:
+    """May a simulation replace ``root``? Refuses with :class:`OutputExistsError` if not.
+
+    Free to replace: a missing or empty folder (an empty ``images/`` counts as empty), one holding only
+    roughsense's own temporary files, or an interrupted simulation (a [simulation] table but no completion
+    marker). ``force`` also replaces a complete simulation -- never a real study or a folder of other files.
     """
     root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise OutputExistsError("exists and is not a folder", path=root)
     if not root.is_dir():
         return
     images = root / IMAGES_DIR
-    entries = [p for p in root.iterdir() if not (p == images and p.is_dir() and not any(p.iterdir()))]
-    if entries and not is_simulated_study(root):
+    entries = [p for p in root.iterdir()
+               if not (p == images and p.is_dir() and not any(p.iterdir())) and not atomic.is_temporary(p)]
+    if not entries:
+        return
+    simulated = is_simulated_study(root)
+    if simulated and not (root / COMPLETE_MARKER).is_file():
+        return  # roughsense's own interrupted run: replaced without --force (other files in it are kept)
+    if not force:
+        raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=root)
+    if not simulated:
         raise OutputExistsError("folder is not empty and is not a simulated study (no study.toml with a "
                                 "[simulation] table); --force only replaces an earlier simulation, so choose a new "
                                 "or empty folder", path=root)
+
+
+def simulation_owned(root: Path) -> Callable[[Path], bool]:
+    """Which entries of an earlier simulation in ``root`` are its own (replaced); the rest is a user's (kept).
+
+    Its tables and marker, and the images its manifest lists or that carry the simulator's image names.
+    """
+    listed: set[str] = set()
+    try:
+        manifest = pd.read_csv(root / MANIFEST_CSV, usecols=["image"], dtype=str, keep_default_na=False)
+        listed = {str(Path(p)) for p in manifest["image"]}
+    except (OSError, ValueError, pd.errors.ParserError, UnicodeDecodeError):
+        pass
+
+    def owned(rel: Path) -> bool:
+        parts = rel.parts
+        if len(parts) == 1:
+            return parts[0] in SIMULATION_FILES
+        return (len(parts) == 2 and parts[0] == IMAGES_DIR
+                and (str(rel) in listed or bool(_IMAGE_NAME.match(parts[1]))))
+
+    return owned
 
 
 def with_image_size(config: SimulationConfig, width_px: int, height_px: int) -> SimulationConfig:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..study import NAME_RULE, is_safe_name
 
 SPECIMEN_LENGTH_MM = 50.0
 SPECIMEN_WIDTH_MM = 10.0
@@ -175,6 +176,10 @@ def parse_specimen(text: str) -> Specimen:
         numbers = [float(p) for p in parts]
     except ValueError:
         raise ConfigError(f"specimen {text!r}: {rest!r} is not a list of numbers. {SPEC_HELP}") from None
+    # The spec becomes the specimen's name in the study folder and in image names: ':' is not a name character.
+    text = "_".join([text.partition(":")[0].strip(), *(part.strip() for part in parts)])
+    if not is_safe_name(text):
+        raise ConfigError(f"specimen {text!r}: a spec's numbers must give a valid name ({NAME_RULE})")
     for value in numbers[:2] if kind != "rect" else numbers:
         if not (math.isfinite(value) and value > 0):
             raise ConfigError(f"specimen {text!r}: every size must be a positive number of mm, got {value:g}")

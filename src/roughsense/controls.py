@@ -1,0 +1,126 @@
+"""Controls for a cross-validated model: does it beat shuffled targets, and the training mean?
+
+Leave-one-out keeps the other repetitions of the held-out specimen in training, so a model can score well
+by recognising the specimen rather than by reading its roughness from the spectrum. The control for that is
+a specimen-level permutation test: the perceived values are shuffled across specimens (every repetition of
+a specimen keeps one shared, wrong value), the whole cross-validation (including the choice of the number of
+components, and for leave-one-specimen-out its nested choice) is rerun on the shuffled targets, and the
+p-value is the share of shufflings whose CV RMSE is at least as good as the real one's. The null model
+predicts each training fold's mean; its RMSE under the same CV is the floor any useful model must beat.
+
+Every shuffling's cross-validation runs through :func:`roughsense.pls.pls_cv_many`, which advances all of
+them as one batch over one rotation of X, and through the same nested-selection code as the real targets.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pandas as pd
+
+from .pls import _single_threaded_blas, nested_group_predictions, pls_cv_many
+
+#: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
+DEFAULT_PERMUTATIONS = 199
+#: A model passes the permutation control when p < ALPHA.
+ALPHA = 0.05
+
+CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
+                   "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
+                   "beats_permutation", "passes"]  # evaluation adds "seed"
+
+
+def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:
+    """(n_permutations, n_specimens) shufflings of specimen indices, drawn from ``default_rng(seed)``.
+
+    Every pad x condition x CV scheme with the same number of specimens gets the same shufflings
+    (common random numbers), whatever order the models are analysed in.
+    """
+    rng = np.random.default_rng(seed)
+    return np.array([rng.permutation(n_specimens) for _ in range(n_permutations)], dtype=np.intp).reshape(
+        n_permutations, n_specimens)
+
+
+def permuted_targets(y: np.ndarray, specimens: Sequence, permutations: np.ndarray) -> np.ndarray:
+    """Targets (n, B): specimen j's trials get the perceived value of specimen ``permutations[b, j]``.
+
+    Specimens are indexed in order of first appearance in ``specimens``; ``y`` must be constant per specimen.
+    """
+    codes, names = pd.factorize(pd.Series(np.asarray(specimens)), sort=False)
+    values = np.empty(len(names))
+    values[codes] = y
+    if not np.allclose(values[codes], y):
+        raise ValueError("permuted_targets: y differs within a specimen")
+    return values[permutations][:, codes].T
+
+
+def _cv_rmse(prediction: np.ndarray, target: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean((prediction - target) ** 2, axis=-1))
+
+
+def permuted_cv_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: str, max_components: int) -> np.ndarray:
+    """CV RMSE of each target column of Y after the same selection the study applies to the real target.
+
+    LOO: the argmin over 1..max_components of the LOO RMSE. LOSO: nested leave-one-specimen-out (each
+    held-out specimen's count chosen by LOSO over the others), pooled over all trials.
+    """
+    if cv == "loo":
+        batch = pls_cv_many(X, Y, max_components=max_components, cv="loo", cap=True)
+        return batch.rmse[:, 1:].min(axis=1)
+    outer = pls_cv_many(X, Y, max_components=max_components, groups=specimens, cap=True)
+    nested, _ = nested_group_predictions(X, Y, specimens, outer.predictions)
+    return _cv_rmse(nested, Y.T)
+
+
+def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permutations: np.ndarray) -> dict:
+    """One row of controls.csv for a fitted pad x condition x CV scheme (a ``ConditionFit``)."""
+    specimens = np.asarray(specimens).astype(str)
+    predictions = fit.predictions["prediction"].to_numpy(dtype=float)
+    rmse = float(_cv_rmse(predictions, y))
+    # cv_rmse[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
+    null_rmse = float(fit.cv_rmse[0])
+    n_permutations = int(permutations.shape[0])
+    if n_permutations:
+        Y = permuted_targets(y, specimens, permutations)
+        permuted = permuted_cv_rmse(X, Y, specimens, fit.cv, int(fit.cv_rmse.size - 1))
+        # rmse is recomputed the same way as the shuffled ones, so ties compare like with like.
+        p = float((1 + np.sum(permuted <= rmse * (1 + 1e-12))) / (1 + n_permutations))
+        median, low = float(np.median(permuted)), float(permuted.min())
+    else:
+        p = median = low = float("nan")
+    beats_null = bool(rmse < null_rmse)
+    # Without shufflings the permutation control is not run: left empty, and judged on the null model alone.
+    beats_permutation = bool(p < ALPHA) if n_permutations else None
+    return {
+        "pad": fit.pad, "condition": fit.condition, "cv": fit.cv, "rmse": rmse, "null_rmse": null_rmse,
+        "permutation_p": p, "n_permutations": n_permutations, "n_components": int(fit.best_n_components),
+        "permuted_rmse_median": median, "permuted_rmse_min": low, "beats_null": beats_null,
+        "beats_permutation": beats_permutation, "passes": beats_null and beats_permutation is not False,
+    }
+
+
+def controls_table(rows: list[dict]) -> pd.DataFrame:
+    return pd.DataFrame(rows, columns=CONTROL_COLUMNS)
+
+
+def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable | None = None) -> pd.DataFrame:
+    """controls.csv for many models: each job is the arguments of :func:`control_row`.
+
+    The models are independent array work that releases the GIL, so ``n_jobs`` threads share them; BLAS is held
+    to one thread for the whole run (its own threads would only contend with ours, and one thread keeps every
+    product's rounding the same), and rows come back in job order: the table is identical for any ``n_jobs``.
+    """
+    jobs = list(jobs)
+
+    def one(job: tuple) -> dict:
+        return control_row(*job)
+
+    with _single_threaded_blas():
+        if n_jobs > 1 and len(jobs) > 1:
+            with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
+                rows = pool.map(one, jobs)
+                rows = list(progress(rows, total=len(jobs), description="controls") if progress else rows)
+        else:
+            rows = [one(job) for job in (progress(jobs, total=len(jobs), description="controls") if progress else jobs)]
+    return controls_table(rows)

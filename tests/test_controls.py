@@ -1,0 +1,136 @@
+"""The controls, recomputed independently: scikit-learn refits for a few shufflings, closed-form null models."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.cross_decomposition import PLSRegression
+
+from roughsense import controls, pls_cv, pls_cv_many
+from roughsense.evaluation import analyse_study
+
+from .test_evaluation import _regression_data, synthetic_study
+
+MAX_K = 3
+
+
+@pytest.fixture(scope="module")
+def small():
+    study, features = synthetic_study(repetitions=3, seed=5, pads=("smooth",))
+    analysis = analyse_study(study, features=features, max_components=MAX_K, conditions=("1N",), n_permutations=3,
+                             seed=7)
+    return analysis, study, features
+
+
+def _sklearn_cv_predictions(X, y, folds, k):
+    """Out-of-fold predictions with k components, refitting scikit-learn's PLS on every training fold."""
+    out = np.empty(len(y))
+    for fold in np.unique(folds):
+        test = folds == fold
+        model = PLSRegression(n_components=k, scale=False).fit(X[~test], y[~test])
+        out[test] = model.predict(X[test]).ravel()
+    return out
+
+
+def _sklearn_loo_rmse(X, y):
+    """LOO with the count chosen as the paper chooses it: the smallest CV RMSE over 1..MAX_K."""
+    folds = np.arange(len(y))
+    return min(np.sqrt(np.mean((_sklearn_cv_predictions(X, y, folds, k) - y) ** 2)) for k in range(1, MAX_K + 1))
+
+
+def _sklearn_nested_loso_rmse(X, y, specimens):
+    """Nested LOSO: each held-out specimen's count is the argmin of a LOSO over the others only."""
+    prediction = np.empty(len(y))
+    for name in pd.unique(specimens):
+        held = specimens == name
+        Xr, yr, sr = X[~held], y[~held], specimens[~held]
+        usable = min(MAX_K, len(yr) - 3 - 1)
+        inner = [np.sum((_sklearn_cv_predictions(Xr, yr, sr, k) - yr) ** 2) for k in range(1, usable + 1)]
+        k = 1 + int(np.argmin(inner))
+        prediction[held] = PLSRegression(n_components=k, scale=False).fit(Xr, yr).predict(X[held]).ravel()
+    return float(np.sqrt(np.mean((prediction - y) ** 2)))
+
+
+def test_shuffled_targets_keep_one_value_per_specimen():
+    specimens = np.repeat(["a", "b", "c", "d"], 3)
+    y = np.repeat([1.0, 2.0, 3.0, 4.0], 3)
+    perms = controls.specimen_permutations(4, 50, seed=1)
+    Y = controls.permuted_targets(y, specimens, perms)
+    assert Y.shape == (12, 50)
+    for b in range(50):
+        per_specimen = pd.Series(Y[:, b]).groupby(specimens).nunique()
+        assert (per_specimen == 1).all()  # every repetition of a specimen shares its (wrong) value
+        assert sorted(Y[::3, b]) == [1.0, 2.0, 3.0, 4.0]  # the same values, reassigned across specimens
+    # Seeded: the same seed gives the same shufflings, another seed others.
+    np.testing.assert_array_equal(perms, controls.specimen_permutations(4, 50, seed=1))
+    assert not np.array_equal(perms, controls.specimen_permutations(4, 50, seed=2))
+
+
+def test_batched_cv_equals_one_cv_per_target():
+    study, features = synthetic_study(repetitions=3, seed=2, pads=("smooth",))
+    rows, X, y = _regression_data(study, features, "smooth", "2N")
+    rng = np.random.default_rng(0)
+    Y = np.column_stack([y, rng.permutation(y), rng.normal(size=y.size)])
+    for kwargs in ({"cv": "loo"}, {"groups": rows["specimen"].to_numpy()}):
+        batch = pls_cv_many(X, Y, max_components=5, **kwargs)
+        for b in range(Y.shape[1]):
+            single = pls_cv(X, Y[:, b], max_components=5, **kwargs)
+            np.testing.assert_allclose(batch.predictions[b], single.predictions, rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(batch.rmse[b], single.rmse, rtol=1e-9)
+
+
+@pytest.mark.parametrize("cv", ["loo", pytest.param("loso", marks=pytest.mark.slow)])
+def test_permutation_control_matches_sklearn_refits(small, cv):
+    analysis, study, features = small
+    rows, X, y = _regression_data(study, features, "smooth", "1N")
+    specimens = rows["specimen"].to_numpy()
+    perms = controls.specimen_permutations(len(pd.unique(specimens)), 3, seed=7)
+    Y = controls.permuted_targets(y, specimens, perms)
+    ours = controls.permuted_cv_rmse(X, Y, specimens, cv, MAX_K)
+    if cv == "loo":
+        expected = [_sklearn_loo_rmse(X, Y[:, b]) for b in range(3)]
+        real = _sklearn_loo_rmse(X, y)
+    else:
+        expected = [_sklearn_nested_loso_rmse(X, Y[:, b], specimens) for b in range(3)]
+        real = _sklearn_nested_loso_rmse(X, y, specimens)
+    np.testing.assert_allclose(ours, expected, rtol=1e-6)
+    row = analysis.controls.set_index(["pad", "condition", "cv"]).loc[("smooth", "1N", cv)]
+    assert row["rmse"] == pytest.approx(real, rel=1e-6)
+    assert row["n_permutations"] == 3
+    assert row["permutation_p"] == pytest.approx((1 + sum(e <= real for e in expected)) / 4)
+
+
+def test_null_model_is_the_training_mean_under_the_same_cv(small):
+    analysis, study, features = small
+    rows, _, y = _regression_data(study, features, "smooth", "1N")
+    specimens = rows["specimen"].to_numpy()
+    loo = (y.sum() - y) / (len(y) - 1)  # the mean of the other trials
+    loso = np.array([y[specimens != s].mean() for s in specimens])
+    table = analysis.controls.set_index(["pad", "condition", "cv"])
+    assert table.loc[("smooth", "1N", "loo"), "null_rmse"] == pytest.approx(np.sqrt(np.mean((loo - y) ** 2)))
+    assert table.loc[("smooth", "1N", "loso"), "null_rmse"] == pytest.approx(np.sqrt(np.mean((loso - y) ** 2)))
+    for _, row in analysis.controls.iterrows():
+        assert row["beats_null"] == (row["rmse"] < row["null_rmse"])
+        assert row["passes"] == (row["beats_null"] and row["permutation_p"] < controls.ALPHA)
+
+
+def test_a_model_that_only_recognises_specimens_fails_the_permutation_control():
+    """Spectra that identify each specimen but carry no roughness information: LOO scores well, shuffling too."""
+    study, features = synthetic_study(repetitions=4, seed=9, pads=("smooth",))
+    rng = np.random.default_rng(3)
+    codes = {s: rng.normal(size=45) for s in features["specimen"].unique()}  # a random fingerprint per specimen
+    freq = [c for c in features.columns if c[0].isdigit()]
+    features = features.copy()
+    features[freq] = np.vstack([codes[s] + rng.normal(0, 0.05, 45) for s in features["specimen"]])
+    analysis = analyse_study(study, features=features, max_components=6, conditions=("1N",), n_permutations=39)
+    row = analysis.controls.set_index("cv").loc["loo"]
+    assert row["permutation_p"] > 0.2 and not row["passes"]
+    loso = analysis.controls.set_index("cv").loc["loso"]
+    assert not loso["passes"]
+
+
+def test_controls_are_identical_on_one_or_two_threads(small):
+    analysis, study, features = small
+    again = analyse_study(study, features=features, max_components=MAX_K, conditions=("1N",), n_permutations=3,
+                          seed=7, n_jobs=2)
+    pd.testing.assert_frame_equal(again.controls, analysis.controls, check_exact=True)
