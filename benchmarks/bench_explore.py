@@ -50,7 +50,8 @@ def bench_cell(repetitions: int, repeats: int, skip_files: bool) -> None:
     try:
         sweep = read_sweep(_sweep(tmp / "cell.toml", pads=["smooth"], repetitions=repetitions, seeds=[0]))
         cell = sweep.cells[0]
-        run_cell(cell)  # first use: the panel calibration and imports, paid once per worker process
+        small = read_sweep(_sweep(tmp / "warm.toml", pads=["smooth"], repetitions=2, seeds=[0])).cells[0]
+        run_cell(small)  # first use: the panel calibration and imports, paid once per worker process
         times = []
         for _ in range(repeats):
             started = time.perf_counter()
