@@ -119,7 +119,9 @@ def test_cell_equals_simulate_then_study(tmp_path):
     roi = explore_cell.sensor_roi(cell.width_px, cell.height_px)
     features = study_features(study, spectrum=SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=roi).fit())
     # Cold contact solves: the cell's spectra are bit-identical to the ones read back from the PNG files.
-    _, cold = explore_cell.cell_features(cell, warm_start=False)
+    cell_study, cold = explore_cell.cell_features(cell, warm_start=False)
+    as_read = cell_study.ratings.astype({"session": str}).reset_index(drop=True)  # the CSV keeps sessions as text
+    pd.testing.assert_frame_equal(as_read, study.ratings.reset_index(drop=True), check_dtype=False)  # simulate's panel
     freq = [c for c in cold.columns if c[0].isdigit()]
     ours = cold.set_index("image").loc[features["image"].str.removeprefix("images/")]
     assert np.array_equal(ours[freq].to_numpy(), features[freq].to_numpy())
@@ -341,3 +343,24 @@ def test_combined_condition_over_other_forces():
     assert list(meta.columns) == ["specimen", "repetition", "image_1N", "image_4N"]
     with pytest.raises(Exception, match="every trial needs 1N, 3N"):
         condition_matrix(features, "smooth", "combined", combined_forces=["1N", "3N"])
+
+
+def test_physics_ratings_reach_the_cell(tmp_path):
+    from roughsense.explore.ratings import physics_available
+    from roughsense.sim.panel import simulate_panel
+
+    if not physics_available():
+        with pytest.raises(ConfigError, match="not available in this build"):
+            read_sweep(_sweep_file(tmp_path, TINY.replace("[sweep]", '[sweep]\nratings_from = "physics"')))
+        return
+    sweep = read_sweep(_sweep_file(tmp_path, TINY.replace("[sweep]", '[sweep]\nratings_from = "physics"')))
+    cell = sweep.cells[0]
+    config = explore_cell.simulation_config(cell)
+    assert cell.ratings_from == "physics" and config.ratings_from == "physics"
+    from roughsense.explore.ratings import panel_ratings
+
+    specimens = config.validate()[1]
+    ours = panel_ratings(specimens, cell.seed, ratings_from="physics")
+    theirs = simulate_panel(specimens, cell.seed, spawn_key=(4,), ratings_from="physics")
+    pd.testing.assert_frame_equal(ours, theirs)
+    assert not ours.equals(panel_ratings(specimens, cell.seed, ratings_from="paper"))
