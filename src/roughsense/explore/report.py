@@ -82,7 +82,8 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
             if q.covered:
                 item["table"] = html_table(q.table, "", "")
             questions.append(item)
-    summary = table[[*shown, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", "n_seeds"]] \
+    predictive = [c for c in ("ovl_predictive", "ovl_predictive_ci95") if c in table.columns]
+    summary = table[[*shown, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", *predictive, "n_seeds"]] \
         if not table.empty else pd.DataFrame(columns=["condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95"])
     fail_view = failures[["cell", "seed", *[c for c in shown if c in failures.columns], "error"]] \
         if not failures.empty else failures

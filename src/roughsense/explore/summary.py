@@ -47,14 +47,15 @@ def seed_table(results: pd.DataFrame) -> pd.DataFrame:
     """One row per design x condition x CV scheme: mean and 95 % half-width over seeds of RMSE and OVL."""
     rows = []
     keys = DESIGN + ["condition", "cv"]
+    metrics = [*METRICS, *(["ovl_predictive"] if "ovl_predictive" in results.columns else [])]
     for key, group in results.groupby(keys, dropna=False, sort=False):
         row = dict(zip(keys, key))
-        for metric in METRICS:
+        for metric in metrics:
             mean, half, n = ci95(group[metric])
             row[metric], row[f"{metric}_ci95"] = mean, half
         row["n_seeds"] = int(group["seed"].nunique())
         rows.append(row)
-    return pd.DataFrame(rows, columns=keys + ["rmse", "rmse_ci95", "ovl", "ovl_ci95", "n_seeds"])
+    return pd.DataFrame(rows, columns=keys + [c for m in metrics for c in (m, f"{m}_ci95")] + ["n_seeds"])
 
 
 def judge_cv(table: pd.DataFrame) -> str:
