@@ -67,14 +67,15 @@ def conditions_of(condition: str, available: Sequence[str] = ("1N", "2N", "3N"))
 
 
 def condition_matrix(
-    features: pd.DataFrame, pad: str, condition: str, *, source=None
+    features: pd.DataFrame, pad: str, condition: str, *, source=None, combined_forces: Sequence[str] | None = None
 ) -> tuple[np.ndarray, pd.DataFrame]:
     """(X, meta) for one pad and condition ("1N", "2N", "3N" or "combined").
 
     For "combined", each trial (specimen, pad, repetition) contributes one row: its 1 N, 2 N and 3 N
     spectra concatenated in that order. A trial missing a force (or holding two images of one) is refused.
     ``meta`` has specimen, repetition and image (or image_1N, image_2N, image_3N for "combined").
-    ``source`` (e.g. the manifest's path) is named in errors.
+    ``source`` (e.g. the manifest's path) is named in errors. ``combined_forces`` (condition labels, in order)
+    replaces the paper's 1N, 2N, 3N in "combined" (a protocol with other or more forces).
     """
     freq = frequency_columns(features)
     if not freq:
@@ -99,10 +100,10 @@ def condition_matrix(
         meta = rows[["specimen", "repetition", "image"]].reset_index(drop=True)
         return rows[freq].to_numpy(np.float64), meta
 
-    forces = ["1N", "2N", "3N"]
+    forces = list(combined_forces) if combined_forces is not None else ["1N", "2N", "3N"]
     rows = at_pad[at_pad["condition"].isin(forces)]
     if rows.empty:
-        raise InputError(f"no images of pad {pad!r} at 1N, 2N or 3N for the combined condition", path=source)
+        raise InputError(f"no images of pad {pad!r} at {', '.join(forces)} for the combined condition", path=source)
     counts = rows.groupby(["specimen", "repetition", "condition"]).size()
     doubled = counts[counts > 1]
     if not doubled.empty:
@@ -119,7 +120,7 @@ def condition_matrix(
             specimen, repetition = trial
             raise InputError(
                 f"combined condition: specimen {specimen!r}, repetition {repetition} on pad {pad!r} has no "
-                f"image at {', '.join(missing)}; every trial needs 1N, 2N and 3N",
+                f"image at {', '.join(missing)}; every trial needs {', '.join(forces)}",
                 path=source,
             )
     wide = wide.sort_index()

@@ -267,12 +267,14 @@ def analyse_study(
     progress: Callable | None = None,
     n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
     seed: int = 0,
+    combined_forces: Sequence[str] | None = None,
 ) -> StudyAnalysis:
     """Run the paper's whole analysis on a validated study; ``features`` may come from a cache.
 
     Besides the paper's analysis: the controls of every model (``n_permutations`` specimen-level
     shufflings drawn from ``seed``, and the training-mean model), the paper's claims with verdicts, and the
-    predictive OVL of our predictions and of the paper's published ones.
+    predictive OVL of our predictions and of the paper's published ones. ``combined_forces`` (condition labels) are
+    the forces the "combined" condition concatenates; default 1N, 2N, 3N.
     """
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
@@ -317,7 +319,7 @@ def analyse_study(
     control_jobs: list[tuple] = []
     for pad, condition, cv in iterator:
         if (pad, condition) not in matrices:
-            X, meta = dataset.condition_matrix(features, pad, condition)
+            X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
             y = dataset.targets(meta, perceived, path=study.root / "ratings.csv")
             matrices[(pad, condition)] = (X, y, meta)
         X, y, meta = matrices[(pad, condition)]

@@ -92,7 +92,7 @@ def solve_periodic(height_mm: np.ndarray, length_mm: float, mean_pressure_pa: fl
         inside = p > 0
         gap -= gap[inside].mean()
         g_norm = float(np.dot(gap[inside], gap[inside]))
-        t = np.where(inside, gap + delta * (g_norm / g_old) * t, 0.0)
+        t = np.where(inside, gap + delta * (g_norm / g_old if g_old > 0 else 0.0) * t, 0.0)  # 0: start was the answer
         g_old = g_norm
         r = displacement(t)
         r -= r[inside].mean()

@@ -135,15 +135,22 @@ class Lighting:
 
 
 def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting: Lighting,
-           rng: np.random.Generator, spots: tuple[tuple[float, float, float, float], ...] = ()) -> np.ndarray:
+           rng: np.random.Generator, spots: tuple[tuple[float, float, float, float], ...] = (),
+           rows: tuple[int, int] | None = None) -> np.ndarray:
     """Render an 8-bit gray frame from the line's brightness (0..1 per pixel column).
 
     The frame holds the sensor rows ``camera.frame_top_px`` on (``camera.frame_height_px`` of them): shading and
     band are those of the whole sensor, only the stored rows are drawn and noised. ``band_center_px`` is a sensor row.
     ``spots`` are dust specks, bubbles and smudges: (x_mm from the frame's left, y_mm from the band centre,
     size_mm, strength), each a Gaussian that darkens (strength > 0) or brightens the frame locally.
+    ``rows=(start, stop)`` returns only rows start..stop-1 of that frame, bit-identical to them: the noise of the
+    rows above is still drawn (the generator fills row by row), nothing below is (sweeps read one row per frame).
     """
     w, h = camera.width_px, camera.height_px
+    kept = camera.frame_height_px
+    start, stop = (0, kept) if rows is None else (int(rows[0]), int(rows[1]))
+    if not 0 <= start < stop <= kept:
+        raise ValueError(f"rows must satisfy 0 <= start < stop <= {kept}, got {rows}")
     line = np.asarray(line, dtype=float)
     if line.shape != (w,):
         raise ValueError(f"line must have {w} samples, got {line.shape}")
@@ -158,10 +165,10 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
         shade_x = shade_x * (1.0 + amplitude * np.sin(2.0 * math.pi * x_mm / wavelength_mm + phase))
     shade_y = np.exp(-k * y * y)
 
-    rows = np.arange(h) + 0.5
+    yc = np.arange(h) + 0.5  # row centres
     half = camera.band_height_px / 2.0
     edge = max(camera.band_edge_px, 1e-6)
-    band = 0.5 * (np.tanh((rows - band_center_px + half) / edge) - np.tanh((rows - band_center_px - half) / edge))
+    band = 0.5 * (np.tanh((yc - band_center_px + half) / edge) - np.tanh((yc - band_center_px - half) / edge))
     sigma = camera.blur_sigma_px
     if sigma > 0:
         line = gaussian_filter1d(line, sigma, mode="nearest")
@@ -169,7 +176,7 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
 
     band_x = (camera.band_floor_dn + (camera.contact_dn - camera.band_floor_dn) * line) * shade_x
     top = camera.frame_top_px
-    rows_kept = slice(top, top + camera.frame_height_px)
+    rows_kept = slice(top + start, top + stop)
     band, shade_y = band[rows_kept], shade_y[rows_kept]
     col_bg = (camera.background_dn * shade_y).astype(np.float32)
     col_band = (band * shade_y).astype(np.float32)
@@ -177,9 +184,9 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
     frame += np.outer(col_band, band_x.astype(np.float32))
     for x_mm0, y_mm0, size_mm, strength in spots:
         _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px - top + y_mm0 * camera.px_per_mm,
-                  size_mm * camera.px_per_mm, strength)
+                  size_mm * camera.px_per_mm, strength, first_row=start)
     # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
-    noise = rng.standard_normal(frame.shape, dtype=np.float32)
+    noise = rng.standard_normal((stop, w), dtype=np.float32)[start:]
     sd = np.maximum(frame, np.float32(0.0))  # in place from here: the frame is the only large array per trial
     sd *= np.float32(camera.shot_noise_gain)
     sd += np.float32(camera.read_noise_dn**2)
@@ -212,12 +219,15 @@ def bin_to_pixels(values: np.ndarray, width_px: int) -> np.ndarray:
     return values.reshape(width_px, sub).mean(axis=1)
 
 
-def _add_spot(frame: np.ndarray, cx: float, cy: float, sigma: float, strength: float) -> None:
+def _add_spot(frame: np.ndarray, cx: float, cy: float, sigma: float, strength: float, *, first_row: int = 0) -> None:
+    """Darken a Gaussian spot at (cx, cy) in frame pixels; ``frame`` holds the rows from ``first_row`` on."""
     h, w = frame.shape
     r = int(math.ceil(4 * sigma))
-    x0, x1, y0, y1 = max(int(cx) - r, 0), min(int(cx) + r + 1, w), max(int(cy) - r, 0), min(int(cy) + r + 1, h)
+    x0, x1 = max(int(cx) - r, 0), min(int(cx) + r + 1, w)
+    y0, y1 = max(int(cy) - r, first_row), min(int(cy) + r + 1, first_row + h)
     if x0 >= x1 or y0 >= y1:
         return
     gx = np.exp(-0.5 * ((np.arange(x0, x1) + 0.5 - cx) / sigma) ** 2).astype(np.float32)
     gy = np.exp(-0.5 * ((np.arange(y0, y1) + 0.5 - cy) / sigma) ** 2).astype(np.float32)
-    frame[y0:y1, x0:x1] *= 1.0 - np.float32(min(strength, 0.95)) * np.outer(gy, gx)  # a spot never inverts
+    rows = slice(y0 - first_row, y1 - first_row)
+    frame[rows, x0:x1] *= 1.0 - np.float32(min(strength, 0.95)) * np.outer(gy, gx)  # a spot never inverts

@@ -36,6 +36,7 @@ NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
 SIMULATION_FILES = (STUDY_TOML, SPECIMENS_CSV, MANIFEST_CSV, RATINGS_CSV, COMPLETE_MARKER)
 _IMAGE_NAME = re.compile(r"^[A-Za-z0-9.\-_]+_[0-9.e+\-]+N_r[0-9]+\.png$")  # plan_trials' names
 PRESSURE_LEVELS = 5  # local pressures solved per trial at most; the line blends them (see trial_line)
+WARM_MAX_ITER = 500  # a warm-started solve needs tens of steps; past this it is cycling and restarts cold
 SOLVER_TOL = 1e-5  # relative pressure change at convergence: lines within 1e-4 of 1e-6's (< 0.01 DN), BENCHMARKS.md
 
 
@@ -192,8 +193,14 @@ def _ridges_in_domain(pad: Pad, specimen: Specimen) -> int:
 
 
 def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
-               start: contact.ContactSolution | None = None) -> tuple[float, contact.ContactSolution]:
-    """The contact of one pressure level; ``start``, the same mount's solution at another level, warm-starts it."""
+               start: contact.ContactSolution | None = None,
+               warm: dict | None = None) -> tuple[float, contact.ContactSolution]:
+    """The contact of one pressure level; ``start``, the same mount's solution at another level, warm-starts it.
+
+    ``warm`` (see :func:`trial_line`) holds the last solution of each set of surfaces across trials: it starts a
+    solve that has no ``start``. A warm start that has not converged after ``WARM_MAX_ITER`` steps (it can cycle
+    when far from the answer) is dropped and the solve starts afresh from uniform pressure.
+    """
     length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm if pad.has_ridges else None,
                                                  max_length_mm=SPECIMEN_LENGTH_MM)
     n = contact.grid_points(length)
@@ -205,17 +212,36 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
             raise RuntimeError(f"mount has {len(mount.ridge_offsets_mm)} ridge height errors for {ridges} ridges")
         offsets = np.asarray(mount.ridge_offsets_mm[:ridges])
         height = height + pad.height_mm(x - mount.pad_phase_mm, period_mm=pad_period, ridge_offsets_mm=offsets)
+    # The surfaces in contact: the pad's relief depends on the mount only for a ridged pad.
+    key = (repr(pad), repr(specimen), mount.pad_phase_mm, mount.ridge_offsets_mm) if pad.has_ridges else \
+        (repr(pad), repr(specimen))
+    initial = start.pressure_pa if start is not None else (warm.get(key) if warm is not None else None)
     try:
-        solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
-                                          initial_pressure_pa=None if start is None else start.pressure_pa)
+        solution = None
+        if initial is not None:
+            try:
+                solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
+                                                  initial_pressure_pa=initial, max_iter=WARM_MAX_ITER)
+            except contact.ContactNotConverged:
+                solution = None
+        if solution is None:
+            solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
     except contact.ContactNotConverged as exc:
         raise ConfigError(f"pad {pad.name!r} on specimen {specimen.name!r} at {pressure_pa:.0f} Pa: {exc.message}; "
                           "try a smoother specimen or a different pad") from None
+    if warm is not None:
+        warm[key] = solution.pressure_pa
     return length, solution
 
 
-def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
+def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, float]:
     """Brightness of each pixel column of the line (0..1) and the fraction of the line in contact.
+
+    ``warm``: a dict the caller keeps across the trials of one run; a trial's first contact solve (the later ones
+    start from the previous level) then starts from the last solution of the same surfaces in an earlier trial
+    (same answer within the solver's tolerance, in fewer steps). The result then depends, at that tolerance, on
+    which trials came before, so the study path leaves it off (its images must not depend on ``jobs``); a sweep
+    cell, which runs its trials in one fixed order, uses it.
 
     A tilted or warped specimen presses harder in some places. The pressure varies slowly compared with the
     grating period, so the line is treated as locally periodic: the contact is solved at a few pressures spanning
@@ -243,7 +269,7 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
             weight = np.ones_like(x_mm)
         else:  # piecewise-linear (hat) weights in local pressure
             weight = np.clip(1.0 - np.abs(local - level) / (levels[1] - levels[0]), 0.0, 1.0)
-        length, solution = _solve_gap(pad, spec, mount, p_mean * level, start=solution)
+        length, solution = _solve_gap(pad, spec, mount, p_mean * level, start=solution, warm=warm)
         gap = solution.gap_mm
         grid = np.arange(gap.size + 1) * (length / gap.size)
         g = np.interp(np.mod(u, length), grid, np.append(gap, gap[0]))
@@ -263,12 +289,17 @@ def trial_line(trial: Trial) -> tuple[np.ndarray, float]:
     return bin_to_pixels(brightness, w_px), float(touching.mean())
 
 
-def render_trial(trial: Trial) -> tuple[np.ndarray, float]:
-    """The 8-bit frame of one trial and its ground-truth contact fraction."""
-    line, fraction = trial_line(trial)
+def render_trial(trial: Trial, *, rows: tuple[int, int] | None = None,
+                 warm: dict | None = None) -> tuple[np.ndarray, float]:
+    """The 8-bit frame of one trial and its ground-truth contact fraction.
+
+    ``rows=(start, stop)`` renders only those rows, bit-identical to the same rows of the whole frame (for a
+    reader that needs only the sensor's line); ``warm`` is passed to :func:`trial_line`.
+    """
+    line, fraction = trial_line(trial, warm=warm)
     center = trial.camera.height_px / 2.0 + trial.mount.band_shift_px
     frame = render(trial.camera, line, band_center_px=center, lighting=trial.exposure.lighting,
-                   rng=_rng(trial.seed, *trial.noise_key), spots=trial.mount.spots)
+                   rng=_rng(trial.seed, *trial.noise_key), spots=trial.mount.spots, rows=rows)
     return frame, fraction
 
 

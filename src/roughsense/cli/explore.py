@@ -1,0 +1,44 @@
+"""``roughsense explore``: sweep designs of the twin on Dask and report what they change (docs/explore.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from ._common import progress
+
+ORDER = 45
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("explore")
+    def explore(
+        sweep_file: Path = typer.Argument(..., metavar="SWEEP.toml", help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
+        out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
+        workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core)."),
+        scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
+                                             "of an existing Dask cluster, instead of a local one."),
+        force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "
+                                   "replaced) or other files (kept)."),
+    ) -> None:
+        """Run every cell (grid point x seed) of a sweep of the digital twin, then write the sweep's report.
+
+        Each cell simulates its study in memory and runs the paper's analysis (LOO and nested LOSO).
+
+        Finished cells are kept: rerunning the same sweep computes only what is missing. A failing cell is recorded
+        and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
+        """
+        from ..errors import ConfigError
+        from ..explore.report import write_explore_report
+        from ..explore.runner import run_sweep
+        from ..explore.sweep import read_sweep
+
+        if workers is not None and scheduler is not None:
+            raise ConfigError("give --workers or --scheduler, not both (an existing cluster has its own workers)")
+        sweep = read_sweep(sweep_file)
+        outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
+        index = write_explore_report(sweep, out)
+        line = f"{outcome.computed} cells computed, {outcome.skipped} already finished"
+        if outcome.failures:
+            line += f", {len(outcome.failures)} failed (see {Path(out) / 'failures.csv'})"
+        typer.echo(f"{line}; {outcome.seconds:.1f} s. Results in {Path(out) / 'results'}, report {index}")

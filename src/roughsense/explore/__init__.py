@@ -1,0 +1,27 @@
+"""Design exploration: sweeps of the digital twin, one in-memory study per cell, scheduled on Dask.
+
+Sits beside :mod:`roughsense.evaluation`, above both the twin (``sim``) and the analysis; nothing below imports it.
+``read_sweep`` checks a sweep file, ``run_sweep`` computes its cells into a Parquet dataset, ``write_explore_report``
+summarises them (docs/explore.md).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+__all__ = ["read_sweep", "run_sweep", "run_cell", "write_explore_report"]
+
+if TYPE_CHECKING:
+    from .cell import run_cell
+    from .report import write_explore_report
+    from .runner import run_sweep
+    from .sweep import read_sweep
+
+_HOME = {"read_sweep": "sweep", "run_sweep": "runner", "run_cell": "cell", "write_explore_report": "report"}
+
+
+def __getattr__(name: str):
+    if name in _HOME:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_HOME[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

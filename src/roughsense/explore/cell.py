@@ -1,0 +1,195 @@
+"""One cell in memory: twin frames -> spectra -> the study's own analysis (LOO and nested LOSO) -> result rows.
+
+Nothing is written. Frames are rendered only down to the row the sensor reads (bit-identical to those rows of the
+whole frame) and each contact solve starts from the previous one of the same surfaces; the spectra then come from
+the sensor's own code on a frame of the camera's full size, and the analysis is :func:`evaluation.analyse_study`
+on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
+contact solver's tolerance; tests/test_explore.py checks it).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import RoughsenseError
+from ..evaluation import analyse_study
+from ..sensor import SpatialSpectrum, resolve_roi
+from ..sim.optics import Camera
+from ..sim.panel import REFERENCE
+from ..sim.simulate import SimulationConfig, force_label, plan_trials, render_trial
+from ..study import CENTER_CROP_PX, SensorSettings, Study
+from .ratings import config_options, panel_ratings
+from .sweep import Cell
+
+
+
+def has_predictive_ovl() -> bool:
+    """Builds with a spread model (``roughsense.SpreadModel``) report the predictive OVL beside the paper's OVL."""
+    import roughsense
+
+    try:
+        return hasattr(roughsense, "SpreadModel")
+    except ImportError:
+        return False
+
+
+PREDICTIVE = ["ovl_predictive"] if has_predictive_ovl() else []
+RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", *PREDICTIVE, "cv_rmse",
+                  "rmse_sd", "ovl_sd", "n_specimens"]
+SPECIMEN_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "specimen", "shape", "wavelength_mm", "n_components",
+                    "gmean", "sd", "pred_mean", "pred_sd", "rmse", "ovl", *PREDICTIVE]
+
+
+def sensor_roi(width_px: int, height_px: int):
+    """The paper's centre crop where the frame holds it, else the largest centred crop of that shape that fits."""
+    crop_w, crop_h = CENTER_CROP_PX
+    if width_px >= crop_w and height_px >= crop_h:
+        return "center"
+    w, h = min(crop_w, width_px), min(crop_h, height_px)
+    return ((width_px - w) // 2, (height_px - h) // 2, w, h)
+
+
+def line_rows(spectrum: SpatialSpectrum, width_px: int, height_px: int) -> tuple[int, int]:
+    """The rows of a frame the sensor reads: the crop's central ``rows`` rows (sensor.extract_line)."""
+    x, y, w, h = resolve_roi(spectrum.roi, np.empty((height_px, width_px, 0), dtype=np.uint8))
+    top = y + (h - spectrum.rows) // 2
+    return top, top + spectrum.rows
+
+
+def simulation_config(cell: Cell) -> SimulationConfig:
+    return SimulationConfig(
+        pads=(cell.pad,), specimens=cell.specimens, forces_n=cell.forces_n, repetitions=cell.repetitions,
+        seed=cell.seed, participants=cell.participants, sessions=cell.sessions,
+        fingerprint_period_mm=cell.fingerprint_period_mm or SimulationConfig.fingerprint_period_mm,
+        ridge_height_mm=cell.ridge_height_mm or SimulationConfig.ridge_height_mm,
+        camera=Camera(width_px=cell.width_px, height_px=cell.height_px), **config_options(cell.ratings_from),
+    )
+
+
+def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.DataFrame]:
+    """The cell's study in memory (no images) and its feature table (manifest columns + spectrum).
+
+    ``warm_start=False`` solves every contact from scratch, as ``simulate`` does: the features are then
+    bit-identical to those of the simulated study folder (tests compare them).
+    """
+    config = simulation_config(cell)
+    pads, specimens = config.validate()
+    pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
+    trials = plan_trials(config, pads, specimens)
+    camera = config.camera
+    height_px = getattr(camera, "frame_height_px", camera.height_px)  # the rows a frame holds (a sensor window)
+    roi = sensor_roi(camera.width_px, height_px)
+    spectrum = SpatialSpectrum(px_per_mm=camera.px_per_mm, roi=roi).fit()
+    rows = line_rows(spectrum, camera.width_px, height_px)
+    warm: dict | None = {} if warm_start else None
+    fractions = []
+
+    def frames():
+        frame = np.zeros((height_px, camera.width_px), dtype=np.uint8)  # rows the sensor never reads stay 0
+        for trial in trials:
+            part, fraction = render_trial(trial, rows=rows, warm=warm)
+            fractions.append(fraction)
+            frame[rows[0]:rows[1]] = part
+            yield frame
+
+    X = np.vstack(list(spectrum.iter_transform(frames())))
+    manifest = pd.DataFrame({
+        "image": [t.image for t in trials],
+        "specimen": [t.specimen.name for t in trials],
+        "pad": [t.pad.name for t in trials],
+        "force_n": [t.exposure.force_read_n for t in trials],
+        "nominal_force_n": [t.nominal_force_n for t in trials],
+        "condition": [force_label(t.nominal_force_n) for t in trials],
+        "repetition": [t.repetition for t in trials],
+        "contact_fraction": [round(f, 6) for f in fractions],
+    })
+    names = [str(c) for c in spectrum.get_feature_names_out()]
+    features = pd.concat([manifest, pd.DataFrame(X, columns=names)], axis=1)
+    study = Study(
+        root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE,
+        sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(cell.forces_n)),
+        specimens=pd.DataFrame([s.table_row() for s in specimens]), manifest=manifest,
+        ratings=panel_ratings(specimens, cell.seed, ratings_from=cell.ratings_from,
+                              participants=cell.participants, sessions=cell.sessions),
+    )
+    return study, features
+
+
+def analyse_cell(cell: Cell):
+    """The study analysis of one cell (every condition and CV scheme)."""
+    study, features = cell_features(cell)
+    labels = study.condition_labels()
+    conditions = [*labels, "combined"] if len(labels) > 1 else labels
+    # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
+    return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
+                         cv_schemes=cell.cv, combined_forces=labels, **no_controls()), study
+
+
+def no_controls() -> dict:
+    """``analyse_study``'s keyword that turns the permutation controls off, in builds that have them."""
+    import inspect
+
+    return {"n_permutations": 0} if "n_permutations" in inspect.signature(analyse_study).parameters else {}
+
+
+def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(summary rows: one per pad x condition x CV scheme, per-specimen rows) of one cell."""
+    analysis, study = analyse_cell(cell)
+    shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
+    wavelengths = dict(zip(study.specimens["specimen"], study.specimens["wavelength_mm"]))
+    summary, per_specimen = [], []
+    for fit in analysis.fits:
+        table = fit.table
+        rated = table[table["specimen"] != study.reference_specimen]
+        summary.append({
+            "cell": cell.id, "seed": cell.seed, "pad": fit.pad, "condition": fit.condition, "cv": fit.cv,
+            "n_components": int(fit.best_n_components),
+            "rmse": float(table["rmse"].mean()), "ovl": float(rated["ovl"].mean()),
+            "cv_rmse": float(fit.cv_rmse[fit.best_n_components]),
+            "rmse_sd": float(table["rmse"].std(ddof=1)) if len(table) > 1 else math.nan,
+            "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
+            "n_specimens": int(len(table)),
+            **{c: float(rated[c].mean()) if c in rated.columns else math.nan for c in PREDICTIVE},
+        })
+        for row in table.itertuples(index=False):
+            per_specimen.append({
+                "cell": cell.id, "seed": cell.seed, "pad": fit.pad, "condition": fit.condition, "cv": fit.cv,
+                "specimen": row.specimen, "shape": shapes.get(row.specimen, "other"),
+                "wavelength_mm": float(wavelengths.get(row.specimen, math.nan)),
+                "n_components": int(fit.nested_n_components.get(str(row.specimen), fit.best_n_components)),
+                "gmean": row.gmean, "sd": row.sd, "pred_mean": row.pred_mean, "pred_sd": row.pred_sd,
+                "rmse": row.rmse, "ovl": row.ovl,
+                **{c: float(getattr(row, c, math.nan)) for c in PREDICTIVE},
+            })
+    design = cell.columns()
+    design.pop("pad")  # the pad column comes from the analysis (the same value)
+    summary_frame = pd.DataFrame(summary, columns=RESULT_COLUMNS).assign(**design)
+    specimen_frame = pd.DataFrame(per_specimen, columns=SPECIMEN_COLUMNS).assign(**design)
+    return summary_frame, specimen_frame
+
+
+def one_line(exc: BaseException) -> str:
+    text = str(exc) if isinstance(exc, RoughsenseError) else f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split()) or type(exc).__name__
+
+
+def run_cell(cell: Cell) -> dict:
+    """A Dask task: the cell's rows, or its one-line error (a failing cell never stops the sweep)."""
+    started = time.perf_counter()
+    try:
+        from .version import code_fingerprint
+
+        if cell.code and cell.code != code_fingerprint():
+            raise RoughsenseError(f"this worker runs different roughsense code ({code_fingerprint()}) from the client "
+                                  f"({cell.code}); install the same version on every worker")
+        summary, per_specimen = cell_rows(cell)
+        return {"cell": cell, "results": summary, "specimens": per_specimen, "error": None,
+                "seconds": time.perf_counter() - started}
+    except Exception as exc:  # noqa: BLE001 - recorded per cell, by design
+        return {"cell": cell, "results": None, "specimens": None, "error": one_line(exc),
+                "seconds": time.perf_counter() - started}

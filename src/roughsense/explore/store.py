@@ -1,0 +1,140 @@
+"""Results that survive: one Parquet file per finished cell, written atomically, beside a copy of the sweep file.
+
+Layout of ``--out``::
+
+    sweep.toml              the sweep file this folder belongs to (copied at the start)
+    results/cell-ID.parquet one row per pad x condition x CV scheme of cell ID (``pandas.read_parquet(out/"results")``)
+    specimens/cell-ID.parquet  the same per specimen
+    failures.csv            cells that failed: id, seed, design and the one-line error (retried on the next run)
+    index.html              the report
+
+A cell is finished when its results file exists: the specimens file is written first, the results file last, each
+by rename, so a sweep killed at any moment leaves only whole files and a rerun recomputes exactly the cells missing.
+"""
+from __future__ import annotations
+
+import os
+import tomllib
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .. import atomic
+from ..errors import OutputExistsError
+from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS
+from .sweep import COLUMN_KINDS, Sweep
+
+SWEEP_COPY = "sweep.toml"
+RESULTS_DIR = "results"
+SPECIMENS_DIR = "specimens"
+FAILURES_CSV = "failures.csv"
+REPORT = "index.html"
+_TYPES = {"str": pa.string(), "float": pa.float64(), "int": pa.int64()}
+_BASE_TYPES = {
+    "cell": pa.string(), "seed": pa.int64(), "pad": pa.string(), "condition": pa.string(), "cv": pa.string(),
+    "n_components": pa.int64(), "specimen": pa.string(), "shape": pa.string(),
+}
+
+
+def _schema(columns: list[str]) -> pa.Schema:
+    """Fixed column types, so every cell's file reads back as one table (a NaN-only column stays float)."""
+    design = [k for k in COLUMN_KINDS if k != "pad"]
+    fields = [pa.field(c, _BASE_TYPES.get(c, pa.float64())) for c in columns]
+    fields += [pa.field(k, _TYPES[COLUMN_KINDS[k]]) for k in design]
+    return pa.schema(fields)
+
+
+RESULT_SCHEMA = _schema(RESULT_COLUMNS)
+SPECIMEN_SCHEMA = _schema(SPECIMEN_COLUMNS)
+
+
+def cell_file(cell_id: str) -> str:
+    return f"cell-{cell_id}.parquet"
+
+
+class ResultStore:
+    """The output folder of one sweep: refuses another sweep's folder (unless ``force``), knows finished cells."""
+
+    def __init__(self, out: str | os.PathLike[str], sweep: Sweep, *, force: bool = False) -> None:
+        self.root = Path(out)
+        self.sweep = sweep
+        self.force = force
+        if self.root.exists() and not self.root.is_dir():
+            raise OutputExistsError("exists and is not a folder", path=self.root)
+        self._check_owner(force)
+
+    @classmethod
+    def reader(cls, out: str | os.PathLike[str], sweep: Sweep) -> "ResultStore":
+        """Read access to a folder a sweep has run in (no ownership checks: nothing is written)."""
+        store = cls.__new__(cls)
+        store.root, store.sweep, store.force = Path(out), sweep, False
+        return store
+
+    def _check_owner(self, force: bool) -> None:
+        copy = self.root / SWEEP_COPY
+        if not self.root.is_dir() or not any(self.root.iterdir()):
+            return
+        if copy.is_file():
+            try:
+                with copy.open("rb") as handle:
+                    same = tomllib.load(handle) == self.sweep.source
+            except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
+                same = False
+            if same or force:
+                return
+            raise OutputExistsError("holds the results of another sweep (its sweep.toml differs); choose a new folder "
+                                    "or pass --force to replace them", path=self.root)
+        if not force:
+            raise OutputExistsError("folder is not empty and holds no sweep (no sweep.toml); choose a new or empty "
+                                    "folder, or pass --force to write into it", path=self.root)
+
+    def foreign(self) -> list[Path]:
+        """Cell files that are not cells of this sweep (another sweep's, or computed by another roughsense)."""
+        ours = {cell_file(c.id) for c in self.sweep.cells}
+        return [p for sub in (RESULTS_DIR, SPECIMENS_DIR) if (self.root / sub).is_dir()
+                for p in sorted((self.root / sub).glob("cell-*.parquet")) if p.name not in ours]
+
+    def prepare(self) -> list[str]:
+        """Create the folder, copy the sweep file, drop cell files not of this sweep (``force`` only); their ids."""
+        foreign = self.foreign()
+        if foreign and not self.force:
+            raise OutputExistsError(f"holds {len(foreign)} result files that are not cells of this sweep (another "
+                                    "sweep's, or computed by another version of roughsense); pass --force to replace "
+                                    "them", path=self.root)
+        for sub in (RESULTS_DIR, SPECIMENS_DIR):
+            (self.root / sub).mkdir(parents=True, exist_ok=True)
+        atomic.write_bytes(self.root / SWEEP_COPY, self.sweep.path.read_bytes())
+        for path in foreign:
+            path.unlink()
+        return sorted({p.stem.removeprefix("cell-") for p in foreign})
+
+    def finished(self) -> set[str]:
+        folder = self.root / RESULTS_DIR
+        if not folder.is_dir():
+            return set()
+        return {p.stem.removeprefix("cell-") for p in folder.glob("cell-*.parquet")}
+
+    def write_cell(self, results: pd.DataFrame, specimens: pd.DataFrame, cell_id: str) -> None:
+        """Specimens first, results last: the results file is the cell's 'done' mark."""
+        for frame, sub, schema in ((specimens, SPECIMENS_DIR, SPECIMEN_SCHEMA), (results, RESULTS_DIR, RESULT_SCHEMA)):
+            table = pa.Table.from_pandas(frame[schema.names], schema=schema, preserve_index=False)
+            with atomic.atomic_open(self.root / sub / cell_file(cell_id), "wb") as handle:
+                pq.write_table(table, handle)
+
+    def write_failures(self, failures: list[dict]) -> None:
+        path = self.root / FAILURES_CSV
+        if failures:
+            atomic.write_csv(path, pd.DataFrame(failures))
+        elif path.is_file():
+            path.unlink()  # every earlier failure has now been computed
+
+    def read(self, sub: str = RESULTS_DIR) -> pd.DataFrame:
+        """Every cell file in the folder (after a run, exactly this sweep's finished cells: a run refuses others)."""
+        schema = RESULT_SCHEMA if sub == RESULTS_DIR else SPECIMEN_SCHEMA
+        files = sorted((self.root / sub).glob("cell-*.parquet"))
+        tables = [pq.read_table(p, schema=schema) for p in files]
+        if not tables:
+            return schema.empty_table().to_pandas()
+        return pa.concat_tables(tables).to_pandas()

@@ -1,0 +1,293 @@
+"""The sweep file: a TOML grid of designs of the twin, checked up front and expanded into independent cells.
+
+A cell is one grid point x one seed. Everything a cell needs travels inside :class:`Cell` (no files), so a worker on
+another machine computes it from the cell alone, and the cell's id is a hash of exactly that content: a rerun of the
+same sweep, or a sweep that shares some of its cells, finds them finished.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import numbers
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..sim.optics import HEIGHT_PX, PX_PER_MM, WIDTH_PX
+from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
+from ..sim.specimens import PAPER_SPECIMENS, parse_specimen
+
+RATINGS_SOURCES = ("paper", "physics")
+CV_SCHEMES = ("loo", "loso")
+MIN_FIELD_MM = 10.0  # the spectrum's lowest frequency is 0.1 mm^-1: a shorter line cannot resolve it
+#: Named specimen sets usable wherever a list of specimens is expected.
+SPECIMEN_SETS = {
+    "paper": PAPER_SPECIMENS,
+    "rectangular": tuple(s for s in PAPER_SPECIMENS if s.startswith("R")),
+    "circular": tuple(s for s in PAPER_SPECIMENS if s.startswith("C")),
+}
+PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked against
+    "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / PX_PER_MM, 3), "forces_n": "1,2,3",
+}
+#: Design parameters: every one may be a single value in [sweep] or a list of values in [axes].
+DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
+               "specimens", "repetitions", "ratings_from")
+FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless for the smooth pad
+SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
+DEFAULTS = {
+    "pad": "smooth", "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": (1.0, 2.0, 3.0),
+    "specimens": "paper", "repetitions": 10, "ratings_from": "paper",
+}
+#: Column type of each design parameter in the results (strings for lists, NaN where a value does not apply).
+COLUMN_KINDS = {"pad": "str", "fingerprint_period_mm": "float", "ridge_height_mm": "float",
+                "pad_modulus_mpa": "float", "field_length_mm": "float", "forces_n": "str", "specimens": "str",
+                "repetitions": "int", "ratings_from": "str"}
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One grid point x one seed: everything needed to compute it, nothing else."""
+
+    id: str
+    seed: int
+    pad: str
+    fingerprint_period_mm: float | None
+    ridge_height_mm: float | None
+    pad_modulus_mpa: float
+    field_length_mm: float
+    forces_n: tuple[float, ...]
+    specimens: tuple[str, ...]
+    specimens_label: str
+    repetitions: int
+    ratings_from: str
+    participants: int
+    sessions: int
+    width_px: int
+    height_px: int
+    max_components: int
+    cv: tuple[str, ...]
+    code: str = ""  # fingerprint of the twin and analysis that compute it (explore.version)
+
+    def columns(self) -> dict:
+        """The design as result columns: one scalar per design parameter (lists as text)."""
+        return {
+            "pad": self.pad,
+            "fingerprint_period_mm": math.nan if self.fingerprint_period_mm is None else self.fingerprint_period_mm,
+            "ridge_height_mm": math.nan if self.ridge_height_mm is None else self.ridge_height_mm,
+            "pad_modulus_mpa": self.pad_modulus_mpa,
+            "field_length_mm": self.field_length_mm,
+            "forces_n": forces_label(self.forces_n),
+            "specimens": self.specimens_label,
+            "repetitions": self.repetitions,
+            "ratings_from": self.ratings_from,
+        }
+
+
+@dataclass
+class Sweep:
+    """A checked sweep file: its settings, its axes (design parameters that vary) and the cells of its grid."""
+
+    path: Path
+    name: str
+    axes: dict[str, list]
+    cells: list[Cell]
+    cv: tuple[str, ...]
+    source: dict = field(default_factory=dict)  # the parsed file, to tell one sweep from another
+
+    @property
+    def axis_names(self) -> list[str]:
+        return list(self.axes)
+
+
+def forces_label(forces_n) -> str:
+    return ",".join(f"{f:g}" for f in forces_n)
+
+
+def _error(path: Path, message: str) -> ConfigError:
+    return ConfigError(message, path=path)
+
+
+def _number(path, where, value, *, positive=True) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or \
+            (positive and value <= 0):
+        raise _error(path, f"{where}: expected a positive number, got {value!r}")
+    return float(value)
+
+
+def _whole(path, where, value, least) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+        raise _error(path, f"{where}: expected a whole number >= {least}, got {value!r}")
+    return int(value)
+
+
+def _check_value(path: Path, key: str, value, where: str):
+    """One design value, checked and normalised (lists become tuples); raises naming the key and value."""
+    if key == "pad":
+        if not isinstance(value, str) or value.strip().lower() not in PAD_NAMES:
+            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(PAD_NAMES)})")
+        return value.strip().lower()
+    if key in ("fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa"):
+        return _number(path, where, value)
+    if key == "field_length_mm":
+        length = _number(path, where, value)
+        if length < MIN_FIELD_MM:
+            raise _error(path, f"{where}: {value!r} mm is shorter than {MIN_FIELD_MM:g} mm, the longest wavelength "
+                               "the spectrum (0.1-1 mm^-1) resolves")
+        return length
+    if key == "forces_n":
+        if not isinstance(value, list) or not value:
+            raise _error(path, f"{where}: expected a non-empty list of forces in N, got {value!r}")
+        forces = tuple(sorted(_number(path, where, f) for f in value))
+        if len(set(forces_label(forces).split(","))) != len(forces):
+            raise _error(path, f"{where}: forces {value!r} are not distinct")
+        return forces
+    if key == "specimens":
+        if isinstance(value, str):
+            if value not in SPECIMEN_SETS:
+                raise _error(path, f"{where}: unknown specimen set {value!r} (expected one of "
+                                   f"{', '.join(SPECIMEN_SETS)}, or a list of specimens)")
+            return value
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise _error(path, f"{where}: expected a list of specimens or a set name, got {value!r}")
+        names = []
+        for text in value:
+            try:
+                names.append(parse_specimen(text).name)
+            except ConfigError as exc:
+                raise _error(path, f"{where}: {exc.message}") from None
+        if len(set(names)) != len(names):
+            raise _error(path, f"{where}: a specimen is listed twice in {value!r}")
+        rated = [n for n in names if n != "R3"]
+        if len(rated) < 4:
+            raise _error(path, f"{where}: give at least 4 specimens besides the reference R3 (leave-one-specimen-out "
+                               "needs 3 to choose the components of each held-out one)")
+        return tuple(text.strip() for text in value)  # the specs as written: the simulator parses them again
+    if key == "repetitions":
+        return _whole(path, where, value, 2)
+    if key == "ratings_from":
+        if value not in RATINGS_SOURCES:
+            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_SOURCES)})")
+        if value == "physics":
+            from .ratings import check_ratings_source
+
+            try:
+                check_ratings_source(value)
+            except ConfigError as exc:
+                raise _error(path, f"{where}: {exc.message}") from None
+        return value
+    raise AssertionError(key)
+
+
+def _label(key: str, value) -> object:
+    if key == "forces_n":
+        return forces_label(value)
+    if key == "specimens":
+        return value if isinstance(value, str) else ",".join(value)
+    return value
+
+
+def read_sweep(path: str | os.PathLike[str]) -> Sweep:
+    """Read and check a sweep file; every problem is one line naming the file and the key."""
+    path = Path(path)
+    if not path.is_file():
+        raise _error(path, "sweep file not found")
+    try:
+        with path.open("rb") as handle:
+            source = tomllib.load(handle)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise _error(path, f"is not valid TOML ({exc})") from None
+    return build_sweep(source, path)
+
+
+def build_sweep(source: dict, path: Path) -> Sweep:
+    unknown_tables = [k for k in source if k not in ("sweep", "axes")]
+    if unknown_tables:
+        raise _error(path, f"unknown table [{unknown_tables[0]}] (expected [sweep] and [axes])")
+    settings = source.get("sweep", {})
+    axes_in = source.get("axes", {})
+    if not isinstance(settings, dict) or not isinstance(axes_in, dict):
+        raise _error(path, "[sweep] and [axes] must be tables")
+    for key in settings:
+        if key not in SETTING_KEYS and key not in DESIGN_KEYS:
+            raise _error(path, f"[sweep]: unknown key {key!r} (known: {', '.join(SETTING_KEYS + DESIGN_KEYS)})")
+    for key in axes_in:
+        if key not in DESIGN_KEYS:
+            raise _error(path, f"[axes]: unknown axis {key!r} (known: {', '.join(DESIGN_KEYS)})")
+        if key in settings:
+            raise _error(path, f"{key!r} is given both in [sweep] and in [axes]; give it in one place")
+    seeds = settings.get("seeds", [0])
+    if not isinstance(seeds, list) or not seeds:
+        raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {seeds!r}")
+    seeds = [_whole(path, "[sweep] seeds", s, 0) for s in seeds]
+    if len(set(seeds)) != len(seeds):
+        raise _error(path, "[sweep] seeds: a seed is listed twice")
+    max_components = _whole(path, "[sweep] max_components", settings.get("max_components", 20), 1)
+    participants = _whole(path, "[sweep] participants", settings.get("participants", 10), 2)
+    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", 3), 1)
+    size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
+    if not (isinstance(size, list) and len(size) == 2):
+        raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
+    width_px, height_px = (_whole(path, "[sweep] image_size_px", v, 16) for v in size)
+    cv = settings.get("cv", list(CV_SCHEMES))
+    if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
+        raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")
+    cv = tuple(c for c in CV_SCHEMES if c in cv)
+
+    fixed = {key: _check_value(path, key, settings[key], f"[sweep] {key}") if key in settings else DEFAULTS[key]
+             for key in DESIGN_KEYS}
+    axes: dict[str, list] = {}
+    for key, values in axes_in.items():
+        if not isinstance(values, list):
+            raise _error(path, f"[axes] {key}: expected a list of values, got {values!r}")
+        if not values:
+            raise _error(path, f"[axes] {key}: no values, so the grid is empty")
+        checked = [_check_value(path, key, v, f"[axes] {key}") for v in values]
+        if len({json.dumps(_label(key, v)) for v in checked}) != len(checked):
+            raise _error(path, f"[axes] {key}: a value is listed twice")
+        axes[key] = checked
+    if "pad" not in axes and "pad" not in settings:
+        axes["pad"] = ["smooth", "fingerprint"]  # both of the paper's pads unless told otherwise
+    keys = list(axes)
+    points, seen = [], set()
+    for combo in itertools.product(*(axes[k] for k in keys)):
+        point = {**fixed, **dict(zip(keys, combo))}
+        if point["pad"] == "smooth":
+            for key in FINGERPRINT_ONLY:
+                point[key] = None
+        signature = json.dumps({k: _label(k, v) for k, v in point.items()}, sort_keys=True)
+        if signature not in seen:
+            seen.add(signature)
+            points.append(point)
+    from .version import code_fingerprint
+
+    code = code_fingerprint()
+    cells = []
+    for point in points:
+        specimens = point["specimens"]
+        names = SPECIMEN_SETS[specimens] if isinstance(specimens, str) else specimens
+        field_mm = point["field_length_mm"]
+        cell_width = width_px if field_mm is None else max(16, int(round(field_mm * PX_PER_MM)))
+        for seed in seeds:
+            content = dict(
+                seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],
+                ridge_height_mm=point["ridge_height_mm"], pad_modulus_mpa=point["pad_modulus_mpa"],
+                field_length_mm=round(cell_width / PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
+                specimens=tuple(names), specimens_label=_label("specimens", specimens),
+                repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=participants,
+                sessions=sessions, width_px=cell_width, height_px=height_px, max_components=max_components, cv=cv,
+                code=code,
+            )
+            digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
+            cells.append(Cell(id=digest, **content))
+    name = settings.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise _error(path, f"[sweep] name: expected a text, got {name!r}")
+    varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
+    return Sweep(path=path, name=name, axes=varying, cells=cells, cv=cv, source=source)
+

@@ -1,0 +1,366 @@
+"""roughsense explore: sweep files, cells equal to the study path, the Parquet store, Dask (local and remote), report."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roughsense.dataset import study_features
+from roughsense.errors import ConfigError, OutputExistsError
+from roughsense.evaluation import analyse_study
+from roughsense.explore import cell as explore_cell
+from roughsense.explore.runner import run_sweep
+from roughsense.explore.store import ResultStore
+from roughsense.explore.summary import ci95
+from roughsense.explore.sweep import read_sweep
+from roughsense.sensor import SpatialSpectrum
+from roughsense.sim import contact
+from roughsense.sim import simulate as sim
+from roughsense.sim.specimens import parse_specimen
+from roughsense.study import read_study
+
+from . import explore_tasks
+
+SPECIMENS = '["R2", "R3", "R4", "C3", "rect:1.5"]'
+TINY = f"""
+[sweep]
+seeds = [0, 1]
+repetitions = 2
+specimens = {SPECIMENS}
+image_size_px = [480, 160]
+max_components = 4
+[axes]
+pad = ["smooth"]
+"""
+
+
+def _sweep_file(tmp_path: Path, text: str = TINY, name: str = "sweep.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# --------------------------------------------------------------------------- the simulator's fast paths
+
+
+def test_rendered_rows_are_the_whole_frames_rows():
+    config = sim.SimulationConfig(pads=("fingerprint",), specimens=("R2", "C3"), repetitions=2, forces_n=(1.0, 3.0))
+    pads, specimens = config.validate()
+    trials = sim.plan_trials(config, pads, specimens)
+    assert any(t.mount.spots for t in trials)  # spots cross the window's edges too
+    for trial in trials:
+        full, fraction = sim.render_trial(trial)
+        height = trial.camera.frame_height_px
+        for rows in ((0, 1), (height // 2 - 5, height // 2 + 10), (height - 20, height)):
+            part, same = sim.render_trial(trial, rows=rows)
+            assert np.array_equal(part, full[rows[0]:rows[1]]) and same == fraction
+
+
+def test_warm_started_contact_equals_the_cold_solution():
+    modulus = 0.17e6 / (1 - 0.49**2)
+    for spec, iterations_at_most in (("R3", 5), ("C3", None), ("sin:1.2:0.2", None)):
+        specimen = parse_specimen(spec)
+        length, _ = contact.periodic_domain(specimen.period_mm, None)
+        n = contact.grid_points(length)
+        height = specimen.height_mm(np.arange(n) * length / n)
+        first = contact.solve_periodic(height, length, 4000.0, modulus, tol=1e-6)
+        for pressure in (3000.0, 4100.0, 5200.0):
+            cold = contact.solve_periodic(height, length, pressure, modulus, tol=1e-6)
+            warm = contact.solve_periodic(height, length, pressure, modulus, tol=1e-6,
+                                          initial_pressure_pa=first.pressure_pa)
+            # The same answer: gaps agree far below the optics' 20 um decay length.
+            assert np.max(np.abs(warm.gap_mm - cold.gap_mm)) < 1e-6
+            assert warm.pressure_pa.mean() == pytest.approx(pressure)
+            if iterations_at_most:  # flat lands: the contact set does not move, a warm start is nearly free
+                assert warm.iterations <= iterations_at_most < cold.iterations
+        # Starting from the answer itself: nothing to do (and no division by the zero residual).
+        again = contact.solve_periodic(height, length, 4000.0, modulus, tol=1e-6, initial_pressure_pa=first.pressure_pa)
+        assert np.max(np.abs(again.gap_mm - first.gap_mm)) < 1e-6
+
+
+def test_a_warm_start_that_cycles_restarts_cold(monkeypatch):
+    config = sim.SimulationConfig(pads=("smooth",), specimens=("C3",), repetitions=1, forces_n=(2.0,))
+    pads, specimens = config.validate()
+    trial = sim.plan_trials(config, pads, specimens)[0]
+    solve = contact.solve_periodic
+
+    def cycling(*args, initial_pressure_pa=None, **kwargs):
+        if initial_pressure_pa is not None:
+            raise contact.ContactNotConverged("cycling")
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(contact, "solve_periodic", cycling)
+    warm: dict = {}
+    line, fraction = sim.trial_line(trial, warm=warm)
+    assert warm  # solutions kept for the next trial
+    cold_line, cold_fraction = sim.trial_line(trial)
+    assert np.array_equal(line, cold_line) and fraction == cold_fraction
+
+
+# --------------------------------------------------------------------------- a cell is the study path in memory
+
+
+@pytest.mark.slow
+def test_cell_equals_simulate_then_study(tmp_path):
+    sweep = read_sweep(_sweep_file(tmp_path, TINY.replace('pad = ["smooth"]', 'pad = ["fingerprint"]')))
+    cell = sweep.cells[0]
+    # The study path: simulate a folder with the same design and analyse it with the same sensor crop.
+    config = explore_cell.simulation_config(cell)
+    sim.simulate_study(tmp_path / "study", config, jobs=1)
+    study = read_study(tmp_path / "study", require_ratings=True)
+    roi = explore_cell.sensor_roi(cell.width_px, cell.height_px)
+    features = study_features(study, spectrum=SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=roi).fit())
+    # Cold contact solves: the cell's spectra are bit-identical to the ones read back from the PNG files.
+    cell_study, cold = explore_cell.cell_features(cell, warm_start=False)
+    as_read = cell_study.ratings.astype({"session": str}).reset_index(drop=True)  # the CSV keeps sessions as text
+    pd.testing.assert_frame_equal(as_read, study.ratings.reset_index(drop=True), check_dtype=False)  # simulate's panel
+    freq = [c for c in cold.columns if c[0].isdigit()]
+    ours = cold.set_index("image").loc[features["image"].str.removeprefix("images/")]
+    assert np.array_equal(ours[freq].to_numpy(), features[freq].to_numpy())
+    assert np.array_equal(ours["force_n"].to_numpy(), features["force_n"].to_numpy())
+    # Warm-started solves move brightness by ~1e-5 at most: a rare 8-bit level, so spectra agree closely.
+    _, warm = explore_cell.cell_features(cell)
+    assert np.max(np.abs(warm[freq].to_numpy() - cold[freq].to_numpy())) < 1e-3 * np.max(cold[freq].to_numpy())
+    # The rows: the study's own analysis of the folder, summarised per pad x condition x CV scheme.
+    analysis = analyse_study(study, features=features, max_components=cell.max_components,
+                             **explore_cell.no_controls())
+    summary, per_specimen = explore_cell.cell_rows(cell)
+    for fit in analysis.fits:
+        row = summary[(summary.condition == fit.condition) & (summary.cv == fit.cv)].iloc[0]
+        assert row["rmse"] == pytest.approx(fit.table["rmse"].mean(), rel=2e-2)
+        assert row["cv_rmse"] == pytest.approx(fit.cv_rmse[fit.best_n_components], rel=2e-2)
+    assert set(summary["condition"]) == {"1N", "2N", "3N", "combined"} and set(summary["cv"]) == {"loo", "loso"}
+    assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL
+
+
+def test_run_cell_records_a_failure_as_one_line(tmp_path, monkeypatch):
+    cell = read_sweep(_sweep_file(tmp_path)).cells[0]
+
+    def broken(_cell):
+        raise ConfigError("pad 'smooth' on specimen 'R2' at 4000 Pa: the contact solver did not converge\nin time")
+
+    monkeypatch.setattr(explore_cell, "cell_rows", broken)
+    result = explore_cell.run_cell(cell)
+    assert result["results"] is None and "\n" not in result["error"] and "did not converge in time" in result["error"]
+
+
+# --------------------------------------------------------------------------- the sweep file
+
+
+def test_sweep_grid_and_cell_ids(tmp_path):
+    text = TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "fingerprint"]\nfingerprint_period_mm = [1.0, 0.5]\n'
+                        'forces_n = [[1, 2, 3], [2, 1]]')
+    sweep = read_sweep(_sweep_file(tmp_path, text))
+    # smooth ignores the fingerprint period: (1 + 2) pad designs x 2 force sets x 2 seeds
+    assert len(sweep.cells) == 12 and len({c.id for c in sweep.cells}) == 12
+    smooth = [c for c in sweep.cells if c.pad == "smooth"]
+    assert all(c.fingerprint_period_mm is None for c in smooth) and {c.forces_n for c in smooth} == {(1, 2, 3), (1, 2)}
+    # ids depend on content only: the same grid point in another file keeps its id (reruns find it finished)
+    again = read_sweep(_sweep_file(tmp_path, "# a comment\n" + text, "other.toml"))
+    assert [c.id for c in again.cells] == [c.id for c in sweep.cells]
+
+
+@pytest.mark.parametrize("text, message", [
+    (TINY + "colour = [1]\n", "unknown axis 'colour'"),
+    (TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "velvet"]'), "unknown value 'velvet'"),
+    (TINY.replace('pad = ["smooth"]', "pad = []"), "the grid is empty"),
+    (TINY.replace("seeds = [0, 1]", "seeds = []"), "seeds"),
+    (TINY + "field_length_mm = [5.0]\n", "shorter than 10 mm"),
+    (TINY.replace(SPECIMENS, '["R2", "R3", "blob:2"]'), "unknown specimen 'blob:2'"),
+    (TINY.replace("[sweep]", "[sweep]\nratings_from = \"dreams\""), "unknown value 'dreams'"),
+    ("[sweep\n", "is not valid TOML"),
+])
+def test_bad_sweep_files_are_one_line_exit_2(tmp_path, run_cli, text, message):
+    path = _sweep_file(tmp_path, text)
+    code, out, err = run_cli("explore", path, "--out", tmp_path / "out")
+    assert code == 2 and message in err and str(path) in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_unreachable_scheduler_is_one_line_exit_2_within_10_s(tmp_path, run_cli):
+    started = time.perf_counter()
+    code, _, err = run_cli("explore", _sweep_file(tmp_path), "--out", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
+    assert code == 2 and "cannot reach the Dask scheduler" in err and len(err.strip().splitlines()) == 1
+    assert time.perf_counter() - started < 10
+
+
+def test_a_folder_of_another_sweep_or_of_user_files_is_refused(tmp_path):
+    first = read_sweep(_sweep_file(tmp_path))
+    store = ResultStore(tmp_path / "out", first)
+    store.prepare()
+    (tmp_path / "out" / "results" / "cell-0123456789abcdef.parquet").write_bytes(b"stale")
+    with pytest.raises(OutputExistsError, match="not cells of this sweep"):  # e.g. from an older roughsense
+        ResultStore(tmp_path / "out", first).prepare()
+    ResultStore(tmp_path / "out", first)  # the same sweep: resumes
+    other = read_sweep(_sweep_file(tmp_path, TINY.replace("seeds = [0, 1]", "seeds = [5]"), "other.toml"))
+    with pytest.raises(OutputExistsError, match="another sweep"):
+        ResultStore(tmp_path / "out", other)
+    forced = ResultStore(tmp_path / "out", other, force=True)
+    assert forced.prepare() == ["0123456789abcdef"]  # the other sweep's cells go, with --force only
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    with pytest.raises(OutputExistsError, match="holds no sweep"):
+        ResultStore(mine, first)
+    ResultStore(mine, first, force=True).prepare()
+    assert (mine / "notes.txt").read_text() == "keep"
+
+
+def test_ci95_is_the_t_interval():
+    from scipy import stats
+
+    values = [0.3, 0.5, 0.4, 0.6]
+    mean, half, n = ci95(values)
+    low, high = stats.t.interval(0.95, 3, loc=np.mean(values), scale=stats.sem(values))
+    assert (mean, n) == (pytest.approx(0.45), 4) and half == pytest.approx((high - low) / 2)
+    assert np.isnan(ci95([0.2])[1])
+
+
+# --------------------------------------------------------------------------- on Dask
+
+
+@pytest.fixture(scope="module")
+def local_run(tmp_path_factory):
+    """The tiny sweep on a 2-worker LocalCluster, with a task that fails seed 1 on the worker."""
+    tmp = tmp_path_factory.mktemp("explore")
+    sweep = read_sweep(_sweep_file(tmp))
+    outcome = run_sweep(sweep, tmp / "out", workers=2, task=explore_tasks.fail_seed_one)
+    return sweep, tmp / "out", outcome
+
+
+@pytest.mark.slow
+def test_local_cluster_run_records_failures_and_resumes(local_run):
+    sweep, out, outcome = local_run
+    assert (outcome.total, outcome.computed, len(outcome.failures)) == (2, 1, 1)
+    failure = outcome.failures[0]
+    assert failure["seed"] == 1 and failure["error"] == "RuntimeError: boom on the worker second line"
+    assert pd.read_csv(out / "failures.csv")["error"].tolist() == [failure["error"]]
+    results = pd.read_parquet(out / "results")
+    assert len(results) == 4 * 2  # 1 cell x 1 pad x 4 conditions x 2 CV schemes
+    assert {"cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "specimens"} <= set(results.columns)
+    assert (out / "sweep.toml").read_bytes() == sweep.path.read_bytes()
+    # Rerun: the finished cell is skipped (its file untouched), the failed one is computed now.
+    done = out / "results" / f"cell-{results['cell'].iloc[0]}.parquet"
+    stamp = done.stat().st_mtime_ns
+    again = run_sweep(sweep, out, workers=1)
+    assert (again.skipped, again.computed, again.failures) == (1, 1, [])
+    assert done.stat().st_mtime_ns == stamp and not (out / "failures.csv").exists()
+    assert pd.read_parquet(out / "results")["seed"].nunique() == 2
+
+
+@pytest.mark.slow
+def test_remote_scheduler_gives_the_same_numbers(local_run, tmp_path, run_cli):
+    sweep, local_out, _ = local_run
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1] / "src"), *sys.path])}
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    scheduler_file = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(scheduler_file)], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(200):
+            if scheduler_file.is_file() and scheduler_file.stat().st_size:
+                break
+            time.sleep(0.05)
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", "--nthreads", "1",
+                                       "--no-dashboard", "--scheduler-file", str(scheduler_file)], env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        address = json.loads(scheduler_file.read_text())["address"]
+        code, out, err = run_cli("explore", sweep.path, "--out", tmp_path / "remote", "--scheduler", address)
+        assert code == 0, err
+    finally:
+        for proc in reversed(procs):
+            proc.terminate()
+            proc.wait(timeout=20)
+    local = pd.read_parquet(local_out / "results").sort_values(["cell", "condition", "cv"]).reset_index(drop=True)
+    remote = pd.read_parquet(tmp_path / "remote" / "results").sort_values(["cell", "condition", "cv"])
+    pd.testing.assert_frame_equal(local, remote.reset_index(drop=True))
+    html = (tmp_path / "remote" / "index.html").read_text()
+    assert "Best design" in html and "Limits of the twin" in html and 'src="http' not in html
+
+
+def _chromium():
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver = shutil.which("chromedriver")
+    return (browser, driver) if browser and driver else None
+
+
+@pytest.mark.slow
+@pytest.mark.browser
+def test_explore_report_renders_in_headless_chromium(local_run):
+    from roughsense.explore.report import write_explore_report
+
+    sweep, out, _ = local_run
+    index = write_explore_report(sweep, out)
+    found = _chromium()
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must install Debian's chromium and chromium-driver (see .ci/run)")
+        pytest.skip("chromium/chromedriver not installed")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = found[0]
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1280,2000"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(executable_path=found[1]), options=options)
+    try:
+        driver.get(index.resolve().as_uri())
+        assert "roughsense sweep" in driver.title
+        headings = [h.text for h in driver.find_elements(By.TAG_NAME, "h2")]
+        assert headings[:3] == ["Best design", "The paper's open questions", "Along each axis"]
+        assert len(driver.find_elements(By.TAG_NAME, "table")) >= 2
+        uncovered = driver.find_elements(By.CSS_SELECTOR, "p.uncovered")
+        assert len(uncovered) >= 3  # this sweep answers none of the questions that need an axis
+    finally:
+        driver.quit()
+
+
+def test_combined_condition_over_other_forces():
+    from roughsense.dataset import condition_matrix
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for specimen in ("R2", "C3"):
+        for repetition in (1, 2):
+            for force in ("1N", "2N", "4N"):
+                rows.append({"image": f"{specimen}_{force}_{repetition}", "pad": "smooth", "specimen": specimen,
+                             "repetition": repetition, "condition": force, "0.1": rng.random(), "0.2": rng.random()})
+    features = pd.DataFrame(rows)
+    X, meta = condition_matrix(features, "smooth", "combined", combined_forces=["1N", "4N"])
+    single = {f: condition_matrix(features, "smooth", f)[0] for f in ("1N", "4N")}
+    assert np.array_equal(X, np.hstack([single["1N"], single["4N"]]))
+    assert list(meta.columns) == ["specimen", "repetition", "image_1N", "image_4N"]
+    with pytest.raises(Exception, match="every trial needs 1N, 3N"):
+        condition_matrix(features, "smooth", "combined", combined_forces=["1N", "3N"])
+
+
+def test_physics_ratings_reach_the_cell(tmp_path):
+    from roughsense.explore.ratings import physics_available
+    from roughsense.sim.panel import simulate_panel
+
+    if not physics_available():
+        with pytest.raises(ConfigError, match="not available in this build"):
+            read_sweep(_sweep_file(tmp_path, TINY.replace("[sweep]", '[sweep]\nratings_from = "physics"')))
+        return
+    sweep = read_sweep(_sweep_file(tmp_path, TINY.replace("[sweep]", '[sweep]\nratings_from = "physics"')))
+    cell = sweep.cells[0]
+    config = explore_cell.simulation_config(cell)
+    assert cell.ratings_from == "physics" and config.ratings_from == "physics"
+    from roughsense.explore.ratings import panel_ratings
+
+    specimens = config.validate()[1]
+    ours = panel_ratings(specimens, cell.seed, ratings_from="physics")
+    theirs = simulate_panel(specimens, cell.seed, spawn_key=(4,), ratings_from="physics")
+    pd.testing.assert_frame_equal(ours, theirs)
+    assert not ours.equals(panel_ratings(specimens, cell.seed, ratings_from="paper"))
