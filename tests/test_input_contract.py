@@ -531,3 +531,14 @@ def test_a_non_default_pixel_limit_is_written_to_study_toml(tmp_path):
     writer = contract.StudyWriter(tmp_path / "s")
     writer.write_config(name="s", sensor=contract.SensorSettings(max_pixels=5000))
     assert contract.read_config(tmp_path / "s" / "study.toml")["sensor"]["max_pixels"] == 5000
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[sweep]\nx = " + "[" * 3000 + "]" * 3000 + "\n", "nested too deeply"),
+    ("[sweep]\nimage_size_px = [200000, 200000]\n[axes]\n", "above the limit of 100 Mpx per frame"),
+])
+def test_a_hostile_sweep_file_is_one_line(run_cli, tmp_path, text, message):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(text)
+    line = one_error(*run_cli("explore", sweep, "--out", tmp_path / "out")[::2])
+    assert message in line and not (tmp_path / "out").exists()

@@ -20,6 +20,7 @@ from ..errors import ConfigError
 from ..sim.optics import HEIGHT_PX, PX_PER_MM, WIDTH_PX
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
 from ..sim.specimens import PAPER_SPECIMENS, parse_specimen
+from ..study import DEFAULT_MAX_PIXELS
 
 RATINGS_SOURCES = ("paper", "physics")
 CV_SCHEMES = ("loo", "loso")
@@ -202,6 +203,8 @@ def read_sweep(path: str | os.PathLike[str]) -> Sweep:
             source = tomllib.load(handle)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise _error(path, f"is not valid TOML ({exc})") from None
+    except RecursionError:
+        raise _error(path, "is not a sweep file: its values are nested too deeply") from None
     return build_sweep(source, path)
 
 
@@ -234,6 +237,9 @@ def build_sweep(source: dict, path: Path) -> Sweep:
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
     width_px, height_px = (_whole(path, "[sweep] image_size_px", v, 16) for v in size)
+    if width_px * height_px > DEFAULT_MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
+        raise _error(path, f"[sweep] image_size_px: {width_px} x {height_px} px is above the limit of "
+                           f"{DEFAULT_MAX_PIXELS / 1e6:g} Mpx per frame")
     cv = settings.get("cv", list(CV_SCHEMES))
     if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
         raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")
