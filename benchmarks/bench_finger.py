@@ -8,16 +8,8 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
-
-def median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+from bench_simulate import median_time  # benchmarks/ is on the path when run as a script
 
 
 def main() -> None:

@@ -283,6 +283,14 @@ def _fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
     raise PLSConfigError(f"cv must be 'loo', a whole number of folds, or None with groups=; got {cv!r}")
 
 
+
+def _component_limit(max_components) -> int:
+    """The largest component count to cross-validate: a whole number >= 1 (a bool is not a count)."""
+    if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
+        raise PLSConfigError(f"max_components must be a positive whole number, got {max_components!r}")
+    return int(max_components)
+
+
 def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
            cap: bool = False) -> PLSCVResult:
     """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
@@ -307,9 +315,7 @@ def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=N
     except ValueError as exc:
         raise PLSInputError(str(exc)) from None
     _check_target(y)
-    if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
-        raise PLSConfigError(f"max_components must be a positive whole number, got {max_components!r}")
-    A = int(max_components)
+    A = _component_limit(max_components)
     n = X.shape[0]
     fid, scheme = _fold_ids(n, cv, groups, random_state)
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
@@ -387,9 +393,7 @@ def pls_cv_many(X, Y, max_components: int = 20, cv="loo", groups=None, random_st
         raise PLSInputError("Y contains NaN or infinity")
     for column in Y.T:
         _check_target(column)
-    if isinstance(max_components, bool) or not isinstance(max_components, (int, np.integer)) or max_components < 1:
-        raise PLSConfigError(f"max_components must be a positive whole number, got {max_components!r}")
-    A = int(max_components)
+    A = _component_limit(max_components)
     n = X.shape[0]
     fid, scheme = _fold_ids(n, cv, groups, random_state)
     F = int(fid.max()) + 1
