@@ -5,7 +5,7 @@
    ``roughsense study`` on that folder (bar: the cell <= 10 s).
 2. A sweep of cells on a LocalCluster with 1 and with 2 workers (bar: 2 workers >= 1.7x faster than 1).
 
-    .venv/bin/python benchmarks/bench_explore.py [--repetitions 10] [--cells 4] [--repeats 1] [--skip-files]
+    .venv/bin/python benchmarks/bench_explore.py [--repetitions 10] [--cells 4] [--repeats 1] [--skip-files] [--pads smooth,fingerprint]
 
 Run it on a quiet machine: both parts are wall-clock ratios, and part 2 needs two idle cores.
 """
@@ -42,15 +42,15 @@ def _sweep(path: Path, *, pads: list[str], repetitions: int, seeds: list[int]) -
     return path
 
 
-def bench_cell(repetitions: int, repeats: int, skip_files: bool) -> None:
+def bench_cell(repetitions: int, repeats: int, skip_files: bool, pad: str = "smooth") -> None:
     from roughsense.explore.cell import run_cell
     from roughsense.explore.sweep import read_sweep
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-explore-"))
     try:
-        sweep = read_sweep(_sweep(tmp / "cell.toml", pads=["smooth"], repetitions=repetitions, seeds=[0]))
+        sweep = read_sweep(_sweep(tmp / "cell.toml", pads=[pad], repetitions=repetitions, seeds=[0]))
         cell = sweep.cells[0]
-        small = read_sweep(_sweep(tmp / "warm.toml", pads=["smooth"], repetitions=2, seeds=[0])).cells[0]
+        small = read_sweep(_sweep(tmp / "warm.toml", pads=[pad], repetitions=2, seeds=[0])).cells[0]
         run_cell(small)  # first use: the panel calibration and imports, paid once per worker process
         times = []
         for _ in range(repeats):
@@ -60,14 +60,14 @@ def bench_cell(repetitions: int, repeats: int, skip_files: bool) -> None:
             assert result["error"] is None, result["error"]
         cell_s = statistics.median(times)
         trials = len(cell.specimens) * len(cell.forces_n) * cell.repetitions
-        print(f"one cell in memory (smooth pad, {len(cell.specimens)} specimens x 3 forces x {repetitions} reps = "
+        print(f"one cell in memory ({pad} pad, {len(cell.specimens)} specimens x 3 forces x {repetitions} reps = "
               f"{trials} frames), one core: {cell_s:.2f} s (median of {repeats}); bar 10 s at 10 repetitions")
         if skip_files:
             return
         env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "ROUGHSENSE_CACHE_DIR": str(tmp / "cache")}
         cli = [sys.executable, "-m", "roughsense.cli"]
         started = time.perf_counter()
-        subprocess.run([*cli, "simulate", "--out", str(tmp / "study"), "--pads", "smooth", "--repetitions",
+        subprocess.run([*cli, "simulate", "--out", str(tmp / "study"), "--pads", pad, "--repetitions",
                         str(repetitions), "--jobs", "1"], check=True, env=env, stdout=subprocess.DEVNULL)
         simulated = time.perf_counter() - started
         subprocess.run([*cli, "study", "--data", str(tmp / "study"), "--out", str(tmp / "report"), "--jobs", "1"],
@@ -109,6 +109,7 @@ def main() -> None:
     parser.add_argument("--cells", type=int, default=6)
     parser.add_argument("--sweep-repetitions", type=int, default=5)
     parser.add_argument("--skip-files", action="store_true")
+    parser.add_argument("--pads", default="smooth,fingerprint", help="Pads to time a cell of, comma-separated.")
     parser.add_argument("--skip-workers", action="store_true")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
@@ -116,7 +117,8 @@ def main() -> None:
     if not args.skip_workers:
         bench_workers(args.cells, args.sweep_repetitions)  # before pinning: needs two cores
     _one_core()
-    bench_cell(args.repetitions, args.repeats, args.skip_files)
+    for pad in args.pads.split(","):
+        bench_cell(args.repetitions, args.repeats, args.skip_files, pad.strip())
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 

@@ -192,15 +192,8 @@ def _ridges_in_domain(pad: Pad, specimen: Specimen) -> int:
     return max(1, round(length / pad_period))
 
 
-def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
-               start: contact.ContactSolution | None = None,
-               warm: dict | None = None) -> tuple[float, contact.ContactSolution]:
-    """The contact of one pressure level; ``start``, the same mount's solution at another level, warm-starts it.
-
-    ``warm`` (see :func:`trial_line`) holds the last solution of each set of surfaces across trials: it starts a
-    solve that has no ``start``. A warm start that has not converged after ``WARM_MAX_ITER`` steps (it can cycle
-    when far from the answer) is dropped and the solve starts afresh from uniform pressure.
-    """
+def _contact_surface(pad: Pad, specimen: Specimen, mount: Mount) -> tuple[float, np.ndarray, tuple]:
+    """The periodic domain's length, the combined relief on its grid, and a key naming the surfaces in contact."""
     length, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm if pad.has_ridges else None,
                                                  max_length_mm=SPECIMEN_LENGTH_MM)
     n = contact.grid_points(length)
@@ -212,40 +205,54 @@ def _solve_gap(pad: Pad, specimen: Specimen, mount: Mount, pressure_pa: float,
             raise RuntimeError(f"mount has {len(mount.ridge_offsets_mm)} ridge height errors for {ridges} ridges")
         offsets = np.asarray(mount.ridge_offsets_mm[:ridges])
         height = height + pad.height_mm(x - mount.pad_phase_mm, period_mm=pad_period, ridge_offsets_mm=offsets)
-    # The surfaces in contact: the pad's relief depends on the mount only for a ridged pad.
+    # The pad's relief depends on the mount only for a ridged pad.
     key = (repr(pad), repr(specimen), mount.pad_phase_mm, mount.ridge_offsets_mm) if pad.has_ridges else \
         (repr(pad), repr(specimen))
-    initial = start.pressure_pa if start is not None else (warm.get(key) if warm is not None else None)
+    return length, height, key
+
+
+def _solve_levels(pad: Pad, specimen: Specimen, mount: Mount, pressures_pa: np.ndarray,
+                  warm: dict | None = None) -> tuple[float, list[contact.ContactSolution]]:
+    """The contact at each of a trial's pressure levels, solved together (one batched solve).
+
+    ``warm`` (see :func:`trial_line`) holds the last solution of each set of surfaces across trials and starts
+    every level from it. A warm start that has not converged after ``WARM_MAX_ITER`` steps (it can cycle when far
+    from the answer) is dropped and the levels start afresh from uniform pressure.
+    """
+    length, height, key = _contact_surface(pad, specimen, mount)
+    initial = warm.get(key) if warm is not None else None
     try:
-        solution = None
+        solutions = None
         if initial is not None:
             try:
-                solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL,
-                                                  initial_pressure_pa=initial, max_iter=WARM_MAX_ITER)
+                solutions = contact.solve_periodic_many(height, length, pressures_pa, pad.contact_modulus_pa,
+                                                        tol=SOLVER_TOL, initial_pressure_pa=initial,
+                                                        max_iter=WARM_MAX_ITER)
             except contact.ContactNotConverged:
-                solution = None
-        if solution is None:
-            solution = contact.solve_periodic(height, length, pressure_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
+                solutions = None
+        if solutions is None:
+            solutions = contact.solve_periodic_many(height, length, pressures_pa, pad.contact_modulus_pa, tol=SOLVER_TOL)
     except contact.ContactNotConverged as exc:
-        raise ConfigError(f"pad {pad.name!r} on specimen {specimen.name!r} at {pressure_pa:.0f} Pa: {exc.message}; "
-                          "try a smoother specimen or a different pad") from None
+        raise ConfigError(f"pad {pad.name!r} on specimen {specimen.name!r} at {float(np.max(pressures_pa)):.0f} Pa: "
+                          f"{exc.message}; try a smoother specimen or a different pad") from None
     if warm is not None:
-        warm[key] = solution.pressure_pa
-    return length, solution
+        warm[key] = solutions[-1].pressure_pa
+    return length, solutions
 
 
 def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, float]:
     """Brightness of each pixel column of the line (0..1) and the fraction of the line in contact.
 
-    ``warm``: a dict the caller keeps across the trials of one run; a trial's first contact solve (the later ones
-    start from the previous level) then starts from the last solution of the same surfaces in an earlier trial
-    (same answer within the solver's tolerance, in fewer steps). The result then depends, at that tolerance, on
+    ``warm``: a dict the caller keeps across the trials of one run; a trial's contact levels then start from the
+    last solution of the same surfaces in an earlier trial (same answer within the solver's tolerance, in fewer
+    steps). The result then depends, at that tolerance, on
     which trials came before, so the study path leaves it off (its images must not depend on ``jobs``); a sweep
     cell, which runs its trials in one fixed order, uses it.
 
     A tilted or warped specimen presses harder in some places. The pressure varies slowly compared with the
     grating period, so the line is treated as locally periodic: the contact is solved at a few pressures spanning
-    the local range, and each point blends the two nearest solutions by its local pressure (hat weights).
+    the local range (together, :func:`contact.solve_periodic_many`), and each point blends the two nearest
+    solutions by its local pressure (hat weights).
     """
     cam, pad, spec, mount = trial.camera, trial.pad, trial.specimen, trial.mount
     p_mean = contact.nominal_pressure_pa(trial.exposure.force_true_n)
@@ -263,13 +270,12 @@ def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, f
     levels = np.linspace(lo, hi, count) if count > 1 else np.array([1.0])
     brightness = np.zeros_like(x_mm)
     touching = np.zeros_like(x_mm)
-    solution = None
-    for i, level in enumerate(levels):
+    length, solutions = _solve_levels(pad, spec, mount, p_mean * levels, warm=warm)
+    for level, solution in zip(levels, solutions):
         if count == 1:
             weight = np.ones_like(x_mm)
         else:  # piecewise-linear (hat) weights in local pressure
             weight = np.clip(1.0 - np.abs(local - level) / (levels[1] - levels[0]), 0.0, 1.0)
-        length, solution = _solve_gap(pad, spec, mount, p_mean * level, start=solution, warm=warm)
         gap = solution.gap_mm
         grid = np.arange(gap.size + 1) * (length / gap.size)
         g = np.interp(np.mod(u, length), grid, np.append(gap, gap[0]))
