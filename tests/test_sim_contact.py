@@ -137,13 +137,17 @@ def test_solver_that_runs_out_of_iterations_says_so():
     assert issubclass(contact.ContactNotConverged, ConfigError)  # one line at the CLI, exit 2
 
 
-@pytest.mark.parametrize("name", ["C3", "R4"])
-def test_warm_start_reaches_the_same_contact_in_fewer_steps(name):
+def _grating_under_fingerprint(name: str) -> tuple[np.ndarray, float]:
+    """A preset grating plus the fingerprint pad's ridges on the trial's periodic domain: heights and length."""
     pad = make_pad("fingerprint")
     length, pad_period = contact.periodic_domain(PRESETS[name].period_mm, pad.period_mm)
-    n = contact.grid_points(length)
-    x = _grid(length, n)
-    h = PRESETS[name].height_mm(x) + pad.height_mm(x - 0.3, period_mm=pad_period)
+    x = _grid(length, contact.grid_points(length))
+    return PRESETS[name].height_mm(x) + pad.height_mm(x - 0.3, period_mm=pad_period), length
+
+
+@pytest.mark.parametrize("name", ["C3", "R4"])
+def test_warm_start_reaches_the_same_contact_in_fewer_steps(name):
+    h, length = _grating_under_fingerprint(name)
     low = contact.solve_periodic(h, length, 2600.0, E_STAR, tol=1e-8)
     cold = contact.solve_periodic(h, length, 3400.0, E_STAR, tol=1e-8)
     warm = contact.solve_periodic(h, length, 3400.0, E_STAR, tol=1e-8, initial_pressure_pa=low.pressure_pa)
@@ -151,3 +155,27 @@ def test_warm_start_reaches_the_same_contact_in_fewer_steps(name):
     assert np.array_equal(warm.contact, cold.contact)
     assert np.abs(warm.gap_mm - cold.gap_mm).max() < 1e-6 * np.ptp(h)  # within the solver's tolerance
     assert warm.pressure_pa.mean() == pytest.approx(3400.0)
+
+
+@pytest.mark.parametrize("name", ["C3", "R4"])
+def test_levels_solved_together_are_the_single_level_solutions(name):
+    """A batch shares calls, not arithmetic: each level is the contact its own solve finds (to the tolerance)."""
+    h, length = _grating_under_fingerprint(name)
+    pressures = [900.0, 2600.0, 4100.0, 9000.0]
+    together = contact.solve_periodic_many(h, length, pressures, E_STAR, tol=1e-8)
+    reversed_order = contact.solve_periodic_many(h, length, pressures[::-1], E_STAR, tol=1e-8)[::-1]
+    for pressure, batch, backwards in zip(pressures, together, reversed_order):
+        alone = contact.solve_periodic(h, length, pressure, E_STAR, tol=1e-8)
+        assert batch.pressure_pa.mean() == pytest.approx(pressure)
+        assert np.array_equal(batch.contact, alone.contact)
+        assert np.abs(batch.gap_mm - alone.gap_mm).max() < 1e-6 * np.ptp(h)
+        assert np.abs(backwards.gap_mm - batch.gap_mm).max() < 1e-6 * np.ptp(h)
+        assert batch.iterations == alone.iterations  # the same iteration, step for step
+    assert len({s.iterations for s in together}) > 1  # each level left the batch when it had converged
+
+
+@pytest.mark.parametrize("pressures", [[], [1000.0, -5.0], [float("nan")]])
+def test_a_batch_needs_positive_pressures(pressures):
+    x = _grid(3.0, 256)
+    with pytest.raises(ConfigError, match="positive"):
+        contact.solve_periodic_many(0.01 * np.cos(2 * math.pi * x / 3.0), 3.0, pressures, E_STAR)

@@ -1,7 +1,7 @@
 """One cell in memory: twin frames -> spectra -> the study's own analysis (LOO and nested LOSO) -> result rows.
 
 Nothing is written. Frames are rendered only down to the row the sensor reads (bit-identical to those rows of the
-whole frame) and each contact solve starts from the previous one of the same surfaces; the spectra then come from
+whole frame) and each trial's contact levels start from the last solution of the same surfaces; the spectra come from
 the sensor's own code on a frame of the camera's full size, and the analysis is :func:`evaluation.analyse_study`
 on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
 contact solver's tolerance; tests/test_explore.py checks it).
