@@ -24,26 +24,15 @@ from ..sim.panel import REFERENCE
 from ..sim.simulate import SimulationConfig, force_label, plan_trials, render_trial
 from ..study import CENTER_CROP_PX, SensorSettings, Study
 from .allocator import relax_frozen_malloc_thresholds
-from .ratings import config_options, panel_ratings
+from .ratings import panel_ratings
 from .sweep import Cell
 
 
 
-def has_predictive_ovl() -> bool:
-    """Builds with a spread model (``roughsense.SpreadModel``) report the predictive OVL beside the paper's OVL."""
-    import roughsense
-
-    try:
-        return hasattr(roughsense, "SpreadModel")
-    except ImportError:
-        return False
-
-
-PREDICTIVE = ["ovl_predictive"] if has_predictive_ovl() else []
-RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", *PREDICTIVE, "cv_rmse",
+RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",
                   "rmse_sd", "ovl_sd", "n_specimens"]
 SPECIMEN_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "specimen", "shape", "wavelength_mm", "n_components",
-                    "gmean", "sd", "pred_mean", "pred_sd", "rmse", "ovl", *PREDICTIVE]
+                    "gmean", "sd", "pred_mean", "pred_sd", "rmse", "ovl", "ovl_predictive"]
 
 
 def sensor_roi(width_px: int, height_px: int):
@@ -68,7 +57,7 @@ def simulation_config(cell: Cell) -> SimulationConfig:
         seed=cell.seed, participants=cell.participants, sessions=cell.sessions,
         fingerprint_period_mm=cell.fingerprint_period_mm or SimulationConfig.fingerprint_period_mm,
         ridge_height_mm=cell.ridge_height_mm or SimulationConfig.ridge_height_mm,
-        camera=Camera(width_px=cell.width_px, height_px=cell.height_px), **config_options(cell.ratings_from),
+        camera=Camera(width_px=cell.width_px, height_px=cell.height_px), ratings_from=cell.ratings_from,
     )
 
 
@@ -128,14 +117,7 @@ def analyse_cell(cell: Cell):
     conditions = [*labels, "combined"] if len(labels) > 1 else labels
     # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
     return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
-                         cv_schemes=cell.cv, combined_forces=labels, **no_controls()), study
-
-
-def no_controls() -> dict:
-    """``analyse_study``'s keyword that turns the permutation controls off, in builds that have them."""
-    import inspect
-
-    return {"n_permutations": 0} if "n_permutations" in inspect.signature(analyse_study).parameters else {}
+                         cv_schemes=cell.cv, combined_forces=labels, n_permutations=0), study
 
 
 def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -155,7 +137,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
             "rmse_sd": float(table["rmse"].std(ddof=1)) if len(table) > 1 else math.nan,
             "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
             "n_specimens": int(len(table)),
-            **{c: float(rated[c].mean()) if c in rated.columns else math.nan for c in PREDICTIVE},
+            "ovl_predictive": float(rated["ovl_predictive"].mean()),
         })
         for row in table.itertuples(index=False):
             per_specimen.append({
@@ -165,7 +147,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
                 "n_components": int(fit.nested_n_components.get(str(row.specimen), fit.best_n_components)),
                 "gmean": row.gmean, "sd": row.sd, "pred_mean": row.pred_mean, "pred_sd": row.pred_sd,
                 "rmse": row.rmse, "ovl": row.ovl,
-                **{c: float(getattr(row, c, math.nan)) for c in PREDICTIVE},
+                "ovl_predictive": float(row.ovl_predictive),
             })
     design = cell.columns()
     design.pop("pad")  # the pad column comes from the analysis (the same value)

@@ -20,8 +20,8 @@ LIMITS = [
     "not a finding; every other design is an extrapolation of the same physics (elastic half-space contact, gap-to-"
     "brightness optics, bench noise drawn as in the calibration).",
     "With ratings_from = \"paper\", only the paper's fourteen presets carry the paper's panel; every other specimen "
-    "gets its perceived roughness from the twin's model of perception (a fit to the paper's panel, or the simulated "
-    "finger where this build has it, which ratings_from = \"physics\" uses for every specimen). Those targets are "
+    "gets its perceived roughness from the twin's simulated finger (sim/perception.py: contact of a fingertip, SA1 "
+    "strain readout, a fitted power law), which ratings_from = \"physics\" uses for every specimen. Those targets are "
     "not measurements, so 'can it be measured' means 'does the sensor track the model'.",
     "The spectrum covers 0.1-1 mm^-1 (wavelengths 1-10 mm): a grating whose fundamental lies above 1 mm^-1 "
     "(wavelength below 1 mm) is seen only through its contact pattern's harmonics and aliasing of the pad relief.",

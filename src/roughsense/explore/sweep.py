@@ -174,13 +174,6 @@ def _check_value(path: Path, key: str, value, where: str):
     if key == "ratings_from":
         if value not in RATINGS_SOURCES:
             raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_SOURCES)})")
-        if value == "physics":
-            from .ratings import check_ratings_source
-
-            try:
-                check_ratings_source(value)
-            except ConfigError as exc:
-                raise _error(path, f"{where}: {exc.message}") from None
         return value
     raise AssertionError(key)
 
