@@ -6,6 +6,7 @@ scheduling, or on which other specimens are in the run.
 """
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 import os
@@ -257,14 +258,7 @@ def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, f
     cam, pad, spec, mount = trial.camera, trial.pad, trial.specimen, trial.mount
     p_mean = contact.nominal_pressure_pa(trial.exposure.force_true_n)
     w_px = cam.width_px
-    px_per_mm = cam.px_per_mm * mount.magnification
-    x_mm = (np.arange(w_px * SUBSAMPLES_PER_PX) + 0.5) / (px_per_mm * SUBSAMPLES_PER_PX)
-    start = (w_px / px_per_mm - SPECIMEN_LENGTH_MM) / 2.0 + mount.shift_mm
-    u = x_mm - start  # position along the specimen
-    on = (u >= 0) & (u <= SPECIMEN_LENGTH_MM)
-    u_spec = np.linspace(0.0, SPECIMEN_LENGTH_MM, 501)
-    mean = float(mount.local_pressure(u_spec, SPECIMEN_LENGTH_MM).mean())
-    local = mount.local_pressure(np.clip(u, 0.0, SPECIMEN_LENGTH_MM), SPECIMEN_LENGTH_MM) / mean
+    x_mm, u, on, local = _mount_geometry(cam, mount)
     lo, hi = float(local[on].min()) if on.any() else 1.0, float(local[on].max()) if on.any() else 1.0
     count = 1 if hi - lo < 0.02 else int(min(PRESSURE_LEVELS, 2 + math.ceil((hi - lo) / 0.2)))
     levels = np.linspace(lo, hi, count) if count > 1 else np.array([1.0])
@@ -288,11 +282,40 @@ def trial_line(trial: Trial, *, warm: dict | None = None) -> tuple[np.ndarray, f
         # along the whole pad, which is longer than the field). Optical contact wipes it out (index-matched there).
         # Its fundamental sits at the band's upper edge, so its exposure-to-exposure strength rescales the whole
         # area-normalised spectrum (docs/simulator.md, noise calibration).
-        _, pad_period = contact.periodic_domain(spec.period_mm, pad.period_mm, max_length_mm=SPECIMEN_LENGTH_MM)
-        relief = pad.height_mm(u - mount.pad_phase_mm, period_mm=pad_period)
-        crests = 1.0 + relief / pad.ridge_height_mm  # 1 on the crests, 0 in the grooves
+        crests = _ridge_crests(cam, mount, pad, spec)  # 1 on the crests, 0 in the grooves
         brightness += trial.exposure.ridge_visibility * crests * np.clip(1.0 - brightness, 0.0, 1.0)
     return bin_to_pixels(brightness, w_px), float(touching.mean())
+
+
+@functools.lru_cache(maxsize=8)
+def _mount_geometry(cam: Camera, mount: Mount) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Sub-pixel positions on the frame (mm) and on the specimen, where the specimen is, and the local pressure
+    relative to the mean: all fixed by the mount, so a mount's forces (consecutive trials) compute them once."""
+    w_px = cam.width_px
+    px_per_mm = cam.px_per_mm * mount.magnification
+    x_mm = (np.arange(w_px * SUBSAMPLES_PER_PX) + 0.5) / (px_per_mm * SUBSAMPLES_PER_PX)
+    start = (w_px / px_per_mm - SPECIMEN_LENGTH_MM) / 2.0 + mount.shift_mm
+    u = x_mm - start  # position along the specimen
+    on = (u >= 0) & (u <= SPECIMEN_LENGTH_MM)
+    u_spec = np.linspace(0.0, SPECIMEN_LENGTH_MM, 501)
+    mean = float(mount.local_pressure(u_spec, SPECIMEN_LENGTH_MM).mean())
+    local = mount.local_pressure(np.clip(u, 0.0, SPECIMEN_LENGTH_MM), SPECIMEN_LENGTH_MM) / mean
+    return _read_only(x_mm, u, on, local)
+
+
+@functools.lru_cache(maxsize=8)
+def _ridge_crests(cam: Camera, mount: Mount, pad: Pad, specimen: Specimen) -> np.ndarray:
+    """Where the pad's ridges are along the line, 1 on the crests and 0 in the grooves (per mount, like the above)."""
+    _, u, _, _ = _mount_geometry(cam, mount)
+    _, pad_period = contact.periodic_domain(specimen.period_mm, pad.period_mm, max_length_mm=SPECIMEN_LENGTH_MM)
+    return _read_only(1.0 + pad.height_mm(u - mount.pad_phase_mm, period_mm=pad_period) / pad.ridge_height_mm)[0]
+
+
+def _read_only(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Cached arrays are shared by the trials of a mount: no caller may change them."""
+    for array in arrays:
+        array.flags.writeable = False
+    return arrays
 
 
 def render_trial(trial: Trial, *, rows: tuple[int, int] | None = None,
