@@ -113,7 +113,7 @@ class Camera:
             return np.exp(-g / d)
         s = sigma / d
         # Beyond 10 sigma + d (s^2/2 + 30) both terms are below 1e-13: most of a line is either touching or microns
-        # away, so the special functions are evaluated only on the thin rim between (a sixth of the cost).
+        # away, so the special functions are evaluated only on the thin rim between (about a third of the cost).
         coupled = np.zeros_like(g)
         near = g < 10.0 * sigma + d * (0.5 * s * s + 30.0)
         g_near = g[near]
