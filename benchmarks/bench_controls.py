@@ -41,10 +41,11 @@ def run_study(out: Path, permutations: int) -> tuple[float, float]:
 
 
 def study_matrices():
-    from roughsense import cache, dataset
-    from roughsense.cache import cache_dir
-    from roughsense.perception import aggregate_ratings
-    from roughsense.study import read_study
+    from roughsense._util import cache
+    from roughsense._util.cache import cache_dir
+    from roughsense.analysis import dataset
+    from roughsense.analysis.ratings import aggregate_ratings
+    from roughsense.io.study import read_study
 
     root = next(p for p in sorted(cache_dir().glob("simulated-study-seed0-*")) if (p / "manifest.csv").is_file())
     study = read_study(root, require_ratings=True)
@@ -93,8 +94,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="fresh study runs per setting (median)")
     parser.add_argument("--sklearn-permutations", type=int, default=2)
     args = parser.parse_args()
-    from roughsense import controls
-    from roughsense.evaluation import _condition_fit
+    from roughsense.analysis import controls
+    from roughsense.analysis.study_analysis import _condition_fit
 
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")

@@ -6,7 +6,8 @@
 2. A sweep of cells on a LocalCluster with 1 and with 2 workers, started by the sweep and already running
    (bar: 2 workers >= 1.7x faster than 1).
 
-    .venv/bin/python benchmarks/bench_explore.py [--repetitions 10] [--cells 4] [--repeats 1] [--skip-files] [--pads smooth,fingerprint]
+    .venv/bin/python benchmarks/bench_explore.py [--repetitions 10] [--cells 4] [--repeats 1] [--skip-files]
+        [--pads smooth,fingerprint]
 
 Run it on a quiet machine: both parts are wall-clock ratios, and part 2 needs two idle cores.
 """

@@ -1,4 +1,4 @@
-"""Benchmark the simulated finger (sim/perception.py): one specimen's percept from scratch (skin contact at four
+"""Benchmark the simulated finger (sim/finger_model.py): one specimen's percept from scratch (skin contact at four
 ridge phases, SA1 readout), against a peer in the same run: the simulator's own contact line for one image of the
 same specimen (sim.simulate.trial_line, the smooth pad at 2 N on a quiet bench).
 
@@ -17,7 +17,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=9)
     args = parser.parse_args()
 
-    from roughsense.sim import perception
+    from roughsense.sim import finger as finger_model
     from roughsense.sim.bench import BenchNoise
     from roughsense.sim.simulate import SimulationConfig, plan_trials, trial_line
     from roughsense.sim.specimens import parse_specimen
@@ -29,8 +29,8 @@ def main() -> None:
         specimen = parse_specimen(name)
 
         def finger():
-            perception.spatial_variation.cache_clear()
-            perception.spatial_variation(specimen)
+            finger_model.spatial_variation.cache_clear()
+            finger_model.spatial_variation(specimen)
 
         config = quiet.__class__(**{**quiet.__dict__, "specimens": (name,)})
         pads, specimens = config.validate()

@@ -3,7 +3,7 @@
 Peers measured in the same run, over the same synthetic 1080p clip:
   decode           cv2.VideoCapture.read alone: the floor any live loop sits on
   source           FrameSource.read_next: decode + BGR->RGB
-  live_scores      decode + real scoring (roughsense.sensor.spatial_spectrum + a linear model)
+  live_scores      decode + real scoring (roughsense.spatial_spectrum + a linear model)
   live+render      the same, drawn on a rich.Live display (to a null console)
 for an MJPG .avi (what USB cameras stream at 1080p) and an MPEG-4 Part 2 .mp4.
 
@@ -49,14 +49,14 @@ def make_clip(path: Path, fourcc: str, n_frames: int, rng: np.random.Generator) 
 def make_scorer(rng: np.random.Generator):
     """Feature extraction + linear model, as `predict --live` will do it."""
     try:
-        from roughsense.sensor import spatial_spectrum
+        from roughsense.sensor.spectrum import spatial_spectrum
     except ImportError:  # the sensor module is not there: time crop + gray + FFT by hand
         spatial_spectrum = None
     coef = rng.normal(0, 0.1, 45)
     if spatial_spectrum is not None:
         def score(frame: np.ndarray) -> float:
             return 1.0 + float(coef @ spatial_spectrum(frame, px_per_mm=PX_PER_MM, roi="center"))
-        return score, "roughsense.sensor.spatial_spectrum + linear model"
+        return score, "roughsense.spatial_spectrum + linear model"
 
     freqs = np.linspace(0.1, 1.0, 45)
 

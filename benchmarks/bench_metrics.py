@@ -1,7 +1,7 @@
 """Benchmark the paper's metrics against their obvious peers, in one run, medians over repeats.
 
-- OVL: roughsense.metrics.overlap (closed form, vectorised) vs scipy.integrate.quad of min(f1, f2) per pair.
-- Signed-rank: roughsense.metrics.signed_rank (exact, n = 14, like MATLAB) vs scipy.stats.wilcoxon(method="exact").
+- OVL: roughsense.analysis.metrics.overlap (closed form, vectorised) vs scipy.integrate.quad of min(f1, f2) per pair.
+- Signed-rank: roughsense.analysis.metrics.signed_rank (exact, n = 14, like MATLAB) vs scipy.stats.wilcoxon(method="exact").
 - Ratings: aggregate_ratings on the paper's design (10 participants x 3 sessions x 13 specimens) vs a bare
   pandas groupby (median, then geometric mean) that does no validation and no gap check.
 
@@ -17,8 +17,9 @@ import numpy as np
 import pandas as pd
 from scipy import integrate, stats
 
-from roughsense.metrics import overlap, signed_rank
-from roughsense.perception import PAPER_SPECIMENS, aggregate_ratings, make_schedule
+from roughsense.analysis.metrics import overlap, signed_rank
+from roughsense.analysis.ratings import aggregate_ratings, make_schedule
+from roughsense.paper import PAPER_SPECIMENS
 
 
 def median_seconds(fn, repeats: int, number: int = 1) -> float:
@@ -45,7 +46,7 @@ def main() -> None:
     def by_quad():
         out = []
         for a, b, c, d in zip(m1, s1, m2, s2):
-            f = lambda x: min(stats.norm.pdf(x, a, b), stats.norm.pdf(x, c, d))  # noqa: E731
+            f = lambda x: min(stats.norm.pdf(x, a, b), stats.norm.pdf(x, c, d))
             out.append(integrate.quad(f, -5, 7, points=[a, c], limit=200)[0])
         return np.array(out)
 

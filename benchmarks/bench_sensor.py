@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from roughsense.sensor import SpatialSpectrum, _Plan
+from roughsense.sensor.spectrum import SpatialSpectrum, _Plan
 
 PX_PER_MM = 34.9
 
@@ -95,7 +95,8 @@ def main() -> None:
             cv2.imwrite(str(path), contact_frame(rng, rng.uniform(2.0, 5.0)))
             paths.append(path)
         size_mb = sum(p.stat().st_size for p in paths) / len(paths) / 2**20
-        print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start, Python {platform.python_version()}, "
+        print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, "
+              f"load average {os.getloadavg()[0]:.1f} at start, Python {platform.python_version()}, "
               f"OpenCV {cv2.__version__}, NumPy {np.__version__}")
         print(f"{len(paths)} PNG frames 1920x1080 RGB, {size_mb:.2f} MiB each; medians of {args.repeats} repeats\n")
 
@@ -138,7 +139,8 @@ def main() -> None:
 
         quarter = paths[: len(paths) // 4]
         small, large = peak_traced_mb(quarter, 2), peak_traced_mb(paths, 2)
-        print(f"\n  peak traced memory, n_jobs=2: {small:.1f} MiB for {len(quarter)} images, {large:.1f} MiB for {len(paths)} images "
+        print(f"\n  peak traced memory, n_jobs=2: {small:.1f} MiB for {len(quarter)} images, "
+              f"{large:.1f} MiB for {len(paths)} images "
               f"(one decoded frame is {1920 * 1080 * 3 / 2**20:.1f} MiB)")
         print(f"  load average at the end: {os.getloadavg()[0]:.1f}")
 

@@ -79,9 +79,7 @@ def bench_solver(repeats: int) -> None:
 def bench_stages(repeats: int) -> None:
     import cv2
 
-    from roughsense.sim.simulate import SimulationConfig, plan_trials, render, trial_line, _rng
-
-    from roughsense.sim.simulate import png_params
+    from roughsense.sim.simulate import SimulationConfig, _rng, plan_trials, png_params, render, trial_line
 
     config = SimulationConfig(specimens=("R4.5", "C3"), repetitions=1)
     pads, specimens = config.validate()

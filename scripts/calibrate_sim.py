@@ -2,7 +2,7 @@
 
 Renders the paper's study in memory (no PNG files), extracts the paper's features with roughsense.sensor
 (1900 x 150 centre crop, gray, middle row, |FFT| at 45 frequencies 0.1-1.0 mm^-1, area-normalised), runs LOO PLS
-with roughsense.pls (components 1..20, the minimum-RMSE count) against the paper's perceived roughness, and
+with roughsense.pls_cv (components 1..20, the minimum-RMSE count) against the paper's perceived roughness, and
 prints the mean per-specimen RMSE per pad and condition. The paper: fingerprint single-force ~0.2-0.3,
 smooth lower, combined lower still.
 
@@ -18,8 +18,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pandas as pd
 
-from roughsense.pls import pls_cv
-from roughsense.sensor import spatial_spectrum
+from roughsense.model.pls_cv import pls_cv
+from roughsense.sensor.spectrum import spatial_spectrum
 from roughsense.sim.panel import paper_perceived
 from roughsense.sim.simulate import SimulationConfig, plan_trials, render_trial
 

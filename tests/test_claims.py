@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from roughsense.claims import CLAIM_COLUMNS, VERDICTS
-from roughsense.evaluation import analyse_study
+from roughsense.analysis.claims import CLAIM_COLUMNS, VERDICTS
+from roughsense.analysis.study_analysis import analyse_study
 
-from .test_evaluation import synthetic_study
+from .test_study_analysis import synthetic_study
 
 
 @pytest.fixture(scope="module")

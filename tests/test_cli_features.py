@@ -8,8 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense.sensor import frequency_grid, spatial_spectrum
-from roughsense.study import SensorSettings, StudyWriter
+from roughsense.io.sensor_settings import SensorSettings
+from roughsense.io.writer import StudyWriter
+from roughsense.sensor.spectrum import frequency_grid, spatial_spectrum
 
 PX_PER_MM = 34.9
 
@@ -47,7 +48,8 @@ def test_features_csv_has_image_column_and_round_tripping_grid(run_cli, tmp_path
 
 def test_features_options_reach_the_library(run_cli, tmp_path, images):
     out = tmp_path / "f.csv"
-    args = ["--px-per-mm", "30", "--roi", "5,400,1800,120", "--rows", "7", "--band", "0.15,0.9", "--n-freqs", "20", "--window", "none"]
+    args = ["--px-per-mm", "30", "--roi", "5,400,1800,120", "--rows", "7", "--band", "0.15,0.9", "--n-freqs", "20",
+            "--window", "none"]
     code, _, err = run_cli("features", images[1], "--out", out, *args)
     assert code == 0, err
     table = pd.read_csv(out)
@@ -139,7 +141,11 @@ def test_px_per_mm_must_be_positive(run_cli, tmp_path, images, value):
     _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--px-per-mm={value}"), out, "px_per_mm")
 
 
-@pytest.mark.parametrize("args, words", [(["--band", "1.0,0.1"], ["band"]), (["--band", "0.1"], ["--band"]), (["--roi", "1,2,3"], ["ROI"]), (["--n-freqs", "1"], ["n_freqs"]), (["--rows", "151"], ["rows 151", "150 px"]), (["--roi", "0,0,1900,20", "--rows", "21"], ["rows 21"])])
+@pytest.mark.parametrize("args, words", [
+    (["--band", "1.0,0.1"], ["band"]), (["--band", "0.1"], ["--band"]), (["--roi", "1,2,3"], ["ROI"]),
+    (["--n-freqs", "1"], ["n_freqs"]), (["--rows", "151"], ["rows 151", "150 px"]),
+    (["--roi", "0,0,1900,20", "--rows", "21"], ["rows 21"]),
+])
 def test_bad_options_fail_cleanly(run_cli, tmp_path, images, args, words):
     out = tmp_path / "features.csv"
     _assert_clean_failure(run_cli("features", images[0], "--out", out, *args), out, *words)

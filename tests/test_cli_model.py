@@ -10,9 +10,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from roughsense import SIMPLS, dataset, pls_cv
+from roughsense import SIMPLS, pls_cv
+from roughsense.analysis import dataset
 from roughsense.errors import InputError
-from roughsense.study import read_study
+from roughsense.io.study import read_study
 from tests.test_dataset import make_study
 
 
@@ -201,7 +202,8 @@ def test_single_force_model_takes_images_or_a_study(run_cli, study_dir, data, tm
 
 def test_one_se_rule(run_cli, study_dir, data, tmp_path):
     out = tmp_path / "m.json"
-    code, stdout, err = fit(run_cli, study_dir, out, "--condition", "3N", "--cv", "loso", "--rule", "1se", "--max-components", "6")
+    code, stdout, err = fit(run_cli, study_dir, out, "--condition", "3N", "--cv", "loso", "--rule", "1se",
+                            "--max-components", "6")
     assert code == 0, err
     X, y, meta = data("3N")
     expected = pls_cv(X, y, max_components=6, groups=meta["specimen"].to_numpy())
@@ -301,7 +303,7 @@ def test_help_describes_both_commands(run_cli):
        style=st.sampled_from(["{pad}_{spec}_{f}N_r01.png", "{spec}_{pad}_r01_{f}N.png", "{spec}-{f}n-{pad}.tif"]),
        spec=st.sampled_from(["R3", "C2.5", "sin_3_0.5", "rand_1.5_0.2"]))
 def test_the_force_a_file_name_states(force_n, style, spec):
-    from roughsense.scoring import check_slot, forces_in_name
+    from roughsense.model.predict import check_slot, forces_in_name
 
     name = style.format(pad="fingerprint", spec=spec, f=f"{force_n:g}")
     assert forces_in_name(f"images/{name}") == {force_n}

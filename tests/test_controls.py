@@ -6,10 +6,11 @@ import pandas as pd
 import pytest
 from sklearn.cross_decomposition import PLSRegression
 
-from roughsense import controls, pls_cv, pls_cv_many
-from roughsense.evaluation import analyse_study
+from roughsense import pls_cv, pls_cv_many
+from roughsense.analysis import controls
+from roughsense.analysis.study_analysis import analyse_study
 
-from .test_evaluation import _regression_data, synthetic_study
+from .test_study_analysis import _regression_data, synthetic_study
 
 MAX_K = 3
 

@@ -7,10 +7,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense import dataset
+from roughsense.analysis import dataset
 from roughsense.errors import InputError
-from roughsense.sensor import SpatialSpectrum, frequency_grid
-from roughsense.study import SensorSettings, StudyWriter, read_study
+from roughsense.io.sensor_settings import SensorSettings
+from roughsense.io.study import read_study
+from roughsense.io.writer import StudyWriter
+from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid
 
 PX_PER_MM = 20.0
 ROI = (0, 16, 600, 32)

@@ -13,19 +13,19 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense.dataset import study_features
+from roughsense.analysis.dataset import study_features
+from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import ConfigError, OutputExistsError
-from roughsense.evaluation import analyse_study
 from roughsense.explore import cell as explore_cell
 from roughsense.explore.runner import run_sweep
 from roughsense.explore.store import ResultStore
 from roughsense.explore.summary import ci95
 from roughsense.explore.sweep import read_sweep
-from roughsense.sensor import SpatialSpectrum
+from roughsense.io.study import read_study
+from roughsense.sensor.spectrum import SpatialSpectrum
 from roughsense.sim import contact
 from roughsense.sim import simulate as sim
 from roughsense.sim.specimens import parse_specimen
-from roughsense.study import read_study
 
 from . import explore_tasks
 
@@ -327,7 +327,7 @@ def test_explore_report_renders_in_headless_chromium(local_run):
 
 
 def test_combined_condition_over_other_forces():
-    from roughsense.dataset import condition_matrix
+    from roughsense.analysis.dataset import condition_matrix
 
     rng = np.random.default_rng(0)
     rows = []
@@ -353,9 +353,10 @@ def test_physics_ratings_reach_the_cell(tmp_path):
     config = explore_cell.simulation_config(cell)
     assert cell.ratings_from == "physics" and config.ratings_from == "physics"
     from roughsense.explore.ratings import panel_ratings
+    from roughsense.io.ratings import validate_ratings
 
     specimens = config.validate()[1]
     ours = panel_ratings(specimens, cell.seed, ratings_from="physics")
     theirs = simulate_panel(specimens, cell.seed, spawn_key=(4,), ratings_from="physics")
-    pd.testing.assert_frame_equal(ours, theirs)
+    pd.testing.assert_frame_equal(ours, validate_ratings(theirs))  # checked as a ratings.csv would be
     assert not ours.equals(panel_ratings(specimens, cell.seed, ratings_from="paper"))

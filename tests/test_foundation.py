@@ -5,16 +5,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense import atomic
+from roughsense._util import atomic
 from roughsense.errors import ConfigError, InputError, OutputExistsError, RoughsenseError
-from roughsense.study import (
-    SensorSettings,
-    StudyWriter,
-    assign_nominal_forces,
-    parse_roi,
-    read_study,
-    read_table,
-)
+from roughsense.io.protocol import assign_nominal_forces
+from roughsense.io.sensor_settings import SensorSettings, parse_roi
+from roughsense.io.study import read_study
+from roughsense.io.tables import read_table
+from roughsense.io.writer import StudyWriter
 
 
 def test_error_names_file_row_and_column(tmp_path):

@@ -464,8 +464,8 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
     import json
 
     from roughsense.errors import ModelFileError, RoughsenseError
-    from roughsense.modelfile import _digest, load_model
-    from roughsense.scoring import model_spectrum
+    from roughsense.model.modelfile import _digest, load_model
+    from roughsense.model.predict import model_spectrum
 
     document = json.loads(json.dumps(model_document))
     places = list(_locations(document))

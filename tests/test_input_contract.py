@@ -16,9 +16,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from roughsense import cache, study as contract
+from roughsense._util import cache
 from roughsense.errors import InputError
-from roughsense.images import header_size
+from roughsense.io.images import header_size
+from roughsense.io.names import NAME_MAX_CHARS, check_name, is_safe_name
+from roughsense.io.sensor_settings import SensorSettings
+from roughsense.io.study import read_config, read_study
+from roughsense.io.tables import dump_toml
+from roughsense.io.writer import StudyWriter
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 SPECIMENS = ("R2", "R3", "R4", "C2")
@@ -93,7 +98,7 @@ def test_a_pad_with_path_characters_is_refused_and_nothing_is_written_outside_ou
 def test_every_name_read_from_a_table_follows_the_rule(sandbox, file, column, bad):
     edit_csv(sandbox / file, 3, column, bad)
     with pytest.raises(InputError) as caught:
-        contract.read_study(sandbox)
+        read_study(sandbox)
     error = caught.value
     assert (error.path.name, error.row, error.column) == (file, 3, column)
 
@@ -102,28 +107,28 @@ def test_the_reference_specimen_from_toml_follows_the_rule(sandbox):
     text = (sandbox / "study.toml").read_text().replace('reference_specimen = "R3"', 'reference_specimen = "../R3"')
     (sandbox / "study.toml").write_text(text)
     with pytest.raises(InputError, match="reference_specimen '../R3' is not allowed"):
-        contract.read_study(sandbox)
+        read_study(sandbox)
 
 
 @given(st.text(min_size=0, max_size=80))
 @settings(max_examples=300)
 def test_a_safe_name_is_always_one_plain_file_name(name):
-    if contract.is_safe_name(name):
-        assert 1 <= len(name) <= contract.NAME_MAX_CHARS
+    if is_safe_name(name):
+        assert 1 <= len(name) <= NAME_MAX_CHARS
         assert name not in (".", "..") and not name.startswith((".", "-"))
         assert Path("/base", name).parent == Path("/base") and "/" not in name and "\\" not in name
         assert name.isascii() and name.isprintable()
-        assert contract.check_name(name) == name
+        assert check_name(name) == name
     else:
         with pytest.raises(InputError, match="is not allowed"):
-            contract.check_name(name, path="f.csv", row=4, column="pad")
+            check_name(name, path="f.csv", row=4, column="pad")
 
 
 def test_paper_and_simulator_names_are_safe():
-    from roughsense.perception import PAPER_SPECIMENS
+    from roughsense.paper import PAPER_SPECIMENS
     from roughsense.sim.specimens import parse_specimen
 
-    assert all(contract.is_safe_name(n) for n in (*PAPER_SPECIMENS, "smooth", "fingerprint", "P01", "1", "2.5N"))
+    assert all(is_safe_name(n) for n in (*PAPER_SPECIMENS, "smooth", "fingerprint", "P01", "1", "2.5N"))
     assert parse_specimen("sin:3:0.5").name == "sin_3_0.5"
     assert parse_specimen("rand:1.5:0.2:7").name == "rand_1.5_0.2_7"
 
@@ -149,7 +154,7 @@ def test_a_symlink_leading_out_of_the_folder_is_refused(sandbox, tmp_path):
     (sandbox / "images" / "link.png").symlink_to(outside)
     edit_csv(sandbox / "manifest.csv", 5, "image", "images/link.png")
     with pytest.raises(InputError, match="leads outside the study folder") as caught:
-        contract.read_study(sandbox)
+        read_study(sandbox)
     assert (caught.value.row, caught.value.column) == (5, "image")
 
 
@@ -159,14 +164,14 @@ def test_a_symlink_inside_the_folder_is_fine(sandbox):
     moved = sandbox / "images" / "real.png"
     target.rename(moved)
     target.symlink_to(moved)
-    assert len(contract.read_study(sandbox).manifest) == len(frame)
+    assert len(read_study(sandbox).manifest) == len(frame)
 
 
 def test_two_rows_naming_one_file_are_refused(sandbox):
     frame = pd.read_csv(sandbox / "manifest.csv", dtype=str)
     edit_csv(sandbox / "manifest.csv", 7, "image", "./" + frame.loc[2, "image"])
     with pytest.raises(InputError, match="names the same file as row 4") as caught:
-        contract.read_study(sandbox)
+        read_study(sandbox)
     assert caught.value.row == 7
 
 
@@ -193,8 +198,8 @@ def real_gray_png(width: int, height: int) -> bytes:
 @pytest.fixture()
 def no_decoding(monkeypatch):
     """Fail the test if anything tries to decode pixels."""
-    import roughsense.images as images
-    import roughsense.sensor as sensor  # imported first: it binds decode_png_top_rows by name
+    import roughsense.io.images as images
+    import roughsense.sensor.spectrum as sensor  # imported first: it binds decode_png_top_rows by name
 
     def refuse(*args, **kwargs):
         raise AssertionError("an image was decoded")
@@ -256,7 +261,7 @@ def test_header_size_matches_the_decoded_image(ext, width, height, colour, deep)
 
 
 def test_bomb_headers_of_every_format_are_refused(tmp_path, no_decoding):
-    from roughsense.images import check_pixels
+    from roughsense.io.images import check_pixels
 
     jpeg = b"\xff\xd8\xff\xc0\x00\x11\x08" + struct.pack(">HH", 60000, 60000) + b"\x03" + b"\x00" * 9
     tiff = b"II*\x00\x08\x00\x00\x00" + struct.pack("<H", 2) + struct.pack("<HHII", 256, 4, 1, 60000) \
@@ -294,7 +299,8 @@ def test_a_truncated_cache_entry_is_recomputed(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_place(run_cli, sandbox, tmp_path, monkeypatch, quick_figures):
+def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_place(run_cli, sandbox, tmp_path, monkeypatch,
+                                                                                   quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     assert run_cli(*study_args(sandbox, tmp_path / "r1"))[0] == 0
     (entry,) = (tmp_path / "cache" / "features").glob("*.csv")
@@ -308,7 +314,7 @@ def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_plac
     assert "from cache" in (tmp_path / "r3" / "index.html").read_text()  # the repaired entry is used again
 
     # An image replaced in place by another's bytes, its mtime set back: not served from the cache.
-    images = contract.read_study(sandbox).image_paths
+    images = read_study(sandbox).image_paths
     stat = images[0].stat()
     images[0].write_bytes(images[-1].read_bytes())
     os.utime(images[0], ns=(stat.st_atime_ns, stat.st_mtime_ns))
@@ -319,7 +325,7 @@ def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_plac
 
 
 def test_an_image_rewritten_in_place_with_its_mtime_restored_gets_a_new_key(sandbox):
-    loaded = contract.read_study(sandbox)
+    loaded = read_study(sandbox)
     key = cache.features_key(loaded, {"x": 1})
     path = loaded.image_paths[0]
     stat = path.stat()
@@ -409,7 +415,7 @@ def test_toml_values_of_the_wrong_kind_are_refused(sandbox, old, new, message):
     assert old in text
     (sandbox / "study.toml").write_text(text.replace(old, new))
     with pytest.raises(InputError, match=message.replace("[", r"\[")):
-        contract.read_study(sandbox)
+        read_study(sandbox)
 
 
 def test_unknown_toml_keys_warn_once_naming_them_but_the_simulation_table_does_not(run_cli, sandbox, tmp_path):
@@ -437,7 +443,7 @@ def test_unknown_toml_keys_warn_once_naming_them_but_the_simulation_table_does_n
 def test_manifest_numbers_out_of_range_are_refused_by_cell(sandbox, column, value, message):
     edit_csv(sandbox / "manifest.csv", 6, column, value)
     with pytest.raises(InputError, match=message) as caught:
-        contract.read_study(sandbox)
+        read_study(sandbox)
     assert (caught.value.row, caught.value.column) == (6, column)
 
 
@@ -459,7 +465,7 @@ def model_document(base, tmp_path_factory):
 
 
 def _resigned(document: dict) -> dict:
-    from roughsense.modelfile import _digest
+    from roughsense.model.modelfile import _digest
 
     document = json.loads(json.dumps(document))
     document["sha256"] = _digest(document)
@@ -511,7 +517,7 @@ def test_a_blank_rating_means_the_same_to_ratings_and_study(run_cli, sandbox, tm
     assert code == 0, err
     assert gap in err
     summary = pd.read_csv(tmp_path / "s.csv", dtype={"specimen": str}).set_index("specimen")
-    report = contract.read_study(sandbox).ratings
+    report = read_study(sandbox).ratings
     assert len(report) == len(ratings) - 1
     kept = ratings.iloc[1:].astype({"rating": float})
     expected = kept[kept["specimen"] == blank["specimen"]].groupby("participant")["rating"].median()
@@ -524,13 +530,13 @@ def test_study_toml_strings_round_trip_whatever_they_hold(text):
     """The writer's TOML escapes quotes, backslashes and control characters (a folder name may hold any)."""
     import tomllib
 
-    assert tomllib.loads(contract.dump_toml({"study": {"name": text}}))["study"]["name"] == text
+    assert tomllib.loads(dump_toml({"study": {"name": text}}))["study"]["name"] == text
 
 
 def test_a_non_default_pixel_limit_is_written_to_study_toml(tmp_path):
-    writer = contract.StudyWriter(tmp_path / "s")
-    writer.write_config(name="s", sensor=contract.SensorSettings(max_pixels=5000))
-    assert contract.read_config(tmp_path / "s" / "study.toml")["sensor"]["max_pixels"] == 5000
+    writer = StudyWriter(tmp_path / "s")
+    writer.write_config(name="s", sensor=SensorSettings(max_pixels=5000))
+    assert read_config(tmp_path / "s" / "study.toml")["sensor"]["max_pixels"] == 5000
 
 
 @pytest.mark.parametrize("text, message", [

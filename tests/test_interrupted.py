@@ -15,11 +15,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from roughsense import atomic
+from roughsense._util import atomic
 from roughsense.errors import InputError, OutputExistsError
+from roughsense.io.study import COMPLETE_MARKER, read_study
 from roughsense.sim.optics import Camera
 from roughsense.sim.simulate import SimulationConfig, simulate_study
-from roughsense.study import COMPLETE_MARKER, read_study
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 LINUX = sys.platform.startswith("linux")
@@ -53,7 +53,9 @@ def test_swap_replaces_the_folder_whole_and_keeps_the_users_files(tmp_path, monk
     (out / "notes.txt").write_text("mine")
     (out / "sub" / "data.txt").write_text("mine too")
     (out / "keep-empty").mkdir()
-    owned = lambda rel: rel.name.endswith(".csv")  # noqa: E731
+    def owned(rel):
+        return rel.name.endswith(".csv")
+
     with atomic.staged_folder(out, owned=owned) as staging:
         assert staging.parent == out.parent and atomic.PARTIAL_TAG in staging.name
         (staging / "shared.csv").write_text("new")
@@ -335,9 +337,9 @@ def test_study_killed_while_it_simulates_leaves_no_cache_entry_and_no_worker(tmp
 
 
 def test_a_worker_whose_parent_is_already_gone_exits_at_once():
-    from roughsense import workers
+    from roughsense._util import workers
 
-    code = ("import os, sys; sys.path.insert(0, sys.argv[1]); from roughsense.workers import die_with_parent;"
+    code = ("import os, sys; sys.path.insert(0, sys.argv[1]); from roughsense._util.workers import die_with_parent;"
             " die_with_parent(os.getppid() + 1 if os.getppid() != 1 else 2); print('survived')")
     done = subprocess.run([sys.executable, "-c", code, SRC], capture_output=True, text=True, timeout=60)
     assert done.returncode == 1 and "survived" not in done.stdout

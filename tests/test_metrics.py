@@ -11,10 +11,8 @@ from hypothesis import strategies as st
 from scipy import integrate, optimize, stats
 
 import roughsense
-from roughsense import reference
-from roughsense.reference import PAPER_SUMMARIES as PRINTED_SUMMARIES
-from roughsense.errors import ConfigError, InputError
-from roughsense.metrics import (
+from roughsense import paper as published
+from roughsense.analysis.metrics import (
     compare_conditions,
     format_mean_sd,
     overlap,
@@ -23,6 +21,8 @@ from roughsense.metrics import (
     specimen_rmse,
     specimen_table,
 )
+from roughsense.errors import ConfigError, InputError
+from roughsense.paper import PAPER_SUMMARIES as PRINTED_SUMMARIES
 
 means = st.floats(-5, 5, allow_nan=False)
 sds = st.floats(0.05, 3, allow_nan=False)
@@ -111,8 +111,8 @@ ROUND = 0.005  # every table value is printed to 2 decimals
 
 @pytest.fixture(scope="module")
 def paper():
-    perceived = reference.perceived_roughness()
-    results = reference.paper_results()
+    perceived = published.perceived_roughness()
+    results = published.paper_results()
     return results.merge(perceived, on="specimen", how="left"), perceived
 
 
@@ -143,7 +143,7 @@ def _rmse_from_distribution(gmean, mean, sd, variance_factor):
 def test_rmse_follows_from_the_prediction_distribution_of_tables_1_and_4(paper):
     """RMSE^2 = (m - g)^2 + v * s^2 over n = 10 predictions, with v = 1 if the tables' s is the
     population SD and v = (n - 1)/n if it is the sample SD. Only the population SD reproduces every
-    published RMSE; the sample SD misses five of 112 (by about 0.01). See docs/perception.md."""
+    published RMSE; the sample SD misses five of 112 (by about 0.01). See docs/finger_model.md."""
     table, _ = paper
     assert len(table) == 112
     misses = {}
@@ -289,7 +289,7 @@ def test_table_noise_does_not_break_ties():
 
 @pytest.fixture(scope="module")
 def table3_and_6():
-    results = reference.paper_results()
+    results = published.paper_results()
     return {pad: results[results.pad == pad].pivot(index="specimen", columns="condition", values="rmse")
             for pad in ("fingerprint", "smooth")}
 

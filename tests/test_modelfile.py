@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from roughsense import SIMPLS
-from roughsense import modelfile as mf
 from roughsense.errors import InputError, ModelFileError, OutputExistsError
-from roughsense.scoring import score_images
-from roughsense.sensor import SpatialSpectrum
+from roughsense.model import modelfile as mf
+from roughsense.model.predict import score_images
+from roughsense.sensor.spectrum import SpatialSpectrum
 
 ROI = (0, 8, 400, 16)
 
@@ -130,7 +130,8 @@ def test_not_json_and_missing_file(tmp_path):
 def test_feature_definition_must_match_the_coefficients(tmp_path):
     model, _ = fitted(p=45)
     with pytest.raises(ModelFileError, match="45 frequencies x 3 condition"):
-        mf.save_model(tmp_path / "m.json", model, feature_definition=mf.feature_definition_for(spectrum(), ["1N", "2N", "3N"]), training={})
+        definition = mf.feature_definition_for(spectrum(), ["1N", "2N", "3N"])
+        mf.save_model(tmp_path / "m.json", model, feature_definition=definition, training={})
     assert not (tmp_path / "m.json").exists()
 
 
@@ -154,7 +155,8 @@ def test_check_features_refuses_a_different_definition(saved):
 def gratings(wavelengths_mm, rng):
     x_mm = np.arange(400) / 20.0
     return [
-        np.clip(np.round(255 * (0.5 + 0.3 * np.sin(2 * np.pi * x_mm / w) + 0.02 * rng.standard_normal((32, 400)))), 0, 255).astype(np.uint8)
+        np.clip(np.round(255 * (0.5 + 0.3 * np.sin(2 * np.pi * x_mm / w) + 0.02 * rng.standard_normal((32, 400)))),
+                0, 255).astype(np.uint8)
         for w in wavelengths_mm
     ]
 

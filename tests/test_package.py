@@ -83,7 +83,8 @@ def test_the_wheel_holds_the_data_and_the_entry_point(dist):
 
 def test_the_sdist_holds_the_sources_docs_tests_and_example(dist):
     prefix = f"roughsense-{VERSION}/"
-    names = {n.removeprefix(prefix) for n in tarfile.open(dist["sdist"]).getnames()}
+    with tarfile.open(dist["sdist"]) as sdist:
+        names = {n.removeprefix(prefix) for n in sdist.getnames()}
     expected = {"pyproject.toml", "README.md", "LICENSE", "Makefile", "docs/tutorial.md", "tests/test_tutorial.py",
                 "examples/my-study/study.toml", "examples/my-study/manifest.csv", "scripts/make_example_study.py",
                 *(f"src/{d}" for d in DATA)}

@@ -15,7 +15,7 @@ from threadpoolctl import threadpool_limits
 
 from roughsense import SIMPLS, pls_cv
 from roughsense.errors import ConfigError, InputError
-from roughsense.pls import PLSCVResult
+from roughsense.model.pls_cv import PLSCVResult
 
 
 def spectra(n_specimens=14, repetitions=10, p=45, noise=0.02, seed=0):

@@ -10,12 +10,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from roughsense import reference
+from roughsense import paper
+from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import OutputExistsError
-from roughsense.evaluation import analyse_study
 from roughsense.report import write_report
 
-from .test_evaluation import synthetic_study
+from .test_study_analysis import synthetic_study
 
 
 @pytest.fixture(scope="module")
@@ -102,7 +102,7 @@ def test_report_files_and_schemas(report_dir):
     names = {p.name for p in report_dir.iterdir()}
     assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv"} <= names
     assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png"} <= names
-    paper_columns = list(reference.paper_results().columns)
+    paper_columns = list(paper.paper_results().columns)
     for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
         assert list(pd.read_csv(report_dir / name).columns) == paper_columns + ["predictive_sd", "ovl_predictive"]
     controls = pd.read_csv(report_dir / "controls.csv")

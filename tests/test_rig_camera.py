@@ -11,8 +11,6 @@ from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_s
 from .videos import decoded_frames, write_video
 
 
-
-
 def test_video_file_frames_are_rgb_in_order(tmp_path):
     video = write_video(tmp_path / "clip.avi")
     reference = decoded_frames(video)

@@ -6,7 +6,7 @@ import io
 import os
 import threading
 import time
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import cv2
 import numpy as np
@@ -16,9 +16,11 @@ from hypothesis import given
 from hypothesis import strategies as hs
 
 from roughsense.errors import InputError
+from roughsense.io.sensor_settings import roi_misfit
+from roughsense.io.study import read_study
+from roughsense.io.writer import StudyWriter
 from roughsense.rig.capture import image_name, plan_steps
-from roughsense.sensor import resolve_roi
-from roughsense.study import StudyWriter, read_study, roi_misfit
+from roughsense.sensor.spectrum import resolve_roi
 
 from .videos import decoded_frames, write_video
 
@@ -66,7 +68,7 @@ def test_full_protocol_writes_a_valid_study(tmp_path, video, run_cli, typed):
     assert list(manifest["image"]) == [f"images/R3_fp_r{r:02d}_{f}N.png" for r in (1, 2) for f in (1, 2, 3)]
     stamps = [datetime.fromisoformat(t) for t in manifest["timestamp"]]
     assert all(s.utcoffset() == timedelta(0) for s in stamps) and stamps == sorted(stamps)
-    assert abs(datetime.now(timezone.utc) - stamps[-1]) < timedelta(minutes=5)
+    assert abs(datetime.now(UTC) - stamps[-1]) < timedelta(minutes=5)
     # each image is the next frame of the source, pixel for pixel
     for rel, frame in zip(manifest["image"], decoded_frames(video, rgb=False)):
         np.testing.assert_array_equal(cv2.imread(str(out / rel)), frame)
@@ -165,7 +167,8 @@ def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path
     [
         (("--forces", "1,2"), "--forces 1,2 differs from this study's protocol 1,2,3"),
         (("--px-per-mm", "20"), "--px-per-mm 20 differs from 34.9"),
-        (("--shape", "circular"), "specimens.csv, row 2, column 'shape': specimen 'R3' has shape rectangular; --shape says circular"),
+        (("--shape", "circular"),
+         "specimens.csv, row 2, column 'shape': specimen 'R3' has shape rectangular; --shape says circular"),
         (("--wavelength-mm", "5"), "column 'wavelength_mm': specimen 'R3' has wavelength_mm 3; --wavelength-mm says 5"),
     ],
 )

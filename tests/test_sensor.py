@@ -17,8 +17,8 @@ from sklearn.pipeline import Pipeline
 
 import roughsense
 from roughsense.errors import ConfigError, InputError
-from roughsense.images import GRAY_WEIGHTS_RGB, load_gray
-from roughsense.sensor import (
+from roughsense.io.images import GRAY_WEIGHTS_RGB, load_gray
+from roughsense.sensor.spectrum import (
     SpatialSpectrum,
     combine_forces,
     frequency_grid,
@@ -283,7 +283,8 @@ def test_flat_image_cannot_be_normalised():
 
 def _images(n, rng):
     wavelengths = rng.uniform(2.0, 5.0, size=n)
-    return [np.tile(grating_line(w, 1920, edge=2.0), (160, 1)) + 0.01 * rng.normal(size=(160, 1920)) for w in wavelengths], wavelengths
+    images = [np.tile(grating_line(w, 1920, edge=2.0), (160, 1)) + 0.01 * rng.normal(size=(160, 1920)) for w in wavelengths]
+    return images, wavelengths
 
 
 def test_transformer_matches_the_function_and_threads_keep_order():
@@ -388,7 +389,7 @@ def test_shipped_samples_peak_at_their_named_wavelength():
 def test_png_top_rows_decode_equals_full_decode(tmp_path, channels):
     import cv2
 
-    from roughsense.images import decode_png_top_rows, png_size, read_bytes, read_image
+    from roughsense.io.images import decode_png_top_rows, png_size, read_bytes, read_image
 
     rng = np.random.default_rng(channels)
     shape = (90, 200) if channels == 1 else (90, 200, channels)
@@ -406,7 +407,7 @@ def test_png_top_rows_decode_equals_full_decode(tmp_path, channels):
 def test_spectrum_from_png_file_equals_spectrum_from_array(tmp_path):
     import cv2
 
-    from roughsense.sensor import spatial_spectrum
+    from roughsense.sensor.spectrum import spatial_spectrum
 
     rng = np.random.default_rng(7)
     x_mm = np.arange(400) / 20.0

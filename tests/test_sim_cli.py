@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from roughsense.study import read_study
+from roughsense.io.study import read_study
 
 
 def test_simulate_writes_a_readable_study(run_cli, tmp_path):
@@ -96,7 +96,8 @@ def test_force_leaves_a_rig_study_untouched(run_cli, tmp_path):
     import numpy as np
     import pandas as pd
 
-    from roughsense.study import SensorSettings, StudyWriter
+    from roughsense.io.sensor_settings import SensorSettings
+    from roughsense.io.writer import StudyWriter
 
     rig = StudyWriter(tmp_path / "rig")
     rig.write_config(name="bench", sensor=SensorSettings(px_per_mm=34.9))

@@ -85,7 +85,7 @@ def test_apparent_contact_matches_the_solvers_contact():
 
 
 def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
-    from roughsense.sensor import resolve_roi
+    from roughsense.sensor.spectrum import resolve_roi
     from roughsense.sim.optics import Lighting, render
 
     clean = dict(read_noise_dn=0.0, shot_noise_gain=0.0)
@@ -112,11 +112,11 @@ def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
 
 
 def test_stored_png_is_lossless_and_the_sensor_reads_it_like_the_frame(tmp_path):
-    from roughsense.images import read_image
-    from roughsense.sensor import spatial_spectrum
+    from roughsense.io.images import read_image
+    from roughsense.io.study import read_study
+    from roughsense.sensor.spectrum import spatial_spectrum
     from roughsense.sim import simulate_study
     from roughsense.sim.simulate import render_trial
-    from roughsense.study import read_study
 
     config = SimulationConfig(pads=("fingerprint",), specimens=("C3",), forces_n=(2.0,), repetitions=1, seed=7,
                               camera=Camera(width_px=1920))

@@ -6,8 +6,9 @@ import pandas as pd
 import pytest
 
 from roughsense.errors import ConfigError
+from roughsense.paper import PAPER_SPECIMENS
 from roughsense.sim import panel
-from roughsense.sim.specimens import PAPER_SPECIMENS, PRESETS, parse_specimen
+from roughsense.sim.specimens import PRESETS, parse_specimen
 
 PAPER = pd.read_csv(__import__("pathlib").Path(__file__).parents[1] / "src/roughsense/data/paper/perceived_roughness.csv",
                     dtype={"specimen": str}).set_index("specimen")
@@ -48,15 +49,15 @@ def test_default_panel_is_unchanged_for_the_papers_presets():
 
 
 def test_ratings_source_per_specimen():
-    from roughsense.sim import perception
+    from roughsense.sim import finger
 
     assert panel.percept(PRESETS["R4"]).source == "paper"
     assert panel.percept(PRESETS["R4"]).gmean == PAPER.loc["R4", "perceived_gmean"]
     for spec in (parse_specimen("rect:3.2"), parse_specimen("sin:3:0.5"), parse_specimen("rand:1.5:0.2")):
         p = panel.percept(spec)
-        assert p.source == "physics" and p.gmean == pytest.approx(perception.magnitude(spec))
+        assert p.source == "physics" and p.gmean == pytest.approx(finger.magnitude(spec))
     physics = panel.percept(PRESETS["R4"], ratings_from="physics")
-    assert physics.source == "physics" and physics.gmean == pytest.approx(perception.magnitude(PRESETS["R4"]))
+    assert physics.source == "physics" and physics.gmean == pytest.approx(finger.magnitude(PRESETS["R4"]))
     # depth matters now (the old power law of groove width rated a shallow sinusoid like a deep one)
     assert panel.percept(parse_specimen("sin:3:0.05")).gmean < panel.percept(parse_specimen("sin:3:0.5")).gmean
     with pytest.raises(ConfigError, match="ratings-from"):

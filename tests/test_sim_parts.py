@@ -9,16 +9,17 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError
+from roughsense.paper import PAPER_SPECIMENS
 from roughsense.sim.optics import Camera, Lighting, render
 from roughsense.sim.pads import make_pad
-from roughsense.sim.specimens import PAPER_SPECIMENS, PRESETS, parse_specimen
+from roughsense.sim.specimens import PRESETS, parse_specimen
 
 
 def test_paper_presets():
     assert PAPER_SPECIMENS == ("R2", "R2.5", "R3", "R3.5", "R4", "R4.5", "R5",
                                "C2", "C2.5", "C3", "C3.5", "C4", "C4.5", "C5")
     assert PRESETS["R3.5"].wavelength_mm == 3.5 and PRESETS["R3.5"].ridge_width_mm == 1.75
-    assert PRESETS["R3.5"].groove_depth_mm == 1.0  # DESIGN.md's choice
+    assert PRESETS["R3.5"].groove_depth_mm == 1.0  # our choice (not in the paper; docs/simulator.md)
     assert PRESETS["C4.5"].diameter_mm == 4.5
 
 

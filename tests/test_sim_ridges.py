@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from roughsense.sensor import SpatialSpectrum
+from roughsense.sensor.spectrum import SpatialSpectrum
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 

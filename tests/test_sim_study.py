@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from roughsense.errors import ConfigError, OutputExistsError
+from roughsense.io.study import read_study
 from roughsense.sim import SimulationConfig, SimulationRun, simulate_study
 from roughsense.sim.bench import BenchNoise
 from roughsense.sim.optics import Camera
 from roughsense.sim.simulate import COMPLETE_MARKER
-from roughsense.study import read_study
 
 SMALL = Camera(width_px=400, height_px=300)
 
@@ -92,7 +92,7 @@ def test_ground_truth_contact_fraction_on_a_quiet_bench(tmp_path, force_n, short
     whole_periods = Camera(width_px=420, height_px=300, px_per_mm=35.0)  # a 12 mm field: six 2 mm periods
     config = _config(pads=("smooth",), specimens=("C2",), forces_n=(force_n,), bench=quiet, camera=whole_periods)
     study = read_study(simulate_study(tmp_path / "q", config, jobs=1))
-    # the field lies inside the 50 mm specimen; periodic Hertz minus the neighbours' interaction (DESIGN.md)
+    # the field lies inside the 50 mm specimen; periodic Hertz minus the neighbours' interaction (docs/simulator.md)
     p = force_n / 500e-6
     e_star = 0.17e6 / (1 - 0.49**2)
     hertz = 2 * math.sqrt(4 * p * 2.0 * 1.0 / (math.pi * e_star)) / 2.0
@@ -143,7 +143,8 @@ def test_refuses_a_non_empty_folder_and_never_deletes(tmp_path):
 
 
 def test_force_never_writes_over_a_real_study(tmp_path):
-    from roughsense.study import SensorSettings, StudyWriter
+    from roughsense.io.sensor_settings import SensorSettings
+    from roughsense.io.writer import StudyWriter
 
     rig = StudyWriter(tmp_path / "rig")
     rig.write_config(name="bench", sensor=SensorSettings(px_per_mm=34.9), extra={"rig": {"camera": "C920"}})

@@ -8,9 +8,9 @@ from scipy import integrate, stats
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 
-from roughsense import SpreadModel, reference
+from roughsense import SpreadModel, paper
+from roughsense.analysis.spread import paper_predictive, predictive_ovl
 from roughsense.errors import ConfigError, InputError
-from roughsense.spread import paper_predictive, predictive_ovl
 
 
 def test_weber_fit_is_the_pooled_coefficient_of_variation():
@@ -69,9 +69,9 @@ def test_predictive_ovl_is_leave_one_specimen_out_and_integrates_correctly():
 
 
 def test_a_precise_sensor_scores_near_zero_on_the_papers_ovl_but_not_on_the_predictive_one():
-    perceived = reference.perceived_roughness().rename(columns={"perceived_gmean": "gmean", "perceived_sd": "sd"})
+    perceived = paper.perceived_roughness().rename(columns={"perceived_gmean": "gmean", "perceived_sd": "sd"})
     perfect = perceived.assign(pred_mean=perceived["gmean"], pred_sd=1e-6).dropna(subset=["sd"])
-    from roughsense.metrics import overlap
+    from roughsense.analysis.metrics import overlap
 
     assert np.nanmax(overlap(perfect["gmean"], perfect["sd"], perfect["pred_mean"], perfect["pred_sd"])) < 0.01
     assert predictive_ovl(perfect, perceived)["ovl_predictive"].mean() > 0.85
@@ -79,7 +79,7 @@ def test_a_precise_sensor_scores_near_zero_on_the_papers_ovl_but_not_on_the_pred
 
 def test_paper_predictions_reach_the_goal_with_a_weber_spread():
     table = paper_predictive()
-    published = reference.paper_results()
+    published = paper.paper_results()
     assert len(table) == len(published)
     means = table.groupby(["pad", "condition"])[["ovl", "ovl_predictive"]].mean()
     for pad in ("fingerprint", "smooth"):

@@ -1,4 +1,4 @@
-"""The ``roughsense`` command: a thin typer app.
+"""The ``roughsense`` command: a thin typer app that parses options, calls the layers and maps errors to exit codes.
 
 Each command lives in its own module in this package and exposes ``register(app)``; modules are
 discovered here so that adding a command never edits a shared file. This module owns the one

@@ -14,6 +14,9 @@ from ._common import progress
 
 BUILTIN = "builtin"
 STUDY_METAVAR = "DIR|builtin"
+#: Where the built-in study's simulation starts, and the package data it reads: the cache key covers both.
+SIMULATOR_ENTRY_POINTS = ("roughsense.sim.simulate",)
+SIMULATOR_DATA = ("roughsense.data.paper",)
 
 
 def is_builtin(value: str | os.PathLike[str] | None) -> bool:
@@ -21,22 +24,15 @@ def is_builtin(value: str | os.PathLike[str] | None) -> bool:
 
 
 def simulator_fingerprint() -> str:
-    """A hash of the simulator's own source and data: a changed twin never reuses a stale cached study."""
-    import hashlib
-    from importlib import resources
+    """A hash of the simulator's source (every module it imports) and data: a changed twin never reuses a stale study."""
+    from .._util.fingerprint import code_fingerprint
 
-    digest = hashlib.sha256()
-    for package in ("roughsense.sim", "roughsense.data.paper"):
-        for item in sorted(resources.files(package).iterdir(), key=lambda p: p.name):
-            if item.name.endswith((".py", ".csv")):
-                digest.update(item.name.encode())
-                digest.update(item.read_bytes())
-    return digest.hexdigest()[:12]
+    return code_fingerprint(*SIMULATOR_ENTRY_POINTS, data_packages=SIMULATOR_DATA)
 
 
 def builtin_study_path(seed: int) -> Path:
     """Where the built-in study of ``seed`` lives (or will live) in the cache."""
-    from ..cache import cache_dir
+    from .._util.cache import cache_dir
 
     return cache_dir() / f"simulated-study-seed{seed}-{simulator_fingerprint()}"
 
@@ -49,8 +45,8 @@ def builtin_study(seed: int, jobs: int | None = None) -> Path:
     """
     import shutil
 
-    from .. import atomic
-    from ..cache import cache_dir
+    from .._util import atomic
+    from .._util.cache import cache_dir
     from ..sim import simulate as sim
 
     root = builtin_study_path(seed)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import typer
 
+from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ._common import parse_float_list
 
 ORDER = 50
@@ -14,19 +15,34 @@ ORDER = 50
 def register(app: typer.Typer) -> None:
     @app.command("capture")
     def capture(
-        source: str = typer.Option(..., "--source", help="Camera index (0), device (/dev/video2), video file or image pattern (img_%04d.png)."),
+        source: str = typer.Option(
+            ..., "--source",
+            help="Camera index (0), device (/dev/video2), video file or image pattern (img_%04d.png)."),
         out: Path = typer.Option(..., "--out", help="Study folder: created on the first capture, extended by later runs."),
         specimen: str = typer.Option(..., "--specimen", help="Specimen name, e.g. R3 (letters, digits, . _ -)."),
         pad: str = typer.Option(..., "--pad", help="Contact pad name, e.g. fingerprint or flat."),
         forces: str | None = typer.Option(None, "--forces", help="Protocol forces in N (default 1,2,3, or the study's)."),
-        repetitions: int = typer.Option(10, "--repetitions", help="Target number of repetitions for this specimen and pad; a rerun captures only what is missing."),
-        force_input: str = typer.Option("manual", "--force-input", help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale)."),
-        px_per_mm: float | None = typer.Option(None, "--px-per-mm", help="Camera scale for a new study (default 34.9)."),
-        roi: str | None = typer.Option(None, "--roi", help="Contact band for a new study: center, auto or X,Y,W,H (default center)."),
+        repetitions: int = typer.Option(
+            10, "--repetitions",
+            help="Target number of repetitions for this specimen and pad; a rerun captures only what is missing."),
+        force_input: str = typer.Option(
+            "manual", "--force-input",
+            help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale)."),
+        px_per_mm: float | None = typer.Option(
+            None, "--px-per-mm", help=f"Camera scale for a new study (default {DEFAULT_PX_PER_MM:g})."),
+        roi: str | None = typer.Option(
+            None, "--roi",
+            help="Contact band for a new study: center, auto or X,Y,W,H (default center)."),
         timeout_s: float = typer.Option(5.0, "--timeout-s", help="Give up when the scale sends no stable reading for this long."),
-        shape: str | None = typer.Option(None, "--shape", help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other)."),
-        wavelength_mm: float | None = typer.Option(None, "--wavelength-mm", help="Specimen surface wavelength for specimens.csv."),
-        discard: int | None = typer.Option(None, "--discard", help="Stale frames dropped before each capture (default 5 for cameras, 0 for files)."),
+        shape: str | None = typer.Option(
+            None, "--shape",
+            help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other)."),
+        wavelength_mm: float | None = typer.Option(
+            None, "--wavelength-mm",
+            help="Specimen surface wavelength for specimens.csv."),
+        discard: int | None = typer.Option(
+            None, "--discard",
+            help="Stale frames dropped before each capture (default 5 for cameras, 0 for files)."),
     ) -> None:
         """Capture contact images with measured forces: for each repetition, one image at each force.
 

@@ -13,7 +13,9 @@ ORDER = 45
 def register(app: typer.Typer) -> None:
     @app.command("explore")
     def explore(
-        sweep_file: Path = typer.Argument(..., metavar="SWEEP.toml", help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
+        sweep_file: Path = typer.Argument(
+            ..., metavar="SWEEP.toml",
+            help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
         workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "

@@ -7,6 +7,9 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
+from ..io.images import DEFAULT_MAX_PIXELS
+from ..io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
+from ..sensor.settings import SPECTRUM_DEFAULTS
 from ._common import parse_float_list, progress
 from ._studies import STUDY_METAVAR, resolve_study
 
@@ -20,93 +23,99 @@ def _band(text: str) -> tuple[float, float]:
     return values[0], values[1]
 
 
+FeaturesOut = Annotated[Path, typer.Option(
+    "--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency in mm^-1.")]
+Images = Annotated[list[Path] | None, typer.Argument(
+    metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False)]
+StudyDir = Annotated[str | None, typer.Option(
+    "--study", metavar=STUDY_METAVAR, show_default=False,
+    help="A study folder: use its manifest's images and carry the manifest's columns along. "
+         "builtin: the simulated paper study of --seed.")]
+PxPerMm = Annotated[float | None, typer.Option(
+    "--px-per-mm", show_default=False,
+    help=f"Camera scale in px/mm along the line. Default: the study's, else {DEFAULT_PX_PER_MM:g} (the paper's "
+         f"{DEFAULT_PX_PER_MM * 10:g} px/cm).")]
+Roi = Annotated[str | None, typer.Option(
+    "--roi", show_default=False,
+    help=f"Crop: 'center' ({CENTER_CROP_PX[0]}x{CENTER_CROP_PX[1]} px centred, as in the paper), 'auto' (the "
+         f"{CENTER_CROP_PX[1]}-row band with the most horizontal texture) or X,Y,W,H in px. Default: the study's, "
+         "else center.")]
+Rows = Annotated[int, typer.Option("--rows", help="Average the N central rows of the crop (1 = the paper's middle row).")]
+Band = Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")]
+NFreqs = Annotated[int, typer.Option("--n-freqs", help="Number of evenly spaced frequencies in the band.")]
+Window = Annotated[str, typer.Option(
+    "--window", help=f"Taper before the DFT: '{SPECTRUM_DEFAULTS.window}' (default) or 'none' (the paper's literal choice).")]
+MaxPixels = Annotated[int | None, typer.Option(
+    "--max-pixels", show_default=False,
+    help="Refuse images whose header claims more pixels (width x height) than this, before decoding. "
+         f"Default: the study's [sensor] max_pixels, else {DEFAULT_MAX_PIXELS}.")]
+
+
+def features(
+    out: FeaturesOut, images: Images = None, study: StudyDir = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
+    px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
+    band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
+    n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Decoding threads; -1 uses every core.")] = -1,
+    force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
+    max_pixels: MaxPixels = None,
+) -> None:
+    """Turn contact images into normalised spatial spectra (the paper's section 3.2).
+
+    Each image is cropped, converted to gray (MATLAB weights) and reduced to its middle row; the amplitude
+    spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. Nothing is
+    written if any image fails; the error names that file.
+    """
+    from .._util.atomic import check_can_write, write_csv
+    from ..analysis.dataset import study_features
+    from ..io.sensor_settings import check_max_pixels
+    from ..io.study import read_study
+
+    if study is not None and images:
+        raise ConfigError("give either IMAGE... or --study DIR, not both")
+    if study is None and not images:
+        raise ConfigError("no images given; pass IMAGE... or --study DIR")
+    if max_pixels is not None:
+        check_max_pixels(max_pixels, option="--max-pixels")
+    check_can_write(out, force=force)
+    f_min, f_max = _band(band)
+    loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
+    if loaded is not None:
+        px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
+        roi = loaded.sensor.roi if roi is None else roi
+        max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
+    spectrum = _spectrum(px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels)
+    if loaded is not None:
+        paths = loaded.image_paths
+        table = study_features(loaded, spectrum=spectrum, progress=progress)
+    else:
+        paths = list(images)
+        table = _image_features(spectrum, paths)
+    write_csv(out, table)
+    typer.echo(f"wrote {len(paths)} x {len(spectrum.get_feature_names_out())} features to {out}")
+
+
+def _spectrum(px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels):
+    """The transformer, with the defaults of a study-less run where an option was not given."""
+    from ..sensor.spectrum import SpatialSpectrum
+
+    return SpatialSpectrum(
+        px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
+        roi=DEFAULT_ROI if roi is None else roi,
+        rows=rows, f_min_per_mm=f_min, f_max_per_mm=f_max, n_freqs=n_freqs, n_jobs=jobs, window=window,
+        max_pixels=DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels,
+    ).fit()
+
+
+def _image_features(spectrum, paths: list[Path]):
+    """One row per image: its path, then its spectrum."""
+    import pandas as pd
+
+    names = list(spectrum.get_feature_names_out())
+    spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
+    return pd.concat([pd.DataFrame({"image": [str(p) for p in paths]}), pd.DataFrame(spectra, columns=names)], axis=1)
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("features")
-    def features(
-        out: Annotated[
-            Path,
-            typer.Option("--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency in mm^-1."),
-        ],
-        images: Annotated[
-            list[Path] | None,
-            typer.Argument(metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False),
-        ] = None,
-        study: Annotated[
-            str | None,
-            typer.Option("--study", metavar=STUDY_METAVAR, show_default=False,
-                         help="A study folder: use its manifest's images and carry the manifest's columns along. "
-                         "builtin: the simulated paper study of --seed."),
-        ] = None,
-        seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
-        px_per_mm: Annotated[
-            float | None,
-            typer.Option("--px-per-mm", help="Camera scale in px/mm along the line. Default: the study's, else 34.9 (the paper's 349 px/cm).", show_default=False),
-        ] = None,
-        roi: Annotated[
-            str | None,
-            typer.Option(
-                "--roi",
-                help="Crop: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band with the most "
-                "horizontal texture) or X,Y,W,H in px. Default: the study's, else center.",
-                show_default=False,
-            ),
-        ] = None,
-        rows: Annotated[int, typer.Option("--rows", help="Average the N central rows of the crop (1 = the paper's middle row).")] = 1,
-        band: Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")] = "0.1,1.0",
-        n_freqs: Annotated[int, typer.Option("--n-freqs", help="Number of evenly spaced frequencies in the band.")] = 45,
-        window: Annotated[str, typer.Option("--window", help="Taper before the DFT: 'hann' (default) or 'none' (the paper's literal choice).")] = "hann",
-        jobs: Annotated[int, typer.Option("--jobs", "-j", help="Decoding threads; -1 uses every core.")] = -1,
-        force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
-        max_pixels: Annotated[
-            int | None,
-            typer.Option("--max-pixels", help="Refuse images whose header claims more pixels (width x height) than this, "
-                         "before decoding. Default: the study's [sensor] max_pixels, else 100000000.", show_default=False),
-        ] = None,
-    ) -> None:
-        """Turn contact images into normalised spatial spectra (the paper's section 3.2).
-
-        Each image is cropped, converted to gray (MATLAB weights) and reduced to its middle row; the amplitude spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. Nothing is written if any image fails; the error names that file.
-        """
-        import pandas as pd
-
-        from ..atomic import check_can_write, write_csv
-        from ..sensor import SpatialSpectrum
-        from ..dataset import study_features
-        from ..study import DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, check_max_pixels, read_study
-
-        if study is not None and images:
-            raise ConfigError("give either IMAGE... or --study DIR, not both")
-        if study is None and not images:
-            raise ConfigError("no images given; pass IMAGE... or --study DIR")
-        if max_pixels is not None:
-            check_max_pixels(max_pixels, option="--max-pixels")
-        check_can_write(out, force=force)
-        f_min, f_max = _band(band)
-
-        loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
-        if loaded is not None:
-            px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
-            roi = loaded.sensor.roi if roi is None else roi
-            max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
-        spectrum = SpatialSpectrum(
-            px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
-            roi="center" if roi is None else roi,
-            rows=rows,
-            f_min_per_mm=f_min,
-            f_max_per_mm=f_max,
-            n_freqs=n_freqs,
-            n_jobs=jobs,
-            window=window,
-            max_pixels=DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels,
-        ).fit()
-        if loaded is not None:
-            paths = loaded.image_paths
-            table = study_features(loaded, spectrum=spectrum, progress=progress)
-        else:
-            paths = list(images)
-            names = list(spectrum.get_feature_names_out())
-            spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
-            table = pd.concat([pd.DataFrame({"image": [str(p) for p in paths]}), pd.DataFrame(spectra, columns=names)], axis=1)
-        write_csv(out, table)
-        names = spectrum.get_feature_names_out()
-        typer.echo(f"wrote {len(paths)} x {len(names)} features to {out}")
+    app.command("features")(features)

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError, RoughsenseWarning, one_line
+from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ._common import check_seed, parse_name_list
 
 ORDER = 30
@@ -16,7 +17,8 @@ ORDER = 30
 
 def _specimen_names(value: str) -> list[str]:
     """A comma list, or a study's specimens.csv (its ``specimen`` column, in file order)."""
-    from ..study import check_name, read_specimens
+    from ..io.names import check_name
+    from ..io.study import read_specimens
 
     path = Path(value)
     if value.lower().endswith(".csv") or path.is_file():
@@ -33,7 +35,7 @@ def _print_summary(summary, reference: str) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from ..perception import SD_DEFINITION
+    from ..analysis.ratings import SD_DEFINITION
 
     table = Table(title="Perceived roughness (magnitude estimation)")
     table.add_column("specimen")
@@ -50,96 +52,117 @@ def _print_summary(summary, reference: str) -> None:
     console.print(SD_DEFINITION, soft_wrap=True, highlight=False)
 
 
+RatingsFile = Annotated[Path, typer.Argument(
+    metavar="RATINGS", show_default=False,
+    help="ratings.csv (participant, session, specimen, rating), a filled-in schedule CSV, "
+         "or a filled-in Markdown sheet (.md). Blank rating cells are trials not done.")]
+SummaryOut = Annotated[Path, typer.Option(
+    "--out", "-o", help="Summary CSV: specimen, gmean, sd, n_participants, n_sessions.")]
+RatingsSpecimens = Annotated[str | None, typer.Option(
+    "--specimens", show_default=False,
+    help="A study's specimens.csv (or a comma list): refuse unknown specimens and order the rows.")]
+
+
+def ratings(
+    ratings_file: RatingsFile, out: SummaryOut,
+    reference: Annotated[str, typer.Option(
+        "--reference", help="The reference specimen, fixed at 1.0 and never rated.")] = REFERENCE_SPECIMEN,
+    specimens: RatingsSpecimens = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace SUMMARY.csv if it exists.")] = False,
+) -> None:
+    """Summarise magnitude estimates into the perceived roughness of each specimen (section 3.1).
+
+    Per specimen: each participant's median over sessions, then the geometric mean over participants (gmean); sd
+    is the sample SD (ddof=1) of those medians. The reference is written as gmean 1.0 with an empty sd. A
+    participant missing a session or a trial is a warning on stderr and the summary goes on; a bad row is an error
+    naming its line, and nothing is written.
+    """
+    from .._util.atomic import check_can_write, write_csv
+    from ..analysis.ratings import aggregate_ratings, read_ratings
+    from ..io.names import check_name
+
+    check_can_write(out, force=force)
+    check_name(reference, what="--reference")
+    names = _specimen_names(specimens) if specimens is not None else None
+    frame = read_ratings(ratings_file, specimens=names, reference=reference)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RoughsenseWarning)
+        summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
+    for item in caught:
+        if issubclass(item.category, RoughsenseWarning):
+            print(f"roughsense: warning: {one_line(item.message)}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
+    write_csv(out, summary)
+    _print_summary(summary, reference)
+    print(f"wrote {out}")
+
+
+ScheduleOut = Annotated[Path, typer.Option(
+    "--out", "-o", help="Schedule CSV: participant, session, order, specimen, and an empty rating column to fill in.")]
+ProtocolSpecimens = Annotated[str | None, typer.Option(
+    "--specimens", show_default=False,
+    help="Comma list or a study's specimens.csv. Default: the paper's R2..R5, C2..C5.")]
+Sheet = Annotated[Path | None, typer.Option(
+    "--sheet", show_default=False,
+    help="Also write a printable sheet: .html (print from a browser) or .md (can be filled in and read back).")]
+
+
+def protocol(
+    out: ScheduleOut,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the random orders (same seed, same schedule).")],
+    participants: Annotated[int, typer.Option("--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = 10,
+    sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = 3,
+    specimens: ProtocolSpecimens = None,
+    reference: Annotated[str, typer.Option(
+        "--reference", help="The reference specimen: never presented for rating.")] = REFERENCE_SPECIMEN,
+    sheet: Sheet = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace existing output files.")] = False,
+) -> None:
+    """Draw randomised presentation orders for a magnitude-estimation experiment (section 3.1).
+
+    Every specimen except the reference appears once per session, in an order drawn afresh for every participant
+    and session. Fill in the rating column of the schedule (or of a Markdown sheet) and pass it to `roughsense
+    ratings` as it is.
+    """
+    import numpy as np
+
+    from .._util.atomic import check_can_write, write_csv, write_text
+    from ..analysis.ratings import make_schedule, render_sheet
+    from ..io.names import check_name
+
+    check_seed(seed)
+    check_name(reference, what="--reference")
+    fmt = _sheet_format(sheet, out, force)
+    check_can_write(out, force=force)
+    names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
+    schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
+    text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name) if fmt else None
+    write_csv(out, schedule)
+    if text is not None:
+        write_text(sheet, text)
+    shown = schedule["specimen"].nunique()
+    print(f"wrote {out}: {participants} participants x {sessions} sessions x {shown} specimens "
+          f"(reference {reference} excluded)")
+    if sheet is not None:
+        print(f"wrote {sheet}")
+
+
+def _sheet_format(sheet: Path | None, out: Path, force: bool) -> str | None:
+    """'html' or 'markdown' from the sheet's suffix (None without a sheet); refused before anything is written."""
+    from .._util.atomic import check_can_write
+
+    if sheet is None:
+        return None
+    fmt = {".html": "html", ".htm": "html", ".md": "markdown", ".markdown": "markdown"}.get(sheet.suffix.lower())
+    if fmt is None:
+        raise ConfigError(f"--sheet must end in .html or .md, got {sheet.name!r}")
+    if sheet.resolve() == out.resolve():
+        raise ConfigError("--sheet and --out must be different files")
+    check_can_write(sheet, force=force)
+    return fmt
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("ratings")
-    def ratings(
-        ratings_file: Annotated[
-            Path,
-            typer.Argument(
-                metavar="RATINGS",
-                help="ratings.csv (participant, session, specimen, rating), a filled-in schedule CSV, "
-                "or a filled-in Markdown sheet (.md). Blank rating cells are trials not done.",
-                show_default=False,
-            ),
-        ],
-        out: Annotated[Path, typer.Option("--out", "-o", help="Summary CSV: specimen, gmean, sd, n_participants, n_sessions.")],
-        reference: Annotated[str, typer.Option("--reference", help="The reference specimen, fixed at 1.0 and never rated.")] = "R3",
-        specimens: Annotated[
-            str | None,
-            typer.Option("--specimens", help="A study's specimens.csv (or a comma list): refuse unknown specimens and order the rows.", show_default=False),
-        ] = None,
-        force: Annotated[bool, typer.Option("--force", help="Replace SUMMARY.csv if it exists.")] = False,
-    ) -> None:
-        """Summarise magnitude estimates into the perceived roughness of each specimen (section 3.1).
-
-        Per specimen: each participant's median over sessions, then the geometric mean over participants (gmean); sd is the sample SD (ddof=1) of those medians. The reference is written as gmean 1.0 with an empty sd. A participant missing a session or a trial is a warning on stderr and the summary goes on; a bad row is an error naming its line, and nothing is written.
-        """
-        from ..atomic import check_can_write, write_csv
-        from ..perception import aggregate_ratings, read_ratings
-        from ..study import check_name
-
-        check_can_write(out, force=force)
-        check_name(reference, what="--reference")
-        names = _specimen_names(specimens) if specimens is not None else None
-        frame = read_ratings(ratings_file, specimens=names, reference=reference)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", RoughsenseWarning)
-            summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
-        for item in caught:
-            if issubclass(item.category, RoughsenseWarning):
-                print(f"roughsense: warning: {one_line(item.message)}", file=sys.stderr)
-            else:
-                warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
-        write_csv(out, summary)
-        _print_summary(summary, reference)
-        print(f"wrote {out}")
-
-    @app.command("protocol")
-    def protocol(
-        out: Annotated[Path, typer.Option("--out", "-o", help="Schedule CSV: participant, session, order, specimen, and an empty rating column to fill in.")],
-        seed: Annotated[int, typer.Option("--seed", help="Seed of the random orders (same seed, same schedule).")],
-        participants: Annotated[int, typer.Option("--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = 10,
-        sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = 3,
-        specimens: Annotated[
-            str | None,
-            typer.Option("--specimens", help="Comma list or a study's specimens.csv. Default: the paper's R2..R5, C2..C5.", show_default=False),
-        ] = None,
-        reference: Annotated[str, typer.Option("--reference", help="The reference specimen: never presented for rating.")] = "R3",
-        sheet: Annotated[
-            Path | None,
-            typer.Option("--sheet", help="Also write a printable sheet: .html (print from a browser) or .md (can be filled in and read back).", show_default=False),
-        ] = None,
-        force: Annotated[bool, typer.Option("--force", help="Replace existing output files.")] = False,
-    ) -> None:
-        """Draw randomised presentation orders for a magnitude-estimation experiment (section 3.1).
-
-        Every specimen except the reference appears once per session, in an order drawn afresh for every participant and session. Fill in the rating column of the schedule (or of a Markdown sheet) and pass it to `roughsense ratings` as it is.
-        """
-        import numpy as np
-
-        from ..atomic import check_can_write, write_csv, write_text
-        from ..perception import PAPER_SPECIMENS, make_schedule, render_sheet
-        from ..study import check_name
-
-        check_seed(seed)
-        check_name(reference, what="--reference")
-        fmt = None
-        if sheet is not None:
-            suffix = sheet.suffix.lower()
-            fmt = {".html": "html", ".htm": "html", ".md": "markdown", ".markdown": "markdown"}.get(suffix)
-            if fmt is None:
-                raise ConfigError(f"--sheet must end in .html or .md, got {sheet.name!r}")
-            if sheet.resolve() == out.resolve():
-                raise ConfigError("--sheet and --out must be different files")
-            check_can_write(sheet, force=force)
-        check_can_write(out, force=force)
-        names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
-        schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
-        text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name) if fmt else None
-        write_csv(out, schedule)
-        if text is not None:
-            write_text(sheet, text)
-        shown = schedule["specimen"].nunique()
-        print(f"wrote {out}: {participants} participants x {sessions} sessions x {shown} specimens (reference {reference} excluded)")
-        if sheet is not None:
-            print(f"wrote {sheet}")
+    app.command("ratings")(ratings)
+    app.command("protocol")(protocol)

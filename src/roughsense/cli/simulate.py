@@ -5,72 +5,90 @@ from pathlib import Path
 
 import typer
 
+from ..paper import PAPER_SPECIMENS
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
-from ..sim.specimens import PAPER_SPECIMENS
 from ._common import parse_float_list, parse_name_list, progress
 
 ORDER = 40
 
 
+def simulate(
+    out: Path = typer.Option(..., "--out", help="Study folder to write (must be new, empty or an interrupted "
+                                                "simulation, unless --force)."),
+    seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
+    pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
+    specimens: str = typer.Option(
+        ",".join(PAPER_SPECIMENS), "--specimens", metavar="LIST", show_default=False,
+        help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
+             "above). Default: the paper's 14, R2..R5 and C2..C5.",
+    ),
+    forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
+    repetitions: int = typer.Option(10, "--repetitions",
+                                    help="Mounts per pad and specimen (each mount steps through the forces)."),
+    fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm",
+                                                help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
+    ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm",
+                                          help="Ridge height of the fingerprint pad (not in the paper)."),
+    ratings_from: str = typer.Option(
+        "paper", "--ratings-from",
+        help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
+             "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
+    ),
+    stored_height_px: int = typer.Option(
+        320, "--stored-height-px",
+        help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the "
+             "paper's centred crop is unchanged); 0 stores whole frames."),
+    jobs: int | None = typer.Option(None, "--jobs",
+                                    help="Worker processes (default: all cores). Results do not depend on it."),
+    force: bool = typer.Option(
+        False, "--force",
+        help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; "
+             "files you added to it are kept; a folder that is not a simulated study is refused). An interrupted "
+             "simulation is replaced without it."),
+) -> None:
+    """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
+
+    The defaults are the paper's full study: 2 pads x 14 specimens x 3 forces x 10 repetitions = 840 images,
+    and 10 participants x 3 sessions x 13 specimens = 390 ratings (R3 is the reference). Try a new pad or
+    specimen before building it, e.g. --fingerprint-period-mm 0.5 or --specimens R3,sin:3:0.5.
+
+    Specs of new specimens for --specimens, all lengths in mm (brackets mark optional parts):
+
+    - rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]]: rectangular grating
+    - circ:DIAMETER: touching semi-cylinders
+    - sin:WAVELENGTH:AMPLITUDE: sinusoid
+    - rand:CORRELATION_LENGTH:RMS[:SEED]: random rough surface
+
+    Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
+    """
+    from ..errors import ConfigError
+    from ..sim import SimulationRun
+
+    if jobs is not None and jobs < 1:
+        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    config = _config(pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
+                     stored_height_px)
+    run = SimulationRun(out, config, force=force, jobs=jobs)
+    for _ in progress(run, total=run.total, description="simulating"):
+        pass
+    typer.echo(f"wrote {run.total} images, {len(run.specimens)} specimens and the panel's ratings to {run.root}")
+
+
+def _config(pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
+            stored_height_px):
+    """The simulator's settings from the command's text options (the simulator checks their values)."""
+    from dataclasses import replace
+
+    from ..sim import SimulationConfig
+    from ..sim.optics import Camera
+
+    return SimulationConfig(
+        pads=tuple(parse_name_list(pads)), specimens=tuple(parse_name_list(specimens)),
+        forces_n=tuple(parse_float_list(forces, name="forces")), repetitions=repetitions, seed=seed,
+        fingerprint_period_mm=fingerprint_period_mm, ridge_height_mm=ridge_height_mm,
+        ratings_from=ratings_from.strip().lower(), camera=replace(Camera(), stored_height_px=stored_height_px),
+    )
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("simulate")
-    def simulate(
-        out: Path = typer.Option(..., "--out", help="Study folder to write (must be new, empty or an interrupted simulation, unless --force)."),
-        seed: int = typer.Option(0, "--seed", help="Master seed: the same seed gives byte-identical files."),
-        pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
-        specimens: str = typer.Option(
-            ",".join(PAPER_SPECIMENS), "--specimens", metavar="LIST", show_default=False,
-            help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
-                 "above). Default: the paper's 14, R2..R5 and C2..C5.",
-        ),
-        forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
-        repetitions: int = typer.Option(10, "--repetitions", help="Mounts per pad and specimen (each mount steps through the forces)."),
-        fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
-        ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", help="Ridge height of the fingerprint pad (not in the paper)."),
-        ratings_from: str = typer.Option(
-            "paper", "--ratings-from",
-            help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
-                 "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
-        ),
-        stored_height_px: int = typer.Option(320, "--stored-height-px", help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the paper's centred crop is unchanged); 0 stores whole frames."),
-        jobs: int | None = typer.Option(None, "--jobs", help="Worker processes (default: all cores). Results do not depend on it."),
-        force: bool = typer.Option(False, "--force", help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; files you added to it are kept; a folder that is not a simulated study is refused). An interrupted simulation is replaced without it."),
-    ) -> None:
-        """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
-
-        The defaults are the paper's full study: 2 pads x 14 specimens x 3 forces x 10 repetitions = 840 images,
-        and 10 participants x 3 sessions x 13 specimens = 390 ratings (R3 is the reference). Try a new pad or
-        specimen before building it, e.g. --fingerprint-period-mm 0.5 or --specimens R3,sin:3:0.5.
-
-        Specs of new specimens for --specimens, all lengths in mm (brackets mark optional parts):
-
-        - rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]]: rectangular grating
-        - circ:DIAMETER: touching semi-cylinders
-        - sin:WAVELENGTH:AMPLITUDE: sinusoid
-        - rand:CORRELATION_LENGTH:RMS[:SEED]: random rough surface
-
-        Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
-        """
-        from dataclasses import replace
-
-        from ..errors import ConfigError
-        from ..sim import SimulationConfig, SimulationRun
-        from ..sim.optics import Camera
-
-        if jobs is not None and jobs < 1:
-            raise ConfigError(f"--jobs must be at least 1, got {jobs}")
-        config = SimulationConfig(
-            pads=tuple(parse_name_list(pads)),
-            specimens=tuple(parse_name_list(specimens)),
-            forces_n=tuple(parse_float_list(forces, name="forces")),
-            repetitions=repetitions,
-            seed=seed,
-            fingerprint_period_mm=fingerprint_period_mm,
-            ridge_height_mm=ridge_height_mm,
-            ratings_from=ratings_from.strip().lower(),
-            camera=replace(Camera(), stored_height_px=stored_height_px),
-        )
-        run = SimulationRun(out, config, force=force, jobs=jobs)
-        for _ in progress(run, total=run.total, description="simulating"):
-            pass
-        typer.echo(f"wrote {run.total} images, {len(run.specimens)} specimens and the panel's ratings to {run.root}")
+    app.command("simulate")(simulate)

@@ -31,9 +31,13 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
         seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Seed of the built-in simulated study (and any random draw)."),
         max_components: int = typer.Option(20, "--max-components", min=1, help="Largest number of PLS components tried by CV."),
-        no_loso: bool = typer.Option(False, "--no-loso", help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
+        no_loso: bool = typer.Option(
+            False, "--no-loso",
+            help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
         jobs: int = typer.Option(2, "--jobs", min=1, help="Worker threads/processes for image decoding and simulation."),
-        force: bool = typer.Option(False, "--force", help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
+        force: bool = typer.Option(
+            False, "--force",
+            help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
         permutations: int = typer.Option(199, "--permutations", min=0,
                                          help="Specimen-level shufflings per model for the permutation control "
                                          "(0: skip it; at least 199 for p-values to 0.005)."),
@@ -70,11 +74,12 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     """
     import warnings
 
-    from .. import cache, dataset
+    from .._util import cache
+    from ..analysis import dataset
+    from ..analysis.study_analysis import CV_SCHEMES, analyse_study
     from ..errors import RoughsenseWarning
-    from ..evaluation import CV_SCHEMES, analyse_study
+    from ..io.study import read_study
     from ..report import write_report
-    from ..study import read_study
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
@@ -106,5 +111,5 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     loo = analysis.results("loo")
     for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
         typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
-                   f"{analysis.fit(pad, condition, 'loo').best_n_components} components (LOO)")
+                   f"{analysis.condition_fit(pad, condition, 'loo').best_n_components} components (LOO)")
     return index, root, builtin

@@ -1,8 +1,7 @@
-"""Design exploration: sweeps of the digital twin, one in-memory study per cell, scheduled on Dask.
+"""Design sweeps of the twin on Dask: one in-memory study per cell, a Parquet store, the sweep's own report.
 
-Sits beside :mod:`roughsense.evaluation`, above both the twin (``sim``) and the analysis; nothing below imports it.
-``read_sweep`` checks a sweep file, ``run_sweep`` computes its cells into a Parquet dataset, ``write_explore_report``
-summarises them (docs/explore.md).
+It composes ``sim/`` with ``analysis/`` per cell, above both; only ``cli/`` imports it. ``read_sweep`` checks a sweep
+file, ``run_sweep`` computes its cells, ``write_explore_report`` summarises them (docs/explore.md).
 """
 from __future__ import annotations
 

@@ -16,18 +16,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
-from ..evaluation import analyse_study
-from ..sensor import SpatialSpectrum, resolve_roi
+from ..io.sensor_settings import CENTER_CROP_PX, SensorSettings
+from ..io.study import Study
+from ..paper import REFERENCE_SPECIMEN
+from ..sensor.spectrum import SpatialSpectrum, resolve_roi
 from ..sim.optics import Camera
-from ..sim.panel import REFERENCE
 from ..sim.simulate import SimulationConfig, force_label, plan_trials, render_trial
-from ..study import CENTER_CROP_PX, SensorSettings, Study
 from .allocator import relax_frozen_malloc_thresholds
 from .ratings import panel_ratings
 from .sweep import Cell
-
-
 
 RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",
                   "rmse_sd", "ovl_sd", "n_specimens"]
@@ -101,7 +100,7 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     names = [str(c) for c in spectrum.get_feature_names_out()]
     features = pd.concat([manifest, pd.DataFrame(X, columns=names)], axis=1)
     study = Study(
-        root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE,
+        root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE_SPECIMEN,
         sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(cell.forces_n)),
         specimens=pd.DataFrame([s.table_row() for s in specimens]), manifest=manifest,
         ratings=panel_ratings(specimens, cell.seed, ratings_from=cell.ratings_from,
@@ -174,6 +173,6 @@ def run_cell(cell: Cell) -> dict:
         summary, per_specimen = cell_rows(cell)
         return {"cell": cell, "results": summary, "specimens": per_specimen, "error": None,
                 "seconds": time.perf_counter() - started}
-    except Exception as exc:  # noqa: BLE001 - recorded per cell, by design
+    except Exception as exc:
         return {"cell": cell, "results": None, "specimens": None, "error": one_line(exc),
                 "seconds": time.perf_counter() - started}

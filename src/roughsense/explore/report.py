@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .. import atomic
+from .._util import atomic
 from ..report.explore_page import html_table, render_explore
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
 from .summary import DESIGN, _match, axis_slice, best_design, paper_questions, seed_table
@@ -20,7 +20,7 @@ LIMITS = [
     "not a finding; every other design is an extrapolation of the same physics (elastic half-space contact, gap-to-"
     "brightness optics, bench noise drawn as in the calibration).",
     "With ratings_from = \"paper\", only the paper's fourteen presets carry the paper's panel; every other specimen "
-    "gets its perceived roughness from the twin's simulated finger (sim/perception.py: contact of a fingertip, SA1 "
+    "gets its perceived roughness from the twin's simulated finger (sim/finger.py: contact of a fingertip, SA1 "
     "strain readout, a fitted power law), which ratings_from = \"physics\" uses for every specimen. Those targets are "
     "not measurements, so 'can it be measured' means 'does the sensor track the model'.",
     "The spectrum covers 0.1-1 mm^-1 (wavelengths 1-10 mm): a grating whose fundamental lies above 1 mm^-1 "
@@ -64,7 +64,7 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     if not results.empty:
         anchor = best_design(table)
         if anchor is not None:
-            held = {k: v for k, v in anchor.items()}
+            held = dict(anchor)
             best_frame = table[_match(table, held)][[*DESIGN, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
                                                      "n_seeds"]]
             best_frame = best_frame[[c for c in best_frame.columns if c not in DESIGN or c in shown or c == "pad"]]

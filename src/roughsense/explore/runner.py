@@ -102,7 +102,7 @@ def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome
         cell = cells[future.key]
         try:
             result = future.result()
-        except Exception as exc:  # noqa: BLE001 - a worker died or the task could not run: record, go on
+        except Exception as exc:
             from .cell import one_line
 
             result = {"cell": cell, "results": None, "error": one_line(exc)}

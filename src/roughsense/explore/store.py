@@ -21,7 +21,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .. import atomic
+from .._util import atomic
 from ..errors import OutputExistsError
 from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS
 from .sweep import COLUMN_KINDS, Sweep
@@ -66,7 +66,7 @@ class ResultStore:
         self._check_owner(force)
 
     @classmethod
-    def reader(cls, out: str | os.PathLike[str], sweep: Sweep) -> "ResultStore":
+    def reader(cls, out: str | os.PathLike[str], sweep: Sweep) -> ResultStore:
         """Read access to a folder a sweep has run in (no ownership checks: nothing is written)."""
         store = cls.__new__(cls)
         store.root, store.sweep, store.force = Path(out), sweep, False

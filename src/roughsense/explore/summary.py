@@ -149,101 +149,112 @@ def _with(anchor: dict, **overrides) -> dict:
 def paper_questions(results: pd.DataFrame, specimens: pd.DataFrame, table: pd.DataFrame) -> list[Question]:
     """The paper's five open questions, each answered from the sweep's rows or marked as not covered."""
     cv = judge_cv(table)
-    questions = []
     anchor = best_design(table)
-
-    def condition_of(design: dict) -> str:
-        return "combined" if (results["condition"] == "combined").any() else design["condition"]
-
-    # 1. fingerprint pad at human scale vs smooth
-    title = "Would a fingerprint pad at human scale (0.5 mm ridge period) recover the smooth pad's accuracy?"
-    has = (results["pad"] == "smooth").any() and (results["fingerprint_period_mm"] == 0.5).any()
-    if has and anchor is not None:
-        ridge = anchor["ridge_height_mm"] if anchor["pad"] == "fingerprint" else PAPER_DESIGN["ridge_height_mm"]
-        nan = math.nan
-        designs = [("smooth", _with(anchor, pad="smooth", fingerprint_period_mm=nan, ridge_height_mm=nan)),
-                   ("fingerprint, 1.0 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=1.0, ridge_height_mm=ridge)),
-                   ("fingerprint, 0.5 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=0.5, ridge_height_mm=ridge))]
-        frame = pd.concat([compare(results, designs, condition_of(anchor), c) for c in sorted(set(results["cv"]))])
-        judged = frame[(frame["cv"] == cv)].set_index("design")
-        if {"smooth", "fingerprint, 0.5 mm"} <= set(judged.index):
-            row = judged.loc["fingerprint, 0.5 mm"]
-            verdict = _verdict(row["d_rmse"], row["d_rmse_ci95"], "better than the smooth pad",
-                               "worse than the smooth pad", "not distinguishable from the smooth pad")
-            answer = (f"{cv.upper()} RMSE, {condition_of(anchor)} condition: smooth "
-                      f"{_fmt(judged.loc['smooth', 'rmse'], judged.loc['smooth', 'rmse_ci95'])}, fingerprint 0.5 mm "
-                      f"{_fmt(row['rmse'], row['rmse_ci95'])} (difference {_fmt(row['d_rmse'], row['d_rmse_ci95'])}, "
-                      f"paired over seeds): the 0.5 mm pad is {verdict}.")
-            questions.append(Question(title, True, answer, frame))
-        else:
-            has = False
-    if not has:
-        questions.append(Question(title, False, "", how_to_cover='pad = ["smooth", "fingerprint"] and '
-                                  'fingerprint_period_mm = [1.0, 0.5] in [axes]'))
-
-    # 2 and 3: specimens outside the paper's range, per specimen
+    questions = [_fingerprint_question(results, anchor, cv)]
     for title, pick, cover in (
         ("Can gratings below 2 mm be measured?",
          lambda s: (s["wavelength_mm"] < 2.0) & (s["shape"] != "random"), 'specimens such as "rect:1.5", "sin:1.2:0.2"'),
         ("Do random gratings work?", lambda s: s["shape"] == "random", 'specimens such as "rand:1.5:0.2"'),
     ):
-        chosen = specimens[pick(specimens)]
-        if chosen.empty:
-            questions.append(Question(title, False, "", how_to_cover=cover))
-            continue
-        cells_with = set(chosen["cell"])
-        mask = results["cell"].isin(cells_with)
-        sub_anchor = best_design(seed_table(results[mask])) if mask.any() else None
-        rows = specimens[(specimens["cell"].isin(set(results.loc[mask & _match(results, _with(sub_anchor)), "cell"])))
-                         & (specimens["condition"] == sub_anchor["condition"])]
-        per = []
-        for (specimen, cvs), group in rows.groupby(["specimen", "cv"], sort=False):
-            r, rh, n = ci95(group["rmse"])
-            o, oh, _ = ci95(group["ovl"])
-            per.append({"specimen": specimen, "cv": cvs, "shape": group["shape"].iloc[0],
-                        "wavelength_mm": group["wavelength_mm"].iloc[0], "rmse": r, "rmse_ci95": rh, "ovl": o,
-                        "ovl_ci95": oh, "n_seeds": n, "group": "asked" if specimen in set(chosen["specimen"]) else
-                        ("paper range" if 2.0 <= group["wavelength_mm"].iloc[0] <= 5.0 and
-                         group["shape"].iloc[0] in ("rectangular", "circular") else "other")})
-        frame = pd.DataFrame(per)
-        judged = frame[frame["cv"] == cv]
-        asked = judged[judged["group"] == "asked"]
-        paper = judged[judged["group"] == "paper range"]
-        answer = (f"{cv.upper()}, {sub_anchor['pad']} pad, {sub_anchor['condition']}: mean RMSE "
-                  f"{asked['rmse'].mean():.3f} and OVL {asked['ovl'].mean():.3f} for "
-                  f"{', '.join(asked['specimen'])}")
-        if not paper.empty:
-            answer += (f", against RMSE {paper['rmse'].mean():.3f} and OVL {paper['ovl'].mean():.3f} for the "
-                       f"{len(paper)} specimens in the paper's range (2-5 mm) in the same cells")
-        answer += ". Their 'perceived' roughness is the twin's model, not a measurement (see the limits below)."
-        questions.append(Question(title, True, answer, frame))
-
-    # 4 and 5: a design axis swept around the best design
+        questions.append(_specimen_question(results, specimens, cv, title, specimens[pick(specimens)], cover))
     for title, column, cover, base in (
         ("Can the pad (the field along the line) be made smaller?", "field_length_mm",
          "field_length_mm = [55.0, 40.0, 25.0] in [axes]", None),
         ("Do more forces help?", "forces_n", 'forces_n = [[1, 2, 3], [1, 2, 3, 4, 5]] in [axes]', "1,2,3"),
     ):
-        values = list(dict.fromkeys(results[column]))
-        if len(values) < 2 or anchor is None:
-            questions.append(Question(title, False, "", how_to_cover=cover))
-            continue
-        if column == "field_length_mm":
-            values = sorted(values, reverse=True)
-        elif base in values:
-            values = [base] + [v for v in values if v != base]
-        designs = [(f"{column} = {v:.4g}" if isinstance(v, float) else f"{column} = {v}", _with(anchor, **{column: v}))
-                   for v in values]
-        frame = pd.concat([compare(results, designs, condition_of(anchor), c) for c in sorted(set(results["cv"]))])
-        judged = frame[frame["cv"] == cv]
-        parts = []
-        for row in judged.itertuples(index=False):
-            parts.append(f"{row.design.split(' = ')[1]}: {_fmt(row.rmse, row.rmse_ci95)}")
-        first = judged.iloc[0]["design"] if not judged.empty else ""
-        tail = judged.iloc[1:]
-        verdicts = [f"{r.design.split(' = ')[1]} is " + _verdict(r.d_rmse, r.d_rmse_ci95, "better", "worse",
-                                                                    "not distinguishable") for r in tail.itertuples()]
-        answer = (f"{cv.upper()} RMSE ({condition_of(anchor)}, other settings at the best design): "
-                  + "; ".join(parts) + f". Against {first.split(' = ')[-1]}: " + "; ".join(verdicts) + ".")
-        questions.append(Question(title, True, answer, frame))
+        questions.append(_axis_question(results, anchor, cv, title, column, cover, base))
     return questions
+
+
+def _condition_of(results: pd.DataFrame, design: dict) -> str:
+    """The condition a question judges: combined where the sweep has it, else the design's own."""
+    return "combined" if (results["condition"] == "combined").any() else design["condition"]
+
+
+def _fingerprint_question(results: pd.DataFrame, anchor: dict | None, cv: str) -> Question:
+    """1. Would a fingerprint pad at human scale (0.5 mm) recover the smooth pad's accuracy?"""
+    title = "Would a fingerprint pad at human scale (0.5 mm ridge period) recover the smooth pad's accuracy?"
+    uncovered = Question(title, False, "", how_to_cover='pad = ["smooth", "fingerprint"] and '
+                         'fingerprint_period_mm = [1.0, 0.5] in [axes]')
+    has = (results["pad"] == "smooth").any() and (results["fingerprint_period_mm"] == 0.5).any()
+    if not has or anchor is None:
+        return uncovered
+    ridge = anchor["ridge_height_mm"] if anchor["pad"] == "fingerprint" else PAPER_DESIGN["ridge_height_mm"]
+    nan = math.nan
+    designs = [("smooth", _with(anchor, pad="smooth", fingerprint_period_mm=nan, ridge_height_mm=nan)),
+               ("fingerprint, 1.0 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=1.0, ridge_height_mm=ridge)),
+               ("fingerprint, 0.5 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=0.5, ridge_height_mm=ridge))]
+    condition = _condition_of(results, anchor)
+    frame = pd.concat([compare(results, designs, condition, c) for c in sorted(set(results["cv"]))])
+    judged = frame[(frame["cv"] == cv)].set_index("design")
+    if not {"smooth", "fingerprint, 0.5 mm"} <= set(judged.index):
+        return uncovered
+    row = judged.loc["fingerprint, 0.5 mm"]
+    verdict = _verdict(row["d_rmse"], row["d_rmse_ci95"], "better than the smooth pad",
+                       "worse than the smooth pad", "not distinguishable from the smooth pad")
+    answer = (f"{cv.upper()} RMSE, {condition} condition: smooth "
+              f"{_fmt(judged.loc['smooth', 'rmse'], judged.loc['smooth', 'rmse_ci95'])}, fingerprint 0.5 mm "
+              f"{_fmt(row['rmse'], row['rmse_ci95'])} (difference {_fmt(row['d_rmse'], row['d_rmse_ci95'])}, "
+              f"paired over seeds): the 0.5 mm pad is {verdict}.")
+    return Question(title, True, answer, frame)
+
+
+def _specimen_rows(rows: pd.DataFrame, asked: set[str]) -> pd.DataFrame:
+    """Per specimen and CV: RMSE and OVL over seeds, grouped as asked, in the paper's range, or other."""
+    per = []
+    for (specimen, cvs), group in rows.groupby(["specimen", "cv"], sort=False):
+        r, rh, n = ci95(group["rmse"])
+        o, oh, _ = ci95(group["ovl"])
+        per.append({"specimen": specimen, "cv": cvs, "shape": group["shape"].iloc[0],
+                    "wavelength_mm": group["wavelength_mm"].iloc[0], "rmse": r, "rmse_ci95": rh, "ovl": o,
+                    "ovl_ci95": oh, "n_seeds": n, "group": "asked" if specimen in asked else
+                    ("paper range" if 2.0 <= group["wavelength_mm"].iloc[0] <= 5.0 and
+                     group["shape"].iloc[0] in ("rectangular", "circular") else "other")})
+    return pd.DataFrame(per)
+
+
+def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, title: str,
+                       chosen: pd.DataFrame, cover: str) -> Question:
+    """2 and 3: specimens outside the paper's range, per specimen, against the paper's range in the same cells."""
+    if chosen.empty:
+        return Question(title, False, "", how_to_cover=cover)
+    mask = results["cell"].isin(set(chosen["cell"]))
+    sub_anchor = best_design(seed_table(results[mask])) if mask.any() else None
+    rows = specimens[(specimens["cell"].isin(set(results.loc[mask & _match(results, _with(sub_anchor)), "cell"])))
+                     & (specimens["condition"] == sub_anchor["condition"])]
+    frame = _specimen_rows(rows, set(chosen["specimen"]))
+    judged = frame[frame["cv"] == cv]
+    asked = judged[judged["group"] == "asked"]
+    paper = judged[judged["group"] == "paper range"]
+    answer = (f"{cv.upper()}, {sub_anchor['pad']} pad, {sub_anchor['condition']}: mean RMSE "
+              f"{asked['rmse'].mean():.3f} and OVL {asked['ovl'].mean():.3f} for "
+              f"{', '.join(asked['specimen'])}")
+    if not paper.empty:
+        answer += (f", against RMSE {paper['rmse'].mean():.3f} and OVL {paper['ovl'].mean():.3f} for the "
+                   f"{len(paper)} specimens in the paper's range (2-5 mm) in the same cells")
+    answer += ". Their 'perceived' roughness is the twin's model, not a measurement (see the limits below)."
+    return Question(title, True, answer, frame)
+
+
+def _axis_question(results: pd.DataFrame, anchor: dict | None, cv: str, title: str, column: str, cover: str,
+                   base) -> Question:
+    """4 and 5: a design axis swept around the best design, each value against the first."""
+    values = list(dict.fromkeys(results[column]))
+    if len(values) < 2 or anchor is None:
+        return Question(title, False, "", how_to_cover=cover)
+    if column == "field_length_mm":
+        values = sorted(values, reverse=True)
+    elif base in values:
+        values = [base] + [v for v in values if v != base]
+    designs = [(f"{column} = {v:.4g}" if isinstance(v, float) else f"{column} = {v}", _with(anchor, **{column: v}))
+               for v in values]
+    condition = _condition_of(results, anchor)
+    frame = pd.concat([compare(results, designs, condition, c) for c in sorted(set(results["cv"]))])
+    judged = frame[frame["cv"] == cv]
+    parts = [f"{row.design.split(' = ')[1]}: {_fmt(row.rmse, row.rmse_ci95)}" for row in judged.itertuples(index=False)]
+    first = judged.iloc[0]["design"] if not judged.empty else ""
+    verdicts = [f"{r.design.split(' = ')[1]} is " + _verdict(r.d_rmse, r.d_rmse_ci95, "better", "worse",
+                                                                "not distinguishable") for r in judged.iloc[1:].itertuples()]
+    answer = (f"{cv.upper()} RMSE ({condition}, other settings at the best design): "
+              + "; ".join(parts) + f". Against {first.split(' = ')[-1]}: " + "; ".join(verdicts) + ".")
+    return Question(title, True, answer, frame)

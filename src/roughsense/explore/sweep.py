@@ -10,17 +10,18 @@ import hashlib
 import itertools
 import json
 import math
-import numbers
 import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._util.checks import POSITIVE, Integer, Real
 from ..errors import ConfigError
+from ..io.images import DEFAULT_MAX_PIXELS
+from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ..sim.optics import HEIGHT_PX, PX_PER_MM, WIDTH_PX
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
-from ..sim.specimens import PAPER_SPECIMENS, parse_specimen
-from ..study import DEFAULT_MAX_PIXELS
+from ..sim.specimens import parse_specimen
 
 RATINGS_SOURCES = ("paper", "physics")
 CV_SCHEMES = ("loo", "loso")
@@ -115,14 +116,13 @@ def _error(path: Path, message: str) -> ConfigError:
 
 
 def _number(path, where, value, *, positive=True) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or \
-            (positive and value <= 0):
+    if not (POSITIVE if positive else Real()).accepts(value):
         raise _error(path, f"{where}: expected a positive number, got {value!r}")
     return float(value)
 
 
 def _whole(path, where, value, least) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+    if not Integer(least).accepts(value):
         raise _error(path, f"{where}: expected a whole number >= {least}, got {value!r}")
     return int(value)
 
@@ -164,7 +164,7 @@ def _check_value(path: Path, key: str, value, where: str):
                 raise _error(path, f"{where}: {exc.message}") from None
         if len(set(names)) != len(names):
             raise _error(path, f"{where}: a specimen is listed twice in {value!r}")
-        rated = [n for n in names if n != "R3"]
+        rated = [n for n in names if n != REFERENCE_SPECIMEN]
         if len(rated) < 4:
             raise _error(path, f"{where}: give at least 4 specimens besides the reference R3 (leave-one-specimen-out "
                                "needs 3 to choose the components of each held-out one)")
@@ -202,6 +202,24 @@ def read_sweep(path: str | os.PathLike[str]) -> Sweep:
 
 
 def build_sweep(source: dict, path: Path) -> Sweep:
+    """The sweep a parsed file describes: its settings and axes checked, its grid expanded into cells."""
+    settings, axes_in = _tables(source, path)
+    run = _run_settings(settings, path)
+    fixed = {key: _check_value(path, key, settings[key], f"[sweep] {key}") if key in settings else DEFAULTS[key]
+             for key in DESIGN_KEYS}
+    axes = _axes(axes_in, path)
+    if "pad" not in axes and "pad" not in settings:
+        axes["pad"] = ["smooth", "fingerprint"]  # both of the paper's pads unless told otherwise
+    cells = _cells(_design_points(fixed, axes), run)
+    name = settings.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise _error(path, f"[sweep] name: expected a text, got {name!r}")
+    varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
+    return Sweep(path=path, name=name, axes=varying, cells=cells, cv=run["cv"], source=source)
+
+
+def _tables(source: dict, path: Path) -> tuple[dict, dict]:
+    """The [sweep] and [axes] tables, refusing unknown tables and keys and a key given in both."""
     unknown_tables = [k for k in source if k not in ("sweep", "axes")]
     if unknown_tables:
         raise _error(path, f"unknown table [{unknown_tables[0]}] (expected [sweep] and [axes])")
@@ -217,6 +235,11 @@ def build_sweep(source: dict, path: Path) -> Sweep:
             raise _error(path, f"[axes]: unknown axis {key!r} (known: {', '.join(DESIGN_KEYS)})")
         if key in settings:
             raise _error(path, f"{key!r} is given both in [sweep] and in [axes]; give it in one place")
+    return settings, axes_in
+
+
+def _run_settings(settings: dict, path: Path) -> dict:
+    """Seeds, CV schemes, panel size and frame size: what every cell shares."""
     seeds = settings.get("seeds", [0])
     if not isinstance(seeds, list) or not seeds:
         raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {seeds!r}")
@@ -236,10 +259,12 @@ def build_sweep(source: dict, path: Path) -> Sweep:
     cv = settings.get("cv", list(CV_SCHEMES))
     if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
         raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")
-    cv = tuple(c for c in CV_SCHEMES if c in cv)
+    return dict(seeds=seeds, max_components=max_components, participants=participants, sessions=sessions,
+                width_px=width_px, height_px=height_px, cv=tuple(c for c in CV_SCHEMES if c in cv))
 
-    fixed = {key: _check_value(path, key, settings[key], f"[sweep] {key}") if key in settings else DEFAULTS[key]
-             for key in DESIGN_KEYS}
+
+def _axes(axes_in: dict, path: Path) -> dict[str, list]:
+    """Each axis's values, checked; a value listed twice is refused."""
     axes: dict[str, list] = {}
     for key, values in axes_in.items():
         if not isinstance(values, list):
@@ -250,8 +275,11 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         if len({json.dumps(_label(key, v)) for v in checked}) != len(checked):
             raise _error(path, f"[axes] {key}: a value is listed twice")
         axes[key] = checked
-    if "pad" not in axes and "pad" not in settings:
-        axes["pad"] = ["smooth", "fingerprint"]  # both of the paper's pads unless told otherwise
+    return axes
+
+
+def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
+    """The grid's distinct designs (a smooth pad has no ridge settings, so those collapse)."""
     keys = list(axes)
     points, seen = [], set()
     for combo in itertools.product(*(axes[k] for k in keys)):
@@ -263,6 +291,11 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         if signature not in seen:
             seen.add(signature)
             points.append(point)
+    return points
+
+
+def _cells(points: list[dict], run: dict) -> list[Cell]:
+    """One cell per design and seed, its id a hash of everything it computes from, the code included."""
     from .version import code_fingerprint
 
     code = code_fingerprint()
@@ -271,22 +304,17 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         specimens = point["specimens"]
         names = SPECIMEN_SETS[specimens] if isinstance(specimens, str) else specimens
         field_mm = point["field_length_mm"]
-        cell_width = width_px if field_mm is None else max(16, int(round(field_mm * PX_PER_MM)))
-        for seed in seeds:
+        cell_width = run["width_px"] if field_mm is None else max(16, int(round(field_mm * PX_PER_MM)))
+        for seed in run["seeds"]:
             content = dict(
                 seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],
                 ridge_height_mm=point["ridge_height_mm"], pad_modulus_mpa=point["pad_modulus_mpa"],
                 field_length_mm=round(cell_width / PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
                 specimens=tuple(names), specimens_label=_label("specimens", specimens),
-                repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=participants,
-                sessions=sessions, width_px=cell_width, height_px=height_px, max_components=max_components, cv=cv,
-                code=code,
+                repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=run["participants"],
+                sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],
+                max_components=run["max_components"], cv=run["cv"], code=code,
             )
             digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
             cells.append(Cell(id=digest, **content))
-    name = settings.get("name", path.stem)
-    if not isinstance(name, str) or not name.strip():
-        raise _error(path, f"[sweep] name: expected a text, got {name!r}")
-    varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
-    return Sweep(path=path, name=name, axes=varying, cells=cells, cv=cv, source=source)
-
+    return cells

@@ -1,4 +1,7 @@
-"""Figures and the self-contained HTML report of a study analysis."""
+"""Presentation: figures (matplotlib) and the self-contained HTML report of a study analysis or a sweep.
+
+It renders what the analysis returns and computes nothing of its own; it sits above analysis/, below explore/ and cli/.
+"""
 from __future__ import annotations
 
 from .html import check_report_dir, open_report_dir, write_report

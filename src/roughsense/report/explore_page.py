@@ -10,7 +10,8 @@ import datetime as _dt
 import numpy as np
 import pandas as pd
 
-from .. import __version__, reference
+from .. import __version__, paper
+from .._util.checks import is_number
 from . import figures
 from .html import _environment
 
@@ -23,7 +24,7 @@ def axis_figure(rows: pd.DataFrame, axis: str, order: list):
 
     fig, panels = plt.subplots(1, 2, figsize=(9.5, 3.4))
     labels = [str(v) for v in order]
-    numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in order)
+    numeric = all(is_number(v) for v in order)
     for cv, group in rows.groupby("cv", sort=False):
         colour, marker, name = CV_STYLE.get(cv, ("#444", "o", cv))
         position = {str(v): i for i, v in enumerate(order)}
@@ -79,8 +80,8 @@ def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: li
         })
     template = _environment().get_template("explore.html.j2")
     html = template.render(
-        title=f"roughsense sweep: {name}", version=__version__, citation=reference.PAPER_CITATION,
-        generated=generated or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        title=f"roughsense sweep: {name}", version=__version__, citation=paper.PAPER_CITATION,
+        generated=generated or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         meta=meta, best=html_table(best, "Best design found") if best is not None and not best.empty else None,
         axes=sections, questions=questions, limits=limits,
         summary=html_table(summary, "Every design (mean ± 95 % over seeds)"),

@@ -9,11 +9,11 @@ import io
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-from .. import reference  # noqa: E402
+from .. import paper
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
@@ -49,19 +49,19 @@ def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:
 
 def _paper_rows(pad: str, condition: str) -> pd.DataFrame:
     """The paper's per-specimen results for one pad and condition, indexed by specimen (empty if none)."""
-    table = reference.paper_results()
+    table = paper.paper_results()
     return table[(table.pad == pad) & (table.condition == condition)].set_index("specimen")
 
 
 def _paper_perceived() -> pd.Series:
-    return reference.perceived_roughness().set_index("specimen")["perceived_gmean"]
+    return paper.perceived_roughness().set_index("specimen")["perceived_gmean"]
 
 
 def spectra_figure(mean_spectra: pd.DataFrame, freq_columns: list[str], pad: str, shapes: dict[str, str]):
     """Fig. 7: mean normalised amplitude spectrum per specimen, one panel per force and shape."""
     data = mean_spectra[mean_spectra["pad"] == pad]
     conditions = list(dict.fromkeys(data["condition"]))
-    shape_list = [s for s in SHAPE_ORDER if s in set(shapes.get(sp, "other") for sp in data["specimen"])]
+    shape_list = [s for s in SHAPE_ORDER if s in {shapes.get(sp, "other") for sp in data["specimen"]}]
     fig, axes = plt.subplots(len(shape_list), len(conditions), figsize=(4.2 * len(conditions), 3.0 * len(shape_list)),
                              squeeze=False, sharex=True, sharey=True)
     freq = np.array([float(c) for c in freq_columns])
@@ -124,7 +124,7 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
     ``paper=False`` leaves the paper's values out (a study whose design is not the paper's, or LOSO results).
     """
     data = results[results["pad"] == pad]
-    shape_list = [s for s in SHAPE_ORDER if s in set(shapes.get(sp, "other") for sp in data["specimen"])]
+    shape_list = [s for s in SHAPE_ORDER if s in {shapes.get(sp, "other") for sp in data["specimen"]}]
     conditions = list(dict.fromkeys(data["condition"]))
     fig, axes = plt.subplots(2, len(shape_list), figsize=(5.0 * len(shape_list), 6.0), squeeze=False)
     human_sd = perceived.set_index("specimen")["sd"]

@@ -1,7 +1,7 @@
 """Write a study analysis as a report folder: a self-contained index.html, CSV tables and PNG figures.
 
 Everything is rendered in memory, written into a folder beside ``--out`` and swapped in whole
-(:class:`roughsense.atomic.FolderSwap`), so a failure or a kill never leaves a half-written report, and a
+(:class:`roughsense._util.atomic.FolderSwap`), so a failure or a kill never leaves a half-written report, and a
 report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
 URIs so it opens offline and can be mailed as one file.
 """
@@ -16,10 +16,12 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from .. import __version__, atomic, reference
+from .. import __version__, paper
+from .._util import atomic
 from ..errors import OutputExistsError
-from ..study import check_name
+from ..io.names import check_name
 from . import figures, tables
+
 
 def _environment() -> jinja2.Environment:
     return jinja2.Environment(
@@ -109,31 +111,66 @@ def plain_words(analysis) -> list[str]:
 def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     """Every file of the report, by name, as bytes."""
     meta = dict(meta or {})
-    files: dict[str, bytes] = {}
-    specimens = figures._specimen_order(analysis.perceived["specimen"], analysis.shapes)
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     cv_schemes = ["loo", "loso"] if has_loso else ["loo"]
     results = {cv: analysis.results(cv) for cv in cv_schemes}
-    files["results.csv"] = _csv_bytes(results["loo"])
-    if has_loso:
+    chosen = analysis.chosen_components()
+    files = _data_files(analysis, results, chosen)
+    figure_list = _figures(analysis, results, chosen, cv_schemes, files)
+    paper_pads = tuple(analysis.paper_pads)
+    template = _environment().get_template("report.html.j2")
+    html = template.render(
+        title=f"roughsense report: {analysis.study_name}",
+        study_name=analysis.study_name,
+        version=__version__,
+        generated=meta.pop("generated", _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")),
+        meta=meta,
+        citation=paper.PAPER_CITATION,
+        headline=tables.headline_table(analysis, paper_pads),
+        components=tables.components_table(
+            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}, paper_pads
+        ),
+        tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
+        claims=tables.claims_table(analysis.claims, paper_pads),
+        controls=tables.controls_report_table(analysis.controls),
+        paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
+        simulation=analysis.simulation,
+        paper_note=analysis.paper_note,
+        findings=plain_words(analysis),
+        sections=_sections(analysis, results, cv_schemes),
+        figures=figure_list,
+        max_components=analysis.max_components,
+        reference_specimen=analysis.reference_specimen,
+    )
+    files["index.html"] = html.encode("utf-8")
+    return files
+
+
+def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame) -> dict[str, bytes]:
+    """The report's CSV files: every number behind its tables and figures."""
+    files = {"results.csv": _csv_bytes(results["loo"])}
+    if "loso" in results:
         files["results_loso.csv"] = _csv_bytes(results["loso"])
     files["cv.csv"] = _csv_bytes(analysis.cv_table())
     files["tests.csv"] = _csv_bytes(analysis.tests)
     files["predictions.csv"] = _csv_bytes(analysis.predictions())
-    chosen = analysis.chosen_components()
     files["components.csv"] = _csv_bytes(chosen)
     files["controls.csv"] = _csv_bytes(analysis.controls)
     files["claims.csv"] = _csv_bytes(analysis.claims)
     files["paper_predictive.csv"] = _csv_bytes(analysis.paper_predictive)
-    paper_pads = tuple(analysis.paper_pads)
-    simulated = analysis.simulation is not None
+    return files
 
+
+def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
+             files: dict[str, bytes]) -> list[dict]:
+    """Draw every figure into ``files`` (PNG) and return them for the page, each stamped if the data are simulated."""
+    paper_pads = tuple(analysis.paper_pads)
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
     figure_list = []
 
     def add_figure(name: str, fig, caption: str) -> None:
         check_name(name, what="report file name")  # built from pad names: the study contract's name rule
-        if simulated:
+        if analysis.simulation is not None:
             figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
             caption = "Simulated data. " + caption
         files[name] = figures.png_bytes(fig)
@@ -155,7 +192,13 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         add_figure(f"predicted_vs_perceived_{cv}.png",
                    figures.predicted_vs_perceived_figure(results[cv], analysis.perceived, cv, paper=paper_pads),
                    f"Predicted (mean ± SD over repetitions) against perceived roughness, {cv.upper()}; grey: identity.")
+    return figure_list
 
+
+def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str]) -> list[dict]:
+    """Per CV scheme and pad, the paper's Tables 1-6 layout: predictions, OVL, RMSE and predictive OVL."""
+    specimens = figures._specimen_order(analysis.perceived["specimen"], analysis.shapes)
+    paper_pads = tuple(analysis.paper_pads)
     sections = []
     for cv in cv_schemes:
         summaries = {column: analysis.summary(cv, column) for column in ("ovl", "rmse", "ovl_predictive")}
@@ -163,47 +206,15 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         for pad in analysis.pads:
             flags = tables.control_flags(analysis.controls, pad, cv)
             with_paper = pad in paper_pads
-            pads.append({
-                "pad": pad,
-                "tables": [
-                    tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv,
-                                            paper_values=with_paper, flags=flags),
-                    tables.metric_table(results[cv], summaries["ovl"], pad, specimens, "ovl", cv,
+            pads.append({"pad": pad, "tables": [
+                tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv,
                                         paper_values=with_paper, flags=flags),
-                    tables.metric_table(results[cv], summaries["rmse"], pad, specimens, "rmse", cv,
-                                        paper_values=with_paper, flags=flags),
-                    tables.metric_table(results[cv], summaries["ovl_predictive"], pad, specimens, "ovl_predictive",
-                                        cv, paper_values=with_paper, flags=flags),
-                ],
-            })
+                *(tables.metric_table(results[cv], summaries[column], pad, specimens, column, cv,
+                                      paper_values=with_paper, flags=flags)
+                  for column in ("ovl", "rmse", "ovl_predictive")),
+            ]})
         sections.append({"cv": cv, "pads": pads})
-
-    template = _environment().get_template("report.html.j2")
-    html = template.render(
-        title=f"roughsense report: {analysis.study_name}",
-        study_name=analysis.study_name,
-        version=__version__,
-        generated=meta.pop("generated", _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")),
-        meta=meta,
-        citation=reference.PAPER_CITATION,
-        headline=tables.headline_table(analysis, paper_pads),
-        components=tables.components_table(
-            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}, paper_pads
-        ),
-        tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(reference.PAPER_PADS)),
-        claims=tables.claims_table(analysis.claims, paper_pads),
-        controls=tables.controls_report_table(analysis.controls),
-        paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
-        simulation=analysis.simulation,
-        paper_note=analysis.paper_note,
-        findings=plain_words(analysis),
-        sections=sections,
-        figures=figure_list,
-        max_components=analysis.max_components,
-        reference_specimen=analysis.reference_specimen,
-    )
-    files["index.html"] = html.encode("utf-8")
-    return files
+    return sections
 
 
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from .. import reference
+from .. import paper as published
 
 CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", "combined": "Dataset combination"}
 
@@ -40,7 +40,7 @@ def _cell(ours: str, paper: str | None = None) -> dict:
 
 
 def _paper_lookup() -> pd.DataFrame:
-    return reference.paper_results().set_index(["pad", "specimen", "condition"])
+    return published.paper_results().set_index(["pad", "specimen", "condition"])
 
 
 def _paper_value(paper: pd.DataFrame, key: tuple, column: str):
@@ -76,7 +76,7 @@ def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, s
     """
     show_perceived = paper_values
     paper = _paper_lookup()
-    paper_perceived = reference.perceived_roughness().set_index("specimen")
+    paper_perceived = published.perceived_roughness().set_index("specimen")
     conditions = list(dict.fromkeys(results["condition"]))
     ours = results[results.pad == pad].set_index(["specimen", "condition"])
     human = perceived.set_index("specimen")
@@ -116,7 +116,7 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
     """Tables 2/5 (OVL) and 3/6 (RMSE) with the rectangular / circular / overall summary rows; also ovl_predictive.
 
     Beside LOO results the paper's per-specimen values and its *printed* summary rows are shown
-    (``reference.PAPER_SUMMARIES``), not summaries recomputed from its rounded per-specimen values.
+    (``published.PAPER_SUMMARIES``), not summaries recomputed from its rounded per-specimen values.
     """
     paper = _paper_lookup()
     with_paper = paper_values and cv == "loo" and column in ("ovl", "rmse")
@@ -137,7 +137,7 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
         for condition in conditions:
             s = summary[(summary.pad == pad) & (summary.condition == condition) & (summary.group == group)]
             value = _pm(s["mean"].iloc[0], s["sd"].iloc[0]) if len(s) else "—"
-            printed = reference.PAPER_SUMMARIES.get((pad, column, condition, group)) if with_paper else None
+            printed = published.PAPER_SUMMARIES.get((pad, column, condition, group)) if with_paper else None
             row.append(_cell(value, _pm(*printed) if printed else None))
         rows.append(row)
     name = {"ovl": "Overlap coefficient (OVL)", "rmse": "Root mean squared error (RMSE)",
@@ -184,8 +184,8 @@ def components_table(chosen: pd.DataFrame, nested: dict | None = None, paper_pad
                 continue
             best, one_se, rmse = g.iloc[0][["best_n_components", "one_se_n_components", "cv_rmse"]]
             allowed = paper_pads is None or pad in paper_pads
-            paper_n = reference.PAPER_BEST_N_COMPONENTS.get((pad, condition)) if cv == "loo" and allowed else None
-            paper_rmse = (reference.PAPER_FIG8_RMSE.get(paper_n) if cv == "loo" and (pad, condition) ==
+            paper_n = published.PAPER_BEST_N_COMPONENTS.get((pad, condition)) if cv == "loo" and allowed else None
+            paper_rmse = (published.PAPER_FIG8_RMSE.get(paper_n) if cv == "loo" and (pad, condition) ==
                           ("fingerprint", "combined") else None)
             counts = sorted(nested.get((pad, condition), {}).values()) if cv == "loso" else []
             best_text = str(int(best)) + (f" (nested {counts[0]}–{counts[-1]})" if counts else "")
@@ -206,7 +206,7 @@ def components_table(chosen: pd.DataFrame, nested: dict | None = None, paper_pad
 
 
 def tests_table(tests: pd.DataFrame, paper_values: bool = True) -> dict:
-    paper = reference.PAPER_TESTS if paper_values else {}
+    paper = published.PAPER_TESTS if paper_values else {}
     rows = []
     for _, t in tests.iterrows():
         comparison = str(t["comparison"])
@@ -233,7 +233,7 @@ def tests_table(tests: pd.DataFrame, paper_values: bool = True) -> dict:
         "caption": ("W is the sum of the ranks of positive differences (MATLAB signrank); p is exact for small n. "
                     "Combined vs single force: Bonferroni ×3 per pad. Smooth vs fingerprint: combined condition, as in the "
                     "paper. The paper's W and p are beneath ours, under p or adjusted p according to which one its "
-                    "printed value is (recomputed from its Tables 3 and 6; docs/perception.md)."),
+                    "printed value is (recomputed from its Tables 3 and 6; docs/finger_model.md)."),
         "columns": ["CV", "Comparison", "W", "p", "p (adjusted)"],
         "rows": rows,
     }
@@ -280,8 +280,8 @@ def headline_table(analysis, paper_pads=None) -> dict:
     loso = analysis.results("loso") if has_loso else None
     for (pad, condition), g in loo.groupby(["pad", "condition"], sort=False):
         allowed = paper_pads is None or pad in paper_pads
-        printed_rmse = reference.PAPER_SUMMARIES.get((pad, "rmse", condition, "all")) if allowed else None
-        printed_ovl = reference.PAPER_SUMMARIES.get((pad, "ovl", condition, "all")) if allowed else None
+        printed_rmse = published.PAPER_SUMMARIES.get((pad, "rmse", condition, "all")) if allowed else None
+        printed_ovl = published.PAPER_SUMMARIES.get((pad, "ovl", condition, "all")) if allowed else None
         cells = [_cell(pad), _cell(condition),
                  _cell(_num(g["rmse"].mean()), _num(printed_rmse[0]) if printed_rmse else None),
                  _cell(_num(_quiet_nanmean(g["ovl"])), _num(printed_ovl[0]) if printed_ovl else None),
@@ -350,7 +350,7 @@ def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
     """
     rows = []
     for _, c in claims.iterrows():
-        pads = {"both": set(reference.PAPER_PADS), "": set()}.get(c["pad"], {c["pad"]})
+        pads = {"both": set(published.PAPER_PADS), "": set()}.get(c["pad"], {c["pad"]})
         allowed = paper_pads is None or (bool(paper_pads) and pads <= set(paper_pads))
         p = "—" if pd.isna(c["p"]) else f"{c['p']:.2g}"
         statistic = "—" if pd.isna(c["statistic"]) else f"{c['statistic']:.3g}"
@@ -375,7 +375,7 @@ def paper_predictive_table(paper_predictive: pd.DataFrame) -> dict:
     """Mean OVL of the paper's published predictions: the paper's way and with the predictive distribution."""
     rows = []
     for (pad, condition), g in paper_predictive.groupby(["pad", "condition"], sort=False):
-        printed = reference.PAPER_SUMMARIES.get((pad, "ovl", condition, "all"))
+        printed = published.PAPER_SUMMARIES.get((pad, "ovl", condition, "all"))
         rows.append([_cell(pad), _cell(condition),
                      _cell(_num(_quiet_nanmean(g["ovl"])), _pm(*printed) if printed else None),
                      _cell(_num(_quiet_nanmean(g["ovl_predictive"]))),

@@ -1,8 +1,7 @@
-"""The physical rig: a camera, a digital scale and the paper's acquisition protocol (section 3.2).
+"""The physical rig: a camera, a digital scale and the paper's acquisition protocol (section 3.2) -> a study folder.
 
-The rig is a source of study folders, like the simulator: it writes images and manifest rows through
-:class:`~roughsense.study.StudyWriter` and knows nothing about the analysis. Live scoring takes the
-scoring function as an argument for the same reason.
+A source of study folders like the simulator: it writes through ``io/`` and knows nothing about the analysis;
+live scoring takes the scoring function as an argument, and the CLI wires in the model.
 """
 from __future__ import annotations
 

@@ -17,14 +17,29 @@ import math
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .. import study as st
 from ..errors import ConfigError, InputError, OutputExistsError
+from ..io.names import NAME_RULE, check_name, is_safe_name
+from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
+from ..io.sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, Roi, SensorSettings, parse_roi, roi_misfit
+from ..io.study import (
+    IMAGES_DIR,
+    MANIFEST_CSV,
+    SHAPES,
+    SPECIMEN_COLUMNS,
+    SPECIMENS_CSV,
+    STUDY_TOML,
+    read_config,
+    read_manifest,
+    sensor_from_config,
+)
+from ..io.tables import csv_line, read_table
+from ..io.writer import StudyWriter
 from .camera import FrameSource
 from .scale import ForceInput
 
@@ -42,22 +57,22 @@ class CaptureResult:
     specimen_incomplete: bool = False
 
 
-def check_name(value: str, option: str) -> str:
+def check_option_name(value: str, option: str) -> str:
     """Specimen and pad names go into file names: the study contract's one name rule (:func:`study.check_name`)."""
-    if not st.is_safe_name(value):
-        raise ConfigError(f"--{option} {value!r}: use {st.NAME_RULE} (it becomes part of file names)")
+    if not is_safe_name(value):
+        raise ConfigError(f"--{option} {value!r}: use {NAME_RULE} (it becomes part of file names)")
     return value
 
 
 def image_name(specimen: str, pad: str, repetition: int, nominal_force_n: float, attempt: int = 1) -> str:
-    st.check_name(specimen, what="specimen")
-    st.check_name(pad, what="pad")
-    base = f"{specimen}_{pad}_r{repetition:02d}_{st.nominal_force_label(nominal_force_n)}"
+    check_name(specimen, what="specimen")
+    check_name(pad, what="pad")
+    base = f"{specimen}_{pad}_r{repetition:02d}_{nominal_force_label(nominal_force_n)}"
     return f"{base}.png" if attempt == 1 else f"{base}-{attempt}.png"
 
 
 def force_window(forces_n: Sequence[float]) -> dict[float, tuple[float, float]]:
-    """Accepted readings per step: within half the protocol spacing, the rule study.py uses to bin readings."""
+    """Accepted readings per step: within half the protocol spacing, the rule io/protocol.py uses to bin readings."""
     forces = sorted(forces_n)
     spacing = min(np.diff(forces)) if len(forces) > 1 else forces[0]
     half = 0.5 * float(spacing)
@@ -74,7 +89,7 @@ class _Folder:
     root: Path
     is_new: bool
     forces_n: tuple[float, ...]
-    sensor: st.SensorSettings
+    sensor: SensorSettings
     manifest: pd.DataFrame
     specimens: pd.DataFrame | None
 
@@ -82,20 +97,20 @@ class _Folder:
 def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
     if root.exists() and not root.is_dir():
         raise OutputExistsError("exists and is not a folder", path=root)
-    toml_path = root / st.STUDY_TOML
+    toml_path = root / STUDY_TOML
     if not toml_path.exists():
         if root.is_dir() and not _is_blank(root):
             raise OutputExistsError("folder is not empty and has no study.toml; capture into a new folder or a study folder",
                                     path=root)
-        forces = tuple(float(f) for f in (forces_n or st.DEFAULT_FORCES_N))
-        sensor = st.SensorSettings(px_per_mm=st.DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
-                                   roi="center" if roi is None else roi)
+        forces = tuple(float(f) for f in (forces_n or DEFAULT_FORCES_N))
+        sensor = SensorSettings(px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
+                                   roi=DEFAULT_ROI if roi is None else roi)
         _check_forces(forces)
         return _Folder(root, True, forces, sensor, pd.DataFrame(columns=RIG_COLUMNS), None)
 
-    config = st.read_config(toml_path)
-    stored_forces = st.parse_forces(config.get("protocol", {}).get("forces_n", list(st.DEFAULT_FORCES_N)), path=toml_path)
-    sensor = st._sensor_from_config(config, toml_path)
+    config = read_config(toml_path)
+    stored_forces = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
+    sensor = sensor_from_config(config, toml_path)
     if forces_n is not None and tuple(sorted(map(float, forces_n))) != tuple(sorted(stored_forces)):
         raise ConfigError(
             f"--forces {','.join(f'{f:g}' for f in forces_n)} differs from this study's protocol "
@@ -103,19 +118,19 @@ def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
         )
     if px_per_mm is not None and not math.isclose(float(px_per_mm), sensor.px_per_mm):
         raise ConfigError(f"--px-per-mm {px_per_mm:g} differs from {sensor.px_per_mm:g} in {toml_path}; omit it or edit the file")
-    if roi is not None and st.parse_roi(roi) != sensor.roi:
+    if roi is not None and parse_roi(roi) != sensor.roi:
         raise ConfigError(f"--roi {roi} differs from {sensor.roi!r} in {toml_path}; omit it or edit the file")
     _check_forces(stored_forces)
 
-    manifest_path = root / st.MANIFEST_CSV
+    manifest_path = root / MANIFEST_CSV
     if manifest_path.exists():
-        manifest = st.read_manifest(manifest_path)
+        manifest = read_manifest(manifest_path)
         if len(manifest) and "nominal_force_n" not in manifest.columns:
             raise InputError("has no nominal_force_n column: it was not written by the rig, so the rig will not extend it",
                              path=manifest_path)
     else:
         manifest = pd.DataFrame(columns=RIG_COLUMNS)
-    specimens_path = root / st.SPECIMENS_CSV
+    specimens_path = root / SPECIMENS_CSV
     specimens = _read_specimens_loose(specimens_path) if specimens_path.exists() else None
     return _Folder(root, False, stored_forces, sensor, manifest, specimens)
 
@@ -125,7 +140,7 @@ def _is_blank(root: Path) -> bool:
     for entry in root.iterdir():
         if entry.name == LOCK_FILE:
             continue
-        if entry.name == st.IMAGES_DIR and entry.is_dir() and not any(entry.iterdir()):
+        if entry.name == IMAGES_DIR and entry.is_dir() and not any(entry.iterdir()):
             continue
         return False
     return True
@@ -135,27 +150,28 @@ def _check_forces(forces: Sequence[float]) -> None:
     if not forces or len(set(forces)) != len(forces):
         raise ConfigError(f"protocol forces must be distinct positive numbers, got {list(forces)}")
     for f in forces:
-        st.check_force(f, option="each protocol force")
+        check_force(f, option="each protocol force")
 
 
 def _read_specimens_loose(path: Path) -> pd.DataFrame:
     """specimens.csv as text, blanks allowed: the rig may have left shape/wavelength for the user to fill in."""
-    frame = st.read_table(path, ["specimen"], text=["specimen", "shape"])
+    frame = read_table(path, ["specimen"], text=["specimen", "shape"])
     frame = frame.astype(object).where(frame.notna(), "")
-    for column in st.SPECIMEN_COLUMNS:
+    for column in SPECIMEN_COLUMNS:
         if column not in frame.columns:
             frame[column] = ""
     return frame
 
 
-def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelength_mm: float | None) -> tuple[pd.DataFrame | None, bool]:
+def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelength_mm: float | None
+                    ) -> tuple[pd.DataFrame | None, bool]:
     """specimens.csv with ``specimen`` added or its blanks filled; (None if unchanged, is it still incomplete)."""
-    path = folder.root / st.SPECIMENS_CSV
-    table = folder.specimens if folder.specimens is not None else pd.DataFrame(columns=list(st.SPECIMEN_COLUMNS))
+    path = folder.root / SPECIMENS_CSV
+    table = folder.specimens if folder.specimens is not None else pd.DataFrame(columns=list(SPECIMEN_COLUMNS))
     given = {"shape": shape or "", "wavelength_mm": "" if wavelength_mm is None else f"{wavelength_mm:g}"}
     hits = np.flatnonzero(table["specimen"].astype(str).to_numpy() == specimen)
     if hits.size == 0:
-        row = {c: "" for c in table.columns}
+        row = dict.fromkeys(table.columns, "")
         row.update(specimen=specimen, **given)
         merged = pd.concat([table, pd.DataFrame([row])], ignore_index=True)
         return merged, not all(given.values())
@@ -170,7 +186,7 @@ def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelengt
         if current and not same:
             raise ConfigError(
                 f"specimen {specimen!r} has {column} {current}; --{column.replace('_', '-')} says {value} "
-                "(edit specimens.csv if the file is wrong)", path=path, row=st.csv_line(i), column=column,
+                "(edit specimens.csv if the file is wrong)", path=path, row=csv_line(i), column=column,
             )
         if not current:
             merged.at[i, column] = value
@@ -181,7 +197,7 @@ def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelengt
 
 def _lock(root: Path):
     """One capture per folder at a time; the OS drops the lock if the process dies, so no stale locks."""
-    handle = open(root / LOCK_FILE, "a")  # noqa: SIM115 - held for the session
+    handle = open(root / LOCK_FILE, "a")  # noqa: SIM115 - held open for the session: the lock lives with it
     try:
         fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -193,7 +209,8 @@ def _lock(root: Path):
 # --------------------------------------------------------------------------- the protocol
 
 
-def plan_steps(manifest: pd.DataFrame, specimen: str, pad: str, forces_n: Sequence[float], repetitions: int) -> list[tuple[int, float]]:
+def plan_steps(manifest: pd.DataFrame, specimen: str, pad: str, forces_n: Sequence[float], repetitions: int
+               ) -> list[tuple[int, float]]:
     """The (repetition, nominal force) steps still missing for this specimen and pad, in protocol order."""
     done: set[tuple[int, float]] = set()
     if len(manifest):
@@ -216,7 +233,7 @@ def capture_session(
     shape: str | None = None,
     wavelength_mm: float | None = None,
     log: Callable[[str], None] | None = None,
-    clock: Callable[[], datetime] = lambda: datetime.now(timezone.utc),
+    clock: Callable[[], datetime] = lambda: datetime.now(UTC),
 ) -> CaptureResult:
     """Run (or resume) the protocol for one specimen on one pad, writing into the study folder ``root``.
 
@@ -226,58 +243,95 @@ def capture_session(
     """
     log = log or (lambda text: print(text, file=sys.stderr, flush=True))
     root = Path(root)
-    check_name(specimen, "specimen")
-    check_name(pad, "pad")
-    st.check_repetitions(repetitions)
-    if shape is not None and shape.lower() not in st.SHAPES:
-        raise ConfigError(f"--shape {shape!r}: expected one of {', '.join(st.SHAPES)}")
-    if wavelength_mm is not None and not (math.isfinite(wavelength_mm) and wavelength_mm > 0):
-        raise ConfigError(f"--wavelength-mm must be positive, got {wavelength_mm:g}")
+    _check_capture_options(specimen, pad, repetitions, shape, wavelength_mm)
     lock = _lock(root) if root.is_dir() else None
     try:
         folder = _inspect(root, forces_n, px_per_mm, roi)
         forces = tuple(float(f) for f in (forces_n or folder.forces_n))
         specimens_update, incomplete = _merge_specimen(folder, specimen, shape.lower() if shape else None, wavelength_mm)
-        window = force_window(folder.forces_n)
         steps = plan_steps(folder.manifest, specimen, pad, forces, repetitions)
-        result = CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
-                               specimen_incomplete=incomplete)
-        writer: st.StudyWriter | None = None
-        for repetition, nominal in steps:
-            label = f"[{specimen}/{pad} rep {repetition}/{repetitions}] "
-            force_n = force_input.read_force(nominal, low_n=window[nominal][0], high_n=window[nominal][1], label=label)
-            frame = source.read_fresh()
-            _check_frame(frame, folder.sensor.roi, source)
-            stamp = clock().astimezone(timezone.utc).isoformat(timespec="milliseconds")
-            if writer is None:
-                if lock is None:
-                    root.mkdir(parents=True, exist_ok=True)
-                    lock = _lock(root)
-                writer = _start_writing(folder, specimens_update)
-            name, skipped = _free_name(writer, specimen, pad, repetition, nominal)
-            result.orphans.extend(skipped)
-            for orphan in skipped:
-                log(f"  images/{orphan} has no manifest row (interrupted earlier): kept, not reused")
-            rel = writer.write_image(name, frame)
-            writer.append_manifest_row({
-                "image": rel, "specimen": specimen, "pad": pad, "force_n": round(force_n, 6),
-                "nominal_force_n": nominal, "repetition": repetition, "timestamp": stamp,
-            })
-            result.captured.append(rel)
-            log(f"  saved {rel} at {force_n:.3f} N")
-        if writer is None and specimens_update is not None and not folder.is_new:
+        session = _Session(root, folder, specimens_update, source, force_input, specimen, pad, repetitions, log, clock,
+                           lock, force_window(folder.forces_n),
+                           CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
+                                         specimen_incomplete=incomplete))
+        try:
+            for repetition, nominal in steps:
+                session.capture(repetition, nominal)
+        finally:
+            lock = session.lock
+        if session.writer is None and specimens_update is not None and not folder.is_new:
             # Nothing left to capture, but --shape/--wavelength-mm completed the specimen's row.
-            st.StudyWriter(root, resume=True).write_specimens(specimens_update)
-        return result
+            StudyWriter(root, resume=True).write_specimens(specimens_update)
+        return session.result
     finally:
         if lock is not None:
             lock.close()
 
 
-def _check_frame(frame: np.ndarray, roi: st.Roi, source: FrameSource) -> None:
+def _check_capture_options(specimen: str, pad: str, repetitions: int, shape: str | None,
+                           wavelength_mm: float | None) -> None:
+    """Refuse bad options before the folder, the camera or the scale is touched."""
+    check_option_name(specimen, "specimen")
+    check_option_name(pad, "pad")
+    check_repetitions(repetitions)
+    if shape is not None and shape.lower() not in SHAPES:
+        raise ConfigError(f"--shape {shape!r}: expected one of {', '.join(SHAPES)}")
+    if wavelength_mm is not None and not (math.isfinite(wavelength_mm) and wavelength_mm > 0):
+        raise ConfigError(f"--wavelength-mm must be positive, got {wavelength_mm:g}")
+
+
+@dataclass
+class _Session:
+    """One run of the protocol: what it reads from, what it writes into, and what it has done so far.
+
+    The folder is created, locked and written only once the first frame is in hand.
+    """
+
+    root: Path
+    folder: _Folder
+    specimens_update: pd.DataFrame | None
+    source: FrameSource
+    force_input: ForceInput
+    specimen: str
+    pad: str
+    repetitions: int
+    log: Callable[[str], None]
+    clock: Callable[[], datetime]
+    lock: object
+    window: dict[float, tuple[float, float]]
+    result: CaptureResult
+    writer: StudyWriter | None = None
+
+    def capture(self, repetition: int, nominal: float) -> None:
+        """Wait for the force, take a fresh frame, and write it with its manifest row."""
+        label = f"[{self.specimen}/{self.pad} rep {repetition}/{self.repetitions}] "
+        low_n, high_n = self.window[nominal]
+        force_n = self.force_input.read_force(nominal, low_n=low_n, high_n=high_n, label=label)
+        frame = self.source.read_fresh()
+        _check_frame(frame, self.folder.sensor.roi, self.source)
+        stamp = self.clock().astimezone(UTC).isoformat(timespec="milliseconds")
+        if self.writer is None:
+            if self.lock is None:
+                self.root.mkdir(parents=True, exist_ok=True)
+                self.lock = _lock(self.root)
+            self.writer = _start_writing(self.folder, self.specimens_update)
+        name, skipped = _free_name(self.writer, self.specimen, self.pad, repetition, nominal)
+        self.result.orphans.extend(skipped)
+        for orphan in skipped:
+            self.log(f"  images/{orphan} has no manifest row (interrupted earlier): kept, not reused")
+        rel = self.writer.write_image(name, frame)
+        self.writer.append_manifest_row({
+            "image": rel, "specimen": self.specimen, "pad": self.pad, "force_n": round(force_n, 6),
+            "nominal_force_n": nominal, "repetition": repetition, "timestamp": stamp,
+        })
+        self.result.captured.append(rel)
+        self.log(f"  saved {rel} at {force_n:.3f} N")
+
+
+def _check_frame(frame: np.ndarray, roi: Roi, source: FrameSource) -> None:
     """Refuse a frame the analysis could not crop (wrong camera resolution) before any of it is written."""
     height, width = frame.shape[:2]
-    problem = st.roi_misfit(roi, width, height)
+    problem = roi_misfit(roi, width, height)
     if problem is not None:
         raise InputError(
             f"frame is {width}x{height} px, {problem}; set the camera's resolution or the study's roi",
@@ -285,18 +339,18 @@ def _check_frame(frame: np.ndarray, roi: st.Roi, source: FrameSource) -> None:
         )
 
 
-def _start_writing(folder: _Folder, specimens_update: pd.DataFrame | None) -> st.StudyWriter:
-    writer = st.StudyWriter(folder.root, resume=True)
-    if not (folder.root / st.STUDY_TOML).exists():
+def _start_writing(folder: _Folder, specimens_update: pd.DataFrame | None) -> StudyWriter:
+    writer = StudyWriter(folder.root, resume=True)
+    if not (folder.root / STUDY_TOML).exists():
         writer.write_config(name=folder.root.resolve().name, sensor=folder.sensor, forces_n=folder.forces_n)
     if specimens_update is not None:
         writer.write_specimens(specimens_update)
-    if not (folder.root / st.MANIFEST_CSV).exists():
+    if not (folder.root / MANIFEST_CSV).exists():
         writer.write_manifest(pd.DataFrame(columns=list(RIG_COLUMNS)))
     return writer
 
 
-def _free_name(writer: st.StudyWriter, specimen: str, pad: str, repetition: int, nominal: float) -> tuple[str, list[str]]:
+def _free_name(writer: StudyWriter, specimen: str, pad: str, repetition: int, nominal: float) -> tuple[str, list[str]]:
     skipped = []
     attempt = 1
     while writer.image_path(name := image_name(specimen, pad, repetition, nominal, attempt)).exists():

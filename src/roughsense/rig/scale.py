@@ -153,7 +153,8 @@ class ManualForce(_OperatorInput):
     """The operator reads the scale and types the force; Enter alone takes the nominal force."""
 
     def _read_once(self, nominal_force_n: float, label: str) -> float:
-        text = self.ask(f"{label}set {nominal_force_n:g} N, then type the force read (N, or g/kg) [Enter = {nominal_force_n:g}]: ")
+        text = self.ask(f"{label}set {nominal_force_n:g} N, then type the force read (N, or g/kg) "
+                        f"[Enter = {nominal_force_n:g}]: ")
         return parse_typed_force(text, nominal_force_n)
 
 

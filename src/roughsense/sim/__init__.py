@@ -1,8 +1,8 @@
-"""The digital twin: specimens, pads, contact mechanics, optics, bench and participants -> a study folder.
+"""The digital twin: specimens, pads, contact mechanics, optics, bench, simulated finger and panel -> a study folder.
 
-Imports only ``roughsense.study``, ``errors`` and ``atomic`` from the rest of the package (the analysis must not
-know whether a folder was simulated). The public names load lazily, so the CLI can read the presets and defaults
-from ``sim.specimens`` and ``sim.pads`` without importing the whole simulator.
+A source of study folders like the rig: it writes through ``io/`` and never imports the analysis or the models, so
+the analysis cannot tell a simulated folder from a captured one except by its ``[simulation]`` table. The public
+names load lazily, so the CLI can read the presets and defaults from ``sim.specimens`` and ``sim.pads`` cheaply.
 """
 from __future__ import annotations
 

@@ -44,7 +44,7 @@ class BenchNoise:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ConfigError(f"bench noise {name} must be a number >= 0, got {value!r}")
 
-    def scaled(self, factor: float) -> "BenchNoise":
+    def scaled(self, factor: float) -> BenchNoise:
         """All spreads times ``factor`` (the calibration knob); resolutions and counts unchanged."""
         keep = {"scale_resolution_g", "ripple_count", "waviness_count", "spots_per_mount", "ridge_visibility"}
         return BenchNoise(**{k: (v if k in keep else v * factor) for k, v in vars(self).items()})

@@ -88,38 +88,64 @@ def solve_periodic_many(height_mm: np.ndarray, length_mm: float, mean_pressures_
     k = 2.0 * math.pi * sfft.rfftfreq(n, d=length_mm / n)
     compliance = np.zeros_like(k)
     compliance[1:] = 2.0 / (contact_modulus_pa * k[1:])  # mm of displacement per Pa of pressure amplitude
-
-    def displacement(p: np.ndarray) -> np.ndarray:
-        return sfft.irfft(sfft.rfft(p, axis=-1) * compliance, n, axis=-1)
-
-    def row_mean(values: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
-        return np.where(mask, values, 0.0).sum(axis=1) / count
-
     s = h - h.max()
-    target = levels.copy()  # the mean pressure of each row still iterating
-    p = np.repeat(target[:, None], n, axis=1)
-    if initial_pressure_pa is not None:
-        start = np.maximum(np.asarray(initial_pressure_pa, dtype=float), 0.0)
-        if start.shape == (n,) and start.sum() > 0:
-            p = start[None, :] * (target / start.mean())[:, None]
-    t = np.zeros_like(p)
-    g_old = np.ones(levels.size)
-    delta = np.zeros(levels.size)
-    rows = np.arange(levels.size)  # which level each working row is
-    balance = np.ones(levels.size)
-    change = np.full(levels.size, math.inf)
-    done: dict[int, tuple[np.ndarray, int, float, float]] = {}
+    batch = _PressureBatch(levels, s, compliance, initial_pressure_pa)
     for it in range(1, max_iter + 1):
-        gap = displacement(p) - s
+        if batch.step(it, tol):
+            break
+    if batch.rows.size:
+        worst = float(batch.change[batch.rows].max())
+        raise ContactNotConverged(f"the contact solver did not converge in {max_iter} iterations "
+                                  f"(relative pressure change {worst:.1e}, tolerance {tol:.0e})")
+    return _solutions(batch, length_mm)
+
+
+def _displacement(p: np.ndarray, compliance: np.ndarray, n: int) -> np.ndarray:
+    """Surface displacement (mm) of the half-space under periodic pressure rows ``p`` (Pa), by FFT."""
+    return sfft.irfft(sfft.rfft(p, axis=-1) * compliance, n, axis=-1)
+
+
+def _row_mean(values: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
+    return np.where(mask, values, 0.0).sum(axis=1) / count
+
+
+class _PressureBatch:
+    """The Polonsky-Keer constrained conjugate-gradient state of every level still iterating, one row a level.
+
+    A row that converges is recorded in ``done`` and leaves the arrays, so the rows left share each call.
+    """
+
+    def __init__(self, levels: np.ndarray, s: np.ndarray, compliance: np.ndarray,
+                 initial_pressure_pa: np.ndarray | None) -> None:
+        n = s.size
+        self.n, self.s, self.compliance = n, s, compliance
+        self.target = levels.copy()  # the mean pressure of each row still iterating
+        self.p = np.repeat(self.target[:, None], n, axis=1)
+        if initial_pressure_pa is not None:
+            start = np.maximum(np.asarray(initial_pressure_pa, dtype=float), 0.0)
+            if start.shape == (n,) and start.sum() > 0:
+                self.p = start[None, :] * (self.target / start.mean())[:, None]
+        self.t = np.zeros_like(self.p)
+        self.g_old = np.ones(levels.size)
+        self.delta = np.zeros(levels.size)
+        self.rows = np.arange(levels.size)  # which level each working row is
+        self.balance = np.ones(levels.size)
+        self.change = np.full(levels.size, math.inf)
+        self.done: dict[int, tuple[np.ndarray, int, float, float]] = {}
+
+    def step(self, it: int, tol: float) -> bool:
+        """One conjugate-gradient step of every row; True once no row is left."""
+        n, p, t = self.n, self.p, self.t
+        gap = _displacement(p, self.compliance, n) - self.s
         inside = p > 0
         count = inside.sum(axis=1)
-        gap -= row_mean(gap, inside, count)[:, None]
+        gap -= _row_mean(gap, inside, count)[:, None]
         g_norm = np.einsum("ij,ij->i", gap, np.where(inside, gap, 0.0))
-        ratio = np.divide(g_norm, g_old, out=np.zeros_like(g_norm), where=g_old > 0)  # 0: start was the answer
-        t = np.where(inside, gap + (delta * ratio)[:, None] * t, 0.0)
-        g_old = g_norm
-        r = displacement(t)
-        r -= row_mean(r, inside, count)[:, None]
+        ratio = np.divide(g_norm, self.g_old, out=np.zeros_like(g_norm), where=self.g_old > 0)  # 0: start was the answer
+        t = np.where(inside, gap + (self.delta * ratio)[:, None] * t, 0.0)
+        self.g_old = g_norm
+        r = _displacement(t, self.compliance, n)
+        r -= _row_mean(r, inside, count)[:, None]
         denom = np.einsum("ij,ij->i", r, t)  # t is 0 outside the contact
         tau = np.divide(np.einsum("ij,ij->i", gap, t), denom, out=np.zeros_like(denom), where=denom != 0)
         p_prev = p
@@ -129,33 +155,44 @@ def solve_periodic_many(height_mm: np.ndarray, length_mm: float, mean_pressures_
         lifted = overlap.any(axis=1)
         if lifted.any():
             p -= np.where(overlap, tau[:, None] * gap, 0.0)
-        delta = np.where(lifted, 0.0, 1.0)
+        self.delta = np.where(lifted, 0.0, 1.0)
+        self.p, self.t = p, t
+        step, lost = self._keep_the_load(p_prev)
+        finished = ~lost & (step < tol) & (it > 2)
+        if finished.any():
+            self._retire(finished, it, step)
+        return self.rows.size == 0
+
+    def _keep_the_load(self, p_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rescale each row to its mean pressure; returns the relative change of the step and the rows restarted."""
+        p, target, rows = self.p, self.target, self.rows
         total = p.mean(axis=1)
         lost = total <= 0  # every point let go: start that level again from uniform pressure
         if lost.any():
             p[lost] = target[lost, None]
             total = np.where(lost, target, total)
-        balance[rows] = np.where(lost, balance[rows], total / target)
+        self.balance[rows] = np.where(lost, self.balance[rows], total / target)
         p *= (target / total)[:, None]
-        step = np.abs(p - p_prev).sum(axis=1) / (n * target)
-        change[rows] = np.where(lost, change[rows], step)
-        finished = ~lost & (step < tol) & (it > 2)
-        if finished.any():
-            for i in np.flatnonzero(finished):
-                done[int(rows[i])] = (p[i], it, float(balance[rows[i]]), float(step[i]))
-            keep = ~finished
-            p, t, g_old, delta, target, rows = p[keep], t[keep], g_old[keep], delta[keep], target[keep], rows[keep]
-            if rows.size == 0:
-                break
-    if rows.size:
-        worst = float(change[rows].max())
-        raise ContactNotConverged(f"the contact solver did not converge in {max_iter} iterations "
-                                  f"(relative pressure change {worst:.1e}, tolerance {tol:.0e})")
-    pressure = np.stack([done[i][0] for i in range(levels.size)])
-    raw = displacement(pressure) - s
+        step = np.abs(p - p_prev).sum(axis=1) / (self.n * target)
+        self.change[rows] = np.where(lost, self.change[rows], step)
+        return step, lost
+
+    def _retire(self, finished: np.ndarray, it: int, step: np.ndarray) -> None:
+        for i in np.flatnonzero(finished):
+            self.done[int(self.rows[i])] = (self.p[i], it, float(self.balance[self.rows[i]]), float(step[i]))
+        keep = ~finished
+        self.p, self.t, self.g_old, self.delta = self.p[keep], self.t[keep], self.g_old[keep], self.delta[keep]
+        self.target, self.rows = self.target[keep], self.rows[keep]
+
+
+def _solutions(batch: _PressureBatch, length_mm: float) -> list[ContactSolution]:
+    """Each level's converged pressure, its gap (clean and raw) and the solver's record, in level order."""
+    n, done = batch.n, batch.done
+    pressure = np.stack([done[i][0] for i in range(len(done))])
+    raw = _displacement(pressure, batch.compliance, n) - batch.s
     x = np.arange(n) * (length_mm / n)
     solutions = []
-    for i in range(levels.size):
+    for i in range(len(done)):
         p_i, raw_i = pressure[i], raw[i]
         inside = p_i > 0
         raw_i -= raw_i[inside].mean() if inside.any() else raw_i.min()

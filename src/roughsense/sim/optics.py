@@ -15,10 +15,11 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.special import log_ndtr, ndtr, ndtri
 
 from ..errors import ConfigError
+from ..io.sensor_settings import DEFAULT_PX_PER_MM
 
 WIDTH_PX = 1920
 HEIGHT_PX = 1080
-PX_PER_MM = 34.9  # 349 px/cm, paper section 2.1
+PX_PER_MM = DEFAULT_PX_PER_MM  # the twin's camera is the paper's
 VIEW_ANGLE_DEG = 45.0
 
 
@@ -160,16 +161,7 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
     line = np.asarray(line, dtype=float)
     if line.shape != (w,):
         raise ValueError(f"line must have {w} samples, got {line.shape}")
-    x = (np.arange(w) + 0.5 - w / 2) / (w / 2)  # -1..1
-    y = (np.arange(h) + 0.5 - h / 2) / (w / 2)  # same scale as x (square pixels)
-    corner = 1.0 + (h / w) ** 2
-    # Gaussian vignetting is separable: exp(-r^2) = exp(-x^2) exp(-y^2); scaled to the requested corner fall-off.
-    k = -math.log(1.0 - camera.vignetting) / corner
-    shade_x = np.exp(-k * x * x) * lighting.gain * (1.0 + 0.5 * lighting.gradient * x)
-    x_mm = (np.arange(w) + 0.5) / camera.px_per_mm
-    for amplitude, wavelength_mm, phase in lighting.ripple:
-        shade_x = shade_x * (1.0 + amplitude * np.sin(2.0 * math.pi * x_mm / wavelength_mm + phase))
-    shade_y = np.exp(-k * y * y)
+    shade_x, shade_y = _shading(camera, lighting)
 
     yc = np.arange(h) + 0.5  # row centres
     half = camera.band_height_px / 2.0
@@ -191,8 +183,35 @@ def render(camera: Camera, line: np.ndarray, *, band_center_px: float, lighting:
     for x_mm0, y_mm0, size_mm, strength in spots:
         _add_spot(frame, x_mm0 * camera.px_per_mm, band_center_px - top + y_mm0 * camera.px_per_mm,
                   size_mm * camera.px_per_mm, strength, first_row=start)
-    # sensor noise: read noise + signal-dependent shot noise, then 8-bit quantisation
-    noise = standard_normal_table().take(rng.integers(0, NOISE_TABLE_SIZE, (stop, w), dtype=np.uint16)[start:])
+    return _expose(frame, camera, rng, start, stop)
+
+
+def _shading(camera: Camera, lighting: Lighting) -> tuple[np.ndarray, np.ndarray]:
+    """Illumination across the sensor as a column profile times a row profile (vignetting, gain, gradient, ripple).
+
+    Gaussian vignetting is separable, exp(-r^2) = exp(-x^2) exp(-y^2), so the whole sensor's shading is an outer
+    product; it is scaled to the requested fall-off in the corner.
+    """
+    w, h = camera.width_px, camera.height_px
+    x = (np.arange(w) + 0.5 - w / 2) / (w / 2)  # -1..1
+    y = (np.arange(h) + 0.5 - h / 2) / (w / 2)  # same scale as x (square pixels)
+    corner = 1.0 + (h / w) ** 2
+    k = -math.log(1.0 - camera.vignetting) / corner
+    shade_x = np.exp(-k * x * x) * lighting.gain * (1.0 + 0.5 * lighting.gradient * x)
+    x_mm = (np.arange(w) + 0.5) / camera.px_per_mm
+    for amplitude, wavelength_mm, phase in lighting.ripple:
+        shade_x = shade_x * (1.0 + amplitude * np.sin(2.0 * math.pi * x_mm / wavelength_mm + phase))
+    return shade_x, np.exp(-k * y * y)
+
+
+def _expose(frame: np.ndarray, camera: Camera, rng: np.random.Generator, start: int, stop: int) -> np.ndarray:
+    """Sensor noise (read noise + signal-dependent shot noise), then 8-bit quantisation, in place.
+
+    The noise of rows above ``start`` is drawn and dropped, so a slice of rows is bit-identical to the same rows
+    of the whole frame (the generator fills row by row).
+    """
+    noise = standard_normal_table().take(
+        rng.integers(0, NOISE_TABLE_SIZE, (stop, camera.width_px), dtype=np.uint16)[start:])
     sd = np.maximum(frame, np.float32(0.0))  # in place from here: the frame is the only large array per trial
     sd *= np.float32(camera.shot_noise_gain)
     sd += np.float32(camera.read_noise_dn**2)

@@ -7,7 +7,7 @@ sessions, then geometric mean over participants) equals the paper's value G_s in
 across participants' medians equals the paper's SD (``ratings_source = paper``).
 
 Every other specimen -- and, with ``ratings_from="physics"``, every specimen -- is felt by the simulated finger
-(:mod:`roughsense.sim.perception`): participant i reports exp(a_i) * (S / S_R3) ** (b * exp(c_i)) * exp(e_ik), with
+(:mod:`roughsense.sim.finger`): participant i reports exp(a_i) * (S / S_R3) ** (b * exp(c_i)) * exp(e_ik), with
 scale a_i and exponent c_i (mean-one factor exp(c_i)) drawn once per person (so they are shared by all the
 specimens that person rates) and session noise e_ik per specimen (``ratings_source = physics``).
 """
@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
-from . import perception
+from ..paper import REFERENCE_SPECIMEN
+from . import finger
 from .specimens import Specimen
 
-REFERENCE = "R3"
 SESSION_SHARE = 0.3  # share of the log-variance that is session-to-session (not participant) noise
 RATINGS_FROM = ("paper", "physics")
 RATING_DECIMALS = 2
@@ -73,8 +73,8 @@ def percept(specimen: Specimen, *, ratings_from: str = "paper", sessions: int = 
             row = paper.loc[specimen.name]
             sd = float(row["perceived_sd"]) if pd.notna(row["perceived_sd"]) else 0.0
             return Percept(float(row["perceived_gmean"]), sd, "paper")
-    log_ratio = perception.log_ratio(specimen)
-    psych = perception.PSYCHOPHYSICS
+    log_ratio = finger.log_ratio(specimen)
+    psych = finger.PSYCHOPHYSICS
     gmean = math.exp(psych.exponent * log_ratio)
     log_sd = psych.log_sd_of_medians(log_ratio, sessions)
     return Percept(gmean, gmean * math.sqrt(math.expm1(log_sd**2)), "physics", log_ratio)
@@ -132,13 +132,13 @@ def draw_people(seed: int, spawn_key: tuple[int, ...], participants: int) -> tup
     the model's exponent times log(S / S_R3). Keyed by the seed alone (not by any specimen), so a person is the
     same for every specimen they rate.
     """
-    psych = perception.PSYCHOPHYSICS
+    psych = finger.PSYCHOPHYSICS
     z = _rng(seed, spawn_key, 3).standard_normal((participants, 2))
     return psych.scale_sd * z[:, 0], np.exp(psych.exponent_sd * z[:, 1] - 0.5 * psych.exponent_sd**2)
 
 
 def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 10, sessions: int = 3,
-                   reference: str = REFERENCE, spawn_key: tuple[int, ...] = (),
+                   reference: str = REFERENCE_SPECIMEN, spawn_key: tuple[int, ...] = (),
                    ratings_from: str = "paper") -> pd.DataFrame:
     """ratings.csv rows: every participant rates every specimen but the reference in each session.
 
@@ -153,7 +153,7 @@ def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 
     rated = [s for s in specimens if s.name != reference]
     draws = {}
     people = None
-    psych = perception.PSYCHOPHYSICS
+    psych = finger.PSYCHOPHYSICS
     for specimen in rated:
         p = percept(specimen, ratings_from=ratings_from, sessions=sessions)
         rng = _rng(seed, spawn_key, 1, zlib.crc32(specimen.name.encode("utf-8")))

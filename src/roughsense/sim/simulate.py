@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 import math
-import numbers
 import os
 import re
 import tomllib
@@ -20,17 +19,22 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import atomic
+from .._util import atomic
+from .._util.checks import Integer, Real, check
+from .._util.workers import process_pool
 from ..errors import ConfigError, OutputExistsError
-from ..study import (COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, MAX_FORCE_N, MAX_REPETITION, RATINGS_CSV,
-                     SPECIMENS_CSV, STUDY_TOML, SensorSettings, StudyWriter, check_name)
-from ..workers import process_pool
+from ..io.names import check_name
+from ..io.protocol import MAX_FORCE_N, MAX_REPETITION
+from ..io.sensor_settings import DEFAULT_ROI, SensorSettings
+from ..io.study import COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, RATINGS_CSV, SPECIMENS_CSV, STUDY_TOML
+from ..io.writer import StudyWriter
+from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
 from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
-from .panel import REFERENCE, check_ratings_from, percept, simulate_panel
-from .specimens import PAPER_SPECIMENS, SPECIMEN_LENGTH_MM, Specimen, parse_specimen
+from .panel import check_ratings_from, percept, simulate_panel
+from .specimens import SPECIMEN_LENGTH_MM, Specimen, parse_specimen
 
 SUBSAMPLES_PER_PX = 7
 NO_CONTACT_GAP_MM = 1e3  # beyond the specimen's ends nothing touches the pad
@@ -68,9 +72,8 @@ class SimulationConfig:
         if not self.forces_n:
             raise ConfigError("--forces: give at least one force")
         for f in self.forces_n:
-            if not (isinstance(f, (int, float)) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= MAX_FORCE_N):
-                raise ConfigError(f"--forces: every force must be a positive number of newtons up to {MAX_FORCE_N:g}, "
-                                  f"got {f!r}")
+            check(f, Real(0.0, MAX_FORCE_N, low_open=True), name="--forces: every force",
+                  must=f"a positive number of newtons up to {MAX_FORCE_N:g}")
         _check_force_labels(self.forces_n)
         check_ratings_from(self.ratings_from)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
@@ -80,8 +83,7 @@ class SimulationConfig:
                 raise ConfigError(f"{option} must be a positive number of mm, got {value!r}")
         for option, value, least in (("--repetitions", self.repetitions, 1), ("--seed", self.seed, 0),
                                      ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < least:
-                raise ConfigError(f"{option} must be a whole number, at least {least}, got {value!r}")
+            check(value, Integer(least), name=option, must=f"a whole number, at least {least}")
         if self.repetitions > MAX_REPETITION:
             raise ConfigError(f"--repetitions must be at most {MAX_REPETITION}, got {self.repetitions}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
@@ -148,7 +150,7 @@ def _check_force_labels(forces_n: Sequence[float]) -> None:
             seen[label(f)] = f
 
 
-def _check_unique_images(trials: Sequence["Trial"]) -> None:
+def _check_unique_images(trials: Sequence[Trial]) -> None:
     """Planned image names must differ (also in case: a case-insensitive disk would merge them)."""
     seen: dict[str, str] = {}
     for t in trials:
@@ -403,15 +405,15 @@ class SimulationRun:
 
     def _write_tables(self) -> None:
         config, writer = self.config, self.writer
-        writer.write_config(name=config.name, reference_specimen=REFERENCE,
-                            sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi="center"),
+        writer.write_config(name=config.name, reference_specimen=REFERENCE_SPECIMEN,
+                            sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi=DEFAULT_ROI),
                             forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
         table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
                               for s in self.specimens])
         writer.write_specimens(table)
         writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=(4,),
                                             participants=config.participants, sessions=config.sessions,
-                                            reference=REFERENCE, ratings_from=config.ratings_from))
+                                            reference=REFERENCE_SPECIMEN, ratings_from=config.ratings_from))
 
     def __iter__(self) -> Iterator[str]:
         try:

@@ -11,13 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..study import NAME_RULE, is_safe_name
+from ..io.names import NAME_RULE, is_safe_name
+from ..paper import PAPER_WAVELENGTHS_MM
 
 SPECIMEN_LENGTH_MM = 50.0
 SPECIMEN_WIDTH_MM = 10.0
-DEFAULT_GROOVE_DEPTH_MM = 1.0  # not in the paper (DESIGN.md); deep enough that the pad never reaches the floor
+DEFAULT_GROOVE_DEPTH_MM = 1.0  # not in the paper, chosen (docs/simulator.md); deep enough that the pad never reaches the floor
 SHAPES = ("rectangular", "circular", "sinusoidal", "random")
-PAPER_WAVELENGTHS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
 
 
 @dataclass(frozen=True)
@@ -146,8 +146,6 @@ def _preset_table() -> dict[str, Specimen]:
 
 
 PRESETS: dict[str, Specimen] = _preset_table()
-PAPER_SPECIMENS: tuple[str, ...] = tuple([f"R{lam:g}" for lam in PAPER_WAVELENGTHS_MM]
-                                         + [f"C{lam:g}" for lam in PAPER_WAVELENGTHS_MM])
 
 SPEC_HELP = (
     "A preset (R2, R2.5, ..., R5, C2, ..., C5) or a spec: rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "

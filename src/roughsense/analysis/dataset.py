@@ -12,8 +12,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from .errors import InputError
-from .study import RATINGS_CSV, Study
+from ..errors import InputError
+from ..io.study import RATINGS_CSV, Study
 
 COMBINED = "combined"
 TRIAL_KEYS = ("specimen", "pad", "repetition")
@@ -21,7 +21,7 @@ TRIAL_KEYS = ("specimen", "pad", "repetition")
 
 def spectrum_for(study: Study, *, n_jobs: int = 1):
     """The SpatialSpectrum configured from the study's sensor settings (camera scale and ROI)."""
-    from .sensor import SpatialSpectrum
+    from ..sensor.spectrum import SpatialSpectrum
 
     return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs,
                            max_pixels=study.sensor.max_pixels).fit()
@@ -87,20 +87,31 @@ def condition_matrix(
     if at_pad.empty:
         pads = ", ".join(sorted(map(str, features["pad"].unique())))
         raise InputError(f"no images of pad {pad!r} (pads in the study: {pads})", path=source)
-    present = sorted(map(str, at_pad["condition"].unique()), key=_force_order)
     if condition != COMBINED:
-        if condition not in ("1N", "2N", "3N") and condition not in present:
-            raise InputError(f"unknown condition {condition!r}; expected 1N, 2N, 3N or combined", path=source)
-        rows = at_pad[at_pad["condition"] == condition]
-        if rows.empty:
-            raise InputError(
-                f"no images of pad {pad!r} at {condition} (conditions present: {', '.join(present)})", path=source
-            )
-        rows = rows.sort_values(["specimen", "repetition", "image"], kind="stable")
-        meta = rows[["specimen", "repetition", "image"]].reset_index(drop=True)
-        return rows[freq].to_numpy(np.float64), meta
-
+        return _single_force_matrix(at_pad, freq, pad, condition, source)
     forces = list(combined_forces) if combined_forces is not None else ["1N", "2N", "3N"]
+    return _combined_matrix(at_pad, freq, pad, forces, source)
+
+
+def _single_force_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, condition: str, source
+                         ) -> tuple[np.ndarray, pd.DataFrame]:
+    """One row per image at ``condition``, in specimen, repetition, image order."""
+    present = sorted(map(str, at_pad["condition"].unique()), key=_force_order)
+    if condition not in ("1N", "2N", "3N") and condition not in present:
+        raise InputError(f"unknown condition {condition!r}; expected 1N, 2N, 3N or combined", path=source)
+    rows = at_pad[at_pad["condition"] == condition]
+    if rows.empty:
+        raise InputError(
+            f"no images of pad {pad!r} at {condition} (conditions present: {', '.join(present)})", path=source
+        )
+    rows = rows.sort_values(["specimen", "repetition", "image"], kind="stable")
+    meta = rows[["specimen", "repetition", "image"]].reset_index(drop=True)
+    return rows[freq].to_numpy(np.float64), meta
+
+
+def _combined_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, forces: list[str], source
+                     ) -> tuple[np.ndarray, pd.DataFrame]:
+    """One row per trial: its spectra at ``forces`` side by side; a trial missing a force or holding two is refused."""
     rows = at_pad[at_pad["condition"].isin(forces)]
     if rows.empty:
         raise InputError(f"no images of pad {pad!r} at {', '.join(forces)} for the combined condition", path=source)
@@ -129,7 +140,7 @@ def condition_matrix(
     meta = wide.reset_index()[["specimen", "repetition"]].copy()
     for f in forces:
         meta[f"image_{f}"] = wide[f].to_numpy()
-    from .sensor import combine_forces
+    from ..sensor.spectrum import combine_forces
 
     return combine_forces(blocks), meta
 
@@ -164,6 +175,6 @@ def perceived_roughness(study: Study) -> pd.DataFrame:
     """Aggregate the study's ratings (median over sessions, geometric mean over participants)."""
     if study.ratings is None:
         raise InputError("file not found (fitting a model needs participants' ratings)", path=study.root / "ratings.csv")
-    from .perception import aggregate_ratings  # written concurrently; imported only when needed
+    from .ratings import aggregate_ratings  # written concurrently; imported only when needed
 
     return aggregate_ratings(study.ratings, reference=study.reference_specimen, path=study.root / RATINGS_CSV)

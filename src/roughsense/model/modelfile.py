@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import atomic
-from .errors import ModelFileError
+from .._util import atomic
+from .._util.checks import POSITIVE_INT, Real
+from ..errors import ModelFileError
 from .pls import SIMPLS, linear_predict
 
 FORMAT = "roughsense-model"
@@ -136,7 +137,7 @@ def save_model(
 
 
 def _version() -> str:
-    from . import __version__
+    from .. import __version__
 
     return __version__
 
@@ -200,14 +201,14 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
         fail(f"model kind {model['kind']!r} is not supported (expected {KIND!r})")
     A, p = model["n_components"], model["n_features"]
     for name, value in (("n_components", A), ("n_features", p)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if not POSITIVE_INT.accepts(value):
             fail(f"model.{name} must be a positive whole number, got {value!r}")
     x_mean = _array(model["x_mean"], (p,), "model.x_mean", path)
     coef = _array(model["coefficients"], (A, p), "model.coefficients", path)
     intercepts = _array(model["intercepts"], (A,), "model.intercepts", path)
     pct_var = _array(model["pct_var"], (2, A), "model.pct_var", path)
     y_mean = model["y_mean"]
-    if isinstance(y_mean, bool) or not isinstance(y_mean, (int, float)) or not math.isfinite(y_mean):
+    if not Real().accepts(y_mean):
         fail(f"model.y_mean must be a finite number, got {y_mean!r}")
     features = _check_feature_definition(document["features"], p, path)
     training = document["training"]
@@ -267,7 +268,7 @@ def _check_feature_definition(features, n_features: int, path: Path | None) -> d
     if len(set(conditions)) != len(conditions):
         fail(f"the feature definition repeats a force condition: {conditions}")
     n_freqs = spectrum.get("n_freqs")
-    if isinstance(n_freqs, bool) or not isinstance(n_freqs, int) or n_freqs < 1:
+    if not POSITIVE_INT.accepts(n_freqs):
         fail("the feature definition's spectrum needs a positive whole n_freqs")
     if n_freqs * len(conditions) != n_features:
         fail(

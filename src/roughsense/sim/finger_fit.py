@@ -1,7 +1,7 @@
-"""Fitting and validating the simulated finger (:mod:`roughsense.sim.perception`) against given ratings.
+"""Fitting and validating the simulated finger (:mod:`roughsense.sim.finger`) against given ratings.
 
 The functions take the targets as arguments and read no table: ``scripts/fit_finger.py`` passes the paper's
-values and prints the constants committed in ``perception.py``; the tests run the leave-one-specimen-out check.
+values and prints the constants committed in ``finger.py``; the tests run the leave-one-specimen-out check.
 
 Free parameters: the receptor depth (searched over the SA1 range 0.5-1.0 mm), the saturation strain (searched on
 a log grid over 3-30 %) and the psychophysical exponent (least squares in logs, through R3 = 1, in closed form).
@@ -17,7 +17,8 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.stats import spearmanr
 
-from .perception import FINGER, REFERENCE, Finger, _median_variance, contact_pressures, sa1_rate, subsurface_strain
+from ..paper import REFERENCE_SPECIMEN
+from .finger import FINGER, Finger, _median_variance, contact_pressures, sa1_rate, subsurface_strain
 from .specimens import PRESETS, Specimen
 
 DEPTHS_MM = tuple(round(0.5 + 0.05 * i, 2) for i in range(11))  # SA1 (Merkel) depth range, 0.5-1.0 mm
@@ -61,7 +62,7 @@ class _Table:
     """log(S / S_R3) for every specimen at every (depth, saturation) of the grid."""
 
     def __init__(self, specimens: Sequence[Specimen], finger: Finger):
-        everyone = [PRESETS[REFERENCE], *specimens]
+        everyone = [PRESETS[REFERENCE_SPECIMEN], *specimens]
         solved = [contact_pressures(s, finger) for s in everyone]
         table = np.empty((len(DEPTHS_MM), len(SATURATIONS), len(everyone)))
         for i, depth in enumerate(DEPTHS_MM):
@@ -85,8 +86,8 @@ class _Table:
 def _targets(specimens: Sequence[Specimen], ratings: Sequence[float]) -> np.ndarray:
     if len(specimens) != len(ratings) or len(specimens) < 3:
         raise ValueError("give at least three specimens and one rating (R3 = 1) per specimen")
-    if any(s.name == REFERENCE for s in specimens):
-        raise ValueError(f"{REFERENCE} is the reference (1 by definition), not a rated specimen")
+    if any(s.name == REFERENCE_SPECIMEN for s in specimens):
+        raise ValueError(f"{REFERENCE_SPECIMEN} is the reference (1 by definition), not a rated specimen")
     return np.log(np.asarray(ratings, dtype=float))
 
 

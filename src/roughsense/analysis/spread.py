@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator
 
-from .errors import ConfigError, InputError
+from ..errors import ConfigError, InputError
 from .metrics import overlap
 
 KINDS = ("weber", "constant")
@@ -116,10 +116,10 @@ def paper_predictive(kind: str = "weber") -> pd.DataFrame:
     Rows: pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl (the paper's), predictive_sd,
     ovl_predictive. The spread model sees only the paper's perceived values of the other specimens.
     """
-    from . import reference
+    from .. import paper
 
-    people = reference.perceived_roughness().rename(columns={"perceived_gmean": "gmean", "perceived_sd": "sd"})
-    results = reference.paper_results().merge(people[["specimen", "gmean", "sd"]], on="specimen", how="left")
+    people = paper.perceived_roughness().rename(columns={"perceived_gmean": "gmean", "perceived_sd": "sd"})
+    results = paper.paper_results().merge(people[["specimen", "gmean", "sd"]], on="specimen", how="left")
     frames = []
     for _, group in results.groupby(["pad", "condition"], sort=False):
         extra = predictive_ovl(group, people, kind=kind)

@@ -11,16 +11,20 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .modelfile import LoadedModel, check_features, feature_definition_for
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def model_spectrum(loaded: LoadedModel, *, n_jobs: int = 1):
     """The SpatialSpectrum the model was trained with, rebuilt from its file (and checked against it)."""
-    from .sensor import SpatialSpectrum
+    from ..sensor.spectrum import SpatialSpectrum
 
     spectrum = SpatialSpectrum.from_definition(loaded.features["spectrum"], n_jobs=n_jobs).fit()
     check_features(loaded, feature_definition_for(spectrum, loaded.conditions))
@@ -42,7 +46,7 @@ def group_images(loaded: LoadedModel, images: Sequence) -> list[tuple]:
 
 def spectra_to_features(loaded: LoadedModel, spectra: np.ndarray) -> np.ndarray:
     """(n_images, n_freqs) spectra in trial order -> (n_trials, n_features) model inputs."""
-    from .sensor import combine_forces
+    from ..sensor.spectrum import combine_forces
 
     k = len(loaded.conditions)
     spectra = np.asarray(spectra, dtype=np.float64)
@@ -144,14 +148,15 @@ def groups_from_flags(loaded: LoadedModel, by_condition: Mapping[str, Sequence])
     return groups
 
 
-def groups_from_study(loaded: LoadedModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], "pd.DataFrame"]:
+def groups_from_study(loaded: LoadedModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
     """Trials of the model's pad from a study's manifest: each (specimen, repetition) with one image per force.
 
     Returns the groups (paths, in the model's condition order) and their specimen and repetition.
     """
     import pandas as pd
 
-    from .study import MANIFEST_CSV, csv_line
+    from ..io.study import MANIFEST_CSV
+    from ..io.tables import csv_line
 
     manifest_path = study.root / MANIFEST_CSV
     manifest = study.manifest.reset_index(drop=True)

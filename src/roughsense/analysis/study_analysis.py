@@ -13,15 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .. import paper
+from ..errors import InputError
+from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
+from ..model.pls_cv import nested_group_predictions, pls_cv
 from . import controls as _controls
-from . import dataset, reference
+from . import dataset
 from .claims import evaluate_claims
-from .errors import InputError
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
-from .perception import aggregate_ratings
-from .pls import nested_group_predictions, pls_cv
 from .spread import paper_predictive, predictive_ovl
-from .study import Study
 
 CONDITIONS = ("1N", "2N", "3N", "combined")
 CV_SCHEMES = ("loo", "loso")
@@ -76,11 +76,13 @@ class StudyAnalysis:
     seed: int = 0
     wavelengths: dict[str, float] = field(default_factory=dict)
 
-    def fit(self, pad: str, condition: str, cv: str = "loo") -> ConditionFit:
+    def condition_fit(self, pad: str, condition: str, cv: str = "loo") -> ConditionFit:
+        """The cross-validated model of one pad, condition and CV scheme (a lookup: everything was fitted already)."""
         for item in self.fits:
             if (item.pad, item.condition, item.cv) == (pad, condition, cv):
                 return item
-        raise KeyError((pad, condition, cv))
+        fitted = ", ".join(f"{f.pad} {f.condition} {f.cv}" for f in self.fits) or "none"
+        raise KeyError(f"no model for {pad} {condition} {cv}; fitted: {fitted}")
 
     @property
     def pads(self) -> list[str]:
@@ -151,7 +153,7 @@ def _loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max
 
     The outer LOSO run already holds every held-out specimen's prediction at every count, so the nested
     prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks
-    (:func:`roughsense.pls.nested_group_predictions`, which the permutation control reuses).
+    (:func:`roughsense.model.pls_cv.nested_group_predictions`, which the permutation control reuses).
     """
     predictions, counts = nested_group_predictions(X, y[:, None], specimens,
                                                    outer.predictions[None, :, : max_components + 1])
@@ -236,23 +238,23 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
     The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
     with R3 as the reference; beside any other design they would read as a comparison that is not one.
     """
-    paper_specimens = list(reference.perceived_roughness()["specimen"])
+    paper_specimens = list(paper.perceived_roughness()["specimen"])
     problems = []
     if set(specimens) != set(paper_specimens):
         problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
                         f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
     if list(conditions) != list(CONDITIONS):
         problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(CONDITIONS)}")
-    if reference_specimen != reference.REFERENCE_SPECIMEN:
-        problems.append(f"its reference is {reference_specimen}, the paper's {reference.REFERENCE_SPECIMEN}")
+    if reference_specimen != paper.REFERENCE_SPECIMEN:
+        problems.append(f"its reference is {reference_specimen}, the paper's {paper.REFERENCE_SPECIMEN}")
     if problems:
         return (), "The paper's values are not shown: " + "; ".join(problems) + "."
-    matching = tuple(p for p in pads if p in reference.PAPER_PADS)
-    others = [p for p in pads if p not in reference.PAPER_PADS]
+    matching = tuple(p for p in pads if p in paper.PAPER_PADS)
+    others = [p for p in pads if p not in paper.PAPER_PADS]
     note = ""
     if others:
         note = (f"The paper's values are not shown for the {', '.join(others)} pad(s): the paper tested only the "
-                f"{' and '.join(reference.PAPER_PADS)} pads.")
+                f"{' and '.join(paper.PAPER_PADS)} pads.")
     return matching, note
 
 
@@ -276,34 +278,61 @@ def analyse_study(
     predictive OVL of our predictions and of the paper's published ones. ``combined_forces`` (condition labels) are
     the forces the "combined" condition concatenates; default 1N, 2N, 3N.
     """
+    perceived = _perceived_by_enough_people(study)
+    if features is None:
+        features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
+    _check_repetitions(features, study)
+    analysis = _empty_analysis(study, perceived, features, max_components, seed)
+    analysis.paper_pads, analysis.paper_note = paper_comparability(
+        study.specimen_names, study.pads, conditions, study.reference_specimen)
+    jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
+    iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
+    control_jobs = _fit_every_condition(analysis, iterator, features, study, combined_forces, n_permutations)
+    analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    analysis.controls["seed"] = int(seed)  # the shufflings are default_rng(seed)'s: rerun with it to get them back
+    analysis.tests = _signed_rank_tests(analysis, conditions)
+    analysis.paper_predictive = paper_predictive()
+    analysis.claims = evaluate_claims(analysis)
+    return analysis
+
+
+def _perceived_by_enough_people(study: Study) -> pd.DataFrame:
+    """The study's targets, refused where a specimen has fewer than the 2 raters that its SD and OVL need."""
     if study.ratings is None:
         raise InputError("the study has no ratings.csv; the analysis needs participants' ratings", path=study.root)
-    perceived = aggregate_ratings(study.ratings, study.reference_specimen, path=study.root / "ratings.csv")
+    perceived = dataset.perceived_roughness(study)
     rated = perceived[perceived["specimen"] != study.reference_specimen]
     lonely = rated[rated["n_participants"] < 2]
     if not lonely.empty:
         raise InputError(
             f"specimen {lonely['specimen'].iloc[0]} is rated by only {int(lonely['n_participants'].iloc[0])} participant; "
             "the analysis compares predictions with the spread across participants (SD, OVL), so every specimen "
-            "needs ratings from at least 2", path=study.root / "ratings.csv")
-    if features is None:
-        features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
+            "needs ratings from at least 2", path=study.root / RATINGS_CSV)
+    return perceived
+
+
+def _check_repetitions(features: pd.DataFrame, study: Study) -> None:
+    """Cross-validation needs at least 2 images of each specimen on each pad at each force."""
     counts = features.groupby(["pad", "specimen", "condition"]).size()
     if counts.min() < 2:
         (pad, specimen, condition) = counts.idxmin()
         raise InputError(
             f"too few repetitions for cross-validation: {specimen} on the {pad} pad at {condition} has {counts.min()}",
-            path=study.root / "manifest.csv",
+            path=study.root / MANIFEST_CSV,
         )
+
+
+def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFrame, max_components: int,
+                    seed: int) -> StudyAnalysis:
+    """The analysis's record of the study (targets, shapes, mean spectra) before any model is fitted."""
     freq_columns = dataset.frequency_columns(features)
-    freq_per_mm = np.array([float(c) for c in freq_columns])
     mean_spectra = features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index()
-    analysis = StudyAnalysis(
+    return StudyAnalysis(
         study_name=study.name,
         reference_specimen=study.reference_specimen,
         perceived=perceived,
         shapes=dict(zip(study.specimens["specimen"], study.specimens["shape"])),
-        freq_per_mm=freq_per_mm,
+        freq_per_mm=np.array([float(c) for c in freq_columns]),
         mean_spectra=mean_spectra,
         max_components=max_components,
         simulation=study.simulation,
@@ -311,26 +340,25 @@ def analyse_study(
         wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
             "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
     )
-    analysis.paper_pads, analysis.paper_note = paper_comparability(
-        study.specimen_names, study.pads, conditions, study.reference_specimen)
-    jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
-    iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
+
+
+def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, study: Study,
+                         combined_forces: Sequence[str] | None, n_permutations: int) -> list[tuple]:
+    """Cross-validate each (pad, condition, cv) into ``analysis.fits``; returns the controls' jobs, one per fit.
+
+    X and y are built once per pad and condition and shared by both CV schemes and the controls.
+    """
     matrices: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, pd.DataFrame]] = {}
     control_jobs: list[tuple] = []
-    for pad, condition, cv in iterator:
+    for pad, condition, cv in jobs:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
-            y = dataset.targets(meta, perceived, path=study.root / "ratings.csv")
+            y = dataset.targets(meta, analysis.perceived, path=study.root / RATINGS_CSV)
             matrices[(pad, condition)] = (X, y, meta)
         X, y, meta = matrices[(pad, condition)]
-        fit = _condition_fit(X, y, meta, perceived, pad, condition, cv, max_components)
+        fit = _condition_fit(X, y, meta, analysis.perceived, pad, condition, cv, analysis.max_components)
         analysis.fits.append(fit)
         specimens = meta["specimen"].astype(str).to_numpy()
-        permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
+        permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, analysis.seed)
         control_jobs.append((fit, X, y, specimens, permutations))
-    analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
-    analysis.controls["seed"] = int(seed)  # the shufflings are default_rng(seed)'s: rerun with it to get them back
-    analysis.tests = _signed_rank_tests(analysis, conditions)
-    analysis.paper_predictive = paper_predictive()
-    analysis.claims = evaluate_claims(analysis)
-    return analysis
+    return control_jobs

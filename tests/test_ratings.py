@@ -13,9 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy import stats
 
-from roughsense.errors import ConfigError, InputError, RoughsenseWarning
-from roughsense.perception import (
-    PAPER_SPECIMENS,
+from roughsense.analysis.ratings import (
     MissingRatingsWarning,
     aggregate_ratings,
     make_schedule,
@@ -23,6 +21,9 @@ from roughsense.perception import (
     read_ratings,
     render_sheet,
 )
+from roughsense.errors import ConfigError, InputError, RoughsenseWarning
+from roughsense.io.ratings import validate_ratings
+from roughsense.paper import PAPER_SPECIMENS
 
 
 def ratings_frame(table: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
@@ -180,7 +181,7 @@ def test_not_a_number_quotes_the_cell_as_written(tmp_path, cell):
 def test_not_a_number_in_memory_is_formatted_not_numpy_repr():
     frame = ratings_frame({("P1", "R2"): [0.5, np.inf]})
     with pytest.raises(InputError) as info:
-        aggregate_ratings(frame)
+        validate_ratings(frame)
     assert info.value.message == "not a number: inf" and info.value.row == 3
 
 
@@ -191,11 +192,25 @@ def test_blank_rating_cells_are_trials_not_done(tmp_path):
         aggregate_ratings(frame)
 
 
-def test_in_memory_frames_are_validated_too():
+def test_in_memory_frames_pass_the_readers_validator():
+    """One validator: a frame built in memory gets the same checks and messages as a file."""
     frame = ratings_frame({("P1", "R2"): [0.5, -0.1]})
     with pytest.raises(InputError, match="positive") as info:
-        aggregate_ratings(frame, path="study/ratings.csv")
+        validate_ratings(frame, path="study/ratings.csv")
     assert info.value.row == 3 and "study/ratings.csv" in str(info.value)
+
+
+def test_a_study_folder_and_the_ratings_command_refuse_a_bad_rating_alike(tmp_path):
+    """study.toml folders read ratings.csv through the same validator as `roughsense ratings`."""
+    from roughsense.io.ratings import read_ratings_table
+
+    path = write(tmp_path, GOOD + "P3,1,R2,0\n")
+    with pytest.raises(InputError) as by_study:
+        read_ratings_table(path)
+    with pytest.raises(InputError) as by_command:
+        read_ratings(path)
+    assert str(by_study.value) == str(by_command.value)
+    assert by_study.value.message == "a magnitude estimate must be positive, got 0" and by_study.value.row == 6
 
 
 # --------------------------------------------------------------------------- protocol

@@ -12,7 +12,8 @@ Three stages, each after a published account of macroscopic roughness (spatial c
    sigma_z = -P (1 + kz) e^(-kz), sigma_x = -P (1 - kz) e^(-kz), sigma_y = nu (sigma_x + sigma_z). The SA1 drive is
    the compressive vertical strain there, turned into a saturating drive r = 1 - exp(-strain / saturation_strain)
    (not rectified: tension between contacts lowers it; docs/simulator.md compares the alternatives). Roughness
-   follows the *spatial variation* of SA1 firing (Connor & Johnson 1992; Blake, Hsiao & Johnson 1997), summarised by the SD of r along the line: the root-mean-square
+   follows the *spatial variation* of SA1 firing (Connor & Johnson 1992; Blake, Hsiao & Johnson 1997), summarised by
+   the SD of r along the line: the root-mean-square
    difference between two receptors, averaged over all their separations, is sqrt(2) times that SD.
 3. **Magnitude estimation.** Relative to the reference R3 (felt at the exploration force), a participant reports
    exp(a) * (S / S_R3) ** (b * exp(c)) with S the spatial variation; a ~ N(0, scale_sd^2) is that person's scale,
@@ -34,10 +35,9 @@ import numpy as np
 from scipy import fft as sfft
 
 from ..errors import ConfigError
+from ..paper import REFERENCE_SPECIMEN
 from . import contact
 from .specimens import PRESETS, SPECIMEN_LENGTH_MM, Specimen
-
-REFERENCE = "R3"
 
 # --- output of scripts/fit_finger.py (paper's 13 rated specimens; rerun it to reproduce, do not edit by hand).
 # Depth and saturation ended on their search bounds (1.0 mm, 3 %): docs/simulator.md, "The finger". ---
@@ -197,7 +197,7 @@ def _median_variance(sessions: int) -> float:
 
 def log_ratio(specimen: Specimen, *, finger: Finger = FINGER, force_n: float | None = None) -> float:
     """log(S / S_R3): the specimen's spatial variation relative to the reference felt at the exploration force."""
-    reference = spatial_variation(PRESETS[REFERENCE], finger=finger)
+    reference = spatial_variation(PRESETS[REFERENCE_SPECIMEN], finger=finger)
     return math.log(spatial_variation(specimen, finger=finger, force_n=force_n) / reference)
 
 

@@ -11,10 +11,11 @@ import pytest
 from scipy import integrate, stats
 from sklearn.cross_decomposition import PLSRegression
 
-from roughsense import reference
+from roughsense import paper as published
+from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import InputError
-from roughsense.evaluation import analyse_study
-from roughsense.study import SensorSettings, Study
+from roughsense.io.sensor_settings import SensorSettings
+from roughsense.io.study import Study
 
 FREQS = np.linspace(0.1, 1.0, 45)
 FREQ_COLUMNS = [repr(float(f)) for f in FREQS]
@@ -22,7 +23,7 @@ FREQ_COLUMNS = [repr(float(f)) for f in FREQS]
 
 def synthetic_study(*, repetitions: int = 6, seed: int = 0, pads=("smooth", "fingerprint")):
     rng = np.random.default_rng(seed)
-    perceived = reference.perceived_roughness()
+    perceived = published.perceived_roughness()
     specimens = perceived[["specimen", "shape", "wavelength_mm"]].copy()
     rows = []
     for pad in pads:
@@ -69,7 +70,7 @@ def _gmean_of_medians(ratings: pd.DataFrame) -> pd.Series:
 
 
 def _regression_data(study, features, pad: str, condition: str):
-    """Rows, X and y of one pad and condition, built independently of roughsense.dataset."""
+    """Rows, X and y of one pad and condition, built independently of roughsense.analysis.dataset."""
     rows = features[(features.pad == pad) & (features.condition == condition)].reset_index(drop=True)
     gmean = _gmean_of_medians(study.ratings)
     gmean["R3"] = 1.0
@@ -78,7 +79,7 @@ def _regression_data(study, features, pad: str, condition: str):
 
 def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
     analysis, study, features = analysis_and_inputs
-    fit = analysis.fit("smooth", "2N", "loo")
+    fit = analysis.condition_fit("smooth", "2N", "loo")
     rows, X, y = _regression_data(study, features, "smooth", "2N")
     expected = np.empty(len(y))
     for i in range(len(y)):
@@ -94,7 +95,7 @@ def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
 def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inputs):
     """Nested LOSO, recomputed with scikit-learn: inner LOSO over the other specimens picks k, then refit."""
     analysis, study, features = analysis_and_inputs
-    fit = analysis.fit("fingerprint", "1N", "loso")
+    fit = analysis.condition_fit("fingerprint", "1N", "loso")
     rows, X, y = _regression_data(study, features, "fingerprint", "1N")
     specimens = rows["specimen"].to_numpy()
     held = specimens == "C4"
@@ -117,7 +118,7 @@ def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inpu
 
 def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs):
     analysis, study, _ = analysis_and_inputs
-    fit = analysis.fit("smooth", "combined", "loo")
+    fit = analysis.condition_fit("smooth", "combined", "loo")
     perceived = analysis.perceived.set_index("specimen")
     for specimen in ("R2", "C5"):
         preds = fit.predictions.loc[fit.predictions.specimen == specimen, "prediction"].to_numpy()
@@ -135,7 +136,7 @@ def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs)
 
 def test_combined_uses_all_three_forces_of_a_trial(analysis_and_inputs):
     analysis, _, _ = analysis_and_inputs
-    fit = analysis.fit("smooth", "combined", "loo")
+    fit = analysis.condition_fit("smooth", "combined", "loo")
     assert len(fit.predictions) == 14 * 6
     assert analysis.cv_table().query("condition == 'combined' and cv == 'loo' and pad == 'smooth'").shape[0] == 9
 
@@ -159,7 +160,7 @@ def test_signed_rank_tests_match_scipy(analysis_and_inputs):
 
 def test_results_follow_the_paper_schema(analysis_and_inputs):
     analysis, _, _ = analysis_and_inputs
-    paper = reference.paper_results()
+    paper = published.paper_results()
     for cv in ("loo", "loso"):
         results = analysis.results(cv)
         # The paper's columns first, unchanged; ours are only ever added after them.

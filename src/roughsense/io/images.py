@@ -6,18 +6,23 @@ the file's bit depth, so 16-bit images are not silently reduced to 8 bits. Failu
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import zlib
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .study import DEFAULT_MAX_PIXELS
+from ..errors import InputError
 
 #: MATLAB ``rgb2gray`` weights: the first row of the inverse NTSC (YIQ -> RGB) matrix, unrounded
 #: (0.2989, 0.5870, 0.1140 to four places). They sum to 1, so a neutral RGB image equals its gray version.
 GRAY_WEIGHTS_RGB = (0.298936021293775, 0.587043074451121, 0.114020904255103)
+
+#: Largest image read, in pixels (width x height): a header claiming more is refused before decoding, so a
+#: small file that inflates to gigabytes (a "decompression bomb") cannot exhaust memory. 100 Mpx is above
+#: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
+DEFAULT_MAX_PIXELS = 100_000_000
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
@@ -31,10 +36,8 @@ def _opencv():
     if _cv2 is None:
         import cv2
 
-        try:
+        with contextlib.suppress(AttributeError):  # very old builds have no logging module
             cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-        except AttributeError:  # very old builds without the logging module
-            pass
         _cv2 = cv2
     return _cv2
 

@@ -5,13 +5,17 @@ Values are transcribed from Yanwari & Okamoto, Sensors 25:2598 (2025): Tables 1-
 """
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 
 import pandas as pd
 
 PAPER_CITATION = "Yanwari & Okamoto, Sensors 25:2598 (2025)"
+#: The reference every rating is relative to: fixed at 1.0 by definition, never rated (Section 3.1).
 REFERENCE_SPECIMEN = "R3"
+#: The paper's gratings: rectangular (R) and circular (C), wavelength 2-5 mm in 0.5 mm steps.
+PAPER_WAVELENGTHS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
+PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in PAPER_WAVELENGTHS_MM)
 #: The pads the paper tested (Tables 1-3 and 4-6).
 PAPER_PADS = ("fingerprint", "smooth")
 
@@ -69,12 +73,12 @@ def _read(name: str) -> pd.DataFrame:
         return pd.read_csv(handle, dtype={"specimen": str, "pad": str, "condition": str, "shape": str})
 
 
-@lru_cache(maxsize=None)
+@cache
 def _paper_results() -> pd.DataFrame:
     return _read("paper_results.csv")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _perceived() -> pd.DataFrame:
     return _read("perceived_roughness.csv")
 

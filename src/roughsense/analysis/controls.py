@@ -8,7 +8,7 @@ components, and for leave-one-specimen-out its nested choice) is rerun on the sh
 p-value is the share of shufflings whose CV RMSE is at least as good as the real one's. The null model
 predicts each training fold's mean; its RMSE under the same CV is the floor any useful model must beat.
 
-Every shuffling's cross-validation runs through :func:`roughsense.pls.pls_cv_many`, which advances all of
+Every shuffling's cross-validation runs through :func:`roughsense.model.pls_cv.pls_cv_many`, which advances all of
 them as one batch over one rotation of X, and through the same nested-selection code as the real targets.
 """
 from __future__ import annotations
@@ -19,7 +19,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
-from .pls import _single_threaded_blas, nested_group_predictions, pls_cv_many
+from ..model.pls import _single_threaded_blas
+from ..model.pls_cv import nested_group_predictions, pls_cv_many
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = 199

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-from .errors import OutputExistsError, RoughsenseError
+from ..errors import OutputExistsError, RoughsenseError
 
 
 def _umask() -> int:

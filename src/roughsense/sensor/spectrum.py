@@ -22,10 +22,22 @@ from functools import lru_cache
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from .errors import ConfigError, InputError
-from .images import (GRAY_WEIGHTS_RGB, as_image, check_pixels, decode, decode_png_top_rows, load_gray, png_size,
-                     read_bytes, to_gray)
-from .study import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, Roi, check_max_pixels, parse_roi
+from .._util.checks import Integer, Options, check
+from ..errors import ConfigError, InputError
+from ..io.images import (
+    DEFAULT_MAX_PIXELS,
+    GRAY_WEIGHTS_RGB,
+    as_image,
+    check_pixels,
+    decode,
+    decode_png_top_rows,
+    load_gray,
+    png_size,
+    read_bytes,
+    to_gray,
+)
+from ..io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI, Roi, check_max_pixels, parse_roi
+from .settings import SPECTRUM_DEFAULTS, WINDOWS
 
 #: Pillow warns on stderr (DecompressionBombWarning) above this many pixels; larger PNGs go to OpenCV instead.
 _PILLOW_QUIET_PIXELS = 89_478_485
@@ -41,11 +53,14 @@ __all__ = [
     "spatial_spectrum",
 ]
 
-WINDOWS = ("hann", "none")
 FEATURE_VERSION = 1
 
 
-def frequency_grid(f_min_per_mm: float = 0.1, f_max_per_mm: float = 1.0, n_freqs: int = 45) -> np.ndarray:
+def frequency_grid(
+    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
+    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
+    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
+) -> np.ndarray:
     """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0)."""
     _check_band(f_min_per_mm, f_max_per_mm, n_freqs)
     return np.linspace(float(f_min_per_mm), float(f_max_per_mm), int(n_freqs))
@@ -58,8 +73,7 @@ def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
         raise ConfigError(f"band must be two numbers, got {f_min_per_mm!r}, {f_max_per_mm!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
-    if isinstance(n_freqs, bool) or not isinstance(n_freqs, (int, np.integer)) or n_freqs < 2:
-        raise ConfigError(f"n_freqs must be a whole number >= 2, got {n_freqs!r}")
+    check(n_freqs, Integer(2), name="n_freqs")
 
 
 # --------------------------------------------------------------------------- the spectrum of one line
@@ -81,7 +95,7 @@ def _dft_basis(width_px: int, px_per_mm: float, freqs: tuple[float, ...], window
     return basis
 
 
-def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = "hann") -> np.ndarray:
+def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = SPECTRUM_DEFAULTS.window) -> np.ndarray:
     """Amplitude spectrum of one gray-level line at the given frequencies, before normalisation.
 
     The mean is removed first, so brightness offsets and the DC leakage into the band vanish.
@@ -194,10 +208,8 @@ class _Plan:
               max_pixels=DEFAULT_MAX_PIXELS) -> _Plan:
         px = _check_px_per_mm(px_per_mm)
         max_pixels = check_max_pixels(max_pixels)
-        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
-            raise ConfigError(f"rows must be a whole number >= 1, got {rows!r}")
-        if window not in WINDOWS:
-            raise ConfigError(f"window must be one of {', '.join(WINDOWS)}, got {window!r}")
+        check(rows, Integer(1), name="rows")
+        check(window, Options(WINDOWS), name="window", must=f"one of {', '.join(WINDOWS)}")
         roi = parse_roi(roi)
         crop_h = CENTER_CROP_PX[1] if roi == "center" else roi[3] if not isinstance(roi, str) else None
         if crop_h is not None and rows > crop_h:
@@ -260,12 +272,12 @@ def spatial_spectrum(
     image,
     *,
     px_per_mm: float = DEFAULT_PX_PER_MM,
-    roi: Roi = "center",
-    rows: int = 1,
-    f_min_per_mm: float = 0.1,
-    f_max_per_mm: float = 1.0,
-    n_freqs: int = 45,
-    window: str = "hann",
+    roi: Roi = DEFAULT_ROI,
+    rows: int = SPECTRUM_DEFAULTS.rows,
+    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
+    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
+    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
+    window: str = SPECTRUM_DEFAULTS.window,
 ) -> np.ndarray:
     """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid."""
     plan = _Plan.build(px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window)
@@ -299,13 +311,13 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
     def __init__(
         self,
         px_per_mm: float = DEFAULT_PX_PER_MM,
-        roi: Roi = "center",
-        rows: int = 1,
-        f_min_per_mm: float = 0.1,
-        f_max_per_mm: float = 1.0,
-        n_freqs: int = 45,
+        roi: Roi = DEFAULT_ROI,
+        rows: int = SPECTRUM_DEFAULTS.rows,
+        f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
+        f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
+        n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
         n_jobs: int = 1,
-        window: str = "hann",
+        window: str = SPECTRUM_DEFAULTS.window,
         max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
         self.max_pixels = max_pixels
@@ -332,7 +344,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     def _jobs(self) -> int:
         n = self.n_jobs
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n == 0 or n < -1:
+        if not Integer(-1).accepts(n) or n == 0:
             raise ConfigError(f"n_jobs must be a positive whole number or -1, got {n!r}")
         return (os.cpu_count() or 1) if n == -1 else int(n)
 
@@ -413,7 +425,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
                 f_max_per_mm=float(definition["f_max_per_mm"]),
                 n_freqs=int(definition["n_freqs"]),
                 n_jobs=n_jobs,
-                window=str(definition.get("window", "hann")),
+                window=str(definition.get("window", "hann")),  # files from before the option: always Hann
                 max_pixels=max_pixels,
             )
         except (KeyError, TypeError, ValueError, AttributeError) as exc:

@@ -1,4 +1,4 @@
-"""Magnitude estimation (paper §3.1): validated ratings, the perceived-roughness targets, and the protocol.
+"""Magnitude estimation (paper §3.1): reading ratings, the perceived-roughness targets, and the protocol.
 
 Participants rate each specimen against the reference (R3 = 1.0, never rated) in several sessions.
 Per specimen, each participant's ratings are reduced to their median over sessions, and the medians
@@ -19,12 +19,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import ConfigError, InputError, RoughsenseWarning
-from .study import (DEFAULT_REFERENCE, RATING_COLUMNS, check_name_column, csv_line, drop_unrated, read_table,
-                    refuse_unknown)
-
-#: The paper's specimens: rectangular (R) and circular (C) gratings, wavelength 2-5 mm.
-PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5))
+from ..errors import ConfigError, InputError, RoughsenseWarning
+from ..io.ratings import RATING_COLUMNS, drop_unrated, natural_key, read_ratings_table, validate_ratings
+from ..io.tables import csv_line
+from ..paper import REFERENCE_SPECIMEN
 
 SD_DEFINITION = (
     "sd = sample standard deviation (ddof=1) across participants of each participant's median rating "
@@ -33,96 +31,13 @@ SD_DEFINITION = (
 
 SUMMARY_COLUMNS = ["specimen", "gmean", "sd", "n_participants", "n_sessions"]
 SCHEDULE_COLUMNS = ["participant", "session", "order", "specimen", "rating"]
-_TEXT_COLUMNS = ("participant", "session", "specimen")
 
 
 class MissingRatingsWarning(RoughsenseWarning):
     """A participant has no rating for some specimen in some session; the median uses what there is."""
 
 
-def natural_key(name: object) -> tuple:
-    """Sort "R2.5" before "R10" and numbers as numbers ("P2" < "P10", session "2" < "10")."""
-    parts = re.split(r"(\d+(?:\.\d+)?)", str(name))
-    return tuple((0, float(p), "") if i % 2 else (1, 0.0, p) for i, p in enumerate(parts) if p != "")
-
-
 # --------------------------------------------------------------------------- reading and validation
-
-
-def _line(frame: pd.DataFrame, position: int) -> int | None:
-    """File line of the row at ``position`` (frames keep ``index + 2 == line``; see read_ratings)."""
-    label = frame.index[position]
-    return csv_line(label) if isinstance(label, (int, np.integer)) else None
-
-
-def _cell_text(value: object) -> str:
-    """A cell as the user wrote it: text quoted verbatim, a number with ``:g`` (never numpy's repr)."""
-    if isinstance(value, str):
-        return repr(value)
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
-        return f"{value:g}"
-    return repr(value)
-
-
-def _validate(
-    frame: pd.DataFrame,
-    *,
-    path: str | os.PathLike[str] | None,
-    reference: str,
-    specimens: Iterable[str] | None,
-) -> pd.DataFrame:
-    """Domain checks shared by files and in-memory frames; returns a clean copy (text keys, float ratings)."""
-    missing = [c for c in RATING_COLUMNS if c not in frame.columns]
-    if missing:
-        found = ", ".join(map(str, frame.columns)) or "nothing"
-        raise InputError(f"missing column(s) {', '.join(missing)}; found {found}", path=path)
-    frame = frame.copy()
-    for column in _TEXT_COLUMNS:
-        text = frame[column].map(lambda v: "" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v).strip())
-        blank = text == ""
-        if blank.any():
-            raise InputError("empty value", path=path, row=_line(frame, np.flatnonzero(blank)[0]), column=column)
-        frame[column] = text
-        check_name_column(frame, column, Path(path) if path is not None else None, line=lambda i: _line(frame, i))
-    raw = frame["rating"]
-    values = pd.to_numeric(raw, errors="coerce").astype(float)
-    blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
-    bad = (values.isna() & ~blank) | np.isinf(values)
-    if bad.any():
-        i = np.flatnonzero(bad)[0]
-        raise InputError(f"not a number: {_cell_text(raw.iloc[i])}", path=path, row=_line(frame, i), column="rating")
-    if blank.any():
-        i = np.flatnonzero(blank)[0]
-        raise InputError("empty rating", path=path, row=_line(frame, i), column="rating")
-    nonpositive = values <= 0
-    if nonpositive.any():
-        i = np.flatnonzero(nonpositive)[0]
-        raise InputError(
-            f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path, row=_line(frame, i), column="rating"
-        )
-    frame["rating"] = values
-    is_reference = frame["specimen"] == reference
-    if is_reference.any():
-        raise InputError(
-            f"{reference} is the reference (fixed at 1.0 by definition) and must not be rated",
-            path=path, row=_line(frame, np.flatnonzero(is_reference)[0]), column="specimen",
-        )
-    if specimens is not None:
-        known = set(specimens)
-        refuse_unknown(frame, "specimen", known, path, line=lambda i: _line(frame, i),
-                       hint=f"expected one of {', '.join(sorted(known, key=natural_key))}")
-    keys = list(_TEXT_COLUMNS)
-    duplicated = frame.duplicated(keys, keep="first")
-    if duplicated.any():
-        i = np.flatnonzero(duplicated)[0]
-        row = frame.iloc[i]
-        first = _line(frame, np.flatnonzero((frame[keys] == row[keys]).all(axis=1))[0])
-        raise InputError(
-            f"participant {row['participant']} rated {row['specimen']} twice in session {row['session']}"
-            + (f" (first on line {first})" if first is not None else ""),
-            path=path, row=_line(frame, i), column="specimen",
-        )
-    return frame
 
 
 def _read_markdown_sheet(path: Path) -> pd.DataFrame:
@@ -162,7 +77,7 @@ def read_ratings(
     path: str | os.PathLike[str],
     *,
     specimens: Iterable[str] | None = None,
-    reference: str = DEFAULT_REFERENCE,
+    reference: str = REFERENCE_SPECIMEN,
 ) -> pd.DataFrame:
     """Read and validate ratings.csv -- or a filled-in schedule (CSV or Markdown sheet).
 
@@ -172,18 +87,14 @@ def read_ratings(
     rating (float), plus any extra columns of the file.
     """
     path = Path(path)
-    if path.suffix.lower() in (".md", ".markdown"):
-        if not path.is_file():
-            raise InputError("file not found", path=path)
-        frame = _read_markdown_sheet(path)
-    else:
-        frame = read_table(path, (), text=(*_TEXT_COLUMNS, "rating"))  # rating as text: errors quote the cell
-    if "rating" in frame.columns:
-        frame = drop_unrated(frame)
-        if frame.empty:
-            raise InputError("has no ratings (every rating cell is empty)", path=path)
-    frame = _validate(frame, path=path, reference=reference, specimens=specimens)
-    return frame
+    if path.suffix.lower() not in (".md", ".markdown"):
+        return read_ratings_table(path, reference=reference, specimens=specimens)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    frame = drop_unrated(_read_markdown_sheet(path))
+    if frame.empty:
+        raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
+    return validate_ratings(frame, path=path, reference=reference, specimens=specimens)
 
 
 # --------------------------------------------------------------------------- aggregation
@@ -209,7 +120,7 @@ def _warn_gaps(frame: pd.DataFrame, rated: Sequence[str], path) -> None:
 
 def aggregate_ratings(
     ratings: pd.DataFrame,
-    reference: str = DEFAULT_REFERENCE,
+    reference: str = REFERENCE_SPECIMEN,
     *,
     specimens: Sequence[str] | None = None,
     path: str | os.PathLike[str] | None = None,
@@ -223,8 +134,9 @@ def aggregate_ratings(
     else natural order (C2 < C2.5 < ... < R5). A participant missing a session or a trial gets a
     :class:`MissingRatingsWarning` naming the gap (unless ``warn`` is false) and the analysis goes on.
     ``path`` only labels errors and warnings; frame rows are taken to be file lines ``index + 2``.
+    ``ratings`` is a validated frame: from a reader, or from :func:`roughsense.io.ratings.validate_ratings`.
     """
-    frame = _validate(ratings, path=path, reference=reference, specimens=specimens)
+    frame = ratings
     if frame.empty:
         raise InputError("no ratings to summarise", path=path)
     rated = sorted(frame["specimen"].unique(), key=natural_key)
@@ -272,7 +184,7 @@ def make_schedule(
     specimens: Sequence[str],
     participants: int | Sequence[str],
     sessions: int,
-    reference: str = DEFAULT_REFERENCE,
+    reference: str = REFERENCE_SPECIMEN,
     rng: np.random.Generator | int | None = None,
 ) -> pd.DataFrame:
     """Presentation orders: every specimen but the reference once per session, shuffled afresh for
@@ -368,7 +280,7 @@ def render_sheet(
     schedule: pd.DataFrame,
     fmt: str = "html",
     *,
-    reference: str = DEFAULT_REFERENCE,
+    reference: str = REFERENCE_SPECIMEN,
     title: str = "Magnitude estimation of roughness",
     csv_name: str = "the schedule CSV",
 ) -> str:

@@ -1,4 +1,4 @@
-"""The simulated finger (sim/perception.py): mechanics against Flamant's solution, the fit against the paper's
+"""The simulated finger (sim/finger_model.py): mechanics against Flamant's solution, the fit against the paper's
 ratings (leave-one-specimen-out), and published findings on perceived roughness, one test each."""
 from __future__ import annotations
 
@@ -13,9 +13,10 @@ from hypothesis import strategies as st
 from scipy import integrate
 
 from roughsense.errors import ConfigError
-from roughsense.sim import perception
-from roughsense.sim.perception_fit import fit_readout, fit_spread, leave_one_out
-from roughsense.sim.specimens import PAPER_SPECIMENS, PRESETS, circular, rectangular, sinusoidal
+from roughsense.paper import PAPER_SPECIMENS
+from roughsense.sim import finger as finger_model
+from roughsense.sim.finger_fit import fit_readout, fit_spread, leave_one_out
+from roughsense.sim.specimens import PRESETS, circular, rectangular, sinusoidal
 
 PAPER = pd.read_csv(Path(__file__).parents[1] / "src/roughsense/data/paper/perceived_roughness.csv",
                     dtype={"specimen": str}).set_index("specimen")
@@ -23,7 +24,7 @@ RATED = [n for n in PAPER_SPECIMENS if n != "R3"]
 
 
 def _magnitude(specimen, force_n=None) -> float:
-    return perception.magnitude(specimen, force_n=force_n)
+    return finger_model.magnitude(specimen, force_n=force_n)
 
 
 def _flamant(pressure, x_mm, z_mm, a_mm):
@@ -41,7 +42,7 @@ def test_subsurface_stress_matches_flamant_for_a_strip_load(x_mm):
     length, n, a, z, p = 400.0, 2**17, 1.0, 0.8, 10e3
     x = (np.arange(n) * (length / n) + length / 2) % length - length / 2  # centred grid
     load = np.where(np.abs(x) <= a, p, 0.0)
-    sx, sz = perception.subsurface_stress(load, length, z)
+    sx, sz = finger_model.subsurface_stress(load, length, z)
     i = int(np.argmin(np.abs(x - x_mm)))
     ex, ez = _flamant(p, x[i], z, a)
     # the periodic images 400 mm away add about the mean pressure (p * 2a / L = 0.5 % of p): tolerance 1 % of p
@@ -52,11 +53,11 @@ def test_subsurface_stress_matches_flamant_for_a_strip_load(x_mm):
 def test_mean_strain_at_depth_follows_equilibrium():
     """Whatever the profile, the mean stresses at depth are sigma_x = sigma_z = -p (plane strain), so the mean
     compressive vertical strain is p (1 + nu)(1 - 2 nu) / E."""
-    finger = perception.FINGER
+    finger = finger_model.FINGER
     p = finger.nominal_pressure_pa(finger.force_n)
     expected = p * (1 + finger.poisson) * (1 - 2 * finger.poisson) / finger.young_pa
     for name in ("R2", "C4"):
-        strain = perception.readout(PRESETS[name]).strain
+        strain = finger_model.readout(PRESETS[name]).strain
         assert strain.mean(axis=1) == pytest.approx(np.full(finger.ridge_phases, expected), rel=1e-6)
 
 
@@ -68,23 +69,23 @@ def test_the_reference_is_one_and_geometry_not_the_name_decides():
 
 def test_bad_finger_parameters_are_config_errors():
     with pytest.raises(ConfigError, match="young_pa"):
-        perception.Finger(young_pa=-1.0)
+        finger_model.Finger(young_pa=-1.0)
     with pytest.raises(ConfigError, match="force"):
-        perception.readout(PRESETS["R3"], force_n=0.0)
+        finger_model.readout(PRESETS["R3"], force_n=0.0)
 
 
 def test_committed_constants_are_the_fitting_scripts_output():
     """scripts/fit_finger.py's numbers, recomputed: the module's constants are not hand-tuned."""
     gmean = PAPER.loc[RATED, "perceived_gmean"].to_numpy(float)
     fit = fit_readout([PRESETS[n] for n in RATED], gmean)
-    assert fit.receptor_depth_mm == perception.FITTED_RECEPTOR_DEPTH_MM
-    assert fit.saturation_strain == pytest.approx(perception.FITTED_SATURATION_STRAIN, rel=1e-5)
-    assert fit.exponent == pytest.approx(perception.FITTED_EXPONENT, rel=1e-5)
-    ratios = [perception.log_ratio(PRESETS[n]) for n in RATED]
+    assert fit.receptor_depth_mm == finger_model.FITTED_RECEPTOR_DEPTH_MM
+    assert fit.saturation_strain == pytest.approx(finger_model.FITTED_SATURATION_STRAIN, rel=1e-5)
+    assert fit.exponent == pytest.approx(finger_model.FITTED_EXPONENT, rel=1e-5)
+    ratios = [finger_model.log_ratio(PRESETS[n]) for n in RATED]
     sd = PAPER.loc[RATED, "perceived_sd"].to_numpy(float)
     spread = fit_spread(ratios, sd / gmean, fit.exponent)
-    assert spread == pytest.approx((perception.FITTED_SCALE_SD, perception.FITTED_EXPONENT_SD,
-                                    perception.FITTED_SESSION_SD), rel=1e-5)
+    assert spread == pytest.approx((finger_model.FITTED_SCALE_SD, finger_model.FITTED_EXPONENT_SD,
+                                    finger_model.FITTED_SESSION_SD), rel=1e-5)
 
 
 def test_leave_one_specimen_out_on_the_papers_13_specimens():
@@ -107,8 +108,8 @@ def test_leave_one_specimen_out_on_the_papers_13_specimens():
 def test_the_spread_across_people_grows_away_from_the_reference():
     """The paper's SDs (relative to the mean) are smallest near R3 and largest at the extremes; the model gets this
     from the exponent's variation between people, not from a table."""
-    psych = perception.PSYCHOPHYSICS
-    near, far = perception.log_ratio(PRESETS["R3.5"]), perception.log_ratio(PRESETS["R2"])
+    psych = finger_model.PSYCHOPHYSICS
+    near, far = finger_model.log_ratio(PRESETS["R3.5"]), finger_model.log_ratio(PRESETS["R2"])
     assert psych.log_sd_of_medians(far) > psych.log_sd_of_medians(near) > psych.log_sd_of_medians(0.0)
 
 
@@ -164,7 +165,7 @@ def test_roughness_rises_with_amplitude_at_fixed_wavelength(wavelength_mm):
 def test_the_finger_never_reads_the_papers_tables(monkeypatch):
     """Physics ratings need no paper table at run time: with the reader broken they still come out, and the
     finger's modules do not mention the shipped results."""
-    from roughsense.sim import panel, perception_fit
+    from roughsense.sim import finger_fit, panel
 
     def refuse():
         raise AssertionError("the paper's table was read")
@@ -172,7 +173,7 @@ def test_the_finger_never_reads_the_papers_tables(monkeypatch):
     monkeypatch.setattr(panel, "paper_perceived", refuse)
     table = panel.simulate_panel([PRESETS[n] for n in ("R2", "R3", "C5")], 0, ratings_from="physics")
     assert set(table["specimen"]) == {"R2", "C5"} and (table["rating"] > 0).all()
-    for module in (perception, perception_fit):
+    for module in (finger_model, finger_fit):
         text = Path(module.__file__).read_text(encoding="utf-8")
         assert "perceived_roughness" not in text and "data.paper" not in text and "paper_perceived" not in text
 
@@ -182,9 +183,9 @@ def test_subsurface_stress_is_in_equilibrium_and_shift_equivariant(pressure, dep
     """At any depth the mean vertical stress carries the mean load, and moving the load moves the field."""
     p = np.asarray(pressure)
     length = 0.1 * p.size
-    sx, sz = perception.subsurface_stress(p, length, depth_mm)
+    sx, sz = finger_model.subsurface_stress(p, length, depth_mm)
     assert sz.mean() == pytest.approx(-p.mean(), abs=1e-9 * max(1.0, p.max()))
     k = shift % p.size
-    sx2, sz2 = perception.subsurface_stress(np.roll(p, k), length, depth_mm)
+    sx2, sz2 = finger_model.subsurface_stress(np.roll(p, k), length, depth_mm)
     np.testing.assert_allclose(sz2, np.roll(sz, k), atol=1e-9 * max(1.0, p.max()))
     np.testing.assert_allclose(sx2, np.roll(sx, k), atol=1e-9 * max(1.0, p.max()))

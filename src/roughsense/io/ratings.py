@@ -1,0 +1,153 @@
+"""ratings.csv: the one validator of participants' magnitude estimates, used by every reader.
+
+Files (``roughsense ratings``, ``study``, ``fit``) and frames built in memory (the simulated panel of a sweep cell)
+pass the same checks with the same messages, so the aggregation downstream takes a clean frame and checks nothing.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .._util.checks import is_number
+from ..errors import InputError
+from ..paper import REFERENCE_SPECIMEN
+from .names import check_name_column
+from .tables import csv_line, read_table, refuse_unknown
+
+RATING_COLUMNS = ("participant", "session", "specimen", "rating")
+KEY_COLUMNS = ("participant", "session", "specimen")
+
+
+def natural_key(name: object) -> tuple:
+    """Sort "R2.5" before "R10" and numbers as numbers ("P2" < "P10", session "2" < "10")."""
+    parts = re.split(r"(\d+(?:\.\d+)?)", str(name))
+    return tuple((0, float(p), "") if i % 2 else (1, 0.0, p) for i, p in enumerate(parts) if p != "")
+
+
+def drop_unrated(frame: pd.DataFrame) -> pd.DataFrame:
+    """The one rule for blank rating cells: a trial not (yet) done, dropped; aggregation warns about the gap.
+
+    Used by every ratings reader (``roughsense ratings``, ``study``, ``fit``), so a file means the same to all.
+    Frames keep their index (``index + 2`` is the file line) for later errors.
+    """
+    if "rating" not in frame.columns:
+        return frame
+    blank = np.fromiter((_is_blank(v) for v in frame["rating"].to_numpy(object)), dtype=bool, count=len(frame))
+    return frame[~blank]
+
+
+def _is_blank(value: object) -> bool:
+    if isinstance(value, str):
+        return not value.strip()
+    return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
+
+
+def read_ratings_table(path: str | os.PathLike[str], *, reference: str = REFERENCE_SPECIMEN,
+                       specimens: Iterable[str] | None = None, unknown_hint: str | None = None,
+                       allow_empty: bool = False) -> pd.DataFrame:
+    """Read and validate ratings.csv (or a filled-in schedule CSV): see :func:`validate_ratings`.
+
+    Blank rating cells follow :func:`drop_unrated`; a file with no rating left is refused unless ``allow_empty``
+    (a study of the reference specimen alone has nothing to rate, and only the analysis needs ratings).
+    Rating cells are read as text, so an error quotes the cell as written.
+    """
+    path = Path(path)
+    frame = read_table(path, (), text=(*KEY_COLUMNS, "rating"))
+    frame = drop_unrated(frame)
+    if frame.empty and allow_empty and "rating" in frame.columns:
+        return frame.assign(rating=pd.Series(dtype=float))
+    if frame.empty and set(RATING_COLUMNS) <= set(frame.columns):
+        raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
+    return validate_ratings(frame, path=path, reference=reference, specimens=specimens, unknown_hint=unknown_hint)
+
+
+def _line(frame: pd.DataFrame, position: int) -> int | None:
+    """File line of the row at ``position`` (frames keep ``index + 2 == line``)."""
+    label = frame.index[position]
+    return csv_line(label) if isinstance(label, (int, np.integer)) else None
+
+
+def _cell_text(value: object) -> str:
+    """A cell as the user wrote it: text quoted verbatim, a number with ``:g`` (never numpy's repr)."""
+    if isinstance(value, str):
+        return repr(value)
+    if is_number(value):
+        return f"{value:g}"
+    return repr(value)
+
+
+def validate_ratings(frame: pd.DataFrame, *, path: str | os.PathLike[str] | None = None,
+                     reference: str = REFERENCE_SPECIMEN, specimens: Iterable[str] | None = None,
+                     unknown_hint: str | None = None) -> pd.DataFrame:
+    """The checks every ratings table passes; returns a clean copy (text keys, float ratings), index kept.
+
+    Columns present, keys non-empty and obeying the name rule, ratings positive finite numbers, the reference
+    never rated, specimens known (``specimens``; ``unknown_hint`` says where names come from), and no
+    participant rating a specimen twice in a session. Errors name the file line (``index + 2``).
+    """
+    missing = [c for c in RATING_COLUMNS if c not in frame.columns]
+    if missing:
+        found = ", ".join(map(str, frame.columns)) or "nothing"
+        raise InputError(f"missing column(s) {', '.join(missing)}; found {found}", path=path)
+    frame = frame.copy()
+    for column in KEY_COLUMNS:
+        text = frame[column].map(lambda v: "" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v).strip())
+        blank = text == ""
+        if blank.any():
+            raise InputError("empty value", path=path, row=_line(frame, np.flatnonzero(blank)[0]), column=column)
+        frame[column] = text
+        check_name_column(frame, column, Path(path) if path is not None else None, line=lambda i: _line(frame, i))
+    frame["rating"] = _rating_values(frame, path)
+    is_reference = frame["specimen"] == reference
+    if is_reference.any():
+        raise InputError(
+            f"{reference} is the reference (fixed at 1.0 by definition) and must not be rated",
+            path=path, row=_line(frame, np.flatnonzero(is_reference)[0]), column="specimen",
+        )
+    if specimens is not None:
+        known = set(specimens)
+        refuse_unknown(frame, "specimen", known, path, line=lambda i: _line(frame, i),
+                       hint=unknown_hint or f"expected one of {', '.join(sorted(known, key=natural_key))}")
+    _refuse_repeats(frame, path)
+    return frame
+
+
+def _rating_values(frame: pd.DataFrame, path) -> pd.Series:
+    """The rating column as floats: a positive finite magnitude estimate in every row."""
+    raw = frame["rating"]
+    values = pd.to_numeric(raw, errors="coerce").astype(float)
+    blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
+    bad = (values.isna() & ~blank) | np.isinf(values)
+    if bad.any():
+        i = np.flatnonzero(bad)[0]
+        raise InputError(f"not a number: {_cell_text(raw.iloc[i])}", path=path, row=_line(frame, i), column="rating")
+    if blank.any():
+        i = np.flatnonzero(blank)[0]
+        raise InputError("empty rating", path=path, row=_line(frame, i), column="rating")
+    nonpositive = values <= 0
+    if nonpositive.any():
+        i = np.flatnonzero(nonpositive)[0]
+        raise InputError(f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path,
+                         row=_line(frame, i), column="rating")
+    return values
+
+
+def _refuse_repeats(frame: pd.DataFrame, path) -> None:
+    """A participant rates each specimen once per session."""
+    keys = list(KEY_COLUMNS)
+    duplicated = frame.duplicated(keys, keep="first")
+    if duplicated.any():
+        i = np.flatnonzero(duplicated)[0]
+        row = frame.iloc[i]
+        first = _line(frame, np.flatnonzero((frame[keys] == row[keys]).all(axis=1))[0])
+        raise InputError(
+            f"participant {row['participant']} rated {row['specimen']} twice in session {row['session']}"
+            + (f" (first on line {first})" if first is not None else ""),
+            path=path, row=_line(frame, i), column="specimen",
+        )

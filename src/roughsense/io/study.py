@@ -1,0 +1,306 @@
+"""Reading a study folder: the one data contract between the sources (simulator, rig) and the analysis.
+
+Layout (docs/study.md)::
+
+    study.toml      [study] name, reference_specimen; [sensor] px_per_mm, roi; [protocol] forces_n
+    specimens.csv   specimen, shape, wavelength_mm, geometry columns
+    manifest.csv    image, specimen, pad, force_n, repetition [, nominal_force_n, contact_fraction, timestamp]
+    ratings.csv     participant, session, specimen, rating
+    images/         image files; manifest paths are relative to the folder
+
+Every reader here validates and raises :class:`~roughsense.errors.InputError` naming the file and line,
+so nothing downstream has to re-check. Writing a folder is :mod:`roughsense.io.writer`'s job, atomic file by file.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tomllib
+import warnings
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+import numpy as np
+import pandas as pd
+
+from .._util.checks import short_repr
+from ..errors import ConfigError, InputError, RoughsenseWarning
+from ..paper import REFERENCE_SPECIMEN
+from .images import DEFAULT_MAX_PIXELS
+from .names import check_name, check_name_column
+from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
+from .ratings import read_ratings_table
+from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
+from .tables import csv_line, has_column, read_table, read_text, refuse_unknown
+
+STUDY_TOML = "study.toml"
+
+
+SPECIMENS_CSV = "specimens.csv"
+
+
+MANIFEST_CSV = "manifest.csv"
+
+
+RATINGS_CSV = "ratings.csv"
+
+
+IMAGES_DIR = "images"
+
+
+#: Written last by the simulator: a study.toml with a [simulation] table but no marker is an interrupted run.
+COMPLETE_MARKER = ".simulation-complete"
+
+
+
+
+MANIFEST_COLUMNS = ("image", "specimen", "pad", "force_n", "repetition")
+
+
+SPECIMEN_COLUMNS = ("specimen", "shape", "wavelength_mm")
+
+
+SHAPES = ("rectangular", "circular", "sinusoidal", "random", "other")
+
+
+#: Every table and key study.toml may hold. ``None`` means any key: the ``[simulation]`` table is the
+#: simulator's own record of its settings. An unknown table or key is a warning naming it, so a typo such as
+#: ``roi_typo`` is noticed. Add a key here when a reader starts using it.
+CONFIG_KEYS: dict[str, frozenset[str] | None] = {
+    "study": frozenset({"name", "reference_specimen"}),
+    "sensor": frozenset({"px_per_mm", "roi", "max_pixels"}),
+    "protocol": frozenset({"forces_n"}),
+    "simulation": None,
+}
+
+
+@dataclass
+class Study:
+    """A validated study folder held in memory (images stay on disk and are streamed)."""
+
+    root: Path
+    name: str
+    reference_specimen: str
+    sensor: SensorSettings
+    forces_n: tuple[float, ...]
+    specimens: pd.DataFrame
+    manifest: pd.DataFrame
+    ratings: pd.DataFrame | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def image_paths(self) -> list[Path]:
+        return [self.root / p for p in self.manifest["image"]]
+
+    @property
+    def pads(self) -> list[str]:
+        return list(dict.fromkeys(self.manifest["pad"]))
+
+    @property
+    def specimen_names(self) -> list[str]:
+        return list(self.specimens["specimen"])
+
+    def condition_labels(self) -> list[str]:
+        return [nominal_force_label(f) for f in self.forces_n]
+
+    @property
+    def simulation(self) -> dict | None:
+        """The ``[simulation]`` table of study.toml (seed and settings) if a simulator wrote the folder, else None.
+
+        The analysis labels a study "simulated" from this table alone, so it never needs to import the simulator.
+        """
+        table = self.extra.get("simulation")
+        return dict(table) if isinstance(table, dict) else None
+
+
+#: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
+MAX_CONFIG_BYTES = 1_000_000
+
+
+def read_config(path: str | os.PathLike[str]) -> dict:
+    """Parse study.toml and check its shape: known tables are tables; unknown tables and keys are warned about.
+
+    Values are checked by the readers that use them (:func:`sensor_from_config`, :func:`parse_forces`).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found (every study folder needs study.toml)", path=path)
+    text = read_text(path, max_bytes=MAX_CONFIG_BYTES)
+    try:
+        config = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"is not valid TOML ({exc})", path=path) from None
+    except RecursionError:
+        raise InputError("is not a study.toml: its values are nested too deeply", path=path) from None
+    for table, value in config.items():
+        if table not in CONFIG_KEYS:
+            kind = "table" if isinstance(value, dict) else "key"
+            warnings.warn(f"{path}: unknown {kind} {table!r} ignored (known tables: {', '.join(CONFIG_KEYS)})",
+                          RoughsenseWarning, stacklevel=2)
+            continue
+        if not isinstance(value, dict):
+            raise InputError(f"{table} must be a table ([{table}] followed by key = value lines), "
+                             f"got {type(value).__name__} {short_repr(value)}", path=path)
+        known = CONFIG_KEYS[table]
+        for key in value:
+            if known is not None and key not in known:
+                warnings.warn(f"{path}: unknown key {key!r} in [{table}] ignored (known: {', '.join(sorted(known))})",
+                              RoughsenseWarning, stacklevel=2)
+    return config
+
+
+def sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
+    sensor = config.get("sensor", {})
+    if not isinstance(sensor, Mapping):
+        raise InputError(f"sensor must be a table, got {type(sensor).__name__}", path=path)
+    try:
+        return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", DEFAULT_ROI),
+                              max_pixels=sensor.get("max_pixels", DEFAULT_MAX_PIXELS))
+    except ConfigError as exc:
+        raise InputError(f"[sensor] {exc.message}", path=path) from None
+
+
+def read_specimens(path: str | os.PathLike[str]) -> pd.DataFrame:
+    path = Path(path)
+    frame = read_table(path, SPECIMEN_COLUMNS, positive=["wavelength_mm"], text=["specimen", "shape"])
+    check_name_column(frame, "specimen", path)
+    dup = frame["specimen"].duplicated()
+    if dup.any():
+        i = np.flatnonzero(dup)[0]
+        raise InputError(f"specimen {frame['specimen'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="specimen")
+    bad_shape = ~frame["shape"].str.lower().isin(SHAPES)
+    if bad_shape.any():
+        i = np.flatnonzero(bad_shape)[0]
+        raise InputError(
+            f"unknown shape {frame['shape'].iloc[i]!r}; expected one of {', '.join(SHAPES)}",
+            path=path, row=csv_line(i), column="shape",
+        )
+    frame["shape"] = frame["shape"].str.lower()
+    return frame
+
+
+def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str] | None = None) -> pd.DataFrame:
+    path = Path(path)
+    frame = read_table(
+        path,
+        MANIFEST_COLUMNS,
+        positive=["force_n", *(["nominal_force_n"] if has_column(path, "nominal_force_n") else [])],
+        integer=["repetition"],
+        numeric=["contact_fraction"],
+        text=["image", "specimen", "pad"],
+        maximum={"force_n": MAX_FORCE_N, "nominal_force_n": MAX_FORCE_N, "repetition": MAX_REPETITION},
+    )
+    negative = frame["repetition"] < 0
+    if negative.any():
+        i = int(np.flatnonzero(negative.to_numpy(bool))[0])
+        raise InputError(f"must be a whole number >= 0, got {frame['repetition'].iloc[i]}", path=path,
+                         row=csv_line(i), column="repetition")
+    check_name_column(frame, "specimen", path)
+    check_name_column(frame, "pad", path)
+    if known_specimens is not None:
+        refuse_unknown(frame, "specimen", known_specimens, path, hint=f"not in {SPECIMENS_CSV}")
+    dup = frame["image"].duplicated()
+    if dup.any():
+        i = np.flatnonzero(dup)[0]
+        raise InputError(f"image {frame['image'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="image")
+    check_image_paths(frame["image"], path.parent, path)
+    return frame
+
+
+def image_path_problem(relative: str, root: Path) -> tuple[Path | None, str | None]:
+    """(resolved path, None) for a manifest image path that stays inside ``root``, else (None, why not).
+
+    Symbolic links are followed, so a link inside ``images/`` that points elsewhere is refused like ``..``.
+    ``root`` must already be resolved.
+    """
+    text = str(relative)
+    if "\x00" in text:
+        return None, "contains a NUL character"
+    if PurePosixPath(text).is_absolute() or PureWindowsPath(text).is_absolute() or PureWindowsPath(text).drive:
+        return None, f"{text!r} is an absolute path; manifest image paths are relative to the study folder"
+    if ".." in re.split(r"[/\\]", text):
+        return None, f"{text!r} leads outside the study folder ('..' is not allowed in manifest image paths)"
+    try:
+        resolved = (root / text).resolve()
+    except (OSError, RuntimeError, ValueError) as exc:
+        return None, f"{text!r} cannot be resolved ({exc})"
+    if resolved == root or not resolved.is_relative_to(root):
+        return None, f"{text!r} leads outside the study folder (through '..' or a symbolic link)"
+    return resolved, None
+
+
+def check_image_paths(images: Iterable[str], root: Path, path: Path | None) -> None:
+    """Every manifest image path stays inside the study folder, and no two rows name the same file."""
+    try:
+        root = root.resolve()
+    except (OSError, RuntimeError) as exc:
+        raise InputError(f"cannot resolve the study folder ({exc})", path=root) from None
+    seen: dict[Path, int] = {}
+    for i, relative in enumerate(images):
+        resolved, problem = image_path_problem(relative, root)
+        if problem is not None:
+            raise InputError(problem, path=path, row=csv_line(i), column="image")
+        if resolved in seen:
+            first = seen[resolved]
+            raise InputError(f"{relative!r} names the same file as row {csv_line(first)}", path=path,
+                             row=csv_line(i), column="image")
+        seen[resolved] = i
+
+
+def check_simulation_complete(root: Path, config: Mapping) -> None:
+    """Refuse a simulated study whose run never finished: its files may come from two different runs."""
+    if isinstance(config.get("simulation"), dict) and not (root / COMPLETE_MARKER).is_file():
+        raise InputError(f"simulated study is incomplete (no {COMPLETE_MARKER}: the simulation was interrupted); "
+                         f"rerun `roughsense simulate --out {root} --force`", path=root)
+
+
+def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
+    """Read and validate a study folder. Raises InputError naming the first problem found."""
+    root = Path(root)
+    if not root.is_dir():
+        raise InputError("study folder not found", path=root)
+    toml_path = root / STUDY_TOML
+    config = read_config(toml_path)
+    check_simulation_complete(root, config)
+    study_cfg = config.get("study", {})
+    sensor = sensor_from_config(config, toml_path)
+    forces_n = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
+    name = study_cfg.get("name", root.name)
+    if not isinstance(name, str):
+        raise InputError(f"[study] name must be text, got {short_repr(name)}", path=toml_path)
+    reference = study_cfg.get("reference_specimen", REFERENCE_SPECIMEN)
+    check_name(reference, path=toml_path, what="[study] reference_specimen")
+
+    specimens = read_specimens(root / SPECIMENS_CSV)
+    if specimens.empty:
+        raise InputError("lists no specimens (only a header)", path=root / SPECIMENS_CSV)
+    manifest_path = root / MANIFEST_CSV
+    manifest = read_manifest(manifest_path, known_specimens=specimens["specimen"])
+    if manifest.empty:
+        raise InputError("lists no images (only a header); capture or simulate some first", path=manifest_path)
+    manifest = assign_nominal_forces(manifest, forces_n, manifest_path)
+    if check_images:
+        for i, rel in enumerate(manifest["image"]):
+            if not (root / rel).is_file():
+                raise InputError(f"image file not found: {rel}", path=manifest_path, row=csv_line(i), column="image")
+
+    ratings = None
+    ratings_path = root / RATINGS_CSV
+    if ratings_path.exists():
+        ratings = read_ratings_table(ratings_path, reference=reference, specimens=specimens["specimen"],
+                                     unknown_hint=f"not in {SPECIMENS_CSV}", allow_empty=not require_ratings)
+    elif require_ratings:
+        raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
+
+    return Study(
+        root=root,
+        name=name,
+        reference_specimen=reference,
+        sensor=sensor,
+        forces_n=forces_n,
+        specimens=specimens,
+        manifest=manifest,
+        ratings=ratings,
+        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol")},
+    )

@@ -1,0 +1,113 @@
+"""Writing a study folder atomically, file by file: used by both the simulator and the rig.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .._util import atomic
+from ..errors import InputError, OutputExistsError
+from ..paper import REFERENCE_SPECIMEN
+from .images import DEFAULT_MAX_PIXELS
+from .protocol import DEFAULT_FORCES_N
+from .sensor_settings import SensorSettings
+from .study import (
+    IMAGES_DIR,
+    MANIFEST_COLUMNS,
+    MANIFEST_CSV,
+    RATINGS_CSV,
+    SPECIMEN_COLUMNS,
+    SPECIMENS_CSV,
+    STUDY_TOML,
+)
+from .tables import dump_toml
+
+
+class StudyWriter:
+    """Writes a study folder atomically, file by file. Used by both the simulator and the rig.
+
+    A non-empty folder is refused unless ``force`` (then files roughsense writes are replaced, and
+    nothing else is touched) or ``resume`` (the rig appends to its own earlier session).
+    """
+
+    def __init__(self, root: str | os.PathLike[str], *, force: bool = False, resume: bool = False) -> None:
+        self.root = Path(root)
+        self.force = force
+        if self.root.exists() and not self.root.is_dir():
+            raise OutputExistsError("exists and is not a folder", path=self.root)
+        if self.root.is_dir() and any(self.root.iterdir()) and not (force or resume):
+            raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=self.root)
+        self.root.mkdir(parents=True, exist_ok=True)
+        (self.root / IMAGES_DIR).mkdir(exist_ok=True)
+
+    def write_config(
+        self,
+        *,
+        name: str,
+        reference_specimen: str = REFERENCE_SPECIMEN,
+        sensor: SensorSettings = SensorSettings(),
+        forces_n: Sequence[float] = DEFAULT_FORCES_N,
+        extra: Mapping[str, Mapping[str, object]] | None = None,
+    ) -> Path:
+        roi = sensor.roi if isinstance(sensor.roi, str) else list(sensor.roi)
+        tables: dict[str, Mapping[str, object]] = {
+            "study": {"name": name, "reference_specimen": reference_specimen},
+            "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi,
+                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != DEFAULT_MAX_PIXELS else {})},
+            "protocol": {"forces_n": [float(f) for f in forces_n]},
+        }
+        tables.update(extra or {})
+        return atomic.write_text(self.root / STUDY_TOML, dump_toml(tables))
+
+    def write_specimens(self, specimens: pd.DataFrame) -> Path:
+        missing = [c for c in SPECIMEN_COLUMNS if c not in specimens.columns]
+        if missing:
+            raise ValueError(f"specimens table lacks {missing}")
+        return atomic.write_csv(self.root / SPECIMENS_CSV, specimens)
+
+    def write_manifest(self, manifest: pd.DataFrame) -> Path:
+        missing = [c for c in MANIFEST_COLUMNS if c not in manifest.columns]
+        if missing:
+            raise ValueError(f"manifest lacks {missing}")
+        return atomic.write_csv(self.root / MANIFEST_CSV, manifest)
+
+    def append_manifest_row(self, row: Mapping[str, object]) -> Path:
+        """Append one row by rewriting the file atomically: a crash never leaves half a row."""
+        path = self.root / MANIFEST_CSV
+        new = pd.DataFrame([dict(row)])
+        if path.exists():
+            old = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str}, keep_default_na=False, na_values=[""],
+                              index_col=False)  # a hand-edited file's trailing commas must not shift the columns
+            old = old.drop(columns=[c for c in old.columns if str(c).startswith("Unnamed: ") and old[c].isna().all()])
+            new = pd.concat([old, new], ignore_index=True)
+        return self.write_manifest(new)
+
+    def write_ratings(self, ratings: pd.DataFrame) -> Path:
+        return atomic.write_csv(self.root / RATINGS_CSV, ratings)
+
+    def image_path(self, name: str) -> Path:
+        return self.root / IMAGES_DIR / name
+
+    def write_image(self, name: str, image: np.ndarray, *, params: Sequence[int] = ()) -> str:
+        """Encode and write ``images/<name>`` atomically; returns the manifest-relative path.
+
+        ``params`` are OpenCV's ``imwrite`` flags (e.g. the PNG compression strategy); the file stays a standard one.
+        """
+        import cv2  # local: the study contract should not pay for OpenCV at import
+
+        target = self.image_path(name)
+        if target.exists() and not self.force:
+            raise OutputExistsError("already exists; refusing to overwrite a captured image", path=target)
+        ext = target.suffix.lower() or ".png"
+        array = np.ascontiguousarray(image)
+        if array.ndim == 3 and array.shape[2] == 3:
+            array = array[:, :, ::-1]  # OpenCV stores BGR; callers hand us RGB
+        ok, encoded = cv2.imencode(ext, array, list(params))
+        if not ok:
+            raise InputError(f"could not encode image as {ext}", path=target)
+        atomic.write_bytes(target, encoded.tobytes())
+        return f"{IMAGES_DIR}/{name}"

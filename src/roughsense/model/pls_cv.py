@@ -1,0 +1,510 @@
+"""Exact, fast cross-validation of PLS1 over every component count at once (LOO, LOSO, K-fold, many targets).
+
+It is exact, not approximate. PLS1 depends on the data only through the centred cross-products X'X and X'y, and a
+training fold's cross-products differ from the full data's by a low-rank term (its held-out rows and the shift of its
+mean). So all folds share one rotation of the data (the SVD of the centred X, in which X'X is diagonal), and every
+fold's model is advanced together, one component at a time, with a handful of batched array operations instead of
+one refit per fold.
+"""
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.utils.validation import validate_data
+
+from .._util.checks import POSITIVE_INT, check, is_whole_number
+from .pls import _SMALL, SIMPLS, PLSConfigError, PLSInputError, _check_target, _single_threaded_blas, _svd_rank
+
+# The same for the cross-validation's Lanczos recurrence, whose next-vector norm beta lives on the scale
+# of X'X: below ~50 eps of its largest eigenvalue it is rounding noise of the products that form it.
+_KRYLOV_RTOL = 1e-14
+
+
+# Components of a new Lanczos vector along the fold's basis (the reorthogonalisation coefficients h)
+# smaller than this, relative to the vector, are left in place: they are within ~500 ulp of the three-term
+# step's own rounding, so removing them buys nothing measurable, and skipping the removal saves a batched
+# product per step. Anything larger (rounding amplified by converged Ritz values) is removed.
+_REORTH_SKIP_RTOL = 1e-13
+
+
+@dataclass(frozen=True)
+class PLSCVResult:
+    """Cross-validated PLS1 for component counts 0..max (index = number of components).
+
+    ``rmse[0]`` and ``predictions[:, 0]`` belong to the model that predicts the training fold's mean.
+    ``folds[i]`` is the fold that held sample i out; ``test_indices`` lists each fold's samples.
+    ``rmse_se`` is the standard error of the RMSE (delta method on the per-fold mean squared errors).
+    """
+
+    rmse: np.ndarray
+    rmse_se: np.ndarray
+    predictions: np.ndarray
+    best_n_components: int
+    one_se_n_components: int
+    folds: np.ndarray
+    scheme: str
+    fold_mse: np.ndarray = field(repr=False)
+
+    @property
+    def max_components(self) -> int:
+        return self.rmse.size - 1
+
+    @property
+    def n_folds(self) -> int:
+        return self.fold_mse.shape[0]
+
+    @property
+    def test_indices(self) -> list[np.ndarray]:
+        return [np.flatnonzero(self.folds == f) for f in range(self.n_folds)]
+
+
+def _fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
+    """Fold id per sample, 0..F-1, for LOO, leave-one-group-out or shuffled K-fold."""
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (n,):
+            raise PLSInputError(f"groups has {groups.size} entries for {n} samples")
+        if cv not in (None, "logo", "loso"):
+            raise PLSConfigError(f"groups= gives leave-one-group-out; cv={cv!r} cannot be combined with it")
+        _, ids = np.unique(groups, return_inverse=True)
+        if ids.max() < 1:
+            raise PLSConfigError("leave-one-group-out needs at least 2 groups")
+        return ids.astype(np.intp), "leave-one-group-out"
+    if cv is None or cv == "loo":
+        return np.arange(n, dtype=np.intp), "leave-one-out"
+    if is_whole_number(cv):
+        if not 2 <= cv <= n:
+            raise PLSConfigError(f"K-fold needs 2 <= k <= n_samples={n}, got k={cv}")
+        rng = np.random.default_rng(random_state)
+        ids = np.empty(n, dtype=np.intp)
+        for f, part in enumerate(np.array_split(rng.permutation(n), int(cv))):
+            ids[part] = f
+        return ids, f"{int(cv)}-fold"
+    raise PLSConfigError(f"cv must be 'loo', a whole number of folds, or None with groups=; got {cv!r}")
+
+
+def _component_limit(max_components) -> int:
+    """The largest component count to cross-validate: a whole number >= 1 (a bool is not a count)."""
+    return check(max_components, POSITIVE_INT, name="max_components", error=PLSConfigError,
+                 must="a positive whole number")
+
+
+def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
+           cap: bool = False) -> PLSCVResult:
+    """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
+
+    ``cv="loo"`` is the paper's leave-one-out; an int k gives shuffled K-fold (seeded by ``random_state``);
+    ``groups=`` gives leave-one-group-out (e.g. leave-one-specimen-out; the default ``cv`` then means that).
+    The result equals refitting :class:`SIMPLS` on every training fold, to rounding.
+    ``cap=True`` treats ``max_components`` as an upper bound: if the data (or the smallest training fold)
+    support fewer components, the curve stops there instead of raising -- for a default, not a user's choice.
+    """
+    if cap:
+        try:
+            return pls_cv(X, y, max_components, cv, groups, random_state)
+        except PLSConfigError as exc:
+            if exc.supported is None or exc.supported < 1 or exc.supported >= max_components:
+                raise
+            return pls_cv(X, y, exc.supported, cv, groups, random_state, cap=True)
+    if groups is not None and cv == "loo":
+        cv = None
+    try:
+        X, y = validate_data(SIMPLS(), X, y, y_numeric=True, ensure_min_samples=3, dtype=np.float64, reset=True)
+    except ValueError as exc:
+        raise PLSInputError(str(exc)) from None
+    _check_target(y)
+    A = _component_limit(max_components)
+    n = X.shape[0]
+    fid, scheme = _fold_ids(n, cv, groups, random_state)
+    # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
+    with _single_threaded_blas() if X.size <= _SMALL else contextlib.nullcontext():
+        pred = _cv_predictions(X, y[:, None], fid, A)[0]
+    F = int(fid.max()) + 1
+    m = np.bincount(fid, minlength=F)
+    order = np.argsort(fid, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(m)[:-1]])
+    err2 = (pred - y[:, None]) ** 2
+    rmse = np.sqrt(err2.mean(axis=0))
+    fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
+    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # _fold_ids always gives at least 2 folds
+    rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
+    best = int(np.argmin(rmse[1:])) + 1
+    within = np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])
+    one_se = int(within[0]) + 1
+    return PLSCVResult(
+        rmse=rmse,
+        rmse_se=rmse_se,
+        predictions=pred,
+        best_n_components=best,
+        one_se_n_components=one_se,
+        folds=fid,
+        scheme=scheme,
+        fold_mse=fold_mse,
+    )
+
+
+# A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes.
+_BATCH_BYTES = 64 * 2**20
+
+
+@dataclass(frozen=True)
+class PLSCVBatch:
+    """Cross-validated PLS1 of B targets sharing one X: ``rmse`` (B, A+1) and ``predictions`` (B, n, A+1).
+
+    Index A as in :class:`PLSCVResult` (0 = the training mean). ``best_n_components`` is each target's
+    argmin over 1..A, the rule :func:`pls_cv` uses.
+    """
+
+    rmse: np.ndarray
+    predictions: np.ndarray
+    folds: np.ndarray
+    scheme: str
+
+    @property
+    def max_components(self) -> int:
+        return self.rmse.shape[1] - 1
+
+    @property
+    def best_n_components(self) -> np.ndarray:
+        return np.argmin(self.rmse[:, 1:], axis=1) + 1
+
+
+def pls_cv_many(X, Y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
+                cap: bool = False) -> PLSCVBatch:
+    """:func:`pls_cv` for many targets at once (the columns of Y, n x B), e.g. a permutation test's.
+
+    Only X'y depends on the target, so every target shares one rotation of X and all targets' folds run
+    as one batch: for the small problems of a study this is several times faster than B calls of
+    :func:`pls_cv`, and it equals them (and refits) to rounding. ``cap=True`` lowers the component count
+    for all targets alike when some target's data support fewer.
+    """
+    if groups is not None and cv == "loo":
+        cv = None
+    try:
+        X = validate_data(SIMPLS(), X, ensure_min_samples=3, dtype=np.float64, reset=True)
+    except ValueError as exc:
+        raise PLSInputError(str(exc)) from None
+    Y = np.asarray(Y, dtype=np.float64)
+    if Y.ndim != 2 or Y.shape[0] != X.shape[0] or Y.shape[1] < 1:
+        raise PLSInputError(f"Y must be n_samples x n_targets with n_samples={X.shape[0]}, got shape {Y.shape}")
+    if not np.all(np.isfinite(Y)):
+        raise PLSInputError("Y contains NaN or infinity")
+    for column in Y.T:
+        _check_target(column)
+    A = _component_limit(max_components)
+    n = X.shape[0]
+    fid, scheme = _fold_ids(n, cv, groups, random_state)
+    F = int(fid.max()) + 1
+    per_target = (A + 3) * F * min(X.shape) * 8
+    chunk = max(1, _BATCH_BYTES // per_target)
+    pred = np.empty((Y.shape[1], n, A + 1))
+    try:
+        with _single_threaded_blas() if X.size <= _SMALL else contextlib.nullcontext():
+            for start in range(0, Y.shape[1], chunk):
+                pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A)
+    except PLSConfigError as exc:
+        if not cap or exc.supported is None or exc.supported < 1 or exc.supported >= A:
+            raise
+        return pls_cv_many(X, Y, exc.supported, cv, groups, random_state, cap=True)
+    rmse = np.sqrt(((pred - Y.T[:, :, None]) ** 2).mean(axis=1))
+    return PLSCVBatch(rmse=rmse, predictions=pred, folds=fid, scheme=scheme)
+
+
+def nested_group_predictions(X, Y, groups, outer_predictions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nested leave-one-group-out: each held-out group's component count is chosen without it.
+
+    ``outer_predictions`` (B, n, A+1) are the plain leave-one-group-out predictions of the targets Y (n x B)
+    at every count; for the held-out group, the count is the argmin of a leave-one-group-out run over the
+    other groups only (capped by A and by what its smallest inner training fold supports). Returns the
+    nested predictions (B, n) and the chosen counts (B, n_groups), groups in order of first appearance.
+    The same code serves the real targets (B = 1) and a permutation test's shuffled ones, so both go
+    through exactly the same selection.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    groups = np.asarray(groups)
+    A = outer_predictions.shape[2] - 1
+    _, first = np.unique(groups, return_index=True)
+    names = groups[np.sort(first)]
+    predictions = np.empty(outer_predictions.shape[:2])
+    chosen = np.empty((Y.shape[1], names.size), dtype=int)
+    for j, name in enumerate(names):
+        held = groups == name
+        rest = groups[~held]
+        largest_inner_fold = int(np.unique(rest, return_counts=True)[1].max())
+        usable = int(min(A, len(rest) - largest_inner_fold - 1, X.shape[1]))
+        inner = pls_cv_many(X[~held], Y[~held], max_components=usable, groups=rest, cap=True)
+        k = inner.best_n_components
+        chosen[:, j] = k
+        predictions[:, held] = np.take_along_axis(outer_predictions[:, held, :], k[:, None, None], axis=2)[:, :, 0]
+    return predictions, chosen
+
+
+def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np.ndarray:
+    """Out-of-fold predictions (B, n, A+1) of every fold's PLS1 model for each of B targets (Y is n x B).
+
+    PLS1 with k components is the least-squares fit restricted to the Krylov space
+    K_k(S, s) of the centred cross-products S = X'X, s = X'y (Helland 1988); SIMPLS, NIPALS and
+    Lanczos/conjugate gradients are different bases of the same space and give the same coefficients.
+    Here each fold runs Lanczos with full reorthogonalisation on its own S_f, s_f, and the
+    coefficients are accumulated by the D-Lanczos (conjugate-gradient) recurrences, so only the
+    held-out samples' projections are ever formed, never a p-vector of coefficients per component.
+
+    S_f is the full data's G = Xc'Xc minus a low-rank term (held-out rows and the shift of the
+    mean). In the right singular vectors of Xc, G is diagonal, so S_f w costs O(p) per fold.
+    Only s_f depends on the target, so B targets sharing X (a permutation test's shuffled targets) are
+    B x F independent recurrences over the same rotation: they are advanced together as one batch,
+    a "batch-fold" g = b * F + f per target b and fold f.
+    """
+    folds = _RotatedFolds(X, Y, fid, A)
+    lanczos = _FoldLanczos(folds, A)
+    for k in range(A):
+        u, u_fold, c_down, alpha = lanczos.apply_operator(k)
+        lanczos.advance_predictions(k, u, u_fold, alpha)
+        if k + 1 == A:
+            break
+        lanczos.next_vector(k, alpha, c_down)
+    return np.ascontiguousarray(lanczos.pred.transpose(1, 2, 0))
+
+
+class _RotatedFolds:
+    """The data in the right singular vectors of the centred X, and the folds' sums in those coordinates.
+
+    Rotating onto the right singular vectors makes G = Xc'Xc diagonal, and the rotation is orthogonal, so
+    weights and predictions keep their accuracy (an eigendecomposition of G instead lost ~1e5x at spectra
+    noise 1e-6: it is only accurate relative to the largest eigenvalue). Nothing is truncated: null
+    directions simply never enter a Krylov space.
+    """
+
+    def __init__(self, X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> None:
+        n, p = X.shape
+        self.n, self.fid = n, fid
+        self.B = Y.shape[1]
+        self.F = int(fid.max()) + 1
+        self.G = self.B * self.F
+        m = np.bincount(fid, minlength=self.F)
+        n_train = n - m
+        self.Yc = Y - Y.mean(axis=0)
+        self.y_mean = Y.mean(axis=0)
+        U, sv, _ = np.linalg.svd(X - X.mean(axis=0), full_matrices=False)
+        self.Z, self.lam = U * sv, sv**2  # samples in the rotated coordinates; Z'Z = diag(lam)
+        _check_fold_support(sv, n, p, n_train, A)
+        self.dim = self.Z.shape[1]
+        self.loo = bool(np.all(m == 1)) and bool(np.all(fid == np.arange(n)))
+        # Fold sums of scalars are products with the fold-membership matrix; those of rotated samples z_i go
+        # fold by fold (one small product per fold: a membership product would cost F times the arithmetic).
+        self.member = np.zeros((0, n) if self.loo else (self.F, n))
+        if not self.loo:
+            self.member[fid, np.arange(n)] = 1.0
+        self.members = [] if self.loo else [np.flatnonzero(fid == f) for f in range(self.F)]
+        self.Z_folds = [np.ascontiguousarray(self.Z[idx]) for idx in self.members]
+        self.nt = n_train.astype(float)
+
+    def fold_sum(self, M: np.ndarray) -> np.ndarray:
+        """(B, n) or (B, n, 1) per sample -> (B, F) or (B, F, 1) per fold."""
+        if self.loo:
+            return M
+        return M @ self.member.T if M.ndim == 2 else np.matmul(self.member, M)
+
+    def fold_sum_z(self, weights: np.ndarray) -> np.ndarray:
+        """Sum over each fold's samples of weights[b, i] z_i: (B, n) -> (B, F, r)."""
+        out = np.empty((weights.shape[0], self.F, self.Z.shape[1]))
+        for f, (idx, Zf) in enumerate(zip(self.members, self.Z_folds)):
+            np.matmul(weights[:, idx], Zf, out=out[:, f])
+        return out
+
+    def held_out_products(self, W: np.ndarray) -> np.ndarray:
+        """z_i'w of the fold that holds sample i out, for every target: W (B, F, r) -> (B, n)."""
+        out = np.empty((W.shape[0], self.n))
+        for f, (idx, Zf) in enumerate(zip(self.members, self.Z_folds)):
+            out[:, idx] = W[:, f] @ Zf.T
+        return out
+
+    def per_sample(self, M: np.ndarray) -> np.ndarray:
+        """(G, ...) per batch-fold -> (B, n, ...) per target and sample."""
+        M = M.reshape(self.B, self.F, *M.shape[1:])
+        return M if self.loo else M[:, self.fid]
+
+    def training_means(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each training fold's mean of z (F, r) and of yc (B, F), in centred rotated coordinates."""
+        d = -(self.Z if self.loo else self.member @ self.Z) / self.nt[:, None]
+        e = -self.fold_sum(self.Yc.T[:, :, None])[:, :, 0] / self.nt
+        return d, e
+
+    def start_vectors(self, d: np.ndarray, e: np.ndarray) -> np.ndarray:
+        """X'y per batch-fold (G, r): the full data's, minus the held-out rows', minus the shift of the mean."""
+        Yc, Z = self.Yc, self.Z
+        held_z_y = Yc.T[:, :, None] * Z[None] if self.loo else self.fold_sum_z(Yc.T)
+        return ((Yc.T @ Z)[:, None, :] - held_z_y - (self.nt[:, None] * d)[None] * e[:, :, None]).reshape(self.G, self.dim)
+
+
+def _check_fold_support(sv: np.ndarray, n: int, p: int, n_train: np.ndarray, A: int) -> None:
+    """Refuse more components than the data's rank or the smallest training fold support."""
+    rank = _svd_rank(sv, n, p)
+    k_max = min(n - 1, p, rank)
+    k_fold = int(n_train.min()) - 1
+    if min(k_max, k_fold) < A:
+        raise PLSConfigError(
+            f"max_components={A} is more than the data support (n_samples={n}, n_features={p}, rank={rank}, "
+            f"smallest training fold={int(n_train.min())} samples: at most {min(k_max, k_fold)} components)",
+            supported=min(k_max, k_fold),
+        )
+
+
+class _FoldLanczos:
+    """Every batch-fold's Lanczos basis, its CG coefficients and its held-out predictions, one step at a time.
+
+    ``V[j]`` holds every batch-fold's j-th Lanczos vector (component-major, so the elementwise work runs over
+    contiguous (G, r) blocks); ``Vf`` is the same memory batch-fold by batch-fold, for the batched products.
+    At step k, slots 0..k hold the basis, slot k+1 the fold's downdate vector, slot k+2 the next vector.
+    """
+
+    def __init__(self, folds: _RotatedFolds, A: int) -> None:
+        self.folds, self.A = folds, A
+        B, F, G, n, dim = folds.B, folds.F, folds.G, folds.n, folds.dim
+        self.d, e = folds.training_means()
+        s0 = folds.start_vectors(self.d, e)
+        s0_norm = np.sqrt(np.einsum("fp,fp->f", s0, s0))
+        if not np.all(s0_norm > 0):
+            f = int(np.flatnonzero(~(s0_norm > 0))[0]) % F
+            raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
+        self.exhausted = _KRYLOV_RTOL * folds.lam.max()
+        self.pred = np.empty((A + 1, B, n))  # component-major while filling: each step writes one contiguous block
+        self.pred[0] = folds.y_mean[:, None] + folds.per_sample(e.reshape(G))
+        self.V = np.empty((A + 3, G, dim))
+        self.Vf = self.V.transpose(1, 0, 2)
+        np.divide(s0, s0_norm[:, None], out=self.V[0])
+        self.lam_rows = np.tile(folds.lam, (G, 1))  # a same-shape operand is ~2x faster than a broadcast one
+        self.d_rows = np.tile(self.d, (B, 1))
+        self.back = np.empty((G, 1, dim))
+        self.coef = np.zeros((G, 1, A + 3))  # combination coefficients of the batched products
+        self.loo_scale = 1.0 + 1.0 / folds.nt
+        self.beta_prev = np.zeros(G)
+        self.eta = np.ones(G)
+        self.zeta = s0_norm.copy()
+        self.pi = np.zeros((B, n))  # held-out sample's projection on the current CG direction
+        self.u_hist = np.empty((A, B, n))  # u_i = z_i'w_k of every step
+
+    def apply_operator(self, k: int):
+        """x = G w into slot k+2 and the fold's downdate into slot k+1; returns u, its fold sums, c and alpha.
+
+        S_f w = (G - X_I'X_I - n_t d d') w; d'w = -sum_I(z_i'w)/n_t, so only u_i = z_i'w is needed.
+        (For LOO the previous step's reorthogonalisation product already gave it.)
+        """
+        folds, V = self.folds, self.V
+        B, F, G, n, dim = folds.B, folds.F, folds.G, folds.n, folds.dim
+        w = V[k]
+        if folds.loo:
+            u = self.u_hist[k] if k else np.einsum("ip,bip->bi", folds.Z, folds.per_sample(w))
+        else:  # z_i'w of the fold that holds i out: one product for all folds, then each sample's own fold
+            u = folds.held_out_products(w.reshape(B, F, dim))
+        self.u_hist[k] = u
+        x = V[k + 2]
+        np.multiply(w, self.lam_rows, out=x)  # G w, to which the downdate and the three-term step are applied
+        down = V[k + 1]
+        if folds.loo:  # d = -z_i/n_t: both corrections are one rank-1 term, c_i z_i with c_i = u_i (1 + 1/n_t)
+            down.reshape(B, n, dim)[...] = folds.Z
+            c_down = (u * self.loo_scale).reshape(G)
+            u_fold = u
+            alpha = np.einsum("fp,fp->f", w, x) - c_down * u.reshape(G)
+        else:
+            u_fold = folds.fold_sum(u)
+            np.subtract(folds.fold_sum_z(u).reshape(G, dim), self.d_rows * u_fold.reshape(G, 1), out=down)
+            c_down = 1.0
+            alpha = np.einsum("fp,fp->f", w, x) - np.einsum("fp,fp->f", w, down)
+        return u, u_fold, c_down, alpha
+
+    def advance_predictions(self, k: int, u: np.ndarray, u_fold: np.ndarray, alpha: np.ndarray) -> None:
+        """D-Lanczos (CG) update of the coefficients, seen only through the held-out samples.
+
+        (z_i - d_f)'w = u_i + u_fold_f / n_t.
+        """
+        folds = self.folds
+        per_sample = folds.per_sample
+        shift = per_sample((u_fold / folds.nt).reshape(folds.G))
+        if k:
+            lam_k = self.beta_prev / self.eta
+            self.eta = alpha - lam_k * self.beta_prev
+            self.zeta = -lam_k * self.zeta
+            self.pi = (u + shift - per_sample(self.beta_prev) * self.pi) / per_sample(self.eta)
+        else:
+            self.eta = alpha
+            self.pi = (u + shift) / per_sample(self.eta)
+        np.add(self.pred[k], per_sample(self.zeta) * self.pi, out=self.pred[k + 1])
+
+    def next_vector(self, k: int, alpha: np.ndarray, c_down) -> None:
+        """The next Lanczos vector into slot k+1: three-term step and downdate, then full reorthogonalisation.
+
+        The downdate and the three-term recurrence are one batched product over the adjacent slots
+        (w_{k-1}, w_k, downdate): x = G w - beta w_{k-1} - alpha w_k - c down.
+        """
+        x, back, Vf = self.V[k + 2], self.back, self.Vf
+        c3 = self.coef[:, :, :3]
+        c3[:, 0, 0] = self.beta_prev
+        c3[:, 0, 1] = alpha
+        c3[:, 0, 2] = c_down
+        if k:
+            np.matmul(c3, Vf[:, k - 1 : k + 2], out=back)
+        else:
+            np.matmul(c3[:, :, 1:], Vf[:, 0:2], out=back)
+        x -= back[:, 0]
+        self.beta_prev = self._reorthogonalise(k, x)
+
+    def _reorthogonalise(self, k: int, x: np.ndarray) -> np.ndarray:
+        """One classical Gram-Schmidt pass against the basis; returns beta, the new vector's norm before scaling.
+
+        The three-term step already removed the two large terms. One product gives the coefficients h = W'x
+        together with x'x, so beta^2 = x'x - h'h (Pythagoras; h is rounding-sized, so nothing cancels), and a
+        second product forms the new unit vector (x - W h) / beta directly: no separate subtract, norm and scale
+        passes. That second product is skipped in the steps where every fold's h is at rounding level.
+        """
+        folds, V, Vf, back = self.folds, self.V, self.Vf, self.back
+        B, F, G, n = folds.B, folds.F, folds.G, folds.n
+        g = np.matmul(Vf[:, : k + 3], x[:, :, None])[:, :, 0]
+        h = g[:, : k + 1]
+        hh = np.einsum("fk,fk->f", h, h)
+        xx = g[:, k + 2]
+        cr = self.coef[:, :, : k + 3]
+        cr[:, 0, k + 1] = 0.0  # the downdate slot
+        if np.all(hh <= _REORTH_SKIP_RTOL**2 * xx):  # x is already orthogonal to the basis to ~ulp level
+            beta = np.sqrt(xx - hh)
+            _check_krylov_step(beta, self.exhausted, self.A, k, F)
+            inv = 1.0 / beta
+            np.multiply(x, inv[:, None], out=V[k + 1])
+            if folds.loo:
+                self.u_hist[k + 1] = (g[:, k + 1] * inv).reshape(B, n)
+        elif np.all(hh <= 0.25 * xx):
+            beta = np.sqrt(xx - hh)
+            _check_krylov_step(beta, self.exhausted, self.A, k, F)
+            inv = 1.0 / beta
+            np.multiply(h, -inv[:, None], out=cr[:, 0, : k + 1])
+            cr[:, 0, k + 2] = inv
+            np.matmul(cr, Vf[:, : k + 3], out=back)
+            V[k + 1] = back[:, 0]
+            if folds.loo:  # z_i'w_{k+1} = (z_i'x - sum_j (z_i'w_j) h_j) / beta, z_i'x from the product above
+                self.u_hist[k + 1] = ((g[:, k + 1] - np.einsum("kf,fk->f", self.u_hist[: k + 1].reshape(k + 1, G), h))
+                                      * inv).reshape(B, n)
+        else:  # never seen: so much was removed that Pythagoras would cancel; take the norm itself
+            np.negative(h, out=cr[:, 0, : k + 1])
+            cr[:, 0, k + 2] = 1.0
+            np.matmul(cr, Vf[:, : k + 3], out=back)
+            beta = np.sqrt(np.einsum("fp,fp->f", back[:, 0], back[:, 0]))
+            _check_krylov_step(beta, self.exhausted, self.A, k, F)
+            np.divide(back[:, 0], beta[:, None], out=V[k + 1])
+            if folds.loo:
+                self.u_hist[k + 1] = np.einsum("ip,bip->bi", folds.Z, V[k + 1].reshape(B, n, folds.dim))
+        return beta
+
+
+def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int, n_folds: int) -> None:
+    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted."""
+    if not beta.min() > exhausted:  # also catches NaN
+        f = int(np.flatnonzero(~(beta > exhausted))[0]) % n_folds
+        raise PLSConfigError(
+            f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
+            f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
+            f"use at most {k + 1}",
+            supported=k + 1,
+        )

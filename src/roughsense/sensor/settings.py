@@ -1,0 +1,27 @@
+"""The sensor's defaults in one place: the paper's band and grid, the line, the taper (section 3.3).
+
+Every entry point (``SpatialSpectrum``, ``spatial_spectrum``, ``frequency_grid``, the CLI's options, model files
+that predate a setting) takes its default from :data:`SPECTRUM_DEFAULTS`, so the paper's choices are written once.
+The camera's scale, the region of interest and the pixel limit are the study folder's ``[sensor]`` table
+(:class:`roughsense.io.sensor_settings.SensorSettings`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Tapers the DFT accepts: Hann (our default: the band's edges leak less) or none (the paper's literal choice).
+WINDOWS = ("hann", "none")
+
+
+@dataclass(frozen=True)
+class SpectrumDefaults:
+    """How a gray line becomes the model's features when nobody says otherwise."""
+
+    f_min_per_mm: float = 0.1  # the paper's band, 0.1-1.0 mm^-1 ...
+    f_max_per_mm: float = 1.0
+    n_freqs: int = 45  # ... sampled at 45 evenly spaced frequencies
+    rows: int = 1  # image rows averaged into the line (the paper reads one row)
+    window: str = "hann"
+
+
+SPECTRUM_DEFAULTS = SpectrumDefaults()
