@@ -1,4 +1,4 @@
-"""Benchmark the simulated finger (sim/finger_model.py): one specimen's percept from scratch (skin contact at four
+"""Benchmark the simulated finger (sim/finger.py): one specimen's percept from scratch (skin contact at four
 ridge phases, SA1 readout), against a peer in the same run: the simulator's own contact line for one image of the
 same specimen (sim.simulate.trial_line, the smooth pad at 2 N on a quiet bench).
 

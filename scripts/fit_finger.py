@@ -3,7 +3,7 @@
 Reads the paper's perceived roughness as shipped in roughsense.data.paper (the only place the finger model meets
 the paper's results), fits the receptor depth, the saturation strain and the exponent
 (roughsense.sim.finger_fit), then the participants' spreads to the paper's SDs, runs the leave-one-specimen-out
-check and prints the constants to paste into src/roughsense/sim/finger_model.py.
+check and prints the constants to paste into src/roughsense/sim/finger.py.
 
     PYTHONPATH=src .venv/bin/python scripts/fit_finger.py
 """
@@ -44,7 +44,7 @@ def main() -> None:
           f"Spearman rho = {loso.spearman:.3f}")
     print("folds (depth, saturation, exponent):",
           sorted({(f.receptor_depth_mm, round(f.saturation_strain, 4), round(f.exponent, 3)) for f in loso.folds}))
-    print("\n# --- paste into src/roughsense/sim/finger_model.py ---")
+    print("\n# --- paste into src/roughsense/sim/finger.py ---")
     print(f"FITTED_RECEPTOR_DEPTH_MM = {fit.receptor_depth_mm!r}")
     print(f"FITTED_SATURATION_STRAIN = {fit.saturation_strain:.6g}")
     print(f"FITTED_EXPONENT = {fit.exponent:.6g}")

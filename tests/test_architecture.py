@@ -9,6 +9,7 @@ from __future__ import annotations
 import ast
 import io
 import json
+import re
 import subprocess
 import sys
 from contextlib import redirect_stdout
@@ -72,12 +73,33 @@ def test_every_module_says_its_job_and_every_package_its_layer():
     assert not short_packages, f"packages whose docstring does not say their layer's job in two lines: {short_packages}"
 
 
+def _text_files() -> list[Path]:
+    listed = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"], cwd=REPO,
+                            capture_output=True, text=True, check=True).stdout.split()
+    return [REPO / name for name in listed if name.endswith((".py", ".md", ".toml", ".txt")) and (REPO / name).is_file()]
+
+
 def test_nothing_cites_a_design_file_the_repository_does_not_hold():
     brief = "DESIGN" + ".md"  # the team's brief lives outside the repository; docs/architecture.md is ours
-    tracked = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True).stdout.split()
-    citing = [name for name in tracked if name.endswith((".py", ".md", ".toml", ".txt"))
-              and (REPO / name).is_file() and brief in (REPO / name).read_text(encoding="utf-8", errors="replace")]
+    citing = [str(path.relative_to(REPO)) for path in _text_files()
+              if brief in path.read_text(encoding="utf-8", errors="replace")]
     assert not citing, citing
+
+
+_PACKAGE_FOLDERS = ("_util", "io", "sensor", "model", "analysis", "sim", "rig", "report", "explore", "cli", "data")
+_CITED_PATH = re.compile(r"(?<![\w./-])((?:docs|src|tests|benchmarks|scripts|examples|" + "|".join(_PACKAGE_FOLDERS)
+                         + r")/[\w./-]*\w\.(?:md|py|toml|csv|json))")
+
+
+def test_every_file_path_a_text_cites_exists():
+    """A cited path under docs, tests, src, or a package folder (sim, io, ...) exists: a move cannot leave one behind."""
+    dangling = []
+    for path in _text_files():
+        for match in _CITED_PATH.finditer(path.read_text(encoding="utf-8", errors="replace")):
+            cited = match.group(1)
+            if not any((base / cited).exists() for base in (REPO, PACKAGE)):
+                dangling.append(f"{path.relative_to(REPO)}: {cited}")
+    assert not dangling, "\n".join(dangling)
 
 
 def test_the_public_api_of_earlier_releases_still_imports():
@@ -154,3 +176,22 @@ def test_a_fingerprint_changes_with_any_module_it_covers(tmp_path, monkeypatch):
     writer.write_text(writer.read_text() + "\n# changed\n")
     after = fingerprint.code_fingerprint.__wrapped__(*entry)
     assert before != after
+
+
+def test_the_command_line_defaults_are_the_layers_own():
+    """``study --max-components`` is a literal so that ``--help`` stays light; it must equal the model layer's default."""
+    import typer.main
+
+    from roughsense.cli import app
+    from roughsense.model.pls_cv import DEFAULT_MAX_COMPONENTS
+    from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
+
+    commands = typer.main.get_command(app).commands
+
+    def default(command: str, name: str):
+        return next(p.default for p in commands[command].params if p.name == name)
+
+    assert default("study", "max_components") == DEFAULT_MAX_COMPONENTS
+    assert default("simulate", "repetitions") == default("capture", "repetitions") == PAPER_REPETITIONS
+    assert [float(f) for f in default("simulate", "forces").split(",")] == list(PAPER_FORCES_N)
+    assert (default("protocol", "participants"), default("protocol", "sessions")) == (PAPER_PARTICIPANTS, PAPER_SESSIONS)

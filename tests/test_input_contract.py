@@ -451,7 +451,7 @@ def test_option_forces_and_repetitions_are_bounded(run_cli, tmp_path):
     line = one_error(*run_cli("simulate", "--out", tmp_path / "s", "--forces", "1,1e308")[::2])
     assert "up to 100" in line
     line = one_error(*run_cli("simulate", "--out", tmp_path / "s", "--repetitions", "100000000000")[::2])
-    assert "at most 10000" in line
+    assert "from 1 to 10000" in line
     assert not (tmp_path / "s").exists()
 
 

@@ -143,7 +143,7 @@ def _rmse_from_distribution(gmean, mean, sd, variance_factor):
 def test_rmse_follows_from_the_prediction_distribution_of_tables_1_and_4(paper):
     """RMSE^2 = (m - g)^2 + v * s^2 over n = 10 predictions, with v = 1 if the tables' s is the
     population SD and v = (n - 1)/n if it is the sample SD. Only the population SD reproduces every
-    published RMSE; the sample SD misses five of 112 (by about 0.01). See docs/finger_model.md."""
+    published RMSE; the sample SD misses five of 112 (by about 0.01). See docs/perception.md."""
     table, _ = paper
     assert len(table) == 112
     misses = {}

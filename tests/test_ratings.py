@@ -17,12 +17,10 @@ from roughsense.analysis.ratings import (
     MissingRatingsWarning,
     aggregate_ratings,
     make_schedule,
-    natural_key,
-    read_ratings,
     render_sheet,
 )
 from roughsense.errors import ConfigError, InputError, RoughsenseWarning
-from roughsense.io.ratings import validate_ratings
+from roughsense.io.ratings import natural_key, read_ratings, validate_ratings
 from roughsense.paper import PAPER_SPECIMENS
 
 

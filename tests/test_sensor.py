@@ -237,7 +237,7 @@ def test_auto_roi_finds_the_textured_band():
     "kwargs, shape, message",
     [
         ({}, (1000, 1800), "smaller than the 1900x150"),
-        ({"roi": "100,900,1900,200"}, (1080, 1920), "outside the image"),
+        ({"roi": "100,900,1900,200"}, (1080, 1920), "reaches outside it"),
         ({"roi": "0,0,300,150"}, (1080, 1920), "shorter than 1/f_min"),
         ({"roi": "auto", "rows": 120}, (100, 1920), "more than the crop height"),
     ],

@@ -1,4 +1,4 @@
-"""The simulated finger (sim/finger_model.py): mechanics against Flamant's solution, the fit against the paper's
+"""The simulated finger (sim/finger.py): mechanics against Flamant's solution, the fit against the paper's
 ratings (leave-one-specimen-out), and published findings on perceived roughness, one test each."""
 from __future__ import annotations
 

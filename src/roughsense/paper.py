@@ -18,6 +18,16 @@ PAPER_WAVELENGTHS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
 PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in PAPER_WAVELENGTHS_MM)
 #: The pads the paper tested (Tables 1-3 and 4-6).
 PAPER_PADS = ("fingerprint", "smooth")
+#: The protocol (Section 3): each specimen pressed at 1, 2 and 3 N, 10 repetitions; 10 participants rate each
+#: specimen in 3 sessions.
+PAPER_FORCES_N = (1.0, 2.0, 3.0)
+PAPER_REPETITIONS = 10
+PAPER_PARTICIPANTS = 10
+PAPER_SESSIONS = 3
+#: The models' conditions: one per force, and "combined" (the three spectra of a trial side by side).
+FORCE_CONDITIONS = ("1N", "2N", "3N")
+COMBINED = "combined"
+PAPER_CONDITIONS = (*FORCE_CONDITIONS, COMBINED)
 
 #: Number of PLS components chosen by leave-one-out CV (Section 4).
 PAPER_BEST_N_COMPONENTS = {
@@ -44,8 +54,6 @@ PAPER_TESTS = {
     "combined: smooth vs fingerprint": (6.0, 0.0017, False, "<"),
 }
 
-_CONDITIONS = ("1N", "2N", "3N", "combined")
-
 #: Summary rows as printed in Tables 2, 3, 5 and 6 (mean, SD over specimens):
 #: (pad, metric, condition, group) -> (mean, sd). Tables 3 and 6 print only the overall row. Table 5's
 #: rectangular and overall rows do not follow from its own per-specimen values (docs/perception.md),
@@ -55,16 +63,16 @@ PAPER_SUMMARIES = {
         "rectangular": [(0.52, 0.20), (0.54, 0.20), (0.53, 0.20), (0.55, 0.13)],
         "circular": [(0.58, 0.12), (0.58, 0.11), (0.58, 0.11), (0.57, 0.14)],
         "all": [(0.56, 0.15), (0.56, 0.15), (0.56, 0.16), (0.56, 0.13)],
-    }.items() for c, v in zip(_CONDITIONS, values)},
+    }.items() for c, v in zip(PAPER_CONDITIONS, values)},
     **{("fingerprint", "rmse", c, "all"): v for c, v in
-       zip(_CONDITIONS, [(0.26, 0.11), (0.25, 0.09), (0.25, 0.10), (0.21, 0.07)])},
+       zip(PAPER_CONDITIONS, [(0.26, 0.11), (0.25, 0.09), (0.25, 0.10), (0.21, 0.07)])},
     **{("smooth", "ovl", c, g): v for g, values in {
         "rectangular": [(0.65, 0.16), (0.63, 0.18), (0.60, 0.19), (0.64, 0.20)],
         "circular": [(0.53, 0.16), (0.55, 0.15), (0.49, 0.11), (0.50, 0.17)],
         "all": [(0.59, 0.17), (0.59, 0.16), (0.55, 0.16), (0.57, 0.19)],
-    }.items() for c, v in zip(_CONDITIONS, values)},
+    }.items() for c, v in zip(PAPER_CONDITIONS, values)},
     **{("smooth", "rmse", c, "all"): v for c, v in
-       zip(_CONDITIONS, [(0.16, 0.05), (0.18, 0.05), (0.16, 0.05), (0.13, 0.03)])},
+       zip(PAPER_CONDITIONS, [(0.16, 0.05), (0.18, 0.05), (0.16, 0.05), (0.13, 0.03)])},
 }
 
 

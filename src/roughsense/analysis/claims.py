@@ -19,14 +19,13 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..paper import COMBINED, FORCE_CONDITIONS
 from .controls import ALPHA
 from .metrics import compare_conditions, signed_rank
 
 CLAIM_COLUMNS = ["claim", "pad", "cv", "statistic", "p", "verdict", "rule", "detail", "paper", "basis", "key"]
 REPRODUCED, NOT_REPRODUCED, NOT_TESTABLE = "reproduced", "not reproduced", "not testable"
 VERDICTS = (REPRODUCED, NOT_REPRODUCED, NOT_TESTABLE)
-SINGLES = ("1N", "2N", "3N")
-COMBINED = "combined"
 #: Largest difference in mean OVL between the pads that still counts as "comparable" (the paper's
 #: Tables 2 and 5 differ by at most 0.03 in any condition).
 OVL_COMPARABLE = 0.05
@@ -101,10 +100,10 @@ def _by_condition(results: pd.DataFrame, pad: str, column: str) -> dict[str, pd.
 def _combined_beats_singles(results, pad, cv):
     series = _by_condition(results, pad, "rmse")
     key = "combined_beats_singles"
-    if COMBINED not in series or not all(c in series for c in SINGLES):
+    if COMBINED not in series or not all(c in series for c in FORCE_CONDITIONS):
         return _untestable(key, pad, cv, "needs the 1N, 2N, 3N and combined conditions")
-    table = compare_conditions(series, COMBINED, list(SINGLES), bonferroni=len(SINGLES))
-    lower = all(series[COMBINED].mean() < series[c].mean() for c in SINGLES)
+    table = compare_conditions(series, COMBINED, list(FORCE_CONDITIONS), bonferroni=len(FORCE_CONDITIONS))
+    lower = all(series[COMBINED].mean() < series[c].mean() for c in FORCE_CONDITIONS)
     worst = table.loc[table["p_adjusted"].idxmax()]
     ok = lower and bool((table["p_adjusted"] < ALPHA).all())
     detail = "; ".join(f"{r.comparison}: W = {r.statistic:g}, adjusted p = {r.p_adjusted:.2g}" for r in table.itertuples())
@@ -116,7 +115,7 @@ def _combined_beats_singles(results, pad, cv):
 def _combined_lowest_mean(results, pad, cv):
     series = _by_condition(results, pad, "rmse")
     key = "combined_lowest_mean"
-    if COMBINED not in series or not any(c in series for c in SINGLES):
+    if COMBINED not in series or not any(c in series for c in FORCE_CONDITIONS):
         return _untestable(key, pad, cv, "needs the combined condition and a single force")
     means = {c: float(s.mean()) for c, s in series.items()}
     margin = means[COMBINED] - min(v for c, v in means.items() if c != COMBINED)

@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
-from ..model.pls import _single_threaded_blas
+from ..model.pls import single_threaded_blas
 from ..model.pls_cv import nested_group_predictions, pls_cv_many
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
@@ -29,7 +29,7 @@ ALPHA = 0.05
 
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
-                   "beats_permutation", "passes"]  # evaluation adds "seed"
+                   "beats_permutation", "passes"]  # analyse_study adds "seed"
 
 
 def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:
@@ -117,7 +117,7 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
     def one(job: tuple) -> dict:
         return control_row(*job)
 
-    with _single_threaded_blas():
+    with single_threaded_blas():
         if n_jobs > 1 and len(jobs) > 1:
             with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
                 rows = pool.map(one, jobs)

@@ -14,8 +14,9 @@ import pandas as pd
 
 from ..errors import InputError
 from ..io.study import RATINGS_CSV, Study
+from ..paper import COMBINED, FORCE_CONDITIONS
+from .ratings import aggregate_ratings
 
-COMBINED = "combined"
 TRIAL_KEYS = ("specimen", "pad", "repetition")
 
 
@@ -59,7 +60,7 @@ def frequency_columns(features: pd.DataFrame) -> list[str]:
     return [c for c in features.columns if _is_frequency(c)]
 
 
-def conditions_of(condition: str, available: Sequence[str] = ("1N", "2N", "3N")) -> list[str]:
+def conditions_of(condition: str, available: Sequence[str] = FORCE_CONDITIONS) -> list[str]:
     """The force conditions a model condition uses: ["2N"] for "2N", all three for "combined"."""
     if condition == COMBINED:
         return list(available)
@@ -89,7 +90,7 @@ def condition_matrix(
         raise InputError(f"no images of pad {pad!r} (pads in the study: {pads})", path=source)
     if condition != COMBINED:
         return _single_force_matrix(at_pad, freq, pad, condition, source)
-    forces = list(combined_forces) if combined_forces is not None else ["1N", "2N", "3N"]
+    forces = list(combined_forces) if combined_forces is not None else list(FORCE_CONDITIONS)
     return _combined_matrix(at_pad, freq, pad, forces, source)
 
 
@@ -97,7 +98,7 @@ def _single_force_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, condit
                          ) -> tuple[np.ndarray, pd.DataFrame]:
     """One row per image at ``condition``, in specimen, repetition, image order."""
     present = sorted(map(str, at_pad["condition"].unique()), key=_force_order)
-    if condition not in ("1N", "2N", "3N") and condition not in present:
+    if condition not in FORCE_CONDITIONS and condition not in present:
         raise InputError(f"unknown condition {condition!r}; expected 1N, 2N, 3N or combined", path=source)
     rows = at_pad[at_pad["condition"] == condition]
     if rows.empty:
@@ -174,7 +175,5 @@ def targets(meta: pd.DataFrame, summary: pd.DataFrame, *, path: str | os.PathLik
 def perceived_roughness(study: Study) -> pd.DataFrame:
     """Aggregate the study's ratings (median over sessions, geometric mean over participants)."""
     if study.ratings is None:
-        raise InputError("file not found (fitting a model needs participants' ratings)", path=study.root / "ratings.csv")
-    from .ratings import aggregate_ratings  # written concurrently; imported only when needed
-
+        raise InputError("file not found (fitting a model needs participants' ratings)", path=study.root / RATINGS_CSV)
     return aggregate_ratings(study.ratings, reference=study.reference_specimen, path=study.root / RATINGS_CSV)

@@ -1,4 +1,4 @@
-"""Magnitude estimation (paper §3.1): reading ratings, the perceived-roughness targets, and the protocol.
+"""Magnitude estimation (paper §3.1): the perceived-roughness targets from ratings, and the protocol.
 
 Participants rate each specimen against the reference (R3 = 1.0, never rated) in several sessions.
 Per specimen, each participant's ratings are reduced to their median over sessions, and the medians
@@ -11,16 +11,15 @@ the schedule CSV has an empty ``rating`` column, so the filled-in schedule *is* 
 from __future__ import annotations
 
 import os
-import re
 import warnings
-from collections.abc import Iterable, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
 
+from .._util.checks import POSITIVE_INT, check
 from ..errors import ConfigError, InputError, RoughsenseWarning
-from ..io.ratings import RATING_COLUMNS, drop_unrated, natural_key, read_ratings_table, validate_ratings
+from ..io.ratings import natural_key
 from ..io.tables import csv_line
 from ..paper import REFERENCE_SPECIMEN
 
@@ -35,66 +34,6 @@ SCHEDULE_COLUMNS = ["participant", "session", "order", "specimen", "rating"]
 
 class MissingRatingsWarning(RoughsenseWarning):
     """A participant has no rating for some specimen in some session; the median uses what there is."""
-
-
-# --------------------------------------------------------------------------- reading and validation
-
-
-def _read_markdown_sheet(path: Path) -> pd.DataFrame:
-    """Rows of every Markdown table whose header names the rating columns (a filled-in sheet).
-
-    The frame's index is ``line - 2`` so that errors name the line of the Markdown file.
-    """
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise InputError("is not UTF-8 text", path=path) from None
-    rows, index, header = [], [], None
-    for number, line in enumerate(lines, start=1):
-        text = line.strip()
-        if not text.startswith("|"):
-            header = None
-            continue
-        cells = [c.strip() for c in text.strip("|").split("|")]
-        if header is None:
-            header = [c.lower() for c in cells]
-            continue
-        if all(re.fullmatch(r":?-+:?", c) for c in cells):
-            continue
-        if not set(RATING_COLUMNS) <= set(header):
-            continue
-        if len(cells) != len(header):
-            raise InputError(f"table row has {len(cells)} cells, the header has {len(header)}", path=path, row=number)
-        rows.append(dict(zip(header, cells)))
-        index.append(number - 2)
-    if not rows:
-        raise InputError(f"no table with columns {', '.join(RATING_COLUMNS)} found", path=path)
-    frame = pd.DataFrame(rows, index=index)
-    return frame.replace("", np.nan)
-
-
-def read_ratings(
-    path: str | os.PathLike[str],
-    *,
-    specimens: Iterable[str] | None = None,
-    reference: str = REFERENCE_SPECIMEN,
-) -> pd.DataFrame:
-    """Read and validate ratings.csv -- or a filled-in schedule (CSV or Markdown sheet).
-
-    Rows whose ``rating`` cell is blank are not-yet-rated trials and are dropped (aggregation then warns
-    about the gap); anything else wrong is an :class:`InputError` naming the line. The returned frame
-    keeps ``index + 2 == line in the file`` and has columns participant, session, specimen (text) and
-    rating (float), plus any extra columns of the file.
-    """
-    path = Path(path)
-    if path.suffix.lower() not in (".md", ".markdown"):
-        return read_ratings_table(path, reference=reference, specimens=specimens)
-    if not path.is_file():
-        raise InputError("file not found", path=path)
-    frame = drop_unrated(_read_markdown_sheet(path))
-    if frame.empty:
-        raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
-    return validate_ratings(frame, path=path, reference=reference, specimens=specimens)
 
 
 # --------------------------------------------------------------------------- aggregation
@@ -191,7 +130,7 @@ def make_schedule(
     every participant and session from ``rng`` (a Generator, or a seed for one).
 
     Columns participant, session, order, specimen and an empty ``rating`` column for the experimenter
-    to fill; the filled-in schedule is then read by :func:`read_ratings` as it is.
+    to fill; the filled-in schedule is then read by :func:`roughsense.io.ratings.read_ratings` as it is.
     """
     if rng is None:
         raise ConfigError("make_schedule needs rng (a numpy Generator or a seed) so the orders can be reproduced")
@@ -205,19 +144,16 @@ def make_schedule(
     shown = [n for n in names if n != reference]
     if not shown:
         raise ConfigError(f"no specimens to present besides the reference {reference}")
-    if isinstance(participants, (int, np.integer)):
-        if participants < 1:
-            raise ConfigError(f"need at least one participant, got {participants}")
-        people = participant_ids(int(participants))
+    if isinstance(participants, (bool, int, np.integer, np.bool_)):
+        people = participant_ids(check(participants, POSITIVE_INT, name="participants", must="at least 1"))
     else:
         people = [str(p).strip() for p in participants]
         if not people or any(not p for p in people) or len(set(people)) != len(people):
             raise ConfigError("participant IDs must be non-empty and distinct")
-    if int(sessions) < 1:
-        raise ConfigError(f"need at least one session, got {sessions}")
+    sessions = check(sessions, POSITIVE_INT, name="sessions", must="at least 1")
     rows = []
     for person in people:
-        for session in range(1, int(sessions) + 1):
+        for session in range(1, sessions + 1):
             for position, index in enumerate(rng.permutation(len(shown)), start=1):
                 rows.append((person, session, position, shown[index], np.nan))
     return pd.DataFrame(rows, columns=SCHEDULE_COLUMNS)
@@ -288,7 +224,7 @@ def render_sheet(
 
     ``"html"`` prints well from a browser (with the schedule CSV line of each trial for typing the
     ratings in); ``"markdown"`` is a plain-text sheet whose tables carry the rating columns, so the
-    filled-in Markdown file itself can be read back by :func:`read_ratings`.
+    filled-in Markdown file itself can be read back by :func:`roughsense.io.ratings.read_ratings`.
     """
     blocks = _blocks(schedule)
     if fmt == "html":

@@ -16,14 +16,13 @@ import pandas as pd
 from .. import paper
 from ..errors import InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.pls_cv import nested_group_predictions, pls_cv
+from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
 from .spread import paper_predictive, predictive_ovl
 
-CONDITIONS = ("1N", "2N", "3N", "combined")
 CV_SCHEMES = ("loo", "loso")
 PRED_SD_DDOF = 0
 #: The paper's schema first (paper_results.csv), then our additions; columns are only ever added.
@@ -61,7 +60,7 @@ class StudyAnalysis:
     mean_spectra: pd.DataFrame
     fits: list[ConditionFit] = field(default_factory=list)
     tests: pd.DataFrame = field(default_factory=pd.DataFrame)
-    max_components: int = 20
+    max_components: int = DEFAULT_MAX_COMPONENTS
     #: One row per pad x condition x CV scheme (controls.CONTROL_COLUMNS): permutation test and null model.
     controls: pd.DataFrame = field(default_factory=pd.DataFrame)
     #: The paper's claims, each with our statistic, p and verdict (claims.CLAIM_COLUMNS).
@@ -238,13 +237,13 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
     The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
     with R3 as the reference; beside any other design they would read as a comparison that is not one.
     """
-    paper_specimens = list(paper.perceived_roughness()["specimen"])
+    paper_specimens = list(paper.PAPER_SPECIMENS)
     problems = []
     if set(specimens) != set(paper_specimens):
         problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
                         f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
-    if list(conditions) != list(CONDITIONS):
-        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(CONDITIONS)}")
+    if list(conditions) != list(paper.PAPER_CONDITIONS):
+        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(paper.PAPER_CONDITIONS)}")
     if reference_specimen != paper.REFERENCE_SPECIMEN:
         problems.append(f"its reference is {reference_specimen}, the paper's {paper.REFERENCE_SPECIMEN}")
     if problems:
@@ -262,8 +261,8 @@ def analyse_study(
     study: Study,
     *,
     features: pd.DataFrame | None = None,
-    max_components: int = 20,
-    conditions: Sequence[str] = CONDITIONS,
+    max_components: int = DEFAULT_MAX_COMPONENTS,
+    conditions: Sequence[str] = paper.PAPER_CONDITIONS,
     cv_schemes: Sequence[str] = CV_SCHEMES,
     n_jobs: int = 1,
     progress: Callable | None = None,

@@ -12,17 +12,16 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.modelfile import feature_definition_for
 from ..model.pls import SIMPLS
-from ..model.pls_cv import PLSConfigError, PLSCVResult, pls_cv
+from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, pls_cv
+from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 
-CONDITIONS = ("1N", "2N", "3N", "combined")
 RULES = ("min", "1se")
-#: Largest component count cross-validated when the user names none (fewer where the data support fewer).
-DEFAULT_MAX_COMPONENTS = 20
 
 
 @dataclass(frozen=True)
@@ -54,12 +53,10 @@ def parse_cv(text: str) -> str | int:
 
 def check_training_options(condition: str, rule: str, max_components: int | None) -> None:
     """Refuse options before any image is read."""
-    if condition not in CONDITIONS:
-        raise ConfigError(f"--condition must be one of {', '.join(CONDITIONS)}, got {condition!r}")
-    if rule not in RULES:
-        raise ConfigError(f"--rule must be min or 1se, got {rule!r}")
-    if max_components is not None and max_components < 1:
-        raise ConfigError(f"--max-components must be at least 1, got {max_components}")
+    check(condition, Options(CONDITIONS), name="--condition", must=f"one of {', '.join(CONDITIONS)}")
+    check(rule, Options(RULES), name="--rule", must="min or 1se")
+    if max_components is not None:
+        check(max_components, POSITIVE_INT, name="--max-components", must="at least 1")
 
 
 def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,

@@ -1,4 +1,4 @@
-"""Small helpers shared by the command modules: option parsing, progress display, the built-in study."""
+"""Small helpers shared by the command modules: option parsing and the progress display."""
 from __future__ import annotations
 
 import sys
@@ -8,6 +8,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import TypeVar
 
+from .._util.checks import Integer, check
 from ..errors import ConfigError
 
 T = TypeVar("T")
@@ -30,9 +31,7 @@ def parse_float_list(text: str, *, name: str) -> list[float]:
 
 def check_seed(seed: int) -> int:
     """A seed for numpy.random.default_rng: a whole number >= 0 (a negative one is refused by NumPy)."""
-    if seed < 0:
-        raise ConfigError(f"--seed must be a whole number >= 0, got {seed}")
-    return seed
+    return check(seed, Integer(0), name="--seed", must="a whole number >= 0")
 
 
 def parse_name_list(text: str) -> list[str]:

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from ..io.sensor_settings import DEFAULT_PX_PER_MM
+from ..paper import PAPER_REPETITIONS
 from ._common import parse_float_list
 
 ORDER = 50
@@ -23,7 +24,7 @@ def register(app: typer.Typer) -> None:
         pad: str = typer.Option(..., "--pad", help="Contact pad name, e.g. fingerprint or flat."),
         forces: str | None = typer.Option(None, "--forces", help="Protocol forces in N (default 1,2,3, or the study's)."),
         repetitions: int = typer.Option(
-            10, "--repetitions",
+            PAPER_REPETITIONS, "--repetitions",
             help="Target number of repetitions for this specimen and pad; a rerun captures only what is missing."),
         force_input: str = typer.Option(
             "manual", "--force-input",

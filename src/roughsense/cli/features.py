@@ -85,7 +85,8 @@ def features(
         px_per_mm = loaded.sensor.px_per_mm if px_per_mm is None else px_per_mm
         roi = loaded.sensor.roi if roi is None else roi
         max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
-    spectrum = _spectrum(px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels)
+    spectrum = _spectrum(px_per_mm=px_per_mm, roi=roi, rows=rows, f_min=f_min, f_max=f_max, n_freqs=n_freqs, jobs=jobs,
+                         window=window, max_pixels=max_pixels)
     if loaded is not None:
         paths = loaded.image_paths
         table = study_features(loaded, spectrum=spectrum, progress=progress)
@@ -96,7 +97,7 @@ def features(
     typer.echo(f"wrote {len(paths)} x {len(spectrum.get_feature_names_out())} features to {out}")
 
 
-def _spectrum(px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels):
+def _spectrum(*, px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels):
     """The transformer, with the defaults of a study-less run where an option was not given."""
     from ..sensor.spectrum import SpatialSpectrum
 

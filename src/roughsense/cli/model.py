@@ -223,20 +223,9 @@ def _trials(loaded, positional, by_condition, study, specimens):
 
 def _predict_live(loaded, source: str, max_frames: int | None) -> None:
     """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
-    from ..model.predict import model_spectrum
+    from ..model.predict import frame_scorer
     from ..rig.live import live_scores, render_live
 
-    if len(loaded.conditions) != 1:
-        raise ConfigError(
-            f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
-            "(fit one with --condition 1N, 2N or 3N)"
-        )
-    spectrum = model_spectrum(loaded)
-    plan = spectrum._plan()
-
-    def score_frame(rgb):
-        return float(loaded.predict(plan.spectrum(rgb)[None, :])[0])
-
-    summary = render_live(live_scores(source, score_frame, max_frames=max_frames))
+    summary = render_live(live_scores(source, frame_scorer(loaded), max_frames=max_frames))
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")

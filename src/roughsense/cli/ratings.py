@@ -1,15 +1,14 @@
 """``roughsense ratings`` (summarise magnitude estimates) and ``roughsense protocol`` (draw the orders)."""
 from __future__ import annotations
 
-import sys
 import warnings
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from ..errors import ConfigError, RoughsenseWarning, one_line
-from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
+from ..errors import ConfigError, RoughsenseWarning
+from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ._common import check_seed, parse_name_list
 
 ORDER = 30
@@ -78,21 +77,17 @@ def ratings(
     naming its line, and nothing is written.
     """
     from .._util.atomic import check_can_write, write_csv
-    from ..analysis.ratings import aggregate_ratings, read_ratings
+    from ..analysis.ratings import aggregate_ratings
     from ..io.names import check_name
+    from ..io.ratings import read_ratings
 
     check_can_write(out, force=force)
     check_name(reference, what="--reference")
     names = _specimen_names(specimens) if specimens is not None else None
     frame = read_ratings(ratings_file, specimens=names, reference=reference)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RoughsenseWarning)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", RoughsenseWarning)  # every gap, even two with the same words
         summary = aggregate_ratings(frame, reference, specimens=names, path=ratings_file)
-    for item in caught:
-        if issubclass(item.category, RoughsenseWarning):
-            print(f"roughsense: warning: {one_line(item.message)}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
     write_csv(out, summary)
     _print_summary(summary, reference)
     print(f"wrote {out}")
@@ -111,8 +106,9 @@ Sheet = Annotated[Path | None, typer.Option(
 def protocol(
     out: ScheduleOut,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the random orders (same seed, same schedule).")],
-    participants: Annotated[int, typer.Option("--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = 10,
-    sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = 3,
+    participants: Annotated[int, typer.Option(
+        "--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = PAPER_PARTICIPANTS,
+    sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = PAPER_SESSIONS,
     specimens: ProtocolSpecimens = None,
     reference: Annotated[str, typer.Option(
         "--reference", help="The reference specimen: never presented for rating.")] = REFERENCE_SPECIMEN,

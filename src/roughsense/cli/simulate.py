@@ -5,7 +5,7 @@ from pathlib import Path
 
 import typer
 
-from ..paper import PAPER_SPECIMENS
+from ..paper import PAPER_FORCES_N, PAPER_REPETITIONS, PAPER_SPECIMENS
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
 from ._common import parse_float_list, parse_name_list, progress
 
@@ -22,8 +22,8 @@ def simulate(
         help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
              "above). Default: the paper's 14, R2..R5 and C2..C5.",
     ),
-    forces: str = typer.Option("1,2,3", "--forces", help="Nominal pressing forces in N."),
-    repetitions: int = typer.Option(10, "--repetitions",
+    forces: str = typer.Option(",".join(f"{f:g}" for f in PAPER_FORCES_N), "--forces", help="Nominal pressing forces in N."),
+    repetitions: int = typer.Option(PAPER_REPETITIONS, "--repetitions",
                                     help="Mounts per pad and specimen (each mount steps through the forces)."),
     fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm",
                                                 help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
@@ -61,20 +61,18 @@ def simulate(
 
     Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
     """
-    from ..errors import ConfigError
     from ..sim import SimulationRun
 
-    if jobs is not None and jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
-    config = _config(pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
-                     stored_height_px)
+    config = _config(pads=pads, specimens=specimens, forces=forces, repetitions=repetitions, seed=seed,
+                     fingerprint_period_mm=fingerprint_period_mm, ridge_height_mm=ridge_height_mm,
+                     ratings_from=ratings_from, stored_height_px=stored_height_px)
     run = SimulationRun(out, config, force=force, jobs=jobs)
     for _ in progress(run, total=run.total, description="simulating"):
         pass
     typer.echo(f"wrote {run.total} images, {len(run.specimens)} specimens and the panel's ratings to {run.root}")
 
 
-def _config(pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
+def _config(*, pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
             stored_height_px):
     """The simulator's settings from the command's text options (the simulator checks their values)."""
     from dataclasses import replace

@@ -30,6 +30,7 @@ def register(app: typer.Typer) -> None:
                                  "first use and cached (a folder named builtin: ./builtin)."),
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
         seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Seed of the built-in simulated study (and any random draw)."),
+        # 20 is model.pls_cv.DEFAULT_MAX_COMPONENTS (tests/test_architecture.py checks it): a literal keeps --help light.
         max_components: int = typer.Option(20, "--max-components", min=1, help="Largest number of PLS components tried by CV."),
         no_loso: bool = typer.Option(
             False, "--no-loso",

@@ -2,7 +2,7 @@
 
 Nothing is written. Frames are rendered only down to the row the sensor reads (bit-identical to those rows of the
 whole frame) and each trial's contact levels start from the last solution of the same surfaces; the spectra come from
-the sensor's own code on a frame of the camera's full size, and the analysis is :func:`evaluation.analyse_study`
+the sensor's own code on a frame of the camera's full size, and the analysis is :func:`analysis.study_analysis.analyse_study`
 on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
 contact solver's tolerance; tests/test_explore.py checks it).
 """
@@ -18,12 +18,13 @@ import pandas as pd
 
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
+from ..io.protocol import nominal_force_label
 from ..io.sensor_settings import CENTER_CROP_PX, SensorSettings
 from ..io.study import Study
 from ..paper import REFERENCE_SPECIMEN
 from ..sensor.spectrum import SpatialSpectrum, resolve_roi
 from ..sim.optics import Camera
-from ..sim.simulate import SimulationConfig, force_label, plan_trials, render_trial
+from ..sim.simulate import SimulationConfig, plan_trials, render_trial
 from .allocator import relax_frozen_malloc_thresholds
 from .ratings import panel_ratings
 from .sweep import Cell
@@ -44,7 +45,7 @@ def sensor_roi(width_px: int, height_px: int):
 
 
 def line_rows(spectrum: SpatialSpectrum, width_px: int, height_px: int) -> tuple[int, int]:
-    """The rows of a frame the sensor reads: the crop's central ``rows`` rows (sensor.extract_line)."""
+    """The rows of a frame the sensor reads: the crop's central ``rows`` rows (as ``sensor.spectrum`` reads them)."""
     x, y, w, h = resolve_roi(spectrum.roi, np.empty((height_px, width_px, 0), dtype=np.uint8))
     top = y + (h - spectrum.rows) // 2
     return top, top + spectrum.rows
@@ -93,7 +94,7 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
         "pad": [t.pad.name for t in trials],
         "force_n": [t.exposure.force_read_n for t in trials],
         "nominal_force_n": [t.nominal_force_n for t in trials],
-        "condition": [force_label(t.nominal_force_n) for t in trials],
+        "condition": [nominal_force_label(t.nominal_force_n) for t in trials],
         "repetition": [t.repetition for t in trials],
         "contact_fraction": [round(f, 6) for f in fractions],
     })
@@ -155,7 +156,8 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
     return summary_frame, specimen_frame
 
 
-def one_line(exc: BaseException) -> str:
+def error_line(exc: BaseException) -> str:
+    """A failed cell's error as one line: a roughsense error's own words, anything else with its type."""
     text = str(exc) if isinstance(exc, RoughsenseError) else f"{type(exc).__name__}: {exc}"
     return " ".join(text.split()) or type(exc).__name__
 
@@ -174,5 +176,5 @@ def run_cell(cell: Cell) -> dict:
         return {"cell": cell, "results": summary, "specimens": per_specimen, "error": None,
                 "seconds": time.perf_counter() - started}
     except Exception as exc:
-        return {"cell": cell, "results": None, "specimens": None, "error": one_line(exc),
+        return {"cell": cell, "results": None, "specimens": None, "error": error_line(exc),
                 "seconds": time.perf_counter() - started}

@@ -8,15 +8,13 @@ from __future__ import annotations
 import pandas as pd
 
 from ..io.ratings import validate_ratings
-from ..paper import REFERENCE_SPECIMEN
-from ..sim.panel import simulate_panel
+from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, REFERENCE_SPECIMEN
+from ..sim.panel import PANEL_SPAWN_KEY, simulate_panel
 from ..sim.specimens import Specimen
 
-PANEL_SPAWN_KEY = (4,)  # the study path's key for the panel: a cell draws the same ratings as `simulate` does
 
-
-def panel_ratings(specimens: list[Specimen], seed: int, *, ratings_from: str = "paper", participants: int = 10,
-                  sessions: int = 3) -> pd.DataFrame:
+def panel_ratings(specimens: list[Specimen], seed: int, *, ratings_from: str = "paper", participants: int = PAPER_PARTICIPANTS,
+                  sessions: int = PAPER_SESSIONS) -> pd.DataFrame:
     """ratings.csv rows of the simulated panel for these specimens, drawn from ``seed``, checked as a file's are."""
     panel = simulate_panel(list(specimens), seed, spawn_key=PANEL_SPAWN_KEY, participants=participants,
                            sessions=sessions, reference=REFERENCE_SPECIMEN, ratings_from=ratings_from)

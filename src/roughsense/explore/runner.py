@@ -103,9 +103,9 @@ def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome
         try:
             result = future.result()
         except Exception as exc:
-            from .cell import one_line
+            from .cell import error_line
 
-            result = {"cell": cell, "results": None, "error": one_line(exc)}
+            result = {"cell": cell, "results": None, "error": error_line(exc)}
         future.release()
         if result["error"] is None:
             store.write_cell(result["results"], result["specimens"], cell.id)

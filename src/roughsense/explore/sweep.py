@@ -16,16 +16,26 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util.checks import POSITIVE, Integer, Real
+from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
-from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
-from ..sim.optics import HEIGHT_PX, PX_PER_MM, WIDTH_PX
+from ..io.sensor_settings import DEFAULT_PX_PER_MM
+from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
+from ..paper import (
+    PAPER_FORCES_N,
+    PAPER_PARTICIPANTS,
+    PAPER_REPETITIONS,
+    PAPER_SESSIONS,
+    PAPER_SPECIMENS,
+    REFERENCE_SPECIMEN,
+)
+from ..sensor.settings import SPECTRUM_DEFAULTS
+from ..sim.optics import HEIGHT_PX, WIDTH_PX
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
+from ..sim.panel import RATINGS_FROM
 from ..sim.specimens import parse_specimen
 
-RATINGS_SOURCES = ("paper", "physics")
-CV_SCHEMES = ("loo", "loso")
-MIN_FIELD_MM = 10.0  # the spectrum's lowest frequency is 0.1 mm^-1: a shorter line cannot resolve it
+MIN_FIELD_MM = 1.0 / SPECTRUM_DEFAULTS.f_min_per_mm  # a shorter line cannot resolve the spectrum's lowest frequency
 #: Named specimen sets usable wherever a list of specimens is expected.
 SPECIMEN_SETS = {
     "paper": PAPER_SPECIMENS,
@@ -34,7 +44,7 @@ SPECIMEN_SETS = {
 }
 PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked against
     "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
-    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / PX_PER_MM, 3), "forces_n": "1,2,3",
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / DEFAULT_PX_PER_MM, 3), "forces_n": "1,2,3",
 }
 #: Design parameters: every one may be a single value in [sweep] or a list of values in [axes].
 DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
@@ -43,8 +53,8 @@ FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless f
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
 DEFAULTS = {
     "pad": "smooth", "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
-    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": (1.0, 2.0, 3.0),
-    "specimens": "paper", "repetitions": 10, "ratings_from": "paper",
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": PAPER_FORCES_N,
+    "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": "paper",
 }
 #: Column type of each design parameter in the results (strings for lists, NaN where a value does not apply).
 COLUMN_KINDS = {"pad": "str", "fingerprint_period_mm": "float", "ridge_height_mm": "float",
@@ -101,10 +111,6 @@ class Sweep:
     cells: list[Cell]
     cv: tuple[str, ...]
     source: dict = field(default_factory=dict)  # the parsed file, to tell one sweep from another
-
-    @property
-    def axis_names(self) -> list[str]:
-        return list(self.axes)
 
 
 def forces_label(forces_n) -> str:
@@ -172,8 +178,8 @@ def _check_value(path: Path, key: str, value, where: str):
     if key == "repetitions":
         return _whole(path, where, value, 2)
     if key == "ratings_from":
-        if value not in RATINGS_SOURCES:
-            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_SOURCES)})")
+        if value not in RATINGS_FROM:
+            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_FROM)})")
         return value
     raise AssertionError(key)
 
@@ -209,7 +215,7 @@ def build_sweep(source: dict, path: Path) -> Sweep:
              for key in DESIGN_KEYS}
     axes = _axes(axes_in, path)
     if "pad" not in axes and "pad" not in settings:
-        axes["pad"] = ["smooth", "fingerprint"]  # both of the paper's pads unless told otherwise
+        axes["pad"] = list(PAD_NAMES)  # both of the paper's pads unless told otherwise
     cells = _cells(_design_points(fixed, axes), run)
     name = settings.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
@@ -246,9 +252,9 @@ def _run_settings(settings: dict, path: Path) -> dict:
     seeds = [_whole(path, "[sweep] seeds", s, 0) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
-    max_components = _whole(path, "[sweep] max_components", settings.get("max_components", 20), 1)
-    participants = _whole(path, "[sweep] participants", settings.get("participants", 10), 2)
-    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", 3), 1)
+    max_components = _whole(path, "[sweep] max_components", settings.get("max_components", DEFAULT_MAX_COMPONENTS), 1)
+    participants = _whole(path, "[sweep] participants", settings.get("participants", PAPER_PARTICIPANTS), 2)
+    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", PAPER_SESSIONS), 1)
     size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
@@ -304,12 +310,12 @@ def _cells(points: list[dict], run: dict) -> list[Cell]:
         specimens = point["specimens"]
         names = SPECIMEN_SETS[specimens] if isinstance(specimens, str) else specimens
         field_mm = point["field_length_mm"]
-        cell_width = run["width_px"] if field_mm is None else max(16, int(round(field_mm * PX_PER_MM)))
+        cell_width = run["width_px"] if field_mm is None else max(16, int(round(field_mm * DEFAULT_PX_PER_MM)))
         for seed in run["seeds"]:
             content = dict(
                 seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],
                 ridge_height_mm=point["ridge_height_mm"], pad_modulus_mpa=point["pad_modulus_mpa"],
-                field_length_mm=round(cell_width / PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
+                field_length_mm=round(cell_width / DEFAULT_PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
                 specimens=tuple(names), specimens_label=_label("specimens", specimens),
                 repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=run["participants"],
                 sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],

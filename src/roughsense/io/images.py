@@ -1,4 +1,4 @@
-"""Image decoding and MATLAB-compatible grayscale: the only place that touches image files.
+"""Image decoding and MATLAB-compatible grayscale: the only place that decodes image files.
 
 Decoding goes through OpenCV (``imdecode`` releases the GIL, so a thread pool scales over files) and keeps
 the file's bit depth, so 16-bit images are not silently reduced to 8 bits. Failures become one
@@ -24,7 +24,6 @@ GRAY_WEIGHTS_RGB = (0.298936021293775, 0.587043074451121, 0.114020904255103)
 #: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
 DEFAULT_MAX_PIXELS = 100_000_000
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _cv2 = None

@@ -10,9 +10,10 @@ import pandas as pd
 
 from .._util.checks import Integer, Real, check, short_repr
 from ..errors import ConfigError, InputError
+from ..paper import PAPER_FORCES_N
 from .tables import csv_line
 
-DEFAULT_FORCES_N = (1.0, 2.0, 3.0)
+DEFAULT_FORCES_N = PAPER_FORCES_N
 
 
 #: Largest force accepted anywhere (manifest readings, protocol forces, --forces). A fingertip presses with

@@ -1,4 +1,4 @@
-"""ratings.csv: the one validator of participants' magnitude estimates, used by every reader.
+"""ratings.csv: the one reader and validator of participants' magnitude estimates, used by every command.
 
 Files (``roughsense ratings``, ``study``, ``fit``) and frames built in memory (the simulated panel of a sweep cell)
 pass the same checks with the same messages, so the aggregation downstream takes a clean frame and checks nothing.
@@ -151,3 +151,60 @@ def _refuse_repeats(frame: pd.DataFrame, path) -> None:
             + (f" (first on line {first})" if first is not None else ""),
             path=path, row=_line(frame, i), column="specimen",
         )
+
+
+def _read_markdown_sheet(path: Path) -> pd.DataFrame:
+    """Rows of every Markdown table whose header names the rating columns (a filled-in sheet).
+
+    The frame's index is ``line - 2`` so that errors name the line of the Markdown file.
+    """
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise InputError("is not UTF-8 text", path=path) from None
+    rows, index, header = [], [], None
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text.startswith("|"):
+            header = None
+            continue
+        cells = [c.strip() for c in text.strip("|").split("|")]
+        if header is None:
+            header = [c.lower() for c in cells]
+            continue
+        if all(re.fullmatch(r":?-+:?", c) for c in cells):
+            continue
+        if not set(RATING_COLUMNS) <= set(header):
+            continue
+        if len(cells) != len(header):
+            raise InputError(f"table row has {len(cells)} cells, the header has {len(header)}", path=path, row=number)
+        rows.append(dict(zip(header, cells)))
+        index.append(number - 2)
+    if not rows:
+        raise InputError(f"no table with columns {', '.join(RATING_COLUMNS)} found", path=path)
+    frame = pd.DataFrame(rows, index=index)
+    return frame.replace("", np.nan)
+
+
+def read_ratings(
+    path: str | os.PathLike[str],
+    *,
+    specimens: Iterable[str] | None = None,
+    reference: str = REFERENCE_SPECIMEN,
+) -> pd.DataFrame:
+    """Read and validate ratings.csv -- or a filled-in schedule (CSV or Markdown sheet).
+
+    Rows whose ``rating`` cell is blank are not-yet-rated trials and are dropped (aggregation then warns
+    about the gap); anything else wrong is an :class:`InputError` naming the line. The returned frame
+    keeps ``index + 2 == line in the file`` and has columns participant, session, specimen (text) and
+    rating (float), plus any extra columns of the file.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".md", ".markdown"):
+        return read_ratings_table(path, reference=reference, specimens=specimens)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    frame = drop_unrated(_read_markdown_sheet(path))
+    if frame.empty:
+        raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
+    return validate_ratings(frame, path=path, reference=reference, specimens=specimens)

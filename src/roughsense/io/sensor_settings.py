@@ -91,8 +91,8 @@ def _roi_text(value: object) -> str:
 def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     """Why a ``width_px`` x ``height_px`` frame cannot yield this ROI's crop, or None if it can.
 
-    The size rule of :func:`roughsense.sensor.spectrum.resolve_roi`, so that a source can check its frames
-    before recording a session the analysis would refuse.
+    The one size rule: :func:`roughsense.sensor.spectrum.resolve_roi` refuses a crop with it, and a source
+    checks its frames with it before recording a session the analysis would refuse.
     """
     roi = parse_roi(roi)
     if roi == "center":

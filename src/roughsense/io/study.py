@@ -34,26 +34,14 @@ from .ratings import read_ratings_table
 from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
 from .tables import csv_line, has_column, read_table, read_text, refuse_unknown
 
+#: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"
-
-
 SPECIMENS_CSV = "specimens.csv"
-
-
 MANIFEST_CSV = "manifest.csv"
-
-
 RATINGS_CSV = "ratings.csv"
-
-
 IMAGES_DIR = "images"
-
-
 #: Written last by the simulator: a study.toml with a [simulation] table but no marker is an interrupted run.
 COMPLETE_MARKER = ".simulation-complete"
-
-
-
 
 MANIFEST_COLUMNS = ("image", "specimen", "pad", "force_n", "repetition")
 

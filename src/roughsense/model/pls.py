@@ -39,7 +39,7 @@ class PLSConfigError(ConfigError, ValueError):
 _EXHAUSTED_RTOL = 1e-12
 
 
-def _validate_xy(estimator, X, y, *, reset: bool = True):
+def validate_xy(estimator, X, y, *, reset: bool = True):
     """scikit-learn's validation, re-raised as our error family with the same (sklearn-checked) message."""
     try:
         X, y = validate_data(estimator, X, y, y_numeric=True, ensure_min_samples=3, dtype=np.float64, reset=reset)
@@ -47,16 +47,16 @@ def _validate_xy(estimator, X, y, *, reset: bool = True):
         raise
     except ValueError as exc:
         raise PLSInputError(str(exc)) from None
-    _check_target(y)
+    check_target(y)
     return X, y
 
 
-def _check_target(y: np.ndarray) -> None:
+def check_target(y: np.ndarray) -> None:
     if np.ptp(y) == 0:
         raise PLSInputError(f"y is constant ({y[0]:g} for all {y.size} samples); PLS needs a response that varies")
 
 
-def _svd_rank(sv: np.ndarray, n: int, p: int) -> int:
+def svd_rank(sv: np.ndarray, n: int, p: int) -> int:
     """Numerical rank from singular values, with numpy's ``matrix_rank`` tolerance."""
     if sv.size == 0 or not sv.max() > 0:
         return 0
@@ -66,7 +66,7 @@ def _svd_rank(sv: np.ndarray, n: int, p: int) -> int:
 def _max_components(X0: np.ndarray) -> tuple[int, int]:
     """Largest component count the centred data support: min(n-1, p, numerical rank)."""
     n, p = X0.shape
-    rank = _svd_rank(np.linalg.svd(X0, compute_uv=False), n, p)
+    rank = svd_rank(np.linalg.svd(X0, compute_uv=False), n, p)
     return min(n - 1, p, rank), rank
 
 
@@ -75,10 +75,10 @@ _BLAS = None
 
 # Below this many matrix elements BLAS threads cost more than they save (and contend badly on a busy
 # machine: refitting 140 LOO folds of 140 x 135 ran 20x slower with two threads than with one).
-_SMALL = 1_000_000
+SINGLE_THREAD_MAX_ELEMENTS = 1_000_000
 
 
-def _single_threaded_blas():
+def single_threaded_blas():
     """A context that limits BLAS to one thread (the controller is built once: scanning libraries is slow)."""
     global _BLAS
     if _BLAS is None:
@@ -112,8 +112,8 @@ class SIMPLS(RegressorMixin, BaseEstimator):
     def fit(self, X, y):
         k = self.n_components
         check(k, POSITIVE_INT, name="n_components", error=PLSConfigError, must="a positive whole number")
-        X, y = _validate_xy(self, X, y)
-        with _single_threaded_blas() if X.size <= _SMALL else contextlib.nullcontext():
+        X, y = validate_xy(self, X, y)
+        with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
             return self._fit(X, y, int(k))
 
     def _fit(self, X: np.ndarray, y: np.ndarray, k: int) -> SIMPLS:

@@ -15,10 +15,19 @@ import numpy as np
 from sklearn.utils.validation import validate_data
 
 from .._util.checks import POSITIVE_INT, check, is_whole_number
-from .pls import _SMALL, SIMPLS, PLSConfigError, PLSInputError, _check_target, _single_threaded_blas, _svd_rank
+from .pls import (
+    SIMPLS,
+    SINGLE_THREAD_MAX_ELEMENTS,
+    PLSConfigError,
+    PLSInputError,
+    check_target,
+    single_threaded_blas,
+    svd_rank,
+    validate_xy,
+)
 
-# The same for the cross-validation's Lanczos recurrence, whose next-vector norm beta lives on the scale
-# of X'X: below ~50 eps of its largest eigenvalue it is rounding noise of the products that form it.
+# When the cross-validation's Lanczos recurrence is exhausted: its next-vector norm beta lives on the scale
+# of X'X, and below ~50 eps of its largest eigenvalue it is rounding noise of the products that form it.
 _KRYLOV_RTOL = 1e-14
 
 
@@ -91,7 +100,11 @@ def _component_limit(max_components) -> int:
                  must="a positive whole number")
 
 
-def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
+#: Largest component count cross-validated when the caller names none (fewer where the data support fewer).
+DEFAULT_MAX_COMPONENTS = 20
+
+
+def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
            cap: bool = False) -> PLSCVResult:
     """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
 
@@ -110,16 +123,12 @@ def pls_cv(X, y, max_components: int = 20, cv="loo", groups=None, random_state=N
             return pls_cv(X, y, exc.supported, cv, groups, random_state, cap=True)
     if groups is not None and cv == "loo":
         cv = None
-    try:
-        X, y = validate_data(SIMPLS(), X, y, y_numeric=True, ensure_min_samples=3, dtype=np.float64, reset=True)
-    except ValueError as exc:
-        raise PLSInputError(str(exc)) from None
-    _check_target(y)
+    X, y = validate_xy(SIMPLS(), X, y)
     A = _component_limit(max_components)
     n = X.shape[0]
     fid, scheme = _fold_ids(n, cv, groups, random_state)
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
-    with _single_threaded_blas() if X.size <= _SMALL else contextlib.nullcontext():
+    with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
         pred = _cv_predictions(X, y[:, None], fid, A)[0]
     F = int(fid.max()) + 1
     m = np.bincount(fid, minlength=F)
@@ -171,7 +180,7 @@ class PLSCVBatch:
         return np.argmin(self.rmse[:, 1:], axis=1) + 1
 
 
-def pls_cv_many(X, Y, max_components: int = 20, cv="loo", groups=None, random_state=None, *,
+def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
                 cap: bool = False) -> PLSCVBatch:
     """:func:`pls_cv` for many targets at once (the columns of Y, n x B), e.g. a permutation test's.
 
@@ -192,7 +201,7 @@ def pls_cv_many(X, Y, max_components: int = 20, cv="loo", groups=None, random_st
     if not np.all(np.isfinite(Y)):
         raise PLSInputError("Y contains NaN or infinity")
     for column in Y.T:
-        _check_target(column)
+        check_target(column)
     A = _component_limit(max_components)
     n = X.shape[0]
     fid, scheme = _fold_ids(n, cv, groups, random_state)
@@ -201,7 +210,7 @@ def pls_cv_many(X, Y, max_components: int = 20, cv="loo", groups=None, random_st
     chunk = max(1, _BATCH_BYTES // per_target)
     pred = np.empty((Y.shape[1], n, A + 1))
     try:
-        with _single_threaded_blas() if X.size <= _SMALL else contextlib.nullcontext():
+        with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
             for start in range(0, Y.shape[1], chunk):
                 pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A)
     except PLSConfigError as exc:
@@ -342,7 +351,7 @@ class _RotatedFolds:
 
 def _check_fold_support(sv: np.ndarray, n: int, p: int, n_train: np.ndarray, A: int) -> None:
     """Refuse more components than the data's rank or the smallest training fold support."""
-    rank = _svd_rank(sv, n, p)
+    rank = svd_rank(sv, n, p)
     k_max = min(n - 1, p, rank)
     k_fold = int(n_train.min()) - 1
     if min(k_max, k_fold) < A:

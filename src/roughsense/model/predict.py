@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import ConfigError, InputError
 from .modelfile import LoadedModel, check_features, feature_definition_for
 
 if TYPE_CHECKING:
@@ -53,22 +53,35 @@ def spectra_to_features(loaded: LoadedModel, spectra: np.ndarray) -> np.ndarray:
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
-def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, spectrum=None,
-                 progress=None) -> np.ndarray:
+def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
     """Predicted perceived roughness, one value per image (per trial of k images for a k-force model).
 
-    ``images`` are paths or arrays. Pass a prebuilt ``spectrum`` (from :func:`model_spectrum`) when
-    scoring frame after frame, so the feature check runs once. ``progress(iterable, total=, description=)``
-    may wrap the image stream (the CLI passes its progress display).
+    ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
+    (the CLI passes its progress display).
     """
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
-    spectrum = spectrum if spectrum is not None else model_spectrum(loaded, n_jobs=n_jobs)
+    spectrum = model_spectrum(loaded, n_jobs=n_jobs)
     if progress is None:
         spectra = spectrum.transform(images)
     else:
         spectra = np.vstack(list(progress(spectrum.iter_transform(images), total=len(images), description="spectra")))
     return loaded.predict(spectra_to_features(loaded, spectra))
+
+
+def frame_scorer(loaded: LoadedModel) -> Callable[[np.ndarray], float]:
+    """Live mode's scorer: one camera frame (an array) -> roughness, with the spectrum built and checked once."""
+    if len(loaded.conditions) != 1:
+        raise ConfigError(
+            f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
+            "(fit one with --condition 1N, 2N or 3N)"
+        )
+    spectrum = model_spectrum(loaded)
+
+    def score_frame(frame: np.ndarray) -> float:
+        return float(loaded.predict(spectrum.transform([frame]))[0])
+
+    return score_frame
 
 
 # --------------------------------------------------------------------------- grouping images into trials

@@ -13,7 +13,7 @@ import pandas as pd
 from .. import __version__, paper
 from .._util.checks import is_number
 from . import figures
-from .html import _environment
+from .html import template_environment
 
 CV_STYLE = {"loo": ("#2f5d8a", "o", "LOO"), "loso": ("#b5472b", "s", "LOSO")}
 
@@ -78,7 +78,7 @@ def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: li
             "table": html_table(item["rows"][[item["axis"], "cv", "condition", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
                                               "n_seeds"]], f"{item['axis']}: RMSE and OVL (mean ± 95 % over seeds)"),
         })
-    template = _environment().get_template("explore.html.j2")
+    template = template_environment().get_template("explore.html.j2")
     html = template.render(
         title=f"roughsense sweep: {name}", version=__version__, citation=paper.PAPER_CITATION,
         generated=generated or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),

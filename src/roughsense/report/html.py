@@ -23,7 +23,7 @@ from ..io.names import check_name
 from . import figures, tables
 
 
-def _environment() -> jinja2.Environment:
+def template_environment() -> jinja2.Environment:
     return jinja2.Environment(
         loader=jinja2.PackageLoader("roughsense.report", "templates"),
         autoescape=jinja2.select_autoescape(["html", "j2"]),
@@ -118,7 +118,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     files = _data_files(analysis, results, chosen)
     figure_list = _figures(analysis, results, chosen, cv_schemes, files)
     paper_pads = tuple(analysis.paper_pads)
-    template = _environment().get_template("report.html.j2")
+    template = template_environment().get_template("report.html.j2")
     html = template.render(
         title=f"roughsense report: {analysis.study_name}",
         study_name=analysis.study_name,

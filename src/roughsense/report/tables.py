@@ -233,7 +233,7 @@ def tests_table(tests: pd.DataFrame, paper_values: bool = True) -> dict:
         "caption": ("W is the sum of the ranks of positive differences (MATLAB signrank); p is exact for small n. "
                     "Combined vs single force: Bonferroni ×3 per pad. Smooth vs fingerprint: combined condition, as in the "
                     "paper. The paper's W and p are beneath ours, under p or adjusted p according to which one its "
-                    "printed value is (recomputed from its Tables 3 and 6; docs/finger_model.md)."),
+                    "printed value is (recomputed from its Tables 3 and 6; docs/perception.md)."),
         "columns": ["CV", "Comparison", "W", "p", "p (adjusted)"],
         "rows": rows,
     }

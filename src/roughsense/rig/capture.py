@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._util.checks import POSITIVE, check
 from ..errors import ConfigError, InputError, OutputExistsError
 from ..io.names import NAME_RULE, check_name, is_safe_name
 from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
@@ -58,7 +59,7 @@ class CaptureResult:
 
 
 def check_option_name(value: str, option: str) -> str:
-    """Specimen and pad names go into file names: the study contract's one name rule (:func:`study.check_name`)."""
+    """Specimen and pad names go into file names: the study contract's one name rule (:func:`roughsense.io.names.check_name`)."""
     if not is_safe_name(value):
         raise ConfigError(f"--{option} {value!r}: use {NAME_RULE} (it becomes part of file names)")
     return value
@@ -250,10 +251,12 @@ def capture_session(
         forces = tuple(float(f) for f in (forces_n or folder.forces_n))
         specimens_update, incomplete = _merge_specimen(folder, specimen, shape.lower() if shape else None, wavelength_mm)
         steps = plan_steps(folder.manifest, specimen, pad, forces, repetitions)
-        session = _Session(root, folder, specimens_update, source, force_input, specimen, pad, repetitions, log, clock,
-                           lock, force_window(folder.forces_n),
-                           CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
-                                         specimen_incomplete=incomplete))
+        session = _Session(
+            root=root, folder=folder, specimens_update=specimens_update, source=source, force_input=force_input,
+            specimen=specimen, pad=pad, repetitions=repetitions, log=log, clock=clock, lock=lock,
+            window=force_window(folder.forces_n),
+            result=CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
+                                 specimen_incomplete=incomplete))
         try:
             for repetition, nominal in steps:
                 session.capture(repetition, nominal)
@@ -276,11 +279,11 @@ def _check_capture_options(specimen: str, pad: str, repetitions: int, shape: str
     check_repetitions(repetitions)
     if shape is not None and shape.lower() not in SHAPES:
         raise ConfigError(f"--shape {shape!r}: expected one of {', '.join(SHAPES)}")
-    if wavelength_mm is not None and not (math.isfinite(wavelength_mm) and wavelength_mm > 0):
-        raise ConfigError(f"--wavelength-mm must be positive, got {wavelength_mm:g}")
+    if wavelength_mm is not None:
+        check(wavelength_mm, POSITIVE, name="--wavelength-mm", must="positive")
 
 
-@dataclass
+@dataclass(kw_only=True)
 class _Session:
     """One run of the protocol: what it reads from, what it writes into, and what it has done so far.
 

@@ -1,7 +1,8 @@
-"""The sensor's defaults in one place: the paper's band and grid, the line, the taper (section 3.3).
+"""The sensor's defaults in one place: the paper's band and grid, the line, the taper (section 3.2).
 
-Every entry point (``SpatialSpectrum``, ``spatial_spectrum``, ``frequency_grid``, the CLI's options, model files
-that predate a setting) takes its default from :data:`SPECTRUM_DEFAULTS`, so the paper's choices are written once.
+Every entry point (``SpatialSpectrum``, ``spatial_spectrum``, ``frequency_grid``, the CLI's options) takes its
+default from :data:`SPECTRUM_DEFAULTS`, so the paper's choices are written once. A model file keeps the values it
+was written with (one that predates the taper option was fitted with Hann, and is read so).
 The camera's scale, the region of interest and the pixel limit are the study folder's ``[sensor]`` table
 (:class:`roughsense.io.sensor_settings.SensorSettings`).
 """

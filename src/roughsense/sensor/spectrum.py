@@ -11,7 +11,6 @@ explained in docs/sensor.md.
 """
 from __future__ import annotations
 
-import math
 import os
 from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
@@ -22,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from .._util.checks import Integer, Options, check
+from .._util.checks import POSITIVE, Integer, Options, check
 from ..errors import ConfigError, InputError
 from ..io.images import (
     DEFAULT_MAX_PIXELS,
@@ -31,24 +30,29 @@ from ..io.images import (
     check_pixels,
     decode,
     decode_png_top_rows,
-    load_gray,
     png_size,
     read_bytes,
     to_gray,
 )
-from ..io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI, Roi, check_max_pixels, parse_roi
+from ..io.sensor_settings import (
+    CENTER_CROP_PX,
+    DEFAULT_PX_PER_MM,
+    DEFAULT_ROI,
+    Roi,
+    check_max_pixels,
+    parse_roi,
+    roi_misfit,
+)
 from .settings import SPECTRUM_DEFAULTS, WINDOWS
 
 #: Pillow warns on stderr (DecompressionBombWarning) above this many pixels; larger PNGs go to OpenCV instead.
 _PILLOW_QUIET_PIXELS = 89_478_485
 
 __all__ = [
-    "CENTER_CROP_PX",
     "SpatialSpectrum",
     "combine_forces",
     "frequency_grid",
     "line_amplitude",
-    "load_gray",
     "resolve_roi",
     "spatial_spectrum",
 ]
@@ -67,11 +71,9 @@ def frequency_grid(
 
 
 def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
-    try:
-        lo, hi = float(f_min_per_mm), float(f_max_per_mm)
-    except (TypeError, ValueError):
-        raise ConfigError(f"band must be two numbers, got {f_min_per_mm!r}, {f_max_per_mm!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+    lo = check(f_min_per_mm, POSITIVE, name="f_min_per_mm", must="a positive number (mm^-1)")
+    hi = check(f_max_per_mm, POSITIVE, name="f_max_per_mm", must="a positive number (mm^-1)")
+    if not lo < hi:
         raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
     check(n_freqs, Integer(2), name="n_freqs")
 
@@ -120,13 +122,7 @@ def _normalise(amplitude: np.ndarray, freq_per_mm: np.ndarray, name: str | None,
 
 
 def _check_px_per_mm(px_per_mm) -> float:
-    try:
-        value = float(px_per_mm)
-    except (TypeError, ValueError):
-        raise ConfigError(f"px_per_mm must be a positive number, got {px_per_mm!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ConfigError(f"px_per_mm must be a positive number, got {px_per_mm!r}")
-    return value
+    return check(px_per_mm, POSITIVE, name="px_per_mm", must="a positive number")
 
 
 #: ``auto`` looks at every 2nd row and every 4th column: the band is ~150 rows tall and its texture spans
@@ -150,28 +146,19 @@ def _auto_band(pixels: np.ndarray, height_px: int) -> int:
 
 
 def resolve_roi(roi: Roi, pixels: np.ndarray, *, name=None, where: str = "") -> tuple[int, int, int, int]:
-    """The crop (x, y, w, h) in pixels for this image; refuse crops that do not fit."""
+    """The crop (x, y, w, h) in pixels for this image; a crop that does not fit is refused (``roi_misfit``'s rule)."""
     height, width = pixels.shape[:2]
     roi = parse_roi(roi)
+    misfit = roi_misfit(roi, width, height)
+    if misfit is not None:
+        hint = "; pass --roi X,Y,W,H or --roi auto" if roi == "center" else ""
+        raise InputError(f"{where}image is {width}x{height} px, {misfit}{hint}", path=name)
     if roi == "center":
         crop_w, crop_h = CENTER_CROP_PX
-        if width < crop_w or height < crop_h:
-            raise InputError(
-                f"{where}image is {width}x{height} px, smaller than the {crop_w}x{crop_h} px centre crop; "
-                "pass --roi X,Y,W,H or --roi auto",
-                path=name,
-            )
         return ((width - crop_w) // 2, (height - crop_h) // 2, crop_w, crop_h)
     if roi == "auto":
         crop_w, crop_h = min(CENTER_CROP_PX[0], width), min(CENTER_CROP_PX[1], height)
-        if width < 2:
-            raise InputError(f"{where}image is {width}x{height} px, too narrow to find the contact band", path=name)
         return ((width - crop_w) // 2, _auto_band(pixels, crop_h), crop_w, crop_h)
-    x, y, w, h = roi
-    if x + w > width or y + h > height:
-        raise InputError(
-            f"{where}ROI {x},{y},{w},{h} reaches outside the image ({width}x{height} px)", path=name
-        )
     return roi
 
 
@@ -247,7 +234,6 @@ class _Plan:
         line = extract_line(pixels, box, self.rows, name=name, where=where)
         amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
         return _normalise(amplitude, self.freq_per_mm, name, where)
-
 
     def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
         """Decode a PNG only down to the last row the line uses (same result, about half the decoding).

@@ -2,7 +2,7 @@
 
 A source of study folders like the rig: it writes through ``io/`` and never imports the analysis or the models, so
 the analysis cannot tell a simulated folder from a captured one except by its ``[simulation]`` table. The public
-names load lazily, so the CLI can read the presets and defaults from ``sim.specimens`` and ``sim.pads`` cheaply.
+names load lazily, so the CLI can read the pads' defaults from ``sim.pads`` cheaply.
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import ConfigError
+from .._util.checks import Real, check
 from .optics import Lighting
 
 GRAVITY = 9.80665
@@ -41,8 +41,7 @@ class BenchNoise:
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"bench noise {name} must be a number >= 0, got {value!r}")
+            check(value, Real(0.0), name=f"bench noise {name}", must="a number >= 0")
 
     def scaled(self, factor: float) -> BenchNoise:
         """All spreads times ``factor`` (the calibration knob); resolutions and counts unchanged."""

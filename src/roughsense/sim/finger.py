@@ -34,6 +34,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft as sfft
 
+from .._util.checks import POSITIVE, check
 from ..errors import ConfigError
 from ..paper import REFERENCE_SPECIMEN
 from . import contact
@@ -70,8 +71,7 @@ class Finger:
                             ("force_n", self.force_n), ("contact_area_mm2", self.contact_area_mm2),
                             ("receptor_depth_mm", self.receptor_depth_mm),
                             ("saturation_strain", self.saturation_strain), ("grid_step_mm", self.grid_step_mm)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"finger: {what} must be a positive number, got {value!r}")
+            check(value, POSITIVE, name=f"finger: {what}", must="a positive number")
         if not (0.0 <= self.poisson < 0.5) or not (self.ridge_height_mm >= 0) or self.ridge_phases < 1:
             raise ConfigError("finger: need 0 <= poisson < 0.5, ridge_height_mm >= 0 and ridge_phases >= 1")
 

@@ -17,13 +17,12 @@ import math
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigError
-from ..paper import REFERENCE_SPECIMEN
+from .._util.checks import Options, check
+from ..paper import REFERENCE_SPECIMEN, perceived_roughness
 from . import finger
 from .specimens import Specimen
 
@@ -33,12 +32,14 @@ RATING_DECIMALS = 2
 _CALIBRATION_PANELS = 4000
 
 
+#: The seed key of the panel's draws: ``simulate`` and a sweep cell use it alike, so both rate a design the same.
+PANEL_SPAWN_KEY = (4,)
+
+
 @lru_cache(maxsize=1)
 def paper_perceived() -> pd.DataFrame:
-    """The paper's perceived roughness (gmean, SD across participants), shipped in ``roughsense.data.paper``."""
-    with resources.files("roughsense.data.paper").joinpath("perceived_roughness.csv").open("r", encoding="utf-8") as fh:
-        frame = pd.read_csv(fh, dtype={"specimen": str, "shape": str})
-    return frame.set_index("specimen")
+    """The paper's perceived roughness (gmean, SD across participants) indexed by specimen, as the panel reads it."""
+    return perceived_roughness().set_index("specimen")
 
 
 @dataclass(frozen=True)
@@ -55,9 +56,7 @@ class Percept:
 
 
 def check_ratings_from(ratings_from: str) -> str:
-    if ratings_from not in RATINGS_FROM:
-        raise ConfigError(f"--ratings-from must be one of {', '.join(RATINGS_FROM)}, got {ratings_from!r}")
-    return ratings_from
+    return check(ratings_from, Options(RATINGS_FROM), name="--ratings-from", must=f"one of {', '.join(RATINGS_FROM)}")
 
 
 def percept(specimen: Specimen, *, ratings_from: str = "paper", sessions: int = 3) -> Percept:

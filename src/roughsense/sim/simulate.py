@@ -20,20 +20,27 @@ import numpy as np
 import pandas as pd
 
 from .._util import atomic
-from .._util.checks import Integer, Real, check
+from .._util.checks import POSITIVE, POSITIVE_INT, Integer, check
 from .._util.workers import process_pool
 from ..errors import ConfigError, OutputExistsError
 from ..io.names import check_name
-from ..io.protocol import MAX_FORCE_N, MAX_REPETITION
+from ..io.protocol import check_force, check_repetitions, nominal_force_label
 from ..io.sensor_settings import DEFAULT_ROI, SensorSettings
 from ..io.study import COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, RATINGS_CSV, SPECIMENS_CSV, STUDY_TOML
 from ..io.writer import StudyWriter
-from ..paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
+from ..paper import (
+    PAPER_FORCES_N,
+    PAPER_PARTICIPANTS,
+    PAPER_REPETITIONS,
+    PAPER_SESSIONS,
+    PAPER_SPECIMENS,
+    REFERENCE_SPECIMEN,
+)
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
 from .optics import Camera, bin_to_pixels, render
-from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, Pad, make_pad
-from .panel import check_ratings_from, percept, simulate_panel
+from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, Pad, make_pad
+from .panel import PANEL_SPAWN_KEY, check_ratings_from, percept, simulate_panel
 from .specimens import SPECIMEN_LENGTH_MM, Specimen, parse_specimen
 
 SUBSAMPLES_PER_PX = 7
@@ -49,15 +56,15 @@ SOLVER_TOL = 1e-5  # relative pressure change at convergence: lines within 1e-4 
 class SimulationConfig:
     """Everything that defines a simulated study. Defaults are the paper's full study (840 images)."""
 
-    pads: tuple[str, ...] = ("smooth", "fingerprint")
+    pads: tuple[str, ...] = PAD_NAMES
     specimens: tuple[str, ...] = PAPER_SPECIMENS
-    forces_n: tuple[float, ...] = (1.0, 2.0, 3.0)
-    repetitions: int = 10
+    forces_n: tuple[float, ...] = PAPER_FORCES_N
+    repetitions: int = PAPER_REPETITIONS
     seed: int = 0
     fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM
     ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM
-    participants: int = 10
-    sessions: int = 3
+    participants: int = PAPER_PARTICIPANTS
+    sessions: int = PAPER_SESSIONS
     name: str = "simulated"
     ratings_from: str = "paper"  # "paper": the paper's values for its presets, the finger model otherwise; "physics"
     camera: Camera = field(default_factory=Camera)
@@ -72,20 +79,17 @@ class SimulationConfig:
         if not self.forces_n:
             raise ConfigError("--forces: give at least one force")
         for f in self.forces_n:
-            check(f, Real(0.0, MAX_FORCE_N, low_open=True), name="--forces: every force",
-                  must=f"a positive number of newtons up to {MAX_FORCE_N:g}")
-        _check_force_labels(self.forces_n)
+            check_force(f, option="--forces: every force")
+        _check_nominal_force_labels(self.forces_n)
         check_ratings_from(self.ratings_from)
         # Every numeric option, whether or not the pads use it: it is written to study.toml either way.
         for option, value in (("--fingerprint-period-mm", self.fingerprint_period_mm),
                               ("--ridge-height-mm", self.ridge_height_mm)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"{option} must be a positive number of mm, got {value!r}")
-        for option, value, least in (("--repetitions", self.repetitions, 1), ("--seed", self.seed, 0),
-                                     ("participants", self.participants, 2), ("sessions", self.sessions, 1)):
+            check(value, POSITIVE, name=option, must="a positive number of mm")
+        check_repetitions(self.repetitions)
+        for option, value, least in (("--seed", self.seed, 0), ("participants", self.participants, 2),
+                                     ("sessions", self.sessions, 1)):
             check(value, Integer(least), name=option, must=f"a whole number, at least {least}")
-        if self.repetitions > MAX_REPETITION:
-            raise ConfigError(f"--repetitions must be at most {MAX_REPETITION}, got {self.repetitions}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
@@ -126,19 +130,14 @@ def _key(text: str) -> int:
     return zlib.crc32(text.encode("utf-8"))
 
 
-def force_label(force_n: float) -> str:
-    """How a force appears in image names (``2N``, ``2.5N``)."""
-    return f"{force_n:g}N"
-
-
 def force_key(force_n: float) -> int:
     """A force's part of the seed keys (micronewtons)."""
     return int(round(force_n * 1e6))
 
 
-def _check_force_labels(forces_n: Sequence[float]) -> None:
+def _check_nominal_force_labels(forces_n: Sequence[float]) -> None:
     """Two forces that share an image name or a seed key would overwrite each other's images (or draws)."""
-    for what, label in (("image name", force_label), ("seed key", force_key)):
+    for what, label in (("image name", nominal_force_label), ("seed key", force_key)):
         seen: dict[object, float] = {}
         for f in forces_n:
             if label(f) in seen:
@@ -165,8 +164,6 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(key)))
 
 
-
-
 def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequence[Specimen]) -> list[Trial]:
     """All exposures in acquisition order: per pad and specimen, mount ``repetition`` times, step the forces up."""
     trials = []
@@ -181,7 +178,7 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
                     fkey = force_key(force)
                     exposure = draw_exposure(_rng(config.seed, 2, *mount_key[1:], fkey), config.bench, force)
                     name = f"{check_name(pad.name, what='pad')}_{check_name(specimen.name, what='specimen')}_" \
-                           f"{force_label(force)}_r{rep:02d}.png"
+                           f"{nominal_force_label(force)}_r{rep:02d}.png"
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
@@ -388,7 +385,7 @@ class SimulationRun:
                  force: bool = False, jobs: int | None = None) -> None:
         self.config = config
         self.pads, self.specimens = config.validate()
-        self.jobs = max(1, int(jobs if jobs is not None else (os.cpu_count() or 1)))
+        self.jobs = (os.cpu_count() or 1) if jobs is None else check(jobs, POSITIVE_INT, name="--jobs", must="at least 1")
         self.trials = plan_trials(config, self.pads, self.specimens)
         _check_unique_images(self.trials)
         self.force = force
@@ -411,7 +408,7 @@ class SimulationRun:
         table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
                               for s in self.specimens])
         writer.write_specimens(table)
-        writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=(4,),
+        writer.write_ratings(simulate_panel(self.specimens, config.seed, spawn_key=PANEL_SPAWN_KEY,
                                             participants=config.participants, sessions=config.sessions,
                                             reference=REFERENCE_SPECIMEN, ratings_from=config.ratings_from))
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._util.checks import POSITIVE, check
 from ..errors import ConfigError
 from ..io.names import NAME_RULE, is_safe_name
 from ..paper import PAPER_WAVELENGTHS_MM
@@ -108,8 +109,7 @@ class Specimen:
 
 
 def _positive(what: str, value: float, name: str) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ConfigError(f"specimen {name!r}: {what} must be a positive number of mm, got {value!r}")
+    check(value, POSITIVE, name=f"specimen {name!r}: {what}", must="a positive number of mm")
 
 
 def rectangular(wavelength_mm: float, *, groove_depth_mm: float = DEFAULT_GROOVE_DEPTH_MM,
