@@ -88,6 +88,11 @@ def single_threaded_blas():
     return _BLAS.limit(limits=1, user_api="blas")
 
 
+def blas_threads_for(X: np.ndarray):
+    """One BLAS thread for a problem below :data:`SINGLE_THREAD_MAX_ELEMENTS`, the library's own threads above it."""
+    return single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext()
+
+
 class SIMPLS(RegressorMixin, BaseEstimator):
     """PLS1 regression by SIMPLS, numerically the model of MATLAB ``plsregress(X, y, A)``.
 
@@ -113,7 +118,7 @@ class SIMPLS(RegressorMixin, BaseEstimator):
         k = self.n_components
         check(k, POSITIVE_INT, name="n_components", error=PLSConfigError, must="a positive whole number")
         X, y = validate_xy(self, X, y)
-        with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
+        with blas_threads_for(X):
             return self._fit(X, y, int(k))
 
     def _fit(self, X: np.ndarray, y: np.ndarray, k: int) -> SIMPLS:

@@ -8,7 +8,6 @@ one refit per fold.
 """
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,11 +16,10 @@ from sklearn.utils.validation import validate_data
 from .._util.checks import POSITIVE_INT, check, is_whole_number
 from .pls import (
     SIMPLS,
-    SINGLE_THREAD_MAX_ELEMENTS,
     PLSConfigError,
     PLSInputError,
+    blas_threads_for,
     check_target,
-    single_threaded_blas,
     svd_rank,
     validate_xy,
 )
@@ -128,7 +126,7 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     n = X.shape[0]
     fid, scheme = _fold_ids(n, cv, groups, random_state)
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
-    with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
+    with blas_threads_for(X):
         pred = _cv_predictions(X, y[:, None], fid, A)[0]
     F = int(fid.max()) + 1
     m = np.bincount(fid, minlength=F)
@@ -210,7 +208,7 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     chunk = max(1, _BATCH_BYTES // per_target)
     pred = np.empty((Y.shape[1], n, A + 1))
     try:
-        with single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext():
+        with blas_threads_for(X):
             for start in range(0, Y.shape[1], chunk):
                 pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A)
     except PLSConfigError as exc:
