@@ -24,7 +24,7 @@ from ..io.study import Study
 from ..paper import REFERENCE_SPECIMEN
 from ..sensor.spectrum import SpatialSpectrum, resolve_roi
 from ..sim.optics import Camera
-from ..sim.simulate import SimulationConfig, plan_trials, render_trial
+from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
 from .allocator import relax_frozen_malloc_thresholds
 from .ratings import panel_ratings
 from .sweep import Cell
@@ -106,6 +106,7 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
         specimens=pd.DataFrame([s.table_row() for s in specimens]), manifest=manifest,
         ratings=panel_ratings(specimens, cell.seed, ratings_from=cell.ratings_from,
                               participants=cell.participants, sessions=cell.sessions),
+        pad_ridge_period_mm=ridge_periods(pads),
     )
     return study, features
 

@@ -2,7 +2,8 @@
 
 Layout (docs/study.md)::
 
-    study.toml      [study] name, reference_specimen; [sensor] px_per_mm, roi; [protocol] forces_n
+    study.toml      [study] name, reference_specimen; [sensor] px_per_mm, roi; [protocol] forces_n;
+                    [pads.NAME] ridge_period_mm (a pad with fingerprint-like ridges)
     specimens.csv   specimen, shape, wavelength_mm, geometry columns
     manifest.csv    image, specimen, pad, force_n, repetition [, nominal_force_n, contact_fraction, timestamp]
     ratings.csv     participant, session, specimen, rating
@@ -59,8 +60,13 @@ CONFIG_KEYS: dict[str, frozenset[str] | None] = {
     "study": frozenset({"name", "reference_specimen"}),
     "sensor": frozenset({"px_per_mm", "roi", "max_pixels"}),
     "protocol": frozenset({"forces_n"}),
+    "pads": None,  # one sub-table per pad name: [pads.fingerprint] ridge_period_mm = 1.0
     "simulation": None,
 }
+#: Keys of a ``[pads.NAME]`` sub-table.
+PAD_KEYS = frozenset({"ridge_period_mm"})
+#: A pad's ridge period is at most this (mm): ridges coarser than the specimens are not a fingerprint.
+MAX_RIDGE_PERIOD_MM = 100.0
 
 
 @dataclass
@@ -76,6 +82,9 @@ class Study:
     manifest: pd.DataFrame
     ratings: pd.DataFrame | None = None
     extra: dict = field(default_factory=dict)
+    #: Ridge period (mm) of each pad that has ridges (study.toml's ``[pads.NAME] ridge_period_mm``); a pad not
+    #: listed is smooth. The peak-law model leaves the ridges' own frequency out of its peak search.
+    pad_ridge_period_mm: dict[str, float] = field(default_factory=dict)
 
     @property
     def image_paths(self) -> list[Path]:
@@ -147,6 +156,31 @@ def sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
                               max_pixels=sensor.get("max_pixels", DEFAULT_MAX_PIXELS))
     except ConfigError as exc:
         raise InputError(f"[sensor] {exc.message}", path=path) from None
+
+
+def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
+    """``[pads.NAME] ridge_period_mm`` of every pad that states one, checked (a positive number of mm, at most 100)."""
+    from .._util.checks import Real, check
+
+    pads = config.get("pads", {})
+    periods: dict[str, float] = {}
+    for pad, table in pads.items():
+        check_name(pad, path=path, what="[pads] pad name")
+        if not isinstance(table, Mapping):
+            raise InputError(f"[pads] {pad} must be a table ([pads.{pad}] followed by ridge_period_mm = ...), "
+                             f"got {short_repr(table)}", path=path)
+        for key in table:
+            if key not in PAD_KEYS:
+                warnings.warn(f"{path}: unknown key {key!r} in [pads.{pad}] ignored (known: {', '.join(sorted(PAD_KEYS))})",
+                              RoughsenseWarning, stacklevel=2)
+        if "ridge_period_mm" in table:
+            try:
+                periods[pad] = check(table["ridge_period_mm"], Real(0.0, MAX_RIDGE_PERIOD_MM, low_open=True),
+                                     name=f"[pads.{pad}] ridge_period_mm", must=f"a number of mm above 0 and at most "
+                                     f"{MAX_RIDGE_PERIOD_MM:g}")
+            except ConfigError as exc:
+                raise InputError(exc.message, path=path) from None
+    return periods
 
 
 def read_specimens(path: str | os.PathLike[str]) -> pd.DataFrame:
@@ -252,6 +286,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     config = read_config(toml_path)
     check_simulation_complete(root, config)
     study_cfg = config.get("study", {})
+    pad_ridge_periods(config, toml_path)  # checked early: a bad table is named before any CSV is read
     sensor = sensor_from_config(config, toml_path)
     forces_n = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
     name = study_cfg.get("name", root.name)
@@ -290,5 +325,6 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
         specimens=specimens,
         manifest=manifest,
         ratings=ratings,
-        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol")},
+        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol", "pads")},
+        pad_ridge_period_mm=pad_ridge_periods(config, toml_path),
     )

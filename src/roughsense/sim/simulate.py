@@ -110,6 +110,12 @@ class SimulationConfig:
         return table
 
 
+def ridge_periods(pads: Sequence[Pad]) -> dict[str, float]:
+    """The ridge period (mm) of every pad with ridges: study.toml's ``[pads.NAME] ridge_period_mm``, as a rig's user
+    writes it for a real pad."""
+    return {pad.name: float(pad.period_mm) for pad in pads if pad.has_ridges}
+
+
 @dataclass(frozen=True)
 class Trial:
     """One exposure, fully specified: a worker renders it without drawing anything but sensor noise."""
@@ -402,9 +408,11 @@ class SimulationRun:
 
     def _write_tables(self) -> None:
         config, writer = self.config, self.writer
+        pads = {f"pads.{name}": {"ridge_period_mm": period} for name, period in ridge_periods(self.pads).items()}
         writer.write_config(name=config.name, reference_specimen=REFERENCE_SPECIMEN,
                             sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi=DEFAULT_ROI),
-                            forces_n=sorted(config.forces_n), extra={"simulation": config.toml_table()})
+                            forces_n=sorted(config.forces_n),
+                            extra={**pads, "simulation": config.toml_table()})
         table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
                               for s in self.specimens])
         writer.write_specimens(table)
