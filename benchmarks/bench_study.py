@@ -9,7 +9,14 @@ The cold run also reports the simulated study's size on disk (issue 12: <= 40 s 
 ``--peer-src DIR`` runs the same cold study with another checkout's sources (e.g. the code before issue 12) in the
 same run, as the peer of this one, each in its own empty cache.
 
+What the second model family costs (issue 19: the peak law adds <= 10 s to a warm study, controls included): the
+warm analysis (features from the cache, 199 permutations, LOO and nested LOSO, as ``study`` runs it) with the paper's
+PLS alone and with every family, alternated, median of ``--model-repeats`` each (after one untimed run of each, so
+neither pays the first call's imports and worker start-up). ``--models-only`` measures just that, in ``--keep-cache``
+(default: roughsense's own cache), simulating the built-in study there first if it is missing.
+
 Run: .venv/bin/python benchmarks/bench_study.py [--warm-repeats 3] [--cold-repeats 3] [--keep-cache DIR] [--peer-src OLD/src]
+     [--model-repeats 3] [--models-only]
 """
 from __future__ import annotations
 
@@ -53,6 +60,41 @@ def study_size(cache: Path) -> tuple[int, int]:
     return sum(p.stat().st_size for p in files), len(files)
 
 
+def model_cost(cache: Path, repeats: int, jobs: int = 2) -> dict[tuple[str, ...], list[float]]:
+    """Seconds of the warm analysis of the built-in study (seed 0) per set of model families, alternated."""
+    os.environ["ROUGHSENSE_CACHE_DIR"] = str(cache)
+    from roughsense._util import cache as features_cache
+    from roughsense.analysis import dataset
+    from roughsense.analysis.study_analysis import analyse_study
+    from roughsense.cli._studies import builtin_study
+    from roughsense.io.study import read_study
+    from roughsense.model.families import MODEL_FAMILIES, PLS
+
+    study = read_study(builtin_study(0, jobs), require_ratings=True)
+    definition = dataset.spectrum_for(study).feature_definition()
+    features, _ = features_cache.cached_frame(features_cache.features_key(study, definition),
+                                              lambda: dataset.study_features(study, n_jobs=jobs))
+    times: dict[tuple[str, ...], list[float]] = {(PLS,): [], tuple(MODEL_FAMILIES): []}
+    for repeat in range(repeats + 1):  # the first round is untimed (imports, worker start-up)
+        for models in (times if repeat % 2 else reversed(list(times))):  # alternate which goes first
+            started = time.perf_counter()
+            analyse_study(study, features=features, n_jobs=jobs, seed=0, models=models)
+            if repeat:
+                times[models].append(time.perf_counter() - started)
+    return times
+
+
+def report_model_cost(cache: Path, repeats: int) -> None:
+    times = model_cost(cache, max(repeats, 1))
+    (pls, pls_runs), (every, every_runs) = times.items()
+    base, both = statistics.median(pls_runs), statistics.median(every_runs)
+    print(f"  warm analysis (features cached, controls included), median of {len(pls_runs)}, alternated:")
+    print(f"    models={pls}: {base:6.1f} s  (runs: {', '.join(f'{t:.1f}' for t in pls_runs)})")
+    print(f"    models={every}: {both:6.1f} s  (runs: {', '.join(f'{t:.1f}' for t in every_runs)})")
+    print(f"    the new model adds {both - base:+.1f} s (x{both / base:.2f}); budget 10 s -> "
+          f"{(both - base) / 10:.2f} of budget")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--warm-repeats", type=int, default=3)
@@ -60,7 +102,19 @@ def main() -> None:
     parser.add_argument("--keep-cache", type=Path, default=None, help="Use (and keep) this cache folder.")
     parser.add_argument("--peer-src", type=Path, default=None,
                         help="Also run the cold study with these sources (another checkout's src/) as the peer.")
+    parser.add_argument("--model-repeats", type=int, default=3,
+                        help="Timed warm analyses per set of model families (0: skip that measurement).")
+    parser.add_argument("--models-only", action="store_true",
+                        help="Only measure what the new model family adds, in --keep-cache (default: roughsense's).")
     args = parser.parse_args()
+    if args.models_only:
+        from roughsense._util.cache import cache_dir
+
+        print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+              f"load average {os.getloadavg()[0]:.1f} at start")
+        report_model_cost(args.keep_cache or cache_dir(), args.model_repeats)
+        print(f"  load average at the end: {os.getloadavg()[0]:.1f}")
+        return
     scratch = Path(tempfile.mkdtemp(prefix="roughsense-bench-study-"))
     cache = args.keep_cache or scratch / "cache"
     if cache.exists() and args.keep_cache is None:
@@ -100,6 +154,8 @@ def main() -> None:
         print(f"  peer: plain cv2.imread of the study's {len(list((study / 'images').iterdir()))} images: {decode:6.1f} s "
               f"-> warm study / plain decoding = {warm_median / decode:.2f}")
         print(f"  cold / warm = {cold / warm_median:.1f}; peak RSS of one study process: {peak_mib:.0f} MiB")
+        if args.model_repeats > 0:
+            report_model_cost(cache, args.model_repeats)
         print(f"  load average at the end: {os.getloadavg()[0]:.1f}")
     finally:
         shutil.rmtree(scratch, ignore_errors=True)

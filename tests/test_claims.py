@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats
 
@@ -23,9 +24,23 @@ def _claim(analysis, key, pad, cv):
     return rows.iloc[0]
 
 
+def _pls(frame):
+    """The paper's model's rows: the claims are about it alone."""
+    return frame[frame["model"] == "pls"]
+
+
 def _rmse(analysis, cv, pad, condition, column="rmse"):
-    r = analysis.results(cv)
+    r = _pls(analysis.results(cv))
     return r[(r.pad == pad) & (r.condition == condition)].set_index("specimen")[column]
+
+
+def test_claims_are_the_papers_pls_alone(analysis):
+    """Fitting a second family beside PLS changes no claim: the same table as a PLS-only run."""
+    study, features = synthetic_study(repetitions=3, seed=1)
+    alone = analyse_study(study, features=features, max_components=4, n_permutations=3, models=("pls",))
+    assert analysis.models == ("pls", "peak-law") and alone.models == ("pls",)
+    pd.testing.assert_frame_equal(analysis.claims, alone.claims, check_exact=True)
+    pd.testing.assert_frame_equal(analysis.tests, alone.tests, check_exact=True)
 
 
 def test_every_claim_has_a_verdict_under_loo_and_loso(analysis):
@@ -74,12 +89,12 @@ def test_ovl_and_alignment_claims_match_scipy(analysis):
     expected = stats.friedmanchisquare(*[o.reindex(ovl[0].index).to_numpy() for o in ovl])
     assert row["statistic"] == pytest.approx(expected.statistic) and row["p"] == pytest.approx(expected.pvalue)
     aligns = _claim(analysis, "aligns", "fingerprint", "loso")
-    r = analysis.results("loso")
+    r = _pls(analysis.results("loso"))
     r = r[(r.pad == "fingerprint") & (r.condition == "combined")]
     truth = analysis.perceived.set_index("specimen")["gmean"].reindex(r["specimen"])
     rho, p = stats.spearmanr(truth.to_numpy(), r["pred_mean"].to_numpy())
     assert aligns["statistic"] == pytest.approx(rho) and aligns["p"] == pytest.approx(p)
-    control = analysis.controls.set_index(["pad", "condition", "cv"]).loc[("fingerprint", "combined", "loso")]
+    control = _pls(analysis.controls).set_index(["pad", "condition", "cv"]).loc[("fingerprint", "combined", "loso")]
     beats = _claim(analysis, "beats_controls", "fingerprint", "loso")
     assert beats["p"] == control["permutation_p"]
     assert beats["verdict"] == ("reproduced" if control["passes"] else "not reproduced")
@@ -151,7 +166,7 @@ def test_the_descriptive_and_remaining_claims_follow_their_definitions(analysis)
     assert comparable["statistic"] == pytest.approx(max(diffs)) and comparable["p"] == pytest.approx(min(ps))
 
     low = _claim(analysis, "low_ovl_specimens", "fingerprint", cv)
-    r = analysis.results(cv)
+    r = _pls(analysis.results(cv))
     cells = r[(r.pad == "fingerprint") & r.specimen.isin(["R2", "R2.5", "C5"])]["ovl"]
     assert len(cells) == 12 and low["statistic"] == pytest.approx((cells < 0.5).mean())
 

@@ -63,14 +63,16 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "roughness"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "roughness", "extrapolates"] and len(table) == len(images)
+    assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # PLS never flags
+    assert "extrapolate" not in stdout
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"2N"}
     np.testing.assert_allclose(table["roughness"], SIMPLS(k).fit(X, y).predict(X), rtol=1e-12)
 
     code, stdout, err = run_cli("predict", out, images[0], images[5])
     assert code == 0, err
     assert "roughness" in stdout and images[5].name in stdout
-    assert f"{table['roughness'][5]:.6g}" in stdout
+    assert f"{table['roughness'][5]:.6g}" in stdout.splitlines()[-1]
 
 
 def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path):
@@ -88,7 +90,8 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "roughness"] and len(table) == 2
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "roughness",
+                                   "extrapolates"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
@@ -107,7 +110,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "roughness"]
+                                     "roughness", "extrapolates"]
     assert len(grouped) == len(meta) == 18
     expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
     for f in ("1N", "2N", "3N"):
@@ -311,3 +314,125 @@ def test_the_force_a_file_name_states(force_n, style, spec):
     with pytest.raises(InputError, match="slot but its name says"):
         check_slot(name, f"{force_n + 1:g}N")
     assert forces_in_name(name.replace(f"{force_n:g}", "x")) == set()  # no force stated: nothing to contradict
+
+
+# --------------------------------------------------------------------------- the peak law
+
+
+def grid_per_mm():
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    return np.asarray(SpatialSpectrum(px_per_mm=20.0, roi=(0, 16, 600, 32)).fit().freq_per_mm_)
+
+
+def null_predictions(y, folds):
+    """The training mean of every fold, by brute force (the independent truth for the file's null RMSE)."""
+    return np.array([y[folds != folds[i]].mean() for i in range(len(y))])
+
+
+@pytest.mark.parametrize(("condition", "cv"), [("combined", "loso"), ("2N", "loo")])
+def test_fit_peak_law_writes_the_law_fitted_in_python(run_cli, study_dir, data, tmp_path, condition, cv):
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.peak_law import PeakPowerLaw, peak_law_cv
+
+    out = tmp_path / "law.json"
+    code, stdout, err = fit(run_cli, study_dir, out, "--condition", condition, "--cv", cv, "--model", "Peak-Law")
+    assert code == 0, err
+    X, y, meta = data(condition)
+    blocks = 3 if condition == "combined" else 1
+    law = PeakPowerLaw(freq_per_mm=grid_per_mm(), n_blocks=blocks).fit(X, y)  # the tiny study's pad has no ridges
+    document = json.loads(out.read_text())
+    assert document["model"]["kind"] == "peak-power-law" and document["model"]["pad_ridge_period_mm"] is None
+    assert document["model"]["n_blocks"] == blocks and document["model"]["coefficients"] == law.coef_.tolist()
+    loaded = load_model(out)
+    np.testing.assert_allclose(loaded.predict(X), law.predict(X), rtol=1e-12, atol=0)
+    assert not loaded.extrapolates(X).any()  # every training trial lies in the training range
+
+    groups = meta["specimen"].to_numpy() if cv == "loso" else None
+    held_out = peak_law_cv(X, y, groups=groups, freq_per_mm=grid_per_mm(), n_blocks=blocks)[0]
+    law_rmse = np.sqrt(np.mean((held_out - y) ** 2))
+    folds = groups if groups is not None else np.arange(len(y))
+    null_rmse = np.sqrt(np.mean((null_predictions(y, folds) - y) ** 2))
+    training = document["training"]
+    assert training["model"] == "peak-law" and training["cv_models"] == ["training mean", "peak-law"]
+    assert training["cv_rmse"] == pytest.approx([null_rmse, law_rmse], rel=1e-12)
+    assert training["cv"] == cv and training["condition"] == condition
+    assert f"CV RMSE {law_rmse:.5f} (training mean {null_rmse:.5f})" in stdout
+    assert law_rmse < null_rmse  # the ratings are a power law of the period: the law must beat the mean
+
+    # predict --study scores every trial as the law fitted in Python does, none of them extrapolating
+    pred = tmp_path / "p.csv"
+    code, stdout, err = run_cli("predict", out, "--study", study_dir, "--out", pred)
+    assert code == 0, err
+    table = pd.read_csv(pred)
+    order = meta.sort_values(["specimen", "repetition"]).index.to_numpy()
+    np.testing.assert_allclose(table["roughness"], law.predict(X[order]), rtol=1e-12)
+    assert table.columns[-1] == "extrapolates" and not table["extrapolates"].any()
+    assert f"0 of {len(table)} prediction(s) extrapolate" in stdout
+
+
+def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, tmp_path):
+    import cv2
+
+    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.sensor.spectrum import SpatialSpectrum
+    from tests.test_dataset import grating
+
+    out = tmp_path / "law.json"
+    assert fit(run_cli, study_dir, out, "--condition", "1N", "--model", "peak-law")[0] == 0
+    rng = np.random.default_rng(7)
+    images = []
+    for name, period_mm in (("trained_3mm.png", 3.0), ("long_9mm.png", 9.0)):  # trained: 1.5-5 mm
+        images.append(tmp_path / name)
+        assert cv2.imwrite(str(images[-1]), grating(period_mm, 1.0, rng))
+    pred = tmp_path / "p.csv"
+    code, stdout, err = run_cli("predict", out, *images, "--out", pred)
+    assert code == 0, err
+    table = pd.read_csv(pred)
+    assert list(table["extrapolates"]) == [False, True]
+    assert ("1 of 2 prediction(s) extrapolate: features outside the training range; the prediction is held at the "
+            "edge of what the model saw") in stdout
+    X, y, _ = data("1N")
+    law = PeakPowerLaw(freq_per_mm=grid_per_mm()).fit(X, y)
+    spectra = SpatialSpectrum(px_per_mm=20.0, roi=(0, 16, 600, 32)).fit().transform(images)
+    np.testing.assert_allclose(table["roughness"], law.predict(spectra), rtol=1e-12)
+    long_features = law.features(spectra[1:])[0]
+    assert np.exp(long_features[0]) < np.exp(law.feature_min_[0])  # its peak is below the lowest trained frequency
+    # ... so it is predicted as if at the edge: the law at the clipped features
+    edge = np.exp(law.intercept_ + np.clip(long_features, law.feature_min_, law.feature_max_) @ law.coef_)
+    assert table["roughness"][1] == pytest.approx(edge, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--model", "peak-law", "--max-components", "3"), "--max-components chooses PLS components"),
+        (("--model", "peak-law", "--rule", "min"), "--rule chooses PLS components"),
+        (("--model", "ridge"), "--model must be one of pls, peak-law, got 'ridge'"),
+        (("--model", "peak-law", "--cv", "40"), "K-fold needs 2 <= k <= n_samples=18"),
+    ],
+)
+def test_fit_model_options_are_refused_in_one_line(run_cli, study_dir, tmp_path, args, message):
+    out = tmp_path / "m.json"
+    code, _, err = fit(run_cli, study_dir, out, "--condition", "1N", *args)
+    _one_line(code, err, message)
+    assert not out.exists()
+
+
+def test_live_mode_counts_the_frames_that_extrapolate(run_cli, study_dir, tmp_path):
+    import cv2
+
+    from tests.test_dataset import grating
+
+    model = tmp_path / "law.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    rng = np.random.default_rng(8)
+    video = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (600, 64))
+    for period_mm in (3.0, 9.0, 9.0):  # trained periods span 1.5-5 mm
+        writer.write(cv2.cvtColor(grating(period_mm, 1.0, rng), cv2.COLOR_GRAY2BGR))
+    writer.release()
+    code, out, err = run_cli("predict", model, "--live", "--source", video)
+    assert code == 0, err
+    assert "3 update(s)" in out
+    assert "2 frame(s) extrapolated: features outside the training range" in out

@@ -35,7 +35,9 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     code, stdout, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4")
     assert code == 0, err
     results = pd.read_csv(out / "results.csv")
-    assert len(results) == len(SPECIMENS) * 4
+    assert len(results) == len(SPECIMENS) * 4 * 2 and list(results.columns)[-1] == "model"
+    assert (results.groupby("model").size() == len(SPECIMENS) * 4).all()
+    assert set(results["model"]) == {"pls", "peak-law"}
     assert set(results["condition"]) == {"1N", "2N", "3N", "combined"}
     # Per-specimen RMSE is never below the spread of the predictions about their mean (RMSE^2 = bias^2 + SD^2).
     assert np.all(results["rmse"] + 1e-12 >= results["pred_sd"])
@@ -48,12 +50,27 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     html = (out / "index.html").read_text()
     assert "simulated: simulated study (digital twin), simulation seed 11" in html and "user data" not in html
     controls = pd.read_csv(out / "controls.csv")
-    assert len(controls) == 4 * 2 and (controls["n_permutations"] == 199).all()
+    assert len(controls) == 4 * 2 * 2 and (controls["n_permutations"] == 199).all()
+    _check_unseen_lines(stdout, out)
     # A second run reuses the feature cache and gives the same numbers.
     code, stdout2, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4", "--force")
     assert code == 0, err
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), results)
     assert "<dd>from cache</dd>" in (out / "index.html").read_text()
+
+
+def _check_unseen_lines(stdout: str, out) -> None:
+    """The terminal summary opens with surfaces never seen: a headline, then one line per pad, from the report's data."""
+    lines = stdout.splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("Unseen surfaces"))
+    assert "leave-one-specimen-out, combined" in lines[first]
+    assert lines[first + 1].startswith("  smooth pad: pls ") and "/ peak-law " in lines[first + 1]
+    assert first + 1 < next(i for i, line in enumerate(lines) if "(pls, LOO)" in line)  # before the paper's LOO lines
+    loso = pd.read_csv(out / "results_loso.csv").query("condition == 'combined'")
+    for model in ("pls", "peak-law"):
+        assert f"{model} {loso[loso.model == model]['rmse'].mean():.2f} (p " in lines[first + 1]
+    controls = pd.read_csv(out / "controls.csv").query("cv == 'loso' and condition == 'combined'")
+    assert f"p {controls.set_index('model').loc['peak-law', 'permutation_p']:.3f}" in lines[first + 1]
 
 
 def test_study_refuses_a_non_empty_report_folder(run_cli, small_study, tmp_path):
@@ -123,7 +140,7 @@ def test_predict_live_scores_a_video_like_the_still_images(run_cli, small_study,
     # The live score of the last frame is the still-image score of the same (JPEG-compressed) frame.
     code, still, _ = run_cli("predict", model, images[-1])
     last_live = float(out.split("last roughness")[1].split()[0])
-    last_still = float(still.splitlines()[-1].split()[-1])
+    last_still = float(still.splitlines()[-1].split()[-2])  # the row ends with roughness, extrapolates
     assert last_live == pytest.approx(last_still, abs=0.05)
 
 

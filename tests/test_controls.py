@@ -95,7 +95,7 @@ def test_permutation_control_matches_sklearn_refits(small, cv):
         expected = [_sklearn_nested_loso_rmse(X, Y[:, b], specimens) for b in range(3)]
         real = _sklearn_nested_loso_rmse(X, y, specimens)
     np.testing.assert_allclose(ours, expected, rtol=1e-6)
-    row = analysis.controls.set_index(["pad", "condition", "cv"]).loc[("smooth", "1N", cv)]
+    row = analysis.controls.set_index(["model", "pad", "condition", "cv"]).loc[("pls", "smooth", "1N", cv)]
     assert row["rmse"] == pytest.approx(real, rel=1e-6)
     assert row["n_permutations"] == 3
     assert row["permutation_p"] == pytest.approx((1 + sum(e <= real for e in expected)) / 4)
@@ -107,9 +107,11 @@ def test_null_model_is_the_training_mean_under_the_same_cv(small):
     specimens = rows["specimen"].to_numpy()
     loo = (y.sum() - y) / (len(y) - 1)  # the mean of the other trials
     loso = np.array([y[specimens != s].mean() for s in specimens])
-    table = analysis.controls.set_index(["pad", "condition", "cv"])
-    assert table.loc[("smooth", "1N", "loo"), "null_rmse"] == pytest.approx(np.sqrt(np.mean((loo - y) ** 2)))
-    assert table.loc[("smooth", "1N", "loso"), "null_rmse"] == pytest.approx(np.sqrt(np.mean((loso - y) ** 2)))
+    table = analysis.controls.set_index(["model", "pad", "condition", "cv"])
+    for model in ("pls", "peak-law"):  # one null per fold design, whichever model it is the floor of
+        assert table.loc[(model, "smooth", "1N", "loo"), "null_rmse"] == pytest.approx(np.sqrt(np.mean((loo - y) ** 2)))
+        assert table.loc[(model, "smooth", "1N", "loso"), "null_rmse"] == pytest.approx(
+            np.sqrt(np.mean((loso - y) ** 2)))
     for _, row in analysis.controls.iterrows():
         assert row["beats_null"] == (row["rmse"] < row["null_rmse"])
         assert row["passes"] == (row["beats_null"] and row["permutation_p"] < controls.ALPHA)
@@ -123,7 +125,8 @@ def test_a_model_that_only_recognises_specimens_fails_the_permutation_control():
     freq = [c for c in features.columns if c[0].isdigit()]
     features = features.copy()
     features[freq] = np.vstack([codes[s] + rng.normal(0, 0.05, 45) for s in features["specimen"]])
-    analysis = analyse_study(study, features=features, max_components=6, conditions=("1N",), n_permutations=39)
+    analysis = analyse_study(study, features=features, max_components=6, conditions=("1N",), n_permutations=39,
+                             models=("pls",))
     row = analysis.controls.set_index("cv").loc["loo"]
     assert row["permutation_p"] > 0.2 and not row["passes"]
     loso = analysis.controls.set_index("cv").loc["loso"]
@@ -135,3 +138,44 @@ def test_controls_are_identical_on_one_or_two_threads(small):
     again = analyse_study(study, features=features, max_components=MAX_K, conditions=("1N",), n_permutations=3,
                           seed=7, n_jobs=2)
     pd.testing.assert_frame_equal(again.controls, analysis.controls, check_exact=True)
+
+
+def _law_refit_rmse(X, y, folds, law):
+    """Pooled CV RMSE of PeakPowerLaw refitted on every training fold (scikit-learn's estimator, one fit per fold)."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    out = np.empty(len(y))
+    for fold in np.unique(folds):
+        test = folds == fold
+        out[test] = PeakPowerLaw(**law).fit(X[~test], y[~test]).predict(X[test])
+    return float(np.sqrt(np.mean((out - y) ** 2)))
+
+
+@pytest.mark.parametrize("cv", ["loo", "loso"])
+def test_peak_law_permutation_control_matches_refits(small, cv):
+    """The same shufflings as PLS's, each refitted fold by fold; p and the null as for PLS."""
+    from .test_study_analysis import FREQS
+
+    analysis, study, features = small
+    rows, X, y = _regression_data(study, features, "smooth", "1N")
+    specimens = rows["specimen"].to_numpy()
+    folds = np.arange(len(y)) if cv == "loo" else specimens
+    law = {"freq_per_mm": FREQS, "n_blocks": 1, "pad_ridge_period_mm": None}
+    # The shufflings index specimens in the analysis's order (first appearance in its trials): the same ones as PLS's.
+    order = pd.unique(analysis.condition_fit("smooth", "1N", cv, "peak-law").predictions["specimen"])
+    value = pd.Series(y, index=specimens).groupby(level=0).first()
+    perms = controls.specimen_permutations(len(order), 3, seed=7)
+    shuffled = []
+    for b in range(3):
+        wrong = dict(zip(order, value.loc[order[perms[b]]].to_numpy()))  # specimen order[j] gets order[perms[b, j]]'s
+        shuffled.append(_law_refit_rmse(X, np.array([wrong[s] for s in specimens]), folds, law))
+    real = _law_refit_rmse(X, y, folds, law)
+    table = analysis.controls.set_index(["model", "pad", "condition", "cv"])
+    row = table.loc[("peak-law", "smooth", "1N", cv)]
+    assert row["rmse"] == pytest.approx(real, rel=1e-9)
+    assert row["permutation_p"] == pytest.approx((1 + sum(e <= real for e in shuffled)) / 4)
+    assert row["permuted_rmse_median"] == pytest.approx(np.median(shuffled), rel=1e-9)
+    assert row["permuted_rmse_min"] == pytest.approx(min(shuffled), rel=1e-9)
+    assert row["null_rmse"] == table.loc[("pls", "smooth", "1N", cv), "null_rmse"]
+    assert row["passes"] == (row["rmse"] < row["null_rmse"] and row["permutation_p"] < controls.ALPHA)
+    assert list(analysis.controls.columns[-2:]) == ["seed", "model"]  # model appended last

@@ -131,13 +131,14 @@ def test_cell_equals_simulate_then_study(tmp_path):
     assert np.max(np.abs(warm[freq].to_numpy() - cold[freq].to_numpy())) < 1e-3 * np.max(cold[freq].to_numpy())
     # The rows: the study's own analysis of the folder, summarised per pad x condition x CV scheme.
     analysis = analyse_study(study, features=features, max_components=cell.max_components,
-                             n_permutations=0)
+                             n_permutations=0, models=("pls",))  # a sweep without the model axis: the paper's PLS
     summary, per_specimen = explore_cell.cell_rows(cell)
     for fit in analysis.fits:
         row = summary[(summary.condition == fit.condition) & (summary.cv == fit.cv)].iloc[0]
         assert row["rmse"] == pytest.approx(fit.table["rmse"].mean(), rel=2e-2)
         assert row["cv_rmse"] == pytest.approx(fit.cv_rmse[fit.best_n_components], rel=2e-2)
     assert set(summary["condition"]) == {"1N", "2N", "3N", "combined"} and set(summary["cv"]) == {"loo", "loso"}
+    assert set(summary["model"]) == set(per_specimen["model"]) == {"pls"}
     assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL
 
 
@@ -177,6 +178,10 @@ def test_sweep_grid_and_cell_ids(tmp_path):
     (TINY.replace(SPECIMENS, '["R2", "R3", "blob:2"]'), "unknown specimen 'blob:2'"),
     (TINY.replace("[sweep]", "[sweep]\nratings_from = \"dreams\""), "unknown value 'dreams'"),
     ("[sweep\n", "is not valid TOML"),
+    (TINY + 'model = ["pls", "ridge"]\n', "[axes] model must be one of pls, peak-law, got 'ridge'"),
+    (TINY.replace("[sweep]", '[sweep]\nmodel = "lasso"'), "[sweep] model must be one of pls, peak-law"),
+    (TINY + 'model = "pls"\n', "[axes] model: expected a non-empty list"),
+    (TINY + 'model = ["pls", "PLS"]\n', "[axes] model: a model is listed twice"),
 ])
 def test_bad_sweep_files_are_one_line_exit_2(tmp_path, run_cli, text, message):
     path = _sweep_file(tmp_path, text)
@@ -360,3 +365,105 @@ def test_physics_ratings_reach_the_cell(tmp_path):
     theirs = simulate_panel(specimens, cell.seed, spawn_key=(4,), ratings_from="physics")
     pd.testing.assert_frame_equal(ours, validate_ratings(theirs))  # checked as a ratings.csv would be
     assert not ours.equals(panel_ratings(specimens, cell.seed, ratings_from="paper"))
+
+
+# --------------------------------------------------------------------------- the model axis
+
+TWO_MODELS = TINY.replace("seeds = [0, 1]", "seeds = [0]") + 'model = ["pls", "peak-law"]\n'
+
+
+def _old_id(cell) -> str:
+    """A cell's id as computed before the model axis existed: the hash of its content, nothing else."""
+    import dataclasses
+    import hashlib
+
+    content = {k: v for k, v in dataclasses.asdict(cell).items() if k not in ("id", "models")}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def test_model_axis_keeps_old_ids_and_never_shares_one(tmp_path):
+    plain = read_sweep(_sweep_file(tmp_path))
+    assert all(c.models == ("pls",) and c.id == _old_id(c) for c in plain.cells)
+    assert "model" not in plain.axes
+    same = [read_sweep(_sweep_file(tmp_path, text, f"same{i}.toml")) for i, text in enumerate((
+        TINY + 'model = ["pls"]\n', TINY.replace("[sweep]", '[sweep]\nmodel = "PLS"')))]
+    for sweep in same:  # naming the paper's model explicitly is the same design
+        assert [c.id for c in sweep.cells] == [c.id for c in plain.cells]
+    both = read_sweep(_sweep_file(tmp_path, TINY + 'model = ["Peak-Law", "pls"]\n', "both.toml"))
+    law = read_sweep(_sweep_file(tmp_path, TINY + 'model = ["peak-law"]\n', "law.toml"))
+    assert both.models == ("pls", "peak-law") and both.axes["model"] == ["pls", "peak-law"]
+    assert law.models == ("peak-law",) and len(both.cells) == len(law.cells) == len(plain.cells)  # one cell, all models
+    ids = [c.id for s in (plain, both, law) for c in s.cells]
+    assert len(set(ids)) == len(ids)
+
+
+@pytest.fixture(scope="module")
+def two_model_cell(tmp_path_factory):
+    """One tiny cell fitted with both families, its study and features computed once."""
+    tmp = tmp_path_factory.mktemp("models")
+    sweep = read_sweep(_sweep_file(tmp, TWO_MODELS))
+    cell = sweep.cells[0]
+    study, features = explore_cell.cell_features(cell)
+    patch = pytest.MonkeyPatch()
+    patch.setattr(explore_cell, "cell_features", lambda _cell: (study, features))
+    try:
+        summary, per_specimen = explore_cell.cell_rows(cell)
+    finally:
+        patch.undo()
+    return sweep, cell, study, features, summary, per_specimen
+
+
+def test_model_axis_rows_equal_the_study_analysis_of_each_model(two_model_cell):
+    sweep, cell, study, features, summary, per_specimen = two_model_cell
+    assert set(summary["model"]) == set(per_specimen["model"]) == {"pls", "peak-law"}
+    # Every pad x condition x CV scheme once per model.
+    assert summary.groupby("model").size().to_dict() == {"pls": 4 * 2, "peak-law": 4 * 2}
+    labels = study.condition_labels()
+    alone = analyse_study(study, features=features, max_components=cell.max_components,
+                          conditions=[*labels, "combined"], cv_schemes=cell.cv, combined_forces=labels,
+                          n_permutations=0, models=("peak-law",))
+    law = summary[summary["model"] == "peak-law"].set_index(["condition", "cv"])
+    for fit in alone.fits:
+        row = law.loc[(fit.condition, fit.cv)]
+        assert row["rmse"] == fit.table["rmse"].mean() and row["n_components"] == 1
+        assert row["cv_rmse"] == fit.cv_rmse[1]
+        mine = per_specimen[(per_specimen["model"] == "peak-law") & (per_specimen["condition"] == fit.condition)
+                            & (per_specimen["cv"] == fit.cv)].set_index("specimen")
+        theirs = fit.table.set_index("specimen")
+        assert np.array_equal(mine.loc[theirs.index, "pred_mean"].to_numpy(), theirs["pred_mean"].to_numpy())
+
+
+def test_model_axis_report_puts_the_families_side_by_side(two_model_cell, tmp_path):
+    from roughsense.explore.report import SUMMARY_CSV, write_explore_report
+
+    sweep, cell, *_, summary, per_specimen = two_model_cell
+    store = ResultStore(tmp_path / "out", sweep)
+    store.prepare()
+    store.write_cell(summary, per_specimen, cell.id)
+    assert list(pd.read_parquet(tmp_path / "out" / "results").columns)[-1] == "model"  # columns only added
+    index = write_explore_report(sweep, tmp_path / "out")
+    table = pd.read_csv(tmp_path / "out" / SUMMARY_CSV)
+    assert table.columns[-1] == "model" and set(table["model"]) == {"pls", "peak-law"}
+    for model in ("pls", "peak-law"):  # summary.csv: each model's row is that model's stored row
+        stored = summary[(summary["model"] == model) & (summary["condition"] == "combined") & (summary["cv"] == "loso")]
+        row = table[(table["model"] == model) & (table["condition"] == "combined") & (table["cv"] == "loso")]
+        assert row["rmse"].iloc[0] == pytest.approx(stored["rmse"].iloc[0], rel=1e-5)
+    html = index.read_text()
+    assert "rmse (pls)" in html and "rmse (peak-law)" in html
+
+
+def test_side_by_side_keeps_each_family_beside_the_other():
+    from roughsense.explore.summary import side_by_side
+
+    nan = float("nan")
+    frame = pd.DataFrame({"pad": ["smooth", "smooth", "fingerprint", "fingerprint", "fingerprint"],
+                          "fingerprint_period_mm": [nan, nan, 1.0, 1.0, 0.5], "cv": ["loso"] * 5,
+                          "model": ["peak-law", "pls", "pls", "peak-law", "pls"],
+                          "rmse": [0.2, 0.4, 0.5, 0.3, 0.6], "rmse_ci95": [0.01, 0.02, 0.03, 0.04, 0.05]})
+    wide = side_by_side(frame, ["pad", "fingerprint_period_mm", "cv"])
+    assert list(wide.columns[3:]) == ["rmse (pls)", "rmse (peak-law)", "rmse (pls)_ci95", "rmse (peak-law)_ci95"]
+    assert wide["pad"].tolist() == ["smooth", "fingerprint", "fingerprint"]  # the designs in their first order
+    assert wide["rmse (pls)"].tolist() == [0.4, 0.5, 0.6] and wide["rmse (peak-law)"].tolist()[:2] == [0.2, 0.3]
+    assert np.isnan(wide["rmse (peak-law)"].iloc[2])  # a design one family lacks stays empty for it
+    single = frame[frame["model"] == "pls"]
+    assert side_by_side(single, ["pad", "fingerprint_period_mm", "cv"]) is single

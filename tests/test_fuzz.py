@@ -500,3 +500,82 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
                 assert score.shape == (1,)
     finally:
         shutil.rmtree(path.parent, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- peak-law model files
+
+#: Values no field of a peak-law section accepts (NaN and the infinities also break the canonical JSON, so the
+#: checksum cannot be recomputed for them: they are refused either way).
+ALWAYS_REFUSED = [float("nan"), float("inf"), float("-inf"), 1e308, True, "1"]
+#: Values some fields accept: -1 is a fine slope or feature bound, null a smooth pad's ridge period.
+SOMETIMES_ACCEPTED = [-1, None]
+
+
+@pytest.fixture(scope="module")
+def law_document(base, tmp_path_factory):
+    import json
+
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("law") / "law.json"
+    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--model", "peak-law",
+                 "--out", str(path)]) == 0
+    return json.loads(path.read_text())
+
+
+@st.composite
+def law_edits(draw, section: dict):
+    """(where, what, must_refuse): an edit of one field of a law's section, or of one entry of a list field."""
+    field = draw(st.sampled_from(sorted(section)))
+    value = section[field]
+    kind = draw(st.sampled_from(["drop", "set", "set-entry", "length"] if isinstance(value, list) else ["drop", "set"]))
+    if kind == "drop":
+        return (field,), "drop", True
+    if kind == "length":
+        longer = draw(st.booleans())
+        return (field,), (value + [0.0] if longer else value[:-1]), True
+    replacement = draw(st.sampled_from(ALWAYS_REFUSED + SOMETIMES_ACCEPTED))
+    where = (field, draw(st.integers(0, len(value) - 1))) if kind == "set-entry" else (field,)
+    return where, replacement, replacement in ALWAYS_REFUSED or replacement is None and field != "pad_ridge_period_mm"
+
+
+@NO_RAW_WARNINGS
+@settings(FUZZ, max_examples=max(60, EXAMPLES))
+@given(data=st.data())
+def test_edited_peak_law_files_are_refused_by_their_field_checks(run_cli, base, law_document, tmp_path_factory, data):
+    """Any edit of a law's field, re-signed (the checksum is unkeyed), is refused by ``predict`` in one line naming
+    the file, or -- where the value is one the field accepts -- predicts finite numbers."""
+    import json
+
+    import pandas as pd
+
+    from roughsense.model.modelfile import _digest
+
+    document = json.loads(json.dumps(law_document))
+    where, value, must_refuse = data.draw(law_edits(document["model"]))
+    parent = document["model"]
+    for key in where[:-1]:
+        parent = parent[key]
+    if value == "drop":
+        del parent[where[-1]]
+    else:
+        parent[where[-1]] = value
+    try:
+        document["sha256"] = _digest(document)
+    except ValueError:  # NaN or infinity: the canonical JSON refuses them, so the old checksum stays
+        pass
+    folder = Path(tempfile.mkdtemp(prefix="roughsense-law-"))
+    try:
+        path, out = folder / "law.json", folder / "p.csv"
+        path.write_text(json.dumps(document))
+        image = sorted((base / "images").glob("*_2N_*.png"))[0]
+        code, _, err = run_cli("predict", path, image, "--out", out)
+        event(f"peak-law edit: exit {code}")
+        assert_boring(code, err)
+        if code == 2:
+            assert len(err.splitlines()) == 1 and str(path) in err, err
+        else:
+            assert not must_refuse, (where, value)
+            assert np.all(np.isfinite(pd.read_csv(out)["roughness"].to_numpy(dtype=float)))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)

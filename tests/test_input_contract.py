@@ -430,8 +430,37 @@ def test_unknown_toml_keys_warn_once_naming_them_but_the_simulation_table_does_n
         f"roughsense: warning: {sandbox / 'study.toml'}: unknown key 'roi_typo' in [sensor] ignored "
         "(known: max_pixels, px_per_mm, roi)",
         f"roughsense: warning: {sandbox / 'study.toml'}: unknown table 'camera' ignored "
-        "(known tables: study, sensor, protocol, simulation)",
+        "(known tables: study, sensor, protocol, pads, simulation)",
     ]
+
+
+def test_a_pads_ridge_period_is_read_from_study_toml(sandbox):
+    assert read_study(sandbox).pad_ridge_period_mm == {}  # no [pads] table: every pad is smooth
+    text = (sandbox / "study.toml").read_text()
+    (sandbox / "study.toml").write_text(text + "\n[pads.smooth]\nridge_period_mm = 0.5\n")
+    assert read_study(sandbox).pad_ridge_period_mm == {"smooth": 0.5}
+
+
+def test_the_simulator_records_the_fingerprint_pads_ridge_period(tmp_path):
+    config = SimulationConfig(pads=("smooth", "fingerprint"), specimens=("R3",), repetitions=1, forces_n=(2.0,),
+                              participants=2, sessions=1, fingerprint_period_mm=0.8)
+    root = simulate_study(tmp_path / "s", with_image_size(config, 1920, 170), jobs=1)
+    assert read_study(root).pad_ridge_period_mm == {"fingerprint": 0.8}
+
+
+@pytest.mark.parametrize("value, message", [
+    ("true", "ridge_period_mm must be a number of mm above 0 and at most 100, got True"),
+    ("0", "got 0"),
+    ("1e308", "at most 100"),
+    ('"1.0"', "got '1.0'"),
+    ("nan", "got nan"),
+])
+def test_a_bad_ridge_period_is_one_line_naming_study_toml(run_cli, sandbox, tmp_path, value, message):
+    text = (sandbox / "study.toml").read_text()
+    (sandbox / "study.toml").write_text(text + f"\n[pads.smooth]\nridge_period_mm = {value}\n")
+    code, _, err = run_cli("features", "--study", sandbox, "--out", tmp_path / "a.csv")
+    line = one_error(code, err)
+    assert message in line and "study.toml" in line and "[pads.smooth]" in line
 
 
 @pytest.mark.parametrize("column, value, message", [

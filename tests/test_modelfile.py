@@ -190,3 +190,135 @@ def test_deeply_nested_json_is_a_damaged_file_not_a_crash(tmp_path):
     bad.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(ModelFileError, match="damaged or truncated"):
         mf.load_model(bad)
+
+
+# --------------------------------------------------------------------------- peak-law model files
+
+
+@pytest.fixture
+def saved_law(tmp_path):
+    """A peak law fitted on gratings of 2-5 mm (roughness a power law of the period), saved and its path."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    rng = np.random.default_rng(3)
+    periods = np.repeat([2.0, 2.5, 3.0, 3.5, 4.0, 5.0], 2)
+    X = spectrum().transform(gratings(periods, rng))
+    y = (periods / 3.0) ** 0.9 * np.exp(0.05 * rng.standard_normal(periods.size))
+    law = PeakPowerLaw(freq_per_mm=spectrum().freq_per_mm_, pad_ridge_period_mm=1.0).fit(X, y)
+    path = tmp_path / "law.json"
+    mf.save_model(path, law, feature_definition=mf.feature_definition_for(spectrum(), ["2N"]), training=TRAINING)
+    return path, law, X
+
+
+def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
+    path, law, X = saved_law
+    loaded = mf.load_model(path)
+    assert loaded.family == "peak-law" and loaded.conditions == ["2N"] and loaded.n_features == 45
+    np.testing.assert_allclose(loaded.predict(X), law.predict(X), rtol=1e-12, atol=0)
+    assert loaded.intercept_ == law.intercept_ and list(loaded.coef_) == list(law.coef_)
+    assert loaded.pad_ridge_period_mm == 1.0 and loaded.scale_ == law.scale_
+    # a training trial is inside the range; a grating of a period far longer than trained is flagged, and predicted
+    # as the law does (held at the training edge)
+    new = np.vstack([X[4], spectrum().transform(gratings([9.0], np.random.default_rng(4)))[0]])
+    np.testing.assert_array_equal(loaded.extrapolates(new), [False, True])
+    np.testing.assert_array_equal(loaded.extrapolates(new), law.extrapolates(new))
+    np.testing.assert_allclose(loaded.predict(new), law.predict(new), rtol=1e-12, atol=0)
+    edge = np.exp(law.intercept_ + np.clip(law.features(new[1:]), law.feature_min_, law.feature_max_) @ law.coef_)
+    np.testing.assert_allclose(loaded.predict(new[1:]), edge, rtol=1e-12)
+    assert law.features(new[1:])[0, 0] < law.feature_min_[0]  # its peak lies below the lowest trained frequency
+    document = json.loads(path.read_text())
+    assert document["version"] == 1 and document["model"]["kind"] == "peak-power-law"
+    assert document["model"]["feature_names"] == ["log_peak_frequency_per_mm", "log_peak_amplitude"]
+    with pytest.raises(ModelFileError, match="expects 45 features"):
+        loaded.predict(np.ones((1, 44)))
+
+
+def test_a_pls_file_never_extrapolates(saved):
+    path, _, X = saved
+    loaded = mf.load_model(path)
+    assert loaded.family == "pls"
+    np.testing.assert_array_equal(loaded.extrapolates(X), np.zeros(len(X), dtype=bool))
+
+
+LAW_FIELDS = ["kind", "n_features", "n_blocks", "pad_ridge_period_mm", "exclusion_per_mm", "epsilon", "intercept",
+              "coefficients", "scale", "feature_min", "feature_max", "feature_names"]
+
+
+@pytest.mark.parametrize("field", LAW_FIELDS[1:])
+def test_a_law_missing_a_field_is_refused_naming_it(saved_law, field):
+    path, _, _ = saved_law
+    rewrite(path, lambda d: d["model"].pop(field))
+    with pytest.raises(ModelFileError, match=rf"lacks the field\(s\) model\.{field}$") as info:
+        mf.load_model(path)
+    assert info.value.path == path and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("scale", 0.0, r"model\.scale must be a finite number > 0 and <= 1000, got 0"),
+        ("scale", -1, r"model\.scale must be"),
+        ("scale", True, r"model\.scale must be .* got True"),
+        ("epsilon", "1", r"model\.epsilon must be .* got '1'"),
+        ("epsilon", 1e308, r"model\.epsilon must be"),
+        ("exclusion_per_mm", 11.0, r"model\.exclusion_per_mm must be"),
+        ("intercept", None, r"model\.intercept must be a finite number from -1000 to 1000, got None"),
+        ("intercept", 1e308, r"model\.intercept must be"),
+        ("pad_ridge_period_mm", 0, r"model\.pad_ridge_period_mm must be a number of mm"),
+        ("pad_ridge_period_mm", "1.0", r"model\.pad_ridge_period_mm must be"),
+        ("pad_ridge_period_mm", 1000.0, r"model\.pad_ridge_period_mm must be"),
+        ("coefficients", [1.0, 1e308], r"model\.coefficients\[1\] must be"),
+        ("coefficients", [1.0, 2.0, 3.0], r"model\.coefficients must be a list of 2 numbers"),
+        ("coefficients", [True, 1.0], r"model\.coefficients\[0\] must be"),
+        ("feature_min", [0.0], r"model\.feature_min must be a list of 2"),
+        ("feature_max", [-1.0, -1.0], r"feature_min exceeds model\.feature_max"),
+        ("feature_names", ["a", "b"], r"model\.feature_names must be"),
+        ("n_blocks", 3, r"model\.n_blocks is 3, but the feature definition has 1 force condition"),
+        ("n_blocks", 1.0, r"model\.n_blocks must be a whole number"),
+        ("n_features", 44, r"45 frequencies x 1 condition\(s\), but the model has 44"),
+        ("n_features", -1, r"model\.n_features must be"),
+        ("extra", 1, r"unknown field\(s\) model\.extra"),
+    ],
+)
+def test_law_fields_out_of_range_are_refused_with_a_valid_checksum(saved_law, field, value, match):
+    path, _, _ = saved_law
+    rewrite(path, lambda d: d["model"].update({field: value}))
+    with pytest.raises(ModelFileError, match=match) as info:
+        mf.load_model(path)
+    assert info.value.path == path and "\n" not in str(info.value)
+
+
+def test_a_law_whose_predictions_would_overflow_is_refused(saved_law):
+    path, _, _ = saved_law
+
+    def huge(document):
+        document["model"].update(intercept=900.0, coefficients=[500.0, 500.0], feature_max=[1.0, 1.0],
+                                 feature_min=[-1.0, -1.0])
+
+    rewrite(path, huge)
+    with pytest.raises(ModelFileError, match=r"model\.intercept and model\.coefficients give log roughness"):
+        mf.load_model(path)
+
+
+def test_non_finite_law_fields_are_refused_by_the_field_checks(saved_law):
+    """NaN and infinity cannot pass the checksum (canonical JSON refuses them); the field checks refuse them too."""
+    from roughsense.model import peak_law_file
+
+    path, _, _ = saved_law
+    document = json.loads(path.read_text())
+    for field, value in (("scale", float("nan")), ("intercept", float("inf")), ("coefficients", [float("-inf"), 0.0])):
+        section = dict(document["model"], **{field: value})
+        with pytest.raises(ModelFileError, match=rf"model\.{field}"):
+            peak_law_file.loaded_law(section, document["features"], training={}, roughsense_version="x", path=path)
+    (path.parent / "nan.json").write_text(path.read_text().replace('"scale": ', '"scale": NaN, "x": '))
+    with pytest.raises(ModelFileError, match="checksum"):
+        mf.load_model(path.parent / "nan.json")
+
+
+def test_a_law_that_cannot_be_stored_is_not_written(tmp_path, saved_law):
+    _, law, _ = saved_law
+    law.coef_ = np.array([5e3, 0.0])  # beyond what a file may hold: refused on saving, not on a user's load
+    target = tmp_path / "big.json"
+    with pytest.raises(ModelFileError, match=r"model\.coefficients\[0\]"):
+        mf.save_model(target, law, feature_definition=mf.feature_definition_for(spectrum(), ["2N"]), training={})
+    assert not target.exists()

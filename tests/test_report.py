@@ -101,20 +101,26 @@ def test_tables_say_their_predictions_are_out_of_fold(report_dir):
 def test_report_files_and_schemas(report_dir):
     names = {p.name for p in report_dir.iterdir()}
     assert {"index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv"} <= names
-    assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png"} <= names
+    assert {"cv_curves.png", "spectra_smooth.png", "ovl_sd_fingerprint.png", "predicted_vs_perceived_loo.png",
+            "predicted_vs_perceived_loso_peak-law.png", "unseen_surfaces.png"} <= names
     paper_columns = list(paper.paper_results().columns)
     for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
-        assert list(pd.read_csv(report_dir / name).columns) == paper_columns + ["predictive_sd", "ovl_predictive"]
+        results = pd.read_csv(report_dir / name)
+        assert list(results.columns) == paper_columns + ["predictive_sd", "ovl_predictive", "model"]
+        assert (results["model"].value_counts() == 2 * 14 * 4).all() and set(results["model"]) == {"pls", "peak-law"}
     controls = pd.read_csv(report_dir / "controls.csv")
     assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
                                           "n_permutations"]
-    assert len(controls) == 2 * 4 * 2 and (controls["n_permutations"] == 9).all()
+    assert list(controls.columns[-2:]) == ["seed", "model"]
+    assert len(controls) == 2 * 4 * 2 * 2 and (controls["n_permutations"] == 9).all()
+    assert (controls.groupby("model").size() == 2 * 4 * 2).all()
+    assert list(pd.read_csv(report_dir / "predictions.csv").columns)[-1] == "model"
     claims = pd.read_csv(report_dir / "claims.csv")
     assert list(claims.columns[:6]) == ["claim", "pad", "cv", "statistic", "p", "verdict"]
     assert set(claims["verdict"]) <= {"reproduced", "not reproduced", "not testable"}
     assert {"loo", "loso"} <= set(claims["cv"])
     cv = pd.read_csv(report_dir / "cv.csv")
-    assert list(cv.columns) == ["pad", "condition", "cv", "n_components", "rmse"]
+    assert list(cv.columns) == ["pad", "condition", "cv", "n_components", "rmse", "model"]
     assert set(cv["cv"]) == {"loo", "loso"}
     assert list(pd.read_csv(report_dir / "tests.csv").columns[:4]) == ["comparison", "statistic", "p", "p_adjusted"]
     for png in report_dir.glob("*.png"):
@@ -246,7 +252,7 @@ def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
         tables = driver.find_elements(By.TAG_NAME, "table")
         assert len(tables) >= 15
         first_rows = tables[0].find_elements(By.CSS_SELECTOR, "tbody tr")
-        assert len(first_rows) == 8  # 2 pads x 4 conditions
+        assert len(first_rows) == 2 * 2 * 4  # surfaces never seen: 2 models x 2 pads x 4 conditions
         images = driver.find_elements(By.CSS_SELECTOR, "figure img")
         assert len(images) >= 6
         widths = [driver.execute_script("return arguments[0].naturalWidth", img) for img in images]
@@ -280,7 +286,49 @@ def test_models_failing_their_controls_are_flagged_in_the_tables(report_dir):
     parser.feed(html)
     for row in controls.itertuples():
         title = f"Root mean squared error (RMSE), {row.pad} pad, {row.cv.upper()}"
+        title += "" if row.model == "pls" else f", {row.model} model"  # the paper's titles for its PLS
         header = {c[0].removesuffix(" †"): c[0].endswith("†") for c in parser.tables[title][0]}
         from roughsense.report.tables import CONDITION_TITLES
 
         assert header[CONDITION_TITLES[row.condition]] == (not row.passes), (title, row.condition)
+
+
+def test_report_leads_with_surfaces_never_seen(report_dir):
+    """The section a user needs comes before the paper's LOO tables, with the analysis's numbers in it."""
+    html = (report_dir / "index.html").read_text()
+    body = html.split("</nav>", 1)[1]
+    start = body.index('<h2 id="unseen">Surfaces never seen (leave-one-specimen-out)</h2>')
+    assert start < body.index('id="glance"') < body.index('id="results-loo"')
+    assert start < body.index("Perceived and predicted roughness, smooth pad, LOO (mean ± SD)")
+    section = body[start: body.index('id="glance"')]
+    assert 'data-name="unseen_surfaces.png"' in section
+    assert "user data" in section and "digital twin" not in section  # a real study: no twin caveat
+    rows = _rows(html, "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition")
+    assert len(rows) == 2 * 2 * 4
+    controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
+    loso = pd.read_csv(report_dir / "results_loso.csv")
+    names = {"PLS (the paper's model)": "pls", "peak law": "peak-law"}
+    for row in rows:
+        model, pad, condition = names[row["Model"][0]], row["Pad"][0], row["Condition"][0]
+        mine = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
+        assert row["Mean RMSE"][0] == f"{mine['rmse'].mean():.3f}"
+        assert row["Permutation p"][0] == f"{controls.loc[(model, pad, condition), 'permutation_p']:.3f}"
+        assert row["Controls"][0].startswith("passes") == bool(controls.loc[(model, pad, condition), "passes"])
+    # The paper's tables keep the paper's PLS; the peak law's are labelled as its own.
+    assert "Root mean squared error (RMSE), smooth pad, LOO, peak-law model" in html
+    peak = _table(html, "Root mean squared error (RMSE), fingerprint pad, LOO, peak-law model")
+    assert all(cells[c][1] == "" for cells in peak.values() for c in cells)  # no paper values beside the law
+
+
+def test_unseen_section_labels_the_twin_and_built_in_agreement(simulated_report_dir, tmp_path):
+    simulated = (simulated_report_dir / "index.html").read_text()
+    section = simulated.split('<h2 id="unseen">', 1)[1].split('id="glance"', 1)[0]
+    assert "digital twin" in section and "held out of" in section and "real images" in section
+    assert "partly built in" not in section
+    study, features = synthetic_study(repetitions=2, seed=6, pads=("smooth",))
+    study.extra = {"simulation": {"seed": 5, "ratings_from": "physics"}}
+    analysis = analyse_study(study, features=features, max_components=1, conditions=("1N",), n_permutations=0)
+    write_report(analysis, tmp_path / "physics")
+    physics = (tmp_path / "physics" / "index.html").read_text()
+    section = physics.split('<h2 id="unseen">', 1)[1].split('id="glance"', 1)[0]
+    assert "ratings_from = physics" in section and "partly built in" in section

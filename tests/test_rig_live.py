@@ -68,3 +68,33 @@ def test_render_live_shows_the_last_score():
     assert summary.updates_per_s == pytest.approx(10.0)
     text = buffer.getvalue()
     assert "roughness" in text and "2.500" in text and "1.500 .. 2.500" in text and "5 (10.0/s)" in text
+
+
+def test_a_scorer_that_flags_extrapolation_yields_the_flag(tmp_path):
+    video = write_video(tmp_path / "live.avi")
+    expected = [red_minus_green(f) for f in decoded_frames(video)]
+
+    def flagged_when_red(frame):
+        score = red_minus_green(frame)
+        return score, score > 0  # "outside the training range" once red dominates
+
+    results = list(live_scores(str(video), flagged_when_red))
+    assert [len(r) for r in results] == [3] * len(expected)
+    assert [r[1] for r in results] == pytest.approx(expected, abs=1e-12)
+    assert [r[2] for r in results] == [e > 0 for e in expected]
+    assert all(type(r[2]) is bool for r in results)
+
+
+def test_render_live_flags_a_value_that_extrapolates():
+    def shown(stream):
+        buffer = io.StringIO()
+        console = Console(file=buffer, width=100, force_terminal=False, color_system=None)
+        return render_live(iter(stream), console=console, label="roughness"), buffer.getvalue()
+
+    summary, text = shown([(100.0 + 0.1 * k, 1.5 + 0.25 * k, k >= 3) for k in range(5)])
+    assert summary.updates == 5 and summary.extrapolated == 2 and summary.last_score == 2.5
+    assert "2.500  extrapolates (outside the training range)" in text
+    summary, text = shown([(100.0, 1.5, True), (100.1, 1.75, False)])  # the flag belongs to the value shown
+    assert summary.extrapolated == 1 and "1.750" in text and "extrapolates" not in text
+    summary, text = shown([(100.0, 1.5), (100.1, 1.75)])  # a scorer without a flag: nothing flagged
+    assert summary.extrapolated == 0 and "extrapolates" not in text

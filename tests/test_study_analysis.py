@@ -53,7 +53,8 @@ def synthetic_study(*, repetitions: int = 6, seed: int = 0, pads=("smooth", "fin
     manifest = features[["image", "specimen", "pad", "force_n", "repetition", "nominal_force_n", "condition"]]
     study = Study(root=__import__("pathlib").Path("/nonexistent"), name="synthetic", reference_specimen="R3",
                   sensor=SensorSettings(), forces_n=(1.0, 2.0, 3.0), specimens=specimens, manifest=manifest,
-                  ratings=pd.DataFrame(ratings))
+                  ratings=pd.DataFrame(ratings),
+                  pad_ridge_period_mm={"fingerprint": 1.0} if "fingerprint" in pads else {})
     return study, features
 
 
@@ -138,12 +139,15 @@ def test_combined_uses_all_three_forces_of_a_trial(analysis_and_inputs):
     analysis, _, _ = analysis_and_inputs
     fit = analysis.condition_fit("smooth", "combined", "loo")
     assert len(fit.predictions) == 14 * 6
-    assert analysis.cv_table().query("condition == 'combined' and cv == 'loo' and pad == 'smooth'").shape[0] == 9
+    curves = analysis.cv_table().query("condition == 'combined' and cv == 'loo' and pad == 'smooth'")
+    assert (curves["model"] == "pls").sum() == 9  # 0..8 components
+    assert (curves["model"] == "peak-law").sum() == 2  # the training mean, then the law
 
 
 def test_signed_rank_tests_match_scipy(analysis_and_inputs):
     analysis, _, _ = analysis_and_inputs
     results = analysis.results("loo")
+    results = results[results.model == "pls"]  # tests.csv holds the paper's comparisons, of its PLS
     tests = analysis.tests.set_index(["cv", "comparison"])
     for pad in ("smooth", "fingerprint"):
         comb = results[(results.pad == pad) & (results.condition == "combined")].set_index("specimen")["rmse"]
@@ -165,20 +169,24 @@ def test_results_follow_the_paper_schema(analysis_and_inputs):
         results = analysis.results(cv)
         # The paper's columns first, unchanged; ours are only ever added after them.
         assert list(results.columns[: len(paper.columns)]) == list(paper.columns)
-        assert list(results.columns[len(paper.columns):]) == ["predictive_sd", "ovl_predictive"]
-        assert set(map(tuple, results[["pad", "specimen", "condition"]].to_numpy())) == set(
-            map(tuple, paper[["pad", "specimen", "condition"]].to_numpy())
-        )
+        assert list(results.columns[len(paper.columns):]) == ["predictive_sd", "ovl_predictive", "model"]
+        for model in ("pls", "peak-law"):
+            rows = results[results["model"] == model]
+            assert set(map(tuple, rows[["pad", "specimen", "condition"]].to_numpy())) == set(
+                map(tuple, paper[["pad", "specimen", "condition"]].to_numpy())
+            )
 
 
 def test_summary_rows_are_mean_and_sample_sd(analysis_and_inputs):
     analysis, study, _ = analysis_and_inputs
-    summary = analysis.summary("loo", "rmse").set_index(["pad", "condition", "group"])
     results = analysis.results("loo")
-    rect = results[(results.pad == "smooth") & (results.condition == "1N") & results.specimen.str.startswith("R")]
-    row = summary.loc[("smooth", "1N", "rectangular")]
-    assert row["mean"] == pytest.approx(rect["rmse"].mean())
-    assert row["sd"] == pytest.approx(rect["rmse"].std(ddof=1))
+    for model in ("pls", "peak-law"):
+        summary = analysis.summary("loo", "rmse", model).set_index(["pad", "condition", "group"])
+        rect = results[(results.model == model) & (results.pad == "smooth") & (results.condition == "1N")
+                       & results.specimen.str.startswith("R")]
+        row = summary.loc[("smooth", "1N", "rectangular")]
+        assert row["mean"] == pytest.approx(rect["rmse"].mean())
+        assert row["sd"] == pytest.approx(rect["rmse"].std(ddof=1))
 
 
 def test_too_few_repetitions_is_a_clear_error():
@@ -193,3 +201,107 @@ def test_missing_ratings_is_a_clear_error():
     study.ratings = None
     with pytest.raises(InputError, match="ratings"):
         analyse_study(study, features=features, max_components=2)
+
+
+def _without_model(frame: pd.DataFrame, model: str = "pls") -> pd.DataFrame:
+    return frame[frame["model"] == model].drop(columns="model").reset_index(drop=True)
+
+
+def test_pls_numbers_do_not_change_beside_the_peak_law(analysis_and_inputs):
+    """Every PLS number is the same, bit for bit, as in a run that fits PLS alone; the law's rows come after them."""
+    analysis, study, features = analysis_and_inputs
+    alone = analyse_study(study, features=features, max_components=8, n_permutations=9, models=("pls",))
+    for frame in ("cv_table", "chosen_components", "predictions"):
+        both, single = getattr(analysis, frame)(), getattr(alone, frame)()
+        assert list(both.columns)[-1] == "model" and set(both["model"]) == {"pls", "peak-law"}
+        pd.testing.assert_frame_equal(_without_model(both), _without_model(single), check_exact=True)
+        assert list(both["model"]) == sorted(both["model"], key=["pls", "peak-law"].index)  # PLS's rows first
+    for cv in ("loo", "loso"):
+        pd.testing.assert_frame_equal(_without_model(analysis.results(cv)), _without_model(alone.results(cv)),
+                                      check_exact=True)
+    pd.testing.assert_frame_equal(_without_model(analysis.controls), _without_model(alone.controls), check_exact=True)
+    assert len(analysis.controls) == 2 * len(alone.controls) and list(analysis.controls.columns)[-1] == "model"
+    pd.testing.assert_frame_equal(analysis.tests, alone.tests, check_exact=True)
+
+
+def _combined_rows(features: pd.DataFrame, pad: str):
+    """One row per trial, its 1 N, 2 N and 3 N spectra side by side (built without roughsense.analysis.dataset)."""
+    at_pad = features[features.pad == pad]
+    blocks = [at_pad[at_pad.condition == c].set_index(["specimen", "repetition"])[FREQ_COLUMNS] for c in ("1N", "2N", "3N")]
+    joined = pd.concat(blocks, axis=1)
+    return joined.index.to_frame(index=False), joined.to_numpy()
+
+
+def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_and_inputs):
+    """PeakPowerLaw refitted without each specimen (3 force spectra per row, the pad's ridges left out) predicts it."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    analysis, study, features = analysis_and_inputs
+    keys, X = _combined_rows(features, "fingerprint")
+    gmean = _gmean_of_medians(study.ratings)
+    gmean["R3"] = 1.0
+    y = keys["specimen"].map(gmean).to_numpy()
+    expected = np.empty(len(y))
+    for specimen in keys["specimen"].unique():
+        held = (keys["specimen"] == specimen).to_numpy()
+        law = PeakPowerLaw(freq_per_mm=FREQS, n_blocks=3, pad_ridge_period_mm=1.0).fit(X[~held], y[~held])
+        expected[held] = law.predict(X[held])
+    fit = analysis.condition_fit("fingerprint", "combined", "loso", "peak-law")
+    got = fit.predictions.merge(keys.assign(expected=expected), on=["specimen", "repetition"])
+    assert len(got) == len(y)
+    np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-9, atol=1e-12)
+    assert fit.cv_rmse[1] == pytest.approx(np.sqrt(np.mean((expected - y) ** 2)), rel=1e-9)
+    # Index 0 is the training mean under the same folds: PLS's 0-component LOSO, the same number.
+    assert fit.cv_rmse[0] == analysis.condition_fit("fingerprint", "combined", "loso").cv_rmse[0]
+    assert (fit.best_n_components, fit.one_se_n_components, fit.nested_n_components) == (1, 1, {})
+
+
+def test_peak_law_loo_predictions_are_refits_without_each_trial(analysis_and_inputs):
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    analysis, study, features = analysis_and_inputs
+    rows, X, y = _regression_data(study, features, "smooth", "2N")
+    expected = np.array([PeakPowerLaw(freq_per_mm=FREQS).fit(np.delete(X, i, 0), np.delete(y, i)).predict(X[i : i + 1])[0]
+                         for i in range(len(y))])
+    fit = analysis.condition_fit("smooth", "2N", "loo", "peak-law")
+    got = fit.predictions.merge(rows[["specimen", "repetition"]].assign(expected=expected), on=["specimen", "repetition"])
+    np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-9, atol=1e-12)
+
+
+def test_unseen_summary_follows_its_definitions(analysis_and_inputs):
+    analysis, _, _ = analysis_and_inputs
+    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    assert len(unseen) == 2 * 2 * 4
+    loso = analysis.results("loso")
+    controls = analysis.controls[analysis.controls.cv == "loso"].set_index(["model", "pad", "condition"])
+    perceived = analysis.perceived.set_index("specimen")["gmean"]
+    for model in ("pls", "peak-law"):
+        row = unseen.loc[(model, "smooth", "combined")]
+        table = loso[(loso.model == model) & (loso.pad == "smooth") & (loso.condition == "combined")]
+        assert row["rmse"] == pytest.approx(table["rmse"].mean(), rel=1e-12)
+        rated = table[table.specimen != "R3"]
+        rho, p = stats.spearmanr(rated["pred_mean"], perceived.reindex(rated["specimen"]))
+        assert (row["spearman_rho"], row["spearman_p"], row["n_rated"]) == (pytest.approx(rho), pytest.approx(p), 13)
+        control = controls.loc[(model, "smooth", "combined")]
+        assert row["permutation_p"] == control["permutation_p"] and row["passes"] == control["passes"]
+        # The training mean, per specimen: the mean target of the other specimens' trials.
+        trials = analysis.condition_fit("smooth", "combined", "loso", model).predictions
+        target = trials["specimen"].map(perceived)
+        null = [abs(target[trials.specimen != s].mean() - perceived[s]) for s in pd.unique(trials.specimen)]
+        assert row["null_rmse"] == pytest.approx(np.mean(null), rel=1e-12)
+        # Pooled over trials it is the controls' null (PLS's 0-component CV RMSE), the same folds.
+        pooled = np.sqrt(np.mean([(target[trials.specimen != s].mean() - t) ** 2
+                                  for s, t in zip(trials.specimen, target)]))
+        assert control["null_rmse"] == pytest.approx(pooled, rel=1e-12) == row["null_cv_rmse"]
+
+
+def test_models_are_checked_by_name():
+    from roughsense.errors import ConfigError
+
+    study, features = synthetic_study(repetitions=2, pads=("smooth",))
+    with pytest.raises(ConfigError, match="models must be one of pls, peak-law"):
+        analyse_study(study, features=features, max_components=1, conditions=("1N",), models=("ridge",))
+    only = analyse_study(study, features=features, max_components=1, conditions=("1N",), n_permutations=0,
+                         models=("Peak-Law",))
+    assert only.models == ("peak-law",) and {f.model for f in only.fits} == {"peak-law"}
+    assert only.claims["cv"].eq("none").all()  # no PLS: no claim about the paper's model is judged

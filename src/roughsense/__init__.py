@@ -19,6 +19,8 @@ _LAZY = {
     "SIMPLS": "model.pls",
     "pls_cv": "model.pls_cv",
     "pls_cv_many": "model.pls_cv",
+    "PeakPowerLaw": "model.peak_law",
+    "peak_law_cv": "model.peak_law",
     "SpreadModel": "analysis.spread",
     "load_model": "model.modelfile",
     "overlap": "analysis.metrics",

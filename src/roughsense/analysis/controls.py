@@ -10,6 +10,10 @@ predicts each training fold's mean; its RMSE under the same CV is the floor any 
 
 Every shuffling's cross-validation runs through :func:`roughsense.model.pls_cv.pls_cv_many`, which advances all of
 them as one batch over one rotation of X, and through the same nested-selection code as the real targets.
+
+The peak power law (model family ``peak-law``) faces the same test with the same shufflings: all of them go through
+one :func:`roughsense.model.peak_law.peak_law_cv` call (every fold and shuffled target in one batched fit). It
+chooses nothing from the targets, so its fit on each training fold is the whole of what is rerun.
 """
 from __future__ import annotations
 
@@ -19,6 +23,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
+from ..model.families import PEAK_LAW, PLS
+from ..model.peak_law import peak_law_cv
 from ..model.pls import single_threaded_blas
 from ..model.pls_cv import nested_group_predictions, pls_cv_many
 
@@ -29,7 +35,9 @@ ALPHA = 0.05
 
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
-                   "beats_permutation", "passes"]  # analyse_study adds "seed"
+                   "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
+#: The model family of a row (roughsense.model.families); the last column of controls.csv.
+MODEL_COLUMN = "model"
 
 
 def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:
@@ -74,19 +82,40 @@ def permuted_cv_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: st
     return _cv_rmse(nested, Y.T)
 
 
-def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permutations: np.ndarray) -> dict:
-    """One row of controls.csv for a fitted pad x condition x CV scheme (a ``ConditionFit``)."""
+def permuted_law_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: str, law: dict) -> np.ndarray:
+    """CV RMSE of the peak power law on each target column of Y, pooled over all trials (LOO or LOSO).
+
+    ``law``: peak_law_cv's keywords for this pad and condition (grid, spectra per row, the pad's ridge period).
+    """
+    predictions = peak_law_cv(X, Y, groups=np.asarray(specimens) if cv == "loso" else None, **law)
+    return _cv_rmse(predictions, Y.T)
+
+
+def permutation_p(rmse: float, permuted: np.ndarray) -> float:
+    """(1 + shufflings at least as good) / (1 + shufflings); ``rmse`` computed as the shuffled ones, so ties count."""
+    return float((1 + np.sum(permuted <= rmse * (1 + 1e-12))) / (1 + permuted.size))
+
+
+def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permutations: np.ndarray,
+                law: dict | None = None) -> dict:
+    """One row of controls.csv for a fitted pad x condition x CV scheme (a ``ConditionFit``) of either family.
+
+    ``law``: the peak law's settings (:func:`permuted_law_rmse`); needed for a peak-law fit only.
+    """
     specimens = np.asarray(specimens).astype(str)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
     rmse = float(_cv_rmse(predictions, y))
     # cv_rmse[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
     null_rmse = float(fit.cv_rmse[0])
+    model = getattr(fit, "model", PLS)
     n_permutations = int(permutations.shape[0])
     if n_permutations:
         Y = permuted_targets(y, specimens, permutations)
-        permuted = permuted_cv_rmse(X, Y, specimens, fit.cv, int(fit.cv_rmse.size - 1))
-        # rmse is recomputed the same way as the shuffled ones, so ties compare like with like.
-        p = float((1 + np.sum(permuted <= rmse * (1 + 1e-12))) / (1 + n_permutations))
+        if model == PEAK_LAW:
+            permuted = permuted_law_rmse(X, Y, specimens, fit.cv, law)
+        else:
+            permuted = permuted_cv_rmse(X, Y, specimens, fit.cv, int(fit.cv_rmse.size - 1))
+        p = permutation_p(rmse, permuted)
         median, low = float(np.median(permuted)), float(permuted.min())
     else:
         p = median = low = float("nan")
@@ -98,11 +127,12 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
         "permutation_p": p, "n_permutations": n_permutations, "n_components": int(fit.best_n_components),
         "permuted_rmse_median": median, "permuted_rmse_min": low, "beats_null": beats_null,
         "beats_permutation": beats_permutation, "passes": beats_null and beats_permutation is not False,
+        MODEL_COLUMN: model,
     }
 
 
 def controls_table(rows: list[dict]) -> pd.DataFrame:
-    return pd.DataFrame(rows, columns=CONTROL_COLUMNS)
+    return pd.DataFrame(rows, columns=[*CONTROL_COLUMNS, MODEL_COLUMN])
 
 
 def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable | None = None) -> pd.DataFrame:

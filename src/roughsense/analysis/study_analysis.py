@@ -4,6 +4,11 @@ For each pad and condition (1N, 2N, 3N, combined) it chooses the number of PLS c
 cross-validation (LOO as in the paper, and leave-one-specimen-out as the honest estimate for a
 specimen never seen in training), keeps the out-of-fold predictions at that count, and judges them
 per specimen by RMSE against the perceived geometric mean and by the overlap coefficient.
+
+Beside the paper's PLS, every requested model family (``models``; roughsense.model.families) is
+cross-validated under the same folds and judged the same way: the peak power law
+(roughsense.model.peak_law), built for surfaces never seen in training, has nothing to choose from the
+targets, so its out-of-fold predictions are its fit on each training fold.
 """
 from __future__ import annotations
 
@@ -14,20 +19,23 @@ import numpy as np
 import pandas as pd
 
 from .. import paper
-from ..errors import InputError
+from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
+from ..model.families import MODEL_FAMILIES, PEAK_LAW, PLS, check_model_name
+from ..model.peak_law import peak_law_cv
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
 from .spread import paper_predictive, predictive_ovl
+from .unseen import unseen_summary
 
 CV_SCHEMES = ("loo", "loso")
 PRED_SD_DDOF = 0
 #: The paper's schema first (paper_results.csv), then our additions; columns are only ever added.
 RESULT_COLUMNS = ["pad", "specimen", "condition", "pred_mean", "pred_sd", "ovl", "rmse", "predictive_sd",
-                  "ovl_predictive"]
+                  "ovl_predictive", "model"]
 
 
 @dataclass
@@ -37,6 +45,8 @@ class ConditionFit:
     ``predictions`` holds one out-of-fold prediction per trial (specimen, repetition, image, prediction).
     For LOSO they are nested: each held-out specimen's component count is chosen by LOSO over the other
     specimens only (``nested_n_components``), so no choice ever sees the specimen it predicts.
+    ``model`` names the family (roughsense.model.families). A peak-law fit has ``cv_rmse`` = [training mean's
+    RMSE under the same folds, the law's], counts of 1 and no nested counts: it chooses nothing.
     """
 
     pad: str
@@ -48,6 +58,7 @@ class ConditionFit:
     predictions: pd.DataFrame
     table: pd.DataFrame
     nested_n_components: dict[str, int] = field(default_factory=dict)
+    model: str = PLS
 
 
 @dataclass
@@ -74,14 +85,20 @@ class StudyAnalysis:
     paper_note: str = ""
     seed: int = 0
     wavelengths: dict[str, float] = field(default_factory=dict)
+    #: The model families fitted, in the order of every table (the paper's PLS first).
+    models: tuple[str, ...] = (PLS,)
 
-    def condition_fit(self, pad: str, condition: str, cv: str = "loo") -> ConditionFit:
-        """The cross-validated model of one pad, condition and CV scheme (a lookup: everything was fitted already)."""
+    def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PLS) -> ConditionFit:
+        """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""
         for item in self.fits:
-            if (item.pad, item.condition, item.cv) == (pad, condition, cv):
+            if (item.pad, item.condition, item.cv, item.model) == (pad, condition, cv, model):
                 return item
-        fitted = ", ".join(f"{f.pad} {f.condition} {f.cv}" for f in self.fits) or "none"
-        raise KeyError(f"no model for {pad} {condition} {cv}; fitted: {fitted}")
+        fitted = ", ".join(f"{f.model} {f.pad} {f.condition} {f.cv}" for f in self.fits) or "none"
+        raise KeyError(f"no model for {model} {pad} {condition} {cv}; fitted: {fitted}")
+
+    def ordered_fits(self) -> list[ConditionFit]:
+        """The fits grouped by model family (PLS's rows first, as they were before any other family existed)."""
+        return [f for model in self.models for f in self.fits if f.model == model]
 
     @property
     def pads(self) -> list[str]:
@@ -90,50 +107,59 @@ class StudyAnalysis:
     def results(self, cv: str = "loo") -> pd.DataFrame:
         """Per-specimen results in the schema of the paper's tables (paper_results.csv)."""
         frames = []
-        for item in self.fits:
+        for item in self.ordered_fits():
             if item.cv != cv:
                 continue
             table = item.table.copy()
             table.insert(0, "pad", item.pad)
             table.insert(2, "condition", item.condition)
+            table["model"] = item.model
             frames.append(table[RESULT_COLUMNS])
         return pd.concat(frames, ignore_index=True)
 
     def predictions(self) -> pd.DataFrame:
         """Every out-of-fold prediction: one row per trial (image, or the three images of a combined trial)."""
         frames = []
-        for item in self.fits:
+        for item in self.ordered_fits():
             frame = item.predictions.copy()
             frame.insert(0, "pad", item.pad)
             frame.insert(1, "condition", item.condition)
             frame.insert(2, "cv", item.cv)
             frame["n_components"] = [item.nested_n_components.get(str(s), item.best_n_components)
                                      for s in frame["specimen"]]
+            frame["model"] = item.model
             frames.append(frame)
         return pd.concat(frames, ignore_index=True)
 
     def cv_table(self) -> pd.DataFrame:
+        """The CV curves (n_components 0 is the training mean; a peak-law fit's 1 is the law)."""
         rows = []
-        for item in self.fits:
+        for item in self.ordered_fits():
             for n_components, rmse in enumerate(item.cv_rmse):
                 rows.append({"pad": item.pad, "condition": item.condition, "cv": item.cv,
-                             "n_components": n_components, "rmse": float(rmse)})
-        return pd.DataFrame(rows, columns=["pad", "condition", "cv", "n_components", "rmse"])
+                             "n_components": n_components, "rmse": float(rmse), "model": item.model})
+        return pd.DataFrame(rows, columns=["pad", "condition", "cv", "n_components", "rmse", "model"])
 
     def chosen_components(self) -> pd.DataFrame:
         return pd.DataFrame([
             {"pad": f.pad, "condition": f.condition, "cv": f.cv, "best_n_components": f.best_n_components,
-             "one_se_n_components": f.one_se_n_components, "cv_rmse": float(f.cv_rmse[f.best_n_components])}
-            for f in self.fits
+             "one_se_n_components": f.one_se_n_components, "cv_rmse": float(f.cv_rmse[f.best_n_components]),
+             "model": f.model}
+            for f in self.ordered_fits()
         ])
+
+    def unseen_summary(self) -> pd.DataFrame:
+        """How well each model predicts a surface it never saw: nested LOSO per model x pad x condition (unseen.py)."""
+        return unseen_summary(self)
 
     @property
     def simulated(self) -> bool:
         return self.simulation is not None
 
-    def summary(self, cv: str, column: str) -> pd.DataFrame:
-        """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition."""
+    def summary(self, cv: str, column: str, model: str = PLS) -> pd.DataFrame:
+        """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition, of one model."""
         results = self.results(cv)
+        results = results[results["model"] == model]
         frames = []
         for (pad, condition), table in results.groupby(["pad", "condition"], sort=False):
             summary = shape_summary(table, self.shapes, column)
@@ -165,39 +191,105 @@ def _condition_fit(
     pad: str, condition: str, cv: str, max_components: int,
 ) -> ConditionFit:
     specimens = meta["specimen"].astype(str).to_numpy()
-    held_out = int(pd.Series(specimens).value_counts().max()) if cv == "loso" else 1
-    usable = _usable_components(len(y) - held_out, X.shape[1], max_components)
-    if usable < 1:
-        raise InputError(f"{pad} {condition}: too few samples for {cv.upper()} cross-validation ({len(y)} trials)")
+    usable = _check_cv_size(X, y, specimens, pad, condition, cv, max_components)
     nested: dict[str, int] = {}
     if cv == "loo":
         result = pls_cv(X, y, max_components=usable, cv="loo", cap=True)
         out_of_fold = result.predictions[:, result.best_n_components]
     else:
-        if len(np.unique(specimens)) < 4:
-            raise InputError(f"{pad} {condition}: leave-one-specimen-out needs at least 4 specimens "
-                             "(3 to choose the components of each held-out one)")
         result = pls_cv(X, y, max_components=usable, groups=specimens, cap=True)
         out_of_fold, nested = _loso_nested(X, y, specimens, result, result.max_components)
+    predictions = _prediction_frame(meta, out_of_fold)
+    return ConditionFit(pad, condition, cv, np.asarray(result.rmse, float), int(result.best_n_components),
+                        int(result.one_se_n_components), predictions, _judged(predictions, perceived), nested)
+
+
+def _check_cv_size(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, pad: str, condition: str, cv: str,
+                   max_components: int) -> int:
+    """The largest usable component count; one line naming the model when the design is too small for the CV."""
+    held_out = int(pd.Series(specimens).value_counts().max()) if cv == "loso" else 1
+    usable = _usable_components(len(y) - held_out, X.shape[1], max_components)
+    if usable < 1:
+        raise InputError(f"{pad} {condition}: too few samples for {cv.upper()} cross-validation ({len(y)} trials)")
+    if cv == "loso" and len(np.unique(specimens)) < 4:
+        raise InputError(f"{pad} {condition}: leave-one-specimen-out needs at least 4 specimens "
+                         "(3 to choose the components of each held-out one)")
+    return usable
+
+
+def _prediction_frame(meta: pd.DataFrame, out_of_fold: np.ndarray) -> pd.DataFrame:
+    """One row per trial: specimen, repetition, its image(s) and its out-of-fold prediction."""
     image_columns = [c for c in meta.columns if c.startswith("image")]
     predictions = meta[["specimen", "repetition"]].copy()
     predictions["image"] = meta[image_columns].astype(str).agg(";".join, axis=1)
     predictions["prediction"] = out_of_fold
+    return predictions
+
+
+def _judged(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.DataFrame:
+    """The per-specimen table (Tables 1-6) of out-of-fold predictions, with the predictive OVL."""
     # The paper's Tables 1-6 are consistent with the population SD of the predictions (RMSE^2 = bias^2 + SD^2
     # holds for all 112 rows with ddof=0, 107 with ddof=1; docs/perception.md), so we report the same.
     table = specimen_table(predictions, perceived, pred_sd_ddof=PRED_SD_DDOF)
-    table = pd.concat([table, predictive_ovl(table, perceived)], axis=1)
-    return ConditionFit(pad, condition, cv, np.asarray(result.rmse, float), int(result.best_n_components),
-                        int(result.one_se_n_components), predictions, table, nested)
+    return pd.concat([table, predictive_ovl(table, perceived)], axis=1)
+
+
+def law_settings(X: np.ndarray, freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None) -> dict:
+    """peak_law_cv's keywords for one pad x condition: the grid, how many spectra a row holds, the pad's ridges."""
+    freq = np.asarray(freq_per_mm, dtype=float)
+    if freq.size == 0 or X.shape[1] % freq.size:
+        raise InputError(f"{X.shape[1]} features are not whole spectra of the {freq.size}-frequency grid")
+    return {"freq_per_mm": freq, "n_blocks": X.shape[1] // freq.size, "pad_ridge_period_mm": pad_ridge_period_mm}
+
+
+def _peak_law_fit(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, pad: str,
+                  condition: str, cv: str, null_rmse: float, law: dict) -> ConditionFit:
+    """The peak power law under LOO or LOSO: its fit on each training fold predicts the held-out trials.
+
+    It chooses nothing from the targets, so LOSO needs no inner loop: each held-out specimen's predictions come
+    from a fit to the other specimens only. ``null_rmse`` is the training mean's RMSE under the same folds.
+    """
+    specimens = meta["specimen"].astype(str).to_numpy()
+    out_of_fold = peak_law_cv(X, y, groups=specimens if cv == "loso" else None, **law)[0]
+    predictions = _prediction_frame(meta, out_of_fold)
+    law_rmse = float(np.sqrt(np.mean((out_of_fold - y) ** 2)))
+    return ConditionFit(pad, condition, cv, np.array([float(null_rmse), law_rmse]), 1, 1, predictions,
+                        _judged(predictions, perceived), {}, PEAK_LAW)
+
+
+def _model_fits(analysis: StudyAnalysis, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, pad: str,
+                condition: str, cv: str, law: dict) -> list[ConditionFit]:
+    """Every requested family on one pad x condition x CV scheme, under the same folds.
+
+    The training mean's RMSE (the null model) is PLS's 0-component CV RMSE, the training-fold mean under these
+    folds; without a PLS fit it is computed by the same function (pls_cv at one component).
+    """
+    fits = []
+    null_rmse = None
+    if PLS in analysis.models:
+        fits.append(_condition_fit(X, y, meta, analysis.perceived, pad, condition, cv, analysis.max_components))
+        null_rmse = float(fits[-1].cv_rmse[0])
+    if PEAK_LAW in analysis.models:
+        if null_rmse is None:
+            specimens = meta["specimen"].astype(str).to_numpy()
+            _check_cv_size(X, y, specimens, pad, condition, cv, 1)
+            kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
+            null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
+        fits.append(_peak_law_fit(X, y, meta, analysis.perceived, pad, condition, cv, null_rmse, law))
+    return sorted(fits, key=lambda f: analysis.models.index(f.model))
 
 
 def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
-    """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition."""
+    """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
+
+    Of the paper's PLS only (tests.csv has no model column): these are the paper's own comparisons.
+    """
     frames = []
     for cv in CV_SCHEMES:
-        if not any(f.cv == cv for f in analysis.fits):
+        if not any(f.cv == cv and f.model == PLS for f in analysis.fits):
             continue
         results = analysis.results(cv)
+        results = results[results["model"] == PLS].drop(columns="model")  # the paper's model, as the paper tested
         singles = [c for c in conditions if c != "combined"]
         for pad in analysis.pads:
             if "combined" not in conditions or not singles:
@@ -269,30 +361,46 @@ def analyse_study(
     n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
     seed: int = 0,
     combined_forces: Sequence[str] | None = None,
+    models: Sequence[str] = MODEL_FAMILIES,
 ) -> StudyAnalysis:
     """Run the paper's whole analysis on a validated study; ``features`` may come from a cache.
 
     Besides the paper's analysis: the controls of every model (``n_permutations`` specimen-level
     shufflings drawn from ``seed``, and the training-mean model), the paper's claims with verdicts, and the
     predictive OVL of our predictions and of the paper's published ones. ``combined_forces`` (condition labels) are
-    the forces the "combined" condition concatenates; default 1N, 2N, 3N.
+    the forces the "combined" condition concatenates; default 1N, 2N, 3N. ``models``: the families to fit
+    (roughsense.model.families; every one by default), each under the same folds and controls; the claims and the
+    signed-rank tests stay about the paper's PLS.
     """
+    models = _check_models(models)
     perceived = _perceived_by_enough_people(study)
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     _check_repetitions(features, study)
     analysis = _empty_analysis(study, perceived, features, max_components, seed)
+    analysis.models = models
     analysis.paper_pads, analysis.paper_note = paper_comparability(
         study.specimen_names, study.pads, conditions, study.reference_specimen)
     jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
     iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
     control_jobs = _fit_every_condition(analysis, iterator, features, study, combined_forces, n_permutations)
     analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
-    analysis.controls["seed"] = int(seed)  # the shufflings are default_rng(seed)'s: rerun with it to get them back
+    # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
+    analysis.controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)
     return analysis
+
+
+def _check_models(models: Sequence[str]) -> tuple[str, ...]:
+    """The requested families by name (case-insensitive), each once; one line naming the choices otherwise."""
+    if isinstance(models, str):
+        models = (models,)
+    checked = tuple(dict.fromkeys(check_model_name(m, option="models") for m in models))
+    if not checked:
+        raise ConfigError(f"models must name at least one of {', '.join(MODEL_FAMILIES)}")
+    return checked
 
 
 def _perceived_by_enough_people(study: Study) -> pd.DataFrame:
@@ -343,21 +451,24 @@ def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFram
 
 def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, study: Study,
                          combined_forces: Sequence[str] | None, n_permutations: int) -> list[tuple]:
-    """Cross-validate each (pad, condition, cv) into ``analysis.fits``; returns the controls' jobs, one per fit.
+    """Cross-validate each (pad, condition, cv) and model into ``analysis.fits``; returns the controls' jobs.
 
-    X and y are built once per pad and condition and shared by both CV schemes and the controls.
+    X, y and the shufflings are built once per pad and condition and shared by both CV schemes, every model and
+    the controls (so every model faces the same shuffled targets). Jobs come back grouped by model, as the tables.
     """
-    matrices: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, pd.DataFrame]] = {}
+    matrices: dict[tuple[str, str], tuple] = {}
     control_jobs: list[tuple] = []
     for pad, condition, cv in jobs:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
             y = dataset.targets(meta, analysis.perceived, path=study.root / RATINGS_CSV)
-            matrices[(pad, condition)] = (X, y, meta)
-        X, y, meta = matrices[(pad, condition)]
-        fit = _condition_fit(X, y, meta, analysis.perceived, pad, condition, cv, analysis.max_components)
-        analysis.fits.append(fit)
-        specimens = meta["specimen"].astype(str).to_numpy()
-        permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, analysis.seed)
-        control_jobs.append((fit, X, y, specimens, permutations))
-    return control_jobs
+            specimens = meta["specimen"].astype(str).to_numpy()
+            permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, analysis.seed)
+            law = (law_settings(X, analysis.freq_per_mm, study.pad_ridge_period_mm.get(pad))
+                   if PEAK_LAW in analysis.models else None)
+            matrices[(pad, condition)] = (X, y, meta, specimens, permutations, law)
+        X, y, meta, specimens, permutations, law = matrices[(pad, condition)]
+        for fit in _model_fits(analysis, X, y, meta, pad, condition, cv, law):
+            analysis.fits.append(fit)
+            control_jobs.append((fit, X, y, specimens, permutations, law))
+    return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))

@@ -1,7 +1,9 @@
-"""Training one model file's worth of PLS1: a study, a pad and a condition become a cross-validated SIMPLS.
+"""Training one model file's worth: a study, a pad and a condition become a cross-validated model of a family.
 
 This is ``roughsense fit`` without the command line: the CLI parses options, calls :func:`train_model`, prints
-the CV curve and writes the file. Nothing here prints or writes, so a notebook gets the same model as the CLI.
+the CV result and writes the file. Nothing here prints or writes, so a notebook gets the same model as the CLI.
+``pls`` (the paper's) chooses its component count by CV; the peak law (``peak-law``) chooses nothing from the data,
+so its CV only reports how well it predicts held-out trials, beside the training mean under the same folds.
 """
 from __future__ import annotations
 
@@ -15,26 +17,45 @@ import pandas as pd
 from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
+from ..model.families import PEAK_LAW, PLS, check_model_name
 from ..model.modelfile import feature_definition_for
+from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.pls import SIMPLS
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, pls_cv
+from ..model.pls_cv import _fold_ids as fold_ids
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 
 RULES = ("min", "1se")
 
 
+#: What the peak law's CV rows are, in order (the training mean under the same folds first, as PLS's 0 components).
+LAW_CV_MODELS = ("training mean", PEAK_LAW)
+
+
+@dataclass(frozen=True)
+class LawCVResult:
+    """Cross-validated peak law beside the training mean under the same folds (index 0 the mean, 1 the law)."""
+
+    rmse: np.ndarray  # (2,)
+    rmse_se: np.ndarray  # (2,): delta method on the per-fold mean squared errors, as pls_cv's
+    predictions: np.ndarray  # (n, 2) out-of-fold
+    folds: np.ndarray
+    scheme: str
+
+
 @dataclass(frozen=True)
 class TrainedModel:
-    """A fitted model with the cross-validation that chose it and the record a model file keeps."""
+    """A fitted model with its cross-validation and the record a model file keeps."""
 
-    model: SIMPLS
-    cv: PLSCVResult
-    n_components: int
+    model: SIMPLS | PeakPowerLaw
+    cv: PLSCVResult | LawCVResult
+    n_components: int  # PLS's chosen count; 1 for the peak law (one law, nothing chosen)
     feature_definition: dict
     training: dict
     n_samples: int
     n_features: int
+    family: str = PLS
 
 
 def parse_cv(text: str) -> str | int:
@@ -51,12 +72,25 @@ def parse_cv(text: str) -> str | int:
     return k
 
 
-def check_training_options(condition: str, rule: str, max_components: int | None) -> None:
-    """Refuse options before any image is read."""
+def check_training_options(condition: str, rule: str | None, max_components: int | None, model: str = PLS) -> str:
+    """Refuse options before any image is read; returns the model family's name.
+
+    ``rule`` and ``max_components`` choose PLS's component count: given with the peak law (which has none to
+    choose) they are refused rather than silently ignored.
+    """
+    family = check_model_name(model)
     check(condition, Options(CONDITIONS), name="--condition", must=f"one of {', '.join(CONDITIONS)}")
-    check(rule, Options(RULES), name="--rule", must="min or 1se")
+    if family == PEAK_LAW:
+        for option, value in (("--rule", rule), ("--max-components", max_components)):
+            if value is not None:
+                raise ConfigError(f"{option} chooses PLS components; the peak law has none to choose "
+                                  f"(drop {option} or use --model {PLS})")
+        return family
+    if rule is not None:
+        check(rule, Options(RULES), name="--rule", must="min or 1se")
     if max_components is not None:
         check(max_components, POSITIVE_INT, name="--max-components", must="at least 1")
+    return family
 
 
 def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
@@ -99,17 +133,15 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
         raise
 
 
-def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str = "min", seed: int = 0,
-                max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
-                progress: Callable | None = None) -> TrainedModel:
-    """Cross-validate, choose the component count by ``rule``, and fit on every trial (the paper's §3.3)."""
-    check_training_options(condition, rule, max_components)
+def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str | None = None,
+                seed: int = 0, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
+                progress: Callable | None = None, model: str = PLS) -> TrainedModel:
+    """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
+    default), or the peak law with the pad's ridge period left out of its peak search."""
+    family = check_training_options(condition, rule, max_components, model)
     X, y, meta = training_data(study, pad, condition, n_jobs=n_jobs, progress=progress)
-    result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components,
-                            what=f"pad {pad!r} at {condition}")
-    chosen = result.best_n_components if rule == "min" else result.one_se_n_components
-    model = SIMPLS(n_components=chosen).fit(X, y)
-    definition = feature_definition_for(dataset.spectrum_for(study), dataset.conditions_of(condition))
+    spectrum = dataset.spectrum_for(study)
+    definition = feature_definition_for(spectrum, dataset.conditions_of(condition))
     training = {
         "study": study.name,
         "study_path": study_path,
@@ -120,6 +152,17 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         "reference_specimen": study.reference_specimen,
         "cv": cv if isinstance(cv, str) else f"{cv}-fold",
         "seed": int(seed),
+    }
+    if family == PEAK_LAW:
+        law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
+                           pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))
+        return _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training,
+                          what=f"pad {pad!r} at {condition}")
+    rule = rule or "min"
+    result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components,
+                            what=f"pad {pad!r} at {condition}")
+    chosen = result.best_n_components if rule == "min" else result.one_se_n_components
+    training.update({
         "rule": rule,
         "max_components": int(result.max_components),
         "cv_rmse": [float(v) for v in result.rmse],
@@ -127,8 +170,60 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         "best_n_components": int(result.best_n_components),
         "one_se_n_components": int(result.one_se_n_components),
         "n_components": int(chosen),
-    }
-    return TrainedModel(model, result, int(chosen), definition, training, int(len(y)), int(X.shape[1]))
+    })
+    fitted = SIMPLS(n_components=chosen).fit(X, y)
+    return TrainedModel(fitted, result, int(chosen), definition, training, int(len(y)), int(X.shape[1]))
+
+
+def _train_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *,
+               seed: int, definition: dict, training: dict, what: str) -> TrainedModel:
+    """The peak law's CV beside the training mean's, and the law fitted on every trial (nothing is chosen)."""
+    try:
+        result = cross_validate_law(law, X, y, meta, scheme, seed=seed)
+        fitted = law.fit(X, y)
+    except PLSConfigError as exc:
+        raise ConfigError(f"{exc.message} ({what})") from None
+    except ValueError as exc:
+        raise ConfigError(f"the peak law cannot be fitted to {what}: {exc}") from None
+    training.update({
+        "model": PEAK_LAW,
+        "cv_models": list(LAW_CV_MODELS),
+        "cv_rmse": [float(v) for v in result.rmse],
+        "cv_rmse_se": [float(v) for v in result.rmse_se],
+    })
+    return TrainedModel(fitted, result, 1, definition, training, int(len(y)), int(X.shape[1]), family=PEAK_LAW)
+
+
+def cross_validate_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *,
+                       seed: int) -> LawCVResult:
+    """Out-of-fold predictions of the training mean and of ``law`` (its parameters) under the folds of ``scheme``.
+
+    The folds are pls_cv's own (LOO, leave-one-specimen-out, or shuffled K-fold from ``seed``), so a peak law's
+    RMSE and a PLS curve from the same options are on the same held-out trials.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    n = y.size
+    groups = meta["specimen"].to_numpy() if scheme == "loso" else None
+    fid, name = fold_ids(n, None if scheme == "loso" else scheme, groups, seed)
+    law_predictions = peak_law_cv(X, y, groups=fid, freq_per_mm=law.freq_per_mm, n_blocks=law.n_blocks,
+                                  pad_ridge_period_mm=law.pad_ridge_period_mm,
+                                  exclusion_per_mm=law.exclusion_per_mm, epsilon=law.epsilon)[0]
+    n_folds = int(fid.max()) + 1
+    fold_sum = np.bincount(fid, weights=y, minlength=n_folds)
+    fold_size = np.bincount(fid, minlength=n_folds)
+    null_predictions = (y.sum() - fold_sum[fid]) / (n - fold_size[fid])
+    predictions = np.column_stack([null_predictions, law_predictions])
+    err2 = (predictions - y[:, None]) ** 2
+    rmse = np.sqrt(err2.mean(axis=0))
+    fold_mse = np.stack([np.bincount(fid, weights=e, minlength=n_folds) for e in err2.T], axis=1) / fold_size[:, None]
+    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(n_folds)
+    rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
+    return LawCVResult(rmse=rmse, rmse_se=rmse_se, predictions=predictions, folds=fid, scheme=name)
+
+
+def law_table(result: LawCVResult) -> pd.DataFrame:
+    """The peak law's CV as printed by ``fit``: the training mean and the law, RMSE and SE under the same folds."""
+    return pd.DataFrame({"model": list(LAW_CV_MODELS), "rmse": result.rmse, "rmse_se": result.rmse_se})
 
 
 def curve_table(result: PLSCVResult, chosen: int) -> pd.DataFrame:

@@ -1,4 +1,5 @@
-"""``roughsense fit`` and ``roughsense predict``: a PLS1 model from a study, and roughness from images."""
+"""``roughsense fit`` and ``roughsense predict``: a model (the paper's PLS1 or the peak law) from a study, and
+roughness from images, with a flag on every prediction the model extrapolates."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,51 +23,78 @@ Condition = Annotated[str, typer.Option(
 ModelOut = Annotated[Path, typer.Option("--out", "-o", help="Model file to write (JSON).")]
 MaxComponents = Annotated[int | None, typer.Option(
     "--max-components", show_default=False,
-    help="Largest number of PLS components to cross-validate. Default: 20, or fewer if the data support fewer.",
+    help="Largest number of PLS components to cross-validate. Default: 20, or fewer if the data support fewer. "
+         "PLS only.",
 )]
 CV = Annotated[str, typer.Option(
     "--cv", help="Cross-validation: loo (the paper's leave-one-out), loso (leave one specimen out) or K (shuffled K-fold).")]
-Rule = Annotated[str, typer.Option(
-    "--rule", help="Component choice: min (lowest CV RMSE, the paper's rule) or 1se (fewest within one SE of it).")]
+Rule = Annotated[str | None, typer.Option(
+    "--rule", show_default=False,
+    help="PLS component choice: min (lowest CV RMSE, the paper's rule; the default) or 1se (fewest within one SE "
+         "of it).")]
+ModelName = Annotated[str, typer.Option(
+    "--model", help="Model family: pls (the paper's PLS1 on the spectrum) or peak-law (a power law of where the "
+                    "spectrum peaks and how high, built for surfaces never seen in training).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
 Jobs = Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")]
 
 
 def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_components: MaxComponents = None,
-        cv: CV = "loo", rule: Rule = "min", seed: FitSeed = 0, jobs: Jobs = -1,
+        cv: CV = "loo", rule: Rule = None, seed: FitSeed = 0, jobs: Jobs = -1, model: ModelName = "pls",
         force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False) -> None:
-    """Fit the paper's PLS1 model (SIMPLS, X centred) for one pad and force condition.
+    """Fit a model for one pad and force condition: the paper's PLS1 (SIMPLS, X centred) or the peak law.
 
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
-    specimen's perceived roughness (geometric mean over participants). The number of components is
-    chosen by cross-validation; the CV curve is printed and stored in the model file with the feature
-    definition, so `roughsense predict` recomputes features exactly as here.
+    specimen's perceived roughness (geometric mean over participants). For PLS the number of components is
+    chosen by cross-validation and the CV curve is printed; the peak law chooses nothing from the data, so its CV
+    RMSE is printed beside the training mean's under the same folds. Either is stored in the model file with the
+    feature definition, so `roughsense predict` recomputes features exactly as here.
     """
     from .._util.atomic import check_can_write
-    from ..analysis.training import check_training_options, curve_table, parse_cv, train_model
+    from ..analysis.training import check_training_options, parse_cv, train_model
     from ..io.study import read_study
     from ..model.modelfile import save_model
 
-    check_training_options(condition, rule, max_components)
+    family = check_training_options(condition, rule, max_components, model)
     scheme = parse_cv(cv)
     check_seed(seed)
     check_can_write(out, force=force)
     study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     loaded = read_study(study, require_ratings=True)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
-                          max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress)
+                          max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
+                          model=family)
     save_model(out, trained.model, feature_definition=trained.feature_definition, training=trained.training,
                force=force)
-    result, chosen = trained.cv, trained.n_components
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {trained.n_samples} samples x {trained.n_features} features, "
-               f"{result.scheme} CV")
-    typer.echo(curve_table(result, chosen).to_string(index=False, float_format=lambda v: f"{v:.5f}"))
-    typer.echo(
-        f"chosen: {chosen} components (CV RMSE {result.rmse[chosen]:.5f}; min at {result.best_n_components}, "
-        f"one-SE rule {result.one_se_n_components})"
-    )
+               f"{trained.cv.scheme} CV, model {family}")
+    _echo_cv(trained)
     typer.echo(f"wrote {out}")
+
+
+def _echo_cv(trained) -> None:
+    """PLS: the CV curve and the chosen count. The peak law: its CV RMSE beside the training mean's, and the law."""
+    import numpy as np
+
+    from ..analysis.training import curve_table, law_table
+    from ..model.families import PEAK_LAW
+
+    result, number = trained.cv, (lambda v: f"{v:.5f}")
+    if trained.family != PEAK_LAW:
+        chosen = trained.n_components
+        typer.echo(curve_table(result, chosen).to_string(index=False, float_format=number))
+        typer.echo(f"chosen: {chosen} components (CV RMSE {result.rmse[chosen]:.5f}; min at {result.best_n_components}, "
+                   f"one-SE rule {result.one_se_n_components})")
+        return
+    law = trained.model
+    typer.echo(law_table(result).to_string(index=False, float_format=number))
+    typer.echo(f"peak law: CV RMSE {result.rmse[1]:.5f} (training mean {result.rmse[0]:.5f}); "
+               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1) "
+               f"{law.coef_[1]:+.4f} log(peak amplitude)")
+    low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
+    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
+               "a surface outside that range is flagged as extrapolating when predicted")
 
 
 ModelFile = Annotated[Path, typer.Argument(metavar="MODEL.json", help="A model file written by `roughsense fit`.")]
@@ -127,8 +155,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
-    _score_into(table, loaded, trials, jobs)
+    extrapolates = _score_into(table, loaded, trials, jobs)
     _show_or_write(table, out)
+    _echo_extrapolation(loaded, extrapolates)
 
 
 def _check_image_sources(given: list[str], specimens, study) -> None:
@@ -141,11 +170,15 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
 
 
-def _score_into(table, loaded, trials: list[tuple], jobs: int) -> None:
-    """Score the trials and add their images, pad, condition and roughness to ``table``."""
-    from ..model.predict import model_condition, model_pad, score_images
+def _score_into(table, loaded, trials: list[tuple], jobs: int):
+    """Score the trials and add their images, pad, condition, roughness and extrapolation flag to ``table``.
 
-    roughness = score_images(loaded, [image for trial in trials for image in trial], n_jobs=jobs, progress=progress)
+    The flag is written ``true``/``false`` (any CSV reader's booleans); the boolean array is returned.
+    """
+    from ..model.predict import model_condition, model_pad, score_and_flag
+
+    images = [image for trial in trials for image in trial]
+    roughness, extrapolates = score_and_flag(loaded, images, n_jobs=jobs, progress=progress)
     if len(loaded.conditions) == 1:
         table["image"] = [str(t[0]) for t in trials]
     else:
@@ -154,6 +187,22 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int) -> None:
     table["pad"] = model_pad(loaded)
     table["condition"] = model_condition(loaded)
     table["roughness"] = roughness
+    table["extrapolates"] = ["true" if flag else "false" for flag in extrapolates]
+    return extrapolates
+
+
+EXTRAPOLATION_WHY = "features outside the training range; the prediction is held at the edge of what the model saw"
+
+
+def _echo_extrapolation(loaded, extrapolates) -> None:
+    """How many predictions extrapolate, and why that matters (PLS flags none: it has no range it holds to)."""
+    from ..model.families import PLS
+
+    if loaded.family == PLS:
+        return
+    count = int(extrapolates.sum())
+    typer.echo(f"{count} of {len(extrapolates)} prediction(s) extrapolate" + (f": {EXTRAPOLATION_WHY}" if count else
+                                                                                 " (all within the training range)"))
 
 
 def _show_or_write(table, out: Path | None) -> None:
@@ -229,3 +278,5 @@ def _predict_live(loaded, source: str, max_frames: int | None) -> None:
     summary = render_live(live_scores(source, frame_scorer(loaded), max_frames=max_frames))
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
+    if summary.extrapolated:
+        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: {EXTRAPOLATION_WHY}")

@@ -109,8 +109,34 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
         index = write_report(analysis, out, meta=meta, staging=staging)
+    for line in unseen_lines(analysis):
+        typer.echo(line)
     loo = analysis.results("loo")
+    loo = loo[loo["model"] == "pls"]
     for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
         typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
-                   f"{analysis.condition_fit(pad, condition, 'loo').best_n_components} components (LOO)")
+                   f"{analysis.condition_fit(pad, condition, 'loo').best_n_components} components (pls, LOO)")
     return index, root, builtin
+
+
+def unseen_lines(analysis) -> list[str]:
+    """The question users ask first, in a headline and one line per pad: how well each model predicts an unseen
+    surface (nested LOSO mean per-specimen RMSE against the training mean's, permutation p, Spearman's rho)."""
+    unseen = analysis.unseen_summary()
+    if unseen.empty:
+        return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
+    condition = "combined" if (unseen["condition"] == "combined").any() else str(unseen["condition"].iloc[-1])
+    rows = unseen[unseen["condition"] == condition]
+    best = rows.loc[rows["rmse"].idxmin()]
+    lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "
+             f"best {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
+             f"{best['null_rmse']:.2f}."]
+    for pad, group in rows.groupby("pad", sort=False):
+        parts = []
+        for r in group.itertuples():
+            p = f"p {r.permutation_p:.3f}" if r.n_permutations else "no permutations"
+            verdict = "" if r.passes else ", fails controls"
+            verdict += ", not below the training mean" if r.rmse >= r.null_rmse else ""
+            parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{verdict})")
+        lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
+    return lines

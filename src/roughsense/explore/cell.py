@@ -4,7 +4,8 @@ Nothing is written. Frames are rendered only down to the row the sensor reads (b
 whole frame) and each trial's contact levels start from the last solution of the same surfaces; the spectra come from
 the sensor's own code on a frame of the camera's full size, and the analysis is :func:`analysis.study_analysis.analyse_study`
 on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
-contact solver's tolerance; tests/test_explore.py checks it).
+contact solver's tolerance; tests/test_explore.py checks it). Every model family the cell asks for is fitted on the
+same spectra (one simulation), and each result row names its family in the ``model`` column.
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from ..sim.optics import Camera
 from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
 from .allocator import relax_frozen_malloc_thresholds
 from .ratings import panel_ratings
-from .sweep import Cell
+from .sweep import MODEL_KEY, Cell
 
 RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",
                   "rmse_sd", "ovl_sd", "n_specimens"]
@@ -112,17 +113,17 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
 
 
 def analyse_cell(cell: Cell):
-    """The study analysis of one cell (every condition and CV scheme)."""
+    """The study analysis of one cell (every condition, CV scheme and model family)."""
     study, features = cell_features(cell)
     labels = study.condition_labels()
     conditions = [*labels, "combined"] if len(labels) > 1 else labels
     # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
     return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
-                         cv_schemes=cell.cv, combined_forces=labels, n_permutations=0), study
+                         cv_schemes=cell.cv, combined_forces=labels, n_permutations=0, models=cell.models), study
 
 
 def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(summary rows: one per pad x condition x CV scheme, per-specimen rows) of one cell."""
+    """(summary rows: one per pad x condition x CV scheme x model, per-specimen rows) of one cell."""
     analysis, study = analyse_cell(cell)
     shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
     wavelengths = dict(zip(study.specimens["specimen"], study.specimens["wavelength_mm"]))
@@ -139,6 +140,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
             "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
             "n_specimens": int(len(table)),
             "ovl_predictive": float(rated["ovl_predictive"].mean()),
+            MODEL_KEY: fit.model,
         })
         for row in table.itertuples(index=False):
             per_specimen.append({
@@ -149,11 +151,13 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
                 "gmean": row.gmean, "sd": row.sd, "pred_mean": row.pred_mean, "pred_sd": row.pred_sd,
                 "rmse": row.rmse, "ovl": row.ovl,
                 "ovl_predictive": float(row.ovl_predictive),
+                MODEL_KEY: fit.model,
             })
     design = cell.columns()
-    design.pop("pad")  # the pad column comes from the analysis (the same value)
-    summary_frame = pd.DataFrame(summary, columns=RESULT_COLUMNS).assign(**design)
-    specimen_frame = pd.DataFrame(per_specimen, columns=SPECIMEN_COLUMNS).assign(**design)
+    design.pop("pad")  # the pad and model columns come from the analysis (one value each per row)
+    design.pop(MODEL_KEY)
+    summary_frame = pd.DataFrame(summary, columns=[*RESULT_COLUMNS, MODEL_KEY]).assign(**design)
+    specimen_frame = pd.DataFrame(per_specimen, columns=[*SPECIMEN_COLUMNS, MODEL_KEY]).assign(**design)
     return summary_frame, specimen_frame
 
 

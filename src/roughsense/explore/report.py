@@ -10,8 +10,17 @@ import pandas as pd
 from .._util import atomic
 from ..report.explore_page import html_table, render_explore
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
-from .summary import DESIGN, _match, axis_slice, best_design, paper_questions, seed_table
-from .sweep import Sweep
+from .summary import (
+    DESIGN,
+    _match,
+    axis_slice,
+    best_per_model,
+    models_in,
+    paper_questions,
+    seed_table,
+    side_by_side,
+)
+from .sweep import MODEL_KEY, Sweep
 
 SUMMARY_CSV = "summary.csv"
 LIMITS = [
@@ -62,21 +71,8 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     shown = varying or ["pad"]
     best_frame, axes, questions = None, [], []
     if not results.empty:
-        anchor = best_design(table)
-        if anchor is not None:
-            held = dict(anchor)
-            best_frame = table[_match(table, held)][[*DESIGN, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
-                                                     "n_seeds"]]
-            best_frame = best_frame[[c for c in best_frame.columns if c not in DESIGN or c in shown or c == "pad"]]
-        for axis in varying:
-            order = list(dict.fromkeys(sweep.axes.get(axis, []))) or list(dict.fromkeys(results[axis].dropna()))
-            if axis == "field_length_mm":
-                order = sorted(dict.fromkeys(results[axis].dropna()))
-            rows, axis_anchor = axis_slice(table, axis, order)
-            if rows.empty or rows[axis].nunique() < 2:
-                continue
-            axes.append({"axis": axis, "order": [v for v in order if v in set(rows[axis])] or list(rows[axis].unique()),
-                         "rows": rows, "anchor": _describe(axis_anchor, skip=axis)})
+        best_frame = _best_frame(table, shown)
+        axes = _axis_sections(sweep, results, table, varying)
         for q in paper_questions(results, specimens, table):
             item = {"title": q.title, "covered": q.covered, "answer": q.answer, "how_to_cover": q.how_to_cover}
             if q.covered:
@@ -85,12 +81,41 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     predictive = [c for c in ("ovl_predictive", "ovl_predictive_ci95") if c in table.columns]
     summary = table[[*shown, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", *predictive, "n_seeds"]] \
         if not table.empty else pd.DataFrame(columns=["condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95"])
+    if MODEL_KEY in shown:  # the families side by side, one row per design
+        summary = side_by_side(summary, [c for c in shown if c != MODEL_KEY] + ["condition", "cv"])
     fail_view = failures[["cell", "seed", *[c for c in shown if c in failures.columns], "error"]] \
         if not failures.empty else failures
     html = render_explore(name=sweep.name, meta=meta, best=best_frame, axes=axes, questions=questions,
                           summary=summary, failures=fail_view, limits=LIMITS)
-    if not table.empty:
-        atomic.write_csv(out / SUMMARY_CSV, table, float_format="%.6g")
+    if not table.empty:  # every design per model; ``model`` last, as columns are only ever added
+        atomic.write_csv(out / SUMMARY_CSV, table[[c for c in table.columns if c != MODEL_KEY] + [MODEL_KEY]],
+                         float_format="%.6g")
     atomic.write_bytes(out / REPORT, html)
     return out / REPORT
 
+
+def _best_frame(table: pd.DataFrame, shown: list[str]) -> pd.DataFrame | None:
+    """The best design of each model family, with its rows under each CV scheme."""
+    frames = [table[_match(table, anchor)] for anchor in best_per_model(table)]
+    if not frames:
+        return None
+    best = pd.concat(frames)[[*DESIGN, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", "n_seeds"]]
+    return best[[c for c in best.columns if c not in DESIGN or c in shown or c == "pad"]]
+
+
+def _axis_sections(sweep: Sweep, results: pd.DataFrame, table: pd.DataFrame, varying: list[str]) -> list[dict]:
+    """One slice per varying axis through the best design of each model family (the model axis: through the best)."""
+    axes = []
+    for axis in varying:
+        order = list(dict.fromkeys(sweep.axes.get(axis, []))) or list(dict.fromkeys(results[axis].dropna()))
+        if axis == "field_length_mm":
+            order = sorted(dict.fromkeys(results[axis].dropna()))
+        families = [None] if axis == MODEL_KEY else models_in(table)
+        slices = [axis_slice(table if m is None else table[table[MODEL_KEY] == m], axis, order) for m in families]
+        slices = [(rows, anchor) for rows, anchor in slices if not rows.empty and rows[axis].nunique() >= 2]
+        if not slices:
+            continue
+        rows = pd.concat([r for r, _ in slices])
+        axes.append({"axis": axis, "order": [v for v in order if v in set(rows[axis])] or list(rows[axis].unique()),
+                     "rows": rows, "anchor": "; ".join(_describe(a, skip=axis) for _, a in slices)})
+    return axes

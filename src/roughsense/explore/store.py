@@ -3,7 +3,8 @@
 Layout of ``--out``::
 
     sweep.toml              the sweep file this folder belongs to (copied at the start)
-    results/cell-ID.parquet one row per pad x condition x CV scheme of cell ID (``pandas.read_parquet(out/"results")``)
+    results/cell-ID.parquet one row per pad x condition x CV scheme x model of cell ID
+                            (``pandas.read_parquet(out/"results")``; ``model`` is the last column)
     specimens/cell-ID.parquet  the same per specimen
     failures.csv            cells that failed: id, seed, design and the one-line error (retried on the next run)
     index.html              the report

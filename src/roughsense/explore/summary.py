@@ -1,7 +1,8 @@
 """What a sweep found: per-design means with 95 % intervals over seeds, the best design, slices through it along
 each axis, and the paper's open questions answered in numbers where the sweep covers them.
 
-A design is every design column (sweep.COLUMN_KINDS) plus the predictor set (condition); seeds are replicates.
+A design is every design column (sweep.COLUMN_KINDS, the model family included) plus the predictor set (condition);
+seeds are replicates. Designs are ranked per model family, so a sweep of two families shows the best of each.
 Designs are compared on the same seeds (the twin keys its draws by names, so two designs with one seed share their
 mounts, exposures and panel: common random numbers), so differences come with paired intervals.
 """
@@ -14,7 +15,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, PAPER_DESIGN
+from ..model.families import MODEL_FAMILIES
+from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
 
 DESIGN = list(COLUMN_KINDS)
 METRICS = ("rmse", "ovl")
@@ -77,6 +79,39 @@ def best_design(table: pd.DataFrame, mask: pd.Series | None = None) -> dict | No
     pool = pool[pool["n_seeds"] == pool["n_seeds"].max()]
     row = pool.loc[pool["rmse"].idxmin()]
     return {k: row[k] for k in DESIGN + ["condition"]}
+
+
+def models_in(frame: pd.DataFrame) -> list[str]:
+    """The model families present, the paper's PLS first (MODEL_FAMILIES order, unknown names after)."""
+    present = list(dict.fromkeys(frame[MODEL_KEY].dropna())) if MODEL_KEY in frame.columns else []
+    return [m for m in MODEL_FAMILIES if m in present] + [m for m in present if m not in MODEL_FAMILIES]
+
+
+def best_per_model(table: pd.DataFrame) -> list[dict]:
+    """The best design of each model family (families with no finished design are left out)."""
+    found = [best_design(table, table[MODEL_KEY] == model) for model in models_in(table)]
+    return [anchor for anchor in found if anchor is not None]
+
+
+def side_by_side(frame: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """One row per ``keys`` with each family's columns beside the others' (``rmse (pls)``, ``rmse (peak-law)``, ...).
+
+    An interval column keeps its ``_ci95`` suffix last, so a table renderer still pairs it with its mean.
+    """
+    models = models_in(frame)
+    if len(models) < 2:
+        return frame
+    values = [c for c in frame.columns if c not in keys and c != MODEL_KEY]
+    wide = frame[keys].drop_duplicates()  # the designs in their first order; a left merge keeps it
+    for model in models:
+        part = frame[frame[MODEL_KEY] == model][[*keys, *values]]
+        wide = wide.merge(part.rename(columns={c: _tagged(c, model) for c in values}), on=keys, how="left")
+    return wide[[*keys, *(_tagged(c, m) for c in values for m in models)]].reset_index(drop=True)
+
+
+def _tagged(column: str, model: str) -> str:
+    stem, ci = (column[:-5], "_ci95") if column.endswith("_ci95") else (column, "")
+    return f"{stem} ({model}){ci}"
 
 
 def axis_slice(table: pd.DataFrame, axis: str, order: list) -> tuple[pd.DataFrame, dict | None]:
@@ -147,7 +182,10 @@ def _with(anchor: dict, **overrides) -> dict:
 
 
 def paper_questions(results: pd.DataFrame, specimens: pd.DataFrame, table: pd.DataFrame) -> list[Question]:
-    """The paper's five open questions, each answered from the sweep's rows or marked as not covered."""
+    """The paper's five open questions, each answered from the sweep's rows or marked as not covered.
+
+    They are asked of the best design's model family (one family: the paper's PLS unless the sweep says otherwise).
+    """
     cv = judge_cv(table)
     anchor = best_design(table)
     questions = [_fingerprint_question(results, anchor, cv)]
@@ -163,6 +201,10 @@ def paper_questions(results: pd.DataFrame, specimens: pd.DataFrame, table: pd.Da
         ("Do more forces help?", "forces_n", 'forces_n = [[1, 2, 3], [1, 2, 3, 4, 5]] in [axes]', "1,2,3"),
     ):
         questions.append(_axis_question(results, anchor, cv, title, column, cover, base))
+    if anchor is not None and len(models_in(table)) > 1:
+        for question in (questions[0], *questions[3:]):  # the specimen questions name their own family
+            if question.covered:
+                question.answer += f" Model family: {anchor[MODEL_KEY]} (the best design's)."
     return questions
 
 
@@ -221,7 +263,8 @@ def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, 
     mask = results["cell"].isin(set(chosen["cell"]))
     sub_anchor = best_design(seed_table(results[mask])) if mask.any() else None
     rows = specimens[(specimens["cell"].isin(set(results.loc[mask & _match(results, _with(sub_anchor)), "cell"])))
-                     & (specimens["condition"] == sub_anchor["condition"])]
+                     & (specimens["condition"] == sub_anchor["condition"])
+                     & (specimens[MODEL_KEY] == sub_anchor[MODEL_KEY])]
     frame = _specimen_rows(rows, set(chosen["specimen"]))
     judged = frame[frame["cv"] == cv]
     asked = judged[judged["group"] == "asked"]
@@ -233,6 +276,8 @@ def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, 
         answer += (f", against RMSE {paper['rmse'].mean():.3f} and OVL {paper['ovl'].mean():.3f} for the "
                    f"{len(paper)} specimens in the paper's range (2-5 mm) in the same cells")
     answer += ". Their 'perceived' roughness is the twin's model, not a measurement (see the limits below)."
+    if len(models_in(results)) > 1:
+        answer += f" Model family: {sub_anchor[MODEL_KEY]} (the best in these cells)."
     return Question(title, True, answer, frame)
 
 

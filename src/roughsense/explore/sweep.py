@@ -3,6 +3,10 @@
 A cell is one grid point x one seed. Everything a cell needs travels inside :class:`Cell` (no files), so a worker on
 another machine computes it from the cell alone, and the cell's id is a hash of exactly that content: a rerun of the
 same sweep, or a sweep that shares some of its cells, finds them finished.
+
+The ``model`` axis is not a grid dimension of cells: a model family does not change the simulated frames, so a cell
+simulates once and fits every requested family on the same spectra (rows per model). Its id covers the families only
+when they differ from the paper's PLS alone, so sweeps without the axis keep the ids (and results) they had.
 """
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.sensor_settings import DEFAULT_PX_PER_MM
+from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
 from ..paper import (
     PAPER_FORCES_N,
@@ -50,6 +55,9 @@ PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked agains
 DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
                "specimens", "repetitions", "ratings_from")
 FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless for the smooth pad
+#: The model families a cell fits: one value in [sweep] or a list in [axes], like a design parameter, but every
+#: family of a design is fitted in the same cell (the frames do not depend on the model).
+MODEL_KEY = "model"
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
 DEFAULTS = {
     "pad": "smooth", "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
@@ -59,7 +67,7 @@ DEFAULTS = {
 #: Column type of each design parameter in the results (strings for lists, NaN where a value does not apply).
 COLUMN_KINDS = {"pad": "str", "fingerprint_period_mm": "float", "ridge_height_mm": "float",
                 "pad_modulus_mpa": "float", "field_length_mm": "float", "forces_n": "str", "specimens": "str",
-                "repetitions": "int", "ratings_from": "str"}
+                "repetitions": "int", "ratings_from": "str", MODEL_KEY: "str"}
 
 
 @dataclass(frozen=True)
@@ -85,9 +93,11 @@ class Cell:
     max_components: int
     cv: tuple[str, ...]
     code: str = ""  # fingerprint of the twin and analysis that compute it (explore.version)
+    models: tuple[str, ...] = (DEFAULT_MODEL,)  # the families fitted on the cell's spectra, in MODEL_FAMILIES order
 
     def columns(self) -> dict:
-        """The design as result columns: one scalar per design parameter (lists as text)."""
+        """The design as result columns: one scalar per design parameter (lists as text; ``model`` lists the
+        cell's families, each result row names its own)."""
         return {
             "pad": self.pad,
             "fingerprint_period_mm": math.nan if self.fingerprint_period_mm is None else self.fingerprint_period_mm,
@@ -98,6 +108,7 @@ class Cell:
             "specimens": self.specimens_label,
             "repetitions": self.repetitions,
             "ratings_from": self.ratings_from,
+            MODEL_KEY: ",".join(self.models),
         }
 
 
@@ -111,6 +122,7 @@ class Sweep:
     cells: list[Cell]
     cv: tuple[str, ...]
     source: dict = field(default_factory=dict)  # the parsed file, to tell one sweep from another
+    models: tuple[str, ...] = (DEFAULT_MODEL,)
 
 
 def forces_label(forces_n) -> str:
@@ -213,15 +225,38 @@ def build_sweep(source: dict, path: Path) -> Sweep:
     run = _run_settings(settings, path)
     fixed = {key: _check_value(path, key, settings[key], f"[sweep] {key}") if key in settings else DEFAULTS[key]
              for key in DESIGN_KEYS}
-    axes = _axes(axes_in, path)
+    models = _models(settings, axes_in, path)
+    axes = _axes({k: v for k, v in axes_in.items() if k != MODEL_KEY}, path)
     if "pad" not in axes and "pad" not in settings:
         axes["pad"] = list(PAD_NAMES)  # both of the paper's pads unless told otherwise
-    cells = _cells(_design_points(fixed, axes), run)
+    cells = _cells(_design_points(fixed, axes), run, models)
     name = settings.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         raise _error(path, f"[sweep] name: expected a text, got {name!r}")
     varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
-    return Sweep(path=path, name=name, axes=varying, cells=cells, cv=run["cv"], source=source)
+    if MODEL_KEY in axes_in:
+        varying[MODEL_KEY] = list(models)
+    return Sweep(path=path, name=name, axes=varying, cells=cells, cv=run["cv"], source=source, models=models)
+
+
+def _models(settings: dict, axes_in: dict, path: Path) -> tuple[str, ...]:
+    """The model families: ``model`` in [sweep] (one name) or in [axes] (a list); the paper's PLS by default."""
+    if MODEL_KEY in axes_in:
+        where, values = f"[axes] {MODEL_KEY}", axes_in[MODEL_KEY]
+        if not isinstance(values, list) or not values:
+            raise _error(path, f"{where}: expected a non-empty list of model families "
+                               f"({', '.join(MODEL_FAMILIES)}), got {values!r}")
+    elif MODEL_KEY in settings:
+        where, values = f"[sweep] {MODEL_KEY}", [settings[MODEL_KEY]]
+    else:
+        return (DEFAULT_MODEL,)
+    try:
+        names = [check_model_name(v, option=where) for v in values]
+    except ConfigError as exc:
+        raise _error(path, exc.message) from None
+    if len(set(names)) != len(names):
+        raise _error(path, f"{where}: a model is listed twice")
+    return tuple(m for m in MODEL_FAMILIES if m in names)
 
 
 def _tables(source: dict, path: Path) -> tuple[dict, dict]:
@@ -234,11 +269,12 @@ def _tables(source: dict, path: Path) -> tuple[dict, dict]:
     if not isinstance(settings, dict) or not isinstance(axes_in, dict):
         raise _error(path, "[sweep] and [axes] must be tables")
     for key in settings:
-        if key not in SETTING_KEYS and key not in DESIGN_KEYS:
-            raise _error(path, f"[sweep]: unknown key {key!r} (known: {', '.join(SETTING_KEYS + DESIGN_KEYS)})")
+        if key not in SETTING_KEYS + DESIGN_KEYS + (MODEL_KEY,):
+            raise _error(path, f"[sweep]: unknown key {key!r} (known: "
+                               f"{', '.join(SETTING_KEYS + DESIGN_KEYS + (MODEL_KEY,))})")
     for key in axes_in:
-        if key not in DESIGN_KEYS:
-            raise _error(path, f"[axes]: unknown axis {key!r} (known: {', '.join(DESIGN_KEYS)})")
+        if key not in DESIGN_KEYS + (MODEL_KEY,):
+            raise _error(path, f"[axes]: unknown axis {key!r} (known: {', '.join(DESIGN_KEYS + (MODEL_KEY,))})")
         if key in settings:
             raise _error(path, f"{key!r} is given both in [sweep] and in [axes]; give it in one place")
     return settings, axes_in
@@ -300,8 +336,12 @@ def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
     return points
 
 
-def _cells(points: list[dict], run: dict) -> list[Cell]:
-    """One cell per design and seed, its id a hash of everything it computes from, the code included."""
+def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (DEFAULT_MODEL,)) -> list[Cell]:
+    """One cell per design and seed, its id a hash of everything it computes from, the code included.
+
+    The model families enter the hash only when they are not the paper's PLS alone: a sweep without the ``model``
+    axis hashes exactly the content it always did, and any other set of families gives other ids.
+    """
     from .version import code_fingerprint
 
     code = code_fingerprint()
@@ -321,6 +361,7 @@ def _cells(points: list[dict], run: dict) -> list[Cell]:
                 sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],
                 max_components=run["max_components"], cv=run["cv"], code=code,
             )
-            digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
-            cells.append(Cell(id=digest, **content))
+            hashed = content if models == (DEFAULT_MODEL,) else {**content, "models": list(models)}
+            digest = hashlib.sha256(json.dumps(hashed, sort_keys=True).encode()).hexdigest()[:16]
+            cells.append(Cell(id=digest, **content, models=models))
     return cells

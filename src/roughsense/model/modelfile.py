@@ -1,4 +1,4 @@
-"""Model files: a fitted PLS1 model as a versioned, self-checking JSON document (never pickle).
+"""Model files: a fitted model as a versioned, self-checking JSON document (never pickle).
 
 A model file is something users send each other, so loading it must never execute anything and must
 refuse, with one clear message naming the file, anything damaged, truncated, edited or from another
@@ -6,12 +6,17 @@ version. The document::
 
     {"format": "roughsense-model", "version": 1, "roughsense_version": "...",
      "model":    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
-                  "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]]},
+                  "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]]}
+                 | {"kind": "peak-power-law", ...}  (the peak law's section: see :mod:`.peak_law_file`),
      "features": {"spectrum": <SpatialSpectrum.feature_definition()>, "conditions": ["1N"] | ["1N","2N","3N"]},
      "training": {study, pad, condition, cv, cv_rmse, best_n_components, ...},
      "sha256":   hex digest of the canonical JSON of everything above}
 
 ``coefficients[k-1]`` is the model with k components; the file predicts with ``n_components``.
+
+The checksum is an integrity check, not a signature: it catches a flipped digit or a truncated copy, but it is
+unkeyed, so anyone who edits a file can recompute it. What keeps an edited file from predicting nonsense is the
+field checks on loading (shapes, finiteness, the peak law's bounds), never the checksum.
 """
 from __future__ import annotations
 
@@ -21,12 +26,17 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from .._util import atomic
-from .._util.checks import POSITIVE_INT, Real
+from .._util.checks import POSITIVE_INT, Real, short_repr
 from ..errors import ModelFileError
+from . import peak_law_file
+from .families import PLS
+from .peak_law import PeakPowerLaw
+from .peak_law_file import LoadedPeakLaw
 from .pls import SIMPLS, linear_predict
 
 FORMAT = "roughsense-model"
@@ -39,8 +49,9 @@ _TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "tr
 
 @dataclass(frozen=True)
 class LoadedModel:
-    """A validated model document, ready to predict."""
+    """A validated PLS model document, ready to predict."""
 
+    family: ClassVar[str] = PLS
     path: Path | None
     n_components: int
     x_mean: np.ndarray
@@ -79,6 +90,19 @@ class LoadedModel:
         k = self.n_components - 1
         return linear_predict(X, self.coef_path[:, k], self.intercept_path[k])
 
+    def extrapolates(self, X) -> np.ndarray:
+        """Always False: PLS has no training range it holds a prediction to (it is linear everywhere)."""
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.n_features:
+            raise ModelFileError(
+                f"the model expects {self.n_features} features per sample, got shape {X.shape}", path=self.path
+            )
+        return np.zeros(X.shape[0], dtype=bool)
+
+
+#: A loaded model file of either family: both predict, say whether they extrapolate, and carry their features.
+AnyModel = LoadedModel | LoadedPeakLaw
+
 
 # --------------------------------------------------------------------------- writing
 
@@ -96,26 +120,17 @@ def _floats(values) -> list:
     return np.asarray(values, dtype=np.float64).tolist()
 
 
-def model_document(model: SIMPLS, *, feature_definition: dict, training: dict) -> dict:
-    """The JSON document of a fitted model (see the module docstring)."""
-    if not hasattr(model, "coef_path_"):
-        raise ModelFileError("the model is not fitted")
-    p, A = model.coef_path_.shape
-    features = _check_feature_definition(feature_definition, p, None)
+def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, training: dict) -> dict:
+    """The JSON document of a fitted model (see the module docstring); a law is checked as a loaded file would be."""
+    section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else _pls_section(model)
+    features = _check_feature_definition(feature_definition, section["n_features"], None)
+    if section["kind"] == peak_law_file.KIND:  # refuse now what load_model would refuse later
+        peak_law_file.loaded_law(section, features, training=training, roughsense_version=_version(), path=None)
     document = {
         "format": FORMAT,
         "version": VERSION,
         "roughsense_version": _version(),
-        "model": {
-            "kind": KIND,
-            "n_components": int(A),
-            "n_features": int(p),
-            "x_mean": _floats(model.x_mean_),
-            "y_mean": float(model.y_mean_),
-            "coefficients": _floats(model.coef_path_.T),
-            "intercepts": _floats(model.intercept_path_),
-            "pct_var": _floats(model.pct_var_),
-        },
+        "model": section,
         "features": features,
         "training": training,
     }
@@ -126,9 +141,24 @@ def model_document(model: SIMPLS, *, feature_definition: dict, training: dict) -
     return document
 
 
-def save_model(
-    path: str | os.PathLike[str], model: SIMPLS, *, feature_definition: dict, training: dict, force: bool = False
-) -> Path:
+def _pls_section(model: SIMPLS) -> dict:
+    if not hasattr(model, "coef_path_"):
+        raise ModelFileError("the model is not fitted")
+    p, A = model.coef_path_.shape
+    return {
+        "kind": KIND,
+        "n_components": int(A),
+        "n_features": int(p),
+        "x_mean": _floats(model.x_mean_),
+        "y_mean": float(model.y_mean_),
+        "coefficients": _floats(model.coef_path_.T),
+        "intercepts": _floats(model.intercept_path_),
+        "pct_var": _floats(model.pct_var_),
+    }
+
+
+def save_model(path: str | os.PathLike[str], model: SIMPLS | PeakPowerLaw, *, feature_definition: dict,
+               training: dict, force: bool = False) -> Path:
     """Write the model file atomically; an existing file is replaced only with ``force``."""
     target = atomic.check_can_write(path, force=force)
     document = model_document(model, feature_definition=feature_definition, training=training)
@@ -145,7 +175,7 @@ def _version() -> str:
 # --------------------------------------------------------------------------- reading
 
 
-def load_model(path: str | os.PathLike[str]) -> LoadedModel:
+def load_model(path: str | os.PathLike[str]) -> AnyModel:
     """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file."""
     path = Path(path)
     try:
@@ -167,7 +197,8 @@ def load_model(path: str | os.PathLike[str]) -> LoadedModel:
     return model_from_document(document, path=path)
 
 
-def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
+def model_from_document(document, *, path: Path | None = None) -> AnyModel:
+    """A checked document (format, version, fields, checksum) loaded as its model kind."""
     def fail(message: str):
         raise ModelFileError(message, path=path)
 
@@ -190,15 +221,29 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
         fail("model file is damaged or was edited: its checksum does not match its content")
     if not isinstance(document["roughsense_version"], str):
         fail("roughsense_version must be a string")
-
-    model = document["model"]
+    model, training = document["model"], document["training"]
     if not isinstance(model, dict):
         fail("\"model\" must be an object")
+    if not isinstance(training, dict):
+        fail("\"training\" must be an object")
+    if model.get("kind") == peak_law_file.KIND:
+        n_features = peak_law_file.check_fields(model, path)
+        features = _check_feature_definition(document["features"], n_features, path)
+        return peak_law_file.loaded_law(model, features, training=training,
+                                        roughsense_version=document["roughsense_version"], path=path)
+    return _pls_from_document(document, path)
+
+
+def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    model = document["model"]
+    if model.get("kind") != KIND:
+        fail(f"model kind {short_repr(model.get('kind'))} is not supported (expected {KIND!r} or {peak_law_file.KIND!r})")
     expected = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
     if set(model) != expected:
         fail(f"\"model\" must have exactly the fields {', '.join(sorted(expected))}")
-    if model["kind"] != KIND:
-        fail(f"model kind {model['kind']!r} is not supported (expected {KIND!r})")
     A, p = model["n_components"], model["n_features"]
     for name, value in (("n_components", A), ("n_features", p)):
         if not POSITIVE_INT.accepts(value):
@@ -211,9 +256,6 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
     if not Real().accepts(y_mean):
         fail(f"model.y_mean must be a finite number, got {y_mean!r}")
     features = _check_feature_definition(document["features"], p, path)
-    training = document["training"]
-    if not isinstance(training, dict):
-        fail("\"training\" must be an object")
     return LoadedModel(
         path=path,
         n_components=A,
@@ -223,7 +265,7 @@ def model_from_document(document, *, path: Path | None = None) -> LoadedModel:
         intercept_path=intercepts,
         pct_var=pct_var,
         features=features,
-        training=training,
+        training=document["training"],
         roughsense_version=document["roughsense_version"],
     )
 
@@ -283,7 +325,7 @@ def feature_definition_for(spectrum, conditions) -> dict:
     return {"spectrum": spectrum.feature_definition(), "conditions": list(conditions)}
 
 
-def check_features(loaded: LoadedModel, feature_definition: dict) -> None:
+def check_features(loaded: AnyModel, feature_definition: dict) -> None:
     """Refuse features computed differently from the model's (scale, ROI, band, frequencies, forces)."""
     difference = _first_difference(loaded.features, feature_definition, "")
     if difference is not None:

@@ -71,6 +71,47 @@ def search_bins(freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None, excl
     return allowed
 
 
+def check_grid(freq_per_mm, min_bins: int = 3) -> np.ndarray:
+    """The spectra's frequency grid as floats: at least ``min_bins`` positive, evenly spaced, increasing values.
+
+    The peak's sub-bin refinement steps by the grid spacing, so an uneven or unordered grid would misplace it.
+    """
+    freq = np.asarray(freq_per_mm, dtype=np.float64)
+    steps = np.diff(freq) if freq.ndim == 1 else np.zeros(0)
+    if freq.ndim != 1 or freq.size < min_bins or freq.size == 0 or not np.all(np.isfinite(freq)) or freq[0] <= 0 \
+            or not np.all(steps > 0) or (steps.size and not np.allclose(steps, steps[0], rtol=1e-6)):
+        raise ValueError(f"freq_per_mm must be at least {min_bins} positive, evenly spaced, increasing frequencies "
+                         f"(mm^-1), got {np.array2string(freq.ravel()[:6], precision=4)}")
+    return freq
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _check_blocks(n_blocks) -> int:
+    if not isinstance(n_blocks, (int, np.integer)) or isinstance(n_blocks, (bool, np.bool_)) or n_blocks < 1:
+        raise ValueError(f"n_blocks must be a positive whole number, got {n_blocks!r}")
+    return int(n_blocks)
+
+
+def check_settings(*, pad_ridge_period_mm=None, **positive) -> None:
+    """Refuse a setting that is not a positive finite number (a bool is not one); the ridge period may be None."""
+    for name, value in positive.items():
+        if not _is_number(value) or not np.isfinite(value) or value <= 0:
+            raise ValueError(f"{name} must be a positive number, got {value!r}")
+    period = pad_ridge_period_mm
+    if period is not None and (not _is_number(period) or not np.isfinite(period) or period <= 0):
+        raise ValueError(f"pad_ridge_period_mm must be a positive number of mm or None, got {period!r}")
+
+
+def _check_spectra(spectra: np.ndarray) -> None:
+    if not np.all(np.isfinite(spectra)):
+        raise ValueError("spectra contain NaN or infinite values")
+    if np.any(spectra < 0):
+        raise ValueError("Negative values in data passed to PeakPowerLaw: spectra are amplitudes")
+
+
 def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
                   exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM) -> np.ndarray:
     """(n, 2) log peak frequency (mm^-1) and log peak amplitude of each row's spectrum.
@@ -78,8 +119,13 @@ def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_m
     A row holds ``n_blocks`` spectra side by side (a combined-force trial); they are averaged first, so the peak is
     read from the trial's mean spectrum (the grating's peak stays where it is at every force; noise averages out).
     """
-    freq = np.asarray(freq_per_mm, dtype=np.float64)
+    freq = check_grid(freq_per_mm, min_bins=1)  # the estimator's default grid may be coarser than 3 bins
+    n_blocks = _check_blocks(n_blocks)
+    check_settings(pad_ridge_period_mm=pad_ridge_period_mm, exclusion_per_mm=exclusion_per_mm)
     spectra = np.asarray(spectra, dtype=np.float64)
+    if spectra.ndim != 2:
+        raise ValueError(f"spectra must be a 2-D array (rows x features), got shape {spectra.shape}")
+    _check_spectra(spectra)
     n, width = spectra.shape
     k_bins = freq.size
     if width != n_blocks * k_bins:
@@ -206,33 +252,20 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         return tags
 
     def _grid(self, n_features: int) -> np.ndarray:
-        blocks = self.n_blocks
-        if isinstance(blocks, bool) or not isinstance(blocks, (int, np.integer)) or blocks < 1:
-            raise ValueError(f"n_blocks must be a positive whole number, got {blocks!r}")
+        blocks = _check_blocks(self.n_blocks)
         if n_features % blocks:
             raise ValueError(f"{n_features} feature(s) cannot be split into {blocks} equal spectra")
         k_bins = n_features // blocks
         if self.freq_per_mm is None:
             return np.linspace(*_DEFAULT_BAND_PER_MM, k_bins)
-        freq = np.asarray(self.freq_per_mm, dtype=np.float64)
-        steps = np.diff(freq)
-        if freq.ndim != 1 or freq.size < 3 or not np.all(np.isfinite(freq)) or freq[0] <= 0 or not np.all(steps > 0) \
-                or not np.allclose(steps, steps[0], rtol=1e-6):
-            raise ValueError("freq_per_mm must be at least 3 positive, evenly spaced, increasing frequencies")
+        freq = check_grid(self.freq_per_mm)
         if freq.size != k_bins:
             raise ValueError(f"{n_features} feature(s) in {blocks} block(s) do not match the {freq.size}-frequency grid")
         return freq
 
     def _check_params(self) -> None:
-        for name in ("exclusion_per_mm", "epsilon"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) \
-                    or value <= 0:
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
-        period = self.pad_ridge_period_mm
-        if period is not None and (isinstance(period, bool) or not isinstance(period, (int, float, np.floating))
-                                   or not np.isfinite(period) or period <= 0):
-            raise ValueError(f"pad_ridge_period_mm must be a positive number of mm or None, got {period!r}")
+        check_settings(pad_ridge_period_mm=self.pad_ridge_period_mm, exclusion_per_mm=self.exclusion_per_mm,
+                       epsilon=self.epsilon)
 
     def features(self, X) -> np.ndarray:
         """The law's two inputs for each row (log peak frequency, log peak amplitude)."""
@@ -297,12 +330,19 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     :class:`PeakPowerLaw` on every training fold (to rounding): the features do not depend on the targets, so they are
     computed once, and all folds and targets go through one batched IRLS.
     """
+    check_settings(epsilon=epsilon)
+    freq_per_mm = check_grid(freq_per_mm)  # as PeakPowerLaw given a grid: at least 3 bins
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
+    n = X.shape[0] if X.ndim == 2 else -1
+    if X.ndim != 2 or Y.ndim not in (1, 2) or Y.shape[0] != n:
+        raise ValueError(f"X (shape {X.shape}) must be rows x features and Y (shape {Y.shape}) one row per row of X")
     targets = (Y[:, None] if Y.ndim == 1 else Y).T
-    n = X.shape[0]
-    if np.any(targets <= 0):
-        raise ValueError("perceived roughness must be positive")
+    if not np.all(np.isfinite(targets)) or np.any(targets <= 0):
+        raise ValueError("perceived roughness must be positive and finite (magnitude estimates); the law is fitted "
+                         "in logs")
+    if groups is not None and len(groups) != n:
+        raise ValueError(f"groups has {len(groups)} entries for {n} rows of X")
     features = peak_features(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
                              exclusion_per_mm=exclusion_per_mm)
     if groups is None:

@@ -2,6 +2,8 @@
 
 The model file carries its feature definition, so the spectra are recomputed exactly as in training;
 a combined-force model takes each trial's images in the order of its conditions (1 N, 2 N, 3 N).
+Every model also says which predictions extrapolate (a peak law's features outside its training range; never
+for PLS), so a user sees when a number was held at the edge of what the model saw.
 :func:`score_images` trusts that order; the ``groups_from_*`` functions build it from what a user gives
 (a manifest, one flag per force) and refuse what contradicts a slot.
 """
@@ -16,13 +18,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError, InputError
-from .modelfile import LoadedModel, check_features, feature_definition_for
+from .modelfile import AnyModel, check_features, feature_definition_for
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
-def model_spectrum(loaded: LoadedModel, *, n_jobs: int = 1):
+def model_spectrum(loaded: AnyModel, *, n_jobs: int = 1):
     """The SpatialSpectrum the model was trained with, rebuilt from its file (and checked against it)."""
     from ..sensor.spectrum import SpatialSpectrum
 
@@ -31,7 +33,7 @@ def model_spectrum(loaded: LoadedModel, *, n_jobs: int = 1):
     return spectrum
 
 
-def group_images(loaded: LoadedModel, images: Sequence) -> list[tuple]:
+def group_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
     """Images grouped into trials: one image each, or one per condition for a combined model."""
     k = len(loaded.conditions)
     if len(images) == 0:
@@ -44,7 +46,7 @@ def group_images(loaded: LoadedModel, images: Sequence) -> list[tuple]:
     return [tuple(images[i : i + k]) for i in range(0, len(images), k)]
 
 
-def spectra_to_features(loaded: LoadedModel, spectra: np.ndarray) -> np.ndarray:
+def spectra_to_features(loaded: AnyModel, spectra: np.ndarray) -> np.ndarray:
     """(n_images, n_freqs) spectra in trial order -> (n_trials, n_features) model inputs."""
     from ..sensor.spectrum import combine_forces
 
@@ -53,8 +55,8 @@ def spectra_to_features(loaded: LoadedModel, spectra: np.ndarray) -> np.ndarray:
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
-def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
-    """Predicted perceived roughness, one value per image (per trial of k images for a k-force model).
+def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
+    """The model's inputs, one row per image (per trial of k images for a k-force model).
 
     ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
     (the CLI passes its progress display).
@@ -66,11 +68,23 @@ def score_images(loaded: LoadedModel, images: Sequence, *, n_jobs: int = 1, prog
         spectra = spectrum.transform(images)
     else:
         spectra = np.vstack(list(progress(spectrum.iter_transform(images), total=len(images), description="spectra")))
-    return loaded.predict(spectra_to_features(loaded, spectra))
+    return spectra_to_features(loaded, spectra)
 
 
-def frame_scorer(loaded: LoadedModel) -> Callable[[np.ndarray], float]:
-    """Live mode's scorer: one camera frame (an array) -> roughness, with the spectrum built and checked once."""
+def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
+    """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
+    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress))
+
+
+def score_and_flag(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted roughness and whether each prediction extrapolates, from one pass over the images."""
+    X = image_features(loaded, images, n_jobs=n_jobs, progress=progress)
+    return loaded.predict(X), loaded.extrapolates(X)
+
+
+def frame_scorer(loaded: AnyModel) -> Callable[[np.ndarray], tuple[float, bool]]:
+    """Live mode's scorer: one camera frame (an array) -> (roughness, extrapolates), the spectrum built once."""
     if len(loaded.conditions) != 1:
         raise ConfigError(
             f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
@@ -78,8 +92,9 @@ def frame_scorer(loaded: LoadedModel) -> Callable[[np.ndarray], float]:
         )
     spectrum = model_spectrum(loaded)
 
-    def score_frame(frame: np.ndarray) -> float:
-        return float(loaded.predict(spectrum.transform([frame]))[0])
+    def score_frame(frame: np.ndarray) -> tuple[float, bool]:
+        X = spectrum.transform([frame])
+        return float(loaded.predict(X)[0]), bool(loaded.extrapolates(X)[0])
 
     return score_frame
 
@@ -114,17 +129,17 @@ def check_slot(image, condition: str, *, path=None, row: int | None = None) -> N
                          path=path, row=row, column="image" if row is not None else None)
 
 
-def model_pad(loaded: LoadedModel) -> str:
+def model_pad(loaded: AnyModel) -> str:
     return str(loaded.training.get("pad", "")) if isinstance(loaded.training, dict) else ""
 
 
-def model_condition(loaded: LoadedModel) -> str:
+def model_condition(loaded: AnyModel) -> str:
     """The model's condition: its single force, or "combined"."""
     training = loaded.training if isinstance(loaded.training, dict) else {}
     return str(training.get("condition") or (loaded.conditions[0] if len(loaded.conditions) == 1 else "combined"))
 
 
-def groups_from_images(loaded: LoadedModel, images: Sequence) -> list[tuple]:
+def groups_from_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
     """Bare images: one trial each for a single-force model; refused for a combined one (no slots known)."""
     if len(loaded.conditions) > 1:
         flags = " ".join(f"--images-{c.lower()} ..." for c in loaded.conditions)
@@ -136,7 +151,7 @@ def groups_from_images(loaded: LoadedModel, images: Sequence) -> list[tuple]:
     return [(image,) for image in images]
 
 
-def groups_from_flags(loaded: LoadedModel, by_condition: Mapping[str, Sequence]) -> list[tuple]:
+def groups_from_flags(loaded: AnyModel, by_condition: Mapping[str, Sequence]) -> list[tuple]:
     """``{"1N": [...], "2N": [...], ...}``: the i-th image of each condition forms trial i."""
     wanted = loaded.conditions
     unknown = [c for c in by_condition if c not in wanted]
@@ -161,7 +176,7 @@ def groups_from_flags(loaded: LoadedModel, by_condition: Mapping[str, Sequence])
     return groups
 
 
-def groups_from_study(loaded: LoadedModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
+def groups_from_study(loaded: AnyModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
     """Trials of the model's pad from a study's manifest: each (specimen, repetition) with one image per force.
 
     Returns the groups (paths, in the model's condition order) and their specimen and repetition.

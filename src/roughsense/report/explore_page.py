@@ -16,23 +16,30 @@ from . import figures
 from .html import template_environment
 
 CV_STYLE = {"loo": ("#2f5d8a", "o", "LOO"), "loso": ("#b5472b", "s", "LOSO")}
+MODEL_LINES = ("-", "--", ":", "-.")  # one line style per model family, in the order the rows give them
 
 
 def axis_figure(rows: pd.DataFrame, axis: str, order: list):
-    """RMSE and OVL against the axis value, mean ± 95 % interval over seeds, one line per CV scheme."""
+    """RMSE and OVL against the axis value, mean ± 95 % interval over seeds, one line per CV scheme (and per model
+    family, by line style, when the rows hold several)."""
     import matplotlib.pyplot as plt
 
     fig, panels = plt.subplots(1, 2, figsize=(9.5, 3.4))
     labels = [str(v) for v in order]
     numeric = all(is_number(v) for v in order)
-    for cv, group in rows.groupby("cv", sort=False):
+    models = list(dict.fromkeys(rows["model"])) if "model" in rows.columns and axis != "model" else []
+    keys = ["cv", "model"] if len(models) > 1 else ["cv"]
+    for key, group in rows.groupby(keys, sort=False):
+        cv = key[0] if isinstance(key, tuple) else key
         colour, marker, name = CV_STYLE.get(cv, ("#444", "o", cv))
+        line = MODEL_LINES[models.index(key[1]) % len(MODEL_LINES)] if len(keys) > 1 else "-"
+        name = f"{name}, {key[1]}" if len(keys) > 1 else name
         position = {str(v): i for i, v in enumerate(order)}
         x = np.array([float(v) if numeric else position.get(str(v), np.nan) for v in group[axis]])
         for panel, metric in zip(panels, ("rmse", "ovl")):
             err = np.nan_to_num(group[f"{metric}_ci95"].to_numpy(float), nan=0.0)
             panel.errorbar(x, group[metric].to_numpy(float), yerr=err, color=colour, marker=marker, capsize=3,
-                           label=name)
+                           linestyle=line, label=name)
     for panel, metric in zip(panels, ("RMSE (perceived units)", "OVL")):
         panel.set_xlabel(axis)
         panel.set_ylabel(metric)
@@ -72,11 +79,13 @@ def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: li
     sections = []
     for item in axes:
         png = figures.png_bytes(axis_figure(item["rows"], item["axis"], item["order"]))
+        rows = item["rows"]
+        family = ["model"] if "model" in rows.columns and item["axis"] != "model" and rows["model"].nunique() > 1 else []
         sections.append({
             "axis": item["axis"], "anchor": item["anchor"],
             "image": base64.b64encode(png).decode("ascii"),
-            "table": html_table(item["rows"][[item["axis"], "cv", "condition", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
-                                              "n_seeds"]], f"{item['axis']}: RMSE and OVL (mean ± 95 % over seeds)"),
+            "table": html_table(rows[[item["axis"], *family, "cv", "condition", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
+                                      "n_seeds"]], f"{item['axis']}: RMSE and OVL (mean ± 95 % over seeds)"),
         })
     template = template_environment().get_template("explore.html.j2")
     html = template.render(

@@ -175,13 +175,50 @@ def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame
         if len(published):
             ax.plot(_paper_perceived().reindex(published.index), published["pred_mean"], "x", color="0.45", ms=5,
                     label="paper, combined")
-        ax.set_xlim(0, top)
-        ax.set_ylim(0, top)
-        ax.set_aspect("equal")
-        ax.set_xlabel("perceived roughness (geometric mean)")
-        ax.set_title(f"{pad} pad ({cv.upper()})")
-        ax.grid(alpha=0.3)
+        _predicted_vs_perceived_axes(ax, top, f"{pad} pad ({cv.upper()})")
         ax.legend(fontsize=7)
     axes[0, 0].set_ylabel("predicted roughness (mean ± SD)")
+    fig.tight_layout()
+    return fig
+
+
+def _predicted_vs_perceived_axes(ax, top: float, title: str) -> None:
+    """Square axes from 0 to ``top`` on both scales, so the identity line is the diagonal a reader expects."""
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, top)
+    ax.set_aspect("equal")
+    ax.set_xlabel("perceived roughness (geometric mean)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+
+
+MODEL_MARKERS = {"pls": ("o", "#2f5d8a"), "peak-law": ("s", "#c0392b")}
+
+
+def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str):
+    """Surfaces never seen: each specimen's LOSO prediction (mean ± SD) against its perceived roughness.
+
+    One panel per pad, every model in ``results`` (results_loso rows, with their model column) at ``condition``;
+    each point carries the specimen's name, so a reader sees which surfaces a model gets wrong, not only how many.
+    """
+    rows = results[results["condition"] == condition]
+    pads = list(dict.fromkeys(rows["pad"]))
+    models = list(dict.fromkeys(rows["model"]))
+    fig, axes = plt.subplots(1, max(len(pads), 1), figsize=(5.6 * max(len(pads), 1), 5.2), squeeze=False, sharey=True)
+    truth = perceived.set_index("specimen")["gmean"]
+    top = float(np.nanmax([truth.max(), (rows["pred_mean"] + rows["pred_sd"]).max()])) * 1.1
+    for ax, pad in zip(axes[0], pads):
+        ax.plot([0, top], [0, top], color="0.5", lw=1, label="identity")
+        for model in models:
+            marker, colour = MODEL_MARKERS.get(model, ("D", "0.3"))
+            data = rows[(rows.pad == pad) & (rows.model == model)]
+            x = truth.reindex(data["specimen"]).to_numpy()
+            ax.errorbar(x, data["pred_mean"], yerr=data["pred_sd"], fmt=marker, color=colour, ms=4, capsize=2,
+                        lw=0.8, label=model)
+            for xi, yi, name in zip(x, data["pred_mean"], data["specimen"]):
+                ax.annotate(str(name), (xi, yi), xytext=(3, 3), textcoords="offset points", fontsize=6.5, color=colour)
+        _predicted_vs_perceived_axes(ax, top, f"{pad} pad, {condition}, leave-one-specimen-out")
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0, 0].set_ylabel("predicted roughness of the unseen specimen (mean ± SD)")
     fig.tight_layout()
     return fig

@@ -4,6 +4,10 @@ Everything is rendered in memory, written into a folder beside ``--out`` and swa
 (:class:`roughsense._util.atomic.FolderSwap`), so a failure or a kill never leaves a half-written report, and a
 report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
 URIs so it opens offline and can be mailed as one file.
+
+The page leads with the question a user asks (how well does each model predict a surface it never saw?), then
+the paper's own protocol (LOO) and tables, which keep showing the paper's PLS as the paper did; every other model
+family gets its own, labelled tables beside them.
 """
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ from .. import __version__, paper
 from .._util import atomic
 from ..errors import OutputExistsError
 from ..io.names import check_name
+from ..model.families import PLS
 from . import figures, tables
 
 
@@ -35,7 +40,7 @@ def template_environment() -> jinja2.Environment:
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
                  "components.csv")
-_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+)\.png$")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)\.png$")
 
 
 def report_owned(rel: Path) -> bool:
@@ -94,7 +99,8 @@ def plain_words(analysis) -> list[str]:
     if not analysis.controls.empty:
         failing = analysis.controls[~analysis.controls["passes"].astype(bool)]
         if len(failing):
-            items = ", ".join(f"{r.pad} {r.condition} ({str(r.cv).upper()})" for r in failing.itertuples())
+            items = ", ".join(f"{getattr(r, 'model', PLS)} {r.pad} {r.condition} ({str(r.cv).upper()})"
+                              for r in failing.itertuples())
             lines.append(f"{len(failing)} of {len(analysis.controls)} models fail their controls (no better than "
                          f"specimen-shuffled targets and/or the training mean): {items}. A LOO model that fails is "
                          "recognising specimens rather than reading roughness; a LOSO model that fails does not "
@@ -108,6 +114,27 @@ def plain_words(analysis) -> list[str]:
     return lines
 
 
+def unseen_words(analysis) -> list[str]:
+    """What the "surfaces never seen" section can and cannot claim: whose images and ratings these are."""
+    if not any(f.cv == "loso" for f in analysis.fits):
+        return ["Leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any model "
+                "predicts a surface it never saw; the LOO results below describe specimens seen in training."]
+    lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
+             "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
+             "clearly below the training mean's and it beats specimen-shuffled targets."]
+    if analysis.simulation is not None:
+        lines.append("The images are the digital twin's, not the paper's rig's: these results hold for the twin. To "
+                     "confirm them, a real rig needs real images and real people's ratings of surfaces held out of "
+                     "training (periods and shapes no training surface had), scored by a model fitted without them.")
+        if analysis.simulation.get("ratings_from", "paper") == "physics":
+            lines.append("The ratings come from the simulated finger (ratings_from = physics), which reads the same "
+                         "contact that the images show, so agreement between images and ratings is partly built in; "
+                         "judge the models on the paper's ratings (ratings_from = paper).")
+    else:
+        lines.append("This is user data: the results are findings about these images and these ratings.")
+    return lines
+
+
 def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     """Every file of the report, by name, as bytes."""
     meta = dict(meta or {})
@@ -116,8 +143,10 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
     results = {cv: analysis.results(cv) for cv in cv_schemes}
     chosen = analysis.chosen_components()
     files = _data_files(analysis, results, chosen)
+    unseen_figure = _unseen_figure(analysis, results, files)
     figure_list = _figures(analysis, results, chosen, cv_schemes, files)
     paper_pads = tuple(analysis.paper_pads)
+    pls_chosen = chosen[chosen["model"] == PLS]
     template = template_environment().get_template("report.html.j2")
     html = template.render(
         title=f"roughsense report: {analysis.study_name}",
@@ -127,8 +156,13 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         meta=meta,
         citation=paper.PAPER_CITATION,
         headline=tables.headline_table(analysis, paper_pads),
+        unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
+        unseen_words=unseen_words(analysis),
+        unseen_figure=unseen_figure,
         components=tables.components_table(
-            chosen, {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso"}, paper_pads
+            pls_chosen.drop(columns="model"),
+            {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso" and f.model == PLS},
+            paper_pads,
         ),
         tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
         claims=tables.claims_table(analysis.claims, paper_pads),
@@ -161,58 +195,88 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     return files
 
 
+def _figure(analysis, files: dict[str, bytes], name: str, fig, caption: str) -> dict:
+    """Render one figure into ``files`` (PNG), stamped if the data are simulated; its entry for the page."""
+    check_name(name, what="report file name")  # built from pad names: the study contract's name rule
+    if analysis.simulation is not None:
+        figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
+        caption = "Simulated data. " + caption
+    files[name] = figures.png_bytes(fig)
+    return {"name": name, "caption": caption, "data": base64.b64encode(files[name]).decode("ascii")}
+
+
+def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, bytes]) -> dict | None:
+    """Predicted against perceived per specimen under LOSO, every model, the combined condition (or the last one)."""
+    if "loso" not in results:
+        return None
+    conditions = list(dict.fromkeys(results["loso"]["condition"]))
+    condition = "combined" if "combined" in conditions else conditions[-1]
+    models = ", ".join(dict.fromkeys(results["loso"]["model"]))
+    return _figure(analysis, files, "unseen_surfaces.png",
+                   figures.unseen_figure(results["loso"], analysis.perceived, condition),
+                   f"Surfaces never seen: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
+                   f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.")
+
+
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
              files: dict[str, bytes]) -> list[dict]:
-    """Draw every figure into ``files`` (PNG) and return them for the page, each stamped if the data are simulated."""
+    """Draw every figure of the Figures section into ``files`` (PNG) and return them for the page."""
     paper_pads = tuple(analysis.paper_pads)
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
+    pls = {cv: frame[frame["model"] == PLS] for cv, frame in results.items()}
+    cv_table = analysis.cv_table()
     figure_list = []
-
-    def add_figure(name: str, fig, caption: str) -> None:
-        check_name(name, what="report file name")  # built from pad names: the study contract's name rule
-        if analysis.simulation is not None:
-            figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
-            caption = "Simulated data. " + caption
-        files[name] = figures.png_bytes(fig)
-        figure_list.append({"name": name, "caption": caption,
-                            "data": base64.b64encode(files[name]).decode("ascii")})
-
     for pad in analysis.pads:
-        add_figure(f"spectra_{pad}.png",
-                   figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
-                   f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).")
-    add_figure("cv_curves.png", figures.cv_curves_figure(analysis.cv_table(), chosen),
-               "Cross-validated RMSE against the number of PLS components, LOO (top) and LOSO (bottom); red circles mark "
-               "the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the training mean.")
-    for pad in analysis.pads:
-        add_figure(f"ovl_sd_{pad}.png", figures.ovl_sd_figure(results["loo"], analysis.perceived, pad, analysis.shapes,
-                                                             paper=pad in paper_pads),
-                   f"OVL per specimen and SD of participants vs predictions, {pad} pad, LOO (cf. Fig. 9).")
-    for cv in cv_schemes:
-        add_figure(f"predicted_vs_perceived_{cv}.png",
-                   figures.predicted_vs_perceived_figure(results[cv], analysis.perceived, cv, paper=paper_pads),
-                   f"Predicted (mean ± SD over repetitions) against perceived roughness, {cv.upper()}; grey: identity.")
+        figure_list.append(_figure(
+            analysis, files, f"spectra_{pad}.png",
+            figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
+            f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7)."))
+    if PLS in analysis.models:
+        figure_list.append(_figure(
+            analysis, files, "cv_curves.png",
+            figures.cv_curves_figure(cv_table[cv_table["model"] == PLS], chosen[chosen["model"] == PLS]),
+            "Cross-validated RMSE of PLS against the number of components, LOO (top) and LOSO (bottom); red circles "
+            "mark the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the "
+            "training mean."))
+        for pad in analysis.pads:
+            figure_list.append(_figure(
+                analysis, files, f"ovl_sd_{pad}.png",
+                figures.ovl_sd_figure(pls["loo"], analysis.perceived, pad, analysis.shapes, paper=pad in paper_pads),
+                f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9)."))
+    for model in analysis.models:
+        for cv in cv_schemes:
+            rows = results[cv][results[cv]["model"] == model]
+            suffix = "" if model == PLS else f"_{model}"
+            figure_list.append(_figure(
+                analysis, files, f"predicted_vs_perceived_{cv}{suffix}.png",
+                figures.predicted_vs_perceived_figure(rows, analysis.perceived, cv,
+                                                      paper=paper_pads if model == PLS else False),
+                f"Predicted (mean ± SD over repetitions) against perceived roughness, {model}, {cv.upper()}; "
+                "grey: identity."))
     return figure_list
 
 
 def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str]) -> list[dict]:
-    """Per CV scheme and pad, the paper's Tables 1-6 layout: predictions, OVL, RMSE and predictive OVL."""
+    """Per CV scheme and pad, the paper's Tables 1-6 layout: predictions, OVL, RMSE and predictive OVL.
+
+    The paper's PLS first, as the paper showed it; every other family's tables follow, titled with its name.
+    """
     specimens = figures._specimen_order(analysis.perceived["specimen"], analysis.shapes)
     paper_pads = tuple(analysis.paper_pads)
     sections = []
     for cv in cv_schemes:
-        summaries = {column: analysis.summary(cv, column) for column in ("ovl", "rmse", "ovl_predictive")}
         pads = []
         for pad in analysis.pads:
-            flags = tables.control_flags(analysis.controls, pad, cv)
-            with_paper = pad in paper_pads
-            pads.append({"pad": pad, "tables": [
-                tables.prediction_table(results[cv], analysis.perceived, pad, specimens, cv,
-                                        paper_values=with_paper, flags=flags),
-                *(tables.metric_table(results[cv], summaries[column], pad, specimens, column, cv,
-                                      paper_values=with_paper, flags=flags)
-                  for column in ("ovl", "rmse", "ovl_predictive")),
-            ]})
+            pad_tables = []
+            for model in analysis.models:
+                rows = results[cv][results[cv]["model"] == model]
+                summaries = {column: analysis.summary(cv, column, model) for column in ("ovl", "rmse", "ovl_predictive")}
+                flags = tables.control_flags(analysis.controls, pad, cv, model)
+                kwargs = {"paper_values": pad in paper_pads, "flags": flags, "model": model}
+                pad_tables.append(tables.prediction_table(rows, analysis.perceived, pad, specimens, cv, **kwargs))
+                pad_tables += [tables.metric_table(rows, summaries[column], pad, specimens, column, cv, **kwargs)
+                               for column in ("ovl", "rmse", "ovl_predictive")]
+            pads.append({"pad": pad, "tables": pad_tables})
         sections.append({"cv": cv, "pads": pads})
     return sections
 

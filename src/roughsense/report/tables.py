@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from .. import paper as published
+from ..model.families import PLS
 
 CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", "combined": "Dataset combination"}
 
@@ -53,6 +54,17 @@ OUT_OF_FOLD = ("Every prediction here is out of fold: it comes from a model that
                "that specimen (LOSO). The paper does not say whether its Tables 1-6 hold out-of-fold or in-sample "
                "predictions. ")
 FLAG = "†"
+#: How a model family is named in titles; the paper's PLS keeps the paper's titles unchanged.
+MODEL_TITLES = {PLS: "PLS (the paper's model)", "peak-law": "peak law"}
+
+
+def model_title(model: str) -> str:
+    return MODEL_TITLES.get(model, model)
+
+
+def _titled(title: str, model: str) -> str:
+    """A per-specimen table's title: the paper's for PLS, the same with the family's name for any other model."""
+    return title if model == PLS else f"{title}, {model} model"
 
 
 def _flagged_columns(conditions: list[str], flags: dict | None) -> list[str]:
@@ -68,13 +80,15 @@ def _flag_caption(flags: dict | None) -> str:
 
 
 def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, specimens: list[str],
-                     cv: str = "loo", *, paper_values: bool = True, flags: dict | None = None) -> dict:
+                     cv: str = "loo", *, paper_values: bool = True, flags: dict | None = None, model: str = PLS) -> dict:
     """Tables 1/4: perceived and predicted roughness, mean ± SD (the paper's predictions only beside LOO).
 
     ``paper_values=False`` leaves out every paper value (the study's design is not the paper's);
-    ``flags`` maps a condition to why its model fails the controls (marked in the column heading).
+    ``flags`` maps a condition to why its model fails the controls (marked in the column heading); ``model``: the
+    family of ``results`` (one only), named in the title unless it is the paper's PLS.
     """
     show_perceived = paper_values
+    paper_values = paper_values and model == PLS  # the paper's predictions are its PLS's, beside ours only
     paper = _paper_lookup()
     paper_perceived = published.perceived_roughness().set_index("specimen")
     conditions = list(dict.fromkeys(results["condition"]))
@@ -99,12 +113,14 @@ def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, s
     caption += OUT_OF_FOLD
     if not show_perceived:
         caption += "The paper's values are not shown (see the note at the top)."
+    elif model != PLS:
+        caption += f"The paper has no {model} model; only its perceived values are shown."
     else:
         caption += ("The paper's values (Tables 1 and 4) are beneath ours." if cv == "loo" else
                     "The paper reports no leave-one-specimen-out results; only its perceived values are shown.")
     caption += _flag_caption(flags)
     return {
-        "title": f"Perceived and predicted roughness, {pad} pad, {cv.upper()} (mean ± SD)",
+        "title": _titled(f"Perceived and predicted roughness, {pad} pad, {cv.upper()} (mean ± SD)", model),
         "caption": caption,
         "columns": ["Specimen", "Perceived"] + _flagged_columns(conditions, flags),
         "rows": rows,
@@ -112,14 +128,14 @@ def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, s
 
 
 def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specimens: list[str], column: str,
-                 cv: str = "loo", *, paper_values: bool = True, flags: dict | None = None) -> dict:
+                 cv: str = "loo", *, paper_values: bool = True, flags: dict | None = None, model: str = PLS) -> dict:
     """Tables 2/5 (OVL) and 3/6 (RMSE) with the rectangular / circular / overall summary rows; also ovl_predictive.
 
-    Beside LOO results the paper's per-specimen values and its *printed* summary rows are shown
+    Beside LOO results of the paper's PLS the paper's per-specimen values and its *printed* summary rows are shown
     (``published.PAPER_SUMMARIES``), not summaries recomputed from its rounded per-specimen values.
     """
     paper = _paper_lookup()
-    with_paper = paper_values and cv == "loo" and column in ("ovl", "rmse")
+    with_paper = paper_values and cv == "loo" and column in ("ovl", "rmse") and model == PLS
     conditions = list(dict.fromkeys(results["condition"]))
     ours = results[results.pad == pad].set_index(["specimen", "condition"])
     rows = []
@@ -155,13 +171,15 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
                     "only the overall row).")
     elif column == "ovl_predictive":
         caption += "The paper has no predictive OVL; the Predictive distributions section computes it for its predictions."
+    elif model != PLS:
+        caption += f"The paper has no {model} model."
     elif cv == "loo":
         caption += "The paper's values are not shown (see the note at the top)."
     else:
         caption += "The paper reports no leave-one-specimen-out results."
     caption += _flag_caption(flags)
     return {
-        "title": f"{name}, {pad} pad, {cv.upper()}",
+        "title": _titled(f"{name}, {pad} pad, {cv.upper()}", model),
         "caption": caption,
         "columns": ["Specimen"] + _flagged_columns(conditions, flags),
         "rows": rows,
@@ -254,46 +272,53 @@ def control_text(row) -> str:
     return f"{FLAG} " + "; ".join(fails)
 
 
-def control_flags(controls: pd.DataFrame, pad: str, cv: str) -> dict:
-    """Condition -> why the model fails its controls, for the pad and CV scheme (only failing ones)."""
+def _of_model(controls: pd.DataFrame, model: str) -> pd.DataFrame:
+    return controls[controls["model"] == model] if "model" in controls.columns else controls
+
+
+def control_flags(controls: pd.DataFrame, pad: str, cv: str, model: str = PLS) -> dict:
+    """Condition -> why the model fails its controls, for the pad, CV scheme and family (only failing ones)."""
     flags = {}
     if controls is None or controls.empty:
         return flags
+    controls = _of_model(controls, model)
     for _, row in controls[(controls.pad == pad) & (controls.cv == cv)].iterrows():
         if not row["passes"] and (row["n_permutations"] or not row["beats_null"]):
             flags[row["condition"]] = control_text(row).lstrip(f"{FLAG} ")
     return flags
 
 
-def _control_row(controls: pd.DataFrame, pad: str, condition: str, cv: str):
+def _control_row(controls: pd.DataFrame, pad: str, condition: str, cv: str, model: str = PLS):
     if controls is None or controls.empty:
         return None
+    controls = _of_model(controls, model)
     rows = controls[(controls.pad == pad) & (controls.condition == condition) & (controls.cv == cv)]
     return rows.iloc[0] if len(rows) else None
 
 
 def headline_table(analysis, paper_pads=None) -> dict:
-    """Mean per-specimen RMSE, OVL and predictive OVL per pad x condition, with the controls: LOO, LOSO, the paper's."""
+    """Mean per-specimen RMSE, OVL and predictive OVL per model x pad x condition, with the controls: LOO, LOSO."""
     rows = []
     loo = analysis.results("loo")
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     loso = analysis.results("loso") if has_loso else None
-    for (pad, condition), g in loo.groupby(["pad", "condition"], sort=False):
-        allowed = paper_pads is None or pad in paper_pads
+    for (model, pad, condition), g in loo.groupby(["model", "pad", "condition"], sort=False):
+        allowed = (paper_pads is None or pad in paper_pads) and model == PLS
         printed_rmse = published.PAPER_SUMMARIES.get((pad, "rmse", condition, "all")) if allowed else None
         printed_ovl = published.PAPER_SUMMARIES.get((pad, "ovl", condition, "all")) if allowed else None
-        cells = [_cell(pad), _cell(condition),
+        cells = [_cell(model), _cell(pad), _cell(condition),
                  _cell(_num(g["rmse"].mean()), _num(printed_rmse[0]) if printed_rmse else None),
                  _cell(_num(_quiet_nanmean(g["ovl"])), _num(printed_ovl[0]) if printed_ovl else None),
                  _cell(_num(_quiet_nanmean(g["ovl_predictive"]))),
-                 _cell(control_text(_control_row(analysis.controls, pad, condition, "loo")))]
+                 _cell(control_text(_control_row(analysis.controls, pad, condition, "loo", model)))]
         if loso is not None:
-            h = loso[(loso.pad == pad) & (loso.condition == condition)]
+            h = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
             cells += [_cell(_num(h["rmse"].mean())), _cell(_num(_quiet_nanmean(h["ovl"]))),
                       _cell(_num(_quiet_nanmean(h["ovl_predictive"]))),
-                      _cell(control_text(_control_row(analysis.controls, pad, condition, "loso")))]
+                      _cell(control_text(_control_row(analysis.controls, pad, condition, "loso", model)))]
         rows.append(cells)
-    columns = ["Pad", "Condition", "LOO: mean RMSE", "LOO: mean OVL", "LOO: mean predictive OVL", "LOO: controls"]
+    columns = ["Model", "Pad", "Condition", "LOO: mean RMSE", "LOO: mean OVL", "LOO: mean predictive OVL",
+               "LOO: controls"]
     if loso is not None:
         columns += ["LOSO: mean RMSE", "LOSO: mean OVL", "LOSO: mean predictive OVL", "LOSO: controls"]
     return {
@@ -304,8 +329,36 @@ def headline_table(analysis, paper_pads=None) -> dict:
                     "leave-one-specimen-out (LOSO) predicts a specimen never seen in training (nested: the component "
                     "count is chosen without it too) and is the honest estimate of generalisation. Controls: whether the "
                     f"model's CV RMSE beats the training mean and specimen-shuffled targets (p < 0.05); {FLAG} marks a "
-                    "model that does not. The paper's printed LOO means are beneath ours where its design matches."),
+                    "model that does not. The paper's printed LOO means are beneath ours (PLS rows) where its design "
+                    "matches."),
         "columns": columns,
+        "rows": rows,
+    }
+
+
+def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
+    """analysis.unseen_summary() as a table: nested LOSO error, the training mean's, the controls and Spearman's rho."""
+    rows = []
+    for _, r in unseen.iterrows():
+        rho = "—" if pd.isna(r["spearman_rho"]) else f"{r['spearman_rho']:.2f} (n = {int(r['n_rated'])})"
+        rows.append([_cell(model_title(r["model"])), _cell(r["pad"]), _cell(r["condition"]), _cell(_num(r["rmse"], 3)),
+                     _cell(_num(r["null_rmse"], 3)), _cell(_num(r["cv_rmse"], 3)), _cell(_num(r["null_cv_rmse"], 3)),
+                     _cell(f"{r['permutation_p']:.3f}" if r["n_permutations"] else "—"),
+                     _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]))),
+                     _cell(rho)])
+    return {
+        "title": "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition",
+        "caption": ("Every specimen is predicted by a model fitted without any of its images (PLS: its component count "
+                    "chosen without it too). Mean RMSE: mean over specimens (the reference included) of the RMSE of the "
+                    "specimen's predictions against its perceived roughness; training mean: the same for predicting the "
+                    "training specimens' mean, the floor a useful model must beat. Pooled: the same errors over all "
+                    "trials, which is what the controls compare (a few badly predicted specimens weigh more there, so "
+                    "the two can rank a model and the training mean differently). Permutation p: the same "
+                    "cross-validation on specimen-shuffled targets (see Controls). Spearman's rho: each rated specimen's "
+                    "mean prediction against its perceived roughness (the reference, 1 by definition, left out). "
+                    f"{FLAG} marks a model that fails its controls."),
+        "columns": ["Model", "Pad", "Condition", "Mean RMSE", "Training mean RMSE", "Pooled RMSE",
+                    "Training mean, pooled", "Permutation p", "Controls", "Spearman ρ"],
         "rows": rows,
     }
 
@@ -321,7 +374,8 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
     """controls.csv as a table: CV RMSE, the training mean's, the shuffled targets' and the permutation p."""
     rows = []
     for _, r in controls.iterrows():
-        rows.append([_cell(r["pad"]), _cell(r["condition"]), _cell(str(r["cv"]).upper()), _cell(f"{r['rmse']:.3f}"),
+        rows.append([_cell(r.get("model", PLS)), _cell(r["pad"]), _cell(r["condition"]), _cell(str(r["cv"]).upper()),
+                     _cell(f"{r['rmse']:.3f}"),
                      _cell(f"{r['null_rmse']:.3f}"),
                      _cell(f"{r['permuted_rmse_median']:.3f}" if r["n_permutations"] else "—"),
                      _cell(f"{r['permutation_p']:.3f}" if r["n_permutations"] else "—"),
@@ -335,8 +389,10 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
                     "whole CV, the choice of the number of components included, is rerun; p = "
                     "(1 + shufflings at least as good) / (1 + shufflings). A LOO model that does no better on shuffled "
                     "targets is recognising specimens, not reading roughness. With n shufflings the smallest attainable p is "
-                    "1/(n + 1), so p < 0.05 needs at least 20 (the default is 199)."),
-        "columns": ["Pad", "Condition", "CV", "CV RMSE", "Training mean RMSE", "Shuffled: median RMSE",
+                    "1/(n + 1), so p < 0.05 needs at least 20 (the default is 199). The peak law faces the same test with "
+                    "the same shufflings (it chooses nothing from the targets, so its fit on each fold is all that is "
+                    "rerun)."),
+        "columns": ["Model", "Pad", "Condition", "CV", "CV RMSE", "Training mean RMSE", "Shuffled: median RMSE",
                     "Permutation p", "Shufflings", "Verdict"],
         "rows": rows,
     }

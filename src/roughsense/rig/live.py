@@ -1,8 +1,10 @@
 """Live scoring: the predicted roughness of whatever the pad is pressed on, updated continuously.
 
 The scoring function is passed in (the CLI builds it from a model file), so the rig stays independent
-of the analysis. Frames are read in order; on a camera the driver queue is kept at one frame
-(see :mod:`.camera`), so as long as scoring keeps up with the camera the score is of a fresh frame.
+of the analysis. A scorer may also say, per frame, that its model extrapolates (the frame's features lie outside
+what the model was trained on); the display then flags that value. Frames are read in order; on a camera the
+driver queue is kept at one frame (see :mod:`.camera`), so as long as scoring keeps up with the camera the score
+is of a fresh frame.
 """
 from __future__ import annotations
 
@@ -18,14 +20,15 @@ from .camera import FrameSource, open_source
 
 def live_scores(
     source: FrameSource | str | int,
-    score_frame: Callable[[np.ndarray], float],
+    score_frame: Callable[[np.ndarray], float | tuple[float, bool]],
     *,
     max_frames: int | None = None,
     min_interval_s: float = 0.0,
-) -> Iterator[tuple[float, float]]:
+) -> Iterator[tuple[float, float] | tuple[float, float, bool]]:
     """Yield ``(timestamp_s, score)`` per scored frame; ``timestamp_s`` is Unix time at the frame's arrival.
 
-    ``score_frame`` gets an (H, W, 3) uint8 RGB frame. Frames arriving sooner than ``min_interval_s``
+    ``score_frame`` gets an (H, W, 3) uint8 RGB frame and returns the score, or ``(score, extrapolates)``; the
+    latter yields ``(timestamp_s, score, extrapolates)``. Frames arriving sooner than ``min_interval_s``
     after the last scored one are dropped undecoded. A :class:`RoughsenseError` from ``score_frame`` (for
     example a frame smaller than the model's ROI) stops the loop as an InputError naming the source and
     the frame. The loop ends at the end of a file, after ``max_frames`` scores, or when the consumer stops.
@@ -48,14 +51,17 @@ def live_scores(
             now = time.monotonic()
             stamp = time.time()
             try:
-                score = float(score_frame(frame))
+                result = score_frame(frame)
             except RoughsenseError as exc:
                 height, width = frame.shape[:2]
                 raise InputError(f"frame {frames.frames_read} ({width}x{height} px): {exc.message}",
                                  path=frames.name) from exc
             last = now
             scored += 1
-            yield stamp, score
+            if isinstance(result, tuple):
+                yield stamp, float(result[0]), bool(result[1])
+            else:
+                yield stamp, float(result)
     finally:
         if own:
             frames.close()
@@ -66,10 +72,11 @@ class LiveSummary:
     updates: int
     last_score: float | None
     updates_per_s: float
+    extrapolated: int = 0  # frames whose model said they lie outside its training range
 
 
 def render_live(
-    scores: Iterable[tuple[float, float]],
+    scores: Iterable[tuple[float, float] | tuple[float, float, bool]],
     *,
     console=None,
     label: str = "perceived roughness",
@@ -77,7 +84,9 @@ def render_live(
 ) -> LiveSummary:
     """Show the latest score, its recent range and the update rate on the terminal until ``scores`` ends.
 
-    Ctrl-C ends the display cleanly and returns the summary so far.
+    A score that extrapolates (a third element that is true) is flagged beside the value, so nobody reads a number
+    held at the edge of the model's training range as a measurement. Ctrl-C ends the display cleanly and returns
+    the summary so far.
     """
     from rich.console import Console
     from rich.live import Live
@@ -86,7 +95,8 @@ def render_live(
     console = console or Console(stderr=True)
     recent: list[float] = []
     times: list[float] = []
-    count = 0
+    count = extrapolated = 0
+    flagged = False
     first = last_t = None
 
     def view() -> Table:
@@ -97,15 +107,18 @@ def render_live(
             table.add_row(label, "waiting for the first frame...")
             return table
         rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
-        table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]")
+        flag = "  [bold yellow]extrapolates[/] (outside the training range)" if flagged else ""
+        table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]{flag}")
         table.add_row("last 2 s", f"{min(recent):.3f} .. {max(recent):.3f}")
         table.add_row("updates", f"{count} ({rate:.1f}/s)")
         return table
 
     try:
         with Live(view(), console=console, refresh_per_second=refresh_per_second, transient=False) as live:
-            for stamp, score in scores:
+            for stamp, score, *flag in scores:
                 count += 1
+                flagged = bool(flag and flag[0])
+                extrapolated += flagged
                 first = stamp if first is None else first
                 last_t = stamp
                 recent.append(score)
@@ -117,4 +130,4 @@ def render_live(
     except KeyboardInterrupt:
         pass
     span = (last_t - first) if count > 1 else 0.0
-    return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0)
+    return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0, extrapolated)

@@ -1,0 +1,79 @@
+"""Surfaces never seen: how well each model predicts a specimen held out of training (nested LOSO), in one table.
+
+This is the question a user of the sensor asks (what will it say about a new surface?), so the report and the
+terminal summary lead with it. Every number comes from the LOSO fits and controls already computed; the only new
+ones are the training mean's per-specimen RMSE (so the model and the null are compared on the same metric) and
+Spearman's rho between each specimen's mean prediction and its perceived roughness.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
+                  "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated"]
+
+
+def null_specimen_rmse(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.Series:
+    """Per-specimen RMSE of the training mean under leave-one-specimen-out, by specimen.
+
+    Every trial of a held-out specimen is predicted by the mean target of the other specimens' trials (the
+    0-component model of PLS's LOSO, whose pooled RMSE is the controls' null_rmse); all its trials share one
+    target, so its RMSE is the distance between that mean and its perceived value.
+    """
+    target = predictions["specimen"].map(perceived.set_index("specimen")["gmean"]).to_numpy(dtype=float)
+    by_specimen = pd.DataFrame({"specimen": predictions["specimen"].to_numpy(), "y": target})
+    sums = by_specimen.groupby("specimen", sort=False)["y"].agg(["sum", "count", "first"])
+    training_mean = (target.sum() - sums["sum"]) / (target.size - sums["count"])
+    return (training_mean - sums["first"]).abs()
+
+
+def _spearman(table: pd.DataFrame, reference: str) -> tuple[float, float, int]:
+    """rho and p between specimen-mean predictions and perceived roughness over the rated specimens."""
+    rated = table[table["specimen"] != reference]
+    if len(rated) < 3:
+        return float("nan"), float("nan"), int(len(rated))
+    with warnings.catch_warnings():  # constant input: NaN says it
+        warnings.simplefilter("ignore")
+        rho, p = stats.spearmanr(rated["pred_mean"], rated["gmean"])
+    return float(rho), float(p), int(len(rated))
+
+
+def _control(controls: pd.DataFrame, fit) -> dict:
+    if controls is None or controls.empty:
+        return {"permutation_p": float("nan"), "n_permutations": 0, "passes": None}
+    model = controls.get("model", "pls")
+    rows = controls[(controls["pad"] == fit.pad) & (controls["condition"] == fit.condition) & (controls["cv"] == "loso")
+                    & (model == fit.model)]
+    if rows.empty:
+        return {"permutation_p": float("nan"), "n_permutations": 0, "passes": None}
+    row = rows.iloc[0]
+    return {"permutation_p": float(row["permutation_p"]), "n_permutations": int(row["n_permutations"]),
+            "passes": bool(row["passes"])}
+
+
+def unseen_summary(analysis) -> pd.DataFrame:
+    """One row per model x pad x condition of the nested LOSO fits (UNSEEN_COLUMNS); empty without LOSO.
+
+    rmse / null_rmse: mean over specimens (the reference included) of the per-specimen RMSE of the model and of
+    the training mean; cv_rmse / null_cv_rmse: the same pooled over trials (what the permutation test compares);
+    spearman_*: over the rated specimens (the reference, 1 by definition, left out).
+    """
+    rows = []
+    for fit in analysis.ordered_fits():
+        if fit.cv != "loso":
+            continue
+        prediction = fit.predictions["prediction"].to_numpy(dtype=float)
+        target = fit.predictions["specimen"].map(analysis.perceived.set_index("specimen")["gmean"]).to_numpy(float)
+        rho, p, n_rated = _spearman(fit.table, analysis.reference_specimen)
+        rows.append({
+            "model": fit.model, "pad": fit.pad, "condition": fit.condition,
+            "rmse": float(fit.table["rmse"].mean()),
+            "null_rmse": float(null_specimen_rmse(fit.predictions, analysis.perceived).mean()),
+            "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.cv_rmse[0]),
+            **_control(analysis.controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
+        })
+    return pd.DataFrame(rows, columns=UNSEEN_COLUMNS)

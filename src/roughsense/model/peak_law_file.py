@@ -1,0 +1,201 @@
+"""Peak-law model files: the ``"peak-power-law"`` model section, written from a fitted law and checked on reading.
+
+The section beside the document's ``features`` (whose spectrum holds the frequency grid the peak is read on)::
+
+    {"kind": "peak-power-law", "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
+     "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2], "scale": s,
+     "feature_min": [2], "feature_max": [2], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude"]}
+
+Why each field is bounded. The checksum of a model file is unkeyed, so anyone can edit a number and re-sign it: the
+field checks are what refuse a file that would predict nonsense. The bounds are loose enough for any law fitted on
+real spectra (log features of a few units, slopes of a few units) and tight enough that every prediction stays a
+finite positive number: a law whose exponent could leave floating point anywhere in its feature box is refused.
+A loaded law predicts with :func:`~roughsense.model.peak_law.peak_features` and
+:func:`~roughsense.model.peak_law.predict_law`, the fitted estimator's own arithmetic, so it predicts identically.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+from .._util.checks import POSITIVE_INT, Constraint, Real, shown
+from ..errors import InputError, ModelFileError
+from .families import PEAK_LAW
+from .peak_law import FEATURE_NAMES, PeakPowerLaw, outside_range, peak_features, predict_law, search_bins
+
+KIND = "peak-power-law"
+#: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
+LIMIT = 1e3
+_BOUNDED = Real(-LIMIT, LIMIT)
+#: |log roughness| the law may reach anywhere in its feature box: exp() of it is finite and positive.
+_MAX_LOG_ROUGHNESS = 700.0
+_SCALARS: dict[str, Constraint] = {
+    "exclusion_per_mm": Real(0.0, 10.0, low_open=True),
+    "epsilon": Real(0.0, 100.0, low_open=True),
+    "intercept": _BOUNDED,
+    "scale": Real(0.0, LIMIT, low_open=True),
+}
+_PAD_PERIOD = Real(0.0, 100.0, low_open=True)
+_PAIRS = ("coefficients", "feature_min", "feature_max")
+FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_PAIRS, "feature_names")
+
+
+@dataclass(frozen=True)
+class LoadedPeakLaw:
+    """A validated peak-law document, ready to predict and to say which inputs it extrapolates."""
+
+    family: ClassVar[str] = PEAK_LAW
+    path: Path | None
+    freq_per_mm: np.ndarray
+    n_blocks: int
+    pad_ridge_period_mm: float | None
+    exclusion_per_mm: float
+    epsilon: float
+    intercept_: float
+    coef_: np.ndarray
+    scale_: float
+    feature_min_: np.ndarray
+    feature_max_: np.ndarray
+    features: dict
+    training: dict
+    roughsense_version: str
+
+    @property
+    def n_features(self) -> int:
+        return int(self.n_blocks * self.freq_per_mm.size)
+
+    @property
+    def conditions(self) -> list[str]:
+        """Force conditions, in the order a trial's images are concatenated (one for a single-force model)."""
+        return list(self.features["conditions"])
+
+    def law_features(self, X) -> np.ndarray:
+        """(n, 2) log peak frequency and log peak amplitude of each row, as the fitted law reads them."""
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.n_features:
+            raise ModelFileError(f"the model expects {self.n_features} features per sample, got shape {X.shape}",
+                                 path=self.path)
+        if not np.all(np.isfinite(X)) or np.any(X < 0):
+            raise InputError("a spectrum holds a negative or non-finite amplitude; the peak law reads amplitudes")
+        return peak_features(X, self.freq_per_mm, n_blocks=self.n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
+                             exclusion_per_mm=self.exclusion_per_mm)
+
+    def predict(self, X) -> np.ndarray:
+        """Predicted perceived roughness, exactly as the fitted :class:`PeakPowerLaw` predicts it."""
+        return predict_law(self.law_features(X), self.intercept_, self.coef_, self.feature_min_, self.feature_max_)
+
+    def extrapolates(self, X) -> np.ndarray:
+        """True where a row's features fall outside the training range (its prediction is held at the edge)."""
+        return outside_range(self.law_features(X), self.feature_min_, self.feature_max_)
+
+
+def law_section(model: PeakPowerLaw) -> dict:
+    """The ``"model"`` section of a fitted law (floats written with repr, so they read back bit-identically)."""
+    if not hasattr(model, "coef_"):
+        raise ModelFileError("the model is not fitted")
+    period = model.pad_ridge_period_mm
+    return {
+        "kind": KIND,
+        "n_features": int(model.n_features_in_),
+        "n_blocks": int(model.n_blocks),
+        "pad_ridge_period_mm": None if period is None else float(period),
+        "exclusion_per_mm": float(model.exclusion_per_mm),
+        "epsilon": float(model.epsilon),
+        "intercept": float(model.intercept_),
+        "coefficients": [float(v) for v in model.coef_],
+        "scale": float(model.scale_),
+        "feature_min": [float(v) for v in model.feature_min_],
+        "feature_max": [float(v) for v in model.feature_max_],
+        "feature_names": list(FEATURE_NAMES),
+    }
+
+
+def check_fields(section: dict, path: Path | None) -> int:
+    """Exactly the law's fields, and a usable feature count (returned: the feature definition is checked on it)."""
+    missing = [name for name in FIELDS if name not in section]
+    if missing:
+        raise ModelFileError(f"the peak-law model lacks the field(s) {', '.join('model.' + m for m in missing)}",
+                             path=path)
+    unknown = sorted(set(section) - set(FIELDS))
+    if unknown:
+        raise ModelFileError(f"the peak-law model has unknown field(s) {', '.join('model.' + str(u) for u in unknown)}",
+                             path=path)
+    return _checked(section, "n_features", POSITIVE_INT, path)
+
+
+def loaded_law(section: dict, features: dict, *, training: dict, roughsense_version: str,
+               path: Path | None) -> LoadedPeakLaw:
+    """Check every field of a law's section (``features`` already checked against ``n_features``) and load it."""
+    n_blocks = _checked(section, "n_blocks", POSITIVE_INT, path)
+    if n_blocks != len(features["conditions"]):
+        raise ModelFileError(f"model.n_blocks is {n_blocks}, but the feature definition has "
+                             f"{len(features['conditions'])} force condition(s)", path=path)
+    period = section["pad_ridge_period_mm"]
+    if period is not None:
+        period = _checked(section, "pad_ridge_period_mm", _PAD_PERIOD, path, must="a number of mm (> 0, <= 100) or null")
+    scalars = {name: _checked(section, name, constraint, path) for name, constraint in _SCALARS.items()}
+    pairs = {name: _pair(section, name, path) for name in _PAIRS}
+    if section["feature_names"] != list(FEATURE_NAMES):
+        raise ModelFileError(f"model.feature_names must be {list(FEATURE_NAMES)}, got {shown(section['feature_names'])}",
+                             path=path)
+    if np.any(pairs["feature_min"] > pairs["feature_max"]):
+        raise ModelFileError("model.feature_min exceeds model.feature_max: the training range is empty", path=path)
+    freq = _grid(features["spectrum"], path)
+    try:
+        search_bins(freq, period, scalars["exclusion_per_mm"])
+    except ValueError as exc:
+        raise ModelFileError(f"model.pad_ridge_period_mm and model.exclusion_per_mm: {exc}", path=path) from None
+    _check_finite_predictions(scalars["intercept"], pairs, path)
+    return LoadedPeakLaw(
+        path=path, freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,
+        exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"], intercept_=scalars["intercept"],
+        coef_=pairs["coefficients"], scale_=scalars["scale"], feature_min_=pairs["feature_min"],
+        feature_max_=pairs["feature_max"], features=features, training=training, roughsense_version=roughsense_version,
+    )
+
+
+def _checked(section: dict, name: str, constraint: Constraint, path: Path | None, *, must: str | None = None):
+    value = section[name]
+    if not constraint.accepts(value):
+        raise ModelFileError(f"model.{name} must be {must or constraint.describe()}, got {shown(value)}", path=path)
+    return int(value) if constraint is POSITIVE_INT else float(value)
+
+
+def _pair(section: dict, name: str, path: Path | None) -> np.ndarray:
+    values = section[name]
+    if not isinstance(values, list) or len(values) != len(FEATURE_NAMES):
+        raise ModelFileError(f"model.{name} must be a list of {len(FEATURE_NAMES)} numbers, got {shown(values)}",
+                             path=path)
+    for i, value in enumerate(values):
+        if not _BOUNDED.accepts(value):
+            raise ModelFileError(f"model.{name}[{i}] must be {_BOUNDED.describe()}, got {shown(value)}", path=path)
+    return np.array(values, dtype=np.float64)
+
+
+def _grid(spectrum: dict, path: Path | None) -> np.ndarray:
+    """The spectrum's frequencies (mm^-1): the grid the peak is located on, so it must be a real, even grid."""
+    freq = spectrum.get("freq_per_mm")
+    n_freqs = spectrum["n_freqs"]
+    if not isinstance(freq, list) or len(freq) != n_freqs or not all(Real(0.0, LIMIT, low_open=True).accepts(f)
+                                                                     for f in freq):
+        raise ModelFileError(f"features.spectrum.freq_per_mm must be {n_freqs} positive frequencies (mm^-1)", path=path)
+    grid = np.array(freq, dtype=np.float64)
+    steps = np.diff(grid)
+    if grid.size > 1 and (np.any(steps <= 0) or not np.allclose(steps, steps[0], rtol=1e-6)):
+        raise ModelFileError("features.spectrum.freq_per_mm must be evenly spaced and increasing", path=path)
+    return grid
+
+
+def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) -> None:
+    """The law's exponent at the corners of its feature box (its extremes, as it is linear) stays in range."""
+    corners = np.column_stack([pairs["feature_min"], pairs["feature_max"]]) * pairs["coefficients"][:, None]
+    highest = intercept + float(corners.max(axis=1).sum())
+    lowest = intercept + float(corners.min(axis=1).sum())
+    if not (math.isfinite(highest) and math.isfinite(lowest)) or max(abs(highest), abs(lowest)) > _MAX_LOG_ROUGHNESS:
+        raise ModelFileError(
+            f"model.intercept and model.coefficients give log roughness from {lowest:.4g} to {highest:.4g} over the "
+            f"training range; a prediction must stay within exp(+-{_MAX_LOG_ROUGHNESS:g})", path=path)
