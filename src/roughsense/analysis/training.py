@@ -21,8 +21,7 @@ from ..model.families import PEAK_LAW, PLS, check_model_name
 from ..model.modelfile import feature_definition_for
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.pls import SIMPLS
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, pls_cv
-from ..model.pls_cv import _fold_ids as fold_ids
+from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, fold_ids, pls_cv
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 

@@ -67,7 +67,7 @@ class PLSCVResult:
         return [np.flatnonzero(self.folds == f) for f in range(self.n_folds)]
 
 
-def _fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
+def fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
     """Fold id per sample, 0..F-1, for LOO, leave-one-group-out or shuffled K-fold."""
     if groups is not None:
         groups = np.asarray(groups)
@@ -124,7 +124,7 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     X, y = validate_xy(SIMPLS(), X, y)
     A = _component_limit(max_components)
     n = X.shape[0]
-    fid, scheme = _fold_ids(n, cv, groups, random_state)
+    fid, scheme = fold_ids(n, cv, groups, random_state)
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
     with blas_threads_for(X):
         pred = _cv_predictions(X, y[:, None], fid, A)[0]
@@ -135,7 +135,7 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     err2 = (pred - y[:, None]) ** 2
     rmse = np.sqrt(err2.mean(axis=0))
     fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
-    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # _fold_ids always gives at least 2 folds
+    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # fold_ids always gives at least 2 folds
     rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
     best = int(np.argmin(rmse[1:])) + 1
     within = np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])
@@ -202,7 +202,7 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
         check_target(column)
     A = _component_limit(max_components)
     n = X.shape[0]
-    fid, scheme = _fold_ids(n, cv, groups, random_state)
+    fid, scheme = fold_ids(n, cv, groups, random_state)
     F = int(fid.max()) + 1
     per_target = (A + 3) * F * min(X.shape) * 8
     chunk = max(1, _BATCH_BYTES // per_target)
