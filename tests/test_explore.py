@@ -467,3 +467,155 @@ def test_side_by_side_keeps_each_family_beside_the_other():
     assert np.isnan(wide["rmse (peak-law)"].iloc[2])  # a design one family lacks stays empty for it
     single = frame[frame["model"] == "pls"]
     assert side_by_side(single, ["pad", "fingerprint_period_mm", "cv"]) is single
+
+
+# --------------------------------------------------------------------------- answers from paired intervals
+
+def test_mde_80_is_the_paired_t_formula_and_close_to_the_noncentral_solution():
+    from scipy import stats
+
+    from roughsense.explore.paired import mde_80
+
+    for n, sd in ((3, 0.05), (4, 0.0582), (10, 0.2)):
+        direct = (stats.t.ppf(0.975, n - 1) + stats.t.ppf(0.8, n - 1)) * sd / np.sqrt(n)
+        assert mde_80(sd, n) == pytest.approx(direct, rel=1e-12)
+    assert np.isnan(mde_80(0.1, 1))
+    power = pytest.importorskip("statsmodels.stats.power")
+    for n in (3, 4, 6, 12):  # the exact noncentral-t effect size (in sd units) is a little larger at small n
+        exact = power.TTestPower().solve_power(nobs=n, alpha=0.05, power=0.8, alternative="two-sided")
+        assert mde_80(1.0, n) == pytest.approx(exact, rel=0.06) and mde_80(1.0, n) <= exact * 1.001
+
+
+def _diffs(mean: float, half: float, n: int = 4) -> np.ndarray:
+    """n per-seed differences whose t-interval is exactly mean ± half."""
+    from scipy import stats
+
+    shape = np.linspace(-1.0, 1.0, n)
+    shape = shape / shape.std(ddof=1)
+    return mean + shape * half * np.sqrt(n) / stats.t.ppf(0.975, n - 1)
+
+
+@pytest.mark.parametrize("mean, half, metric, verdict, words", [
+    (-0.001, 0.074, "rmse", "undetermined", "undetermined within ±0.075"),  # the issue's 0.5 mm pad vs smooth
+    (0.010, 0.030, "rmse", "equivalent", "equivalent within ±0.05"),
+    (-0.080, 0.030, "rmse", "better", "better"),
+    (0.080, 0.030, "rmse", "worse", "worse"),
+    (0.080, 0.030, "ovl", "better", "better"),  # a higher overlap is better
+    (0.000, 0.060, "ovl", "undetermined", "undetermined within ±0.060"),
+])
+def test_paired_verdicts(mean, half, metric, verdict, words):
+    from roughsense.explore.paired import judge
+
+    p = judge(_diffs(mean, half), metric)
+    assert p.verdict == verdict and p.words() == words and p.n == 4
+    assert (p.low, p.high) == (pytest.approx(mean - half), pytest.approx(mean + half))
+    assert "smallest difference 4 seeds detect with 80 % power" in p.sentence()
+
+
+def test_too_few_seeds_give_no_interval_and_bounded_levels_stay_in_range():
+    from roughsense.explore.paired import judge, level
+
+    two = judge([0.1, -0.2], "rmse")
+    assert two.verdict == "too few seeds" and np.isnan(two.low) and np.isnan(two.mde)
+    assert two.words() == "2 seeds: too few for an interval; run >= 3 seeds" and "[" not in two.sentence()
+    assert np.isnan(level([0.7, 0.76], "ovl")[1])  # no more "0.730 ± 1.618"
+    mean, low, high, n = level([0.1, 0.9, 0.98], "ovl")
+    assert n == 3 and mean == pytest.approx(0.66) and (low, high) == (0.0, 1.0)
+    _, low, high, _ = level([0.01, 0.5, 0.02], "rmse")
+    assert low == 0.0 and high > 0.5
+    wide = judge([0.9, -0.9, 0.95, -0.8], "ovl")  # a difference of two OVLs cannot leave [-1, 1]
+    assert wide.low == -1.0 and wide.high == 1.0
+
+
+def test_null_rmse_from_the_stored_targets_is_the_analysis_training_mean(two_model_cell):
+    from roughsense.analysis.unseen import null_specimen_rmse
+    from roughsense.explore.paired import null_rmse
+
+    sweep, cell, study, features, summary, per_specimen = two_model_cell
+    labels = study.condition_labels()
+    analysis = analyse_study(study, features=features, max_components=cell.max_components,
+                             conditions=[*labels, "combined"], cv_schemes=cell.cv, combined_forces=labels,
+                             n_permutations=0, models=("pls",))
+    ours = null_rmse(per_specimen[per_specimen["model"] == "pls"])
+    mine = per_specimen[per_specimen["model"] == "pls"]
+    for fit in analysis.fits:
+        rows = mine[(mine["condition"] == fit.condition) & (mine["cv"] == fit.cv)]
+        g = rows["gmean"].to_numpy()
+        k, reps = g.size, cell.repetitions  # per-specimen nulls, pooled over equal row counts: cv_rmse[0]
+        pred = (g.sum() - g) / (k - 1) if fit.cv == "loso" else (reps * g.sum() - g) / (reps * k - 1)
+        assert np.sqrt(np.mean((pred - g) ** 2)) == pytest.approx(fit.cv_rmse[0], rel=1e-9)
+        assert ours.loc[(cell.id, fit.pad, fit.condition, fit.cv, "pls")] == pytest.approx(np.abs(pred - g).mean())
+        if fit.cv == "loso":
+            assert ours.loc[(cell.id, fit.pad, fit.condition, fit.cv, "pls")] == pytest.approx(
+                null_specimen_rmse(fit.predictions, analysis.perceived).mean())
+
+
+SEEDED = TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "fingerprint"]').replace("[sweep]", '[sweep]\ncv = ["loso"]')
+
+
+def _report_of(tmp_path: Path, seeds: str):
+    """A tiny two-pad sweep's cells computed in this process (no Dask) and its report."""
+    from roughsense.explore.report import SUMMARY_CSV, write_explore_report
+
+    sweep = read_sweep(_sweep_file(tmp_path, SEEDED.replace("seeds = [0, 1]", f"seeds = {seeds}")))
+    store = ResultStore(tmp_path / "out", sweep)
+    store.prepare()
+    for cell in sweep.cells:
+        store.write_cell(*explore_cell.cell_rows(cell), cell.id)
+    html = write_explore_report(sweep, tmp_path / "out").read_text()
+    return sweep, pd.read_csv(tmp_path / "out" / SUMMARY_CSV), html
+
+
+def test_two_seeds_report_no_interval_and_say_why(tmp_path):
+    _, table, html = _report_of(tmp_path, "[0, 1]")
+    assert "2 seeds: too few for an interval; run &gt;= 3 seeds" in html and "±" not in html
+    assert table["rmse_ci95"].isna().all() and table["ci_low"].isna().all() and table["mde_80"].isna().all()
+    assert set(table["verdict"]) <= {"the best design", "2 seeds: too few for an interval; run >= 3 seeds"}
+
+
+def test_four_seeds_give_a_verdict_per_comparison(tmp_path):
+    from scipy import stats
+
+    _, table, html = _report_of(tmp_path, "[0, 1, 2, 3]")
+    results = pd.read_parquet(tmp_path / "out" / "results")
+    assert table.columns[-1] == "model" and {"diff_mean", "ci_low", "ci_high", "margin", "mde_80", "verdict",
+                                              "n_paired", "null_rmse", "null_verdict"} <= set(table.columns)
+    best = table[table["verdict"] == "the best design"]
+    assert len(best) == 1
+    for row in table[table["verdict"] != "the best design"].itertuples():
+        own = results[(results["pad"] == row.pad) & (results["condition"] == row.condition)].set_index("seed")["rmse"]
+        top = results[(results["pad"] == best["pad"].iloc[0]) & (results["condition"] == best["condition"].iloc[0])]
+        d = own - top.set_index("seed")["rmse"]
+        half = stats.t.ppf(0.975, 3) * d.std(ddof=1) / 2
+        assert (row.diff_mean, row.ci_low, row.ci_high) == (pytest.approx(d.mean(), abs=1e-5),
+                                                            pytest.approx(d.mean() - half, abs=1e-5),
+                                                            pytest.approx(d.mean() + half, abs=1e-5))
+        expected = ("worse" if d.mean() - half > 0 else "better" if d.mean() + half < 0 else
+                    "equivalent within ±0.05" if d.mean() - half >= -0.05 and d.mean() + half <= 0.05 else
+                    f"undetermined within ±{max(abs(d.mean() - half), abs(d.mean() + half)):.3f}")
+        assert row.verdict == expected and row.n_paired == 4 and row.margin == 0.05 and row.mde_80 > 0
+    assert (table["rmse_ci_low"] >= 0).all() and (table["ovl_ci_high"] <= 1).all()
+    assert table["null_rmse"].notna().all() and table["null_verdict"].notna().all()
+    assert "smallest difference 4 seeds detect with 80 % power" in html and "training mean" in html
+
+
+def test_docs_quote_the_verdict_the_rule_gives_for_each_quoted_interval():
+    """docs/explore.md's answers: every 'difference [low, high] | verdict' row is worded by the rule itself."""
+    import re
+
+    from roughsense.explore.paired import MARGINS
+
+    text = (Path(__file__).parents[1] / "docs" / "explore.md").read_text()
+    section = text[text.index("## The project's current answer"):]
+    rows = re.findall(r"\| ([+-]\d\.\d{3}) \[([+-]\d\.\d{3}), ([+-]\d\.\d{3})\] \| ([^|]+) \| (\d\.\d{3}) \|", section)
+    assert len(rows) == 8
+    for mean, low, high, verdict, _mde in rows:
+        mean, low, high = float(mean), float(low), float(high)
+        assert low <= mean <= high
+        if low > 0 or high < 0:
+            assert verdict.strip() in ("better", "worse")
+        elif -MARGINS["rmse"] <= low and high <= MARGINS["rmse"]:
+            assert verdict.strip() == "equivalent within ±0.05"
+        else:
+            assert verdict.strip() == f"undetermined within ±{max(abs(low), abs(high)):.3f}"
+    assert "undetermined within ±0.075" in section and "as good as" not in section.replace('"as good as"', "")

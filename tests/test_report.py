@@ -117,7 +117,8 @@ def test_report_files_and_schemas(report_dir):
     assert list(pd.read_csv(report_dir / "predictions.csv").columns)[-1] == "model"
     claims = pd.read_csv(report_dir / "claims.csv")
     assert list(claims.columns[:6]) == ["claim", "pad", "cv", "statistic", "p", "verdict"]
-    assert set(claims["verdict"]) <= {"reproduced", "not reproduced", "not testable"}
+    assert set(claims["verdict"]) <= {"reproduced", "not reproduced", "undetermined", "not evidence", "premise failed",
+                                      "not testable"}
     assert {"loo", "loso"} <= set(claims["cv"])
     cv = pd.read_csv(report_dir / "cv.csv")
     assert list(cv.columns) == ["pad", "condition", "cv", "n_components", "rmse", "model"]

@@ -1,11 +1,14 @@
 """The paper's claims (Results, Discussion and Conclusions; Tables 1-6), each tested on a study's analysis.
 
 Every claim is stated once, then judged per pad and CV scheme (LOO, the paper's protocol, and nested
-leave-one-specimen-out) with our statistic, its p-value (NaN for a descriptive claim, which has none) and
-a verdict: ``reproduced``, ``not reproduced`` or ``not testable`` (the study lacks what the claim needs,
-e.g. a second pad or the paper's specimens). ``rule`` says what the verdict required, so a reader can
-disagree with the threshold rather than with a hidden one. Claims about people's ratings do not depend on
-the sensor or the CV scheme and are judged once (``cv = "none"``).
+leave-one-specimen-out) with our statistic and its p-value (after the claim's stated correction; NaN for a
+descriptive claim, which has none). Claims about people's ratings do not depend on the sensor or the CV scheme and
+are judged once (``cv = "none"``).
+
+Every verdict comes from ONE rule, :func:`verdict`, applied to the evidence each row of claims.csv carries (the
+models it rests on and whether they pass their controls, whether the training-mean model meets the claim too, the
+equivalence margin and test of a claim of no difference), so a reader can recompute every verdict from the CSV and
+disagree with a margin rather than with a hidden threshold. ``rule`` says what the claim's own test and statement are.
 
 ``basis`` separates findings from properties of a simulator: on a simulated study, a claim about the
 ratings only checks what the simulator was given (by default its ratings for the paper's specimens are
@@ -16,7 +19,10 @@ other model families are reported beside them, never mixed into a verdict.
 """
 from __future__ import annotations
 
+import math
 import warnings
+from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 import pandas as pd
@@ -24,15 +30,35 @@ from scipy import stats
 
 from ..model.families import PLS
 from ..paper import COMBINED, FORCE_CONDITIONS
-from .controls import ALPHA
-from .metrics import compare_conditions, signed_rank
+from .controls import ALPHA, training_mean_predictions
+from .metrics import compare_conditions, paired_tost, signed_rank, slope_tost, specimen_table
 
-CLAIM_COLUMNS = ["claim", "pad", "cv", "statistic", "p", "verdict", "rule", "detail", "paper", "basis", "key"]
+#: claims.csv: the original columns first, then (only added, never reordered) the evidence behind each verdict.
+CLAIM_COLUMNS = ["claim", "pad", "cv", "statistic", "p", "verdict", "rule", "detail", "paper", "basis", "key",
+                 "rests_on", "premise_passes", "failed_controls", "holds", "equivalence_margin", "equivalence_p",
+                 "null_meets", "alpha", "correction"]
 REPRODUCED, NOT_REPRODUCED, NOT_TESTABLE = "reproduced", "not reproduced", "not testable"
-VERDICTS = (REPRODUCED, NOT_REPRODUCED, NOT_TESTABLE)
-#: Largest difference in mean OVL between the pads that still counts as "comparable" (the paper's
-#: Tables 2 and 5 differ by at most 0.03 in any condition).
-OVL_COMPARABLE = 0.05
+PREMISE_FAILED, NOT_EVIDENCE, UNDETERMINED = "premise failed", "not evidence", "undetermined"
+VERDICTS = (REPRODUCED, NOT_REPRODUCED, UNDETERMINED, NOT_EVIDENCE, PREMISE_FAILED, NOT_TESTABLE)
+#: The verdict rule in words, as the report and docs/controls.md state it (first match wins).
+VERDICT_RULE = (
+    "not testable: the study lacks what the claim needs.",
+    "premise failed: a model the claim rests on fails its controls (controls.csv), whatever the claim's own test says.",
+    "not evidence: the training-mean model, under the same CV, meets the claim too.",
+    f"reproduced: its test rejects at alpha = {ALPHA} after its stated correction, and the claim holds; a claim of no "
+    "difference or of flatness only by an equivalence test (TOST) within the margin shown.",
+    "otherwise not reproduced (no rejection, the claim does not hold, or a difference beyond the margin) or "
+    "undetermined (a claim of no difference, or one without a test, that the data cannot decide).",
+)
+#: Equivalence margin for a difference in mean OVL (a 0..1 scale), chosen before looking at any result: a tenth
+#: of the scale, below the between-specimen SD of OVL in the paper's Tables 2 and 5 (0.13-0.19), and over twice
+#: every difference the paper reads as "the same" (at most 0.04 between its conditions and pads).
+OVL_MARGIN = 0.1
+#: "Flat" prediction SD: it changes by less than a factor 1.25 (either way) per doubling of perceived roughness,
+#: i.e. a slope within ±log2(1.25) = 0.32 of log SD on log perceived roughness. People's SD, by Weber's law, has
+#: slope 1 (it doubles per doubling), the contrast the paper draws; 0.32 is under a third of that.
+SD_RATIO_PER_DOUBLING = 1.25
+SD_SLOPE_MARGIN = math.log2(SD_RATIO_PER_DOUBLING)
 #: Specimens the paper names as having OVL < 0.5 in every condition (Discussion).
 LOW_OVL_SPECIMENS = ("R2", "R2.5", "C5")
 
@@ -42,11 +68,13 @@ CLAIMS = {
     "combined_lowest_mean": "The combined condition has the lowest mean RMSE of the four conditions",
     "smooth_beats_fingerprint": "The smooth pad predicts better than the fingerprint pad (combined RMSE, signed rank)",
     "rmse_below_sd": "RMSE is below the people's SD for most specimens (combined condition)",
-    "ovl_same_across_forces": "OVL does not differ between the four force conditions (Friedman)",
-    "ovl_pads_comparable": f"Mean OVL is comparable between the pads (every condition within {OVL_COMPARABLE}; "
+    "ovl_same_across_forces": "OVL does not differ between the four force conditions (Friedman; equivalence: "
+                              "paired TOST of every pair of conditions)",
+    "ovl_pads_comparable": "Mean OVL is comparable between the pads (equivalence: paired TOST in every condition; "
                            "signed rank, Bonferroni x4)",
     "low_ovl_specimens": "R2, R2.5 and C5 have OVL below 0.5 in every condition",
-    "sd_flat": "The prediction SD stays flat: it does not grow with perceived roughness (Spearman, combined condition)",
+    "sd_flat": "The prediction SD stays flat: it does not grow with perceived roughness (Spearman; equivalence: TOST "
+               "of the log-log slope; combined condition)",
     "aligns": "Predicted roughness aligns with perceived roughness (Spearman over specimens, combined condition)",
     "beats_controls": "Predictions beat shuffled targets and the training mean (combined condition; "
                       "the premise of the conclusions)",
@@ -75,6 +103,41 @@ PAPER_SAYS = {
 RATING_CLAIMS = ("ratings_rise", "circular_rougher", "human_sd_grows")
 
 
+@dataclass(frozen=True)
+class Evidence:
+    """What one row of claims.csv holds for its verdict (the columns of the same names)."""
+
+    testable: bool
+    holds: bool  # the claim's statement holds in the point estimates (direction, share, within the margin)
+    p: float  # the claim's own test, after its correction; NaN: a descriptive claim with no test
+    premise_passes: bool = True  # every model the claim rests on passes its controls (True when it rests on none)
+    null_meets: bool | None = None  # the training-mean model meets the claim too; None: not applicable
+    equivalence_margin: float = float("nan")  # set for a claim of no difference or of flatness
+    equivalence_p: float = float("nan")  # its TOST p (intersection-union: the largest over its comparisons)
+    alpha: float = ALPHA
+
+
+def verdict(evidence: Evidence) -> str:
+    """The one verdict rule (VERDICT_RULE), applied in order: the first branch that matches decides."""
+    e = evidence
+    if not e.testable:
+        return NOT_TESTABLE
+    if not e.premise_passes:
+        return PREMISE_FAILED
+    if e.null_meets:
+        return NOT_EVIDENCE
+    if not math.isnan(e.equivalence_margin):
+        if e.equivalence_p < e.alpha:
+            return REPRODUCED
+        # A significant difference beyond the margin is evidence against "no difference"; anything else cannot tell.
+        return NOT_REPRODUCED if e.p < e.alpha and not e.holds else UNDETERMINED
+    if not e.holds:
+        return NOT_REPRODUCED
+    if math.isnan(e.p):
+        return UNDETERMINED
+    return REPRODUCED if e.p < e.alpha else NOT_REPRODUCED
+
+
 def _quiet(test, *args):
     """A scipy test with its warnings (constant input, tiny samples) silenced: a NaN result says it all."""
     with warnings.catch_warnings():
@@ -87,13 +150,23 @@ def _paper_text(key: str, pad: str) -> str:
     return says.get(pad) or says.get("any") or says.get("") or ""
 
 
-def _row(key, pad, cv, statistic, p, verdict, rule, detail="") -> dict:
+def _row(key, pad, cv, statistic, p, rule, detail="", *, holds, rests_on=(), margin=float("nan"),
+         equivalence_p=float("nan"), null_meets=None, correction="none", testable=True) -> dict:
+    """A claim's evidence; its verdict is added by :func:`_judge` once its premise is looked up in the controls."""
     return {"claim": CLAIMS[key], "pad": pad, "cv": cv, "statistic": float(statistic), "p": float(p),
-            "verdict": verdict, "rule": rule, "detail": detail, "paper": _paper_text(key, pad), "key": key}
+            "rule": rule, "detail": detail, "paper": _paper_text(key, pad), "key": key, "_rests_on": list(rests_on),
+            "holds": bool(holds), "equivalence_margin": float(margin), "equivalence_p": float(equivalence_p),
+            "null_meets": null_meets, "alpha": ALPHA, "correction": correction, "_testable": testable}
 
 
 def _untestable(key, pad, cv, why) -> dict:
-    return _row(key, pad, cv, np.nan, np.nan, NOT_TESTABLE, "", why)
+    return _row(key, pad, cv, np.nan, np.nan, "", why, holds=False, testable=False)
+
+
+def _largest_p(ps) -> float:
+    """Intersection-union: the claim holds only if every comparison rejects, so its p is the largest (NaN if any is)."""
+    ps = np.asarray(list(ps), dtype=float)
+    return float("nan") if ps.size == 0 or np.isnan(ps).any() else float(ps.max())
 
 
 def _by_condition(results: pd.DataFrame, pad: str, column: str) -> dict[str, pd.Series]:
@@ -109,23 +182,29 @@ def _combined_beats_singles(results, pad, cv):
     table = compare_conditions(series, COMBINED, list(FORCE_CONDITIONS), bonferroni=len(FORCE_CONDITIONS))
     lower = all(series[COMBINED].mean() < series[c].mean() for c in FORCE_CONDITIONS)
     worst = table.loc[table["p_adjusted"].idxmax()]
-    ok = lower and bool((table["p_adjusted"] < ALPHA).all())
     detail = "; ".join(f"{r.comparison}: W = {r.statistic:g}, adjusted p = {r.p_adjusted:.2g}" for r in table.itertuples())
-    return _row(key, pad, cv, worst["statistic"], worst["p_adjusted"], REPRODUCED if ok else NOT_REPRODUCED,
-                f"every adjusted p < {ALPHA} and the combined mean RMSE lower (statistic, p: the weakest comparison)",
-                detail)
+    return _row(key, pad, cv, worst["statistic"], worst["p_adjusted"],
+                "test: signed rank of combined against each single force (statistic, p: the weakest comparison); "
+                "holds: the combined mean RMSE is lower than each", detail, holds=lower,
+                rests_on=[(pad, c) for c in (*FORCE_CONDITIONS, COMBINED)],
+                correction=f"Bonferroni x{len(FORCE_CONDITIONS)}")
 
 
 def _combined_lowest_mean(results, pad, cv):
     series = _by_condition(results, pad, "rmse")
     key = "combined_lowest_mean"
-    if COMBINED not in series or not any(c in series for c in FORCE_CONDITIONS):
+    singles = [c for c in FORCE_CONDITIONS if c in series]
+    if COMBINED not in series or not singles:
         return _untestable(key, pad, cv, "needs the combined condition and a single force")
     means = {c: float(s.mean()) for c, s in series.items()}
-    margin = means[COMBINED] - min(v for c, v in means.items() if c != COMBINED)
+    margin = means[COMBINED] - min(means[c] for c in singles)
+    table = compare_conditions(series, COMBINED, singles, bonferroni=1)
     detail = ", ".join(f"{c} {v:.3f}" for c, v in means.items())
-    return _row(key, pad, cv, margin, np.nan, REPRODUCED if margin < 0 else NOT_REPRODUCED,
-                "descriptive: combined mean RMSE minus the lowest single-force mean is < 0 (statistic)", detail)
+    return _row(key, pad, cv, margin, _largest_p(table["p"]),
+                "test: signed rank of combined against each single force (p: the largest); holds: combined mean "
+                "RMSE minus the lowest single-force mean < 0 (statistic)", detail, holds=margin < 0,
+                rests_on=[(pad, c) for c in (*singles, COMBINED)],
+                correction=f"none (intersection-union: each of the {len(singles)} comparisons must reject)")
 
 
 def _smooth_beats_fingerprint(results, pads, cv):
@@ -138,23 +217,27 @@ def _smooth_beats_fingerprint(results, pads, cv):
         return _untestable(key, "both", cv, "needs the combined condition")
     common = a.index.intersection(b.index)
     test = signed_rank(a.loc[common].to_numpy(), b.loc[common].to_numpy())
-    ok = test.p < ALPHA and a.loc[common].mean() < b.loc[common].mean()
-    return _row(key, "both", cv, test.statistic, test.p, REPRODUCED if ok else NOT_REPRODUCED,
-                f"p < {ALPHA} and the smooth pad's mean RMSE lower",
-                f"mean RMSE smooth {a.loc[common].mean():.3f}, fingerprint {b.loc[common].mean():.3f}")
+    return _row(key, "both", cv, test.statistic, test.p,
+                "test: signed rank over specimens; holds: the smooth pad's mean RMSE is lower",
+                f"mean RMSE smooth {a.loc[common].mean():.3f}, fingerprint {b.loc[common].mean():.3f}",
+                holds=a.loc[common].mean() < b.loc[common].mean(),
+                rests_on=[("smooth", COMBINED), ("fingerprint", COMBINED)])
 
 
-def _rmse_below_sd(results, pad, cv):
+def _rmse_below_sd(results, null, pad, cv):
     key = "rmse_below_sd"
     rows = results[(results.pad == pad) & (results.condition == COMBINED)].dropna(subset=["sd"])
     if rows.empty:
         return _untestable(key, pad, cv, "needs the combined condition and rated specimens")
-    below = int((rows["rmse"] < rows["sd"]).sum())
-    n = len(rows)
+    below, n = int((rows["rmse"] < rows["sd"]).sum()), len(rows)
+    base = null[(null.pad == pad) & (null.condition == COMBINED)].set_index("specimen").reindex(rows["specimen"])
+    null_below = int((base["rmse"].to_numpy() < rows["sd"].to_numpy()).sum())
     p = stats.binomtest(below, n, 0.5, alternative="greater").pvalue
-    return _row(key, pad, cv, below / n, p, REPRODUCED if below > n / 2 else NOT_REPRODUCED,
-                "descriptive: more than half of the rated specimens have RMSE < SD (statistic: the share; "
-                "p: one-sided sign test)", f"{below} of {n} specimens")
+    return _row(key, pad, cv, below / n, p,
+                "test: one-sided sign test (p); holds: more than half of the rated specimens have RMSE < SD "
+                "(statistic: the share); the training mean meets it when its own share is above half",
+                f"{below} of {n} specimens; training mean: {null_below} of {n}", holds=below > n / 2,
+                rests_on=[(pad, COMBINED)], null_meets=null_below > n / 2)
 
 
 def _ovl_same_across_forces(results, pad, cv):
@@ -166,9 +249,17 @@ def _ovl_same_across_forces(results, pad, cv):
     if len(frame) < 2:
         return _untestable(key, pad, cv, "needs at least 2 rated specimens")
     test = _quiet(stats.friedmanchisquare, *[frame[c].to_numpy() for c in frame.columns])
-    return _row(key, pad, cv, test.statistic, test.pvalue, REPRODUCED if test.pvalue >= ALPHA else NOT_REPRODUCED,
-                f"no difference detected: Friedman p >= {ALPHA} (absence of evidence, as the paper argues it)",
-                ", ".join(f"{c} {frame[c].mean():.2f}" for c in frame.columns))
+    pairs = list(combinations(frame.columns, 2))
+    tosts = [paired_tost(frame[a], frame[b], OVL_MARGIN) for a, b in pairs]
+    largest = max(abs(t.estimate) for t in tosts)
+    return _row(key, pad, cv, test.statistic, test.pvalue,
+                f"test of a difference: Friedman (p); equivalence: paired TOST of the mean OVL difference of every "
+                f"pair of conditions within ±{OVL_MARGIN} (equivalence_p: the largest); holds: every pair's mean "
+                "difference within the margin",
+                ", ".join(f"{c} {frame[c].mean():.2f}" for c in frame.columns) + f"; largest pair difference {largest:.2f}",
+                holds=largest < OVL_MARGIN, rests_on=[(pad, c) for c in frame.columns], margin=OVL_MARGIN,
+                equivalence_p=_largest_p(t.p for t in tosts),
+                correction=f"Friedman: none; TOST: none (intersection-union over the {len(pairs)} pairs)")
 
 
 def _ovl_pads_comparable(results, pads, cv):
@@ -179,30 +270,40 @@ def _ovl_pads_comparable(results, pads, cv):
     conditions = [c for c in a if c in b]
     if not conditions:
         return _untestable(key, "both", cv, "the pads share no condition")
-    diffs, ps = [], []
+    diffs, ps, tosts = [], [], []
     for c in conditions:
         pair = pd.concat([a[c], b[c]], axis=1, join="inner").dropna()
         diffs.append(float(pair.iloc[:, 0].mean() - pair.iloc[:, 1].mean()))
         ps.append(min(1.0, signed_rank(pair.iloc[:, 0].to_numpy(), pair.iloc[:, 1].to_numpy()).p * len(conditions)))
+        tosts.append(paired_tost(pair.iloc[:, 0], pair.iloc[:, 1], OVL_MARGIN).p)
     largest = float(np.max(np.abs(diffs)))
-    ok = largest <= OVL_COMPARABLE and min(ps) >= ALPHA
-    return _row(key, "both", cv, largest, min(ps), REPRODUCED if ok else NOT_REPRODUCED,
-                f"largest |difference of mean OVL| <= {OVL_COMPARABLE} (statistic) and every adjusted p >= {ALPHA} "
-                "(p: the smallest)", ", ".join(f"{c} {d:+.2f}" for c, d in zip(conditions, diffs)))
+    return _row(key, "both", cv, largest, min(ps),
+                "test of a difference: signed rank per condition (p: the smallest adjusted); equivalence: paired TOST "
+                f"of the mean OVL difference within ±{OVL_MARGIN} in every condition (equivalence_p: the largest); "
+                "holds: largest |difference of mean OVL| (statistic) within the margin",
+                ", ".join(f"{c} {d:+.2f}" for c, d in zip(conditions, diffs)), holds=largest < OVL_MARGIN,
+                rests_on=[(pad, c) for pad in ("smooth", "fingerprint") for c in conditions], margin=OVL_MARGIN,
+                equivalence_p=_largest_p(tosts),
+                correction=f"signed rank: Bonferroni x{len(conditions)}; TOST: none (intersection-union over "
+                           f"the {len(conditions)} conditions)")
 
 
-def _low_ovl_specimens(results, pad, cv):
+def _low_ovl_specimens(results, null, pad, cv):
     key = "low_ovl_specimens"
     rows = results[(results.pad == pad) & results.specimen.isin(LOW_OVL_SPECIMENS)]
     if set(rows["specimen"]) != set(LOW_OVL_SPECIMENS):
         return _untestable(key, pad, cv, f"needs the specimens {', '.join(LOW_OVL_SPECIMENS)}")
     below = int((rows["ovl"] < 0.5).sum())
-    return _row(key, pad, cv, below / len(rows), np.nan, REPRODUCED if below == len(rows) else NOT_REPRODUCED,
-                "descriptive: every one of these cells has OVL < 0.5 (statistic: the share)",
-                f"{below} of {len(rows)} cells")
+    base = null[(null.pad == pad) & null.specimen.isin(LOW_OVL_SPECIMENS)]
+    null_below = int((base["ovl"] < 0.5).sum())
+    return _row(key, pad, cv, below / len(rows), np.nan,
+                "descriptive, no test: every one of these cells has OVL < 0.5 (statistic: the share); the training "
+                "mean meets it when all its cells do", f"{below} of {len(rows)} cells; training mean: {null_below} "
+                f"of {len(base)}", holds=below == len(rows), rests_on=[(pad, c) for c in dict.fromkeys(rows.condition)],
+                null_meets=len(base) > 0 and null_below == len(base))
 
 
-def _sd_flat(results, perceived, pad, cv):
+def _sd_flat(results, pad, cv):
     key = "sd_flat"
     rows = results[(results.pad == pad) & (results.condition == COMBINED)].dropna(subset=["sd"])
     if len(rows) < 4:
@@ -210,13 +311,19 @@ def _sd_flat(results, perceived, pad, cv):
     rho, p = _quiet(stats.spearmanr, rows["gmean"], rows["pred_sd"])
     if np.isnan(rho):
         return _untestable(key, pad, cv, "the prediction SD or the perceived roughness is constant")
-    grows = rho > 0 and p < ALPHA
-    return _row(key, pad, cv, rho, p, NOT_REPRODUCED if grows else REPRODUCED,
-                f"the prediction SD does not rise with perceived roughness (not: rho > 0 and p < {ALPHA})",
-                f"mean prediction SD {rows['pred_sd'].mean():.2f}")
+    positive = bool((rows["pred_sd"] > 0).all() and (rows["gmean"] > 0).all())
+    flat = slope_tost(np.log2(rows["gmean"]), np.log2(rows["pred_sd"]), SD_SLOPE_MARGIN) if positive else None
+    slope = flat.estimate if flat else float("nan")
+    return _row(key, pad, cv, rho, p,
+                "test of a rise: Spearman of the prediction SD on perceived roughness (statistic, p); equivalence: "
+                f"TOST of the least-squares slope of log2 SD on log2 perceived roughness within ±{SD_SLOPE_MARGIN:.3f} "
+                f"(the SD changes by less than x{SD_RATIO_PER_DOUBLING} per doubling); holds: the slope within it",
+                f"mean prediction SD {rows['pred_sd'].mean():.2f}; log-log slope {slope:.2f}",
+                holds=abs(slope) < SD_SLOPE_MARGIN, rests_on=[(pad, COMBINED)], margin=SD_SLOPE_MARGIN,
+                equivalence_p=flat.p if flat else float("nan"))
 
 
-def _aligns(results, pad, cv):
+def _aligns(results, null, pad, cv):
     key = "aligns"
     rows = results[(results.pad == pad) & (results.condition == COMBINED)]
     if len(rows) < 4:
@@ -224,8 +331,12 @@ def _aligns(results, pad, cv):
     rho, p = _quiet(stats.spearmanr, rows["gmean"], rows["pred_mean"])
     if np.isnan(rho):
         return _untestable(key, pad, cv, "the predictions or the perceived roughness are constant")
-    return _row(key, pad, cv, rho, p, REPRODUCED if rho > 0 and p < ALPHA else NOT_REPRODUCED,
-                f"rho > 0 and p < {ALPHA} (all specimens, the reference included)", f"{len(rows)} specimens")
+    base = null[(null.pad == pad) & (null.condition == COMBINED)]
+    null_rho = _quiet(stats.spearmanr, base["gmean"], base["pred_mean"])[0]
+    return _row(key, pad, cv, rho, p,
+                "test: Spearman over specimens, the reference included (statistic, p); holds: rho > 0; the training "
+                "mean meets it when its own rho > 0", f"{len(rows)} specimens; training mean: rho = {null_rho:.2f}",
+                holds=rho > 0, rests_on=[(pad, COMBINED)], null_meets=bool(null_rho > 0))
 
 
 def _beats_controls(controls, pad, cv):
@@ -234,27 +345,31 @@ def _beats_controls(controls, pad, cv):
     if row.empty or not row["n_permutations"].iloc[0]:
         return _untestable(key, pad, cv, "needs the combined condition and the permutation control")
     r = row.iloc[0]
-    return _row(key, pad, cv, r["rmse"], r["permutation_p"], REPRODUCED if r["passes"] else NOT_REPRODUCED,
-                f"permutation p < {ALPHA} and CV RMSE below the training mean's (statistic: CV RMSE)",
-                f"CV RMSE {r['rmse']:.3f}, training mean {r['null_rmse']:.3f}, shuffled median "
-                f"{r['permuted_rmse_median']:.3f} ({int(r['n_permutations'])} shufflings)")
+    return _row(key, pad, cv, r["rmse"], r["permutation_p"],
+                "the control the other claims rest on (so it rests on no other): test: permutation p; holds: CV RMSE "
+                "(statistic) below the training mean's", f"CV RMSE {r['rmse']:.3f}, training mean {r['null_rmse']:.3f}, "
+                f"shuffled median {r['permuted_rmse_median']:.3f} ({int(r['n_permutations'])} shufflings)",
+                holds=bool(r["rmse"] < r["null_rmse"]))
+
+
+def _ratings_rise(known: pd.DataFrame) -> dict:
+    groups = [g for _, g in known.groupby("shape", sort=False) if len(g) >= 3]
+    if not groups:
+        return _untestable("ratings_rise", "", "none", "needs at least 3 specimens of a shape with a period")
+    tests = [(g["shape"].iloc[0], *_quiet(stats.spearmanr, g["wavelength_mm"], g["gmean"])) for g in groups]
+    worst = max(tests, key=lambda t: t[2])
+    return _row("ratings_rise", "", "none", worst[1], _largest_p(t[2] for t in tests),
+                "test: Spearman per shape (statistic, p: the weakest shape); holds: every shape's rho > 0",
+                "; ".join(f"{s}: rho = {r:.2f}, p = {p:.2g}" for s, r, p in tests),
+                holds=all(rho > 0 for _, rho, _ in tests),
+                correction=f"none (intersection-union: each of the {len(tests)} shapes must reject)")
 
 
 def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> list[dict]:
     people = perceived.assign(shape=perceived["specimen"].map(shapes),
                               wavelength_mm=perceived["specimen"].map(wavelengths))
-    rows = []
     known = people.dropna(subset=["wavelength_mm"])
-    groups = [g for _, g in known.groupby("shape", sort=False) if len(g) >= 3]
-    if not groups:
-        rows.append(_untestable("ratings_rise", "", "none", "needs at least 3 specimens of a shape with a period"))
-    else:
-        tests = [(g["shape"].iloc[0], *_quiet(stats.spearmanr, g["wavelength_mm"], g["gmean"])) for g in groups]
-        worst = max(tests, key=lambda t: t[2])
-        ok = all(rho > 0 and p < ALPHA for _, rho, p in tests)
-        rows.append(_row("ratings_rise", "", "none", worst[1], worst[2], REPRODUCED if ok else NOT_REPRODUCED,
-                         f"every shape: rho > 0 and p < {ALPHA} (statistic, p: the weakest shape)",
-                         "; ".join(f"{s}: rho = {r:.2f}, p = {p:.2g}" for s, r, p in tests)))
+    rows = [_ratings_rise(known)]
     circ = known[known["shape"] == "circular"].set_index("wavelength_mm")["gmean"]
     rect = known[known["shape"] == "rectangular"].set_index("wavelength_mm")["gmean"]
     common = circ.index.intersection(rect.index)
@@ -263,18 +378,47 @@ def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> 
                                 "needs circular and rectangular gratings of at least 3 common periods"))
     else:
         test = signed_rank(circ.loc[common].to_numpy(), rect.loc[common].to_numpy())
-        ok = test.p < ALPHA and float(np.median(circ.loc[common] - rect.loc[common])) > 0
-        rows.append(_row("circular_rougher", "", "none", test.statistic, test.p, REPRODUCED if ok else NOT_REPRODUCED,
-                         f"p < {ALPHA} and the median difference circular - rectangular > 0",
-                         f"{int((circ.loc[common] > rect.loc[common]).sum())} of {len(common)} periods"))
+        rows.append(_row("circular_rougher", "", "none", test.statistic, test.p,
+                         "test: signed rank over periods; holds: the median difference circular - rectangular > 0",
+                         f"{int((circ.loc[common] > rect.loc[common]).sum())} of {len(common)} periods",
+                         holds=float(np.median(circ.loc[common] - rect.loc[common])) > 0))
     rated = people.dropna(subset=["sd"])
     if len(rated) < 4:
         rows.append(_untestable("human_sd_grows", "", "none", "needs at least 4 rated specimens"))
     else:
         rho, p = _quiet(stats.spearmanr, rated["gmean"], rated["sd"])
-        rows.append(_row("human_sd_grows", "", "none", rho, p, REPRODUCED if rho > 0 and p < ALPHA else NOT_REPRODUCED,
-                         f"rho > 0 and p < {ALPHA}", f"{len(rated)} rated specimens"))
+        rows.append(_row("human_sd_grows", "", "none", rho, p, "test: Spearman; holds: rho > 0",
+                         f"{len(rated)} rated specimens", holds=rho > 0))
     return rows
+
+
+def _failed_control(r) -> str:
+    """Which control one model fails, in the controls table's own numbers."""
+    why = []
+    if not bool(r["beats_null"]):
+        why.append(f"RMSE {r['rmse']:.3f} >= training mean {r['null_rmse']:.3f}")
+    if r["beats_permutation"] is not None and not pd.isna(r["beats_permutation"]) and not bool(r["beats_permutation"]):
+        why.append(f"shuffled targets p = {r['permutation_p']:.2g}")
+    return f"{r['pad']} {r['condition']} {str(r['cv']).upper()} ({'; '.join(why)})"
+
+
+def _judge(row: dict, controls: pd.DataFrame) -> dict:
+    """Look up the premise of ``row`` in the controls and give it its verdict by the one rule."""
+    models = row.pop("_rests_on")
+    failed = []
+    for pad, condition in models:
+        hit = controls[(controls.pad == pad) & (controls.condition == condition) & (controls.cv == row["cv"])]
+        if hit.empty:
+            failed.append(f"{pad} {condition} {row['cv'].upper()} (no controls were run)")
+        elif not bool(hit.iloc[0]["passes"]):
+            failed.append(_failed_control(hit.iloc[0]))
+    row.update(rests_on="; ".join(f"{pad} {condition} {row['cv']}" for pad, condition in models),
+               premise_passes=not failed, failed_controls="; ".join(failed))
+    row["verdict"] = verdict(Evidence(
+        testable=row.pop("_testable"), holds=row["holds"], p=row["p"], premise_passes=row["premise_passes"],
+        null_meets=row["null_meets"], equivalence_margin=row["equivalence_margin"],
+        equivalence_p=row["equivalence_p"], alpha=row["alpha"]))
+    return row
 
 
 def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
@@ -282,6 +426,29 @@ def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
     if frame is None or "model" not in frame.columns:
         return frame
     return frame[frame["model"] == PLS].drop(columns="model").reset_index(drop=True)
+
+
+def training_mean_results(analysis, cv: str) -> pd.DataFrame:
+    """The per-specimen table (pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl, rmse) of the model
+    that predicts each training fold's mean, on the same trials and folds as the PLS fits of ``cv``.
+
+    A claim the training mean also meets cannot tell a model from no model.
+    """
+    frames = []
+    gmean = analysis.perceived.set_index("specimen")["gmean"]
+    for fit in analysis.fits:
+        if fit.cv != cv or fit.model != PLS:
+            continue
+        trials = fit.predictions[["specimen"]].copy()
+        y = trials["specimen"].map(gmean).to_numpy(dtype=float)
+        trials["prediction"] = training_mean_predictions(y, trials["specimen"].astype(str).to_numpy(), cv)
+        # Every trial of a specimen gets the same prediction, so the SD is 0 under either ddof.
+        table = specimen_table(trials, analysis.perceived, pred_sd_ddof=0)
+        table.insert(0, "pad", fit.pad)
+        table.insert(1, "condition", fit.condition)
+        frames.append(table)
+    columns = ["pad", "condition", "specimen", "gmean", "sd", "pred_mean", "pred_sd", "ovl", "rmse", "n_predictions"]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
 
 
 def _basis(row: dict, simulation: dict | None) -> str:
@@ -297,32 +464,38 @@ def _basis(row: dict, simulation: dict | None) -> str:
     return "finding on simulated data"
 
 
+def _scheme_claims(analysis, cv: str, controls: pd.DataFrame) -> list[dict]:
+    """Every sensor claim of one CV scheme, on the PLS fits and the training mean under the same folds."""
+    pads = analysis.pads
+    people = analysis.perceived[["specimen", "gmean", "sd"]]
+    results = _of_pls(analysis.results(cv)).merge(people, on="specimen", how="left")
+    null = training_mean_results(analysis, cv)
+    rows = []
+    for pad in pads:
+        rows += [_combined_beats_singles(results, pad, cv), _combined_lowest_mean(results, pad, cv)]
+    rows.append(_smooth_beats_fingerprint(results, pads, cv))
+    for pad in pads:
+        rows += [_rmse_below_sd(results, null, pad, cv), _ovl_same_across_forces(results, pad, cv)]
+    rows.append(_ovl_pads_comparable(results, pads, cv))
+    for pad in pads:
+        rows += [_low_ovl_specimens(results, null, pad, cv), _sd_flat(results, pad, cv),
+                 _aligns(results, null, pad, cv), _beats_controls(controls, pad, cv)]
+    return rows
+
+
 def evaluate_claims(analysis, wavelengths: dict | None = None) -> pd.DataFrame:
     """Every claim for every pad and CV scheme of ``analysis`` (a StudyAnalysis), as a table (CLAIM_COLUMNS).
 
     Of the paper's PLS model only: the other families' rows of the results and controls are left out.
     """
-    rows: list[dict] = []
-    pads = analysis.pads
     schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv and f.model == PLS for f in analysis.fits)]
-    rows += _rating_claims(analysis.perceived, analysis.shapes, wavelengths or analysis.wavelengths)
     controls = _of_pls(analysis.controls)
+    if controls is None or controls.empty:
+        controls = pd.DataFrame(columns=["pad", "condition", "cv", "passes"])
+    rows = _rating_claims(analysis.perceived, analysis.shapes, wavelengths or analysis.wavelengths)
     for cv in schemes:
-        people = analysis.perceived[["specimen", "gmean", "sd"]]
-        results = _of_pls(analysis.results(cv)).merge(people, on="specimen", how="left")
-        for pad in pads:
-            rows.append(_combined_beats_singles(results, pad, cv))
-            rows.append(_combined_lowest_mean(results, pad, cv))
-        rows.append(_smooth_beats_fingerprint(results, pads, cv))
-        for pad in pads:
-            rows.append(_rmse_below_sd(results, pad, cv))
-            rows.append(_ovl_same_across_forces(results, pad, cv))
-        rows.append(_ovl_pads_comparable(results, pads, cv))
-        for pad in pads:
-            rows.append(_low_ovl_specimens(results, pad, cv))
-            rows.append(_sd_flat(results, analysis.perceived, pad, cv))
-            rows.append(_aligns(results, pad, cv))
-            rows.append(_beats_controls(controls, pad, cv))
+        rows += _scheme_claims(analysis, cv, controls)
+    rows = [_judge(row, controls) for row in rows]
     for row in rows:
         row["basis"] = _basis(row, analysis.simulation)
     order = {key: i for i, key in enumerate(CLAIMS)}
@@ -331,4 +504,3 @@ def evaluate_claims(analysis, wavelengths: dict | None = None) -> pd.DataFrame:
     frame["_cv"] = frame["cv"].map({"none": 0, "loo": 1, "loso": 2})
     frame = frame.sort_values(["_order", "_cv"], kind="stable")
     return frame[CLAIM_COLUMNS].reset_index(drop=True)
-

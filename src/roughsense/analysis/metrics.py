@@ -293,3 +293,56 @@ def compare_conditions(
             "method": test.method,
         })
     return pd.DataFrame(rows, columns=["comparison", "statistic", "p", "p_adjusted", "n", "method"])
+
+
+# --------------------------------------------------------------------------- equivalence (TOST)
+
+
+class EquivalenceResult(NamedTuple):
+    estimate: float  # the mean paired difference, or the slope
+    p: float  # the larger of the two one-sided p-values: equivalence is shown when p < alpha
+    p_lower: float  # H0: estimate <= -margin
+    p_upper: float  # H0: estimate >= +margin
+    df: int
+
+
+def tost(estimate: float, standard_error: float, df: int, margin: float) -> EquivalenceResult:
+    """Two one-sided t-tests that ``estimate`` lies within ±``margin`` (Schuirmann's TOST).
+
+    Equivalence is claimed only when both "estimate <= -margin" and "estimate >= +margin" are rejected, so the
+    p-value is the larger one-sided p; a large p says the data cannot tell, never that the two are the same.
+    NaN when the estimate has no finite standard error (too few values, or none of them vary).
+    """
+    from scipy.stats import t
+
+    if not margin > 0:
+        raise ConfigError(f"tost: the equivalence margin must be > 0, got {margin}")
+    if df < 1 or not np.isfinite(estimate) or not (np.isfinite(standard_error) and standard_error > 0):
+        return EquivalenceResult(float(estimate), float("nan"), float("nan"), float("nan"), int(df))
+    p_lower = float(t.sf((estimate + margin) / standard_error, df))
+    p_upper = float(t.cdf((estimate - margin) / standard_error, df))
+    return EquivalenceResult(float(estimate), max(p_lower, p_upper), p_lower, p_upper, int(df))
+
+
+def paired_tost(x, y, margin: float) -> EquivalenceResult:
+    """TOST on the paired differences x - y (one pair per specimen): is their mean within ±margin?"""
+    d = np.asarray(x, dtype=float) - np.asarray(y, dtype=float)
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return tost(float(d.mean()) if d.size else float("nan"), float("nan"), 0, margin)
+    return tost(float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)), d.size - 1, margin)
+
+
+def slope_tost(x, y, margin: float) -> EquivalenceResult:
+    """TOST on the least-squares slope of y on x: is it within ±margin (flat, up to the margin)?"""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    keep = np.isfinite(x) & np.isfinite(y)
+    x, y = x[keep], y[keep]
+    n = x.size
+    sxx = float(np.sum((x - x.mean()) ** 2)) if n else 0.0
+    if n < 3 or sxx == 0:
+        return tost(float("nan"), float("nan"), 0, margin)
+    slope = float(np.sum((x - x.mean()) * (y - y.mean())) / sxx)
+    residuals = y - y.mean() - slope * (x - x.mean())
+    standard_error = float(np.sqrt(np.sum(residuals**2) / (n - 2) / sxx))
+    return tost(slope, standard_error, n - 2, margin)

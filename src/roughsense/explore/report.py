@@ -9,16 +9,21 @@ import pandas as pd
 
 from .._util import atomic
 from ..report.explore_page import html_table, render_explore
+from .paired import MARGINS, MIN_SEEDS, too_few
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
 from .summary import (
+    COMPARISON_COLUMNS,
     DESIGN,
     _match,
     axis_slice,
     best_per_model,
+    comparisons,
+    judge_cv,
     models_in,
     paper_questions,
     seed_table,
     side_by_side,
+    with_null,
 )
 from .sweep import MODEL_KEY, Sweep
 
@@ -66,7 +71,9 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     meta.setdefault("cells", f"{results['cell'].nunique()} of {len(sweep.cells)} finished"
                     + (f", {len(failures)} failed" if len(failures) else ""))
     meta.setdefault("axes", "; ".join(f"{k}: {', '.join(map(str, v))}" for k, v in sweep.axes.items()) or "none")
-    table = seed_table(results) if not results.empty else pd.DataFrame(columns=DESIGN + ["condition", "cv"])
+    results = with_null(results, specimens) if not results.empty else results
+    table = comparisons(results, seed_table(results)) if not results.empty \
+        else pd.DataFrame(columns=DESIGN + ["condition", "cv"])
     varying = _varying(results) if not results.empty else []
     shown = varying or ["pad"]
     best_frame, axes, questions = None, [], []
@@ -78,20 +85,71 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
             if q.covered:
                 item["table"] = html_table(q.table, "", "")
             questions.append(item)
-    predictive = [c for c in ("ovl_predictive", "ovl_predictive_ci95") if c in table.columns]
-    summary = table[[*shown, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", *predictive, "n_seeds"]] \
-        if not table.empty else pd.DataFrame(columns=["condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95"])
-    if MODEL_KEY in shown:  # the families side by side, one row per design
-        summary = side_by_side(summary, [c for c in shown if c != MODEL_KEY] + ["condition", "cv"])
+    summary = _summary_view(table, shown)
     fail_view = failures[["cell", "seed", *[c for c in shown if c in failures.columns], "error"]] \
         if not failures.empty else failures
     html = render_explore(name=sweep.name, meta=meta, best=best_frame, axes=axes, questions=questions,
-                          summary=summary, failures=fail_view, limits=LIMITS)
+                          summary=summary, failures=fail_view, limits=LIMITS,
+                          notes=_best_flags(table), rule=_rule(results))
     if not table.empty:  # every design per model; ``model`` last, as columns are only ever added
-        atomic.write_csv(out / SUMMARY_CSV, table[[c for c in table.columns if c != MODEL_KEY] + [MODEL_KEY]],
-                         float_format="%.6g")
+        atomic.write_csv(out / SUMMARY_CSV, _csv_columns(table), float_format="%.6g")
     atomic.write_bytes(out / REPORT, html)
     return out / REPORT
+
+
+def _rule(results: pd.DataFrame) -> str:
+    """The verdict rule in one line, with the margins and (below MIN_SEEDS) why there are no intervals."""
+    n = int(results["seed"].nunique()) if not results.empty else 0
+    if n < MIN_SEEDS:
+        return too_few(n)
+    margins = ", ".join(f"{k.upper()} ±{v:.2f}" for k, v in MARGINS.items())
+    return (f"paired by seed over {n} seeds; better/worse when the 95 % interval of the difference excludes 0, "
+            f"equivalent when it lies within the margin ({margins}, fixed in advance), otherwise undetermined "
+            f"within ±(its farthest end); mde_80: the smallest difference {n} seeds detect with 80 % power")
+
+
+def _best_flags(table: pd.DataFrame) -> list[str]:
+    """A warning for each family's best design that does not beat its training mean under the judging CV."""
+    if table.empty or "null_verdict" not in table.columns:
+        return []
+    cv = judge_cv(table)
+    flags = []
+    for anchor in best_per_model(table):
+        row = table[_match(table, anchor) & (table["cv"] == cv)].iloc[0]
+        if not row["null_verdict"].startswith("beats"):
+            flags.append(f"The best {anchor[MODEL_KEY]} design ({row['condition']}) {row['null_verdict']} under "
+                         f"{cv.upper()}: RMSE {row['rmse']:.3f} against {row['null_rmse']:.3f}.")
+    return flags
+
+
+SUMMARY_LEVELS = ["rmse", "rmse_ci95", "ovl", "ovl_ci95"]
+SUMMARY_ADDED = ["null_rmse", "null_rmse_ci95", "rmse_ci_low", "rmse_ci_high", "ovl_ci_low", "ovl_ci_high",
+                 "null_rmse_ci_low", "null_rmse_ci_high", *COMPARISON_COLUMNS]
+
+
+def _csv_columns(table: pd.DataFrame) -> pd.DataFrame:
+    """summary.csv: the columns it always had, in their order, then the interval and comparison columns, model last."""
+    predictive = [c for c in ("ovl_predictive", "ovl_predictive_ci95") if c in table.columns]
+    first = [*DESIGN, "condition", "cv", *SUMMARY_LEVELS, *predictive, "n_seeds"]
+    first = [c for c in first if c != MODEL_KEY and c in table.columns]
+    added = [c for c in table.columns if c not in first and c != MODEL_KEY and not c.startswith("ovl_predictive_ci_")]
+    return table[[*first, *[c for c in SUMMARY_ADDED if c in added], *[c for c in added if c not in SUMMARY_ADDED],
+                  MODEL_KEY]]
+
+
+def _summary_view(table: pd.DataFrame, shown: list[str]) -> pd.DataFrame:
+    """The report's table of all designs: levels with clipped intervals, the null, and the comparison with the best."""
+    if table.empty:
+        return pd.DataFrame(columns=["condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95"])
+    levels = [c for m in ("rmse", "null_rmse", "ovl") if m in table.columns
+              for c in (m, f"{m}_ci95", f"{m}_ci_low", f"{m}_ci_high")]
+    view = table[[*shown, "condition", "cv", *levels, "n_seeds", "null_verdict", "diff_mean", "ci_low", "ci_high",
+                  "verdict"]].rename(columns={"diff_mean": "vs best", "ci_low": "vs best_ci_low",
+                                              "ci_high": "vs best_ci_high", "verdict": "vs best: verdict",
+                                              "null_verdict": "vs training mean"})
+    if MODEL_KEY in shown:  # the families side by side, one row per design
+        view = side_by_side(view, [c for c in shown if c != MODEL_KEY] + ["condition", "cv"])
+    return view
 
 
 def _best_frame(table: pd.DataFrame, shown: list[str]) -> pd.DataFrame | None:
@@ -99,7 +157,10 @@ def _best_frame(table: pd.DataFrame, shown: list[str]) -> pd.DataFrame | None:
     frames = [table[_match(table, anchor)] for anchor in best_per_model(table)]
     if not frames:
         return None
-    best = pd.concat(frames)[[*DESIGN, "condition", "cv", "rmse", "rmse_ci95", "ovl", "ovl_ci95", "n_seeds"]]
+    levels = [c for m in ("rmse", "null_rmse", "ovl") if m in table.columns
+              for c in (m, f"{m}_ci95", f"{m}_ci_low", f"{m}_ci_high")]
+    best = pd.concat(frames)[[*DESIGN, "condition", "cv", *levels, "n_seeds", "null_verdict"]]
+    best = best.rename(columns={"null_verdict": "vs training mean"})
     return best[[c for c in best.columns if c not in DESIGN or c in shown or c == "pad"]]
 
 

@@ -1,10 +1,12 @@
 """What a sweep found: per-design means with 95 % intervals over seeds, the best design, slices through it along
-each axis, and the paper's open questions answered in numbers where the sweep covers them.
+each axis, and the paper's open questions answered from paired intervals where the sweep covers them.
 
 A design is every design column (sweep.COLUMN_KINDS, the model family included) plus the predictor set (condition);
 seeds are replicates. Designs are ranked per model family, so a sweep of two families shows the best of each.
 Designs are compared on the same seeds (the twin keys its draws by names, so two designs with one seed share their
-mounts, exposures and panel: common random numbers), so differences come with paired intervals.
+mounts, exposures and panel: common random numbers), so every comparison is a paired interval worded by
+explore.paired (better / worse / equivalent within a stated margin / undetermined, with what the seeds could detect).
+Every design carries the training mean's RMSE under the same CV (its null) beside its own.
 """
 from __future__ import annotations
 
@@ -16,10 +18,14 @@ import pandas as pd
 from scipy import stats
 
 from ..model.families import MODEL_FAMILIES
+from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
 from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
 
 DESIGN = list(COLUMN_KINDS)
 METRICS = ("rmse", "ovl")
+#: The columns summary.csv adds for each design's comparison with its family's best design and with its null.
+COMPARISON_COLUMNS = ["diff_mean", "ci_low", "ci_high", "margin", "mde_80", "verdict", "n_paired",
+                      "null_diff_mean", "null_ci_low", "null_ci_high", "null_verdict"]
 
 
 def ci95(values) -> tuple[float, float, int]:
@@ -35,6 +41,15 @@ def ci95(values) -> tuple[float, float, int]:
     return float(x.mean()), half, n
 
 
+def with_null(results: pd.DataFrame, specimens: pd.DataFrame) -> pd.DataFrame:
+    """The result rows with ``null_rmse``: the training mean's RMSE under the same CV (explore.paired.null_rmse)."""
+    if specimens.empty or "null_rmse" in results.columns:
+        return results
+    null = null_rmse(specimens).reset_index()
+    keys = ["cell", "pad", "condition", "cv", "model"]
+    return results.merge(null, on=keys, how="left")
+
+
 def _match(frame: pd.DataFrame, values: dict) -> pd.Series:
     mask = pd.Series(True, index=frame.index)
     for column, value in values.items():
@@ -46,18 +61,58 @@ def _match(frame: pd.DataFrame, values: dict) -> pd.Series:
 
 
 def seed_table(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per design x condition x CV scheme: mean and 95 % half-width over seeds of RMSE and OVL."""
+    """One row per design x condition x CV scheme: mean over seeds of RMSE, OVL (and the null's RMSE), each with
+    the half-width of its 95 % t-interval and the interval's ends clipped to the quantity's range (``_ci_low``,
+    ``_ci_high``); below MIN_SEEDS seeds no interval (NaN)."""
     rows = []
     keys = DESIGN + ["condition", "cv"]
-    metrics = [*METRICS, *(["ovl_predictive"] if "ovl_predictive" in results.columns else [])]
+    metrics = [*METRICS, *(m for m in ("ovl_predictive", "null_rmse") if m in results.columns)]
     for key, group in results.groupby(keys, dropna=False, sort=False):
         row = dict(zip(keys, key))
         for metric in metrics:
             mean, half, n = ci95(group[metric])
-            row[metric], row[f"{metric}_ci95"] = mean, half
+            _, low, high, _ = level(group[metric], metric)
+            row[metric], row[f"{metric}_ci95"] = mean, half if n >= MIN_SEEDS else math.nan
+            row[f"{metric}_ci_low"], row[f"{metric}_ci_high"] = low, high
         row["n_seeds"] = int(group["seed"].nunique())
         rows.append(row)
-    return pd.DataFrame(rows, columns=keys + [c for m in metrics for c in (m, f"{m}_ci95")] + ["n_seeds"])
+    columns = keys + [c for m in metrics for c in (m, f"{m}_ci95")] + ["n_seeds"]
+    return pd.DataFrame(rows, columns=columns + [f"{m}_ci_{e}" for m in metrics for e in ("low", "high")])
+
+
+def _seeds(frame: pd.DataFrame, metric: str = "rmse") -> pd.Series:
+    return frame.groupby("seed")[metric].mean()
+
+
+def comparisons(results: pd.DataFrame, table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with COMPARISON_COLUMNS: each design's RMSE paired over seeds against its family's best design
+    (same condition rules: the best's own condition, the row's CV scheme) and against its own null."""
+    keys = DESIGN + ["condition", "cv"]
+    anchors = {anchor[MODEL_KEY]: anchor for anchor in best_per_model(table)}
+    best = {(m, cv): _seeds(results[_match(results, a) & (results["cv"] == cv)])
+            for m, a in anchors.items() for cv in set(results["cv"])}
+    out = []
+    for key, group in results.groupby(keys, dropna=False, sort=False):
+        row = dict(zip(keys, key))
+        own = _seeds(group)
+        anchor = anchors.get(row[MODEL_KEY])
+        is_best = anchor is not None and bool(_match(pd.DataFrame([row]), anchor).iloc[0])
+        to_best = judge([]) if is_best else paired(own, best.get((row[MODEL_KEY], row["cv"]), pd.Series(dtype=float)))
+        to_null = paired(own, _seeds(group, "null_rmse")) if "null_rmse" in group.columns else judge([])
+        row.update(diff_mean=to_best.mean, ci_low=to_best.low, ci_high=to_best.high, margin=to_best.margin,
+                   mde_80=to_best.mde, verdict="the best design" if is_best else to_best.words(), n_paired=to_best.n,
+                   null_diff_mean=to_null.mean, null_ci_low=to_null.low, null_ci_high=to_null.high,
+                   null_verdict=_null_words(to_null))
+        out.append(row)
+    found = pd.DataFrame(out, columns=keys + COMPARISON_COLUMNS)
+    return table.merge(found, on=keys, how="left")
+
+
+def _null_words(p: Paired) -> str:
+    """Against the training mean: only a difference that excludes 0 below it beats the null."""
+    if p.verdict == "too few seeds":
+        return ("below the training mean (" if p.mean < 0 else "not below the training mean (") + too_few(p.n) + ")"
+    return "beats the training mean" if p.verdict == "better" else "does not beat the training mean"
 
 
 def judge_cv(table: pd.DataFrame) -> str:
@@ -109,9 +164,14 @@ def side_by_side(frame: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return wide[[*keys, *(_tagged(c, m) for c in values for m in models)]].reset_index(drop=True)
 
 
+SUFFIXES = ("_ci95", "_ci_low", "_ci_high")  # an interval column keeps its suffix last, beside its mean
+
+
 def _tagged(column: str, model: str) -> str:
-    stem, ci = (column[:-5], "_ci95") if column.endswith("_ci95") else (column, "")
-    return f"{stem} ({model}){ci}"
+    for suffix in SUFFIXES:
+        if column.endswith(suffix):
+            return f"{column[:-len(suffix)]} ({model}){suffix}"
+    return f"{column} ({model})"
 
 
 def axis_slice(table: pd.DataFrame, axis: str, order: list) -> tuple[pd.DataFrame, dict | None]:
@@ -137,42 +197,45 @@ class Question:
 
 
 def compare(results: pd.DataFrame, designs: list[tuple[str, dict]], condition: str, cv: str) -> pd.DataFrame:
-    """Each labelled design's RMSE and OVL (mean ± 95 % over seeds) and its paired difference from the first."""
+    """Each labelled design's RMSE, OVL and null RMSE over seeds and its paired difference from the first design."""
     at = results[(results["condition"] == condition) & (results["cv"] == cv)]
     base = None
     rows = []
     for label, design in designs:
-        cells = at[_match(at, design)].set_index("seed")
+        cells = at[_match(at, design)]
         if cells.empty:
             continue
-        row = {"design": label, "cv": cv, "condition": condition, "n_seeds": int(len(cells))}
-        for metric in METRICS:
-            row[metric], row[f"{metric}_ci95"], _ = ci95(cells[metric])
+        row = {"design": label, "cv": cv, "condition": condition, "n_seeds": int(cells["seed"].nunique())}
+        for metric in (*METRICS, *(["null_rmse"] if "null_rmse" in cells.columns else [])):
+            mean, low, high, _ = level(cells[metric], metric)
+            row[metric], row[f"{metric}_ci_low"], row[f"{metric}_ci_high"] = mean, low, high
         if base is None:
             base = cells
-            row["d_rmse"], row["d_rmse_ci95"] = 0.0, math.nan
-        else:
-            common = cells.index.intersection(base.index)
-            d, half, _ = ci95(cells.loc[common, "rmse"] - base.loc[common, "rmse"])
-            row["d_rmse"], row["d_rmse_ci95"] = d, half
+        for metric in METRICS:
+            d = paired(_seeds(cells, metric), _seeds(base, metric), metric) if cells is not base else None
+            row[f"d_{metric}"] = d.mean if d else 0.0
+            row[f"d_{metric}_ci_low"], row[f"d_{metric}_ci_high"] = (d.low, d.high) if d else (math.nan, math.nan)
+            row[f"{metric}_verdict"] = d.words() if d else "(the reference)"
+            row[f"{metric}_mde_80"] = d.mde if d else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _fmt(mean: float, half: float) -> str:
+def _fmt(mean: float, low: float = math.nan, high: float = math.nan) -> str:
+    """``0.388 [0.350, 0.417]``, or the mean alone when there is no interval."""
     if not np.isfinite(mean):
         return "—"
-    return f"{mean:.3f}" + (f" ± {half:.3f}" if np.isfinite(half) else "")
+    return f"{mean:.3f}" + (f" [{low:.3f}, {high:.3f}]" if np.isfinite(low) and np.isfinite(high) else "")
 
 
-def _verdict(d: float, half: float, better: str, worse: str, same: str) -> str:
-    if not np.isfinite(half):
-        return same + " (one seed: no interval)"
-    if d + half < 0:
-        return better
-    if d - half > 0:
-        return worse
-    return same
+def _pair(results: pd.DataFrame, a: dict, b: dict, condition: str, cv: str, metric: str = "rmse") -> Paired:
+    at = results[(results["condition"] == condition) & (results["cv"] == cv)]
+    return paired(_seeds(at[_match(at, a)], metric), _seeds(at[_match(at, b)], metric), metric)
+
+
+def _seeds_note(results: pd.DataFrame) -> str:
+    n = int(results["seed"].nunique())
+    return f" ({too_few(n)}.)" if n < MIN_SEEDS else ""
 
 
 def _with(anchor: dict, **overrides) -> dict:
@@ -208,6 +271,14 @@ def paper_questions(results: pd.DataFrame, specimens: pd.DataFrame, table: pd.Da
     return questions
 
 
+def _level(row) -> str:
+    """A design's RMSE with its interval and its null's beside it."""
+    text = _fmt(row["rmse"], row["rmse_ci_low"], row["rmse_ci_high"])
+    if "null_rmse" in row and np.isfinite(row["null_rmse"]):
+        text += f" (training mean {row['null_rmse']:.3f})"
+    return text
+
+
 def _condition_of(results: pd.DataFrame, design: dict) -> str:
     """The condition a question judges: combined where the sweep has it, else the design's own."""
     return "combined" if (results["condition"] == "combined").any() else design["condition"]
@@ -231,28 +302,40 @@ def _fingerprint_question(results: pd.DataFrame, anchor: dict | None, cv: str) -
     judged = frame[(frame["cv"] == cv)].set_index("design")
     if not {"smooth", "fingerprint, 0.5 mm"} <= set(judged.index):
         return uncovered
-    row = judged.loc["fingerprint, 0.5 mm"]
-    verdict = _verdict(row["d_rmse"], row["d_rmse_ci95"], "better than the smooth pad",
-                       "worse than the smooth pad", "not distinguishable from the smooth pad")
-    answer = (f"{cv.upper()} RMSE, {condition} condition: smooth "
-              f"{_fmt(judged.loc['smooth', 'rmse'], judged.loc['smooth', 'rmse_ci95'])}, fingerprint 0.5 mm "
-              f"{_fmt(row['rmse'], row['rmse_ci95'])} (difference {_fmt(row['d_rmse'], row['d_rmse_ci95'])}, "
-              f"paired over seeds): the 0.5 mm pad is {verdict}.")
+    d = _pair(results, designs[2][1], designs[0][1], condition, cv)
+    answer = (f"{cv.upper()} RMSE, {condition} condition (95 % intervals over seeds): smooth "
+              f"{_level(judged.loc['smooth'])}, fingerprint 0.5 mm {_level(judged.loc['fingerprint, 0.5 mm'])}. "
+              f"0.5 mm minus smooth, paired by seed: {d.sentence()}.{_seeds_note(results)}")
     return Question(title, True, answer, frame)
 
 
+def _group(specimen: str, shape: str, wavelength_mm: float, asked: set[str]) -> str:
+    if specimen in asked:
+        return "asked"
+    return "paper range" if 2.0 <= wavelength_mm <= 5.0 and shape in ("rectangular", "circular") else "other"
+
+
 def _specimen_rows(rows: pd.DataFrame, asked: set[str]) -> pd.DataFrame:
-    """Per specimen and CV: RMSE and OVL over seeds, grouped as asked, in the paper's range, or other."""
+    """Per specimen and CV: RMSE and OVL over seeds (clipped intervals), grouped as asked, paper range, or other."""
     per = []
     for (specimen, cvs), group in rows.groupby(["specimen", "cv"], sort=False):
-        r, rh, n = ci95(group["rmse"])
-        o, oh, _ = ci95(group["ovl"])
-        per.append({"specimen": specimen, "cv": cvs, "shape": group["shape"].iloc[0],
-                    "wavelength_mm": group["wavelength_mm"].iloc[0], "rmse": r, "rmse_ci95": rh, "ovl": o,
-                    "ovl_ci95": oh, "n_seeds": n, "group": "asked" if specimen in asked else
-                    ("paper range" if 2.0 <= group["wavelength_mm"].iloc[0] <= 5.0 and
-                     group["shape"].iloc[0] in ("rectangular", "circular") else "other")})
+        first = group.iloc[0]
+        row = {"specimen": specimen, "cv": cvs, "shape": first["shape"], "wavelength_mm": first["wavelength_mm"]}
+        for metric in METRICS:
+            mean, low, high, n = level(group[metric], metric)
+            row.update({metric: mean, f"{metric}_ci_low": low, f"{metric}_ci_high": high})
+        row.update(n_seeds=n, group=_group(specimen, first["shape"], first["wavelength_mm"], asked))
+        per.append(row)
     return pd.DataFrame(per)
+
+
+def _group_gap(rows: pd.DataFrame, asked: set[str], metric: str) -> Paired:
+    """Per seed, the asked specimens' mean minus the paper-range specimens' mean, paired over seeds."""
+    groups = [_group(s, sh, w, asked) for s, sh, w in zip(rows["specimen"], rows["shape"], rows["wavelength_mm"])]
+    by = rows.assign(group=groups).groupby(["group", "seed"])[metric].mean()
+    if "asked" not in by.index or "paper range" not in by.index:
+        return judge([], metric)
+    return paired(by.loc["asked"], by.loc["paper range"], metric)
 
 
 def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, title: str,
@@ -265,7 +348,8 @@ def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, 
     rows = specimens[(specimens["cell"].isin(set(results.loc[mask & _match(results, _with(sub_anchor)), "cell"])))
                      & (specimens["condition"] == sub_anchor["condition"])
                      & (specimens[MODEL_KEY] == sub_anchor[MODEL_KEY])]
-    frame = _specimen_rows(rows, set(chosen["specimen"]))
+    asked_names = set(chosen["specimen"])
+    frame = _specimen_rows(rows, asked_names)
     judged = frame[frame["cv"] == cv]
     asked = judged[judged["group"] == "asked"]
     paper = judged[judged["group"] == "paper range"]
@@ -273,8 +357,12 @@ def _specimen_question(results: pd.DataFrame, specimens: pd.DataFrame, cv: str, 
               f"{asked['rmse'].mean():.3f} and OVL {asked['ovl'].mean():.3f} for "
               f"{', '.join(asked['specimen'])}")
     if not paper.empty:
+        at = rows[rows["cv"] == cv]
+        gaps = [f"{name} {_group_gap(at, asked_names, metric).sentence()}" for name, metric in
+                (("RMSE", "rmse"), ("OVL", "ovl"))]
         answer += (f", against RMSE {paper['rmse'].mean():.3f} and OVL {paper['ovl'].mean():.3f} for the "
-                   f"{len(paper)} specimens in the paper's range (2-5 mm) in the same cells")
+                   f"{len(paper)} specimens in the paper's range (2-5 mm) in the same cells; their difference "
+                   f"(asked minus paper range), paired by seed: " + "; ".join(gaps))
     answer += ". Their 'perceived' roughness is the twin's model, not a measurement (see the limits below)."
     if len(models_in(results)) > 1:
         answer += f" Model family: {sub_anchor[MODEL_KEY]} (the best in these cells)."
@@ -296,10 +384,11 @@ def _axis_question(results: pd.DataFrame, anchor: dict | None, cv: str, title: s
     condition = _condition_of(results, anchor)
     frame = pd.concat([compare(results, designs, condition, c) for c in sorted(set(results["cv"]))])
     judged = frame[frame["cv"] == cv]
-    parts = [f"{row.design.split(' = ')[1]}: {_fmt(row.rmse, row.rmse_ci95)}" for row in judged.itertuples(index=False)]
+    parts = [f"{row['design'].split(' = ')[1]}: {_level(row)}" for _, row in judged.iterrows()]
     first = judged.iloc[0]["design"] if not judged.empty else ""
-    verdicts = [f"{r.design.split(' = ')[1]} is " + _verdict(r.d_rmse, r.d_rmse_ci95, "better", "worse",
-                                                                "not distinguishable") for r in judged.iloc[1:].itertuples()]
-    answer = (f"{cv.upper()} RMSE ({condition}, other settings at the best design): "
-              + "; ".join(parts) + f". Against {first.split(' = ')[-1]}: " + "; ".join(verdicts) + ".")
+    verdicts = [f"{label.split(' = ')[1]}: " + _pair(results, design, designs[0][1], condition, cv).sentence()
+                for label, design in designs[1:] if label in set(judged["design"])]
+    answer = (f"{cv.upper()} RMSE ({condition}, other settings at the best design; 95 % intervals over seeds): "
+              + "; ".join(parts) + f". Paired against {first.split(' = ')[-1]}: " + "; ".join(verdicts) + "."
+              + _seeds_note(results))
     return Question(title, True, answer, frame)

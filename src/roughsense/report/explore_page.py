@@ -37,9 +37,8 @@ def axis_figure(rows: pd.DataFrame, axis: str, order: list):
         position = {str(v): i for i, v in enumerate(order)}
         x = np.array([float(v) if numeric else position.get(str(v), np.nan) for v in group[axis]])
         for panel, metric in zip(panels, ("rmse", "ovl")):
-            err = np.nan_to_num(group[f"{metric}_ci95"].to_numpy(float), nan=0.0)
-            panel.errorbar(x, group[metric].to_numpy(float), yerr=err, color=colour, marker=marker, capsize=3,
-                           linestyle=line, label=name)
+            panel.errorbar(x, group[metric].to_numpy(float), yerr=_bars(group, metric), color=colour, marker=marker,
+                           capsize=3, linestyle=line, label=name)
     for panel, metric in zip(panels, ("RMSE (perceived units)", "OVL")):
         panel.set_xlabel(axis)
         panel.set_ylabel(metric)
@@ -51,22 +50,58 @@ def axis_figure(rows: pd.DataFrame, axis: str, order: list):
     return fig
 
 
+def _bars(group: pd.DataFrame, metric: str) -> np.ndarray:
+    """Error bars from the interval's clipped ends where the rows have them (no bar below 0 RMSE or outside OVL's
+    [0, 1]); none without an interval (too few seeds)."""
+    mean = group[metric].to_numpy(float)
+    if f"{metric}_ci_low" in group.columns:
+        low, high = group[f"{metric}_ci_low"].to_numpy(float), group[f"{metric}_ci_high"].to_numpy(float)
+        return np.nan_to_num(np.vstack([mean - low, high - mean]), nan=0.0)
+    return np.nan_to_num(group[f"{metric}_ci95"].to_numpy(float), nan=0.0)
+
+
 def _cell(value, digits: int = 3) -> str:
     if isinstance(value, (float, np.floating)):
         return "—" if not np.isfinite(value) else f"{value:.{digits}g}" if abs(value) >= 100 else f"{value:.{digits}f}"
     return str(value)
 
 
+def _interval(mean: float, low: float, high: float, half: float) -> str:
+    """``0.388 [0.350, 0.417]``; ``(clipped)`` when the range cut the t-interval; the mean alone without one."""
+    if not np.isfinite(mean):
+        return "—"
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return f"{mean:.3f}"
+    clipped = np.isfinite(half) and (low > mean - half + 1e-12 or high < mean + half - 1e-12)
+    return f"{mean:.3f} [{low:.3f}, {high:.3f}]" + (" (clipped)" if clipped else "")
+
+
+def _joined(frame: pd.DataFrame, column: str) -> list[str] | None:
+    """A metric joined with its interval columns (``_ci_low``/``_ci_high``, else ``_ci95``), or None."""
+    low, high, half = (f"{column}_ci_low", f"{column}_ci_high", f"{column}_ci95")
+    nan = pd.Series(np.nan, index=frame.index)
+    if low in frame.columns and high in frame.columns:
+        return [_interval(m, lo, hi, h) for m, lo, hi, h in
+                zip(frame[column], frame[low], frame[high], frame.get(half, nan))]
+    if half in frame.columns:
+        return [("—" if not np.isfinite(m) else f"{m:.3f}" + (f" ± {h:.3f}" if np.isfinite(h) else ""))
+                for m, h in zip(frame[column], frame[half])]
+    return None
+
+
+SUFFIXES = ("_ci95", "_ci_low", "_ci_high")
+
+
 def html_table(frame: pd.DataFrame, title: str, caption: str = "") -> dict:
-    """A table for the template: the metric and its interval joined as 'mean ± half-width'."""
+    """A table for the template: each metric joined with its interval as 'mean [low, high]' (or 'mean ± half')."""
     frame = frame.copy()
     columns = []
-    for column in frame.columns:
-        if column.endswith("_ci95"):
+    for column in list(frame.columns):
+        if column.endswith(SUFFIXES) and any(column[:-len(s)] in frame.columns for s in SUFFIXES if column.endswith(s)):
             continue
-        if f"{column}_ci95" in frame.columns:
-            frame[column] = [("—" if not np.isfinite(m) else f"{m:.3f}" + (f" ± {h:.3f}" if np.isfinite(h) else ""))
-                             for m, h in zip(frame[column], frame[f"{column}_ci95"])]
+        joined = _joined(frame, column)
+        if joined is not None:
+            frame[column] = joined
         columns.append(column)
     rows = [[_cell(v) for v in row] for row in frame[columns].itertuples(index=False)]
     return {"title": title, "caption": caption, "columns": columns, "rows": rows}
@@ -74,7 +109,7 @@ def html_table(frame: pd.DataFrame, title: str, caption: str = "") -> dict:
 
 def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: list[dict], questions: list[dict],
                    summary: pd.DataFrame, failures: pd.DataFrame, limits: list[str],
-                   generated: str | None = None) -> bytes:
+                   generated: str | None = None, notes: list[str] | None = None, rule: str = "") -> bytes:
     """index.html of a sweep; ``axes`` items hold axis, order, rows (a slice), anchor text; figures are embedded."""
     sections = []
     for item in axes:
@@ -84,16 +119,20 @@ def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: li
         sections.append({
             "axis": item["axis"], "anchor": item["anchor"],
             "image": base64.b64encode(png).decode("ascii"),
-            "table": html_table(rows[[item["axis"], *family, "cv", "condition", "rmse", "rmse_ci95", "ovl", "ovl_ci95",
-                                      "n_seeds"]], f"{item['axis']}: RMSE and OVL (mean ± 95 % over seeds)"),
+            "table": html_table(rows[[item["axis"], *family, "cv", "condition",
+                                      *[c for m in ("rmse", "null_rmse", "ovl") for c in rows.columns
+                                        if c == m or c.startswith(f"{m}_ci")],
+                                      "n_seeds"]], f"{item['axis']}: RMSE, the training mean's RMSE and OVL "
+                                                   "(mean [95 % interval] over seeds)"),
         })
     template = template_environment().get_template("explore.html.j2")
     html = template.render(
         title=f"roughsense sweep: {name}", version=__version__, citation=paper.PAPER_CITATION,
         generated=generated or _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        meta=meta, best=html_table(best, "Best design found") if best is not None and not best.empty else None,
+        meta=meta, notes=notes or [], rule=rule,
+        best=html_table(best, "Best design found") if best is not None and not best.empty else None,
         axes=sections, questions=questions, limits=limits,
-        summary=html_table(summary, "Every design (mean ± 95 % over seeds)"),
+        summary=html_table(summary, "Every design (mean [95 % interval] over seeds)"),
         failures=html_table(failures, "Failed cells") if not failures.empty else None,
     )
     return html.encode("utf-8")

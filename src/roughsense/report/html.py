@@ -22,6 +22,7 @@ import pandas as pd
 
 from .. import __version__, paper
 from .._util import atomic
+from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..errors import OutputExistsError
 from ..io.names import check_name
 from ..model.families import PLS
@@ -109,7 +110,7 @@ def plain_words(analysis) -> list[str]:
             lines.append("Every model beats both its controls (specimen-shuffled targets and the training mean).")
     if not analysis.claims.empty:
         counts = analysis.claims["verdict"].value_counts()
-        lines.append(", ".join(f"{int(counts.get(v, 0))} {v}" for v in ("reproduced", "not reproduced", "not testable"))
+        lines.append(", ".join(f"{int(counts.get(v, 0))} {v}" for v in VERDICTS if counts.get(v, 0))
                      + " of the paper's claims, by pad and CV scheme (Claims below).")
     return lines
 
@@ -166,6 +167,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
         ),
         tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
         claims=tables.claims_table(analysis.claims, paper_pads),
+        verdict_rule=VERDICT_RULE,
         controls=tables.controls_report_table(analysis.controls),
         paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
         simulation=analysis.simulation,

@@ -398,8 +398,17 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
     }
 
 
+def _verdict_text(c) -> str:
+    """The verdict, with what decided it where a reader would ask: the failed control, the training mean."""
+    if c["verdict"] == "premise failed" and isinstance(c.get("failed_controls"), str) and c["failed_controls"]:
+        return f"premise failed: fails its controls: {c['failed_controls']}"
+    if c["verdict"] == "not evidence":
+        return "not evidence: the training mean meets it too"
+    return str(c["verdict"])
+
+
 def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
-    """claims.csv as a table: each claim once per pad and CV scheme, our statistic, p and verdict.
+    """claims.csv as a table: each claim once per pad and CV scheme, our statistic, p, margin and verdict.
 
     The paper's own figure for a claim is shown only where the study's design is the paper's (``paper_pads``:
     the pads that qualify; None: all).
@@ -410,18 +419,23 @@ def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
         allowed = paper_pads is None or (bool(paper_pads) and pads <= set(paper_pads))
         p = "—" if pd.isna(c["p"]) else f"{c['p']:.2g}"
         statistic = "—" if pd.isna(c["statistic"]) else f"{c['statistic']:.3g}"
+        margin = c.get("equivalence_margin", float("nan"))
+        tost = "—" if pd.isna(margin) else f"±{margin:.3g}" + (
+            "" if pd.isna(c["equivalence_p"]) else f" (TOST p {c['equivalence_p']:.2g})")
         rows.append([_cell(c["claim"]), _cell(c["pad"] or "—"), _cell(str(c["cv"]).upper() if c["cv"] != "none" else "—"),
-                     _cell(statistic), _cell(p), _cell(c["verdict"]),
+                     _cell(statistic), _cell(p), _cell(tost), _cell(_verdict_text(c)),
                      _cell(c["detail"] or "", (c["paper"] or None) if allowed else None),
                      _cell(c["basis"])])
     return {
         "title": "The paper's claims, checked",
         "caption": ("Each claim of the paper's Results, Discussion and Conclusions (Tables 1-6), tested on this study "
-                    "under LOO (the paper's protocol) and nested LOSO. Verdict: reproduced / not reproduced by the rule in "
-                    "claims.csv (p < 0.05 where a test applies; descriptive claims have no p), or not testable on this "
-                    "study's data. The paper's own figure is beneath the detail. Basis: whether a result is a finding or a "
-                    "property the simulator was given."),
-        "columns": ["Claim", "Pad", "CV", "Statistic", "p", "Verdict", "Detail", "Basis"],
+                    "under LOO (the paper's protocol) and nested LOSO, on the paper's PLS model. p is after the claim's "
+                    "stated correction (claims.csv: correction); descriptive claims have no p. Equivalence: the margin "
+                    "a claim of no difference or of flatness must be shown to lie within (TOST p). The verdict follows "
+                    "the rule above; claims.csv holds every column it reads (rests_on, premise_passes, failed_controls, "
+                    "holds, equivalence_margin, equivalence_p, null_meets, alpha). The paper's own figure is beneath the "
+                    "detail. Basis: whether a result is a finding or a property the simulator was given."),
+        "columns": ["Claim", "Pad", "CV", "Statistic", "p", "Equivalence", "Verdict", "Detail", "Basis"],
         "rows": rows,
         "css": "text",
     }

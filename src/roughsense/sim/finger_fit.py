@@ -6,6 +6,9 @@ values and prints the constants committed in ``finger.py``; the tests run the le
 Free parameters: the receptor depth (searched over the SA1 range 0.5-1.0 mm), the saturation strain (searched on
 a log grid over 3-30 %) and the psychophysical exponent (least squares in logs, through R3 = 1, in closed form).
 The contact does not depend on any of them, so it is solved once per specimen and the grid search is cheap.
+
+The yardstick is :func:`geometric_leave_one_out`, a two-parameter law with no mechanics at all: on the paper's
+gratings the finger has to beat it to show that its mechanics add anything (docs/simulator.md: it does not).
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import nnls
-from scipy.stats import spearmanr
+from scipy.stats import spearmanr, wilcoxon
 
 from ..paper import REFERENCE_SPECIMEN
 from .finger import FINGER, Finger, _median_variance, contact_pressures, sa1_rate, subsurface_strain
@@ -43,7 +46,7 @@ class Validation:
     names: tuple[str, ...]
     predicted: np.ndarray  # magnitude estimates (R3 = 1)
     observed: np.ndarray
-    folds: tuple[Fit, ...]
+    folds: tuple  # the fit of each fold: a Fit for the finger, (b, c) for the geometric law
 
     @property
     def abs_log_errors(self) -> np.ndarray:
@@ -126,3 +129,34 @@ def fit_spread(log_ratios: Sequence[float], sd_over_gmean: Sequence[float], expo
     per_rating = c0 / ((1 - SESSION_SHARE) + SESSION_SHARE * _median_variance(sessions))
     return (math.sqrt((1 - SESSION_SHARE) * per_rating), math.sqrt(c1) / exponent,
             math.sqrt(SESSION_SHARE * per_rating))
+
+
+def geometric_features(specimens: Sequence[Specimen]) -> np.ndarray:
+    """[log(period / 3 mm), 1 if circular]: the geometric law's inputs, both 0 for the reference R3."""
+    period = PRESETS[REFERENCE_SPECIMEN].wavelength_mm
+    return np.column_stack([np.log([s.wavelength_mm / period for s in specimens]),
+                            [float(s.shape == "circular") for s in specimens]])
+
+
+def geometric_leave_one_out(specimens: Sequence[Specimen], ratings: Sequence[float]) -> Validation:
+    """The finger's yardstick: log rating = b log(period / 3 mm) + c [circular], refitted without each specimen.
+
+    Two parameters, least squares in logs, through R3 = 1 like the finger's exponent; it knows a grating's period
+    and family and nothing of skin, depth or force.
+    """
+    y = _targets(specimens, ratings)
+    x = geometric_features(specimens)
+    predicted, folds = np.empty(len(y)), []
+    for k in range(len(y)):
+        use = np.arange(len(y)) != k
+        coef = np.linalg.lstsq(x[use], y[use], rcond=None)[0]
+        folds.append((float(coef[0]), float(coef[1])))
+        predicted[k] = math.exp(float(x[k] @ coef))
+    return Validation(tuple(s.name for s in specimens), predicted, np.exp(y), tuple(folds))
+
+
+def paired_p(a: Validation, b: Validation) -> float:
+    """Two-sided exact Wilcoxon signed-rank p of the paired |log errors| of two validations of the same specimens."""
+    if a.names != b.names:
+        raise ValueError("the two validations must hold the same specimens in the same order")
+    return float(wilcoxon(a.abs_log_errors, b.abs_log_errors, method="exact").pvalue)
