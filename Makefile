@@ -27,8 +27,10 @@ lint: $(STAMP)
 bench: $(STAMP)
 	for script in benchmarks/bench_*.py; do $(BIN)/python $$script || exit 1; done
 
+# Quiet when it works (the line naming the wheel and sdist); the whole build log when it does not.
 dist: $(STAMP)
-	$(BIN)/python -m build --outdir dist
+	@log=$$(mktemp) && if $(BIN)/python -m build --outdir dist . >$$log 2>&1; then tail -n 1 $$log; rm -f $$log; \
+	else cat $$log; rm -f $$log; exit 1; fi
 
 samples: $(STAMP)
 	$(BIN)/python scripts/make_samples.py

@@ -1,4 +1,5 @@
-"""Write examples/my-study/: a tiny study folder laid out as a user lays out their own (run once; committed).
+"""Write src/roughsense/data/examples/my-study/: a tiny study folder laid out as a user lays out their own (run once;
+committed; shipped in the package, and `roughsense example my-study` copies it out).
 
 The images come from roughsense's digital twin -- they are NOT real sensor data -- downscaled 4x with area
 averaging, cut to a 40-row strip around the contact band and saved as JPEG, as if taken by a camera of
@@ -19,7 +20,7 @@ import pandas as pd
 
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "my-study"
+EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "roughsense" / "data" / "examples" / "my-study"
 SPECIMENS = ("R2", "R3", "R4", "R5", "C3")
 DOWNSCALE = 4
 STRIP_ROWS = 40

@@ -34,13 +34,13 @@ middle of a dark, flat frame. The scale is the paper's, 34.9 px/mm (the default 
 
 Only synthetic_grating_3mm_gray8_1920x1080.png is a full 1920x1080 frame, so only it works with the
 default --roi center (1900 x 150 px centred). The others are smaller, so use --roi auto (the 150-row
-band with the strongest horizontal texture, full width) or an explicit --roi X,Y,W,H. From the
-repository's root, this reads all five:
+band with the strongest horizontal texture, full width) or an explicit --roi X,Y,W,H. These copy
+them out of the installed package (into ./samples) and read all five:
 
-    roughsense features --roi auto --out features.csv src/roughsense/data/samples/synthetic_grating_*
+    roughsense example samples --out samples
+    roughsense features --roi auto --out features.csv samples/synthetic_grating_*
 
-(In an installed package, this folder is printed by
-    python -c "from importlib.resources import files; print(files('roughsense.data') / 'samples')")
+(In a clone they are also in src/roughsense/data/samples/.)
 
 Formats covered: PNG 8-bit gray, PNG 16-bit RGB, JPEG 8-bit RGB, TIFF 16-bit gray, BMP 8-bit gray.
 """

@@ -26,7 +26,7 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "src" / "roughsense"
 MAX_FUNCTION_LINES = 60
 LEGACY = Path(__file__).parent / "data" / "legacy_models"
-EXAMPLE_STUDY = REPO / "examples" / "my-study"
+EXAMPLE_STUDY = PACKAGE / "data" / "examples" / "my-study"
 
 
 def _modules() -> list[Path]:
@@ -116,7 +116,7 @@ def test_the_public_api_of_earlier_releases_still_imports():
 
 @pytest.mark.parametrize("condition", ["2N", "combined"])
 def test_model_files_saved_before_the_redesign_predict_the_same(condition):
-    """Files written by roughsense 0.1.0 before the package moved (fit on examples/my-study) score alike today."""
+    """Files written by roughsense 0.1.0 before the package moved (fit on the example my-study) score alike today."""
     from roughsense.io.study import read_study
     from roughsense.model.modelfile import load_model
     from roughsense.model.predict import groups_from_study, score_images

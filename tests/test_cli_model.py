@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -10,7 +11,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+import roughsense
 from roughsense import SIMPLS, pls_cv
+from roughsense._util.text import counted
 from roughsense.analysis import dataset
 from roughsense.errors import InputError
 from roughsense.io.study import read_study
@@ -46,7 +49,7 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     X, y, _ = data("2N")
     expected = pls_cv(X, y, max_components=6, cv="loo")
     k = expected.best_n_components
-    assert f"chosen: {k} components" in stdout
+    assert f"chosen: {counted(k, 'component')} (" in stdout
     for rmse in expected.rmse:  # the curve is printed
         assert f"{rmse:.5f}" in stdout
     document = json.loads(out.read_text())
@@ -82,7 +85,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     X, y, meta = data("combined")
     assert X.shape == (18, 135)
     expected = pls_cv(X, y, max_components=5, groups=meta["specimen"].to_numpy())
-    assert f"chosen: {expected.best_n_components} components" in stdout
+    assert f"chosen: {counted(expected.best_n_components, 'component')} (" in stdout
     assert "leave-one-group-out" in stdout
     trials = [[study_dir / meta[f"image_{f}"][i] for f in ("1N", "2N", "3N")] for i in (0, 7)]
     pred = tmp_path / "p.csv"
@@ -210,7 +213,7 @@ def test_one_se_rule(run_cli, study_dir, data, tmp_path):
     assert code == 0, err
     X, y, meta = data("3N")
     expected = pls_cv(X, y, max_components=6, groups=meta["specimen"].to_numpy())
-    assert f"chosen: {expected.one_se_n_components} components" in stdout
+    assert f"chosen: {counted(expected.one_se_n_components, 'component')} (" in stdout
     document = json.loads(out.read_text())
     assert document["model"]["n_components"] == expected.one_se_n_components
     assert document["training"]["rule"] == "1se" and document["training"]["cv"] == "loso"
@@ -368,7 +371,7 @@ def test_fit_peak_law_writes_the_law_fitted_in_python(run_cli, study_dir, data, 
     order = meta.sort_values(["specimen", "repetition"]).index.to_numpy()
     np.testing.assert_allclose(table["roughness"], law.predict(X[order]), rtol=1e-12)
     assert table.columns[-1] == "extrapolates" and not table["extrapolates"].any()
-    assert f"0 of {len(table)} prediction(s) extrapolate" in stdout
+    assert f"0 of {len(table)} predictions extrapolate (all within the training range)" in stdout
 
 
 def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, tmp_path):
@@ -390,7 +393,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table["extrapolates"]) == [False, True]
-    assert ("1 of 2 prediction(s) extrapolate: features outside the training range; the prediction is held at the "
+    assert ("1 of 2 predictions extrapolates: features outside the training range; the prediction is held at the "
             "edge of what the model saw") in stdout
     X, y, _ = data("1N")
     law = PeakPowerLaw(freq_per_mm=grid_per_mm()).fit(X, y)
@@ -436,3 +439,152 @@ def test_live_mode_counts_the_frames_that_extrapolate(run_cli, study_dir, tmp_pa
     assert code == 0, err
     assert "3 update(s)" in out
     assert "2 frame(s) extrapolated: features outside the training range" in out
+
+
+# --------------------------------------------------------------------------- images the model's crop or scale does not fit
+
+
+SAMPLES = sorted((Path(roughsense.__file__).parent / "data" / "samples").glob("synthetic_grating_*"))
+
+
+@pytest.fixture(scope="module")
+def paper_scale_study(tmp_path_factory):
+    """A small simulated study read as ``builtin`` is: the paper's 34.9 px/mm and centred 1900x150 crop."""
+    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=7, participants=3,
+                              sessions=2)
+    return simulate_study(tmp_path_factory.mktemp("paper-scale") / "study", with_image_size(config, 1920, 170), jobs=1)
+
+
+def test_every_shipped_sample_scores_with_roi_auto(run_cli, paper_scale_study, tmp_path):
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    assert len(SAMPLES) == 5
+    model = tmp_path / "m.json"
+    assert run_cli("fit", "--study", paper_scale_study, "--pad", "smooth", "--condition", "2N", "--max-components", "2",
+                   "--out", model)[0] == 0
+    document = json.loads(model.read_text())
+    assert document["features"]["spectrum"]["roi"] == "center" and document["features"]["spectrum"]["px_per_mm"] == 34.9
+    small = next(p for p in SAMPLES if "2.5mm" in p.name)  # 640x200: the model's 1900x150 crop does not fit
+    code, _, err = run_cli("predict", model, small)
+    _one_line(code, err, small.name, "--roi auto")
+    pred = tmp_path / "p.csv"
+    code, _, err = run_cli("predict", model, "--roi", "auto", *SAMPLES, "--out", pred)
+    assert code == 0, err
+    table = pd.read_csv(pred)
+    assert list(table["image"]) == [str(p) for p in SAMPLES] and set(table["roi"]) == {"auto"}
+    assert np.isfinite(table["roughness"]).all()
+    # the model's own spectrum (34.9 px/mm, its band), read at each sample's most textured band
+    study = read_study(paper_scale_study)
+    X, meta = dataset.condition_matrix(dataset.study_features(study), "smooth", "2N")
+    y = dataset.targets(meta, dataset.perceived_roughness(study))
+    spectra = SpatialSpectrum(px_per_mm=34.9, roi="auto").fit().transform(SAMPLES)
+    expected = SIMPLS(document["model"]["n_components"]).fit(X, y).predict(spectra)
+    np.testing.assert_allclose(table["roughness"], expected, rtol=1e-12)
+
+
+def test_fit_roi_replaces_the_study_roi_in_the_model(run_cli, study_dir, tmp_path):
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    model = tmp_path / "m.json"
+    code, stdout, err = fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3", "--roi", "AUTO")
+    assert code == 0, err
+    assert "line read at --roi auto (the study's [sensor] roi: 0,16,600,32)" in stdout
+    document = json.loads(model.read_text())
+    assert document["features"]["spectrum"]["roi"] == "auto" and document["training"]["study_roi"] == [0, 16, 600, 32]
+    study = read_study(study_dir)
+    spectrum = SpatialSpectrum(px_per_mm=20.0, roi="auto").fit()
+    X, meta = dataset.condition_matrix(dataset.study_features(study, spectrum=spectrum), "fingerprint", "1N")
+    y = dataset.targets(meta, dataset.perceived_roughness(study))
+    assert document["training"]["cv_rmse"] == pytest.approx(pls_cv(X, y, max_components=3).rmse.tolist(), rel=1e-12)
+    code, _, err = run_cli("predict", model, study_dir / meta["image"][4], "--out", tmp_path / "p.csv")
+    assert code == 0, err  # predict reads the line where the model says: auto
+    k = document["model"]["n_components"]
+    assert pd.read_csv(tmp_path / "p.csv")["roughness"][0] == pytest.approx(SIMPLS(k).fit(X, y).predict(X[4:5])[0],
+                                                                            rel=1e-12)
+    code, _, err = fit(run_cli, study_dir, tmp_path / "bad.json", "--condition", "1N", "--roi", "1,2,3")
+    _one_line(code, err, "--roi", "X,Y,W,H")
+    assert not (tmp_path / "bad.json").exists()
+
+
+def _grating_at(px_per_mm: float, wavelength_mm: float, width_px: int, path):
+    """A clean grating of ``wavelength_mm`` drawn at ``px_per_mm`` (as another camera would see the surface)."""
+    import cv2
+
+    x_mm = np.arange(width_px) / px_per_mm
+    line = 0.5 + 0.2 * np.sign(np.sin(2 * np.pi * x_mm / wavelength_mm + 0.3))
+    assert cv2.imwrite(str(path), np.round(255 * np.tile(line, (64, 1))).astype(np.uint8))
+    return path
+
+
+def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, tmp_path):
+    from roughsense.model.modelfile import load_model
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    model = tmp_path / "m.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3")[0] == 0  # 20 px/mm, 600 px
+    at_20 = _grating_at(20.0, 2.0, 600, tmp_path / "at20.png")
+    at_40 = _grating_at(40.0, 2.0, 1200, tmp_path / "at40.png")  # the same surface, twice the resolution
+    code, _, err = run_cli("predict", model, at_20, "--out", tmp_path / "a.csv")
+    assert code == 0, err
+    code, stdout, err = run_cli("predict", model, at_40, "--px-per-mm", "40", "--roi", "0,16,1200,32",
+                                "--out", tmp_path / "b.csv")
+    assert code == 0, err
+    native, scaled = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
+    assert list(scaled.columns[-4:]) == ["roi", "px_per_mm", "roughness", "extrapolates"]
+    assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0
+    loaded = load_model(model)
+    line_at_40 = SpatialSpectrum(px_per_mm=40.0, roi=(0, 16, 1200, 32)).fit().transform([at_40])
+    assert scaled["roughness"][0] == pytest.approx(loaded.predict(line_at_40)[0], rel=1e-12)
+    # in mm^-1 the two cameras see one spectrum, so one roughness; read at the model's 20 px/mm it looks 4 mm
+    assert scaled["roughness"][0] == pytest.approx(native["roughness"][0], rel=0.02)
+    code, _, err = run_cli("predict", model, at_40, "--roi", "0,16,1200,32", "--out", tmp_path / "c.csv")
+    assert code == 0, err
+    assert abs(pd.read_csv(tmp_path / "c.csv")["roughness"][0] - native["roughness"][0]) > 0.2
+    # scales at which the model's band cannot be measured
+    code, _, err = run_cli("predict", model, at_20, "--px-per-mm", "1.5")
+    _one_line(code, err, "--px-per-mm 1.5", "Nyquist frequency 0.75 mm^-1")
+    code, _, err = run_cli("predict", model, at_20, "--px-per-mm", "100", "--roi", "auto")
+    _one_line(code, err, "at20.png", "6 mm long (600 px at 100 px/mm), shorter than 1/f_min = 10 mm")
+    code, _, err = run_cli("predict", model, at_20, "--px-per-mm", "-2")
+    _one_line(code, err, "--px-per-mm must be a positive number")
+
+
+@pytest.mark.parametrize(("typed", "stored"), [("2n", "2N"), (" 2N ", "2N"), ("Combined", "combined")])
+def test_fit_condition_ignores_case(run_cli, study_dir, tmp_path, typed, stored):
+    out = tmp_path / "m.json"
+    code, stdout, err = fit(run_cli, study_dir, out, "--condition", typed, "--max-components", "2")
+    assert code == 0, err
+    document = json.loads(out.read_text())
+    assert document["training"]["condition"] == stored and f"pad fingerprint, {stored}, " in stdout
+    forces = ["1N", "2N", "3N"] if stored == "combined" else [stored]
+    assert document["features"]["conditions"] == forces
+
+
+def test_counts_agree_with_their_nouns(run_cli, study_dir, tmp_path):
+    code, stdout, err = fit(run_cli, study_dir, tmp_path / "m.json", "--condition", "1N", "--max-components", "1")
+    assert code == 0, err
+    chosen = json.loads((tmp_path / "m.json").read_text())["model"]["n_components"]
+    assert chosen == 1 and "chosen: 1 component (" in stdout and "1 components" not in stdout
+    image = next((study_dir / "images").glob("*_1N_1.png"))
+    code, stdout, err = run_cli("predict", tmp_path / "m.json", image, "--out", tmp_path / "p.csv")
+    assert code == 0 and "wrote 1 prediction to" in stdout
+    assert [counted(n, "specimen") for n in (0, 1, 2)] == ["0 specimens", "1 specimen", "2 specimens"]
+
+
+def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monkeypatch):
+    model = tmp_path / "c.json"
+    assert fit(run_cli, study_dir, model, "--condition", "combined", "--max-components", "2")[0] == 0
+    monkeypatch.setenv("COLUMNS", "80")
+    code, stdout, err = run_cli("predict", model, "--study", study_dir)
+    assert code == 0, err
+    lines = stdout.splitlines()
+    assert max(len(line) for line in lines) <= 80, stdout
+    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in lines[0]
+    code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    table = pd.read_csv(tmp_path / "p.csv")  # every value the terminal shows, row by row
+    rows = [line.split() for line in lines[2:]]
+    assert [r[:2] for r in rows] == [[s, str(r)] for s, r in zip(table["specimen"], table["repetition"])]
+    assert [float(r[2]) for r in rows] == pytest.approx(list(table["roughness"]), rel=1e-5)

@@ -152,3 +152,25 @@ def test_extra_fields_through_the_cli(tmp_path, run_cli):
     assert (tmp_path / "commas_summary.csv").read_bytes() == (tmp_path / "plain_summary.csv").read_bytes()
     summary = pd.read_csv(tmp_path / "commas_summary.csv").set_index("specimen")
     assert summary.loc["C2", "gmean"] == pytest.approx(np.sqrt(1.5 * 1.1), rel=1e-12)
+
+
+def test_ratings_reads_european_excel_with_one_warning_and_hints_a_case_slip(tmp_path, run_cli):
+    """Issue 21: ';' with decimal commas is read (one warning line); 'r2' for R2 is refused with a hint."""
+    plain, euro = tmp_path / "plain.csv", tmp_path / "euro.csv"
+    plain.write_text(GOOD)
+    euro.write_bytes("\ufeff".encode() + GOOD.replace(",", ";").replace(".", ",").replace("\n", "\r\n").encode())
+    assert run_cli("ratings", plain, "--out", tmp_path / "plain_summary.csv")[0] == 0
+    code, _, err = run_cli("ratings", euro, "--out", tmp_path / "euro_summary.csv")
+    assert code == 0
+    assert err == (f"roughsense: warning: {euro}: read as semicolon-separated with decimal commas "
+                   "(as European Excel saves it)\n")
+    assert (tmp_path / "euro_summary.csv").read_bytes() == (tmp_path / "plain_summary.csv").read_bytes()
+
+    slip = tmp_path / "slip.csv"
+    slip.write_text(GOOD + "P3,1,r2,1.5\n")
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,3\nC2,circular,2\n")
+    code, _, err = run_cli("ratings", slip, "--specimens", specimens, "--out", tmp_path / "s.csv")
+    assert code == 2
+    assert err == (f"roughsense: error: {slip}, row 6, column 'specimen': unknown specimen 'r2' "
+                   "(expected one of C2, R2, R3; did you mean 'R2'?)\n")

@@ -619,3 +619,24 @@ def test_docs_quote_the_verdict_the_rule_gives_for_each_quoted_interval():
         else:
             assert verdict.strip() == f"undetermined within ±{max(abs(low), abs(high)):.3f}"
     assert "undetermined within ±0.075" in section and "as good as" not in section.replace('"as good as"', "")
+
+
+def test_a_sweep_with_every_cell_finished_starts_no_cluster(tmp_path, monkeypatch, run_cli):
+    """Rerunning a finished sweep only rewrites its report: no Dask cluster (seconds to start) for nothing."""
+    from roughsense.explore import runner
+
+    path = _sweep_file(tmp_path, TINY.replace("seeds = [0, 1]", "seeds = [0]"))
+    sweep = read_sweep(path)
+    store = ResultStore(tmp_path / "out", sweep)
+    store.prepare()
+    for cell in sweep.cells:  # computed in this process, as a first run's workers would have
+        store.write_cell(*explore_cell.cell_rows(cell), cell.id)
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started for a sweep with nothing left to run")
+
+    monkeypatch.setattr(runner, "connect", no_cluster)
+    started = time.perf_counter()
+    code, out, err = run_cli("explore", path, "--out", tmp_path / "out")
+    assert (code, err) == (0, "") and "0 cells computed, 1 already finished" in out
+    assert time.perf_counter() - started < 10  # the report only (about 1 s); a LocalCluster alone takes longer

@@ -577,3 +577,45 @@ def test_a_hostile_sweep_file_is_one_line(run_cli, tmp_path, text, message):
     sweep.write_text(text)
     line = one_error(*run_cli("explore", sweep, "--out", tmp_path / "out")[::2])
     assert message in line and not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------- 7. European Excel (issue 21, item 2)
+
+
+def test_a_simulated_study_saved_by_european_excel_reads_the_same(sandbox, tmp_path):
+    """BOM, ';' between cells, decimal commas and CRLF in all three CSVs: the same study, one warning per file."""
+    import warnings
+
+    from roughsense.errors import RoughsenseWarning
+
+    reference = read_study(sandbox)
+    euro = shutil.copytree(sandbox, tmp_path / "euro")
+    for name in ("specimens.csv", "manifest.csv", "ratings.csv"):
+        frame = pd.read_csv(euro / name, dtype=str, keep_default_na=False)
+        names = {"image", "specimen", "pad", "participant", "session", "shape"}
+        for column in set(frame.columns) - names:
+            frame[column] = frame[column].str.replace(".", ",", regex=False)
+        text = frame.to_csv(index=False, sep=";", lineterminator="\r\n")
+        assert "," in text or name == "specimens.csv"
+        (euro / name).write_bytes("\ufeff".encode() + text.encode())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        study = read_study(euro)
+    assert sorted(str(w.message).split(": ", 1)[1] for w in caught if issubclass(w.category, RoughsenseWarning)) == [
+        "read as semicolon-separated with decimal commas (as European Excel saves it)"] * 3
+    for ours, theirs in ((study.specimens, reference.specimens), (study.manifest, reference.manifest),
+                         (study.ratings, reference.ratings)):
+        pd.testing.assert_frame_equal(ours, theirs)
+    assert study.manifest["force_n"].between(0.5, 3.5).all() and not study.manifest["force_n"].eq(0).any()
+
+
+def test_the_issue_examples_now_say_what_to_do(run_cli, sandbox, tmp_path):
+    """The two messages quoted in issue 21 (a semicolon header mixed with commas; a decimal comma in a comma file)."""
+    (sandbox / "specimens.csv").write_bytes("\ufeffspecimen;shape;wavelength_mm,x\nR2;rectangular;2,1\n".encode())
+    line = one_error(*run_cli(*study_args(sandbox, tmp_path / "r"))[::2])
+    assert "found specimen;shape;wavelength_mm, x; the header mixes ',' and ';' separators" in line
+    assert "CSV UTF-8 (comma delimited)" in line
+    (sandbox / "specimens.csv").write_bytes("\ufeffspecimen,shape,wavelength_mm\nR2,rectangular,0,5\n".encode())
+    line = one_error(*run_cli(*study_args(sandbox, tmp_path / "r"))[::2])
+    assert line.endswith("row 2: 4 fields but the header has 3 (extra value '5'); a decimal comma? "
+                         "write numbers with a point (0.5, not 0,5)")

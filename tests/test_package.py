@@ -1,5 +1,6 @@
-"""The package as a user receives it: ``python -m build`` makes a wheel and an sdist, both install into a clean
-venv with the report template, the paper's tables and the sample images, and ``roughsense --version`` works there.
+"""The package as a user receives it: ``make dist`` makes a wheel and an sdist (saying so in a line, not hundreds),
+both install into a clean venv with the report template, the paper's tables, the sample images and the examples, and
+``roughsense --version`` and ``roughsense example`` work there, away from any checkout.
 
 Marked ``package`` (and slow): it installs every dependency into a fresh venv (from the registry or its mirror,
 through pip's own cache), so ``make test`` leaves it out and CI runs it as its own step (``.ci/run``).
@@ -30,8 +31,13 @@ DATA = [
     "roughsense/data/paper/perceived_roughness.csv",
     "roughsense/data/samples/README.txt",
     "roughsense/data/samples/synthetic_grating_3mm_gray8_1920x1080.png",
+    "roughsense/data/examples/my-study/study.toml",
+    "roughsense/data/examples/my-study/manifest.csv",
+    "roughsense/data/examples/tiny.toml",
+    "roughsense/data/examples/paper_questions.toml",
 ]
 SAMPLES = 5
+EXAMPLE_IMAGES = 30  # my-study/images
 _ANYWHERE = shutil.ignore_patterns(".git", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis")
 _AT_TOP = {".venv", "build", "dist", "report", ".cache"}  # a checkout's outputs (src/roughsense/report is code)
 
@@ -49,11 +55,17 @@ def _run(args, **kwargs) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def dist(tmp_path_factory) -> dict[str, Path]:
-    """Build from a clean copy, so a stale build/ folder in the checkout can never leak into the wheel."""
+    """``make dist`` in a clean copy, so a stale build/ folder in the checkout can never leak into the wheel.
+
+    The copy has no .venv: make is pointed at this interpreter's, with a fresh stamp so it installs nothing.
+    """
     tmp = tmp_path_factory.mktemp("package")
     source = shutil.copytree(ROOT, tmp / "source", ignore=_junk)
-    _run([sys.executable, "-m", "build", "--outdir", tmp / "dist", source])
-    wheels, sdists = list((tmp / "dist").glob("*.whl")), list((tmp / "dist").glob("*.tar.gz"))
+    (tmp / "stamp").touch()
+    made = _run(["make", "dist", f"BIN={Path(sys.executable).parent}", f"STAMP={tmp / 'stamp'}"], cwd=source)
+    lines = (made.stdout + made.stderr).strip().splitlines()
+    assert len(lines) <= 3 and "roughsense" in lines[-1], lines[:20]  # not the build's 545-line log
+    wheels, sdists = list((source / "dist").glob("*.whl")), list((source / "dist").glob("*.tar.gz"))
     assert len(wheels) == 1 and len(sdists) == 1
     return {"wheel": wheels[0], "sdist": sdists[0], "tmp": tmp}
 
@@ -76,6 +88,7 @@ def test_the_wheel_holds_the_data_and_the_entry_point(dist):
     names = set(zipfile.ZipFile(dist["wheel"]).namelist())
     assert set(DATA) <= names
     assert sum(n.startswith("roughsense/data/samples/synthetic_grating_") for n in names) == SAMPLES
+    assert sum(n.startswith("roughsense/data/examples/my-study/images/") for n in names) == EXAMPLE_IMAGES
     entry_points = zipfile.ZipFile(dist["wheel"]).read(f"roughsense-{VERSION}.dist-info/entry_points.txt").decode()
     assert "roughsense = roughsense.cli:run" in entry_points
     assert not any("/tests/" in n or n.startswith(("tests/", "build/")) for n in names)
@@ -86,8 +99,7 @@ def test_the_sdist_holds_the_sources_docs_tests_and_example(dist):
     with tarfile.open(dist["sdist"]) as sdist:
         names = {n.removeprefix(prefix) for n in sdist.getnames()}
     expected = {"pyproject.toml", "README.md", "LICENSE", "Makefile", "docs/tutorial.md", "tests/test_tutorial.py",
-                "examples/my-study/study.toml", "examples/my-study/manifest.csv", "scripts/make_example_study.py",
-                *(f"src/{d}" for d in DATA)}
+                "scripts/make_example_study.py", *(f"src/{d}" for d in DATA)}
     assert expected <= names, sorted(expected - names)
     assert not any("__pycache__" in n for n in names)
 
@@ -112,12 +124,23 @@ def _check_installed(env_dir: Path, work: Path) -> None:
     assert len((work / "features.csv").read_text().splitlines()) == SAMPLES + 1
 
 
+def _example_from_the_installed_package(bin_dir: Path, tmp_path: Path, env: dict) -> Path:
+    """The tutorial's first step away from a clone: the shipped study folder, copied out of the installed package."""
+    _run([bin_dir / "roughsense", "example", "my-study", "--out", "my-study"], cwd=tmp_path, env=env)
+    study = tmp_path / "my-study"
+    assert len(list((study / "images").glob("*.jpg"))) == EXAMPLE_IMAGES and (study / "study.toml").is_file()
+    again = subprocess.run([bin_dir / "roughsense", "example", "my-study", "--out", "my-study"], cwd=tmp_path,
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert again.returncode == 2 and "--force" in again.stderr and len(again.stderr.strip().splitlines()) == 1
+    return study
+
+
 def test_the_wheel_installs_and_runs_in_a_clean_venv(clean_venv, dist, tmp_path):
     _check_installed(clean_venv, tmp_path / "wheel")
     # The report renders from the installed template, with the paper's published values from the installed tables.
-    study = shutil.copytree(ROOT / "examples" / "my-study", tmp_path / "my-study")
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROUGHSENSE_DEBUG")}
     env["ROUGHSENSE_CACHE_DIR"] = str(tmp_path / "cache")
+    study = _example_from_the_installed_package(clean_venv / "bin", tmp_path, env)
     _run([clean_venv / "bin" / "roughsense", "study", "--data", study, "--out", tmp_path / "report",
           "--max-components", "2", "--no-loso"], cwd=tmp_path, env=env)
     html = (tmp_path / "report" / "index.html").read_text()

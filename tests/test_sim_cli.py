@@ -12,7 +12,7 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
                                 "--forces", "1", "--repetitions", "1", "--seed", "5", "--jobs", "1",
                                 "--fingerprint-period-mm", "0.5")
     assert code == 0, err
-    assert "wrote 1 images" in stdout
+    assert "wrote 1 image, 1 specimen" in stdout
     study = read_study(out)
     assert list(study.manifest["image"]) == ["images/fingerprint_C3_1N_r01.png"]
     assert study.extra["simulation"]["fingerprint_period_mm"] == 0.5

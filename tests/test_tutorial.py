@@ -1,13 +1,16 @@
-"""docs/tutorial.md cannot rot: every fenced ``sh`` block runs, in order, in a fresh folder.
+"""docs/tutorial.md cannot rot: every fenced ``sh`` block runs, in order, as one shell session would run them, twice.
 
-The folder holds copies of examples/ and the shipped samples at their repository paths; ``roughsense`` on PATH is
-a shim for the interpreter running the tests, so the tutorial runs against this checkout's code.
+It starts in a folder standing in for the clone, with HOME a fresh folder, and each block starts where the one
+before it left off (the tutorial's ``cd`` into its scratch folder carries over). ``roughsense`` on PATH is a shim for
+the interpreter running the tests, so the tutorial runs against this checkout's code, and everything it reads comes
+out of the package (``roughsense example``), as it would from a wheel. The second run proves every step re-runnable;
+the clone stand-in must stay empty; the report sections the tutorial lists and the numbers it quotes are the run's.
 """
 from __future__ import annotations
 
+import html
 import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +23,7 @@ import roughsense
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
+SCRATCH = "roughsense-tutorial"  # the folder the tutorial names, under HOME
 
 
 def blocks(kind: str) -> list[str]:
@@ -38,18 +42,19 @@ def test_every_fenced_block_is_sh_or_text():
     assert {lang for lang, _ in FENCE.findall(TUTORIAL.read_text())} == {"sh", "text"}
 
 
-@pytest.mark.slow
-def test_every_sh_block_runs(tmp_path):
-    work = tmp_path / "work"
-    shutil.copytree(ROOT / "examples", work / "examples")
-    samples = Path(roughsense.__file__).parent / "data" / "samples"
-    shutil.copytree(samples, work / "src" / "roughsense" / "data" / "samples")
+def test_the_tutorial_moves_to_its_scratch_folder_before_writing_anything():
+    first = blocks("sh")[0].splitlines()[0]
+    assert first == f"mkdir -p ~/{SCRATCH} && cd ~/{SCRATCH}", first
+
+
+def _environment(tmp_path: Path) -> dict[str, str]:
     shim = tmp_path / "bin" / "roughsense"
     shim.parent.mkdir()
     shim.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m roughsense.cli "$@"\n')
     shim.chmod(0o755)
     env = {
         **os.environ,
+        "HOME": str(tmp_path / "home"),
         "PATH": f"{shim.parent}{os.pathsep}{os.environ.get('PATH', '')}",
         "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(roughsense.__file__).parents[1]),
                                                      os.environ.get("PYTHONPATH")])),
@@ -57,13 +62,41 @@ def test_every_sh_block_runs(tmp_path):
         "COLUMNS": "80",
     }
     env.pop("ROUGHSENSE_DEBUG", None)
+    (tmp_path / "home").mkdir()
+    return env
+
+
+def _run_tutorial(start: Path, env: dict[str, str], state: Path) -> Path:
+    """Every sh block in order, each starting in the folder the one before it ended in; returns the last folder."""
+    cwd = start
+    for body in blocks("sh"):
+        script = f'{body}\npwd > "{state}"\n'
+        result = subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=cwd, env=env,
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, f"tutorial block failed in {cwd}:\n{body}\n--- stderr:\n{result.stderr}"
+        cwd = Path(state.read_text().strip())
+    return cwd
+
+
+@pytest.fixture(scope="module")
+def tutorial_run(tmp_path_factory) -> Path:
+    """The tutorial run twice from a stand-in clone; the scratch folder it worked in."""
+    tmp = tmp_path_factory.mktemp("tutorial")
+    env = _environment(tmp)
+    clone = tmp / "clone"
+    clone.mkdir()
     commands = blocks("sh")
     assert len(commands) >= 10
-    for body in commands:
-        result = subprocess.run(["bash", "-euo", "pipefail", "-c", body], cwd=work, env=env,
-                                capture_output=True, text=True, timeout=300)
-        assert result.returncode == 0, f"tutorial block failed:\n{body}\n--- stderr:\n{result.stderr}"
-    # What the tutorial says its commands leave behind.
+    first = _run_tutorial(clone, env, tmp / "pwd")
+    second = _run_tutorial(clone, env, tmp / "pwd")  # every step again, as it stands: nothing refuses its own output
+    assert first == second == tmp / "home" / SCRATCH
+    assert list(clone.iterdir()) == [], "the tutorial wrote into the folder it was started from (the clone)"
+    return first
+
+
+@pytest.mark.slow
+def test_every_sh_block_runs_twice_and_leaves_what_it_says(tutorial_run):
+    work = tutorial_run
     assert len(pd.read_csv(work / "sample-features.csv")) == 5
     report = work / "my-report"
     assert (report / "index.html").is_file()
@@ -71,6 +104,55 @@ def test_every_sh_block_runs(tmp_path):
     assert set(results["specimen"]) == {"R2", "R3", "R4", "R5", "C3"} and set(results["pad"]) == {"fingerprint"}
     prediction = pd.read_csv(work / "my-prediction.csv")
     assert len(prediction) == 1 and prediction["roughness"].between(0.0, 5.0).all()
+
+
+def _section(title_start: str) -> str:
+    text = TUTORIAL.read_text()
+    start = text.index(f"## {title_start}")
+    end = text.find("\n## ", start + 1)
+    return text[start:end if end > 0 else None]
+
+
+@pytest.mark.slow
+def test_the_tutorial_lists_every_section_of_the_report_in_order(tutorial_run):
+    page = (tutorial_run / "my-report" / "index.html").read_text()
+    headings = [html.unescape(re.sub(r"<[^>]+>", "", h)).strip() for h in re.findall(r"<h2[^>]*>(.*?)</h2>", page, re.S)]
+    assert len(headings) >= 10 and headings[0].startswith("Surfaces never seen")
+    listed = re.findall(r"^- \*\*(.+?)\*\*", _section("6. Reading the report"), re.MULTILINE)
+    assert listed == [h.split(" (")[0] for h in headings], (listed, headings)
+
+
+def _agrees(quoted: str, value: float) -> bool:
+    """A figure quoted with d decimals agrees if the value rounds to it (half a unit of its last digit)."""
+    decimals = len(quoted.split(".")[1]) if "." in quoted else 0
+    return abs(value - float(quoted)) <= 0.5 * 10.0**-decimals + 1e-9
+
+
+@pytest.mark.slow
+def test_the_numbers_the_tutorial_comments_are_the_runs(tutorial_run, tmp_path):
+    """The table of section 4 (perceived, PLS, peak law per candidate) and the misses quoted below it."""
+    from roughsense.cli import main
+
+    work = tutorial_run
+    means = {}
+    for model in ("model", "law"):
+        out = tmp_path / f"{model}.csv"
+        assert main(["predict", str(work / f"{model}.json"), "--study", str(work / "candidate"), "--out", str(out)]) == 0
+        means[model] = pd.read_csv(out).groupby("specimen")["roughness"].mean()
+    perceived = pd.read_csv(work / "candidate-perceived.csv").set_index("specimen")["gmean"]
+    section = _section("4. Fit a model and predict")
+    rows = re.findall(r"^\| (\w[\w.]*) \| (\d\.\d\d) \| (\d\.\d\d) \| (\d\.\d\d) \|$", section, re.MULTILINE)
+    assert {r[0] for r in rows} == {"rect_2.5", "sin_3_0.5"}, rows
+    for specimen, seen, pls, law in rows:
+        assert _agrees(seen, perceived[specimen]), (specimen, seen, perceived[specimen])
+        assert _agrees(pls, means["model"][specimen]) and _agrees(law, means["law"][specimen]), (specimen, means)
+    miss = {(m, s): abs(means[m][s] - perceived[s]) for m in means for s in perceived.index if s in means[m]}
+    pls_miss, law_miss = re.search(r"PLS places it above R3 and misses it by (\d\.\d\d).*?misses by (\d\.\d\d)",
+                                   section, re.S).groups()
+    assert _agrees(pls_miss, miss[("model", "rect_2.5")]) and _agrees(law_miss, miss[("law", "rect_2.5")])
+    assert means["model"]["rect_2.5"] > 1.0 > perceived["rect_2.5"]  # "above R3"
+    both = re.search(r"The sinusoid both models miss, by (\d\.\d\d) and (\d\.\d\d)", section).groups()
+    assert _agrees(both[0], miss[("model", "sin_3_0.5")]) and _agrees(both[1], miss[("law", "sin_3_0.5")])
 
 
 def test_the_samples_readme_suggests_a_command_the_tutorial_runs():

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 from functools import cache
 from importlib import resources
+from typing import TYPE_CHECKING
 
-import pandas as pd
+if TYPE_CHECKING:
+    import pandas as pd  # imported when a table is read: the CLI's --help reads only the constants
 
 PAPER_CITATION = "Yanwari & Okamoto, Sensors 25:2598 (2025)"
 #: The reference every rating is relative to: fixed at 1.0 by definition, never rated (Section 3.1).
@@ -77,6 +79,8 @@ PAPER_SUMMARIES = {
 
 
 def _read(name: str) -> pd.DataFrame:
+    import pandas as pd
+
     with resources.files("roughsense.data.paper").joinpath(name).open("r", encoding="utf-8") as handle:
         return pd.read_csv(handle, dtype={"specimen": str, "pad": str, "condition": str, "shape": str})
 

@@ -16,6 +16,7 @@ import pandas as pd
 
 from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
+from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.families import PEAK_LAW, PLS, check_model_name
 from ..model.modelfile import feature_definition_for
@@ -134,10 +135,16 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
 
 def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str | None = None,
                 seed: int = 0, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
-                progress: Callable | None = None, model: str = PLS) -> TrainedModel:
+                progress: Callable | None = None, model: str = PLS, roi: Roi | None = None) -> TrainedModel:
     """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
-    default), or the peak law with the pad's ridge period left out of its peak search."""
+    default), or the peak law with the pad's ridge period left out of its peak search.
+
+    ``roi`` reads the line there instead of at the study's [sensor] roi; the model file records both.
+    """
     family = check_training_options(condition, rule, max_components, model)
+    study_roi = study.sensor.roi
+    if roi is not None:
+        study = dataclasses.replace(study, sensor=dataclasses.replace(study.sensor, roi=roi))
     X, y, meta = training_data(study, pad, condition, n_jobs=n_jobs, progress=progress)
     spectrum = dataset.spectrum_for(study)
     definition = feature_definition_for(spectrum, dataset.conditions_of(condition))
@@ -152,6 +159,8 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         "cv": cv if isinstance(cv, str) else f"{cv}-fold",
         "seed": int(seed),
     }
+    if roi is not None:
+        training["study_roi"] = study_roi if isinstance(study_roi, str) else list(study_roi)
     if family == PEAK_LAW:
         law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                            pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))

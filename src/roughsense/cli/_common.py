@@ -1,14 +1,16 @@
 """Small helpers shared by the command modules: option parsing and the progress display."""
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from typing import TypeVar
+from typing import Annotated, TypeVar
 
-from .._util.checks import Integer, check
+import typer
+
 from ..errors import ConfigError
 
 T = TypeVar("T")
@@ -31,7 +33,30 @@ def parse_float_list(text: str, *, name: str) -> list[float]:
 
 def check_seed(seed: int) -> int:
     """A seed for numpy.random.default_rng: a whole number >= 0 (a negative one is refused by NumPy)."""
+    from .._util.checks import Integer, check  # numpy: not for --help
+
     return check(seed, Integer(0), name="--seed", must="a whole number >= 0")
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (a container's or taskset's share, not the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _every_core(jobs: int | None) -> int:
+    if jobs is not None and jobs < 1:  # checked here, not with typer's min=1: its range label crowds the help
+        raise ConfigError(f"--jobs must be at least 1, got {jobs} (leave it out to use every core)")
+    return usable_cores() if jobs is None else jobs
+
+
+#: ``--jobs`` on every command that has it: one default (all cores) and one meaning (how many things at once).
+Jobs = Annotated[int | None, typer.Option(
+    "--jobs", "-j", show_default=False, callback=_every_core,
+    help="How much to run at once: images decoded, trials simulated, models fitted (default: all cores). The "
+         "results do not depend on it.")]
 
 
 def parse_name_list(text: str) -> list[str]:

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import typer
 
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ..paper import PAPER_REPETITIONS
 from ._common import parse_float_list
+from ._defaults import DEFAULT_PX_PER_MM
 
 ORDER = 50
 

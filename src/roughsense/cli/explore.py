@@ -5,6 +5,7 @@ from pathlib import Path
 
 import typer
 
+from .._util.text import counted
 from ._common import progress
 
 ORDER = 45
@@ -40,7 +41,7 @@ def register(app: typer.Typer) -> None:
         sweep = read_sweep(sweep_file)
         outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
         index = write_explore_report(sweep, out)
-        line = f"{outcome.computed} cells computed, {outcome.skipped} already finished"
+        line = f"{counted(outcome.computed, 'cell')} computed, {outcome.skipped} already finished"
         if outcome.failures:
             line += f", {len(outcome.failures)} failed (see {Path(out) / 'failures.csv'})"
         typer.echo(f"{line}; {outcome.seconds:.1f} s. Results in {Path(out) / 'results'}, report {index}")

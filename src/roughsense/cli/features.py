@@ -7,10 +7,9 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
-from ..io.images import DEFAULT_MAX_PIXELS
-from ..io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ..sensor.settings import SPECTRUM_DEFAULTS
-from ._common import parse_float_list, progress
+from ._common import Jobs, parse_float_list, progress
+from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 10
@@ -57,7 +56,7 @@ def features(
     px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
     n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
-    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Decoding threads; -1 uses every core.")] = -1,
+    jobs: Jobs = None,
     force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
     max_pixels: MaxPixels = None,
 ) -> None:

@@ -7,8 +7,9 @@ from typing import Annotated
 
 import typer
 
+from .._util.text import counted
 from ..errors import ConfigError
-from ._common import check_seed, progress
+from ._common import Jobs, check_seed, progress
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -37,12 +38,17 @@ ModelName = Annotated[str, typer.Option(
                     "spectrum peaks and how high, built for surfaces never seen in training).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
-Jobs = Annotated[int, typer.Option("--jobs", "-j", help="Image decoding threads; -1 uses every core.")]
+FitRoi = Annotated[str | None, typer.Option(
+    "--roi", show_default=False,
+    help="Crop where the line is read: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band "
+         "with the most horizontal texture) or X,Y,W,H in px. Default: the study's [sensor] roi. Stored in the "
+         "model file, so predict reads its images the same way.")]
 
 
 def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_components: MaxComponents = None,
-        cv: CV = "loo", rule: Rule = None, seed: FitSeed = 0, jobs: Jobs = -1, model: ModelName = "pls",
-        force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False) -> None:
+        cv: CV = "loo", rule: Rule = None, seed: FitSeed = 0, jobs: Jobs = None, model: ModelName = "pls",
+        force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False,
+        roi: FitRoi = None) -> None:
     """Fit a model for one pad and force condition: the paper's PLS1 (SIMPLS, X centred) or the peak law.
 
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
@@ -55,8 +61,11 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     from ..analysis.training import check_training_options, parse_cv, train_model
     from ..io.study import read_study
     from ..model.modelfile import save_model
+    from ..model.predict import SensorOverride
 
+    condition = parse_condition(condition)
     family = check_training_options(condition, rule, max_components, model)
+    override = SensorOverride.parse(roi=roi)
     scheme = parse_cv(cv)
     check_seed(seed)
     check_can_write(out, force=force)
@@ -64,11 +73,14 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     loaded = read_study(study, require_ratings=True)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
-                          model=family)
+                          model=family, roi=None if override is None else override.roi)
     save_model(out, trained.model, feature_definition=trained.feature_definition, training=trained.training,
                force=force)
-    typer.echo(f"{loaded.name}: pad {pad}, {condition}, {trained.n_samples} samples x {trained.n_features} features, "
-               f"{trained.cv.scheme} CV, model {family}")
+    typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
+               f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
+    if override is not None:
+        typer.echo(f"line read at --roi {_roi_text(override.roi)} (the study's [sensor] roi: "
+                   f"{_roi_text(loaded.sensor.roi)})")
     _echo_cv(trained)
     typer.echo(f"wrote {out}")
 
@@ -84,8 +96,8 @@ def _echo_cv(trained) -> None:
     if trained.family != PEAK_LAW:
         chosen = trained.n_components
         typer.echo(curve_table(result, chosen).to_string(index=False, float_format=number))
-        typer.echo(f"chosen: {chosen} components (CV RMSE {result.rmse[chosen]:.5f}; min at {result.best_n_components}, "
-                   f"one-SE rule {result.one_se_n_components})")
+        typer.echo(f"chosen: {counted(chosen, 'component')} (CV RMSE {result.rmse[chosen]:.5f}; "
+                   f"min at {result.best_n_components}, one-SE rule {result.one_se_n_components})")
         return
     law = trained.model
     typer.echo(law_table(result).to_string(index=False, float_format=number))
@@ -95,6 +107,17 @@ def _echo_cv(trained) -> None:
     low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
     typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
                "a surface outside that range is flagged as extrapolating when predicted")
+
+
+def parse_condition(text: str) -> str:
+    """A --condition as typed, in the form the study and model files use: "2n" -> "2N", "Combined" -> "combined"."""
+    value = text.strip()
+    return value.lower() if value.lower() == "combined" else value.upper()
+
+
+def _roi_text(roi) -> str:
+    """An ROI as a user would type it after --roi."""
+    return roi if isinstance(roi, str) else ",".join(str(v) for v in roi)
 
 
 ModelFile = Annotated[Path, typer.Argument(metavar="MODEL.json", help="A model file written by `roughsense fit`.")]
@@ -120,24 +143,37 @@ Live = Annotated[bool, typer.Option(
     "--live", help="Score frames from --source continuously and show the predicted roughness on the terminal "
                    "(Ctrl-C stops).")]
 MaxFrames = Annotated[int | None, typer.Option("--max-frames", min=1, help="With --live: stop after this many scored frames.")]
+PredictRoi = Annotated[str | None, typer.Option(
+    "--roi", show_default=False,
+    help="Read the line elsewhere than the model's ROI: 'center', 'auto' (the band with the most horizontal "
+         "texture; for images smaller than the model's crop) or X,Y,W,H in px. The spectrum stays the model's; "
+         "the ROI used is written beside each prediction.")]
+PredictPxPerMm = Annotated[float | None, typer.Option(
+    "--px-per-mm", show_default=False,
+    help="The images' scale, if not the model's: the model's spectrum is in mm^-1, so images from another camera "
+         "score once their scale is stated. Refused when the model's band is not below Nyquist at this scale, or "
+         "an image's line is shorter than 1/f_min.")]
 
 
 def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
-            specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = 1,
+            specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = None,
             force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
-            source: Source = None, live: Live = False, max_frames: MaxFrames = None) -> None:
+            source: Source = None, live: Live = False, max_frames: MaxFrames = None, roi: PredictRoi = None,
+            px_per_mm: PredictPxPerMm = None) -> None:
     """Predict perceived roughness from contact images with a fitted model.
 
     Features are recomputed with the model's own definition (camera scale, ROI, band, frequencies).
     A combined model scores trials: group their images with --study DIR [--specimen S] (from the manifest) or
     with --images-1n ... --images-2n ... --images-3n ...; an image whose name says another force than its
     slot (e.g. _1N_ in the 2N slot) is refused. With --live --source SRC, a single-force model scores camera
-    frames continuously.
+    frames continuously. --roi and --px-per-mm read images the model's crop or scale does not fit.
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
+    from ..model.predict import SensorOverride
 
+    override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = _split_image_flags(images or [])
     given = [name for name, used in (("IMAGE...", positional), ("--images-XN", by_condition),
                                      ("--study", study is not None)) if used]
@@ -146,7 +182,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             raise ConfigError("live scoring needs both --live and --source SRC")
         if given:
             raise ConfigError(f"give either {given[0]} or --live --source SRC, not both")
-        _predict_live(load_model(model), source, max_frames)
+        _predict_live(load_model(model), source, max_frames, override)
         return
     _check_image_sources(given, specimens, study)
     if out is not None:
@@ -155,8 +191,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
-    extrapolates = _score_into(table, loaded, trials, jobs)
-    _show_or_write(table, out)
+    extrapolates = _score_into(table, loaded, trials, jobs, override)
+    _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, extrapolates)
 
 
@@ -170,15 +206,16 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
 
 
-def _score_into(table, loaded, trials: list[tuple], jobs: int):
+def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None):
     """Score the trials and add their images, pad, condition, roughness and extrapolation flag to ``table``.
 
-    The flag is written ``true``/``false`` (any CSV reader's booleans); the boolean array is returned.
+    The flag is written ``true``/``false`` (any CSV reader's booleans); the boolean array is returned. An
+    overridden ROI or scale is written in its own column (``roi``, ``px_per_mm``): what a number was read with.
     """
     from ..model.predict import model_condition, model_pad, score_and_flag
 
     images = [image for trial in trials for image in trial]
-    roughness, extrapolates = score_and_flag(loaded, images, n_jobs=jobs, progress=progress)
+    roughness, extrapolates = score_and_flag(loaded, images, n_jobs=jobs, progress=progress, override=override)
     if len(loaded.conditions) == 1:
         table["image"] = [str(t[0]) for t in trials]
     else:
@@ -186,6 +223,10 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int):
             table[f"image_{condition}"] = [str(t[i]) for t in trials]
     table["pad"] = model_pad(loaded)
     table["condition"] = model_condition(loaded)
+    if override is not None and override.roi is not None:
+        table["roi"] = _roi_text(override.roi)
+    if override is not None and override.px_per_mm is not None:
+        table["px_per_mm"] = override.px_per_mm
     table["roughness"] = roughness
     table["extrapolates"] = ["true" if flag else "false" for flag in extrapolates]
     return extrapolates
@@ -201,18 +242,38 @@ def _echo_extrapolation(loaded, extrapolates) -> None:
     if loaded.family == PLS:
         return
     count = int(extrapolates.sum())
-    typer.echo(f"{count} of {len(extrapolates)} prediction(s) extrapolate" + (f": {EXTRAPOLATION_WHY}" if count else
-                                                                                 " (all within the training range)"))
+    verb = "extrapolates" if count == 1 else "extrapolate"
+    typer.echo(f"{count} of {counted(len(extrapolates), 'prediction')} {verb}" + (
+        f": {EXTRAPOLATION_WHY}" if count else " (all within the training range)"))
 
 
-def _show_or_write(table, out: Path | None) -> None:
+#: Columns with one value for every row: the terminal shows them once, above the table.
+_CONSTANT_COLUMNS = ("pad", "condition", "roi", "px_per_mm")
+
+
+def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None:
     from .._util.atomic import write_csv
 
     if out is None:
-        typer.echo(table.to_string(index=False, float_format=lambda v: f"{v:.6g}"))
+        typer.echo(_terminal_table(table, from_study=from_study))
     else:
         write_csv(out, table, float_format="%.17g")
-        typer.echo(f"wrote {len(table)} prediction(s) to {out}")
+        typer.echo(f"wrote {counted(len(table), 'prediction')} to {out}")
+
+
+def _terminal_table(table, *, from_study: bool) -> str:
+    """The predictions for a terminal: columns that never change in a line above, a study's image paths left to
+    --out (its specimen and repetition name each trial), and the rest wrapped to the terminal's width."""
+    import shutil
+
+    constant = [c for c in _CONSTANT_COLUMNS if c in table.columns]
+    heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
+    dropped = constant + ([c for c in table.columns if c.startswith("image")] if from_study else [])
+    if from_study:
+        heading += "; each trial's images: add --out PRED.csv"
+    width = shutil.get_terminal_size().columns
+    body = table.drop(columns=dropped).to_string(index=False, float_format=lambda v: f"{v:.6g}", line_width=width)
+    return f"{heading}\n{body}" if heading else body
 
 
 def register(app: typer.Typer) -> None:
@@ -270,12 +331,12 @@ def _trials(loaded, positional, by_condition, study, specimens):
     return groups, pd.DataFrame(index=range(len(groups)))
 
 
-def _predict_live(loaded, source: str, max_frames: int | None) -> None:
+def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:
     """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
     from ..model.predict import frame_scorer
     from ..rig.live import live_scores, render_live
 
-    summary = render_live(live_scores(source, frame_scorer(loaded), max_frames=max_frames))
+    summary = render_live(live_scores(source, frame_scorer(loaded, override), max_frames=max_frames))
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
     if summary.extrapolated:

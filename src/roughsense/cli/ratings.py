@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from .._util.text import counted
 from ..errors import ConfigError, RoughsenseWarning
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ._common import check_seed, parse_name_list
@@ -138,7 +139,8 @@ def protocol(
     if text is not None:
         write_text(sheet, text)
     shown = schedule["specimen"].nunique()
-    print(f"wrote {out}: {participants} participants x {sessions} sessions x {shown} specimens "
+    print(f"wrote {out}: {counted(participants, 'participant')} x {counted(sessions, 'session')} x "
+          f"{counted(shown, 'specimen')} "
           f"(reference {reference} excluded)")
     if sheet is not None:
         print(f"wrote {sheet}")

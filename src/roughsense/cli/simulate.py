@@ -5,9 +5,10 @@ from pathlib import Path
 
 import typer
 
+from .._util.text import counted
 from ..paper import PAPER_FORCES_N, PAPER_REPETITIONS, PAPER_SPECIMENS
-from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
-from ._common import parse_float_list, parse_name_list, progress
+from ._common import Jobs, parse_float_list, parse_name_list, progress
+from ._defaults import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
 
 ORDER = 40
 
@@ -38,8 +39,7 @@ def simulate(
         320, "--stored-height-px",
         help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the "
              "paper's centred crop is unchanged); 0 stores whole frames."),
-    jobs: int | None = typer.Option(None, "--jobs",
-                                    help="Worker processes (default: all cores). Results do not depend on it."),
+    jobs: Jobs = None,
     force: bool = typer.Option(
         False, "--force",
         help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; "
@@ -69,7 +69,8 @@ def simulate(
     run = SimulationRun(out, config, force=force, jobs=jobs)
     for _ in progress(run, total=run.total, description="simulating"):
         pass
-    typer.echo(f"wrote {run.total} images, {len(run.specimens)} specimens and the panel's ratings to {run.root}")
+    typer.echo(f"wrote {counted(run.total, 'image')}, {counted(len(run.specimens), 'specimen')} and the panel's "
+               f"ratings to {run.root}")
 
 
 def _config(*, pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from ._common import progress, stage
+from .._util.text import counted
+from ._common import Jobs, progress, stage
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -35,7 +36,7 @@ def register(app: typer.Typer) -> None:
         no_loso: bool = typer.Option(
             False, "--no-loso",
             help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
-        jobs: int = typer.Option(2, "--jobs", min=1, help="Worker threads/processes for image decoding and simulation."),
+        jobs: Jobs = None,
         force: bool = typer.Option(
             False, "--force",
             help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
@@ -102,7 +103,8 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     meta = {
         "study folder": str(Path(root).resolve()),
         "source": _source_label(study.simulation, builtin=builtin),
-        "images": f"{len(study.manifest)} ({', '.join(study.pads)} pads; {len(study.specimens)} specimens)",
+        "images": f"{len(study.manifest)} ({', '.join(study.pads)} {'pad' if len(study.pads) == 1 else 'pads'}; "
+                  f"{counted(len(study.specimens), 'specimen')})",
         "features": "from cache" if was_cached else "extracted",
     }
     if caught:
@@ -115,7 +117,8 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     loo = loo[loo["model"] == "pls"]
     for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
         typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
-                   f"{analysis.condition_fit(pad, condition, 'loo').best_n_components} components (pls, LOO)")
+                   f"{counted(analysis.condition_fit(pad, condition, 'loo').best_n_components, 'component')} "
+                   "(pls, LOO)")
     return index, root, builtin
 
 

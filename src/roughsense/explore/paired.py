@@ -18,7 +18,7 @@ from scipy import stats
 MIN_SEEDS = 3  # two seeds leave one degree of freedom: t = 12.7, an interval wider than any effect asked about
 ALPHA = 0.05
 POWER = 0.8
-#: Equivalence margins, fixed before the rerun of examples/paper_questions.toml. RMSE (perceived units, the
+#: Equivalence margins, fixed before the rerun of data/examples/paper_questions.toml. RMSE (perceived units, the
 #: reference R3 = 1): 0.05, 5 % of the reference's roughness and a quarter of the paper's best LOO error (~0.2), a
 #: change no user of the sensor would notice. OVL (overlap of two distributions, 0-1): 0.05, five points of overlap.
 MARGINS = {"rmse": 0.05, "ovl": 0.05}

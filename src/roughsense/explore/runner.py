@@ -75,17 +75,18 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
     store = ResultStore(out, sweep, force=force)  # refuses a wrong folder before any cluster starts
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
-    client = connect(workers, scheduler)
+    done = store.finished()  # the files already there: another sweep's are never its cells, so prepare() can wait
+    todo = [c for c in sweep.cells if c.id not in done]
+    client = connect(workers, scheduler) if todo else None  # nothing left to run: no cluster (seconds) for nothing
     try:
         dropped = store.prepare()
-        done = store.finished()
-        todo = [c for c in sweep.cells if c.id not in done]
         outcome = SweepOutcome(Path(out), len(sweep.cells), len(sweep.cells) - len(todo), 0, dropped=dropped)
         if todo:
             _compute(client, store, todo, outcome, progress, task)
         store.write_failures(outcome.failures)
     finally:
-        _close(client)
+        if client is not None:
+            _close(client)
     outcome.seconds = time.perf_counter() - started
     return outcome
 

@@ -6,10 +6,10 @@ import os
 import re
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .problems import Problems, flag
 from .tables import csv_line
 
 #: Longest name (see :func:`check_name`): file names built from two names and a suffix stay far below the
@@ -43,17 +43,24 @@ def check_name(value: object, *, path: str | os.PathLike[str] | None = None, row
     """
     if is_safe_name(value):
         return value
+    raise _name_error(value, path=path, row=row, column=column, what=what)
+
+
+def _name_error(value: object, *, path, row, column, what) -> InputError:
     shown = repr(value) if len(str(value)) <= 80 else repr(str(value)[:77] + "...")
-    raise InputError(f"{what} {shown} is not allowed: use {NAME_RULE} (names become parts of file names)",
-                     path=path, row=row, column=column)
+    return InputError(f"{what} {shown} is not allowed: use {NAME_RULE} (names become parts of file names)",
+                      path=path, row=row, column=column)
 
 
-def check_name_column(frame: pd.DataFrame, column: str, path: Path | None, *, line=None) -> None:
-    """Refuse the first value of ``column`` that breaks the name rule, naming its line."""
+def check_name_column(frame: pd.DataFrame, column: str, path: Path | None, *, line=None,
+                      problems: Problems | None = None) -> None:
+    """Refuse each value of ``column`` that breaks the name rule, naming its line (the first only, raised,
+    without ``problems``; when collecting, a blank cell is left to the "empty value" check)."""
     line = csv_line if line is None else line
     if column not in frame.columns:
         return
-    ok = frame[column].map(is_safe_name)
-    if not ok.all():
-        i = int(np.flatnonzero(~ok.to_numpy(bool))[0])
-        check_name(frame[column].iloc[i], path=path, row=line(i), column=column, what=column)
+    bad = ~frame[column].map(is_safe_name).to_numpy(bool)
+    if problems is not None:
+        bad &= (frame[column].notna() & (frame[column] != "")).to_numpy(bool)
+
+    flag(problems, bad, lambda i: _name_error(frame[column].iloc[i], path=path, row=line(i), column=column, what=column))

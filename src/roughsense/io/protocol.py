@@ -11,6 +11,7 @@ import pandas as pd
 from .._util.checks import Integer, Real, check, short_repr
 from ..errors import ConfigError, InputError
 from ..paper import PAPER_FORCES_N
+from .problems import Problems, flag
 from .tables import csv_line
 
 DEFAULT_FORCES_N = PAPER_FORCES_N
@@ -54,35 +55,30 @@ def check_repetitions(value: object, *, option: str = "--repetitions") -> int:
     return check(value, Integer(1, MAX_REPETITION), name=option)
 
 
-def assign_nominal_forces(manifest: pd.DataFrame, forces_n: Sequence[float], path: Path | None = None) -> pd.DataFrame:
+def assign_nominal_forces(manifest: pd.DataFrame, forces_n: Sequence[float], path: Path | None = None, *,
+                          problems: Problems | None = None) -> pd.DataFrame:
     """Give each image its nominal force (the condition), from the column or the nearest protocol force.
 
     The scale reading (``force_n``) scatters around the nominal force; a reading nearer to no protocol
-    force than half the spacing is refused rather than silently binned.
+    force than half the spacing is refused rather than silently binned. A missing force (a cell already
+    reported when collecting problems) is passed over.
     """
     manifest = manifest.copy()
     forces = np.asarray(sorted(forces_n), dtype=float)
+    listed = ", ".join(f"{f:g}" for f in forces)
     if "nominal_force_n" in manifest.columns:
         nominal = manifest["nominal_force_n"].to_numpy(float)
-        off = ~np.isin(nominal, forces)
-        if off.any():
-            i = np.flatnonzero(off)[0]
-            raise InputError(
-                f"nominal force {nominal[i]:g} N is not one of the protocol forces {', '.join(f'{f:g}' for f in forces)}",
-                path=path, row=csv_line(i), column="nominal_force_n",
-            )
+        flag(problems, ~np.isin(nominal, forces) & ~np.isnan(nominal), lambda i: InputError(
+            f"nominal force {nominal[i]:g} N is not one of the protocol forces {listed}",
+            path=path, row=csv_line(i), column="nominal_force_n"))
     else:
         measured = manifest["force_n"].to_numpy(float)
         nearest = np.abs(measured[:, None] - forces[None, :]).argmin(axis=1)
         nominal = forces[nearest]
         spacing = np.min(np.diff(forces)) if forces.size > 1 else forces[0]
-        far = np.abs(measured - nominal) > 0.5 * spacing
-        if far.any():
-            i = np.flatnonzero(far)[0]
-            raise InputError(
-                f"force {measured[i]:g} N is far from every protocol force ({', '.join(f'{f:g}' for f in forces)})",
-                path=path, row=csv_line(i), column="force_n",
-            )
+        flag(problems, np.abs(measured - nominal) > 0.5 * spacing, lambda i: InputError(
+            f"force {measured[i]:g} N is far from every protocol force ({listed})",
+            path=path, row=csv_line(i), column="force_n"))
     manifest["nominal_force_n"] = nominal
     manifest["condition"] = [nominal_force_label(f) for f in nominal]
     return manifest

@@ -18,7 +18,8 @@ from .._util.checks import is_number
 from ..errors import InputError
 from ..paper import REFERENCE_SPECIMEN
 from .names import check_name_column
-from .tables import csv_line, read_table, refuse_unknown
+from .problems import Problems, flag
+from .tables import csv_line, missing_columns, number_hint, read_table, refuse_unknown
 
 RATING_COLUMNS = ("participant", "session", "specimen", "rating")
 KEY_COLUMNS = ("participant", "session", "specimen")
@@ -50,7 +51,7 @@ def _is_blank(value: object) -> bool:
 
 def read_ratings_table(path: str | os.PathLike[str], *, reference: str = REFERENCE_SPECIMEN,
                        specimens: Iterable[str] | None = None, unknown_hint: str | None = None,
-                       allow_empty: bool = False) -> pd.DataFrame:
+                       allow_empty: bool = False, problems: Problems | None = None) -> pd.DataFrame:
     """Read and validate ratings.csv (or a filled-in schedule CSV): see :func:`validate_ratings`.
 
     Blank rating cells follow :func:`drop_unrated`; a file with no rating left is refused unless ``allow_empty``
@@ -58,13 +59,14 @@ def read_ratings_table(path: str | os.PathLike[str], *, reference: str = REFEREN
     Rating cells are read as text, so an error quotes the cell as written.
     """
     path = Path(path)
-    frame = read_table(path, (), text=(*KEY_COLUMNS, "rating"))
+    frame = read_table(path, (), text=(*KEY_COLUMNS, "rating"), problems=problems)
     frame = drop_unrated(frame)
     if frame.empty and allow_empty and "rating" in frame.columns:
         return frame.assign(rating=pd.Series(dtype=float))
     if frame.empty and set(RATING_COLUMNS) <= set(frame.columns):
         raise InputError("has no ratings (no row, or every rating cell is empty)", path=path)
-    return validate_ratings(frame, path=path, reference=reference, specimens=specimens, unknown_hint=unknown_hint)
+    return validate_ratings(frame, path=path, reference=reference, specimens=specimens, unknown_hint=unknown_hint,
+                            problems=problems)
 
 
 def _line(frame: pd.DataFrame, position: int) -> int | None:
@@ -84,73 +86,70 @@ def _cell_text(value: object) -> str:
 
 def validate_ratings(frame: pd.DataFrame, *, path: str | os.PathLike[str] | None = None,
                      reference: str = REFERENCE_SPECIMEN, specimens: Iterable[str] | None = None,
-                     unknown_hint: str | None = None) -> pd.DataFrame:
+                     unknown_hint: str | None = None, problems: Problems | None = None) -> pd.DataFrame:
     """The checks every ratings table passes; returns a clean copy (text keys, float ratings), index kept.
 
     Columns present, keys non-empty and obeying the name rule, ratings positive finite numbers, the reference
     never rated, specimens known (``specimens``; ``unknown_hint`` says where names come from), and no
-    participant rating a specimen twice in a session. Errors name the file line (``index + 2``).
+    participant rating a specimen twice in a session. Errors name the file line (``index + 2``): the first is
+    raised, or each is added to ``problems`` (a missing column is raised all the same).
     """
     missing = [c for c in RATING_COLUMNS if c not in frame.columns]
     if missing:
-        found = ", ".join(map(str, frame.columns)) or "nothing"
-        raise InputError(f"missing column(s) {', '.join(missing)}; found {found}", path=path)
+        raise missing_columns(missing, frame.columns, path)
     frame = frame.copy()
     for column in KEY_COLUMNS:
         text = frame[column].map(lambda v: "" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v).strip())
-        blank = text == ""
-        if blank.any():
-            raise InputError("empty value", path=path, row=_line(frame, np.flatnonzero(blank)[0]), column=column)
+        flag(problems, text == "",
+             lambda i, column=column: InputError("empty value", path=path, row=_line(frame, i), column=column))
         frame[column] = text
-        check_name_column(frame, column, Path(path) if path is not None else None, line=lambda i: _line(frame, i))
-    frame["rating"] = _rating_values(frame, path)
-    is_reference = frame["specimen"] == reference
-    if is_reference.any():
-        raise InputError(
-            f"{reference} is the reference (fixed at 1.0 by definition) and must not be rated",
-            path=path, row=_line(frame, np.flatnonzero(is_reference)[0]), column="specimen",
-        )
+        check_name_column(frame, column, Path(path) if path is not None else None, line=lambda i: _line(frame, i),
+                          problems=problems)
+    frame["rating"] = _rating_values(frame, path, problems)
+    flag(problems, frame["specimen"] == reference, lambda i: InputError(
+        f"{reference} is the reference (fixed at 1.0 by definition) and must not be rated",
+        path=path, row=_line(frame, i), column="specimen"))
     if specimens is not None:
         known = set(specimens)
-        refuse_unknown(frame, "specimen", known, path, line=lambda i: _line(frame, i),
+        refuse_unknown(frame, "specimen", known, path, line=lambda i: _line(frame, i), problems=problems,
                        hint=unknown_hint or f"expected one of {', '.join(sorted(known, key=natural_key))}")
-    _refuse_repeats(frame, path)
+    _refuse_repeats(frame, path, problems)
     return frame
 
 
-def _rating_values(frame: pd.DataFrame, path) -> pd.Series:
-    """The rating column as floats: a positive finite magnitude estimate in every row."""
+def _rating_values(frame: pd.DataFrame, path, problems: Problems | None = None) -> pd.Series:
+    """The rating column as floats: a positive finite magnitude estimate in every row (a bad one, when collecting
+    problems, left missing so that it is reported once)."""
     raw = frame["rating"]
     values = pd.to_numeric(raw, errors="coerce").astype(float)
     blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
-    bad = (values.isna() & ~blank) | np.isinf(values)
-    if bad.any():
-        i = np.flatnonzero(bad)[0]
-        raise InputError(f"not a number: {_cell_text(raw.iloc[i])}", path=path, row=_line(frame, i), column="rating")
-    if blank.any():
-        i = np.flatnonzero(blank)[0]
-        raise InputError("empty rating", path=path, row=_line(frame, i), column="rating")
-    nonpositive = values <= 0
-    if nonpositive.any():
-        i = np.flatnonzero(nonpositive)[0]
-        raise InputError(f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path,
-                         row=_line(frame, i), column="rating")
+    flag(problems, (values.isna() & ~blank) | np.isinf(values), lambda i: InputError(
+        f"not a number: {_cell_text(raw.iloc[i])}{number_hint(raw.iloc[i]) if isinstance(raw.iloc[i], str) else ''}",
+        path=path, row=_line(frame, i), column="rating"))
+    values[np.isinf(values)] = np.nan
+    flag(problems, blank, lambda i: InputError("empty rating", path=path, row=_line(frame, i), column="rating"))
+    bad = flag(problems, values <= 0, lambda i: InputError(
+        f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path, row=_line(frame, i),
+        column="rating"))
+    values.iloc[bad] = np.nan
     return values
 
 
-def _refuse_repeats(frame: pd.DataFrame, path) -> None:
+def _refuse_repeats(frame: pd.DataFrame, path, problems: Problems | None = None) -> None:
     """A participant rates each specimen once per session."""
     keys = list(KEY_COLUMNS)
-    duplicated = frame.duplicated(keys, keep="first")
-    if duplicated.any():
-        i = np.flatnonzero(duplicated)[0]
+    duplicated = frame.duplicated(keys, keep="first") & (frame[keys] != "").all(axis=1)
+
+    def error(i: int) -> InputError:
         row = frame.iloc[i]
         first = _line(frame, np.flatnonzero((frame[keys] == row[keys]).all(axis=1))[0])
-        raise InputError(
+        return InputError(
             f"participant {row['participant']} rated {row['specimen']} twice in session {row['session']}"
             + (f" (first on line {first})" if first is not None else ""),
             path=path, row=_line(frame, i), column="specimen",
         )
+
+    flag(problems, duplicated, error)
 
 
 def _read_markdown_sheet(path: Path) -> pd.DataFrame:

@@ -22,7 +22,6 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
-import numpy as np
 import pandas as pd
 
 from .._util.checks import short_repr
@@ -30,6 +29,7 @@ from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
 from .names import check_name, check_name_column
+from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
 from .ratings import read_ratings_table
 from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
@@ -183,26 +183,22 @@ def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
     return periods
 
 
-def read_specimens(path: str | os.PathLike[str]) -> pd.DataFrame:
+def read_specimens(path: str | os.PathLike[str], *, problems: Problems | None = None) -> pd.DataFrame:
     path = Path(path)
-    frame = read_table(path, SPECIMEN_COLUMNS, positive=["wavelength_mm"], text=["specimen", "shape"])
-    check_name_column(frame, "specimen", path)
-    dup = frame["specimen"].duplicated()
-    if dup.any():
-        i = np.flatnonzero(dup)[0]
-        raise InputError(f"specimen {frame['specimen'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="specimen")
-    bad_shape = ~frame["shape"].str.lower().isin(SHAPES)
-    if bad_shape.any():
-        i = np.flatnonzero(bad_shape)[0]
-        raise InputError(
-            f"unknown shape {frame['shape'].iloc[i]!r}; expected one of {', '.join(SHAPES)}",
-            path=path, row=csv_line(i), column="shape",
-        )
-    frame["shape"] = frame["shape"].str.lower()
+    frame = read_table(path, SPECIMEN_COLUMNS, positive=["wavelength_mm"], text=["specimen", "shape"], problems=problems)
+    check_name_column(frame, "specimen", path, problems=problems)
+    flag(problems, frame["specimen"].duplicated() & frame["specimen"].notna(), lambda i: InputError(
+        f"specimen {frame['specimen'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="specimen"))
+    shape = frame["shape"].str.lower()
+    flag(problems, ~shape.isin(SHAPES) & shape.notna(), lambda i: InputError(
+        f"unknown shape {frame['shape'].iloc[i]!r}; expected one of {', '.join(SHAPES)}",
+        path=path, row=csv_line(i), column="shape"))
+    frame["shape"] = shape
     return frame
 
 
-def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str] | None = None) -> pd.DataFrame:
+def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str] | None = None,
+                  problems: Problems | None = None) -> pd.DataFrame:
     path = Path(path)
     frame = read_table(
         path,
@@ -212,21 +208,20 @@ def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str
         numeric=["contact_fraction"],
         text=["image", "specimen", "pad"],
         maximum={"force_n": MAX_FORCE_N, "nominal_force_n": MAX_FORCE_N, "repetition": MAX_REPETITION},
+        problems=problems,
     )
-    negative = frame["repetition"] < 0
-    if negative.any():
-        i = int(np.flatnonzero(negative.to_numpy(bool))[0])
-        raise InputError(f"must be a whole number >= 0, got {frame['repetition'].iloc[i]}", path=path,
-                         row=csv_line(i), column="repetition")
-    check_name_column(frame, "specimen", path)
-    check_name_column(frame, "pad", path)
+    flag(problems, (frame["repetition"] < 0).fillna(False), lambda i: InputError(
+        f"must be a whole number >= 0, got {frame['repetition'].iloc[i]}", path=path, row=csv_line(i),
+        column="repetition"))
+    check_name_column(frame, "specimen", path, problems=problems)
+    check_name_column(frame, "pad", path, problems=problems)
     if known_specimens is not None:
-        refuse_unknown(frame, "specimen", known_specimens, path, hint=f"not in {SPECIMENS_CSV}")
-    dup = frame["image"].duplicated()
-    if dup.any():
-        i = np.flatnonzero(dup)[0]
-        raise InputError(f"image {frame['image'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="image")
-    check_image_paths(frame["image"], path.parent, path)
+        refuse_unknown(frame, "specimen", known_specimens, path, hint=f"not in {SPECIMENS_CSV}", problems=problems)
+    dup = flag(problems, frame["image"].duplicated() & frame["image"].notna(), lambda i: InputError(
+        f"image {frame['image'].iloc[i]!r} is listed twice", path=path, row=csv_line(i), column="image"))
+    bad = check_image_paths(frame["image"], path.parent, path, problems=problems)
+    if problems is not None and (dup.size or bad):
+        frame.loc[frame.index[[*dup, *bad]], "image"] = None  # reported: not looked for on disk as well
     return frame
 
 
@@ -252,22 +247,30 @@ def image_path_problem(relative: str, root: Path) -> tuple[Path | None, str | No
     return resolved, None
 
 
-def check_image_paths(images: Iterable[str], root: Path, path: Path | None) -> None:
-    """Every manifest image path stays inside the study folder, and no two rows name the same file."""
+def check_image_paths(images: Iterable[str], root: Path, path: Path | None, *,
+                      problems: Problems | None = None) -> list[int]:
+    """Every manifest image path stays inside the study folder, and no two rows name the same file.
+
+    Returns the positions reported (only when collecting ``problems``; else the first raises).
+    """
     try:
         root = root.resolve()
     except (OSError, RuntimeError) as exc:
         raise InputError(f"cannot resolve the study folder ({exc})", path=root) from None
     seen: dict[Path, int] = {}
+    bad: list[int] = []
     for i, relative in enumerate(images):
+        if not isinstance(relative, str):
+            continue  # a blank cell (only when collecting): reported as empty already
         resolved, problem = image_path_problem(relative, root)
+        if problem is None and resolved in seen:
+            problem = f"{relative!r} names the same file as row {csv_line(seen[resolved])}"
         if problem is not None:
-            raise InputError(problem, path=path, row=csv_line(i), column="image")
-        if resolved in seen:
-            first = seen[resolved]
-            raise InputError(f"{relative!r} names the same file as row {csv_line(first)}", path=path,
-                             row=csv_line(i), column="image")
+            report(problems, InputError(problem, path=path, row=csv_line(i), column="image"))
+            bad.append(i)
+            continue
         seen[resolved] = i
+    return bad
 
 
 def check_simulation_complete(root: Path, config: Mapping) -> None:
@@ -279,52 +282,86 @@ def check_simulation_complete(root: Path, config: Mapping) -> None:
 
 def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
     """Read and validate a study folder. Raises InputError naming the first problem found."""
+    return load_study(root, require_ratings=require_ratings, check_images=check_images)
+
+
+def load_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True,
+               problems: Problems | None = None) -> Study:
+    """:func:`read_study`, or, with ``problems``, every problem of the folder collected (``roughsense check``).
+
+    When collecting, a file that cannot be read at all leaves its part of the Study None and the checks that
+    need it (specimen names, forces) are skipped; the files after it are still checked.
+    """
     root = Path(root)
     if not root.is_dir():
         raise InputError("study folder not found", path=root)
+    settings = _read_settings(root, problems)
+    tables = _read_tables(root, settings, problems, require_ratings=require_ratings, check_images=check_images)
+    config = settings["config"]
+    return Study(
+        root=root, name=settings["name"], reference_specimen=settings["reference"], sensor=settings["sensor"],
+        forces_n=settings["forces_n"], **tables, pad_ridge_period_mm=settings["ridges"] or {},
+        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol", "pads")},
+    )
+
+
+def _read_settings(root: Path, problems: Problems | None) -> dict:
+    """study.toml's values, checked in the order ``study`` reports them (each None when collecting and bad)."""
     toml_path = root / STUDY_TOML
-    config = read_config(toml_path)
-    check_simulation_complete(root, config)
+    config = attempt(problems, read_config, toml_path) or {}
+    attempt(problems, check_simulation_complete, root, config)
+    ridges = attempt(problems, pad_ridge_periods, config, toml_path)  # before any CSV is read
+    sensor = attempt(problems, sensor_from_config, config, toml_path)
+    forces_n = attempt(problems, parse_forces, config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)),
+                       path=toml_path)
     study_cfg = config.get("study", {})
-    pad_ridge_periods(config, toml_path)  # checked early: a bad table is named before any CSV is read
-    sensor = sensor_from_config(config, toml_path)
-    forces_n = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
     name = study_cfg.get("name", root.name)
     if not isinstance(name, str):
-        raise InputError(f"[study] name must be text, got {short_repr(name)}", path=toml_path)
-    reference = study_cfg.get("reference_specimen", REFERENCE_SPECIMEN)
-    check_name(reference, path=toml_path, what="[study] reference_specimen")
+        report(problems, InputError(f"[study] name must be text, got {short_repr(name)}", path=toml_path))
+        name = None
+    reference = attempt(problems, check_name, study_cfg.get("reference_specimen", REFERENCE_SPECIMEN),
+                        path=toml_path, what="[study] reference_specimen")
+    return {"config": config, "ridges": ridges, "sensor": sensor, "forces_n": forces_n, "name": name,
+            "reference": reference, "toml_path": toml_path}
 
-    specimens = read_specimens(root / SPECIMENS_CSV)
-    if specimens.empty:
-        raise InputError("lists no specimens (only a header)", path=root / SPECIMENS_CSV)
+
+def _read_tables(root: Path, settings: dict, problems: Problems | None, *, require_ratings: bool,
+                 check_images: bool) -> dict:
+    """specimens.csv, manifest.csv (with each image's nominal force) and ratings.csv, checked against each other."""
+    specimens = attempt(problems, read_specimens, root / SPECIMENS_CSV, problems=problems)
+    if specimens is not None and specimens.empty:
+        report(problems, InputError("lists no specimens (only a header)", path=root / SPECIMENS_CSV))
+    known = None if specimens is None or specimens.empty else specimens["specimen"].dropna()
     manifest_path = root / MANIFEST_CSV
-    manifest = read_manifest(manifest_path, known_specimens=specimens["specimen"])
-    if manifest.empty:
-        raise InputError("lists no images (only a header); capture or simulate some first", path=manifest_path)
-    manifest = assign_nominal_forces(manifest, forces_n, manifest_path)
-    if check_images:
-        for i, rel in enumerate(manifest["image"]):
-            if not (root / rel).is_file():
-                raise InputError(f"image file not found: {rel}", path=manifest_path, row=csv_line(i), column="image")
-
+    manifest = attempt(problems, read_manifest, manifest_path, known_specimens=known, problems=problems)
+    if manifest is not None and manifest.empty:
+        report(problems, InputError("lists no images (only a header); capture or simulate some first",
+                                    path=manifest_path))
+    elif manifest is not None:
+        if settings["forces_n"] is not None:
+            manifest = assign_nominal_forces(manifest, settings["forces_n"], manifest_path, problems=problems)
+        if check_images:
+            flag(problems, [isinstance(rel, str) and not (root / rel).is_file() for rel in manifest["image"]],
+                 lambda i: InputError(f"image file not found: {manifest['image'].iloc[i]}", path=manifest_path,
+                                      row=csv_line(i), column="image"))
+        _warn_pad_case(settings["config"], manifest, settings["toml_path"])
     ratings = None
     ratings_path = root / RATINGS_CSV
     if ratings_path.exists():
-        ratings = read_ratings_table(ratings_path, reference=reference, specimens=specimens["specimen"],
-                                     unknown_hint=f"not in {SPECIMENS_CSV}", allow_empty=not require_ratings)
+        ratings = attempt(problems, read_ratings_table, ratings_path, reference=settings["reference"],
+                          specimens=known, unknown_hint=f"not in {SPECIMENS_CSV}", allow_empty=not require_ratings,
+                          problems=problems)
     elif require_ratings:
-        raise InputError("file not found (the analysis needs participants' ratings)", path=ratings_path)
+        report(problems, InputError("file not found (the analysis needs participants' ratings)", path=ratings_path))
+    return {"specimens": specimens, "manifest": manifest, "ratings": ratings}
 
-    return Study(
-        root=root,
-        name=name,
-        reference_specimen=reference,
-        sensor=sensor,
-        forces_n=forces_n,
-        specimens=specimens,
-        manifest=manifest,
-        ratings=ratings,
-        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol", "pads")},
-        pad_ridge_period_mm=pad_ridge_periods(config, toml_path),
-    )
+
+def _warn_pad_case(config: Mapping, manifest: pd.DataFrame, toml_path: Path) -> None:
+    """Warn of a ``[pads.NAME]`` table that matches a manifest pad only but for case: its settings would be lost."""
+    pads = set(manifest["pad"].dropna())
+    tables = config.get("pads", {})
+    for pad in tables if isinstance(tables, Mapping) else ():
+        match = same_but_case(pad, pads) if pad not in pads else None
+        if match is not None:
+            warnings.warn(f"{toml_path}: [pads.{pad}] names no pad of {MANIFEST_CSV}; did you mean {match!r}? "
+                          f"its ridge_period_mm is ignored", RoughsenseWarning, stacklevel=4)

@@ -5,13 +5,22 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, RoughsenseWarning
+from .problems import Problems, flag, report, same_but_case
+
+#: Columns holding names, never numbers: a decimal comma is not looked for there ("1,5" stays a (bad) name).
+NAME_COLUMNS = frozenset({"image", "specimen", "pad", "participant", "session", "shape"})
+_COMMA_NUMBER = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+_POINT_NUMBER = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?")
+_NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
 
 
 def csv_line(index: int) -> int:
@@ -20,13 +29,47 @@ def csv_line(index: int) -> int:
 
 
 def refuse_unknown(frame: pd.DataFrame, column: str, known, path: Path | None, *, hint: str,
-                   line=csv_line) -> None:
-    """Refuse the first value of ``column`` not in ``known``, naming its line; ``hint`` says where names come from."""
+                   line=csv_line, problems: Problems | None = None) -> None:
+    """Refuse each value of ``column`` not in ``known``, naming its line; ``hint`` says where names come from.
+
+    A name that differs from a known one only by case (``r4`` for ``R4``) is named: it is the usual slip.
+    """
     known = set(known)
     unknown = ~frame[column].isin(known)
-    if unknown.any():
-        i = int(np.flatnonzero(unknown)[0])
-        raise InputError(f"unknown {column} {frame[column].iloc[i]!r} ({hint})", path=path, row=line(i), column=column)
+    if problems is not None:
+        unknown &= frame[column].notna() & (frame[column] != "")  # a blank cell is its own problem
+
+    def error(i: int) -> InputError:
+        value = frame[column].iloc[i]
+        match = same_but_case(value, known)
+        guess = f"; did you mean {match!r}?" if match is not None else ""
+        return InputError(f"unknown {column} {value!r} ({hint}{guess})", path=path, row=line(i), column=column)
+
+    flag(problems, unknown.to_numpy(bool), error)
+
+
+def number_hint(cell: object) -> str:
+    """What to write instead of a cell that is almost a number: ``2.01 N`` (drop the unit), ``0,5`` (a point)."""
+    text = str(cell).strip()
+    try:
+        float(text)
+        return ""  # a number after all ('inf', '1e999'): refused for its value, not its writing
+    except ValueError:
+        pass
+    if _COMMA_NUMBER.fullmatch(text):
+        return f" (a decimal comma: write {text.replace(',', '.')})"
+    unit = _NUMBER_WITH_UNIT.fullmatch(text)
+    if unit is not None:
+        return f" (drop the unit: write {unit.group(1)})"
+    return ""
+
+
+def missing_columns(missing: Sequence[str], found: Sequence[object], path: Path | None) -> InputError:
+    """The error for absent columns, naming those found; a header that mixes ``;`` and ``,`` is told what to do."""
+    found = [str(c) for c in found]
+    fix = ("; the header mixes ',' and ';' separators: use one throughout, e.g. save it as CSV UTF-8 (comma delimited)"
+           if any(";" in c for c in found) else "")
+    return InputError(f"missing column(s) {', '.join(missing)}; found {', '.join(found) or 'nothing'}{fix}", path=path)
 
 
 def read_text(path: Path, *, max_bytes: int | None = None) -> str:
@@ -47,8 +90,55 @@ def read_text(path: Path, *, max_bytes: int | None = None) -> str:
                          path=path, row=line) from None
 
 
-def _check_row_widths(path: Path, text: str) -> None:
-    """Refuse a data row with non-empty fields beyond the header's, naming its line.
+def _semicolon_header(text: str) -> bool:
+    header = text.split("\n", 1)[0]
+    return ";" in header and "," not in header
+
+
+def _from_semicolons(path: Path, text: str) -> str:
+    """A semicolon-separated file (European Excel's CSV) as the comma-separated text it means, with one warning.
+
+    Decimal commas are turned into points where every number cell agrees; a file mixing ``0,5`` and ``1.25`` is
+    ambiguous (``1.250`` may be a thousands separator) and refused. Lines keep their numbers.
+    """
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=";", skipinitialspace=True)
+    rows, starts = [], []
+    try:
+        for row in reader:
+            rows.append(row)
+            starts.append(reader.line_num - sum(row_text.count("\n") for row_text in row))
+    except csv.Error:
+        return text  # pandas names the malformed file
+    header = [name.strip() for name in rows[0]] if rows else []
+    comma = point = None
+    for row, line in zip(rows[1:], starts[1:]):
+        for k, cell in enumerate(row):
+            if k < len(header) and header[k] in NAME_COLUMNS:
+                continue
+            cell = cell.strip()
+            if comma is None and _COMMA_NUMBER.fullmatch(cell):
+                comma = (cell, line)
+            elif point is None and _POINT_NUMBER.fullmatch(cell):
+                point = (cell, line)
+    if comma is not None and point is not None:
+        raise InputError(f"is semicolon-separated but mixes decimal commas ({comma[0]!r}, row {comma[1]}) and "
+                         f"decimal points ({point[0]!r}, row {point[1]}); write every number with the same decimal mark",
+                         path=path)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    for number, row in enumerate(rows):
+        if comma is not None and number > 0:
+            row = [cell.strip().replace(",", ".") if _COMMA_NUMBER.fullmatch(cell.strip())
+                   and not (k < len(header) and header[k] in NAME_COLUMNS) else cell for k, cell in enumerate(row)]
+        writer.writerow(row)
+    decimals = " with decimal commas" if comma is not None else ""
+    warnings.warn(f"{path}: read as semicolon-separated{decimals} (as European Excel saves it)",
+                  RoughsenseWarning, stacklevel=4)
+    return out.getvalue()
+
+
+def _check_row_widths(path: Path, text: str, problems: Problems | None = None) -> None:
+    """Refuse each data row with non-empty fields beyond the header's, naming its line.
 
     pandas would take the first column as the index and shift every value one column left (or, with
     ``index_col=False``, drop the extras with only a warning). Empty extra fields -- a spreadsheet's
@@ -65,12 +155,11 @@ def _check_row_widths(path: Path, text: str) -> None:
             width = len(header)
             start = reader.line_num + 1
             for row in reader:
-                extra = [value for value in row[width:] if value.strip()]
+                extra = [value.strip() for value in row[width:] if value.strip()]
                 if extra:
-                    raise InputError(
-                        f"{len(row)} fields but the header has {width} (extra value {extra[0].strip()!r})",
-                        path=path, row=start,
-                    )
+                    decimal = "; a decimal comma? write numbers with a point (0.5, not 0,5)" if extra[0].isdigit() else ""
+                    report(problems, InputError(f"{len(row)} fields but the header has {width} "
+                                                f"(extra value {extra[0]!r}){decimal}", path=path, row=start))
                 start = reader.line_num + 1
     except csv.Error:
         return
@@ -85,44 +174,51 @@ def read_table(
     integer: Sequence[str] = (),
     text: Sequence[str] = (),
     maximum: Mapping[str, float] | None = None,
+    problems: Problems | None = None,
 ) -> pd.DataFrame:
-    """Read a CSV and check columns and values, naming the line of the first bad cell.
+    """Read a CSV and check columns and values, naming the line of the first bad cell (or of each, into ``problems``).
 
     ``text`` columns are kept as strings (so specimen "3" stays "3", and participant IDs keep leading zeros).
     ``maximum`` bounds numeric columns from above (an absurd force, a repetition number that overflows).
+    A problem with the whole file (unreadable, a column missing) is raised even when collecting: nothing else in
+    it can be checked. A semicolon-separated file is read as comma-separated, with a warning (see ``_from_semicolons``).
     """
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path=path)
     # Numeric columns are read as text too, so an error quotes the cell as written ('inf', not np.float64(inf)).
     dtypes = dict.fromkeys({*text, *numeric, *positive, *integer, "image", "specimen", "pad", "participant", "shape"}, str)
-    frame = _parse_csv(path, dtypes)
+    frame = _parse_csv(path, dtypes, problems)
     missing = [c for c in required if c not in frame.columns]
     if missing:
-        raise InputError(f"missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}", path=path)
+        raise missing_columns(missing, frame.columns, path)
     for column in required:
-        blank = frame[column].isna()
-        if blank.any():
-            raise InputError("empty value", path=path, row=csv_line(np.flatnonzero(blank)[0]), column=column)
+        flag(problems, frame[column].isna(),
+             lambda i, column=column: InputError("empty value", path=path, row=csv_line(i), column=column))
     for column in dict.fromkeys([*numeric, *positive, *integer]):
         if column in frame.columns:
             frame[column] = _numeric_column(frame[column], path, positive=column in positive,
-                                            integer=column in integer, limit=(maximum or {}).get(column))
+                                            integer=column in integer, limit=(maximum or {}).get(column),
+                                            problems=problems)
     for column in text:
         if column in frame.columns:
             frame[column] = frame[column].str.strip()
     return frame
 
 
-def _parse_csv(path: Path, dtypes: dict) -> pd.DataFrame:
+def _parse_csv(path: Path, dtypes: dict, problems: Problems | None = None) -> pd.DataFrame:
     """The file as a frame whose row i is file line i + 2; blank lines at the end dropped, inside refused."""
     content = read_text(path)
-    _check_row_widths(path, content)
+    if _semicolon_header(content):
+        content = _from_semicolons(path, content)
+    _check_row_widths(path, content, problems)
     try:
         # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
         # skip_blank_lines=False keeps DataFrame row i on file line i + 2, so every error names the right line.
-        frame = pd.read_csv(io.StringIO(content), dtype=dtypes, skipinitialspace=True, keep_default_na=False, na_values=[""],
-                            index_col=False, skip_blank_lines=False)
+        with warnings.catch_warnings():  # rows too wide were reported above (only when collecting do we get here)
+            warnings.simplefilter("ignore", pd.errors.ParserWarning)
+            frame = pd.read_csv(io.StringIO(content), dtype=dtypes, skipinitialspace=True, keep_default_na=False,
+                                na_values=[""], index_col=False, skip_blank_lines=False)
     except pd.errors.EmptyDataError:
         raise InputError("is empty; expected a header line", path=path) from None
     except (pd.errors.ParserError, ValueError, OverflowError) as exc:
@@ -141,34 +237,31 @@ def _parse_csv(path: Path, dtypes: dict) -> pd.DataFrame:
     return frame
 
 
-def _numeric_column(cells: pd.Series, path: Path, *, positive: bool, integer: bool, limit: float | None) -> pd.Series:
-    """A column of number cells as floats (or int64 for ``integer``), refusing the first bad cell by its line."""
+def _numeric_column(cells: pd.Series, path: Path, *, positive: bool, integer: bool, limit: float | None,
+                    problems: Problems | None = None) -> pd.Series:
+    """A column of number cells as floats (or int64 for ``integer``), refusing each bad cell by its line.
+
+    When collecting, a bad cell becomes missing, so it is reported once and not again by a later check.
+    """
     column = cells.name
     try:
         values = pd.to_numeric(cells, errors="coerce").astype(float)
     except (OverflowError, ValueError, TypeError):
         values = cells.map(to_float)
-    bad = values.isna() & cells.notna()
-    bad |= ~np.isfinite(values.fillna(0.0))
-    if bad.any():
-        i = np.flatnonzero(bad)[0]
-        raise InputError(f"not a finite number: {cells.iloc[i]!r}", path=path, row=csv_line(i), column=column)
+
+    def refuse(mask, message) -> None:
+        bad = flag(problems, mask, lambda i: InputError(message(i), path=path, row=csv_line(i), column=column))
+        values.iloc[bad] = np.nan
+
+    refuse((values.isna() & cells.notna()) | ~np.isfinite(values.fillna(0.0)),
+           lambda i: f"not a finite number: {cells.iloc[i]!r}{number_hint(cells.iloc[i])}")
     if positive:
-        nonpos = values <= 0
-        if nonpos.any():
-            i = np.flatnonzero(nonpos)[0]
-            raise InputError(f"must be positive, got {values.iloc[i]:g}", path=path, row=csv_line(i), column=column)
+        refuse(values <= 0, lambda i: f"must be positive, got {values.iloc[i]:g}")
     if limit is not None:
-        high = values > limit
-        if high.any():
-            i = np.flatnonzero(high)[0]
-            raise InputError(f"must be at most {limit:g}, got {cells.iloc[i]}", path=path, row=csv_line(i), column=column)
+        refuse(values > limit, lambda i: f"must be at most {limit:g}, got {cells.iloc[i]}")
     if not integer:
         return values.astype(float)
-    frac = values.notna() & (values != np.round(values))
-    if frac.any():
-        i = np.flatnonzero(frac)[0]
-        raise InputError(f"must be a whole number, got {values.iloc[i]:g}", path=path, row=csv_line(i), column=column)
+    refuse(values.notna() & (values != np.round(values)), lambda i: f"must be a whole number, got {values.iloc[i]:g}")
     return values.astype("Int64") if values.isna().any() else values.astype(np.int64)
 
 
@@ -185,7 +278,8 @@ def has_column(path: Path, column: str) -> bool:
             header = handle.readline(100_000)
     except (OSError, UnicodeDecodeError):
         return False  # read_table then names the real problem
-    return column in [c.strip() for c in header.strip().split(",")]
+    separator = ";" if _semicolon_header(header) else ","
+    return column in [c.strip() for c in header.strip().split(separator)]
 
 
 def _toml_value(value: object) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,14 +24,67 @@ from .modelfile import AnyModel, check_features, feature_definition_for
 if TYPE_CHECKING:
     import pandas as pd
 
+    from ..io.sensor_settings import Roi
 
-def model_spectrum(loaded: AnyModel, *, n_jobs: int = 1):
-    """The SpatialSpectrum the model was trained with, rebuilt from its file (and checked against it)."""
+
+@dataclass(frozen=True)
+class SensorOverride:
+    """Where the line is read (``roi``) and the images' scale (``px_per_mm``), given at scoring time in place of
+    the model's.
+
+    Both only change how an image becomes a line in mm: the spectrum itself (band and grid in mm^-1, window, rows,
+    normalisation) stays the model's, so the features mean what they meant in training. A scale is refused where
+    the model's band cannot be measured (f_max at or above Nyquist here; a line shorter than 1/f_min, per image).
+    """
+
+    roi: Roi | None = None
+    px_per_mm: float | None = None
+
+    @classmethod
+    def parse(cls, roi: str | None = None, px_per_mm: float | None = None) -> SensorOverride | None:
+        """From ``--roi`` and ``--px-per-mm`` as given (None when neither was): each refused in one line naming it."""
+        from .._util.checks import POSITIVE, check
+        from ..io.sensor_settings import parse_roi
+
+        if roi is None and px_per_mm is None:
+            return None
+        if roi is not None:
+            try:
+                roi = parse_roi(roi)
+            except ConfigError as exc:
+                raise ConfigError(f"--roi: {exc.message}") from None
+        if px_per_mm is not None:
+            px_per_mm = check(px_per_mm, POSITIVE, name="--px-per-mm", must="a positive number (px/mm)")
+        return cls(roi, px_per_mm)
+
+    def fields(self) -> dict:
+        """The feature-definition fields this override replaces (JSON values, as a model file stores them)."""
+        given = {}
+        if self.roi is not None:
+            given["roi"] = self.roi if isinstance(self.roi, str) else list(self.roi)
+        if self.px_per_mm is not None:
+            given["px_per_mm"] = float(self.px_per_mm)
+        return given
+
+
+def model_spectrum(loaded: AnyModel, *, n_jobs: int = 1, override: SensorOverride | None = None):
+    """The SpatialSpectrum the model was trained with, rebuilt from its file (and checked against it).
+
+    With ``override``, the checked definition is then read where and at the scale the override says.
+    """
     from ..sensor.spectrum import SpatialSpectrum
 
-    spectrum = SpatialSpectrum.from_definition(loaded.features["spectrum"], n_jobs=n_jobs).fit()
+    stored = loaded.features["spectrum"]
+    spectrum = SpatialSpectrum.from_definition(stored, n_jobs=n_jobs).fit()
     check_features(loaded, feature_definition_for(spectrum, loaded.conditions))
-    return spectrum
+    if override is None:
+        return spectrum
+    f_max = float(spectrum.freq_per_mm_[-1])
+    if override.px_per_mm is not None and f_max >= override.px_per_mm / 2:
+        raise ConfigError(f"--px-per-mm {override.px_per_mm:g}: the model's band reaches {f_max:g} mm^-1, not below "
+                          f"the Nyquist frequency {override.px_per_mm / 2:g} mm^-1 of images at that scale",
+                          path=loaded.path)
+    return SpatialSpectrum.from_definition({**stored, **override.fields()}, n_jobs=n_jobs).fit()
 
 
 def group_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
@@ -55,15 +109,16 @@ def spectra_to_features(loaded: AnyModel, spectra: np.ndarray) -> np.ndarray:
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
-def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
+def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None) -> np.ndarray:
     """The model's inputs, one row per image (per trial of k images for a k-force model).
 
     ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
-    (the CLI passes its progress display).
+    (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
     """
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
-    spectrum = model_spectrum(loaded, n_jobs=n_jobs)
+    spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
     if progress is None:
         spectra = spectrum.transform(images)
     else:
@@ -71,26 +126,28 @@ def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progr
     return spectra_to_features(loaded, spectra)
 
 
-def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None) -> np.ndarray:
+def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                 override: SensorOverride | None = None) -> np.ndarray:
     """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
-    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress))
+    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
 
 
-def score_and_flag(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def score_and_flag(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Predicted roughness and whether each prediction extrapolates, from one pass over the images."""
-    X = image_features(loaded, images, n_jobs=n_jobs, progress=progress)
+    X = image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     return loaded.predict(X), loaded.extrapolates(X)
 
 
-def frame_scorer(loaded: AnyModel) -> Callable[[np.ndarray], tuple[float, bool]]:
+def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
+                 ) -> Callable[[np.ndarray], tuple[float, bool]]:
     """Live mode's scorer: one camera frame (an array) -> (roughness, extrapolates), the spectrum built once."""
     if len(loaded.conditions) != 1:
         raise ConfigError(
             f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
             "(fit one with --condition 1N, 2N or 3N)"
         )
-    spectrum = model_spectrum(loaded)
+    spectrum = model_spectrum(loaded, override=override)
 
     def score_frame(frame: np.ndarray) -> tuple[float, bool]:
         X = spectrum.transform([frame])

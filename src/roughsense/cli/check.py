@@ -1,0 +1,33 @@
+"""``roughsense check DIR``: list every problem of a study folder (file, row, column, what to do), write nothing."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+ORDER = 4
+
+Folder = Annotated[Path, typer.Argument(metavar="DIR", help="The study folder to check.", show_default=False)]
+
+
+def check(folder: Folder) -> None:
+    """Check a study folder and list every problem at once, one per line, exit 2 if there is any.
+
+    The same checks `study`, `fit` and `features` make, which stop at the first problem: study.toml, specimens.csv,
+    manifest.csv (every image file is looked for, not decoded) and ratings.csv. A European Excel file
+    (semicolons, decimal commas) is read with a warning. Nothing is written.
+    """
+    from ..errors import InputError
+    from ..io.check import check_study
+
+    result = check_study(folder)
+    if not result.ok:
+        for line in result.problems.lines():
+            typer.echo(line)
+        raise InputError(result.failure(), path=folder)
+    typer.echo(result.summary())
+
+
+def register(app: typer.Typer) -> None:
+    app.command("check")(check)

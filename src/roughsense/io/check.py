@@ -1,0 +1,54 @@
+"""``roughsense check``: every problem of a study folder at once, found by the very readers ``study`` uses.
+
+A folder with five mistakes should take one run to fix, not five. Images are looked for on disk, not decoded.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from .problems import MAX_LISTED, Problems
+from .study import load_study
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+@dataclass
+class CheckResult:
+    """What ``check`` found: the problems (none if the folder is fine) and the folder's size."""
+
+    root: Path
+    problems: Problems
+    n_images: int
+    n_specimens: int
+    n_ratings: int | None  # None: no ratings.csv
+
+    @property
+    def ok(self) -> bool:
+        return len(self.problems) == 0
+
+    def summary(self) -> str:
+        """The one line of a folder without problems."""
+        ratings = "no ratings.csv" if self.n_ratings is None else _count(self.n_ratings, "rating")
+        return f"study OK: {_count(self.n_images, 'image')}, {_count(self.n_specimens, 'specimen')}, {ratings}"
+
+    def failure(self) -> str:
+        """The one error line after the listed problems."""
+        return (f"{_count(len(self.problems), 'problem')} (listed above); fix them and run "
+                "`roughsense check` again")
+
+
+def check_study(root: str | os.PathLike[str], *, limit: int = MAX_LISTED) -> CheckResult:
+    """Validate the folder as ``study`` does, collecting every problem (the first ``limit`` in full)."""
+    root = Path(root)
+    problems = Problems(limit)
+    study = load_study(root, problems=problems)
+    return CheckResult(
+        root=root, problems=problems,
+        n_images=0 if study.manifest is None else len(study.manifest),
+        n_specimens=0 if study.specimens is None else len(study.specimens),
+        n_ratings=None if study.ratings is None else len(study.ratings),
+    )

@@ -1,0 +1,145 @@
+"""One command-line style: usage errors are one line like every other error, --debug goes anywhere, flags are
+flags, --jobs means one thing, and --version/--help start without the numerical stack."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+import typer.main
+
+from roughsense.cli import app
+from roughsense.errors import InputError
+
+
+def _commands() -> dict:
+    return typer.main.get_command(app).commands
+
+
+def _one_line_error(code: int, err: str) -> str:
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert lines[0].startswith("roughsense: error: ")
+    assert not any(mark in err for mark in ("╭", "│", "Usage:", "Traceback"))
+    return lines[0]
+
+
+@pytest.mark.parametrize(("args", "named"), [
+    (["study", "--no-such-option"], "--no-such-option"),
+    (["--no-such-option"], "--no-such-option"),
+    (["no-such-command"], "no-such-command"),
+    (["fit", "--pad", "smooth"], "--study"),              # a missing required option
+    (["explore", "--out", "x"], "SWEEP.toml"),            # a missing argument
+    (["fit", "--seed", "three"], "--seed"),               # a value of the wrong type
+    (["study", "--out"], "--out"),                        # an option without its value
+    (["study", "extra"], "extra"),                        # an unexpected argument
+])
+def test_a_usage_error_is_one_line_naming_the_option_exit_2(run_cli, args, named):
+    code, out, err = run_cli(*args)
+    line = _one_line_error(code, err)
+    assert named in line and out == ""
+    if args[0] in _commands():  # says where to read more, for the command the user typed
+        assert f"roughsense {args[0]} --help" in line
+
+
+def test_no_arguments_still_shows_the_help(run_cli):
+    code, out, err = run_cli()
+    assert code == 2 and "Usage: roughsense" in out and "study" in out
+
+
+@pytest.fixture
+def failing_command():
+    """A hidden command that fails with a user error, as a real one does on a bad file."""
+    @app.command("_fails", hidden=True)
+    def _fails() -> None:
+        raise InputError("bad value", path="ratings.csv", row=3)
+
+    yield "_fails"
+    app.registered_commands[:] = [c for c in app.registered_commands if c.name != "_fails"]
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_debug_before_or_after_the_command_shows_the_traceback(run_cli, failing_command, where):
+    args = ["--debug", failing_command] if where == "before" else [failing_command, "--debug"]
+    code, _, err = run_cli(*args)
+    assert code == 2 and "Traceback" in err and "roughsense: error: ratings.csv, row 3: bad value" in err
+    code, _, err = run_cli(failing_command)  # and not in the next run
+    _one_line_error(code, err)
+
+
+def test_debug_is_offered_in_the_help(run_cli):
+    code, out, _ = run_cli("--help")
+    assert code == 0 and "--debug" in out and "after the command" in " ".join(out.split())
+
+
+@pytest.mark.parametrize("command", [None, *sorted(_commands())])
+def test_flags_show_no_type_in_the_help(run_cli, command, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "100")
+    code, out, _ = run_cli(*(["--help"] if command is None else [command, "--help"]))
+    assert code == 0 and "--help" in out
+    for metavar in ("<bool>", "BOOLEAN", "<boolean>"):
+        assert metavar not in out
+
+
+def _jobs_options() -> dict:
+    return {name: next(p for p in command.params if p.name == "jobs")
+            for name, command in _commands().items() if any(p.name == "jobs" for p in command.params)}
+
+
+def test_jobs_is_one_option_with_one_default_on_every_command():
+    options = _jobs_options()
+    assert {"study", "features", "fit", "predict", "simulate"} <= set(options)
+    assert {tuple(o.opts) for o in options.values()} == {("--jobs", "-j")}
+    assert {o.help for o in options.values()} == {options["study"].help}
+    assert {o.default for o in options.values()} == {None}  # omitted: every core this process may use
+    assert "all cores" in options["study"].help
+
+
+def test_jobs_omitted_is_every_usable_core_and_zero_is_refused(run_cli):
+    from roughsense.cli._common import usable_cores
+
+    expected = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert usable_cores() == expected
+    for command in ("study", "simulate", "fit"):
+        code, _, err = run_cli(command, "--jobs", "0")
+        assert "--jobs" in _one_line_error(code, err)
+
+
+HEAVY = ("numpy", "pandas", "scipy", "sklearn", "matplotlib", "cv2", "dask", "distributed", "pyarrow", "pydantic")
+
+_PROBE = """
+import json, sys
+from roughsense.cli import main, app
+import typer.main
+args = json.loads(sys.argv[1])
+codes = [main(a) for a in (args or [["--help"]] + [[c, "--help"] for c in typer.main.get_command(app).commands])]
+heavy = sorted({m.split(".")[0] for m in sys.modules} & set(json.loads(sys.argv[2])))
+print(json.dumps({"codes": codes, "heavy": heavy}))
+"""
+
+
+@pytest.mark.parametrize("args", [[["--version"]], []], ids=["version", "every-help"])
+def test_version_and_help_import_nothing_heavy(args):
+    """The startup a user feels: --version, --help and COMMAND --help stay off the numerical stack."""
+    run = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(args), json.dumps(HEAVY)],
+                         capture_output=True, text=True, timeout=120, env={**os.environ, "COLUMNS": "80"})
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    assert set(result["codes"]) == {0}
+    assert result["heavy"] == []
+
+
+def test_the_literal_defaults_in_the_options_are_the_layers_own():
+    """A few option defaults are literals so that --help stays light; they must equal the layers' values."""
+    from roughsense.cli import _defaults as literal
+    from roughsense.io.images import DEFAULT_MAX_PIXELS
+    from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
+    from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
+
+    assert literal.DEFAULT_MAX_PIXELS == DEFAULT_MAX_PIXELS
+    assert (literal.CENTER_CROP_PX, literal.DEFAULT_PX_PER_MM, literal.DEFAULT_ROI) == (
+        CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI)
+    assert (literal.DEFAULT_FINGERPRINT_PERIOD_MM, literal.DEFAULT_RIDGE_HEIGHT_MM, literal.PAD_NAMES) == (
+        DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES)
