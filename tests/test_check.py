@@ -118,8 +118,8 @@ def test_a_decimal_comma_in_a_comma_separated_file_gets_a_hint(tmp_path):
 
 
 @pytest.mark.parametrize("file, row, column, value, message", [
-    ("manifest.csv", 3, "force_n", "2.01 N", "not a finite number: '2.01 N' (drop the unit: write 2.01)"),
-    ("specimens.csv", 2, "wavelength_mm", "1.5mm", "not a finite number: '1.5mm' (drop the unit: write 1.5)"),
+    ("manifest.csv", 3, "force_n", "2.01 N", "not a number: '2.01 N' (drop the unit: write 2.01)"),
+    ("specimens.csv", 2, "wavelength_mm", "1.5mm", "not a number: '1.5mm' (drop the unit: write 1.5)"),
     ("manifest.csv", 4, "specimen", "r4", "unknown specimen 'r4' (not in specimens.csv; did you mean 'R4'?)"),
     ("ratings.csv", 3, "specimen", "r4", "unknown specimen 'r4' (not in specimens.csv; did you mean 'R4'?)"),
 ])
@@ -165,7 +165,7 @@ def test_check_lists_every_problem_exits_2_and_writes_nothing(tmp_path, run_cli)
     assert code == 2
     assert out.splitlines() == [
         f"{root / 'specimens.csv'}, row 3, column 'wavelength_mm': must be positive, got -3",
-        f"{root / 'manifest.csv'}, row 3, column 'force_n': not a finite number: '2.01 N' (drop the unit: write 2.01)",
+        f"{root / 'manifest.csv'}, row 3, column 'force_n': not a number: '2.01 N' (drop the unit: write 2.01)",
         f"{root / 'manifest.csv'}, row 5, column 'specimen': unknown specimen 'r4' (not in specimens.csv; "
         "did you mean 'R4'?)",
         f"{root / 'manifest.csv'}, row 9, column 'image': image file not found: images/S05_2.01.png",

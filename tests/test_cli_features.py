@@ -138,7 +138,8 @@ def test_bad_image_in_a_batch_names_the_file_and_writes_nothing(run_cli, tmp_pat
 @pytest.mark.parametrize("value", ["0", "-34.9", "nan"])
 def test_px_per_mm_must_be_positive(run_cli, tmp_path, images, value):
     out = tmp_path / "features.csv"
-    _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--px-per-mm={value}"), out, "px_per_mm")
+    _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--px-per-mm={value}"), out,
+                          "--px-per-mm must be a positive number")
 
 
 @pytest.mark.parametrize("args, words", [

@@ -588,3 +588,35 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     rows = [line.split() for line in lines[2:]]
     assert [r[:2] for r in rows] == [[s, str(r)] for s, r in zip(table["specimen"], table["repetition"])]
     assert [float(r[2]) for r in rows] == pytest.approx(list(table["roughness"]), rel=1e-5)
+
+
+def test_fit_refuses_a_study_whose_images_are_all_the_same(run_cli, study_dir, tmp_path):
+    """Issue 22, item 6: copies of one image gave a one-component model of rounding noise, though its own CV
+    curve was worse than no components. Now one line naming the manifest, exit 2, no model file."""
+    import shutil
+
+    same = shutil.copytree(study_dir, tmp_path / "same")
+    images = sorted((same / "images").rglob("*.png"))
+    assert len(images) > 10
+    for image in images[1:]:
+        shutil.copyfile(images[0], image)
+    out = tmp_path / "m.json"
+    for condition in ("1N", "combined"):
+        code, stdout, err = fit(run_cli, same, out, "--condition", condition)
+        _one_line(code, err, str(same / "manifest.csv"), "has the same spectrum")
+    assert not out.exists()
+
+
+def test_a_pls_model_no_better_than_the_training_mean_is_refused():
+    """The CV curve decides: when every component count predicts held-out trials worse than the training mean,
+    the spectra carry nothing about the ratings, and fit writes no model (a study of noise spectra)."""
+    from roughsense.analysis.training import _refuse_no_better_than_mean
+
+    rng = np.random.default_rng(4)
+    X, y = rng.random((24, 30)), rng.random(24)  # independent: nothing to learn
+    result = pls_cv(X, y, max_components=4)
+    assert result.rmse[1:].min() >= result.rmse[0]  # the premise, from the CV itself
+    with pytest.raises(InputError, match=r"no PLS component count beats the training mean .* with none"):
+        _refuse_no_better_than_mean(result, "pad 'x' at 1N", Path("manifest.csv"))
+    learnable = pls_cv(X, X[:, :3].sum(axis=1), max_components=4)  # y in X's span: components help
+    _refuse_no_better_than_mean(learnable, "pad 'x' at 1N", Path("manifest.csv"))

@@ -640,3 +640,121 @@ def test_a_sweep_with_every_cell_finished_starts_no_cluster(tmp_path, monkeypatc
     code, out, err = run_cli("explore", path, "--out", tmp_path / "out")
     assert (code, err) == (0, "") and "0 cells computed, 1 already finished" in out
     assert time.perf_counter() - started < 10  # the report only (about 1 s); a LocalCluster alone takes longer
+
+
+# --------------------------------------------------------------------------- cells verified, not trusted (issue 22)
+
+
+def _fake_rows(cell):
+    """Rows shaped as cell_rows' (every column, one row per condition x CV x model), with made-up numbers: the store
+    checks what a file is, not what a cell computes."""
+    from roughsense.explore.sweep import MODEL_KEY
+
+    keys = [(c, v, m) for c in ("1N", "2N", "3N", "combined") for v in cell.cv for m in cell.models]
+    summary = pd.DataFrame([{
+        "cell": cell.id, "seed": cell.seed, "pad": cell.pad, "condition": c, "cv": v, "n_components": 2,
+        "rmse": 0.3 + 0.01 * cell.seed, "ovl": 0.5, "ovl_predictive": 0.4, "cv_rmse": 0.3, "rmse_sd": 0.1,
+        "ovl_sd": 0.1, "n_specimens": 4, MODEL_KEY: m} for c, v, m in keys])
+    specimens = pd.DataFrame([{
+        "cell": cell.id, "seed": cell.seed, "pad": cell.pad, "condition": c, "cv": v, "specimen": s,
+        "shape": "rectangular", "wavelength_mm": 2.0, "n_components": 2, "gmean": 1.0 + 0.2 * i, "sd": 0.1,
+        "pred_mean": 1.05 + 0.2 * i, "pred_sd": 0.1, "rmse": 0.3, "ovl": 0.5, "ovl_predictive": 0.4, MODEL_KEY: m}
+        for c, v, m in keys for i, s in enumerate(["R2", "R4", "C3", "rect_1.5"])])
+    design = cell.columns()
+    design.pop("pad")
+    design.pop(MODEL_KEY)
+    return summary.assign(**design), specimens.assign(**design)
+
+
+def _stored_sweep(tmp_path, seeds="[0, 1, 2, 3]"):
+    sweep = read_sweep(_sweep_file(tmp_path, TINY.replace("seeds = [0, 1]", f"seeds = {seeds}")))
+    store = ResultStore(tmp_path / "out", sweep)
+    store.prepare()
+    for cell in sweep.cells:
+        store.write_cell(*_fake_rows(cell), cell.id)
+    return sweep, store
+
+
+def test_a_cell_file_is_checked_against_the_cell_its_name_says(tmp_path):
+    import pyarrow.parquet as pq
+
+    sweep, store = _stored_sweep(tmp_path, "[0, 1]")
+    first, second = sweep.cells
+    results = tmp_path / "out" / "results" / f"cell-{first.id}.parquet"
+    specimens = tmp_path / "out" / "specimens" / f"cell-{first.id}.parquet"
+    assert store.check_cell(first) is None and store.finished() == {first.id, second.id}
+    intact = results.read_bytes()
+    cases = [
+        (results, intact[: len(intact) // 2], f"{results}: does not read back ("),  # killed mid-copy, full disk
+        (specimens, b"", f"{specimens}: does not read back ("),
+        (results, (tmp_path / "out" / "results" / f"cell-{second.id}.parquet").read_bytes(),
+         f"{results}: is not the cell its name says (rows of cell '{second.id}')"),
+    ]
+    for path, content, problem in cases:
+        saved = path.read_bytes()
+        path.write_bytes(content)
+        assert store.check_cell(first).startswith(problem)
+        path.write_bytes(saved)
+    frame = pd.read_parquet(results)
+    for column, value, problem in (("seed", 9, "seed 9, not 0"), ("pad_modulus_mpa", 123.0, "pad_modulus_mpa 123, not"),
+                                   ("model", "pls-x", "model families other than pls")):
+        pq.write_table(_pa_table(frame.assign(**{column: value})), results)
+        assert problem in store.check_cell(first)
+    pq.write_table(_pa_table(frame.iloc[:0]), results)
+    assert store.check_cell(first) == f"{results}: holds no rows"
+
+
+def _pa_table(frame):
+    import pyarrow as pa
+
+    from roughsense.explore.store import RESULT_SCHEMA
+
+    return pa.Table.from_pandas(frame[RESULT_SCHEMA.names], schema=RESULT_SCHEMA, preserve_index=False)
+
+
+def test_damaged_cells_are_computed_again_and_said_never_a_crash(tmp_path, monkeypatch, run_cli):
+    """Issue 22: a truncated results file, an empty specimens file and a file holding another cell's rows."""
+    from distributed import Client, LocalCluster
+
+    from roughsense.explore import runner
+
+    sweep, _ = _stored_sweep(tmp_path)
+    out = tmp_path / "out"
+    a, b, c, d = (cell.id for cell in sweep.cells)
+    results, specimens = out / "results", out / "specimens"
+    (results / f"cell-{a}.parquet").write_bytes((results / f"cell-{a}.parquet").read_bytes()[:300])
+    (specimens / f"cell-{b}.parquet").write_bytes(b"")
+    (results / f"cell-{c}.parquet").write_bytes((results / f"cell-{d}.parquet").read_bytes())
+    untouched = (results / f"cell-{d}.parquet").stat().st_mtime_ns
+    computed = []
+
+    def counted_rows(cell):
+        computed.append(cell.id)
+        return _fake_rows(cell)
+
+    monkeypatch.setattr(explore_cell, "cell_rows", counted_rows)  # the in-process worker below runs this
+    monkeypatch.setattr(runner, "connect", lambda *args, **kwargs: Client(
+        LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"), set_as_default=False))
+    code, stdout, err = run_cli("explore", _sweep_file(tmp_path, TINY.replace("seeds = [0, 1]", "seeds = [0, 1, 2, 3]")),
+                                "--out", out)
+    assert code == 0, err
+    assert "3 cells computed, 1 already finished" in stdout and sorted(computed) == sorted([a, b, c])
+    warned = [line for line in err.splitlines() if line.startswith("roughsense: warning: ")]
+    assert len(warned) == 1 and "(and 2 more); computing these cells again" in warned[0], err
+    assert any(f"{path}: " in warned[0] for path in (results / f"cell-{a}.parquet", specimens / f"cell-{b}.parquet",
+                                                     results / f"cell-{c}.parquet"))
+    stored = pd.read_parquet(results)
+    assert sorted(stored.groupby("cell")["seed"].first().items()) == sorted((cell.id, cell.seed) for cell in sweep.cells)
+    assert len(pd.read_parquet(specimens)) == 4 * len(_fake_rows(sweep.cells[0])[1])
+    assert (results / f"cell-{d}.parquet").stat().st_mtime_ns == untouched  # a sound cell is not recomputed
+
+
+def test_the_report_leaves_out_a_file_that_does_not_read_back(tmp_path):
+    from roughsense.explore.report import write_explore_report
+
+    sweep, _ = _stored_sweep(tmp_path, "[0, 1, 2]")
+    damaged = tmp_path / "out" / "results" / f"cell-{sweep.cells[0].id}.parquet"
+    damaged.write_bytes(damaged.read_bytes()[:100])
+    with pytest.warns(UserWarning, match="does not read back") as caught:
+        write_explore_report(sweep, tmp_path / "out")
+    assert str(damaged) in str(caught[0].message)

@@ -39,6 +39,7 @@ HOSTILE_CELLS = [
     "R2", "smooth", "P01", "1,2", '"', "'", "\\", "C:\\x", "é", "\u202e", "x" * 300, "1N", "images/*.png", "\x00",
     "line\nbreak", "2", "3.0", "rectangular", "other", "sinusoidal", "images/smooth_R2_1N_r01.png",
     "./images/smooth_R2_1N_r01.png", "images//smooth_R2_2N_r01.png",
+    "1_0", "\u0661", "\u0663.\u0665", "0x10", "1e6", "1e-7", " 2 ", "2.01 N", "0,5", "+.5", "5.",  # issue 22: spellings
 ]
 TOML_VALUES = [
     "true", "false", "0", "-1", "1e308", "nan", "inf", "-inf", '"center"', '"auto"', '"1,2,3,4"', '""', "[]", "[true, 2, 3]",
@@ -497,9 +498,59 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
             except RoughsenseError as exc:
                 assert "\n" not in str(exc)
             else:
-                assert score.shape == (1,)
+                assert score.shape == (1,) and np.all(np.isfinite(score))  # issue 22: bounded fields, finite scores
     finally:
         shutil.rmtree(path.parent, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- one number parser (issue 22)
+
+#: Characters numbers are (mis)written with: digits of three scripts, separators, signs, exponents, words.
+NUMBER_CHARS = "0123456789+-.eE_ ,\t\u0661\u0967\uff11\u00a0xXinfaNty%"
+
+
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), max_size=10))
+def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
+    """A cell, a ratings cell and a command-line option take exactly the spellings parse_number takes, with the
+    same value: no reader falls back to float() (which takes '1_0' and '\u0661') or to pandas' own parser."""
+    import pandas as pd
+    import typer
+
+    from roughsense.cli._common import number_option
+    from roughsense.errors import ConfigError, InputError
+    from roughsense.io.numbers import NumberError, parse_number
+    from roughsense.io.ratings import validate_ratings
+    from roughsense.io.tables import read_table
+
+    cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case
+    if not cell:
+        return
+    try:
+        expected = parse_number(cell)
+    except NumberError:
+        expected = None
+    folder = tmp_path_factory.mktemp("numbers")
+    table = folder / "t.csv"
+    table.write_text(f"name,value\na,{cell}\n", encoding="utf-8")
+    try:
+        read = float(read_table(table, ["name", "value"], numeric=["value"])["value"].iloc[0])
+    except InputError:
+        read = None
+    assert read == expected or (read is None and expected is None), (cell, read, expected)
+    try:
+        option = number_option("--x")(cell)
+    except (typer.BadParameter, ConfigError):
+        option = None
+    assert option == expected, (cell, option, expected)
+    frame = pd.DataFrame({"participant": ["P1"], "session": ["1"], "specimen": ["R2"], "rating": [cell]})
+    try:
+        rating = float(validate_ratings(frame)["rating"].iloc[0])
+    except InputError:
+        rating = None
+    in_bounds = expected is not None and 1e-6 <= expected <= 1e6
+    assert rating == (expected if in_bounds else None), (cell, rating, expected)
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 # --------------------------------------------------------------------------- peak-law model files
@@ -579,3 +630,45 @@ def test_edited_peak_law_files_are_refused_by_their_field_checks(run_cli, base, 
             assert np.all(np.isfinite(pd.read_csv(out)["roughness"].to_numpy(dtype=float)))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- a scale's bytes (issue 22, item 11)
+
+
+class _StreamingPort:
+    """A serial port that hands out ``chunks`` (in reads of at most ``size`` bytes), then streams digits forever."""
+
+    def __init__(self, chunks: list[bytes]) -> None:
+        self.pending = b"".join(chunks)
+
+    in_waiting = 7
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+    def read(self, size: int = 1) -> bytes:
+        if not self.pending:
+            return b"0" * size  # never a line end, never silent: the case a per-read timeout cannot end
+        piece, self.pending = self.pending[:size], self.pending[size:]
+        return piece
+
+
+@settings(max_examples=40, deadline=None)
+@given(chunks=st.lists(st.one_of(st.binary(max_size=300), st.sampled_from([b"\r\n", b"\r", b"\n", b"ST,+00204.0 g",
+                                                                            b"US,+1 kg", b"+1e400 g"])), max_size=30))
+def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
+    import time
+
+    from roughsense.errors import InputError
+    from roughsense.rig.scale import SerialScale
+
+    scale = SerialScale.__new__(SerialScale)  # the reader without a real port
+    scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, _StreamingPort(chunks), OSError
+    started = time.monotonic()
+    try:
+        reading = scale.read_stable()
+    except InputError as exc:
+        assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
+    else:
+        assert np.isfinite(reading.force_n) and reading.stable
+    assert time.monotonic() - started < 1.0

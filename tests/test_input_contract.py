@@ -449,9 +449,10 @@ def test_the_simulator_records_the_fingerprint_pads_ridge_period(tmp_path):
 
 
 @pytest.mark.parametrize("value, message", [
-    ("true", "ridge_period_mm must be a number of mm above 0 and at most 100, got True"),
+    ("true", "ridge_period_mm must be a number of mm from 0.001 to 100, got True"),
     ("0", "got 0"),
-    ("1e308", "at most 100"),
+    ("1e-300", "from 0.001 to 100, got 1e-300"),
+    ("1e308", "to 100, got 1e+308"),
     ('"1.0"', "got '1.0'"),
     ("nan", "got nan"),
 ])
@@ -465,9 +466,14 @@ def test_a_bad_ridge_period_is_one_line_naming_study_toml(run_cli, sandbox, tmp_
 
 @pytest.mark.parametrize("column, value, message", [
     ("repetition", "99999999999999999999999", "must be at most 10000"),
-    ("repetition", "-1", "must be a whole number >= 0"),
+    ("repetition", "-1", "must be at least 0, got -1"),
+    ("repetition", "1_0", r"not a number: '1_0' \(no '_' between digits: write 10\)"),
     ("force_n", "1e308", "must be at most 100"),
-    ("force_n", "true", "not a finite number"),
+    ("force_n", "true", "not a number: 'true'"),
+    ("force_n", "1_0", "not a number: '1_0'"),
+    ("force_n", "\u0661", "not a number: '\u0661' \\(write the digits 0-9\\)"),
+    ("force_n", "Infinity", "not a finite number: 'Infinity'"),
+    ("contact_fraction", "1e308", "must be at most 1, got 1e"),
 ])
 def test_manifest_numbers_out_of_range_are_refused_by_cell(sandbox, column, value, message):
     edit_csv(sandbox / "manifest.csv", 6, column, value)
@@ -619,3 +625,72 @@ def test_the_issue_examples_now_say_what_to_do(run_cli, sandbox, tmp_path):
     line = one_error(*run_cli(*study_args(sandbox, tmp_path / "r"))[::2])
     assert line.endswith("row 2: 4 fields but the header has 3 (extra value '5'); a decimal comma? "
                          "write numbers with a point (0.5, not 0,5)")
+
+
+# --------------------------------------------------------------------------- issue 22: one number parser, bounded
+
+
+@pytest.mark.parametrize("cell, message", [
+    ("1_0", "not a number: '1_0' (no '_' between digits: write 10)"),
+    ("\u0661", "not a number: '\u0661' (write the digits 0-9)"),
+    ("1e308", "a magnitude estimate must be at most 1e+06, got 1e+308"),
+])
+def test_a_rating_cell_means_the_same_to_study_and_ratings(run_cli, sandbox, tmp_path, cell, message):
+    """Item 4/5: study read '1_0' as 10 while ratings refused it; 1e308 gave sd = inf. One parser, one line each."""
+    edit_csv(sandbox / "ratings.csv", 4, "rating", cell)
+    where = f"{sandbox / 'ratings.csv'}, row 4, column 'rating': "
+    by_study = one_error(*run_cli(*study_args(sandbox, tmp_path / "report"))[::2])
+    by_ratings = one_error(*run_cli("ratings", sandbox / "ratings.csv", "--out", tmp_path / "summary.csv")[::2])
+    assert by_study == by_ratings == f"roughsense: error: {where}{message}"
+    assert not (tmp_path / "report").exists() and not (tmp_path / "summary.csv").exists()
+
+
+def test_ratings_at_the_bounds_give_finite_statistics(run_cli, tmp_path):
+    path = tmp_path / "ratings.csv"
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,1e6\nP2,1,R2,1e-6\nP3,1,R2,1e6\n")
+    code, _, err = run_cli("ratings", path, "--out", tmp_path / "s.csv")
+    assert code == 0, err
+    summary = pd.read_csv(tmp_path / "s.csv").set_index("specimen")
+    assert np.isfinite(summary.loc["R2", ["gmean", "sd"]].astype(float)).all()
+    assert summary.loc["R2", "gmean"] == pytest.approx(1e2)  # (1e6 * 1e-6 * 1e6) ** (1/3)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("px_per_mm = 34.9", "px_per_mm = 1e-9", "[sensor] px_per_mm must be at least 0.01, got 1e-09"),
+    ("px_per_mm = 34.9", "px_per_mm = 1e300", "[sensor] px_per_mm must be at most 100000, got 1e+300"),
+    ('roi = "center"', 'roi = "1_0,0,1900,150"', "ROI must be 'center', 'auto' or X,Y,W,H with whole numbers"),
+])
+def test_study_toml_numbers_are_bounded_and_spelled_as_in_a_csv(run_cli, sandbox, tmp_path, old, new, message):
+    text = (sandbox / "study.toml").read_text()
+    assert old in text
+    (sandbox / "study.toml").write_text(text.replace(old, new))
+    line = one_error(*run_cli("features", "--study", sandbox, "--out", tmp_path / "f.csv")[::2])
+    assert message in line and "study.toml" in line
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["model"]["coefficients"][-1].__setitem__(0, 1e308),
+     "model.coefficients holds 1e+308; a fitted model's are at most 1e+06 in magnitude"),
+    (lambda d: d["model"]["intercepts"].__setitem__(-1, 1e300), "model.intercepts["),
+    (lambda d: d["model"].update(y_mean=1e300), "model.y_mean is 1e+300; a rating is at most 1e+06"),
+    (lambda d: d["model"]["x_mean"].__setitem__(0, -1e200), "model.x_mean holds 1e+200"),
+])
+def test_a_resigned_model_file_with_extreme_numbers_is_refused(run_cli, base, model_document, tmp_path, edit, message):
+    """Item 5: the checksum is unkeyed, so 1e308 coefficients re-signed made predict write inf with exit 0."""
+    document = json.loads(json.dumps(model_document))
+    edit(document)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(_resigned(document)))
+    line = one_error(*run_cli("predict", path, next((base / "images").iterdir()), "--out", tmp_path / "p.csv")[::2])
+    assert message in line and str(path) in line
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_a_fitted_model_is_far_inside_the_model_file_bounds(model_document):
+    from roughsense.model.modelfile import MAX_COEFFICIENT, MAX_X_MEAN
+
+    model = model_document["model"]
+    assert np.abs(model["coefficients"]).max() < MAX_COEFFICIENT / 1000
+    assert np.abs(model["x_mean"]).max() < MAX_X_MEAN / 1000
+    x_mean, coef = np.array(model["x_mean"]), np.array(model["coefficients"])
+    np.testing.assert_allclose(model["intercepts"], model["y_mean"] - coef @ x_mean, rtol=1e-9, atol=1e-12)

@@ -5,6 +5,7 @@ killed with SIGKILL in a subprocess, as a user's Ctrl-\\ or an out-of-memory kil
 """
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -16,6 +17,7 @@ import pandas as pd
 import pytest
 
 from roughsense._util import atomic
+from roughsense._util.lock import lock_path
 from roughsense.errors import InputError, OutputExistsError
 from roughsense.io.study import COMPLETE_MARKER, read_study
 from roughsense.sim.optics import Camera
@@ -206,10 +208,14 @@ def test_simulate_force_killed_midway_leaves_the_old_study_whole(tmp_path, run_c
     assert _files(out) == before  # the old study, complete, not one new file in it
     assert read_study(out, require_ratings=True).extra["simulation"]["seed"] == 1
     assert len(atomic.leftovers(out)) == 1
-    # the next run removes the dead run's partial folder and swaps in a complete new study
+    assert json.loads(lock_path(out).read_text())["pid"] == run.pid  # kill -9 leaves its lock file, not its lock
+    # the next run takes the lock over (saying whose it was), removes the dead run's partial folder and swaps in a
+    # complete new study
     code, _, err = run_cli("simulate", "--out", out, *_TINY, "--seed", "2", "--force")
     assert code == 0, err
-    assert atomic.leftovers(out) == [] and _siblings(out) == []
+    assert f"roughsense: warning: {out}: took over the lock of a run that has ended (roughsense simulate, PID {run.pid} " \
+           "on " in err
+    assert atomic.leftovers(out) == [] and _siblings(out) == [] and not lock_path(out).exists()
     assert read_study(out).extra["simulation"]["seed"] == 2 and (out / COMPLETE_MARKER).is_file()
 
 

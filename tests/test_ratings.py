@@ -115,7 +115,7 @@ GOOD = "participant,session,specimen,rating\nP1,1,R2,0.5\nP1,1,C2,1.5\nP2,1,R2,0
         (GOOD + "P3,1,R2,0\n", 6, "rating", "positive"),
         (GOOD + "P3,1,R2,-1.5\n", 6, "rating", "positive"),
         (GOOD + "P3,1,R2,abc\n", 6, "rating", "not a number"),
-        (GOOD + "P3,1,R2,inf\n", 6, "rating", "not a number"),
+        (GOOD + "P3,1,R2,inf\n", 6, "rating", "not a finite number"),
         (GOOD + "P3,1,R3,1.0\n", 6, "specimen", "reference"),
         (GOOD + "P2,1,R2,0.45\n", 6, "specimen", "twice.*line 4"),
         (GOOD + ",1,R2,0.45\n", 6, "participant", "empty"),
@@ -173,14 +173,14 @@ def test_a_row_with_an_extra_value_names_its_line(tmp_path, text, row, value):
 def test_not_a_number_quotes_the_cell_as_written(tmp_path, cell):
     with pytest.raises(InputError) as info:
         read_ratings(write(tmp_path, GOOD + f"P3,1,R2,{cell}\n"))
-    assert info.value.message == f"not a number: '{cell}'" and info.value.row == 6
+    assert info.value.message == f"not a finite number: '{cell}'" and info.value.row == 6
 
 
 def test_not_a_number_in_memory_is_formatted_not_numpy_repr():
     frame = ratings_frame({("P1", "R2"): [0.5, np.inf]})
     with pytest.raises(InputError) as info:
         validate_ratings(frame)
-    assert info.value.message == "not a number: inf" and info.value.row == 3
+    assert info.value.message == "not a finite number: inf" and info.value.row == 3
 
 
 def test_blank_rating_cells_are_trials_not_done(tmp_path):

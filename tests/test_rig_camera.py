@@ -1,14 +1,16 @@
 """Frame sources: a video file and an image sequence stand in for the camera."""
 from __future__ import annotations
 
+import contextlib
+
 import cv2
 import numpy as np
 import pytest
 
-from roughsense.errors import InputError
+from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
 
-from .videos import decoded_frames, write_video
+from .videos import decoded_frames, write_damaged_video, write_video
 
 
 def test_video_file_frames_are_rgb_in_order(tmp_path):
@@ -67,3 +69,46 @@ def test_live_devices_discard_by_default():
     assert _describe("rtsp://cam.local/stream") == ("rtsp://cam.local/stream", True)
     assert _describe("run_0001.avi") == ("run_0001.avi", False)
     assert DEVICE_DISCARD >= 4  # V4L2's default queue is 4 buffers
+
+
+# --------------------------------------------------------------------------- damaged frames (issue 22)
+
+
+def test_a_frame_decoded_with_errors_is_skipped_with_one_warning_and_nothing_on_stderr(tmp_path, capfd):
+    clean = decoded_frames(write_video(tmp_path / "clean.avi"))
+    video = write_damaged_video(tmp_path / "damaged.avi", frame=5)
+    with pytest.warns(RoughsenseWarning) as caught, open_source(video) as source:
+        frames = list(source)
+    assert [str(w.message) for w in caught] == [
+        f"{video}: frame 6 decoded with errors (mjpeg: error count: 268435455; mjpeg: error y=0 x=2); skipped"]
+    assert len(frames) == 11  # every frame but the damaged one, in order, exactly as decoded from the clean file
+    for got, want in zip(frames, clean[:5] + clean[6:]):
+        np.testing.assert_array_equal(got, want)
+    assert capfd.readouterr().err == ""  # ffmpeg's own lines were caught, not printed
+
+
+def test_a_frame_that_does_not_decode_is_an_error_not_the_end_of_the_file(tmp_path, capfd):
+    video = write_damaged_video(tmp_path / "broken.avi", frame=5, how="broken")
+    with open_source(video) as source:
+        for _ in range(5):
+            source.read_next()
+        with pytest.raises(InputError, match=r"frame 6 does not decode \(mjpeg: huffman table decode error\)") as info:
+            source.read_next()
+    assert str(info.value).startswith(f"{video}: ")
+    assert capfd.readouterr().err == ""
+
+
+def test_a_run_of_damaged_frames_refuses_the_source(tmp_path, monkeypatch):
+    from roughsense.rig import camera
+
+    video = write_video(tmp_path / "clip.avi")
+
+    @contextlib.contextmanager
+    def always_complaining():
+        yield ["mjpeg: error y=0 x=2"]
+
+    monkeypatch.setattr(camera, "_decoder_messages", always_complaining)
+    with open_source(video) as source, pytest.warns(RoughsenseWarning):
+        with pytest.raises(InputError, match=rf"{camera.MAX_DAMAGED_FRAMES} frames in a row decoded with errors, "
+                                             rf"up to frame {camera.MAX_DAMAGED_FRAMES}"):
+            source.read_fresh()

@@ -390,3 +390,70 @@ def test_study_roi_rule_agrees_with_the_sensor(roi, width, height):
     except InputError:
         accepted = False
     assert accepted == (roi_misfit(roi, width, height) is None)
+
+
+# --------------------------------------------------------------------------- a folder knows its source (issue 22)
+
+
+def _simulated(tmp_path):
+    from roughsense.sim.optics import Camera
+    from roughsense.sim.simulate import SimulationConfig, simulate_study
+
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3"), forces_n=(1.0, 2.0), repetitions=1,
+                              camera=Camera(width_px=400, height_px=300), participants=3, sessions=1)
+    return simulate_study(tmp_path / "sim", config, jobs=1)
+
+
+@pytest.mark.parametrize("sign", ["complete", "interrupted", "marker only"])
+def test_capture_refuses_a_folder_the_simulator_wrote(tmp_path, video, run_cli, typed, sign):
+    """Real frames in a simulated folder would be reported as simulated (and deleted by simulate --force)."""
+    from roughsense.io.study import COMPLETE_MARKER, STUDY_TOML
+
+    sim = _simulated(tmp_path)
+    if sign == "interrupted":  # killed before its marker: the [simulation] table alone says it
+        (sim / COMPLETE_MARKER).unlink()
+    if sign == "marker only":  # a hand-edited study.toml without the table: the marker alone says it
+        toml = (sim / STUDY_TOML).read_text()
+        (sim / STUDY_TOML).write_text(toml[:toml.index("[simulation]")])
+    before = snapshot(sim)
+    typed("", "", "")
+    code, _, stderr = run_cli(*capture_args(video, sim, "--repetitions", "1", "--forces", "1,2"))
+    assert_one_line_error(code, stderr, f"{sim}: is a simulated study", "capture into a folder of their own")
+    assert snapshot(sim) == before
+
+
+def test_the_rigs_writer_refuses_a_simulated_folder_whoever_calls_it(tmp_path):
+    from roughsense.errors import OutputExistsError
+
+    sim = _simulated(tmp_path)
+    with pytest.raises(OutputExistsError, match="is a simulated study"):
+        StudyWriter(sim, resume=True, source="captured")
+    StudyWriter(sim, resume=True)  # the simulator's own reopening is unchanged
+
+
+def test_a_second_capture_into_the_folder_names_the_first(tmp_path, video, run_cli, typed):
+    """Two captures into one folder (the rig's own lock, now the one every writer shares): the second names the first."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from roughsense._util.lock import lock_path
+
+    out = tmp_path / "study"
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    first = subprocess.Popen(
+        [sys.executable, "-m", "roughsense.cli", *map(str, capture_args(video, out, "--repetitions", "1"))],
+        env={**os.environ, "PYTHONPATH": src}, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE)  # waits at its first force prompt, holding the folder
+    try:
+        deadline = time.monotonic() + 30
+        while not (lock_path(out).exists() and lock_path(out).stat().st_size):
+            assert first.poll() is None and time.monotonic() < deadline, first.stderr.read()
+            time.sleep(0.05)
+        typed("")
+        code, _, stderr = run_cli(*capture_args(video, out, "--repetitions", "1"))
+        assert_one_line_error(code, stderr, f"{out}: another run is writing this folder (roughsense capture, PID "
+                                            f"{first.pid} on")
+    finally:
+        first.communicate(b"\n\n\n", timeout=30)
+    assert first.returncode == 0 and len(pd.read_csv(out / "manifest.csv")) == 3 and not lock_path(out).exists()

@@ -187,3 +187,93 @@ def test_serial_reading_out_of_range_is_refused_when_piped(pty_scale):
     with SerialScale(path, timeout_s=2, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
         with pytest.raises(InputError, match=r"0.4903 N is outside 1.5..2.5 N"):
             scale.read_force(2.0, low_n=1.5, high_n=2.5)
+
+
+# --------------------------------------------------------------------------- --timeout-s bounds every read (issue 22)
+
+
+def within(seconds, call):
+    """Run ``call`` in a thread; (finished in time?, its result or exception). A hang fails, never blocks the suite."""
+    outcome = {}
+
+    def run():
+        try:
+            outcome["value"] = call()
+        except Exception as exc:  # handed back to the test
+            outcome["value"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    return not thread.is_alive(), outcome.get("value")
+
+
+def test_serial_bytes_without_line_ends_time_out(pty_scale):
+    path, stream = pty_scale
+    stream([b"0123456789"])  # a steady stream that never ends a line (a wrong baud rate looks like this)
+    with SerialScale(path, timeout_s=0.3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        started = time.monotonic()
+        done, error = within(5, lambda: scale.read_force(1.0, low_n=0.5, high_n=1.5))
+        assert done, "the read ignored --timeout-s"
+        assert time.monotonic() - started < 2
+    assert isinstance(error, InputError)
+    text = str(error)
+    assert text.startswith(f"{path}: the scale sent bytes but no line end within 0.3 s (got '0123")
+    assert len(text) < len(path) + 200
+
+
+def test_serial_runaway_line_is_dropped_and_the_next_reading_taken(pty_scale):
+    path, stream = pty_scale
+    stream([b"#" * 5000 + b"\r\nST,+00204.0 g\r\n"])
+    with SerialScale(path, timeout_s=3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        done, force = within(5, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
+        assert done, "the read waited for a line end past --timeout-s"
+    assert force == pytest.approx(0.204 * G, rel=1e-12)
+
+
+def test_serial_carriage_return_alone_ends_a_line(pty_scale):
+    path, stream = pty_scale
+    stream([b"US,+00150.0 g\r", b"ST,+00204.0 g\r"])
+    with SerialScale(path, timeout_s=3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        done, force = within(5, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
+        assert done, "the read waited for a line end past --timeout-s"
+    assert force == pytest.approx(0.204 * G, rel=1e-12)
+
+
+def test_serial_unstable_runaway_line_is_quoted_short(pty_scale):
+    path, stream = pty_scale
+    stream([b"US," + b"9" * 200 + b" g\n"])
+    with SerialScale(path, timeout_s=0.3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        with pytest.raises(InputError, match=r"no stable reading .* \(last line: 'US,9+\.\.\.\)$") as info:
+            scale.read_force(1.0, low_n=0.5, high_n=1.5)
+    assert len(str(info.value)) < len(path) + 200
+
+
+def test_typed_force_quotes_a_huge_entry_short():
+    with pytest.raises(_Retry) as info:
+        parse_typed_force("x" * 1_000_000, 2.0)
+    assert len(str(info.value)) < 200
+
+
+def test_capture_with_a_scale_streaming_no_line_ends_stops_at_timeout(tmp_path, pty_scale):
+    """The command, as an operator runs it: ``--timeout-s 1`` ends the run in seconds with one line, exit 2."""
+    import subprocess
+    import sys
+
+    from .videos import write_video
+
+    path, stream = pty_scale
+    stream([b"+00102.0"])
+    video = write_video(tmp_path / "camera.avi")
+    args = [sys.executable, "-c", "from roughsense.cli import run; run()",
+            "capture", "--source", str(video), "--out", str(tmp_path / "study"),
+            "--specimen", "R3", "--pad", "fp", "--roi", "auto", "--shape", "rectangular", "--wavelength-mm", "3",
+            "--force-input", f"serial:{path}", "--timeout-s", "1"]
+    try:
+        run = subprocess.run(args, input="\n", capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail("capture ignored --timeout-s while the scale streamed bytes with no line end")
+    assert run.returncode == 2, run.stderr
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"roughsense: error: {path}: the scale sent bytes but no line end within 1 s")
+    assert "Traceback" not in run.stderr

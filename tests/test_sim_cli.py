@@ -1,6 +1,8 @@
 """``roughsense simulate`` at the command line: a one-image study, and every bad input is one line, exit 2."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from roughsense.io.study import read_study
@@ -132,3 +134,64 @@ def test_help_documents_specimen_specs(run_cli, monkeypatch):
     for needle in ("rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]]", "default: all cores", "sin:WAVELENGTH:AMPLITUDE",
                    "--fingerprint-period-mm", "840 images"):
         assert needle in text
+
+
+# --------------------------------------------------------------------------- captured frames are never replaced (issue 22)
+
+
+def _captured(run_cli, monkeypatch, out):
+    """A study the rig captured: three real frames (a video stands in for the camera) with their force readings."""
+    import io
+
+    from .videos import write_video
+
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n" * 3))
+    code, _, err = run_cli("capture", "--source", write_video(out.parent / "camera.avi"), "--out", out,
+                           "--specimen", "R2", "--pad", "smooth", "--roi", "auto", "--repetitions", "1",
+                           "--shape", "rectangular", "--wavelength-mm", "2")
+    assert code == 0, err
+    return out
+
+
+def _mixed(run_cli, monkeypatch, tmp_path):
+    """A simulation a rig has captured into, as an older roughsense allowed: its rows appended to the manifest."""
+    import shutil
+
+    import pandas as pd
+
+    rig = _captured(run_cli, monkeypatch, tmp_path / "rig")
+    sim = tmp_path / "sim"
+    assert run_cli("simulate", "--out", sim, *_SMALL)[0] == 0
+    rows = pd.read_csv(rig / "manifest.csv")
+    for image in rows["image"]:
+        shutil.copy(rig / image, sim / image)
+    manifest = pd.concat([pd.read_csv(sim / "manifest.csv"), rows], ignore_index=True)
+    manifest.to_csv(sim / "manifest.csv", index=False)
+    return sim, list(rows["image"])
+
+
+def test_simulate_force_never_deletes_captured_frames(run_cli, tmp_path, monkeypatch):
+    from roughsense.sim.simulate import simulation_owned
+
+    sim, frames = _mixed(run_cli, monkeypatch, tmp_path)
+    before = _tree(sim)
+    for extra in ((), ("--force",)):
+        code, _, err = run_cli("simulate", "--out", sim, *_SMALL, *extra)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert err.startswith(f"roughsense: error: {sim}: holds frames captured by the rig (manifest.csv rows with a "
+                              "timestamp); a simulation never replaces real frames, --force or not")
+        assert _tree(sim) == before
+    owned = simulation_owned(sim)  # and were it ever asked, the swap would carry the real frames over
+    assert not any(owned(Path(image)) for image in frames)
+    assert owned(Path("images/smooth_R2_2N_r01.png")) and owned(Path("manifest.csv"))
+
+
+def test_no_writer_replaces_a_captured_study(run_cli, tmp_path, monkeypatch):
+    """Siblings: simulate --force and example --force onto a folder of real frames (each would replace its tables)."""
+    rig = _captured(run_cli, monkeypatch, tmp_path / "rig")
+    before = _tree(rig)
+    for args in (("simulate", "--out", rig, *_SMALL, "--force"), ("example", "my-study", "--out", rig, "--force")):
+        code, _, err = run_cli(*args)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert err.startswith(f"roughsense: error: {rig}: holds frames captured by the rig"), err
+        assert _tree(rig) == before

@@ -6,12 +6,42 @@ message must make sense on its own and name the file, row or column it is about.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
+
+#: Longest run of non-blank characters an error line shows: a 100 MB cell or path is quoted by its start.
+QUOTE_MAX_CHARS = 200
+#: Longest error line: a message quoting many values (or one full of blanks) keeps its start and its end.
+LINE_MAX_CHARS = 2000
+_LONG_RUN = re.compile(rf"\S{{{QUOTE_MAX_CHARS + 1},}}")
+
+
+def _cut(text: str, limit: int) -> str:
+    """``text`` cut to about ``limit`` characters, saying how long it was (so the user knows what they have)."""
+    return text if len(text) <= limit else f"{text[:limit]}...({len(text)} characters)"
+
+
+def _cap_runs(text: str) -> str:
+    """Every run of non-blank characters longer than :data:`QUOTE_MAX_CHARS` cut to its start."""
+    return _LONG_RUN.sub(lambda run: _cut(run.group(), QUOTE_MAX_CHARS), text)
+
+
+def _cap_line(text: str) -> str:
+    """The whole line cut to :data:`LINE_MAX_CHARS`: start and end kept (where and what to do), the middle dropped."""
+    if len(text) <= LINE_MAX_CHARS:
+        return text
+    tail = LINE_MAX_CHARS // 4
+    return f"{text[:LINE_MAX_CHARS - tail]} ...({len(text) - LINE_MAX_CHARS} characters)... {text[-tail:]}"
 
 
 def one_line(text: str) -> str:
-    """``text`` with line breaks and other control characters escaped: a message quoting a user's cell stays one line."""
-    return "".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in str(text))
+    """``text`` as one short line: control characters escaped, echoed input capped (:data:`QUOTE_MAX_CHARS`).
+
+    Every error and warning line goes through here, so a message quoting a user's cell stays one line, and a
+    100 MB cell costs neither a 100 MB line on stderr nor the memory to escape it character by character.
+    """
+    capped = _cap_line(_cap_runs(str(text)))
+    return _cap_line("".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in capped))
 
 
 class RoughsenseError(Exception):

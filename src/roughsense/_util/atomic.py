@@ -67,9 +67,11 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is None:  # a failed write (a full disk): name the file
+            raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
         raise
 
 
@@ -112,15 +114,18 @@ def write_csv(path: str | os.PathLike[str], frame, **to_csv_kwargs) -> Path:
 
 PARTIAL_TAG = ".roughsense-partial-"
 RETIRED_TAG = ".roughsense-retired-"
+LOCK_TAG = ".roughsense-lock"  # _util/lock.py: a running command's claim on the folder of that name
 MAX_CARRIED_FILES = 1000  # beyond this, --out is somebody's working folder, not an output folder
 _RENAME_EXCHANGE = 2  # linux/fs.h
 _TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp in atomic_open (older versions: no PID)
 
 
 def is_temporary(path: str | os.PathLike[str]) -> bool:
-    """True for a temporary file of :func:`atomic_open` (``.NAME.PID.XXXXXXXX.tmp``) or a staging/retired folder."""
+    """True for a temporary file of :func:`atomic_open` (``.NAME.PID.XXXXXXXX.tmp``), a staging/retired folder or a
+    lock file (``.NAME.roughsense-lock``)."""
     name = Path(path).name
-    return bool(_TEMP_FILE.match(name)) or PARTIAL_TAG in name or RETIRED_TAG in name
+    return (bool(_TEMP_FILE.match(name)) or PARTIAL_TAG in name or RETIRED_TAG in name
+            or (name.startswith(".") and name.endswith(LOCK_TAG)))
 
 
 def _pid_alive(pid: int) -> bool:

@@ -12,8 +12,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
-from ..io.study import RATINGS_CSV, Study
+from ..errors import ConfigError, InputError
+from ..io.study import RATINGS_CSV, STUDY_TOML, Study
 from ..paper import COMBINED, FORCE_CONDITIONS
 from .ratings import aggregate_ratings
 
@@ -24,8 +24,11 @@ def spectrum_for(study: Study, *, n_jobs: int = 1):
     """The SpatialSpectrum configured from the study's sensor settings (camera scale and ROI)."""
     from ..sensor.spectrum import SpatialSpectrum
 
-    return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs,
-                           max_pixels=study.sensor.max_pixels).fit()
+    try:
+        return SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi, n_jobs=n_jobs,
+                               max_pixels=study.sensor.max_pixels).fit()
+    except ConfigError as exc:  # the settings came from study.toml's [sensor]: say so (e.g. below Nyquist)
+        raise InputError(f"[sensor] {exc.message}", path=study.root / STUDY_TOML) from None
 
 
 def study_features(

@@ -112,6 +112,28 @@ def aggregate_ratings(
 
 # --------------------------------------------------------------------------- protocol
 
+#: Largest panel a schedule (``protocol``) or a simulated panel (a sweep's ``participants``) may have: the paper
+#: rated with 10; a thousand is a survey, not a magnitude-estimation session, and bounds the rows drawn.
+MAX_PARTICIPANTS = 1000
+#: Most sessions per participant (the paper: 3).
+MAX_SESSIONS = 100
+#: Most trials (rows) in one schedule or simulated panel: participants x sessions x rated specimens. A million rows
+#: is a 30 MB CSV drawn in seconds; the paper's panel is 390.
+MAX_SCHEDULE_ROWS = 1_000_000
+
+
+def schedule_size_problem(participants: int, sessions: int, specimens: int, *,
+                          names: tuple[str, str] = ("--participants", "--sessions")) -> str | None:
+    """Why a panel of this size is refused (the bounds above, ``names`` labelling the counts), or None."""
+    for name, value, limit in ((names[0], participants, MAX_PARTICIPANTS), (names[1], sessions, MAX_SESSIONS)):
+        if value > limit:
+            return f"{name} must be at most {limit}, got {value}"
+    rows = participants * sessions * specimens
+    if rows > MAX_SCHEDULE_ROWS:
+        return (f"{names[0]} x {names[1]} x specimens = {participants} x {sessions} x {specimens} = {rows} trials, "
+                f"above the limit of {MAX_SCHEDULE_ROWS}")
+    return None
+
 
 def participant_ids(count: int) -> list[str]:
     """P01 ... P10: zero-padded so that they sort and read well on a sheet."""
@@ -144,13 +166,18 @@ def make_schedule(
     shown = [n for n in names if n != reference]
     if not shown:
         raise ConfigError(f"no specimens to present besides the reference {reference}")
-    if isinstance(participants, (bool, int, np.integer, np.bool_)):
-        people = participant_ids(check(participants, POSITIVE_INT, name="participants", must="at least 1"))
+    sessions = check(sessions, POSITIVE_INT, name="sessions", must="at least 1")
+    numbered = isinstance(participants, (bool, int, np.integer, np.bool_))
+    count = check(participants, POSITIVE_INT, name="participants", must="at least 1") if numbered else len(participants)
+    problem = schedule_size_problem(count, sessions, len(shown), names=("participants", "sessions"))
+    if problem:  # before a single ID or row is made
+        raise ConfigError(problem)
+    if numbered:
+        people = participant_ids(count)
     else:
         people = [str(p).strip() for p in participants]
         if not people or any(not p for p in people) or len(set(people)) != len(people):
             raise ConfigError("participant IDs must be non-empty and distinct")
-    sessions = check(sessions, POSITIVE_INT, name="sessions", must="at least 1")
     rows = []
     for person in people:
         for session in range(1, sessions + 1):

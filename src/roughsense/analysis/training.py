@@ -167,8 +167,10 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         return _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training,
                           what=f"pad {pad!r} at {condition}")
     rule = rule or "min"
-    result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components,
-                            what=f"pad {pad!r} at {condition}")
+    what = f"pad {pad!r} at {condition}"
+    _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)
+    result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components, what=what)
+    _refuse_no_better_than_mean(result, what, study.root / MANIFEST_CSV)
     chosen = result.best_n_components if rule == "min" else result.one_se_n_components
     training.update({
         "rule": rule,
@@ -181,6 +183,28 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     })
     fitted = SIMPLS(n_components=chosen).fit(X, y)
     return TrainedModel(fitted, result, int(chosen), definition, training, int(len(y)), int(X.shape[1]))
+
+
+#: Spectra whose spread across trials is below this fraction of their size are the same spectrum (rounding noise).
+CONSTANT_SPECTRA_RTOL = 1e-9
+
+
+def _refuse_constant_spectra(X: np.ndarray, what: str, manifest_path) -> None:
+    """Refuse spectra that do not vary between trials: PLS would fit rounding noise (or find no component)."""
+    spread = float(np.ptp(X, axis=0).max()) if X.size else 0.0
+    if spread <= CONSTANT_SPECTRA_RTOL * float(np.abs(X).max(initial=0.0)):
+        raise InputError(f"every trial of {what} has the same spectrum (are the images copies of one?); "
+                         "a model needs spectra that differ between specimens", path=manifest_path)
+
+
+def _refuse_no_better_than_mean(result: PLSCVResult, what: str, manifest_path) -> None:
+    """Refuse a PLS model whose every component count cross-validates worse than the training mean (0 components):
+    its spectra carry nothing the CV can find about the ratings, and a model file would predict noise."""
+    best = int(np.argmin(result.rmse[1:])) + 1
+    if not result.rmse[best] < result.rmse[0]:
+        raise InputError(f"no PLS component count beats the training mean for {what} in cross-validation (CV RMSE "
+                         f"{result.rmse[best]:.4g} at {best} vs {result.rmse[0]:.4g} with none); the spectra do not "
+                         "predict the ratings, so no model is written", path=manifest_path)
 
 
 def _train_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *,

@@ -70,14 +70,18 @@ _register_commands()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """roughsense's own warnings are one line like its errors; anything else keeps Python's format."""
+    """Every warning is one line like the errors: roughsense's own as they are, a library's (numpy, pandas ...)
+    with its kind and origin but no source line. ``--debug`` keeps Python's format for a library's warning."""
     from ..errors import RoughsenseWarning
 
     close_line()
     if issubclass(category, RoughsenseWarning):
         print(f"roughsense: warning: {one_line(message)}", file=sys.stderr)
-    else:
+    elif _state["debug"]:
         _python_showwarning(message, category, filename, lineno, file, line)
+    else:
+        origin = f"{os.path.basename(str(filename))}:{lineno}"
+        print(f"roughsense: warning: {one_line(f'{category.__name__}: {message} ({origin})')}", file=sys.stderr)
 
 
 def _fail(message: str) -> int:

@@ -16,17 +16,46 @@ from ..errors import ConfigError
 T = TypeVar("T")
 
 
+def number_option(option: str, *, quantity: str = "", low: float | None = None, high: float | None = None,
+                  low_open: bool = False, whole: bool = False, must: str | None = None):
+    """A typer ``parser=`` reading ``option``'s value as a CSV cell is read (:func:`roughsense.io.numbers.parse_number`).
+
+    typer would take ``1_0`` as 10, ``١`` as 1 and ``inf``. A value not spelled as a number is a usage error, as
+    click's own (``invalid value for '--seed': not a number: '1_0' (...)``); a number that is not finite or out of
+    its bounds reads ``OPTION must be MUST, got VALUE`` (``must``: the wording of the command's own check).
+    """
+    def parse(text: str):
+        from .._util.checks import short_repr
+        from ..io.numbers import NumberError, parse_number  # not at import: --help stays light
+
+        try:
+            return parse_number(text, quantity=quantity, low=low, high=high, low_open=low_open, whole=whole)
+        except NumberError as exc:
+            if exc.message.startswith("not a number"):
+                raise typer.BadParameter(exc.message) from None
+            if must is not None or exc.message.startswith("not a finite"):
+                raise ConfigError(f"{option} must be {must or 'a finite number'}, got {short_repr(text)}") from None
+            raise ConfigError(f"{option} {exc.message}") from None
+
+    return parse
+
+
 def parse_float_list(text: str, *, name: str) -> list[float]:
-    """Parse "1,2,3" into floats, refusing blanks, non-numbers and non-positive values."""
+    """Parse "1,2,3" into floats (each by the one number parser), refusing blanks, non-numbers and non-positive values."""
+    from .._util.checks import short_repr
+    from ..io.numbers import NumberError, parse_number, spelling_hint  # not at import: --help stays light
+
     values = []
     for part in text.split(","):
         part = part.strip()
         try:
-            value = float(part)
-        except ValueError:
-            raise ConfigError(f"--{name}: {part!r} is not a number") from None
-        if not value > 0 or value == float("inf"):
-            raise ConfigError(f"--{name}: {part!r} must be positive")
+            value = float(parse_number(part))
+        except NumberError as exc:
+            if exc.message.startswith("not a finite"):
+                raise ConfigError(f"--{name}: {short_repr(part)} must be positive") from None
+            raise ConfigError(f"--{name}: {short_repr(part)} is not a number{spelling_hint(part)}") from None
+        if not value > 0:
+            raise ConfigError(f"--{name}: {short_repr(part)} must be positive")
         values.append(value)
     return values
 
@@ -54,7 +83,7 @@ def _every_core(jobs: int | None) -> int:
 
 #: ``--jobs`` on every command that has it: one default (all cores) and one meaning (how many things at once).
 Jobs = Annotated[int | None, typer.Option(
-    "--jobs", "-j", show_default=False, callback=_every_core,
+    "--jobs", "-j", show_default=False, callback=_every_core, parser=number_option("--jobs", whole=True),
     help="How much to run at once: images decoded, trials simulated, models fitted (default: all cores). The "
          "results do not depend on it.")]
 

@@ -51,12 +51,15 @@ def register(app: typer.Typer) -> None:
         frame is grabbed and written, then its manifest row. Interrupt at any time: rerunning the same
         command resumes where it stopped, and nothing already captured is overwritten.
         """
+        from .._util.lock import output_lock
         from ..rig.camera import open_source
         from ..rig.capture import capture_session
         from ..rig.scale import open_force_input
 
         force_list = parse_float_list(forces, name="forces") if forces is not None else None
-        with open_source(source, discard=discard) as frames, open_force_input(force_input, timeout_s=timeout_s) as scale:
+        # The folder's lock first: a second capture is told who is capturing, before it opens the busy camera.
+        with output_lock(out, command="capture"), open_source(source, discard=discard) as frames, \
+                open_force_input(force_input, timeout_s=timeout_s) as scale:
             try:
                 result = capture_session(
                     out, source=frames, force_input=scale, specimen=specimen, pad=pad, repetitions=repetitions,

@@ -52,20 +52,24 @@ def _files(node, prefix: Path = Path()) -> list[tuple[Path, bytes]]:
 def _copy_folder(node, out: Path, force: bool) -> int:
     """Swap in a whole copy (a killed run leaves the earlier folder); with --force the user's own files are kept."""
     from .._util.atomic import FolderSwap
+    from .._util.lock import output_lock
+    from ..io.writer import refuse_captured
 
-    if out.exists() and not force:
-        raise OutputExistsError("already exists; pass --force to replace it", path=out)
-    content = _files(node)
-    ours = {str(rel) for rel, _ in content} | {str(parent) for rel, _ in content for parent in rel.parents}
-    swap = FolderSwap(out, owned=lambda rel: str(rel) in ours)
-    try:
-        for rel, data in content:
-            (swap.path / rel).parent.mkdir(parents=True, exist_ok=True)
-            (swap.path / rel).write_bytes(data)
-    except BaseException:
-        swap.abort()
-        raise
-    swap.commit()
+    with output_lock(out, command="example"):
+        if out.exists() and not force:
+            raise OutputExistsError("already exists; pass --force to replace it", path=out)
+        refuse_captured(out, "an example is not copied over captured frames; choose a new folder")
+        content = _files(node)
+        ours = {str(rel) for rel, _ in content} | {str(parent) for rel, _ in content for parent in rel.parents}
+        swap = FolderSwap(out, owned=lambda rel: str(rel) in ours)
+        try:
+            for rel, data in content:
+                (swap.path / rel).parent.mkdir(parents=True, exist_ok=True)
+                (swap.path / rel).write_bytes(data)
+        except BaseException:
+            swap.abort()
+            raise
+        swap.commit()
     return len(content)
 
 

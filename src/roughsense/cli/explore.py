@@ -18,7 +18,8 @@ def register(app: typer.Typer) -> None:
             ..., metavar="SWEEP.toml",
             help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
-        workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core)."),
+        workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core; "
+                                           "at most 4 per core)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
                                              "of an existing Dask cluster, instead of a local one."),
         force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "
@@ -31,16 +32,16 @@ def register(app: typer.Typer) -> None:
         Finished cells are kept: rerunning the same sweep computes only what is missing. A failing cell is recorded
         and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
         """
-        from ..errors import ConfigError
+        from .._util.lock import output_lock
         from ..explore.report import write_explore_report
-        from ..explore.runner import run_sweep
+        from ..explore.runner import check_options, run_sweep
         from ..explore.sweep import read_sweep
 
-        if workers is not None and scheduler is not None:
-            raise ConfigError("give --workers or --scheduler, not both (an existing cluster has its own workers)")
+        check_options(workers, scheduler)  # bounds and an empty address: before the sweep is even read
         sweep = read_sweep(sweep_file)
-        outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
-        index = write_explore_report(sweep, out)
+        with output_lock(out, command="explore"):  # two sweeps into one --out would mix their cells
+            outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
+            index = write_explore_report(sweep, out)
         line = f"{counted(outcome.computed, 'cell')} computed, {outcome.skipped} already finished"
         if outcome.failures:
             line += f", {len(outcome.failures)} failed (see {Path(out) / 'failures.csv'})"

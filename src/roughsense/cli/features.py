@@ -8,7 +8,7 @@ import typer
 
 from ..errors import ConfigError
 from ..sensor.settings import SPECTRUM_DEFAULTS
-from ._common import Jobs, parse_float_list, progress
+from ._common import Jobs, number_option, parse_float_list, progress
 from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
 
@@ -31,7 +31,8 @@ StudyDir = Annotated[str | None, typer.Option(
     help="A study folder: use its manifest's images and carry the manifest's columns along. "
          "builtin: the simulated paper study of --seed.")]
 PxPerMm = Annotated[float | None, typer.Option(
-    "--px-per-mm", show_default=False,
+    "--px-per-mm", show_default=False, parser=number_option("--px-per-mm", quantity="px_per_mm",
+                                                           must="a positive number (px/mm) from 0.01 to 100000"),
     help=f"Camera scale in px/mm along the line. Default: the study's, else {DEFAULT_PX_PER_MM:g} (the paper's "
          f"{DEFAULT_PX_PER_MM * 10:g} px/cm).")]
 Roi = Annotated[str | None, typer.Option(
@@ -39,20 +40,24 @@ Roi = Annotated[str | None, typer.Option(
     help=f"Crop: 'center' ({CENTER_CROP_PX[0]}x{CENTER_CROP_PX[1]} px centred, as in the paper), 'auto' (the "
          f"{CENTER_CROP_PX[1]}-row band with the most horizontal texture) or X,Y,W,H in px. Default: the study's, "
          "else center.")]
-Rows = Annotated[int, typer.Option("--rows", help="Average the N central rows of the crop (1 = the paper's middle row).")]
+Rows = Annotated[int, typer.Option(
+    "--rows", parser=number_option("--rows", whole=True),
+    help="Average the N central rows of the crop (1 = the paper's middle row).")]
 Band = Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")]
-NFreqs = Annotated[int, typer.Option("--n-freqs", help="Number of evenly spaced frequencies in the band.")]
+NFreqs = Annotated[int, typer.Option(
+    "--n-freqs", parser=number_option("--n-freqs", whole=True), help="Number of evenly spaced frequencies in the band.")]
 Window = Annotated[str, typer.Option(
     "--window", help=f"Taper before the DFT: '{SPECTRUM_DEFAULTS.window}' (default) or 'none' (the paper's literal choice).")]
 MaxPixels = Annotated[int | None, typer.Option(
-    "--max-pixels", show_default=False,
+    "--max-pixels", show_default=False, parser=number_option("--max-pixels", whole=True),
     help="Refuse images whose header claims more pixels (width x height) than this, before decoding. "
          f"Default: the study's [sensor] max_pixels, else {DEFAULT_MAX_PIXELS}.")]
 
 
 def features(
     out: FeaturesOut, images: Images = None, study: StudyDir = None,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+                                      help="Seed of --study builtin.")] = 0,
     px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
     n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,

@@ -9,7 +9,7 @@ import typer
 
 from .._util.text import counted
 from ..errors import ConfigError
-from ._common import Jobs, check_seed, progress
+from ._common import Jobs, check_seed, number_option, progress
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -23,7 +23,7 @@ Condition = Annotated[str, typer.Option(
     "--condition", help="Force condition: 1N, 2N, 3N, or combined (a trial's three spectra side by side).")]
 ModelOut = Annotated[Path, typer.Option("--out", "-o", help="Model file to write (JSON).")]
 MaxComponents = Annotated[int | None, typer.Option(
-    "--max-components", show_default=False,
+    "--max-components", show_default=False, parser=number_option("--max-components", whole=True),
     help="Largest number of PLS components to cross-validate. Default: 20, or fewer if the data support fewer. "
          "PLS only.",
 )]
@@ -37,7 +37,8 @@ ModelName = Annotated[str, typer.Option(
     "--model", help="Model family: pls (the paper's PLS1 on the spectrum) or peak-law (a power law of where the "
                     "spectrum peaks and how high, built for surfaces never seen in training).")]
 FitSeed = Annotated[int, typer.Option(
-    "--seed", help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
+    "--seed", parser=number_option("--seed", whole=True),
+    help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Crop where the line is read: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band "
@@ -142,21 +143,25 @@ Source = Annotated[str | None, typer.Option(
 Live = Annotated[bool, typer.Option(
     "--live", help="Score frames from --source continuously and show the predicted roughness on the terminal "
                    "(Ctrl-C stops).")]
-MaxFrames = Annotated[int | None, typer.Option("--max-frames", min=1, help="With --live: stop after this many scored frames.")]
+MaxFrames = Annotated[int | None, typer.Option(
+    "--max-frames", parser=number_option("--max-frames", whole=True, low=1),
+    help="With --live: stop after this many scored frames.")]
 PredictRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Read the line elsewhere than the model's ROI: 'center', 'auto' (the band with the most horizontal "
          "texture; for images smaller than the model's crop) or X,Y,W,H in px. The spectrum stays the model's; "
          "the ROI used is written beside each prediction.")]
 PredictPxPerMm = Annotated[float | None, typer.Option(
-    "--px-per-mm", show_default=False,
+    "--px-per-mm", show_default=False, parser=number_option("--px-per-mm", quantity="px_per_mm",
+                                                           must="a positive number (px/mm) from 0.01 to 100000"),
     help="The images' scale, if not the model's: the model's spectrum is in mm^-1, so images from another camera "
          "score once their scale is stated. Refused when the model's band is not below Nyquist at this scale, or "
          "an image's line is shorter than 1/f_min.")]
 
 
 def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
-            seed: Annotated[int, typer.Option("--seed", help="Seed of --study builtin.")] = 0,
+            seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+                                              help="Seed of --study builtin.")] = 0,
             specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = None,
             force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
             source: Source = None, live: Live = False, max_frames: MaxFrames = None, roi: PredictRoi = None,

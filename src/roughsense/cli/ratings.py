@@ -128,11 +128,13 @@ def protocol(
     from ..analysis.ratings import make_schedule, render_sheet
     from ..io.names import check_name
 
+    _check_panel(participants, sessions, 1)  # the counts alone, before anything is read or drawn
     check_seed(seed)
     check_name(reference, what="--reference")
     fmt = _sheet_format(sheet, out, force)
     check_can_write(out, force=force)
     names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
+    _check_panel(participants, sessions, len({n for n in names if n != reference}))
     schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
     text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name) if fmt else None
     write_csv(out, schedule)
@@ -144,6 +146,18 @@ def protocol(
           f"(reference {reference} excluded)")
     if sheet is not None:
         print(f"wrote {sheet}")
+
+
+def _check_panel(participants: int, sessions: int, specimens: int) -> None:
+    """--participants and --sessions within the schedule's stated bounds (analysis.ratings.MAX_*)."""
+    from ..analysis.ratings import schedule_size_problem
+
+    for name, value in (("--participants", participants), ("--sessions", sessions)):
+        if value < 1:
+            raise ConfigError(f"{name} must be at least 1, got {value}")
+    problem = schedule_size_problem(participants, sessions, specimens)
+    if problem:
+        raise ConfigError(problem)
 
 
 def _sheet_format(sheet: Path | None, out: Path, force: bool) -> str | None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import Jobs, progress, stage
+from ._common import Jobs, number_option, progress, stage
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -30,9 +30,12 @@ def register(app: typer.Typer) -> None:
                                  "or builtin (the default): the paper's study simulated with --seed, generated on "
                                  "first use and cached (a folder named builtin: ./builtin)."),
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
-        seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Seed of the built-in simulated study (and any random draw)."),
+        seed: int = typer.Option(DEFAULT_SEED, "--seed", parser=number_option("--seed", whole=True),
+                                 help="Seed of the built-in simulated study (and any random draw)."),
         # 20 is model.pls_cv.DEFAULT_MAX_COMPONENTS (tests/test_architecture.py checks it): a literal keeps --help light.
-        max_components: int = typer.Option(20, "--max-components", min=1, help="Largest number of PLS components tried by CV."),
+        max_components: int = typer.Option(20, "--max-components",
+                                           parser=number_option("--max-components", whole=True, low=1),
+                                           help="Largest number of PLS components tried by CV."),
         no_loso: bool = typer.Option(
             False, "--no-loso",
             help="Skip the leave-one-specimen-out analysis (LOO only, as the paper)."),
@@ -40,7 +43,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(
             False, "--force",
             help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
-        permutations: int = typer.Option(199, "--permutations", min=0,
+        permutations: int = typer.Option(199, "--permutations", parser=number_option("--permutations", whole=True, low=0),
                                          help="Specimen-level shufflings per model for the permutation control "
                                          "(0: skip it; at least 199 for p-values to 0.005)."),
     ) -> None:
@@ -51,18 +54,20 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
+        from .._util.lock import output_lock
         from ..report import open_report_dir
 
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
-        # occupied --out before minutes of work, not after.
-        staging = open_report_dir(out, force)
-        try:
-            index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                            no_loso=no_loso, jobs=jobs, permutations=permutations)
-        except BaseException:
-            staging.abort()
-            raise
+        # occupied --out (or one another run is writing) before minutes of work, not after.
+        with output_lock(out, command="study"):
+            staging = open_report_dir(out, force)
+            try:
+                index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
+                                                no_loso=no_loso, jobs=jobs, permutations=permutations)
+            except BaseException:
+                staging.abort()
+                raise
         where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")

@@ -2,23 +2,48 @@
 
 Cells are independent tasks (``run_cell``); the client writes each result the moment it completes, so a sweep
 killed halfway loses at most the cells in flight, and the next run skips everything already written. Workers need
-roughsense importable and nothing else: a cell carries its whole definition and returns its rows.
+roughsense importable and nothing else: a cell carries its whole definition and returns its rows. Cells are
+submitted a window at a time (a few per worker thread), never as one graph: a sweep of many thousand cells starts
+computing, and shows progress, as soon as its first cells are in.
+
+A ``--scheduler`` is checked before any client is made: a scheduler file is read here (bounded, JSON with an
+``address``), and the address must answer as a Dask scheduler does -- it speaks first, a short framed handshake --
+within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang.
 """
 from __future__ import annotations
 
+import json
 import logging
+import math
 import os
+import shutil
+import socket
+import struct
+import tempfile
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ConfigError
+from .._util.checks import short_repr
+from ..errors import ConfigError, RoughsenseWarning
 from .cell import run_cell
 from .store import ResultStore
 from .sweep import Cell, Sweep
 
 CONNECT_TIMEOUT_S = 5
+#: How long a scheduler address has to send its handshake: a Dask scheduler does at once, on connection.
+PROBE_S = 4.0
+#: A scheduler's handshake is a few hundred bytes; a first frame claiming more is not a Dask scheduler.
+HANDSHAKE_MAX_BYTES = 1 << 16
+#: A scheduler file is a short JSON document (address, id, services, workers): more is not one.
+SCHEDULER_FILE_MAX_BYTES = 1_000_000
+#: Local worker processes per usable core at most: more only compete for the cores and memory (--workers).
+MAX_WORKERS_PER_CORE = 4
+#: Cells in flight at least (and two per worker thread): enough to keep every worker busy, never the whole sweep.
+MIN_WINDOW = 16
+CLOSE_TIMEOUT_S = 10
 
 
 @dataclass
@@ -40,24 +65,132 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def connect(workers: int | None = None, scheduler: str | None = None):
-    """A Dask client: on an existing scheduler (address or scheduler file), or on a new LocalCluster."""
+def max_workers() -> int:
+    return MAX_WORKERS_PER_CORE * default_workers()
+
+
+def check_options(workers: int | None, scheduler: str | None) -> None:
+    """``--workers`` and ``--scheduler`` as given, refused before any folder or cluster is made."""
+    if workers is not None and scheduler is not None:
+        raise ConfigError("give --workers or --scheduler, not both (an existing cluster has its own workers)")
+    if scheduler is not None and not scheduler.strip():
+        scheduler_address(scheduler)  # the one message for an empty address
+    check_workers(workers)
+
+
+def check_workers(workers: int | None) -> None:
+    """``--workers`` from 1 to :func:`max_workers`."""
+    if workers is None:
+        return
+    limit = max_workers()
+    if not 1 <= workers <= limit:
+        raise ConfigError(f"--workers must be from 1 to {limit} ({MAX_WORKERS_PER_CORE} per usable core of this "
+                          f"machine; more processes only compete for them), got {short_repr(workers)}")
+
+
+def scheduler_address(value: str) -> str:
+    """The ``tcp://HOST:PORT`` that ``--scheduler`` names (an address, or a scheduler file holding one), checked to
+    answer as a Dask scheduler; anything else is one line naming the option (and the file)."""
+    text = value.strip()
+    if not text:
+        raise ConfigError("--scheduler is empty: give an address (tcp://HOST:8786) or a scheduler file (.json), or "
+                          "leave the option out for a local cluster")
+    if "://" not in text and (text.lower().endswith(".json") or os.sep in text or Path(text).exists()):
+        text = _address_in_file(Path(text))
+    host, port = _host_port(text, value)
+    address = f"tcp://{host}:{port}"
+    _probe(host, port, address)
+    return address
+
+
+def _address_in_file(path: Path) -> str:
+    def refuse(why: str) -> ConfigError:
+        return ConfigError(f"--scheduler: {why}", path=path)
+
+    if not path.is_file():
+        raise refuse("no such scheduler file" if not path.exists() else "is not a file")
+    try:
+        if path.stat().st_size > SCHEDULER_FILE_MAX_BYTES:
+            raise refuse(f"is not a Dask scheduler file (over {SCHEDULER_FILE_MAX_BYTES // 1000} kB)")
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        raise refuse('is not a Dask scheduler file (expected JSON with an "address")') from None
+    address = document.get("address") if isinstance(document, dict) else None
+    if not isinstance(address, str) or not address.strip():
+        raise refuse('is not a Dask scheduler file (no "address" in it)')
+    return address.strip()
+
+
+def _host_port(text: str, value: str) -> tuple[str, int]:
+    """Host and port of ``tcp://HOST:PORT`` or ``HOST:PORT`` (Dask's default protocol)."""
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme.lower() != "tcp":
+        raise ConfigError(f"--scheduler {short_repr(value)}: only tcp:// addresses are supported (the Dask "
+                          f"scheduler's default), got {short_repr(scheme + '://')}")
+    host, colon, port = rest.rstrip("/").rpartition(":")
+    if not colon or not host or not port.isascii() or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError(f"--scheduler {short_repr(value)}: neither a scheduler file (.json) nor an address like "
+                          "tcp://HOST:8786")
+    return host, int(port)
+
+
+def _probe(host: str, port: int, address: str) -> None:
+    """Refuse, within :data:`PROBE_S`, an address where nothing listens or something other than Dask answers."""
+    deadline = time.monotonic() + PROBE_S
+
+    def refuse(why: str) -> ConfigError:
+        return ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler ({why})")
+
+    try:
+        with socket.create_connection((host.strip("[]"), port), timeout=PROBE_S) as sock:
+            header = _receive(sock, struct.calcsize("Q"), deadline)
+            if header is None:
+                raise refuse(f"something listens there but sent no Dask handshake within {PROBE_S:g} s")
+            (size,) = struct.unpack("Q", header)
+            if not 0 < size <= HANDSHAKE_MAX_BYTES or _receive(sock, size, deadline) is None:
+                raise refuse("something listens there, but it is not a Dask scheduler")
+    except OSError as exc:
+        raise refuse(" ".join(str(exc).split()) or type(exc).__name__) from None
+
+
+def _receive(sock: socket.socket, size: int, deadline: float) -> bytes | None:
+    """Exactly ``size`` bytes before ``deadline``, or None (the peer closed, or stayed silent)."""
+    data = b""
+    while len(data) < size:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return None
+        sock.settimeout(left)
+        try:
+            chunk = sock.recv(size - len(data))
+        except TimeoutError:
+            return None
+        if not chunk:
+            return None
+        data += chunk
+    return data
+
+
+def connect(workers: int | None = None, scheduler: str | None = None, *, scratch: Path | None = None):
+    """A Dask client: on an existing scheduler (address or scheduler file), or on a new LocalCluster whose
+    workers keep their scratch files in ``scratch`` (never ``$TMPDIR``)."""
     from distributed import Client, LocalCluster
 
-    if scheduler:
-        target = Path(scheduler)
+    if scheduler is not None:
+        address = scheduler_address(scheduler)
         try:
-            if target.suffix == ".json" and target.is_file():
-                return Client(scheduler_file=str(target), timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-            return Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            reason = " ".join(str(exc).split()) or type(exc).__name__
-            raise ConfigError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({reason})") from None
+            return Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except Exception as exc:  # it answered the probe, then failed the handshake: still one line
+            from .cell import error_line
+
+            raise ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler "
+                              f"({error_line(exc)})") from None
+    check_workers(workers)
     n = default_workers() if workers is None else int(workers)
-    if n < 1:
-        raise ConfigError(f"--workers must be at least 1, got {n}")
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+                           silence_logs=logging.ERROR, local_directory=None if scratch is None else str(scratch))
     return Client(cluster, set_as_default=False)
 
 
@@ -72,13 +205,15 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
     wrap the stream of finished cells (the CLI's bar). Failing cells are recorded, never raised. ``task`` computes
     one cell (an importable function; tests replace it)."""
     started = time.perf_counter()
+    check_options(workers, scheduler)
     store = ResultStore(out, sweep, force=force)  # refuses a wrong folder before any cluster starts
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {workers}")
     done = store.finished()  # the files already there: another sweep's are never its cells, so prepare() can wait
     todo = [c for c in sweep.cells if c.id not in done]
-    client = connect(workers, scheduler) if todo else None  # nothing left to run: no cluster (seconds) for nothing
+    scratch = _scratch(Path(out)) if todo and scheduler is None else None
+    client = None
     try:
+        with _temporary_directory(scratch):
+            client = connect(workers, scheduler, scratch=scratch) if todo else None  # nothing to run: no cluster
         dropped = store.prepare()
         outcome = SweepOutcome(Path(out), len(sweep.cells), len(sweep.cells) - len(todo), 0, dropped=dropped)
         if todo:
@@ -87,20 +222,34 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
     finally:
         if client is not None:
             _close(client)
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
     outcome.seconds = time.perf_counter() - started
     return outcome
 
 
-def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome, progress, task) -> None:
-    from distributed import as_completed
+def _temporary_directory(scratch: Path | None):
+    """Dask's ``temporary-directory`` set to ``scratch`` while the local cluster starts (its scheduler, nannies and
+    workers all place their lock files there), or nothing to change."""
+    import contextlib
 
-    futures = client.map(task, todo, key=[f"roughsense-cell-{c.id}" for c in todo], pure=False)
-    cells = {f.key: c for f, c in zip(futures, todo)}
-    stream = as_completed(futures, loop=client.loop)
+    import dask
+
+    return contextlib.nullcontext() if scratch is None else dask.config.set({"temporary-directory": str(scratch)})
+
+
+def _scratch(out: Path) -> Path:
+    """A folder under ``out`` for the local workers' spill and lock files, named as roughsense's temporary files
+    are (``.dask-scratch.XXXXXXXX.tmp``), removed when the run ends."""
+    out.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=".dask-scratch.", suffix=".tmp", dir=out))
+
+
+def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome, progress, task) -> None:
+    stream = _stream(client, todo, task)
     if progress is not None:
-        stream = progress(stream, total=len(futures), description="cells")
-    for future in stream:
-        cell = cells[future.key]
+        stream = progress(stream, total=len(todo), description="cells")
+    for cell, future in stream:
         try:
             result = future.result()
         except Exception as exc:
@@ -115,8 +264,43 @@ def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome
             outcome.failures.append(_failure(cell, result["error"]))
 
 
+def _stream(client, todo: list[Cell], task):
+    """(cell, future) as each finishes, keeping a window of cells in flight and submitting the next as one ends."""
+    from distributed import as_completed
+
+    waiting = iter(todo)
+    cells: dict[str, Cell] = {}
+    finished = as_completed([], loop=client.loop)
+    threads, checked = 1, -math.inf
+
+    def top_up(window: int) -> None:
+        while len(cells) < window:
+            cell = next(waiting, None)
+            if cell is None:
+                return
+            future = client.submit(task, cell, key=f"roughsense-cell-{cell.id}", pure=False)
+            cells[future.key] = cell
+            finished.add(future)
+
+    while True:
+        if time.monotonic() - checked > 2.0:  # workers may join a remote cluster while it runs
+            threads, checked = max(1, sum(client.nthreads().values())), time.monotonic()
+        top_up(max(MIN_WINDOW, 2 * threads))
+        if not cells:
+            return
+        future = next(finished)
+        yield cells.pop(future.key), future
+
+
 def _close(client) -> None:
-    cluster = client.cluster if hasattr(client, "cluster") else None
-    client.close()
-    if cluster is not None:
-        cluster.close()
+    """Close the client and its local cluster; a cluster that will not close cleanly (the results are written by
+    then) is a warning, never a traceback."""
+    cluster = getattr(client, "cluster", None)
+    try:
+        client.close(timeout=CLOSE_TIMEOUT_S)
+        if cluster is not None:
+            cluster.close(timeout=CLOSE_TIMEOUT_S)
+    except Exception as exc:
+        from .cell import error_line
+
+        warnings.warn(RoughsenseWarning(f"the Dask cluster did not close cleanly ({error_line(exc)})"), stacklevel=2)

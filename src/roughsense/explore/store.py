@@ -11,11 +11,16 @@ Layout of ``--out``::
 
 A cell is finished when its results file exists: the specimens file is written first, the results file last, each
 by rename, so a sweep killed at any moment leaves only whole files and a rerun recomputes exactly the cells missing.
+A finished cell is verified, not trusted: a file that does not read back (truncated, emptied by a full disk), holds no
+rows, or holds another cell's rows (copied by hand, or from another sweep) is removed and its cell computed again,
+with one warning naming the file.
 """
 from __future__ import annotations
 
+import math
 import os
 import tomllib
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -23,9 +28,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .._util import atomic
-from ..errors import OutputExistsError
+from .._util.checks import short_repr, shown
+from ..errors import OutputExistsError, RoughsenseWarning
 from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS
-from .sweep import COLUMN_KINDS, Sweep
+from .sweep import COLUMN_KINDS, MODEL_KEY, Cell, Sweep
 
 SWEEP_COPY = "sweep.toml"
 RESULTS_DIR = "results"
@@ -112,10 +118,43 @@ class ResultStore:
         return sorted({p.stem.removeprefix("cell-") for p in foreign})
 
     def finished(self) -> set[str]:
+        """Ids of the cells whose files read back as those cells; a damaged cell's files are removed (and said so),
+        so the run computes it again. Files of other sweeps' cells are listed as they are: prepare() judges them."""
         folder = self.root / RESULTS_DIR
         if not folder.is_dir():
             return set()
-        return {p.stem.removeprefix("cell-") for p in folder.glob("cell-*.parquet")}
+        cells = {c.id: c for c in self.sweep.cells}
+        done, damaged = set(), []
+        for path in sorted(folder.glob("cell-*.parquet")):
+            cell_id = path.stem.removeprefix("cell-")
+            problem = self.check_cell(cells[cell_id]) if cell_id in cells else None
+            if problem is None:
+                done.add(cell_id)
+                continue
+            damaged.append(problem)
+            for sub in (SPECIMENS_DIR, RESULTS_DIR):  # the results file last: it is the cell's 'done' mark
+                (self.root / sub / path.name).unlink(missing_ok=True)
+        if damaged:
+            more = f" (and {len(damaged) - 1} more)" if len(damaged) > 1 else ""
+            warnings.warn(RoughsenseWarning(f"{damaged[0]}{more}; computing {'these cells' if more else 'it'} again"),
+                          stacklevel=2)
+        return done
+
+    def check_cell(self, cell: Cell) -> str | None:
+        """Why the stored files of ``cell`` cannot be trusted (naming the file), or None if both are that cell's."""
+        for sub, schema in ((RESULTS_DIR, RESULT_SCHEMA), (SPECIMENS_DIR, SPECIMEN_SCHEMA)):
+            path = self.root / sub / cell_file(cell.id)
+            try:
+                frame = pq.read_table(path, schema=schema).to_pandas()
+            except (OSError, pa.ArrowException, ValueError) as exc:
+                reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+                return f"{path}: does not read back ({reason})"
+            if frame.empty:
+                return f"{path}: holds no rows"
+            wrong = _other_cell(frame, cell)
+            if wrong is not None:
+                return f"{path}: is not the cell its name says ({wrong})"
+        return None
 
     def write_cell(self, results: pd.DataFrame, specimens: pd.DataFrame, cell_id: str) -> None:
         """Specimens first, results last: the results file is the cell's 'done' mark."""
@@ -132,10 +171,40 @@ class ResultStore:
             path.unlink()  # every earlier failure has now been computed
 
     def read(self, sub: str = RESULTS_DIR) -> pd.DataFrame:
-        """Every cell file in the folder (after a run, exactly this sweep's finished cells: a run refuses others)."""
+        """Every cell file in the folder (after a run, exactly this sweep's finished cells: a run refuses others).
+
+        A file that does not read back is left out with a warning naming it (a run computes its cell again)."""
         schema = RESULT_SCHEMA if sub == RESULTS_DIR else SPECIMEN_SCHEMA
-        files = sorted((self.root / sub).glob("cell-*.parquet"))
-        tables = [pq.read_table(p, schema=schema) for p in files]
+        tables = []
+        for path in sorted((self.root / sub).glob("cell-*.parquet")):
+            try:
+                tables.append(pq.read_table(path, schema=schema))
+            except (OSError, pa.ArrowException, ValueError) as exc:
+                reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+                warnings.warn(RoughsenseWarning(f"{path}: does not read back ({reason}); left out of the report, "
+                                                "rerun the sweep to compute its cell again"), stacklevel=2)
         if not tables:
             return schema.empty_table().to_pandas()
         return pa.concat_tables(tables).to_pandas()
+
+
+def _other_cell(frame: pd.DataFrame, cell: Cell) -> str | None:
+    """What in a cell file's rows says they are not ``cell``'s (its id, seed, design or model families), or None."""
+    ids = set(frame["cell"].astype(str))
+    if ids != {cell.id}:
+        return f"rows of cell {short_repr(sorted(ids)[0])}"
+    if not (frame["seed"] == cell.seed).all():
+        return f"seed {frame['seed'].iloc[0]}, not {cell.seed}"
+    expected = {**cell.columns(), "pad": cell.pad}
+    families = set(expected.pop(MODEL_KEY).split(","))
+    if not set(frame[MODEL_KEY].astype(str)) <= families:
+        return f"model families other than {', '.join(sorted(families))}"
+    for key, value in expected.items():
+        column = frame[key]
+        if isinstance(value, float) and math.isnan(value):
+            same = column.isna()
+        else:
+            same = column == value
+        if not bool(same.all()):
+            return f"{key} {shown(column[~same].iloc[0])}, not {shown(value)}"
+    return None

@@ -19,10 +19,12 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._util.checks import POSITIVE, Integer, Real
+from .._util.checks import POSITIVE, Integer, Real, short_repr
+from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
+from ..io.protocol import MAX_REPETITION, check_force
 from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
@@ -35,12 +37,21 @@ from ..paper import (
     REFERENCE_SPECIMEN,
 )
 from ..sensor.settings import SPECTRUM_DEFAULTS
+from ..sim.limits import pad_problem, panel_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
 from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
 from ..sim.panel import RATINGS_FROM
 from ..sim.specimens import parse_specimen
 
 MIN_FIELD_MM = 1.0 / SPECTRUM_DEFAULTS.f_min_per_mm  # a shorter line cannot resolve the spectrum's lowest frequency
+#: A sweep file is a few kB of settings and lists; a megabyte is no sweep anyone wrote by hand.
+MAX_SWEEP_BYTES = 1_000_000
+#: Most cells (designs x seeds) in one sweep: at seconds to a minute each, 100,000 cells are days of a cluster;
+#: counted from the axes before any cell is built (a 1000 x 1000 grid is refused at once).
+MAX_CELLS = 100_000
+#: Most frames one cell renders (specimens x forces x repetitions; the paper's pad: 14 x 3 x 10 = 420): 50 times the
+#: paper, tens of minutes and about 100 MB of spectra per cell.
+MAX_CELL_FRAMES = 20_000
 #: Named specimen sets usable wherever a list of specimens is expected.
 SPECIMEN_SETS = {
     "paper": PAPER_SPECIMENS,
@@ -139,10 +150,37 @@ def _number(path, where, value, *, positive=True) -> float:
     return float(value)
 
 
-def _whole(path, where, value, least) -> int:
-    if not Integer(least).accepts(value):
-        raise _error(path, f"{where}: expected a whole number >= {least}, got {value!r}")
+def _whole(path, where, value, least, most=None) -> int:
+    if not Integer(least, most).accepts(value):
+        bounds = f">= {least}" if most is None else f"from {least} to {most}"
+        raise _error(path, f"{where}: expected a whole number {bounds}, got {short_repr(value)}")
     return int(value)
+
+
+#: The keyword of :func:`sim.limits.pad_problem` each pad key is checked with, and its unit's factor.
+_PAD_LIMITS = {"fingerprint_period_mm": ("period_mm", 1.0), "ridge_height_mm": ("ridge_height_mm", 1.0),
+               "pad_modulus_mpa": ("modulus_pa", 1e6)}
+
+
+def _pad_value(path: Path, key: str, value, where: str) -> float:
+    """A pad parameter, positive and within what the twin computes (sim.limits)."""
+    number = _number(path, where, value)
+    keyword, factor = _PAD_LIMITS[key]
+    problem = pad_problem(**{keyword: number * factor}, names=(where, where, where))
+    if problem:
+        raise _error(path, problem)
+    return number
+
+
+def _specimen_name(path: Path, where: str, text: str) -> str:
+    try:
+        specimen = parse_specimen(text)
+    except ConfigError as exc:
+        raise _error(path, f"{where}: {exc.message}") from None
+    problem = specimen_problem(specimen)
+    if problem:
+        raise _error(path, f"{where}: {problem}")
+    return specimen.name
 
 
 def _check_value(path: Path, key: str, value, where: str):
@@ -151,8 +189,8 @@ def _check_value(path: Path, key: str, value, where: str):
         if not isinstance(value, str) or value.strip().lower() not in PAD_NAMES:
             raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(PAD_NAMES)})")
         return value.strip().lower()
-    if key in ("fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa"):
-        return _number(path, where, value)
+    if key in _PAD_LIMITS:
+        return _pad_value(path, key, value, where)
     if key == "field_length_mm":
         length = _number(path, where, value)
         if length < MIN_FIELD_MM:
@@ -162,7 +200,10 @@ def _check_value(path: Path, key: str, value, where: str):
     if key == "forces_n":
         if not isinstance(value, list) or not value:
             raise _error(path, f"{where}: expected a non-empty list of forces in N, got {value!r}")
-        forces = tuple(sorted(_number(path, where, f) for f in value))
+        try:
+            forces = tuple(sorted(check_force(f, option=f"{where}: every force") for f in value))
+        except ConfigError as exc:
+            raise _error(path, exc.message) from None
         if len(set(forces_label(forces).split(","))) != len(forces):
             raise _error(path, f"{where}: forces {value!r} are not distinct")
         return forces
@@ -174,12 +215,7 @@ def _check_value(path: Path, key: str, value, where: str):
             return value
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise _error(path, f"{where}: expected a list of specimens or a set name, got {value!r}")
-        names = []
-        for text in value:
-            try:
-                names.append(parse_specimen(text).name)
-            except ConfigError as exc:
-                raise _error(path, f"{where}: {exc.message}") from None
+        names = [_specimen_name(path, where, text) for text in value]
         if len(set(names)) != len(names):
             raise _error(path, f"{where}: a specimen is listed twice in {value!r}")
         rated = [n for n in names if n != REFERENCE_SPECIMEN]
@@ -188,7 +224,7 @@ def _check_value(path: Path, key: str, value, where: str):
                                "needs 3 to choose the components of each held-out one)")
         return tuple(text.strip() for text in value)  # the specs as written: the simulator parses them again
     if key == "repetitions":
-        return _whole(path, where, value, 2)
+        return _whole(path, where, value, 2, MAX_REPETITION)
     if key == "ratings_from":
         if value not in RATINGS_FROM:
             raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_FROM)})")
@@ -211,6 +247,9 @@ def read_sweep(path: str | os.PathLike[str]) -> Sweep:
         raise _error(path, "sweep file not found")
     try:
         with path.open("rb") as handle:
+            if os.fstat(handle.fileno()).st_size > MAX_SWEEP_BYTES:
+                raise _error(path, f"is {os.fstat(handle.fileno()).st_size} bytes, above the limit of "
+                                   f"{MAX_SWEEP_BYTES} for a sweep file")
             source = tomllib.load(handle)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise _error(path, f"is not valid TOML ({exc})") from None
@@ -229,7 +268,10 @@ def build_sweep(source: dict, path: Path) -> Sweep:
     axes = _axes({k: v for k, v in axes_in.items() if k != MODEL_KEY}, path)
     if "pad" not in axes and "pad" not in settings:
         axes["pad"] = list(PAD_NAMES)  # both of the paper's pads unless told otherwise
+    _check_size(path, fixed, axes, run)  # before a single design point is built
     cells = _cells(_design_points(fixed, axes), run, models)
+    if len({c.id for c in cells}) != len(cells):  # _check_size refuses the known cases; never run one id twice
+        raise _error(path, "[axes]: two designs of the grid make the same cell; list each design once")
     name = settings.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         raise _error(path, f"[sweep] name: expected a text, got {name!r}")
@@ -284,13 +326,16 @@ def _run_settings(settings: dict, path: Path) -> dict:
     """Seeds, CV schemes, panel size and frame size: what every cell shares."""
     seeds = settings.get("seeds", [0])
     if not isinstance(seeds, list) or not seeds:
-        raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {seeds!r}")
+        raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {short_repr(seeds)}")
+    if len(seeds) > MAX_CELLS:
+        raise _error(path, f"[sweep] seeds: {len(seeds)} seeds, above the limit of {MAX_CELLS} cells per sweep")
     seeds = [_whole(path, "[sweep] seeds", s, 0) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
     max_components = _whole(path, "[sweep] max_components", settings.get("max_components", DEFAULT_MAX_COMPONENTS), 1)
-    participants = _whole(path, "[sweep] participants", settings.get("participants", PAPER_PARTICIPANTS), 2)
-    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", PAPER_SESSIONS), 1)
+    participants = _whole(path, "[sweep] participants", settings.get("participants", PAPER_PARTICIPANTS), 2,
+                          MAX_PARTICIPANTS)
+    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", PAPER_SESSIONS), 1, MAX_SESSIONS)
     size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
@@ -313,11 +358,71 @@ def _axes(axes_in: dict, path: Path) -> dict[str, list]:
             raise _error(path, f"[axes] {key}: expected a list of values, got {values!r}")
         if not values:
             raise _error(path, f"[axes] {key}: no values, so the grid is empty")
+        if len(values) > MAX_CELLS:
+            raise _error(path, f"[axes] {key}: {len(values)} values, above the limit of {MAX_CELLS} cells per sweep")
         checked = [_check_value(path, key, v, f"[axes] {key}") for v in values]
         if len({json.dumps(_label(key, v)) for v in checked}) != len(checked):
             raise _error(path, f"[axes] {key}: a value is listed twice")
         axes[key] = checked
     return axes
+
+
+def _where(key: str, axes: dict) -> str:
+    return f"[axes] {key}" if key in axes else f"[sweep] {key}"
+
+
+def _values(key: str, fixed: dict, axes: dict) -> list:
+    return axes[key] if key in axes else [fixed[key]]
+
+
+def _check_size(path: Path, fixed: dict, axes: dict[str, list], run: dict) -> None:
+    """The sweep's bounds that need the whole file: cells per sweep, frames and pixels per cell, the panel, and
+    field lengths that would make the same frame; counted from the axes, so nothing is built to find out."""
+    cells = 0
+    for pad in _values("pad", fixed, axes):
+        grid = math.prod(len(v) for k, v in axes.items() if k != "pad" and not (pad == "smooth" and k in FINGERPRINT_ONLY))
+        cells += grid * len(run["seeds"])
+    if cells > MAX_CELLS:
+        sizes = " x ".join(f"{len(v)} {k}" for k, v in axes.items())
+        raise _error(path, f"[axes]: {sizes} x {len(run['seeds'])} seeds make {cells} cells, above the limit of "
+                           f"{MAX_CELLS} per sweep; split it into several sweeps")
+    specimens = max(len(SPECIMEN_SETS[v] if isinstance(v, str) else v) for v in _values("specimens", fixed, axes))
+    forces = max(len(v) for v in _values("forces_n", fixed, axes))
+    repetitions = max(_values("repetitions", fixed, axes))
+    if specimens * forces * repetitions > MAX_CELL_FRAMES:
+        raise _error(path, f"{_where('specimens', axes)} x {_where('forces_n', axes)} x {_where('repetitions', axes)}"
+                           f": a cell of {specimens} specimens x {forces} forces x {repetitions} repetitions renders "
+                           f"{specimens * forces * repetitions} frames, above the limit of {MAX_CELL_FRAMES}")
+    names = ("[sweep] participants", "[sweep] sessions")
+    problem = (panel_problem(run["participants"], run["sessions"], names)
+               or schedule_size_problem(run["participants"], run["sessions"], specimens - 1, names=names))
+    if problem:
+        raise _error(path, problem)
+    _check_fields(path, _values("field_length_mm", fixed, axes), _where("field_length_mm", axes), run)
+
+
+def _width_px(field_mm: float | None, run: dict) -> int:
+    """The frame's width for a field length: the camera's pixel pitch, whole pixels (the sweep's width if None)."""
+    return run["width_px"] if field_mm is None else max(16, int(round(field_mm * DEFAULT_PX_PER_MM)))
+
+
+def _check_fields(path: Path, fields: list, where: str, run: dict) -> None:
+    """Every field length makes a frame within the pixel limit, and no two make the same frame (one cell id)."""
+    height = run["height_px"]
+    longest_mm = DEFAULT_MAX_PIXELS / height / DEFAULT_PX_PER_MM
+    widths: dict[int, float] = {}
+    for field_mm in fields:
+        if field_mm is None:
+            continue
+        if field_mm > longest_mm:
+            raise _error(path, f"{where}: {field_mm:g} mm at {DEFAULT_PX_PER_MM:g} px/mm and {height} px high is a "
+                               f"frame above the limit of {DEFAULT_MAX_PIXELS / 1e6:g} Mpx (at most "
+                               f"{longest_mm:.0f} mm)")
+        width = _width_px(field_mm, run)
+        if width in widths:
+            raise _error(path, f"{where}: {widths[width]:g} and {field_mm:g} mm make the same frame of {width} px (a "
+                               f"pixel is {1 / DEFAULT_PX_PER_MM:.4g} mm), so the same cell; list one of them")
+        widths[width] = field_mm
 
 
 def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
@@ -349,8 +454,7 @@ def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (DEFAULT_MOD
     for point in points:
         specimens = point["specimens"]
         names = SPECIMEN_SETS[specimens] if isinstance(specimens, str) else specimens
-        field_mm = point["field_length_mm"]
-        cell_width = run["width_px"] if field_mm is None else max(16, int(round(field_mm * DEFAULT_PX_PER_MM)))
+        cell_width = _width_px(point["field_length_mm"], run)
         for seed in run["seeds"]:
             content = dict(
                 seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],

@@ -11,19 +11,20 @@ import pandas as pd
 from .._util.checks import Integer, Real, check, short_repr
 from ..errors import ConfigError, InputError
 from ..paper import PAPER_FORCES_N
+from .numbers import BOUNDS
 from .problems import Problems, flag
 from .tables import csv_line
 
 DEFAULT_FORCES_N = PAPER_FORCES_N
 
 
-#: Largest force accepted anywhere (manifest readings, protocol forces, --forces). A fingertip presses with
-#: a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa, about the pad's own modulus.
-MAX_FORCE_N = 100.0
+#: Largest force accepted anywhere (manifest readings, protocol forces, --forces): stated in :data:`.numbers.BOUNDS`.
+#: A fingertip presses with a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa.
+MAX_FORCE_N = float(BOUNDS["force_n"].high)
 
 
 #: Largest repetition number: bounds the work a manifest or an option can ask for (the paper uses 10).
-MAX_REPETITION = 10_000
+MAX_REPETITION = int(BOUNDS["repetition"].high)
 
 
 def nominal_force_label(force_n: float) -> str:

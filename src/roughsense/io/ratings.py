@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .._util.checks import is_number
 from ..errors import InputError
 from ..paper import REFERENCE_SPECIMEN
 from .names import check_name_column
+from .numbers import NumberError, parse_number
 from .problems import Problems, flag
-from .tables import csv_line, missing_columns, number_hint, read_table, refuse_unknown
+from .tables import csv_line, missing_columns, read_table, refuse_unknown
 
 RATING_COLUMNS = ("participant", "session", "specimen", "rating")
 KEY_COLUMNS = ("participant", "session", "specimen")
@@ -75,21 +75,13 @@ def _line(frame: pd.DataFrame, position: int) -> int | None:
     return csv_line(label) if isinstance(label, (int, np.integer)) else None
 
 
-def _cell_text(value: object) -> str:
-    """A cell as the user wrote it: text quoted verbatim, a number with ``:g`` (never numpy's repr)."""
-    if isinstance(value, str):
-        return repr(value)
-    if is_number(value):
-        return f"{value:g}"
-    return repr(value)
-
-
 def validate_ratings(frame: pd.DataFrame, *, path: str | os.PathLike[str] | None = None,
                      reference: str = REFERENCE_SPECIMEN, specimens: Iterable[str] | None = None,
                      unknown_hint: str | None = None, problems: Problems | None = None) -> pd.DataFrame:
     """The checks every ratings table passes; returns a clean copy (text keys, float ratings), index kept.
 
-    Columns present, keys non-empty and obeying the name rule, ratings positive finite numbers, the reference
+    Columns present, keys non-empty and obeying the name rule, ratings numbers within ``BOUNDS["rating"]``
+    (:mod:`.numbers`: the spelling every reader accepts, 1e-6 to 1e6), the reference
     never rated, specimens known (``specimens``; ``unknown_hint`` says where names come from), and no
     participant rating a specimen twice in a session. Errors name the file line (``index + 2``): the first is
     raised, or each is added to ``problems`` (a missing column is raised all the same).
@@ -121,18 +113,20 @@ def _rating_values(frame: pd.DataFrame, path, problems: Problems | None = None) 
     """The rating column as floats: a positive finite magnitude estimate in every row (a bad one, when collecting
     problems, left missing so that it is reported once)."""
     raw = frame["rating"]
-    values = pd.to_numeric(raw, errors="coerce").astype(float)
     blank = raw.isna() | raw.map(lambda v: isinstance(v, str) and v.strip() == "")
-    flag(problems, (values.isna() & ~blank) | np.isinf(values), lambda i: InputError(
-        f"not a number: {_cell_text(raw.iloc[i])}{number_hint(raw.iloc[i]) if isinstance(raw.iloc[i], str) else ''}",
-        path=path, row=_line(frame, i), column="rating"))
-    values[np.isinf(values)] = np.nan
+    values = np.full(len(raw), np.nan)
+    messages: dict[int, str] = {}
+    for i, cell in enumerate(raw.to_numpy(object)):
+        if blank.iloc[i]:
+            continue
+        try:
+            values[i] = parse_number(cell, quantity="rating")  # within BOUNDS["rating"]: every gmean and SD finite
+        except NumberError as exc:
+            messages[i] = exc.message
+    flag(problems, [i in messages for i in range(len(raw))],
+         lambda i: InputError(messages[i], path=path, row=_line(frame, i), column="rating"))
     flag(problems, blank, lambda i: InputError("empty rating", path=path, row=_line(frame, i), column="rating"))
-    bad = flag(problems, values <= 0, lambda i: InputError(
-        f"a magnitude estimate must be positive, got {values.iloc[i]:g}", path=path, row=_line(frame, i),
-        column="rating"))
-    values.iloc[bad] = np.nan
-    return values
+    return pd.Series(values, index=raw.index, name="rating")
 
 
 def _refuse_repeats(frame: pd.DataFrame, path, problems: Problems | None = None) -> None:

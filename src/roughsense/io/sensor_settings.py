@@ -13,6 +13,7 @@ import numpy as np
 from .._util.checks import POSITIVE, check, is_number
 from ..errors import ConfigError
 from .images import DEFAULT_MAX_PIXELS
+from .numbers import NumberError, parse_number
 
 DEFAULT_PX_PER_MM = 34.9  # the paper's camera: 349 px/cm (section 2.1)
 #: Where the contact band is when a study does not say: the paper's centred crop (:data:`CENTER_CROP_PX`).
@@ -37,6 +38,10 @@ class SensorSettings:
 
     def __post_init__(self) -> None:
         check(self.px_per_mm, POSITIVE, name="px_per_mm", must="a positive number")
+        try:  # then its stated range (numbers.BOUNDS): a scale of 1e-300 px/mm is no camera
+            parse_number(self.px_per_mm, quantity="px_per_mm")
+        except NumberError as exc:
+            raise ConfigError(f"px_per_mm {exc.message}") from None
         object.__setattr__(self, "roi", parse_roi(self.roi))
         object.__setattr__(self, "max_pixels", check_max_pixels(self.max_pixels))
 
@@ -65,9 +70,9 @@ def parse_roi(value: object) -> Roi:
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
     if len(parts) != 4:
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H, got {_roi_text(value)}")
-    try:
-        numbers = [float(p) for p in parts]
-    except (TypeError, ValueError, OverflowError):
+    try:  # the one number parser: '1_0' and non-ASCII digits are not pixels here either
+        numbers = [float(parse_number(p)) for p in parts]
+    except NumberError:
         raise ConfigError(f"ROI must be 'center', 'auto' or X,Y,W,H with whole numbers, got {_roi_text(value)}") from None
     if not all(math.isfinite(n) for n in numbers):
         raise ConfigError(f"ROI values must be finite whole pixels, got {_roi_text(value)}")

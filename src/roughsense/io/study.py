@@ -29,6 +29,7 @@ from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
 from .names import check_name, check_name_column
+from .numbers import BOUNDS
 from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
 from .ratings import read_ratings_table
@@ -65,8 +66,10 @@ CONFIG_KEYS: dict[str, frozenset[str] | None] = {
 }
 #: Keys of a ``[pads.NAME]`` sub-table.
 PAD_KEYS = frozenset({"ridge_period_mm"})
-#: A pad's ridge period is at most this (mm): ridges coarser than the specimens are not a fingerprint.
-MAX_RIDGE_PERIOD_MM = 100.0
+#: A pad's ridge period is at most this (mm): ridges coarser than the specimens are not a fingerprint. Its lower
+#: bound (1 um) keeps the ridge frequency 1/period finite; both are stated in :data:`.numbers.BOUNDS`.
+MAX_RIDGE_PERIOD_MM = float(BOUNDS["ridge_period_mm"].high)
+MIN_RIDGE_PERIOD_MM = float(BOUNDS["ridge_period_mm"].low)
 
 
 @dataclass
@@ -159,7 +162,7 @@ def sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
 
 
 def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
-    """``[pads.NAME] ridge_period_mm`` of every pad that states one, checked (a positive number of mm, at most 100)."""
+    """``[pads.NAME] ridge_period_mm`` of every pad that states one, checked (a number of mm from 0.001 to 100)."""
     from .._util.checks import Real, check
 
     pads = config.get("pads", {})
@@ -175,9 +178,9 @@ def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
                               RoughsenseWarning, stacklevel=2)
         if "ridge_period_mm" in table:
             try:
-                periods[pad] = check(table["ridge_period_mm"], Real(0.0, MAX_RIDGE_PERIOD_MM, low_open=True),
-                                     name=f"[pads.{pad}] ridge_period_mm", must=f"a number of mm above 0 and at most "
-                                     f"{MAX_RIDGE_PERIOD_MM:g}")
+                periods[pad] = check(table["ridge_period_mm"], Real(MIN_RIDGE_PERIOD_MM, MAX_RIDGE_PERIOD_MM),
+                                     name=f"[pads.{pad}] ridge_period_mm", must=f"a number of mm from "
+                                     f"{MIN_RIDGE_PERIOD_MM:g} to {MAX_RIDGE_PERIOD_MM:g}")
             except ConfigError as exc:
                 raise InputError(exc.message, path=path) from None
     return periods

@@ -14,13 +14,13 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError, RoughsenseWarning
+from .numbers import BOUNDS, NumberError, parse_number
 from .problems import Problems, flag, report, same_but_case
 
 #: Columns holding names, never numbers: a decimal comma is not looked for there ("1,5" stays a (bad) name).
 NAME_COLUMNS = frozenset({"image", "specimen", "pad", "participant", "session", "shape"})
-_COMMA_NUMBER = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
-_POINT_NUMBER = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?")
-_NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
+_COMMA_NUMBER = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?", re.ASCII)
+_POINT_NUMBER = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", re.ASCII)
 
 
 def csv_line(index: int) -> int:
@@ -48,20 +48,8 @@ def refuse_unknown(frame: pd.DataFrame, column: str, known, path: Path | None, *
     flag(problems, unknown.to_numpy(bool), error)
 
 
-def number_hint(cell: object) -> str:
-    """What to write instead of a cell that is almost a number: ``2.01 N`` (drop the unit), ``0,5`` (a point)."""
-    text = str(cell).strip()
-    try:
-        float(text)
-        return ""  # a number after all ('inf', '1e999'): refused for its value, not its writing
-    except ValueError:
-        pass
-    if _COMMA_NUMBER.fullmatch(text):
-        return f" (a decimal comma: write {text.replace(',', '.')})"
-    unit = _NUMBER_WITH_UNIT.fullmatch(text)
-    if unit is not None:
-        return f" (drop the unit: write {unit.group(1)})"
-    return ""
+#: Columns whose bounds are another quantity's (a nominal force is a force).
+COLUMN_QUANTITY = {"nominal_force_n": "force_n"}
 
 
 def missing_columns(missing: Sequence[str], found: Sequence[object], path: Path | None) -> InputError:
@@ -179,7 +167,8 @@ def read_table(
     """Read a CSV and check columns and values, naming the line of the first bad cell (or of each, into ``problems``).
 
     ``text`` columns are kept as strings (so specimen "3" stays "3", and participant IDs keep leading zeros).
-    ``maximum`` bounds numeric columns from above (an absurd force, a repetition number that overflows).
+    Every number cell is read by :func:`~roughsense.io.numbers.parse_number`; a column named in its ``BOUNDS``
+    (force_n, repetition, wavelength_mm, ...) is bounded there, any other by ``positive`` and ``maximum``.
     A problem with the whole file (unreadable, a column missing) is raised even when collecting: nothing else in
     it can be checked. A semicolon-separated file is read as comma-separated, with a warning (see ``_from_semicolons``).
     """
@@ -237,39 +226,38 @@ def _parse_csv(path: Path, dtypes: dict, problems: Problems | None = None) -> pd
     return frame
 
 
+def _column_bounds(column: str, *, positive: bool, integer: bool, limit: float | None) -> dict:
+    """How :func:`parse_number` checks a column: its quantity's row of ``BOUNDS`` if it has one, else the caller's."""
+    quantity = COLUMN_QUANTITY.get(column, column)
+    if quantity in BOUNDS:
+        return {"quantity": quantity, "whole": integer}
+    return {"low": 0.0 if positive else None, "low_open": positive, "high": limit, "whole": integer}
+
+
 def _numeric_column(cells: pd.Series, path: Path, *, positive: bool, integer: bool, limit: float | None,
                     problems: Problems | None = None) -> pd.Series:
-    """A column of number cells as floats (or int64 for ``integer``), refusing each bad cell by its line.
+    """A column of number cells as floats (or int64 for ``integer``), each read by :func:`parse_number` and
+    refused by its line with its message.
 
     When collecting, a bad cell becomes missing, so it is reported once and not again by a later check.
     """
     column = cells.name
-    try:
-        values = pd.to_numeric(cells, errors="coerce").astype(float)
-    except (OverflowError, ValueError, TypeError):
-        values = cells.map(to_float)
-
-    def refuse(mask, message) -> None:
-        bad = flag(problems, mask, lambda i: InputError(message(i), path=path, row=csv_line(i), column=column))
-        values.iloc[bad] = np.nan
-
-    refuse((values.isna() & cells.notna()) | ~np.isfinite(values.fillna(0.0)),
-           lambda i: f"not a finite number: {cells.iloc[i]!r}{number_hint(cells.iloc[i])}")
-    if positive:
-        refuse(values <= 0, lambda i: f"must be positive, got {values.iloc[i]:g}")
-    if limit is not None:
-        refuse(values > limit, lambda i: f"must be at most {limit:g}, got {cells.iloc[i]}")
+    bounds = _column_bounds(str(column), positive=positive, integer=integer, limit=limit)
+    values = np.full(len(cells), np.nan)
+    messages: dict[int, str] = {}
+    for i, cell in enumerate(cells.to_numpy(object)):
+        if cell is None or (isinstance(cell, float) and np.isnan(cell)):
+            continue  # a blank cell: reported as empty by read_table when the column is required
+        try:
+            values[i] = parse_number(cell, **bounds)
+        except NumberError as exc:
+            messages[i] = exc.message
+    flag(problems, [i in messages for i in range(len(cells))],
+         lambda i: InputError(messages[i], path=path, row=csv_line(i), column=column))
+    values = pd.Series(values, index=cells.index, name=column)
     if not integer:
-        return values.astype(float)
-    refuse(values.notna() & (values != np.round(values)), lambda i: f"must be a whole number, got {values.iloc[i]:g}")
+        return values
     return values.astype("Int64") if values.isna().any() else values.astype(np.int64)
-
-
-def to_float(text: object) -> float:
-    try:
-        return float(text)
-    except (TypeError, ValueError, OverflowError):
-        return float("nan")
 
 
 def has_column(path: Path, column: str) -> bool:

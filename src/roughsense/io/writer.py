@@ -1,8 +1,15 @@
 """Writing a study folder atomically, file by file: used by both the simulator and the rig.
+
+A folder also says where its frames came from, and never holds both kinds: the simulator marks its own with a
+``[simulation]`` table in study.toml (and a completion marker), the rig gives every manifest row the time its frame
+was taken. Real frames in a simulated folder would be labelled simulated in every report, and a later
+``simulate --force`` would delete them: :func:`study_sources` lets every writer refuse the other's folder.
 """
 from __future__ import annotations
 
+import csv
 import os
+import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -16,6 +23,7 @@ from .images import DEFAULT_MAX_PIXELS
 from .protocol import DEFAULT_FORCES_N
 from .sensor_settings import SensorSettings
 from .study import (
+    COMPLETE_MARKER,
     IMAGES_DIR,
     MANIFEST_COLUMNS,
     MANIFEST_CSV,
@@ -26,19 +34,76 @@ from .study import (
 )
 from .tables import dump_toml
 
+SIMULATED, CAPTURED = "simulated", "captured"
+CAPTURE_TIME_COLUMN = "timestamp"  # the rig's manifest column: the moment each real frame was taken
+
+
+def _has_simulation_table(path: Path) -> bool:
+    try:
+        with path.open("rb") as handle:
+            return isinstance(tomllib.load(handle).get("simulation"), dict)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
+        return False
+
+
+def captured_images(manifest: str | os.PathLike[str]) -> set[str]:
+    """The images of the manifest rows the rig wrote (a capture time given): real frames, never the simulator's."""
+    try:
+        with open(manifest, newline="", encoding="utf-8-sig") as handle:
+            first = handle.readline()
+            delimiter = max(",;\t", key=first.count)  # as the rig wrote it, or re-saved by a European Excel
+            header = [h.strip() for h in next(csv.reader([first], delimiter=delimiter), [])]
+            if CAPTURE_TIME_COLUMN not in header or "image" not in header:
+                return set()
+            at, image = header.index(CAPTURE_TIME_COLUMN), header.index("image")
+            return {row[image].strip() for row in csv.reader(handle, delimiter=delimiter)
+                    if len(row) > max(at, image) and row[at].strip()}
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return set()
+
+
+def study_sources(root: str | os.PathLike[str]) -> set[str]:
+    """Where the frames of the folder ``root`` came from: {"simulated"}, {"captured"}, both (a mixed folder an older
+    roughsense let happen) or none (new, empty, or a study laid out by hand)."""
+    root = Path(root)
+    found = set()
+    if (root / COMPLETE_MARKER).exists() or _has_simulation_table(root / STUDY_TOML):
+        found.add(SIMULATED)
+    if captured_images(root / MANIFEST_CSV):
+        found.add(CAPTURED)
+    return found
+
+
+def refuse_captured(root: str | os.PathLike[str], advice: str) -> None:
+    """A writer that would replace study files refuses a folder of real frames, ``--force`` or not."""
+    if CAPTURED in study_sources(root):
+        raise OutputExistsError(f"holds frames captured by the rig ({MANIFEST_CSV} rows with a {CAPTURE_TIME_COLUMN}); "
+                                f"{advice}", path=root)
+
+
+def refuse_simulated(root: str | os.PathLike[str], advice: str) -> None:
+    """The rig refuses a folder the simulator wrote: its real frames would be reported as simulated."""
+    if SIMULATED in study_sources(root):
+        raise OutputExistsError(f"is a simulated study (its {STUDY_TOML} has a [simulation] table, or it has the "
+                                f"simulator's {COMPLETE_MARKER} marker); {advice}", path=root)
+
 
 class StudyWriter:
     """Writes a study folder atomically, file by file. Used by both the simulator and the rig.
 
     A non-empty folder is refused unless ``force`` (then files roughsense writes are replaced, and
-    nothing else is touched) or ``resume`` (the rig appends to its own earlier session).
+    nothing else is touched) or ``resume`` (the rig appends to its own earlier session). ``source="captured"``
+    (the rig) also refuses a simulated folder, whatever else allows it.
     """
 
-    def __init__(self, root: str | os.PathLike[str], *, force: bool = False, resume: bool = False) -> None:
+    def __init__(self, root: str | os.PathLike[str], *, force: bool = False, resume: bool = False,
+                 source: str | None = None) -> None:
         self.root = Path(root)
         self.force = force
         if self.root.exists() and not self.root.is_dir():
             raise OutputExistsError("exists and is not a folder", path=self.root)
+        if source == CAPTURED:
+            refuse_simulated(self.root, "capture real frames into a folder of their own")
         if self.root.is_dir() and any(self.root.iterdir()) and not (force or resume):
             raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=self.root)
         self.root.mkdir(parents=True, exist_ok=True)

@@ -16,7 +16,13 @@ version. The document::
 
 The checksum is an integrity check, not a signature: it catches a flipped digit or a truncated copy, but it is
 unkeyed, so anyone who edits a file can recompute it. What keeps an edited file from predicting nonsense is the
-field checks on loading (shapes, finiteness, the peak law's bounds), never the checksum.
+field checks on loading (shapes, finiteness, the bounds below and the peak law's), never the checksum.
+
+PLS bounds. Features are spectra normalised to unit area, so a feature is at most 2 / (frequency step) and a
+row's features sum to a few hundred at most; responses are ratings, within 1e6 (``io.numbers.BOUNDS``). A fit
+on such data gives coefficients of order one (|c| <= :data:`MAX_COEFFICIENT` is a millionfold margin), and
+each intercept is ``y_mean - x_mean . c`` by construction, so it is bounded by ``|y_mean| + |x_mean| . |c|``.
+Within these bounds every prediction of a computed spectrum is a finite number.
 """
 from __future__ import annotations
 
@@ -45,6 +51,10 @@ KIND = "pls1-simpls"
 #: Largest model file read. A model is (A + 4) x p numbers (p = 135 for a combined model): well under 1 MB.
 MAX_MODEL_BYTES = 10_000_000
 _TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
+#: Largest |coefficient| and |x_mean| of a PLS model file, and largest |y_mean| (a rating's bound): see above.
+MAX_COEFFICIENT = 1e6
+MAX_X_MEAN = 1e6
+MAX_Y_MEAN = 1e6
 
 
 @dataclass(frozen=True)
@@ -126,6 +136,9 @@ def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, tr
     features = _check_feature_definition(feature_definition, section["n_features"], None)
     if section["kind"] == peak_law_file.KIND:  # refuse now what load_model would refuse later
         peak_law_file.loaded_law(section, features, training=training, roughsense_version=_version(), path=None)
+    else:
+        _check_pls_bounds(np.asarray(section["x_mean"]), section["y_mean"], np.asarray(section["coefficients"]),
+                          np.asarray(section["intercepts"]), None)
     document = {
         "format": FORMAT,
         "version": VERSION,
@@ -254,7 +267,8 @@ def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
     pct_var = _array(model["pct_var"], (2, A), "model.pct_var", path)
     y_mean = model["y_mean"]
     if not Real().accepts(y_mean):
-        fail(f"model.y_mean must be a finite number, got {y_mean!r}")
+        fail(f"model.y_mean must be a finite number, got {short_repr(y_mean)}")
+    _check_pls_bounds(x_mean, y_mean, coef, intercepts, path)
     features = _check_feature_definition(document["features"], p, path)
     return LoadedModel(
         path=path,
@@ -268,6 +282,28 @@ def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
         training=document["training"],
         roughsense_version=document["roughsense_version"],
     )
+
+
+def _check_pls_bounds(x_mean: np.ndarray, y_mean: float, coef: np.ndarray, intercepts: np.ndarray,
+                      path: Path | None) -> None:
+    """Refuse numbers no fit on spectra and ratings produces (see the module docstring): an edited, re-signed
+    file with coefficients of 1e308 would otherwise predict ``inf``."""
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    for name, values, limit in (("coefficients", coef, MAX_COEFFICIENT), ("x_mean", x_mean, MAX_X_MEAN)):
+        worst = float(np.max(np.abs(values))) if values.size else 0.0
+        if worst > limit:
+            fail(f"model.{name} holds {worst:g}; a fitted model's are at most {limit:g} in magnitude")
+    if abs(y_mean) > MAX_Y_MEAN:
+        fail(f"model.y_mean is {y_mean:g}; a rating is at most {MAX_Y_MEAN:g}")
+    # intercept_k = y_mean - x_mean . c_k for a fit: its magnitude is at most this (with rounding slack).
+    reach = (abs(y_mean) + np.abs(coef) @ np.abs(x_mean)) * (1 + 1e-9) + 1e-12
+    over = np.flatnonzero(np.abs(intercepts) > reach)
+    if over.size:
+        k = int(over[0])
+        fail(f"model.intercepts[{k}] is {intercepts[k]:g}, beyond what a fit can give (|y_mean| + |x_mean|.|c| = "
+             f"{reach[k]:g})")
 
 
 def _all_numbers(value) -> bool:

@@ -24,6 +24,7 @@ import numpy as np
 
 from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import InputError, ModelFileError
+from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
 from .peak_law import FEATURE_NAMES, PeakPowerLaw, outside_range, peak_features, predict_law, search_bins
 
@@ -39,7 +40,8 @@ _SCALARS: dict[str, Constraint] = {
     "intercept": _BOUNDED,
     "scale": Real(0.0, LIMIT, low_open=True),
 }
-_PAD_PERIOD = Real(0.0, 100.0, low_open=True)
+#: A pad's ridge period: the range study.toml accepts (``io.numbers.BOUNDS``), so a law a study can train is loadable.
+_PAD_PERIOD = Real(BOUNDS["ridge_period_mm"].low, BOUNDS["ridge_period_mm"].high)
 _PAIRS = ("coefficients", "feature_min", "feature_max")
 FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_PAIRS, "feature_names")
 
@@ -136,7 +138,8 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
                              f"{len(features['conditions'])} force condition(s)", path=path)
     period = section["pad_ridge_period_mm"]
     if period is not None:
-        period = _checked(section, "pad_ridge_period_mm", _PAD_PERIOD, path, must="a number of mm (> 0, <= 100) or null")
+        period = _checked(section, "pad_ridge_period_mm", _PAD_PERIOD, path,
+                          must=f"a number of mm from {_PAD_PERIOD.low:g} to {_PAD_PERIOD.high:g}, or null")
     scalars = {name: _checked(section, name, constraint, path) for name, constraint in _SCALARS.items()}
     pairs = {name: _pair(section, name, path) for name in _PAIRS}
     if section["feature_names"] != list(FEATURE_NAMES):

@@ -13,17 +13,24 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import sys
+import tempfile
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError, InputError, RoughsenseWarning
 
 #: Frames dropped before a capture on a live device: V4L2 queues 4 buffers by default, plus the one in flight.
 DEVICE_DISCARD = 5
 
+#: Damaged frames skipped in a row before the source is refused: a glitch is dropped, a broken stream is not.
+MAX_DAMAGED_FRAMES = 5
+
 _STREAM = re.compile(r"^[a-z][a-z0-9+.-]*://", re.IGNORECASE)
+_FFMPEG_PREFIX = re.compile(r"^\[(\w+) @ 0x[0-9a-f]+\]\s*")
 
 
 @contextlib.contextmanager
@@ -39,6 +46,28 @@ def _quiet_opencv():
         yield
     finally:
         logging.setLogLevel(previous)
+
+
+@contextlib.contextmanager
+def _decoder_messages():
+    """OpenCV quiet, and what its codecs print on file descriptor 2 caught as a list of lines.
+
+    ffmpeg and libjpeg write below Python, straight to fd 2: uncaught, they are stray "[mjpeg @ 0x...]" lines
+    on the user's terminal and the frame they describe is kept as data. Caught, the frame is known to be damaged.
+    """
+    messages: list[str] = []
+    with _quiet_opencv(), tempfile.TemporaryFile() as sink:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield messages
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read(4096).decode("utf-8", errors="replace")
+            messages.extend(_FFMPEG_PREFIX.sub(r"\1: ", line.strip()) for line in text.splitlines() if line.strip())
 
 
 def _describe(spec: str | int) -> tuple[str | int, bool]:
@@ -67,12 +96,13 @@ class FrameSource:
         if not self.is_device and "%" not in str(target) and not Path(target).exists():
             raise InputError("video source not found (expected a camera index, a video file or an image pattern)",
                              path=self.name)
-        with _quiet_opencv():
+        with _decoder_messages() as messages:
             self._cap = cv2.VideoCapture(target)
             opened = self._cap.isOpened()
         if not opened:
             self._cap.release()
-            raise InputError("cannot open video source (OpenCV VideoCapture refused it)", path=self.name)
+            why = f": {_said(messages)}" if messages else ""
+            raise InputError(f"cannot open video source (OpenCV VideoCapture refused it{why})", path=self.name)
         if self.is_device:
             # Not every backend honours this; the explicit discard covers the others.
             self._cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)
@@ -81,21 +111,34 @@ class FrameSource:
     # ------------------------------------------------------------------ reading
 
     def grab(self) -> bool:
-        """Advance one frame without decoding it to an array (cheap way to drop a frame)."""
-        with _quiet_opencv():
+        """Advance one frame without decoding it to an array (cheap way to drop a frame; a damaged one is dropped)."""
+        with _decoder_messages():
             ok = bool(self._cap.grab())
         if ok:
             self.frames_read += 1
         return ok
 
     def read_next(self) -> np.ndarray | None:
-        """The next frame, or None at the end of a file or sequence."""
-        with _quiet_opencv():
-            ok, frame = self._cap.read()
-        if not ok or frame is None or frame.size == 0:
-            return None
-        self.frames_read += 1
-        return _to_rgb(frame)
+        """The next frame that decodes cleanly, or None at the end of a file or sequence.
+
+        A frame the decoder reports errors for is never handed on as data: it is skipped with a warning naming
+        it; :data:`MAX_DAMAGED_FRAMES` in a row, or a frame that does not decode at all, is an InputError.
+        """
+        for _ in range(MAX_DAMAGED_FRAMES):
+            with _decoder_messages() as messages:
+                ok, frame = self._cap.read()
+            if not ok or frame is None or frame.size == 0:
+                if messages:
+                    raise InputError(f"frame {self.frames_read + 1} does not decode ({_said(messages)})",
+                                     path=self.name)
+                return None
+            self.frames_read += 1
+            if not messages:
+                return _to_rgb(frame)
+            warnings.warn(RoughsenseWarning(f"{self.name}: frame {self.frames_read} decoded with errors "
+                                            f"({_said(messages)}); skipped"), stacklevel=2)
+        raise InputError(f"{MAX_DAMAGED_FRAMES} frames in a row decoded with errors, up to frame {self.frames_read} "
+                         f"({_said(messages)})", path=self.name)
 
     def read_fresh(self) -> np.ndarray:
         """Drop the queued (stale) frames, then return the next one; a source that yields nothing is an error."""
@@ -127,6 +170,12 @@ class FrameSource:
     def __repr__(self) -> str:
         kind = "device" if self.is_device else "file"
         return f"FrameSource({self.name!r}, {kind}, discard={self.discard})"
+
+
+def _said(messages: list[str]) -> str:
+    """The decoder's first messages as one short clause of an error or warning line."""
+    text = "; ".join(messages[:2])
+    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def _to_rgb(frame: np.ndarray) -> np.ndarray:

@@ -12,7 +12,6 @@ the next free name (``..._2N-2.png``). Only manifest rows define the study, so o
 """
 from __future__ import annotations
 
-import fcntl
 import math
 import sys
 from collections.abc import Callable, Sequence
@@ -24,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from .._util.checks import POSITIVE, check
+from .._util.lock import output_lock
 from ..errors import ConfigError, InputError, OutputExistsError
 from ..io.names import NAME_RULE, check_name, is_safe_name
 from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
@@ -40,13 +40,13 @@ from ..io.study import (
     sensor_from_config,
 )
 from ..io.tables import csv_line, read_table
-from ..io.writer import StudyWriter
+from ..io.writer import CAPTURED, StudyWriter, refuse_simulated
 from .camera import FrameSource
 from .scale import ForceInput
 
 #: Manifest columns the rig writes (``nominal_force_n`` keeps the condition exact whatever the scale read).
 RIG_COLUMNS = ("image", "specimen", "pad", "force_n", "nominal_force_n", "repetition", "timestamp")
-LOCK_FILE = ".capture.lock"
+LOCK_FILE = ".capture.lock"  # older versions' lock inside the folder (now beside it: _util/lock.py); ignored
 
 
 @dataclass
@@ -98,6 +98,7 @@ class _Folder:
 def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
     if root.exists() and not root.is_dir():
         raise OutputExistsError("exists and is not a folder", path=root)
+    refuse_simulated(root, "real frames are never mixed with simulated ones, so capture into a folder of their own")
     toml_path = root / STUDY_TOML
     if not toml_path.exists():
         if root.is_dir() and not _is_blank(root):
@@ -196,17 +197,6 @@ def _merge_specimen(folder: _Folder, specimen: str, shape: str | None, wavelengt
     return (merged if changed else None), incomplete
 
 
-def _lock(root: Path):
-    """One capture per folder at a time; the OS drops the lock if the process dies, so no stale locks."""
-    handle = open(root / LOCK_FILE, "a")  # noqa: SIM115 - held open for the session: the lock lives with it
-    try:
-        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        handle.close()
-        raise OutputExistsError("another capture is writing into this folder", path=root) from None
-    return handle
-
-
 # --------------------------------------------------------------------------- the protocol
 
 
@@ -245,30 +235,23 @@ def capture_session(
     log = log or (lambda text: print(text, file=sys.stderr, flush=True))
     root = Path(root)
     _check_capture_options(specimen, pad, repetitions, shape, wavelength_mm)
-    lock = _lock(root) if root.is_dir() else None
-    try:
+    with output_lock(root, command="capture"):  # one writer per folder (a capture, a simulation, ...) at a time
         folder = _inspect(root, forces_n, px_per_mm, roi)
         forces = tuple(float(f) for f in (forces_n or folder.forces_n))
         specimens_update, incomplete = _merge_specimen(folder, specimen, shape.lower() if shape else None, wavelength_mm)
         steps = plan_steps(folder.manifest, specimen, pad, forces, repetitions)
         session = _Session(
             root=root, folder=folder, specimens_update=specimens_update, source=source, force_input=force_input,
-            specimen=specimen, pad=pad, repetitions=repetitions, log=log, clock=clock, lock=lock,
+            specimen=specimen, pad=pad, repetitions=repetitions, log=log, clock=clock,
             window=force_window(folder.forces_n),
             result=CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
                                  specimen_incomplete=incomplete))
-        try:
-            for repetition, nominal in steps:
-                session.capture(repetition, nominal)
-        finally:
-            lock = session.lock
+        for repetition, nominal in steps:
+            session.capture(repetition, nominal)
         if session.writer is None and specimens_update is not None and not folder.is_new:
             # Nothing left to capture, but --shape/--wavelength-mm completed the specimen's row.
-            StudyWriter(root, resume=True).write_specimens(specimens_update)
+            StudyWriter(root, resume=True, source=CAPTURED).write_specimens(specimens_update)
         return session.result
-    finally:
-        if lock is not None:
-            lock.close()
 
 
 def _check_capture_options(specimen: str, pad: str, repetitions: int, shape: str | None,
@@ -287,7 +270,7 @@ def _check_capture_options(specimen: str, pad: str, repetitions: int, shape: str
 class _Session:
     """One run of the protocol: what it reads from, what it writes into, and what it has done so far.
 
-    The folder is created, locked and written only once the first frame is in hand.
+    The folder is created and written only once the first frame is in hand (its lock is beside it).
     """
 
     root: Path
@@ -300,7 +283,6 @@ class _Session:
     repetitions: int
     log: Callable[[str], None]
     clock: Callable[[], datetime]
-    lock: object
     window: dict[float, tuple[float, float]]
     result: CaptureResult
     writer: StudyWriter | None = None
@@ -314,9 +296,6 @@ class _Session:
         _check_frame(frame, self.folder.sensor.roi, self.source)
         stamp = self.clock().astimezone(UTC).isoformat(timespec="milliseconds")
         if self.writer is None:
-            if self.lock is None:
-                self.root.mkdir(parents=True, exist_ok=True)
-                self.lock = _lock(self.root)
             self.writer = _start_writing(self.folder, self.specimens_update)
         name, skipped = _free_name(self.writer, self.specimen, self.pad, repetition, nominal)
         self.result.orphans.extend(skipped)
@@ -343,7 +322,7 @@ def _check_frame(frame: np.ndarray, roi: Roi, source: FrameSource) -> None:
 
 
 def _start_writing(folder: _Folder, specimens_update: pd.DataFrame | None) -> StudyWriter:
-    writer = StudyWriter(folder.root, resume=True)
+    writer = StudyWriter(folder.root, resume=True, source=CAPTURED)
     if not (folder.root / STUDY_TOML).exists():
         writer.write_config(name=folder.root.resolve().name, sensor=folder.sensor, forces_n=folder.forces_n)
     if specimens_update is not None:

@@ -3,7 +3,7 @@
 The paper reads a kitchen scale "at the moment each image was captured" (section 2.1). Scales report a
 mass; the pad presses with a weight, so grams become newtons with standard gravity.
 
-Scale line format (one reading per line, ``\\r\\n`` or ``\\n``)::
+Scale line format (one reading per line, ending in ``\\r\\n``, ``\\n`` or ``\\r``)::
 
     [FLAG,]...[sign][number][ ]unit        e.g.  "ST,GS,+00102.35 g"   "US,+0.0512kg"   "1.003 N"   "-0.4g"
 
@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, Protocol
 
+from .._util.checks import short_repr
 from ..errors import ConfigError, InputError
 
 #: Standard gravity (m/s^2): converts a scale's mass reading into the pressing force.
@@ -36,6 +37,9 @@ _READING = re.compile(
     re.IGNORECASE,
 )
 _UNSTABLE_FLAGS = {"US", "OL"}
+_LINE_END = re.compile(rb"[\r\n]")
+#: Longest line kept while waiting for its end: real readings are under 30 bytes; more is noise or a wrong baud rate.
+MAX_LINE_BYTES = 256
 
 
 @dataclass(frozen=True)
@@ -71,11 +75,45 @@ def parse_typed_force(text: str, nominal_force_n: float) -> float:
     except ValueError:
         reading = parse_scale_line(text)
         if reading is None:
-            raise _Retry(f"force {text!r} is not a number (type newtons such as 2.01, or 205 g, or 0.205 kg)") from None
+            raise _Retry(f"force {short_repr(text)} is not a number (type newtons such as 2.01, or 205 g, or 0.205 kg)") from None
         value = reading.force_n
     if not math.isfinite(value):
-        raise _Retry(f"force {text!r} is not a finite number")
+        raise _Retry(f"force {short_repr(text)} is not a finite number")
     return value
+
+
+def _shown(raw: bytes) -> str:
+    """Bytes from the scale as an error message quotes them: decoded, stripped, at most 60 characters."""
+    return short_repr(raw.decode("ascii", errors="replace").strip())
+
+
+class _LineSplitter:
+    """Bytes in, complete non-empty lines out; a line longer than :data:`MAX_LINE_BYTES` is dropped whole.
+
+    ``last`` is the last complete line, ``unended`` the first bytes of a line still waiting for its end (what an
+    error message shows when a scale never ends a line).
+    """
+
+    def __init__(self) -> None:
+        self.pending = b""
+        self.overflowed = False  # the current line ran away: drop it up to its end
+        self.last: bytes | None = None
+        self.unended = b""
+
+    def feed(self, chunk: bytes) -> list[bytes]:
+        *ended, self.pending = _LINE_END.split(self.pending + chunk)
+        complete = []
+        for raw in ended:
+            if not self.overflowed and raw:
+                complete.append(raw)
+            self.overflowed = False
+        if len(self.pending) > MAX_LINE_BYTES:
+            self.pending, self.overflowed = b"", True
+        if complete:
+            self.last = complete[-1]
+        if len(self.unended) < 64 and len(self.pending) > len(self.unended):
+            self.unended = self.pending[:64]
+        return complete
 
 
 class _Retry(Exception):
@@ -191,24 +229,32 @@ class SerialScale(_OperatorInput):
         return self.read_stable().force_n
 
     def read_stable(self) -> ScaleReading:
-        """The first stable reading after flushing queued input; InputError if the port stays silent."""
+        """The first stable reading after flushing queued input; InputError if none arrives within ``timeout_s``.
+
+        Bytes are read as they arrive and split into lines here (never ``readline``, which waits for a line end
+        as long as bytes keep coming), so the deadline holds whatever the scale sends: a stream with no line
+        ends, a runaway line, or silence.
+        """
+        lines = _LineSplitter()
         try:
             self._port.reset_input_buffer()
             deadline = time.monotonic() + self.timeout_s
-            last: str | None = None
             while time.monotonic() < deadline:
-                raw = self._port.readline()
-                if not raw:
-                    continue
-                reading = parse_scale_line(raw)
-                last = raw.decode("ascii", errors="replace").strip()
-                if reading is not None and reading.stable:
-                    return reading
+                chunk = self._port.read(min(max(1, self._port.in_waiting), MAX_LINE_BYTES))
+                for raw in lines.feed(chunk):
+                    reading = parse_scale_line(raw)
+                    if reading is not None and reading.stable:
+                        return reading
         except (self._serial_error, OSError) as exc:
             raise InputError(f"lost the scale's serial port ({exc})", path=self.name) from None
-        if last is None:
-            raise InputError(f"the scale sent nothing for {self.timeout_s:g} s (is it on and streaming?)", path=self.name)
-        raise InputError(f"no stable reading from the scale within {self.timeout_s:g} s (last line: {last!r})", path=self.name)
+        within = f"within {self.timeout_s:g} s"
+        if lines.last is not None:
+            raise InputError(f"no stable reading from the scale {within} (last line: {_shown(lines.last)})",
+                             path=self.name)
+        if lines.unended:
+            raise InputError(f"the scale sent bytes but no line end {within} (got {_shown(lines.unended)}; expected "
+                             "one reading per line -- check the baud rate)", path=self.name)
+        raise InputError(f"the scale sent nothing for {self.timeout_s:g} s (is it on and streaming?)", path=self.name)
 
     def close(self) -> None:
         self._port.close()
@@ -232,8 +278,8 @@ def open_force_input(
         if sep and tail.isdigit():
             port, baud = head, int(tail)
         if not port:
-            raise ConfigError(f"--force-input {spec!r}: give the port, e.g. serial:/dev/ttyUSB0:9600")
+            raise ConfigError(f"--force-input {short_repr(spec)}: give the port, e.g. serial:/dev/ttyUSB0:9600")
         if baud <= 0:
-            raise ConfigError(f"--force-input {spec!r}: baud rate must be positive")
+            raise ConfigError(f"--force-input {short_repr(spec)}: baud rate must be positive")
         return SerialScale(port, baud, timeout_s=timeout_s, stdin=stdin, prompt_out=prompt_out)
-    raise ConfigError(f"--force-input must be 'manual' or 'serial:PORT[:BAUD]', got {spec!r}")
+    raise ConfigError(f"--force-input must be 'manual' or 'serial:PORT[:BAUD]', got {short_repr(spec)}")

@@ -203,8 +203,9 @@ class _Plan:
             raise ConfigError(f"rows {rows} is more than the crop height ({crop_h} px)")
         freqs = frequency_grid(f_min_per_mm, f_max_per_mm, n_freqs)
         if freqs[-1] >= px / 2:
-            raise ConfigError(
-                f"f_max {freqs[-1]:g} mm^-1 is not below the Nyquist frequency {px / 2:g} mm^-1 of {px:g} px/mm"
+            raise ConfigError(  # names the key: callers add where it came from (study.toml or an option)
+                f"px_per_mm {px:g} is too coarse: its Nyquist frequency {px / 2:g} mm^-1 is not above the band's "
+                f"f_max {freqs[-1]:g} mm^-1 (it must be above {2 * freqs[-1]:g} px/mm)"
             )
         return cls(px, roi, int(rows), freqs, window, max_pixels)
 

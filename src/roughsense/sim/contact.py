@@ -87,12 +87,17 @@ def solve_periodic_many(height_mm: np.ndarray, length_mm: float, mean_pressures_
         raise ConfigError("contact needs >= 4 grid points and positive length, pressure and modulus")
     k = 2.0 * math.pi * sfft.rfftfreq(n, d=length_mm / n)
     compliance = np.zeros_like(k)
-    compliance[1:] = 2.0 / (contact_modulus_pa * k[1:])  # mm of displacement per Pa of pressure amplitude
-    s = h - h.max()
-    batch = _PressureBatch(levels, s, compliance, initial_pressure_pa)
-    for it in range(1, max_iter + 1):
-        if batch.step(it, tol):
-            break
+    # An extreme modulus overflows the arithmetic: caught here as one error, not numpy warnings and 20000 NaN steps.
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        compliance[1:] = 2.0 / (contact_modulus_pa * k[1:])  # mm of displacement per Pa of pressure amplitude
+        s = h - h.max()
+        batch = _PressureBatch(levels, s, compliance, initial_pressure_pa)
+        for it in range(1, max_iter + 1):
+            if batch.step(it, tol):
+                break
+            if not np.isfinite(batch.change[batch.rows]).all():
+                raise ContactNotConverged(f"the contact solver's numbers overflowed at iteration {it}: a contact "
+                                          f"modulus of {contact_modulus_pa:g} Pa is outside what it can compute")
     if batch.rows.size:
         worst = float(batch.change[batch.rows].max())
         raise ContactNotConverged(f"the contact solver did not converge in {max_iter} iterations "

@@ -27,7 +27,7 @@ from ..io.names import check_name
 from ..io.protocol import check_force, check_repetitions, nominal_force_label
 from ..io.sensor_settings import DEFAULT_ROI, SensorSettings
 from ..io.study import COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, RATINGS_CSV, SPECIMENS_CSV, STUDY_TOML
-from ..io.writer import StudyWriter
+from ..io.writer import StudyWriter, captured_images, refuse_captured
 from ..paper import (
     PAPER_FORCES_N,
     PAPER_PARTICIPANTS,
@@ -38,6 +38,7 @@ from ..paper import (
 )
 from . import contact
 from .bench import BenchNoise, Exposure, Mount, draw_exposure, draw_mount
+from .limits import pad_problem, panel_problem, specimen_problem
 from .optics import Camera, bin_to_pixels, render
 from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, Pad, make_pad
 from .panel import PANEL_SPAWN_KEY, check_ratings_from, percept, simulate_panel
@@ -93,6 +94,12 @@ class SimulationConfig:
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
         specimens = [parse_specimen(s) for s in self.specimens]
+        problem = (pad_problem(period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm,
+                               names=("--fingerprint-period-mm", "--ridge-height-mm", "pad modulus"))
+                   or next((f"--specimens: {p}" for p in map(specimen_problem, specimens) if p), None)
+                   or panel_problem(self.participants, self.sessions))  # what the twin computes (sim.limits)
+        if problem:
+            raise ConfigError(problem)
         for kind, names in (("pad", [p.name for p in pads]), ("specimen", [s.name for s in specimens])):
             dup = {n for n in names if names.count(n) > 1}
             if dup:
@@ -475,13 +482,15 @@ def check_overwritable(root: str | os.PathLike[str], *, force: bool = True) -> N
 
     Free to replace: a missing or empty folder (an empty ``images/`` counts as empty), one holding only
     roughsense's own temporary files, or an interrupted simulation (a [simulation] table but no completion
-    marker). ``force`` also replaces a complete simulation -- never a real study or a folder of other files.
+    marker). ``force`` also replaces a complete simulation -- never a real study or a folder of other files, nor a
+    simulation the rig has captured real frames into (an older roughsense allowed it): they are refused, --force or not.
     """
     root = Path(root)
     if root.exists() and not root.is_dir():
         raise OutputExistsError("exists and is not a folder", path=root)
     if not root.is_dir():
         return
+    refuse_captured(root, "a simulation never replaces real frames, --force or not; choose a new folder")
     images = root / IMAGES_DIR
     entries = [p for p in root.iterdir()
                if not (p == images and p.is_dir() and not any(p.iterdir())) and not atomic.is_temporary(p)]
@@ -501,7 +510,8 @@ def check_overwritable(root: str | os.PathLike[str], *, force: bool = True) -> N
 def simulation_owned(root: Path) -> Callable[[Path], bool]:
     """Which entries of an earlier simulation in ``root`` are its own (replaced); the rest is a user's (kept).
 
-    Its tables and marker, and the images its manifest lists or that carry the simulator's image names.
+    Its tables and marker, and the images its manifest lists or that carry the simulator's image names -- never
+    an image of a row the rig wrote (a captured frame is kept, whatever its name).
     """
     listed: set[str] = set()
     try:
@@ -509,12 +519,13 @@ def simulation_owned(root: Path) -> Callable[[Path], bool]:
         listed = {str(Path(p)) for p in manifest["image"]}
     except (OSError, ValueError, pd.errors.ParserError, UnicodeDecodeError):
         pass
+    captured = {str(Path(p)) for p in captured_images(root / MANIFEST_CSV) if p}
 
     def owned(rel: Path) -> bool:
         parts = rel.parts
         if len(parts) == 1:
             return parts[0] in SIMULATION_FILES
-        return (len(parts) == 2 and parts[0] == IMAGES_DIR
+        return (len(parts) == 2 and parts[0] == IMAGES_DIR and str(rel) not in captured
                 and (str(rel) in listed or bool(_IMAGE_NAME.match(parts[1]))))
 
     return owned

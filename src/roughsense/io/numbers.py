@@ -1,0 +1,163 @@
+"""The one number parser: every CSV cell, TOML value and command-line option that holds a number is read here.
+
+Python's ``float()`` reads ``1_0`` as 10 and ``١`` (an Arabic-Indic one) as 1, and takes ``inf`` and ``nan``;
+pandas accepts other spellings again. A study must mean the same to every command, so every reader calls
+:func:`parse_number`: ASCII digits with an optional sign, decimal point and exponent (``2``, ``-0.5``, ``.5``,
+``1e-3``), surrounding spaces ignored, nothing else -- no digit separators, no other scripts' digits, no hex,
+no ``inf``/``nan``. The value must then be finite and within its quantity's :data:`BOUNDS`, stated once here so
+that every computation downstream (a geometric mean, an SD, a reciprocal, a prediction) stays finite.
+
+No numpy here: the command-line option type imports this module while parsing ``--help``-light commands.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, replace
+
+from .._util.checks import short_repr
+
+#: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
+NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
+_WHOLE = re.compile(r"[+-]?[0-9]+", re.ASCII)
+_COMMA_NUMBER = re.compile(r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII)
+_NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
+#: Whole numbers written with a point or an exponent are exact up to here (2**53); larger ones need digits only.
+_EXACT_WHOLE = 2.0**53
+_LARGEST_FLOAT = 1.7976931348623157e308
+
+
+class NumberError(ValueError):
+    """A value that is not an accepted number, or is out of its bounds; the caller adds where it was read."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """A quantity's accepted range: ``low`` (excluded if ``low_open``) to ``high``; ``noun`` starts its messages."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    whole: bool = False
+    noun: str = ""
+
+    def describe(self) -> str:
+        kind = "a whole number" if self.whole else "a number"
+        if self.low is not None and self.high is not None and not self.low_open:
+            return f"{kind} from {self.low:g} to {self.high:g}"
+        parts = [f"{'>' if self.low_open else '>='} {self.low:g}"] if self.low is not None else []
+        parts += [f"<= {self.high:g}"] if self.high is not None else []
+        return " ".join([kind, " and ".join(parts)]).strip()
+
+
+#: Every bounded quantity a user writes, with why its bounds are where they are. Readers name a key of this
+#: table; a bound defined elsewhere (the protocol's force limit) is quoted from here, never restated.
+BOUNDS: dict[str, Bounds] = {
+    # A magnitude estimate is a ratio to the reference (1.0): a million times rougher or smoother is no
+    # estimate, and within 1e-6..1e6 every gmean, SD and reciprocal of a panel's ratings is finite.
+    "rating": Bounds(1e-6, 1e6, noun="a magnitude estimate"),
+    # A fingertip presses with a few newtons (the paper: 1-3 N); 100 N on a specimen is about the pad's modulus.
+    "force_n": Bounds(0.0, 100.0, low_open=True),
+    # The paper's 10 repetitions; the limit bounds the work a manifest or an option can ask for.
+    "repetition": Bounds(0, 10_000, whole=True),
+    "contact_fraction": Bounds(0.0, 1.0),
+    # Specimen wavelengths are millimetres (the paper: 2-5 mm); 1 um to 1 m covers every macroscopic texture.
+    "wavelength_mm": Bounds(1e-3, 1e3),
+    # Camera scale: 1 px per 10 cm up to 10 nm per px (the paper: 34.9 px/mm).
+    "px_per_mm": Bounds(1e-2, 1e5),
+    # A pad's ridge period: 1 um (finer is no ridge a camera sees) to 100 mm (coarser than any specimen).
+    "ridge_period_mm": Bounds(1e-3, 100.0),
+}
+
+
+def spelling_hint(text: str) -> str:
+    """What to write instead of a cell that is almost a number (`` (drop the unit: write 2.01)``), or ``""``."""
+    text = text.strip()
+    if "_" in text and NUMBER.fullmatch(text.replace("_", "")):
+        return f" (no '_' between digits: write {text.replace('_', '')})"
+    if any(ch.isdigit() and not ch.isascii() for ch in text):
+        return " (write the digits 0-9)"
+    if _COMMA_NUMBER.fullmatch(text):
+        return f" (a decimal comma: write {text.replace(',', '.')})"
+    unit = _NUMBER_WITH_UNIT.fullmatch(text)
+    if unit is not None and not text.lower().startswith(("0x", "-0x", "+0x")):
+        return f" (drop the unit: write {unit.group(1)})"
+    return ""
+
+
+def _from_text(text: str, whole: bool) -> float | int:
+    stripped = text.strip(" \t")
+    if not NUMBER.fullmatch(stripped):
+        lowered = stripped.lower().lstrip("+-")
+        if lowered in ("inf", "infinity", "nan"):
+            raise NumberError(f"not a finite number: {short_repr(text)}")
+        raise NumberError(f"not a number: {short_repr(text)}{spelling_hint(stripped)}")
+    if whole and _WHOLE.fullmatch(stripped):
+        return int(stripped)  # exact, however many digits (a seed)
+    value = float(stripped)
+    if not math.isfinite(value):
+        raise NumberError(f"not a finite number: {short_repr(text)}")
+    return value
+
+
+def parse_number(value: object, *, quantity: str = "", low: float | None = None, high: float | None = None,
+                 low_open: bool = False, whole: bool = False) -> float | int:
+    """``value`` (text as written, or a number a TOML or JSON parser made) as a checked float (int if ``whole``).
+
+    ``quantity`` names a row of :data:`BOUNDS` whose range applies unless ``low``/``high`` are given. Raises
+    :class:`NumberError` with one of the messages every reader shows: ``not a number: '1_0' (...)``, ``not a
+    finite number: 'inf'``, ``must be positive, got 0``, ``must be at most 100, got 1e308``.
+    """
+    bounds = BOUNDS.get(quantity, Bounds())
+    if low is not None or high is not None or low_open:
+        bounds = Bounds(low, high, low_open, bounds.whole, bounds.noun)
+    if whole and not bounds.whole:
+        bounds = replace(bounds, whole=True)
+    if isinstance(value, str):
+        number = _from_text(value, bounds.whole)
+    elif isinstance(value, (int, float)) and not isinstance(value, bool) or _is_numpy_number(value):
+        number = value if isinstance(value, int) else float(value)
+        if isinstance(number, int) and abs(number) > _LARGEST_FLOAT:
+            raise NumberError(f"not a finite number: {short_repr(number)}")
+        if not math.isfinite(number):
+            raise NumberError(f"not a finite number: {number}")
+    else:
+        raise NumberError(f"not a number: {short_repr(value)}")
+    return _within(number, bounds, value)
+
+
+def _is_numpy_number(value: object) -> bool:
+    kind = type(value).__module__ == "numpy" and getattr(value, "dtype", None)
+    return bool(kind) and kind.kind in "iuf"
+
+
+def _within(number: float | int, bounds: Bounds, written: object) -> float | int:
+    """``number`` if in ``bounds`` (and whole, if asked); else the one message of each kind of miss."""
+    shown = f"{number:g}"
+    noun = f"{bounds.noun} " if bounds.noun else ""
+    if bounds.whole and number != math.floor(number):
+        raise NumberError(f"{noun}must be a whole number, got {shown}")
+    if bounds.low is not None and (number <= bounds.low if bounds.low_open else number < bounds.low):
+        if number <= 0 <= bounds.low and (bounds.low > 0 or bounds.low_open):  # the usual slip: say it plainly
+            raise NumberError(f"{noun}must be positive, got {shown}")
+        relation = "above" if bounds.low_open else "at least"
+        raise NumberError(f"{noun}must be {relation} {bounds.low:g}, got {shown}")
+    if bounds.high is not None and number > bounds.high:
+        raise NumberError(f"{noun}must be at most {bounds.high:g}, got {shown}")
+    if bounds.whole:
+        if isinstance(number, float) and abs(number) > _EXACT_WHOLE:
+            raise NumberError(f"{noun}must be written with digits only above 2**53, got {short_repr(written)}")
+        return int(number)
+    return float(number)
+
+
+def number_or_nan(text: object) -> float:
+    """A cell's number by :func:`parse_number`'s spelling rule (no bounds), or NaN: a table's first pass."""
+    try:
+        return float(parse_number(text))
+    except (NumberError, OverflowError):
+        return math.nan

@@ -1,0 +1,219 @@
+"""One writer per output: every command that writes a folder holds a lock on ``--out``; a second run is one line.
+
+The lock's holder is a real second process wherever it matters (flock is per process): a helper process holds the
+lock while each command is tried, and two real ``explore`` runs race for one folder. A dead run's lock is made by
+hand with the PID of a process that has ended.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as hs
+
+from roughsense._util import atomic
+from roughsense._util import lock as lock_module
+from roughsense._util.lock import OutputBusyError, lock_path, output_lock
+
+from .test_input_contract import one_error
+from .videos import write_video
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+ENV = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+SWEEP = """
+[sweep]
+seeds = [0, 1, 2, 3]
+repetitions = 2
+specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
+image_size_px = [480, 160]
+max_components = 3
+[axes]
+pad = ["smooth"]
+"""
+_HOLD = """
+import sys, time
+from roughsense._util.lock import output_lock
+with output_lock(sys.argv[1], command="explore"):
+    print("held", flush=True)
+    time.sleep(120)
+"""
+_TINY_SIM = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+
+
+def _dead_pid() -> int:
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _stop(process: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    """Ctrl-C, as a user stops a run: the lock must go with it."""
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+        raise
+
+
+@pytest.fixture
+def holder(tmp_path):
+    """Another process holding the lock of tmp_path/out (an existing folder with a file in it)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    process = subprocess.Popen([sys.executable, "-c", _HOLD, str(out)], env=ENV, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    assert process.stdout.readline().strip() == b"held", process.stderr.read()
+    yield out, process
+    if process.poll() is None:
+        _stop(process)
+    assert not lock_path(out).exists()  # released on Ctrl-C
+
+
+def test_every_command_that_writes_a_folder_is_refused_naming_the_holder(holder, tmp_path, run_cli, monkeypatch):
+    import io
+
+    out, process = holder
+    before = _files(out)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP)
+    video = write_video(tmp_path / "camera.avi")
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n" * 10))
+    commands = {
+        "simulate": ("simulate", "--out", out, "--force", *_TINY_SIM),
+        "capture": ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", "--roi", "auto"),
+        "study": ("study", "--data", tmp_path / "no-such-study", "--out", out, "--force"),
+        "example": ("example", "my-study", "--out", out, "--force"),
+        "explore": ("explore", sweep, "--out", out, "--force"),
+    }
+    for name, args in commands.items():
+        started = time.perf_counter()
+        code, stdout, err = run_cli(*args)
+        line = one_error(code, err)
+        assert "started " in line, (name, line)
+        assert line == (f"roughsense: error: {out}: another run is writing this folder (roughsense explore, PID "
+                        f"{process.pid} on {socket.gethostname()}, started {line.split('started ')[1]}"), name
+        assert line.endswith("UTC); wait for it to end, or stop it"), name
+        assert time.perf_counter() - started < 5 and stdout == "", name
+    assert _files(out) == before and process.poll() is None  # nothing written, the holder untouched
+
+
+def test_a_symlinked_spelling_of_the_folder_shares_its_lock(holder, tmp_path, run_cli):
+    out, process = holder
+    link = tmp_path / "link"
+    link.symlink_to(out)
+    code, _, err = run_cli("simulate", "--out", link / ".." / "out", "--force", *_TINY_SIM)
+    assert f"PID {process.pid}" in one_error(code, err)
+    code, _, err = run_cli("simulate", "--out", link, "--force", *_TINY_SIM)
+    assert f"PID {process.pid}" in one_error(code, err)
+
+
+@pytest.mark.slow
+def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
+    """The race of issue 22: a second sweep (with --force) into the folder a first sweep is computing."""
+    first_sweep, second_sweep = tmp_path / "first.toml", tmp_path / "second.toml"
+    first_sweep.write_text(SWEEP)
+    second_sweep.write_text(SWEEP.replace("seeds = [0, 1, 2, 3]", "seeds = [7]"))
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(first_sweep), "--out", str(out),
+                              "--workers", "1"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not (lock_path(out).exists() and lock_path(out).stat().st_size):
+            assert first.poll() is None, first.stderr.read().decode()
+            assert time.monotonic() < deadline, "the first run never took the lock"
+            time.sleep(0.05)
+        assert json.loads(lock_path(out).read_text())["pid"] == first.pid
+        started = time.perf_counter()
+        second = subprocess.run([sys.executable, "-m", "roughsense.cli", "explore", str(second_sweep), "--out",
+                                 str(out), "--force"], env=ENV, capture_output=True, text=True, timeout=60)
+        assert time.perf_counter() - started < 10
+        line = one_error(second.returncode, second.stderr)
+        assert f"{out}: another run is writing this folder (roughsense explore, PID {first.pid} on" in line
+        assert first.poll() is None  # the first run goes on
+    finally:
+        _stop(first)
+    assert not lock_path(out).exists()
+    sweep_copy = out / "sweep.toml"
+    assert not sweep_copy.exists() or sweep_copy.read_text() == SWEEP  # never the second sweep's
+
+
+def test_a_dead_runs_lock_is_taken_over_and_said(tmp_path, run_cli):
+    out = tmp_path / "sim"
+    dead = _dead_pid()
+    lock_path(out).write_text(json.dumps({"pid": dead, "host": socket.gethostname(), "started": "2025-01-01 10:00:00 UTC",
+                                          "command": "roughsense simulate"}))
+    code, _, err = run_cli("simulate", "--out", out, *_TINY_SIM)
+    assert code == 0, err
+    warnings = [line for line in err.splitlines() if line.startswith("roughsense: warning: ")]
+    assert warnings == [f"roughsense: warning: {out}: took over the lock of a run that has ended (roughsense simulate, "
+                        f"PID {dead} on {socket.gethostname()}, started 2025-01-01 10:00:00 UTC); a folder it was "
+                        "writing is checked as usual"]
+    assert (out / "manifest.csv").is_file() and not lock_path(out).exists()
+
+
+@given(hs.binary(max_size=300) | hs.text(max_size=300).map(str.encode))
+def test_any_leftover_lock_file_is_taken_over_never_a_crash(tmp_path_factory, content):
+    import warnings
+
+    out = tmp_path_factory.mktemp("lock") / "out"
+    lock_path(out).write_bytes(content)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with output_lock(out, command="simulate"):
+            held = json.loads(lock_path(out).read_text())
+            assert held["pid"] == os.getpid() and held["command"] == "roughsense simulate"
+    assert not lock_path(out).exists()
+    assert len(caught) == (1 if content else 0)
+    if content:
+        assert str(caught[0].message).startswith(f"{out}: took over the lock of")
+
+
+def test_released_on_error_and_on_ctrl_c(tmp_path, run_cli):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    code, _, err = run_cli("simulate", "--out", out, *_TINY_SIM)  # refused: a folder of someone's files
+    assert "not empty" in one_error(code, err) and not lock_path(out).exists()
+    with pytest.raises(KeyboardInterrupt), output_lock(out):
+        assert lock_path(out).exists()
+        raise KeyboardInterrupt
+    assert not lock_path(out).exists()
+    with output_lock(out), output_lock(out):  # the CLI's lock around the library's: the same run, not a second one
+        pass
+    assert not lock_path(out).exists()
+
+
+def test_without_flock_a_live_pid_holds_the_lock_and_a_dead_one_does_not(tmp_path, monkeypatch):
+    monkeypatch.setattr(lock_module, "_flock", lambda fd: None)  # a file system without flock
+    out = tmp_path / "out"
+    host = socket.gethostname()
+    for pid, where, refused in ((os.getppid(), host, "PID"), (_dead_pid(), "elsewhere", "if it is not running, delete"),
+                                (_dead_pid(), host, None)):
+        lock_path(out).write_text(json.dumps({"pid": pid, "host": where, "started": "then"}))
+        if refused:
+            with pytest.raises(OutputBusyError, match=refused):
+                output_lock(out).__enter__()
+            assert json.loads(lock_path(out).read_text())["pid"] == pid  # left as it was
+        else:
+            with pytest.warns(UserWarning, match=f"PID {pid}"), output_lock(out):
+                pass
+            assert not lock_path(out).exists()
+
+
+def test_the_lock_file_is_roughsense_own():
+    assert atomic.is_temporary(lock_path("some/out")) and lock_path("some/out").name == ".out.roughsense-lock"

@@ -1,0 +1,161 @@
+"""The one number parser (issue 22, item 4): every reader of numbers accepts exactly the same spellings.
+
+The truth here is the grammar written out by hand (ASCII digits, optional sign, point and exponent), checked
+against the parser, against every CSV reader and against the command-line options.
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from roughsense.errors import InputError
+from roughsense.io.numbers import BOUNDS, NumberError, parse_number
+from roughsense.io.ratings import read_ratings
+from roughsense.io.sensor_settings import parse_roi
+from roughsense.io.tables import read_table
+
+ACCEPTED = {"2": 2.0, "-0.5": -0.5, "+3": 3.0, ".5": 0.5, "5.": 5.0, "1e-3": 1e-3, "2.5E+2": 250.0, " 7 ": 7.0,
+            "\t1.25": 1.25}
+REFUSED = ["1_0", "1_000.5", "\u0661", "\u0967\u0968", "\uff11", "0x10", "inf", "-Infinity", "nan", "NaN", "1e999",
+           "", " ", "-", ".", "e5", "1e", "1,5", "2 N", "1.2.3", "++1", "\u00b9", "1\u00a0000", "true"]
+
+
+@pytest.mark.parametrize("text, value", ACCEPTED.items())
+def test_the_accepted_spellings(text, value):
+    assert parse_number(text) == value
+
+
+@pytest.mark.parametrize("text", REFUSED)
+def test_everything_else_is_refused_though_float_may_take_it(text):
+    with pytest.raises(NumberError):
+        parse_number(text)
+
+
+def test_messages_say_what_to_write():
+    cases = {"1_0": "not a number: '1_0' (no '_' between digits: write 10)",
+             "\u0661": "not a number: '\u0661' (write the digits 0-9)",
+             "0,5": "not a number: '0,5' (a decimal comma: write 0.5)",
+             "2.01 N": "not a number: '2.01 N' (drop the unit: write 2.01)",
+             "0x10": "not a number: '0x10'",  # a hex number is no '0' with a unit 'x10'
+             "inf": "not a finite number: 'inf'", "1e999": "not a finite number: '1e999'"}
+    for text, message in cases.items():
+        with pytest.raises(NumberError) as caught:
+            parse_number(text)
+        assert caught.value.message == message
+
+
+def test_bounds_come_from_the_table_and_are_named():
+    assert parse_number("1e6", quantity="rating") == 1e6
+    for text, message in [("1e308", "a magnitude estimate must be at most 1e+06, got 1e+308"),
+                          ("0", "a magnitude estimate must be positive, got 0"),
+                          ("1e-9", "a magnitude estimate must be at least 1e-06, got 1e-09")]:
+        with pytest.raises(NumberError) as caught:
+            parse_number(text, quantity="rating")
+        assert caught.value.message == message
+    assert parse_number("3.0", quantity="repetition") == 3 and isinstance(parse_number("3.0", quantity="repetition"), int)
+    with pytest.raises(NumberError, match="must be a whole number, got 2.5"):
+        parse_number("2.5", quantity="repetition")
+
+
+def test_whole_numbers_of_many_digits_stay_exact():
+    assert parse_number("123456789012345678901234567", whole=True) == 123456789012345678901234567
+    with pytest.raises(NumberError, match="digits only"):
+        parse_number("1e30", whole=True)  # 1e30 as a float is not the integer 10**30
+
+
+def test_numbers_from_toml_or_json_are_checked_alike():
+    import numpy as np
+
+    assert parse_number(np.float64(2.5)) == 2.5 and parse_number(3) == 3.0
+    for value in (True, float("inf"), float("nan"), 10**400, None, [1]):
+        with pytest.raises(NumberError):
+            parse_number(value)
+
+
+def test_every_bound_is_a_finite_range():
+    for name, bounds in BOUNDS.items():
+        assert bounds.low is not None and bounds.high is not None and bounds.low < bounds.high, name
+        assert math.isfinite(bounds.low) and math.isfinite(bounds.high), name
+    # Every rating within bounds keeps a panel's statistics finite: the extremes' product and squares.
+    low, high = BOUNDS["rating"].low, BOUNDS["rating"].high
+    assert math.isfinite(high * high * 1e6) and 1 / low < math.inf and math.log(low) > -math.inf
+
+
+_GRAMMAR = re.compile(r"\s*[+-]?([0-9]+(\.[0-9]*)?|\.[0-9]+)([eE][+-]?[0-9]+)?\s*", re.ASCII)
+
+
+@given(st.text(alphabet=st.sampled_from("0123456789+-.eE_ ,\u0661\u00a0xinfa"), max_size=12))
+@settings(max_examples=400)
+def test_the_parser_is_the_grammar_and_agrees_with_float_where_both_accept(text):
+    try:
+        value = parse_number(text)
+    except NumberError:
+        assert not _GRAMMAR.fullmatch(text) or not math.isfinite(float(text))
+        return
+    assert _GRAMMAR.fullmatch(text) and value == float(text)
+
+
+@pytest.mark.parametrize("cell", ["1_0", "\u0661", "1e308", "0x10"])
+def test_ratings_study_and_manifest_readers_refuse_the_same_cells(tmp_path, cell):
+    """One parser: ratings.csv (as `ratings` and `study` read it) and a manifest's force column agree."""
+    ratings = tmp_path / "ratings.csv"
+    ratings.write_text(f"participant,session,specimen,rating\nP1,1,R2,0.5\nP1,1,C2,{cell}\n", encoding="utf-8")
+    with pytest.raises(InputError) as by_command:
+        read_ratings(ratings)
+    from roughsense.io.ratings import read_ratings_table
+
+    with pytest.raises(InputError) as by_study:
+        read_ratings_table(ratings)
+    assert str(by_command.value) == str(by_study.value) and by_study.value.row == 3
+    forces = tmp_path / "forces.csv"
+    forces.write_text(f"image,force_n\na.png,1.0\nb.png,{cell}\n", encoding="utf-8")
+    with pytest.raises(InputError) as by_table:
+        read_table(forces, ["image", "force_n"], positive=["force_n"])
+    assert by_table.value.row == 3 and by_table.value.column == "force_n"
+
+
+@pytest.mark.parametrize("roi", ["1_0,0,5,5", "\u0661,0,5,5", "0x1,0,5,5"])
+def test_a_roi_reads_its_numbers_with_the_same_parser(roi):
+    from roughsense.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="ROI must be"):
+        parse_roi(roi)
+    assert parse_roi(" 10 , 0 , 5 , 5 ") == (10, 0, 5, 5)
+
+
+@pytest.mark.parametrize("args, option", [
+    (["features", "--out", "OUT", "--seed", "1_0", "X.png"], "--seed"),
+    (["features", "--out", "OUT", "--rows", "\u0661", "X.png"], "--rows"),
+    (["features", "--out", "OUT", "--px-per-mm", "3_4.9", "X.png"], "--px-per-mm"),
+    (["simulate", "--out", "OUT", "--repetitions", "1_0"], "--repetitions"),
+    (["simulate", "--out", "OUT", "--forces", "1,2_0"], "--forces"),
+    (["simulate", "--out", "OUT", "--jobs", "\u0662"], "--jobs"),
+    (["fit", "--study", "builtin", "--pad", "smooth", "--condition", "1N", "--out", "OUT", "--max-components", "1_0"],
+     "--max-components"),
+    (["predict", "M.json", "X.png", "--px-per-mm", "\u0663\u0664"], "--px-per-mm"),
+    (["study", "--out", "OUT", "--permutations", "1_99"], "--permutations"),
+])
+def test_command_line_numbers_are_spelled_as_in_a_csv(run_cli, tmp_path, args, option):
+    """typer read '1_0' as 10 and '\u0661' as 1; every numeric option now refuses them in one line, exit 2."""
+    args = [str(tmp_path / a) if a in ("OUT", "X.png", "M.json") else a for a in args]
+    code, out, err = run_cli(*args)
+    assert code == 2 and "Traceback" not in err, err
+    lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
+    assert len(lines) == 1 and option in lines[0] and "not a number" in lines[0], err
+    assert not (tmp_path / "OUT").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["predict", "M.json", "X.png", "--px-per-mm", "inf"], "--px-per-mm must be a positive number (px/mm) from 0.01"),
+    (["predict", "M.json", "X.png", "--px-per-mm", "1e-300"], "got '1e-300'"),
+    (["simulate", "--out", "OUT", "--fingerprint-period-mm", "1e-300"], "--fingerprint-period-mm must be a positive"),
+    (["simulate", "--out", "OUT", "--seed", "1e400"], "--seed must be a finite number"),
+])
+def test_command_line_numbers_are_finite_and_bounded(run_cli, tmp_path, args, message):
+    args = [str(tmp_path / a) if a in ("OUT", "X.png", "M.json") else a for a in args]
+    code, _, err = run_cli(*args)
+    assert code == 2 and message in err and "Traceback" not in err, err
