@@ -143,3 +143,28 @@ def test_the_literal_defaults_in_the_options_are_the_layers_own():
         CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI)
     assert (literal.DEFAULT_FINGERPRINT_PERIOD_MM, literal.DEFAULT_RIDGE_HEIGHT_MM, literal.PAD_NAMES) == (
         DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES)
+
+
+def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path):
+    from roughsense.cli._common import MAX_JOBS_PER_CORE, usable_cores
+
+    too_many = MAX_JOBS_PER_CORE * usable_cores() + 1
+    code, _, err = run_cli("simulate", "--out", tmp_path / "s", "--jobs", str(too_many))
+    line = _one_line_error(code, err)
+    assert f"--jobs must be at most {too_many - 1}" in line
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("args, option", [
+    (["protocol", "--seed", "1", "--participants", "1_0"], "--participants"),
+    (["protocol", "--seed", "١", "--out", "x.csv"], "--seed"),
+    (["protocol", "--seed", "1", "--sessions", "inf"], "--sessions"),
+    (["explore", "sweep.toml", "--out", "o", "--workers", "2_0"], "--workers"),
+    (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--timeout-s", "nan"], "--timeout-s"),
+    (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--discard", "2.5"], "--discard"),
+])
+def test_every_numeric_option_reads_numbers_as_a_csv_cell_is_read(run_cli, tmp_path, monkeypatch, args, option):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(*args)
+    assert option in _one_line_error(code, err)
+    assert list(tmp_path.iterdir()) == []

@@ -75,9 +75,16 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: ``--jobs`` above this many per usable core only queues work (and simulate would fork that many processes at once).
+MAX_JOBS_PER_CORE = 4
+
+
 def _every_core(jobs: int | None) -> int:
     if jobs is not None and jobs < 1:  # checked here, not with typer's min=1: its range label crowds the help
         raise ConfigError(f"--jobs must be at least 1, got {jobs} (leave it out to use every core)")
+    limit = MAX_JOBS_PER_CORE * usable_cores()
+    if jobs is not None and jobs > limit:
+        raise ConfigError(f"--jobs must be at most {limit} ({MAX_JOBS_PER_CORE} per usable core), got {jobs}")
     return usable_cores() if jobs is None else jobs
 
 

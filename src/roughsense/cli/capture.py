@@ -7,10 +7,15 @@ from pathlib import Path
 import typer
 
 from ..paper import PAPER_REPETITIONS
-from ._common import parse_float_list
+from ._common import number_option, parse_float_list
 from ._defaults import DEFAULT_PX_PER_MM
 
 ORDER = 50
+_REPETITIONS = number_option("--repetitions", whole=True)
+_PX_PER_MM = number_option("--px-per-mm", quantity="px_per_mm")
+_TIMEOUT_S = number_option("--timeout-s", low=0.0, low_open=True, high=3600.0)  # at most an hour
+_WAVELENGTH = number_option("--wavelength-mm", quantity="wavelength_mm")
+_DISCARD = number_option("--discard", low=0, high=1000, whole=True)
 
 
 def register(app: typer.Typer) -> None:
@@ -24,25 +29,26 @@ def register(app: typer.Typer) -> None:
         pad: str = typer.Option(..., "--pad", help="Contact pad name, e.g. fingerprint or flat."),
         forces: str | None = typer.Option(None, "--forces", help="Protocol forces in N (default 1,2,3, or the study's)."),
         repetitions: int = typer.Option(
-            PAPER_REPETITIONS, "--repetitions",
+            PAPER_REPETITIONS, "--repetitions", parser=_REPETITIONS,
             help="Target number of repetitions for this specimen and pad; a rerun captures only what is missing."),
         force_input: str = typer.Option(
             "manual", "--force-input",
             help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale)."),
         px_per_mm: float | None = typer.Option(
-            None, "--px-per-mm", help=f"Camera scale for a new study (default {DEFAULT_PX_PER_MM:g})."),
+            None, "--px-per-mm", parser=_PX_PER_MM, help=f"Camera scale for a new study (default {DEFAULT_PX_PER_MM:g})."),
         roi: str | None = typer.Option(
             None, "--roi",
             help="Contact band for a new study: center, auto or X,Y,W,H (default center)."),
-        timeout_s: float = typer.Option(5.0, "--timeout-s", help="Give up when the scale sends no stable reading for this long."),
+        timeout_s: float = typer.Option(5.0, "--timeout-s", parser=_TIMEOUT_S,
+                                       help="Give up when the scale sends no stable reading for this long."),
         shape: str | None = typer.Option(
             None, "--shape",
             help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other)."),
         wavelength_mm: float | None = typer.Option(
-            None, "--wavelength-mm",
+            None, "--wavelength-mm", parser=_WAVELENGTH,
             help="Specimen surface wavelength for specimens.csv."),
         discard: int | None = typer.Option(
-            None, "--discard",
+            None, "--discard", parser=_DISCARD,
             help="Stale frames dropped before each capture (default 5 for cameras, 0 for files)."),
     ) -> None:
         """Capture contact images with measured forces: for each repetition, one image at each force.

@@ -6,7 +6,9 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import progress
+from ._common import number_option, progress
+
+_WORKERS = number_option("--workers", whole=True)
 
 ORDER = 45
 
@@ -18,8 +20,8 @@ def register(app: typer.Typer) -> None:
             ..., metavar="SWEEP.toml",
             help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
-        workers: int | None = typer.Option(None, "--workers", help="Local worker processes (default: one per core; "
-                                           "at most 4 per core)."),
+        workers: int | None = typer.Option(None, "--workers", parser=_WORKERS,
+                                           help="Local worker processes (default: one per core; at most 4 per core)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
                                              "of an existing Dask cluster, instead of a local one."),
         force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "

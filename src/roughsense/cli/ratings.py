@@ -10,7 +10,11 @@ import typer
 from .._util.text import counted
 from ..errors import ConfigError, RoughsenseWarning
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
-from ._common import check_seed, parse_name_list
+from ._common import check_seed, number_option, parse_name_list
+
+_SEED = number_option("--seed", whole=True)
+_PARTICIPANTS = number_option("--participants", low=1, whole=True)
+_SESSIONS = number_option("--sessions", low=1, whole=True)
 
 ORDER = 30
 
@@ -106,10 +110,10 @@ Sheet = Annotated[Path | None, typer.Option(
 
 def protocol(
     out: ScheduleOut,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of the random orders (same seed, same schedule).")],
+    seed: Annotated[int, typer.Option("--seed", parser=_SEED, help="Seed of the random orders (same seed, same schedule).")],
     participants: Annotated[int, typer.Option(
-        "--participants", min=1, help="Number of participants (IDs P01, P02, ...).")] = PAPER_PARTICIPANTS,
-    sessions: Annotated[int, typer.Option("--sessions", min=1, help="Sessions per participant.")] = PAPER_SESSIONS,
+        "--participants", parser=_PARTICIPANTS, help="Number of participants (IDs P01, P02, ...).")] = PAPER_PARTICIPANTS,
+    sessions: Annotated[int, typer.Option("--sessions", parser=_SESSIONS, help="Sessions per participant.")] = PAPER_SESSIONS,
     specimens: ProtocolSpecimens = None,
     reference: Annotated[str, typer.Option(
         "--reference", help="The reference specimen: never presented for rating.")] = REFERENCE_SPECIMEN,
