@@ -39,7 +39,7 @@ def register(app: typer.Typer) -> None:
         roi: str | None = typer.Option(
             None, "--roi",
             help="Contact band for a new study: center, auto or X,Y,W,H (default center)."),
-        timeout_s: float = typer.Option(5.0, "--timeout-s", parser=_TIMEOUT_S, help="Give up when the scale is not stable by then."),
+        timeout_s: float = typer.Option(5.0, "--timeout-s", parser=_TIMEOUT_S, help="Seconds to wait for a stable scale."),
         shape: str | None = typer.Option(
             None, "--shape",
             help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other)."),
