@@ -144,6 +144,10 @@ def test_combined_model_refuses_what_it_cannot_group(run_cli, study_dir, data, t
     # bare images carry no force slot: refused, with the two ways to give them
     code, _, err = run_cli("predict", out, *reps)
     _one_line(code, err, "bare images", "--study DIR", "--images-1n ... --images-2n ... --images-3n ...")
+    # a slot's force is spelled as every number is read: no digits of another script, no underscores
+    for label in ("\u0661n", "1_0n"):
+        code, _, err = run_cli("predict", out, f"--images-{label}", one, "--images-2n", two, "--images-3n", three)
+        _one_line(code, err, f"--images-{label}: expected a force like --images-1n")
     # a file whose name says another force than its slot
     code, _, err = run_cli("predict", out, "--images-1n", one, "--images-2n", reps[1], "--images-3n", three)
     _one_line(code, err, f"{reps[1].name!r} fills the 2N slot but its name says 1N")
@@ -602,8 +606,9 @@ def test_fit_refuses_a_study_whose_images_are_all_the_same(run_cli, study_dir, t
         shutil.copyfile(images[0], image)
     out = tmp_path / "m.json"
     for condition in ("1N", "combined"):
-        code, stdout, err = fit(run_cli, same, out, "--condition", condition)
-        _one_line(code, err, str(same / "manifest.csv"), "has the same spectrum")
+        for model in ("pls", "peak-law"):  # the law, too: a constant law would still "beat" the arithmetic mean
+            code, stdout, err = fit(run_cli, same, out, "--condition", condition, "--model", model)
+            _one_line(code, err, str(same / "manifest.csv"), "has the same spectrum")
     assert not out.exists()
 
 

@@ -217,3 +217,25 @@ def test_without_flock_a_live_pid_holds_the_lock_and_a_dead_one_does_not(tmp_pat
 
 def test_the_lock_file_is_roughsense_own():
     assert atomic.is_temporary(lock_path("some/out")) and lock_path("some/out").name == ".out.roughsense-lock"
+
+
+def test_a_parent_folder_one_cannot_write_is_named_with_what_to_do(tmp_path, monkeypatch):
+    """The lock lives beside --out; where the parent is not writable (another user's folder) the line says so,
+    instead of the misleading 'No such file or directory' of the read-only fallback."""
+    from roughsense._util import lock as lock_module
+    from roughsense.errors import RoughsenseError
+
+    real_open = os.open
+
+    def refuse_creation(path, flags, *args):
+        if flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied")
+        return real_open(path, flags, *args)
+
+    monkeypatch.setattr(lock_module.os, "open", refuse_creation)
+    (tmp_path / "out").mkdir()
+    with pytest.raises(RoughsenseError) as info, lock_module.OutputLock(tmp_path / "out", command="test"):
+        pass
+    message = str(info.value)
+    assert "permission denied" in message and "choose an --out whose parent you can write" in message
+    assert str(tmp_path / "out") in message

@@ -159,3 +159,31 @@ def test_command_line_numbers_are_finite_and_bounded(run_cli, tmp_path, args, me
     args = [str(tmp_path / a) if a in ("OUT", "X.png", "M.json") else a for a in args]
     code, _, err = run_cli(*args)
     assert code == 2 and message in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("old, new, token", [
+    ("px_per_mm = 34.9", "px_per_mm = 34.9_0", "34.9_0"),
+    ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1.0, 0x2, 3.0]", "0x2"),
+    ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1.0, 2.0, inf]", "inf"),
+])
+def test_study_toml_numbers_are_spelled_as_a_csv_cell(tmp_path, old, new, token):
+    """TOML's parser turns 1_0, 0x2 and inf into numbers before any reader sees them; the text is checked first."""
+    from roughsense.errors import InputError
+    from roughsense.io.study import read_config
+    from roughsense.io.tables import dump_toml
+
+    text = dump_toml({"study": {"name": "s"}, "sensor": {"px_per_mm": 34.9}, "protocol": {"forces_n": [1.0, 2.0, 3.0]}})
+    assert old in text
+    (tmp_path / "study.toml").write_text(text.replace(old, new) + '\n[notes]\n# 1_0 in a comment, "0x2" in a string\n')
+    with pytest.raises(InputError, match=f"line [0-9]+: '{token}' is not a number") as info:
+        read_config(tmp_path / "study.toml")
+    assert "study.toml" in str(info.value)
+
+
+def test_a_sweep_file_number_is_spelled_as_a_csv_cell(tmp_path):
+    from roughsense.errors import ConfigError
+    from roughsense.explore.sweep import read_sweep
+
+    (tmp_path / "s.toml").write_text('[sweep]\nname = "n_1"\nseeds = [0, 1_0]\n')
+    with pytest.raises(ConfigError, match=r"line 3: '1_0' is not a number .*write 10"):
+        read_sweep(tmp_path / "s.toml")

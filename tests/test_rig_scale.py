@@ -277,3 +277,15 @@ def test_capture_with_a_scale_streaming_no_line_ends_stops_at_timeout(tmp_path, 
     last = run.stderr.strip().splitlines()[-1]
     assert last.startswith(f"roughsense: error: {path}: the scale sent bytes but no line end within 1 s")
     assert "Traceback" not in run.stderr
+
+
+@pytest.mark.parametrize("typed, hint", [("1_0", "no '_' between digits"), ("\u0662", "write the digits 0-9")])
+def test_a_typed_force_is_spelled_as_every_number_roughsense_reads(typed, hint):
+    """float() would take 1_0 as 10 N and an Arabic-Indic two as 2 N; the one number parser refuses both."""
+    with pytest.raises(_Retry, match=hint):
+        parse_typed_force(typed, 2.0)
+
+
+def test_a_scale_line_with_digits_of_another_script_is_not_a_reading():
+    assert parse_scale_line("ST,GS +\u0662\u0660\u0665 g") is None
+    assert parse_scale_line("ST,GS +205 g").force_n == pytest.approx(0.205 * 9.80665)

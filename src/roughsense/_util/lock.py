@@ -146,7 +146,14 @@ class OutputLock:
             try:
                 return os.open(self.path, os.O_RDWR | os.O_CREAT | flags, 0o666)
             except PermissionError:  # another user's lock file: reading it is enough to name its holder
+                if not self.path.exists():
+                    raise PermissionError(errno.EACCES, os.strerror(errno.EACCES)) from None
                 return os.open(self.path, os.O_RDONLY | flags)
+        except PermissionError:
+            raise RoughsenseError(
+                f"cannot create the lock file {self.path.name} beside it in {self.path.parent}: permission denied "
+                "(a run locks its output from the parent folder; choose an --out whose parent you can write)",
+                path=self.out) from None
         except OSError as exc:
             raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=self.out) from None
 

@@ -161,14 +161,13 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     }
     if roi is not None:
         training["study_roi"] = study_roi if isinstance(study_roi, str) else list(study_roi)
+    what = f"pad {pad!r} at {condition}"
+    _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)  # either family: copies of one image teach nothing
     if family == PEAK_LAW:
         law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                            pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))
-        return _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training,
-                          what=f"pad {pad!r} at {condition}")
+        return _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training, what=what)
     rule = rule or "min"
-    what = f"pad {pad!r} at {condition}"
-    _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)
     result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components, what=what)
     _refuse_no_better_than_mean(result, what, study.root / MANIFEST_CSV)
     chosen = result.best_n_components if rule == "min" else result.one_se_n_components

@@ -289,6 +289,18 @@ def register(app: typer.Typer) -> None:
 _IMAGE_FLAG = "--images-"
 
 
+
+def _slot_force(label: str) -> float | None:
+    """The force of an ``--images-XN`` slot label, spelled as every number roughsense reads (io/numbers.py)."""
+    from ..io.numbers import NumberError, parse_number
+
+    if not label.endswith("N"):
+        return None
+    try:
+        return float(parse_number(label[:-1], quantity="force_n"))
+    except NumberError:
+        return None
+
 def _split_image_flags(tokens: list[str]) -> tuple[list[Path], dict[str, list[Path]]]:
     """Bare images, and the images after each ``--images-XN`` flag (up to the next flag), by condition "XN".
 
@@ -302,13 +314,10 @@ def _split_image_flags(tokens: list[str]) -> tuple[list[Path], dict[str, list[Pa
         if token.startswith(_IMAGE_FLAG):
             label, _, first = token[len(_IMAGE_FLAG):].partition("=")
             condition = label.upper()
-            try:
-                valid = condition.endswith("N") and float(condition[:-1]) > 0
-            except ValueError:
-                valid = False
-            if not valid:
+            force_n = _slot_force(condition)
+            if force_n is None:
                 raise ConfigError(f"{token.partition('=')[0]}: expected a force like --images-1n or --images-2.5n")
-            condition = f"{float(condition[:-1]):g}N"
+            condition = f"{force_n:g}N"
             current = by_condition.setdefault(condition, [])
             if first:
                 current.append(Path(first))

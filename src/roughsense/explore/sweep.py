@@ -24,6 +24,7 @@ from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_pro
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
+from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
 from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
@@ -250,11 +251,15 @@ def read_sweep(path: str | os.PathLike[str]) -> Sweep:
             if os.fstat(handle.fileno()).st_size > MAX_SWEEP_BYTES:
                 raise _error(path, f"is {os.fstat(handle.fileno()).st_size} bytes, above the limit of "
                                    f"{MAX_SWEEP_BYTES} for a sweep file")
-            source = tomllib.load(handle)
+            text = handle.read().decode("utf-8")
+            source = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise _error(path, f"is not valid TOML ({exc})") from None
     except RecursionError:
         raise _error(path, "is not a sweep file: its values are nested too deeply") from None
+    problem = toml_spelling_problem(text)
+    if problem is not None:  # TOML's 1_0, 0x2 and inf are not numbers to any other reader of roughsense
+        raise _error(path, problem)
     return build_sweep(source, path)
 
 

@@ -161,3 +161,30 @@ def number_or_nan(text: object) -> float:
         return float(parse_number(text))
     except (NumberError, OverflowError):
         return math.nan
+
+
+# TOML has number spellings of its own (``1_000``, ``0x10``, ``0o7``, ``0b1``, ``inf``, ``nan``) that its parser turns into
+# numbers before any reader of ours sees the text; a study.toml or sweep file is held to the CSV's spellings instead.
+_TOML_STRING_OR_COMMENT = re.compile(r'"""(?:.|\n)*?"""|\'\'\'(?:.|\n)*?\'\'\'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*')
+_TOML_NUMBER = re.compile(r"(?<![\w.])[+-]?(?:0[xob][0-9A-Fa-f_]+|\d[\d_]*(?:\.[\d_]*)?(?:[eE][+-]?[\d_]+)?|inf|nan)(?![\w.])")
+
+
+def _foreign(token: str) -> bool:
+    """A TOML number token that no CSV cell may use: digit groups, a base prefix, inf or nan."""
+    bare = token.lstrip("+-")
+    return "_" in bare or bare[:2] in ("0x", "0o", "0b") or bare in ("inf", "nan")
+
+
+def toml_spelling_problem(text: str) -> str | None:
+    """The first number in a TOML text written in a spelling a CSV cell may not use, as a one-line problem, or None.
+
+    Strings and comments are left out, so a name such as ``"R_1"`` or a comment is never mistaken for a number.
+    """
+    bare = _TOML_STRING_OR_COMMENT.sub(lambda m: " " * len(m.group(0)), text)
+    match = next((m for m in _TOML_NUMBER.finditer(bare) if _foreign(m.group(0))), None)
+    if match is None:
+        return None
+    line = text.count("\n", 0, match.start()) + 1
+    token = match.group(0)
+    hint = spelling_hint(token) or " (write plain digits 0-9, a point and an optional exponent)"
+    return f"line {line}: {token!r} is not a number as roughsense reads one{hint}"

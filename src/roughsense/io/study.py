@@ -29,7 +29,7 @@ from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
 from .names import check_name, check_name_column
-from .numbers import BOUNDS
+from .numbers import BOUNDS, toml_spelling_problem
 from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
 from .ratings import read_ratings_table
@@ -133,6 +133,9 @@ def read_config(path: str | os.PathLike[str]) -> dict:
         raise InputError(f"is not valid TOML ({exc})", path=path) from None
     except RecursionError:
         raise InputError("is not a study.toml: its values are nested too deeply", path=path) from None
+    problem = toml_spelling_problem(text)
+    if problem is not None:  # TOML's own spellings (1_0, 0x2, inf) are not numbers to the CSVs: one spelling everywhere
+        raise InputError(problem, path=path)
     for table, value in config.items():
         if table not in CONFIG_KEYS:
             kind = "table" if isinstance(value, dict) else "key"

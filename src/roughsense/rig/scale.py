@@ -25,6 +25,7 @@ from typing import IO, Protocol
 
 from .._util.checks import short_repr
 from ..errors import ConfigError, InputError
+from ..io.numbers import NumberError, parse_number, spelling_hint
 
 #: Standard gravity (m/s^2): converts a scale's mass reading into the pressing force.
 STANDARD_GRAVITY = 9.80665
@@ -34,7 +35,7 @@ _UNIT_TO_N = {"g": STANDARD_GRAVITY / 1000.0, "kg": STANDARD_GRAVITY, "n": 1.0, 
 _READING = re.compile(
     r"^(?P<prefix>(?:[A-Za-z]{2}[\s,]+)*)"  # flags such as ST, US, GS, NT
     r"(?P<sign>[+-])?\s*(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>kg|mn|g|n)$",
-    re.IGNORECASE,
+    re.IGNORECASE | re.ASCII,  # the digits 0-9 only, as every number reader of roughsense (io/numbers.py)
 )
 _UNSTABLE_FLAGS = {"US", "OL"}
 _LINE_END = re.compile(rb"[\r\n]")
@@ -71,11 +72,12 @@ def parse_typed_force(text: str, nominal_force_n: float) -> float:
     if not text:
         return float(nominal_force_n)
     try:
-        value = float(text)
-    except ValueError:
-        reading = parse_scale_line(text)
+        value = float(parse_number(text))  # the one spelling of a number: no 1_0, no other scripts' digits
+    except NumberError as exc:
+        reading = parse_scale_line(text) if exc.message.startswith("not a number") else None
         if reading is None:
-            raise _Retry(f"force {short_repr(text)} is not a number (type newtons such as 2.01, or 205 g, or 0.205 kg)") from None
+            raise _Retry(f"force {short_repr(text)} is not a number{spelling_hint(text)} (type newtons such as 2.01, "
+                         "or 205 g, or 0.205 kg)") from None
         value = reading.force_n
     if not math.isfinite(value):
         raise _Retry(f"force {short_repr(text)} is not a finite number")
