@@ -68,18 +68,22 @@ def _cv_rmse(prediction: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean((prediction - target) ** 2, axis=-1))
 
 
+def fold_mean_predictions(y: np.ndarray, folds: Sequence) -> np.ndarray:
+    """The null model's out-of-fold predictions under any folds: each trial gets the mean target of its training
+    fold (every trial whose fold label differs from its own). The one home of the training-mean model."""
+    y = np.asarray(y, dtype=float)
+    codes, _ = pd.factorize(pd.Series(np.asarray(folds)), sort=False)
+    sums, counts = np.bincount(codes, weights=y), np.bincount(codes)
+    return (y.sum() - sums[codes]) / (y.size - counts[codes])
+
+
 def training_mean_predictions(y: np.ndarray, specimens: Sequence, cv: str) -> np.ndarray:
     """The null model's out-of-fold predictions: each trial gets the mean target of its training fold.
 
     LOO leaves out the trial alone; LOSO leaves out every trial of its specimen. The same model as ``pls_cv``'s
     0-component column (``predictions[:, 0]``), so a claim can be checked against it trial by trial.
     """
-    y = np.asarray(y, dtype=float)
-    if cv == "loo":
-        return (y.sum() - y) / (y.size - 1)
-    codes, _ = pd.factorize(pd.Series(np.asarray(specimens)), sort=False)
-    sums, counts = np.bincount(codes, weights=y), np.bincount(codes)
-    return (y.sum() - sums[codes]) / (y.size - counts[codes])
+    return fold_mean_predictions(y, np.arange(len(y)) if cv == "loo" else specimens)
 
 
 def permuted_cv_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: str, max_components: int) -> np.ndarray:

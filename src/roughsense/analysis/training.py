@@ -25,6 +25,7 @@ from ..model.pls import SIMPLS
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, fold_ids, pls_cv
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
+from .controls import fold_mean_predictions
 
 RULES = ("min", "1se")
 
@@ -240,10 +241,8 @@ def cross_validate_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd
                                   pad_ridge_period_mm=law.pad_ridge_period_mm,
                                   exclusion_per_mm=law.exclusion_per_mm, epsilon=law.epsilon)[0]
     n_folds = int(fid.max()) + 1
-    fold_sum = np.bincount(fid, weights=y, minlength=n_folds)
     fold_size = np.bincount(fid, minlength=n_folds)
-    null_predictions = (y.sum() - fold_sum[fid]) / (n - fold_size[fid])
-    predictions = np.column_stack([null_predictions, law_predictions])
+    predictions = np.column_stack([fold_mean_predictions(y, fid), law_predictions])
     err2 = (predictions - y[:, None]) ** 2
     rmse = np.sqrt(err2.mean(axis=0))
     fold_mse = np.stack([np.bincount(fid, weights=e, minlength=n_folds) for e in err2.T], axis=1) / fold_size[:, None]

@@ -13,6 +13,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from .controls import fold_mean_predictions
+
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated"]
 
@@ -24,11 +26,10 @@ def null_specimen_rmse(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd
     0-component model of PLS's LOSO, whose pooled RMSE is the controls' null_rmse); all its trials share one
     target, so its RMSE is the distance between that mean and its perceived value.
     """
+    specimens = predictions["specimen"].to_numpy()
     target = predictions["specimen"].map(perceived.set_index("specimen")["gmean"]).to_numpy(dtype=float)
-    by_specimen = pd.DataFrame({"specimen": predictions["specimen"].to_numpy(), "y": target})
-    sums = by_specimen.groupby("specimen", sort=False)["y"].agg(["sum", "count", "first"])
-    training_mean = (target.sum() - sums["sum"]) / (target.size - sums["count"])
-    return (training_mean - sums["first"]).abs()
+    distance = np.abs(fold_mean_predictions(target, specimens) - target)
+    return pd.Series(distance, index=pd.Index(specimens, name="specimen")).groupby(level=0, sort=False).first()
 
 
 def _spearman(table: pd.DataFrame, reference: str) -> tuple[float, float, int]:

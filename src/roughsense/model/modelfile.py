@@ -90,24 +90,22 @@ class LoadedModel:
     def intercept_(self) -> float:
         return float(self.intercept_path[self.n_components - 1])
 
-    def predict(self, X) -> np.ndarray:
-        """Predicted perceived roughness, exactly as the fitted :class:`SIMPLS` predicts it."""
+    def _inputs(self, X) -> np.ndarray:
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 2 or X.shape[1] != self.n_features:
             raise ModelFileError(
                 f"the model expects {self.n_features} features per sample, got shape {X.shape}", path=self.path
             )
+        return X
+
+    def predict(self, X) -> np.ndarray:
+        """Predicted perceived roughness, exactly as the fitted :class:`SIMPLS` predicts it."""
         k = self.n_components - 1
-        return linear_predict(X, self.coef_path[:, k], self.intercept_path[k])
+        return linear_predict(self._inputs(X), self.coef_path[:, k], self.intercept_path[k])
 
     def extrapolates(self, X) -> np.ndarray:
         """Always False: PLS has no training range it holds a prediction to (it is linear everywhere)."""
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] != self.n_features:
-            raise ModelFileError(
-                f"the model expects {self.n_features} features per sample, got shape {X.shape}", path=self.path
-            )
-        return np.zeros(X.shape[0], dtype=bool)
+        return np.zeros(self._inputs(X).shape[0], dtype=bool)
 
 
 #: A loaded model file of either family: both predict, say whether they extrapolate, and carry their features.

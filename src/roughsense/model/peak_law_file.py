@@ -26,7 +26,7 @@ from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
-from .peak_law import FEATURE_NAMES, PeakPowerLaw, outside_range, peak_features, predict_law, search_bins
+from .peak_law import FEATURE_NAMES, PeakPowerLaw, check_grid, outside_range, peak_features, predict_law, search_bins
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -186,11 +186,10 @@ def _grid(spectrum: dict, path: Path | None) -> np.ndarray:
     if not isinstance(freq, list) or len(freq) != n_freqs or not all(Real(0.0, LIMIT, low_open=True).accepts(f)
                                                                      for f in freq):
         raise ModelFileError(f"features.spectrum.freq_per_mm must be {n_freqs} positive frequencies (mm^-1)", path=path)
-    grid = np.array(freq, dtype=np.float64)
-    steps = np.diff(grid)
-    if grid.size > 1 and (np.any(steps <= 0) or not np.allclose(steps, steps[0], rtol=1e-6)):
-        raise ModelFileError("features.spectrum.freq_per_mm must be evenly spaced and increasing", path=path)
-    return grid
+    try:
+        return check_grid(freq, min_bins=1)  # the estimator's own rule for a grid the peak can be located on
+    except ValueError:
+        raise ModelFileError("features.spectrum.freq_per_mm must be evenly spaced and increasing", path=path) from None
 
 
 def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) -> None:
