@@ -33,7 +33,7 @@ def cache(tiny, tmp_path, monkeypatch):
 def test_fit_and_features_take_builtin_with_seed(run_cli, cache, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, err = run_cli("fit", "--study", "builtin", "--seed", SEED, "--pad", "smooth", "--condition", "2N",
-                             "--max-components", "2", "--out", "m.json")
+                             "--max-components", "2", "--model", "pls", "--out", "m.json")
     assert code == 0, err
     import json
 

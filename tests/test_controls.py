@@ -144,11 +144,28 @@ def _law_refit_rmse(X, y, folds, law):
     """Pooled CV RMSE of PeakPowerLaw refitted on every training fold (scikit-learn's estimator, one fit per fold)."""
     from roughsense.model.peak_law import PeakPowerLaw
 
+    settings = {k: v for k, v in law.items() if k != "surfaces"}
+    surfaces = law.get("surfaces")
     out = np.empty(len(y))
     for fold in np.unique(folds):
         test = folds == fold
-        out[test] = PeakPowerLaw(**law).fit(X[~test], y[~test]).predict(X[test])
+        # the surfaces' peaks are read over all rows, as the batched CV reads them (a LOO fold's held-out press
+        # shares its specimen's peak with the other presses: spectra only, never ratings)
+        features = PeakPowerLaw(**settings).fit(X, y, surfaces=surfaces).features(X, surfaces=surfaces)
+        out[test] = _refit_on_features(features, y, ~test, test, settings.get("epsilon"), surfaces)
     return float(np.sqrt(np.mean((out - y) ** 2)))
+
+
+def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
+    """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
+    from roughsense.model.peak_law import HUBER_EPSILON, huber_irls, kept_rows, predict_law
+
+    eps = HUBER_EPSILON if epsilon is None else epsilon
+    beta, scale = huber_irls(features[train], np.log(y[train])[None], np.ones((1, int(train.sum())), bool), epsilon=eps)
+    kept = kept_rows(features[train], np.log(y[train]), beta[0, 0], float(scale[0, 0]), eps,
+                     None if surfaces is None else np.asarray(surfaces)[train])
+    low, high = features[train][kept].min(axis=0), features[train][kept].max(axis=0)
+    return predict_law(features[test], beta[0, 0, 0], beta[0, 0, 1:], low, high)
 
 
 @pytest.mark.parametrize("cv", ["loo", "loso"])
@@ -160,7 +177,7 @@ def test_peak_law_permutation_control_matches_refits(small, cv):
     rows, X, y = _regression_data(study, features, "smooth", "1N")
     specimens = rows["specimen"].to_numpy()
     folds = np.arange(len(y)) if cv == "loo" else specimens
-    law = {"freq_per_mm": FREQS, "n_blocks": 1, "pad_ridge_period_mm": None}
+    law = {"freq_per_mm": FREQS, "n_blocks": 1, "pad_ridge_period_mm": None, "surfaces": specimens}
     # The shufflings index specimens in the analysis's order (first appearance in its trials): the same ones as PLS's.
     order = pd.unique(analysis.condition_fit("smooth", "1N", cv, "peak-law").predictions["specimen"])
     value = pd.Series(y, index=specimens).groupby(level=0).first()

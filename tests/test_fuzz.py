@@ -27,6 +27,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from roughsense.model.peak_law_file import OPTIONAL_FIELDS
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 pytestmark = pytest.mark.slow  # in CI all the same (`make test` runs every test); about 20-40 s in all
@@ -332,9 +333,10 @@ def command_args(command: str, study: Path, out: Path, model: Path | None = None
     if command == "features":
         return ["features", "--study", study, "--out", out / "features.csv"]
     if command == "fit":
-        return ["fit", "--study", study, "--pad", "smooth", "--condition", "2N", "--out", out / "model.json"]
+        return ["fit", "--model", "pls", "--study", study, "--pad", "smooth", "--condition", "2N", "--out",
+                out / "model.json"]
     if command == "fit-combined":
-        return ["fit", "--study", study, "--pad", "smooth", "--condition", "combined", "--cv", "loso",
+        return ["fit", "--model", "pls", "--study", study, "--pad", "smooth", "--condition", "combined", "--cv", "loso",
                 "--out", out / "model.json"]
     if command == "ratings":
         return ["ratings", study / "ratings.csv", "--out", out / "summary.csv", "--specimens", study / "specimens.csv"]
@@ -386,7 +388,8 @@ def combined_model(base, tmp_path_factory):
     from roughsense.cli import main
 
     path = tmp_path_factory.mktemp("combined") / "model.json"
-    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "combined", "--out", str(path)]) == 0
+    assert main(["fit", "--model", "pls", "--study", str(base), "--pad", "smooth", "--condition", "combined", "--out",
+                 str(path)]) == 0
     return path
 
 
@@ -444,7 +447,8 @@ def model_document(base, tmp_path_factory):
     from roughsense.cli import main
 
     path = tmp_path_factory.mktemp("model") / "m.json"
-    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    assert main(["fit", "--model", "pls", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--out",
+                 str(path)]) == 0
     return json.loads(path.read_text())
 
 
@@ -580,8 +584,8 @@ def law_edits(draw, section: dict):
     field = draw(st.sampled_from(sorted(section)))
     value = section[field]
     kind = draw(st.sampled_from(["drop", "set", "set-entry", "length"] if isinstance(value, list) else ["drop", "set"]))
-    if kind == "drop":
-        return (field,), "drop", True
+    if kind == "drop":  # only a field older files lack may be missing
+        return (field,), "drop", field not in OPTIONAL_FIELDS
     if kind == "length":
         longer = draw(st.booleans())
         return (field,), (value + [0.0] if longer else value[:-1]), True
@@ -627,7 +631,7 @@ def test_edited_peak_law_files_are_refused_by_their_field_checks(run_cli, base, 
             assert len(err.splitlines()) == 1 and str(path) in err, err
         else:
             assert not must_refuse, (where, value)
-            assert np.all(np.isfinite(pd.read_csv(out)["roughness"].to_numpy(dtype=float)))
+            assert np.all(np.isfinite(pd.read_csv(out).filter(like="roughness_rel_").iloc[:, 0].to_numpy(dtype=float)))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 

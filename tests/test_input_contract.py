@@ -494,7 +494,7 @@ def model_document(base, tmp_path_factory):
     from roughsense.cli import main
 
     path = tmp_path_factory.mktemp("model") / "m.json"
-    assert main(["fit", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    assert main(["fit", "--model", "pls", "--study", str(base), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
     return json.loads(path.read_text())
 
 

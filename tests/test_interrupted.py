@@ -255,7 +255,7 @@ def test_readers_refuse_an_interrupted_simulation(tmp_path, run_cli):
 def test_predict_refuses_an_interrupted_simulation(tmp_path, run_cli, tiny_study):
     model = tmp_path / "m.json"
     code, _, err = run_cli("fit", "--study", tiny_study, "--pad", "fingerprint", "--condition", "1N",
-                           "--max-components", "1", "--out", model)
+                           "--max-components", "1", "--model", "pls", "--out", model)
     assert code == 0, err
     out = simulate_study(tmp_path / "sim", _config(seed=1), jobs=1)
     (out / COMPLETE_MARKER).unlink()

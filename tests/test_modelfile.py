@@ -49,7 +49,8 @@ def rewrite(path, change):
 def test_round_trip_predicts_bit_identically(saved):
     path, model, X = saved
     loaded = mf.load_model(path)
-    np.testing.assert_array_equal(loaded.predict(X), model.predict(X))
+    np.testing.assert_array_equal(loaded.linear_predict(X), model.predict(X))
+    np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), mf.MIN_ROUGHNESS))
     np.testing.assert_array_equal(loaded.coef_path, model.coef_path_)
     np.testing.assert_array_equal(loaded.intercept_path, model.intercept_path_)
     np.testing.assert_array_equal(loaded.x_mean, model.x_mean_)
@@ -169,7 +170,8 @@ def test_score_images_recomputes_the_models_features(tmp_path):
     loaded = mf.load_model(path)
     images = gratings([2.0, 2.2, 2.4, 4.0, 4.1, 4.3], rng)
     spectra = spectrum().transform(images)
-    expected = model.predict(np.vstack([np.concatenate(spectra[0:3]), np.concatenate(spectra[3:6])]))
+    combined = np.vstack([np.concatenate(spectra[0:3]), np.concatenate(spectra[3:6])])
+    expected = np.maximum(model.predict(combined), mf.MIN_ROUGHNESS)
     np.testing.assert_array_equal(score_images(loaded, images), expected)
     # A progress callback sees every image once and changes nothing in the result.
     seen = []
@@ -233,11 +235,15 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
         loaded.predict(np.ones((1, 44)))
 
 
-def test_a_pls_file_never_extrapolates(saved):
-    path, _, X = saved
+def test_a_pls_file_flags_exactly_the_values_it_held_to_the_trained_range(saved):
+    path, model, X = saved
     loaded = mf.load_model(path)
     assert loaded.family == "pls"
-    np.testing.assert_array_equal(loaded.extrapolates(X), np.zeros(len(X), dtype=bool))
+    raw = model.predict(X)
+    np.testing.assert_array_equal(loaded.extrapolates(X), raw < mf.MIN_ROUGHNESS)
+    assert np.all(loaded.predict(X) > 0)
+    held = [reason for reason, value in zip(loaded.applicability(X), raw) if value < mf.MIN_ROUGHNESS]
+    assert held and all("held at" in reason for reason in held)
 
 
 LAW_FIELDS = ["kind", "n_features", "n_blocks", "pad_ridge_period_mm", "exclusion_per_mm", "epsilon", "intercept",

@@ -244,8 +244,10 @@ def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_an
     expected = np.empty(len(y))
     for specimen in keys["specimen"].unique():
         held = (keys["specimen"] == specimen).to_numpy()
-        law = PeakPowerLaw(freq_per_mm=FREQS, n_blocks=3, pad_ridge_period_mm=1.0).fit(X[~held], y[~held])
-        expected[held] = law.predict(X[held])
+        surfaces = keys["specimen"].to_numpy()  # a specimen's presses share where its peak is
+        law = PeakPowerLaw(freq_per_mm=FREQS, n_blocks=3, pad_ridge_period_mm=1.0).fit(X[~held], y[~held],
+                                                                                        surfaces=surfaces[~held])
+        expected[held] = law.predict(X[held], surfaces=surfaces[held])
     fit = analysis.condition_fit("fingerprint", "combined", "loso", "peak-law")
     got = fit.predictions.merge(keys.assign(expected=expected), on=["specimen", "repetition"])
     assert len(got) == len(y)
@@ -257,12 +259,18 @@ def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_an
 
 
 def test_peak_law_loo_predictions_are_refits_without_each_trial(analysis_and_inputs):
-    from roughsense.model.peak_law import PeakPowerLaw
+    """Each trial is predicted by the law refitted without it; where its specimen's peak is comes from the spectra of
+    all that specimen's presses (spectra, never ratings: the held-out rating is used nowhere)."""
+    from roughsense.model.peak_law import peak_features
+
+    from .test_controls import _refit_on_features
 
     analysis, study, features = analysis_and_inputs
     rows, X, y = _regression_data(study, features, "smooth", "2N")
-    expected = np.array([PeakPowerLaw(freq_per_mm=FREQS).fit(np.delete(X, i, 0), np.delete(y, i)).predict(X[i : i + 1])[0]
-                         for i in range(len(y))])
+    surfaces = rows["specimen"].to_numpy()
+    read = peak_features(X, FREQS, surfaces=surfaces)
+    expected = np.array([_refit_on_features(read, y, np.arange(len(y)) != i, np.arange(len(y)) == i,
+                                            surfaces=surfaces)[0] for i in range(len(y))])
     fit = analysis.condition_fit("smooth", "2N", "loo", "peak-law")
     got = fit.predictions.merge(rows[["specimen", "repetition"]].assign(expected=expected), on=["specimen", "repetition"])
     np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-9, atol=1e-12)

@@ -21,8 +21,10 @@ import pandas as pd
 from .. import paper
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
+from ..model.applicability import held_out_flags as pls_flags
 from ..model.families import MODEL_FAMILIES, PEAK_LAW, PLS, check_model_name
-from ..model.peak_law import peak_law_cv
+from ..model.peak_law import PeakPowerLaw, peak_law_cv
+from ..model.peak_law import held_out_flags as peak_law_flags
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
@@ -59,6 +61,8 @@ class ConditionFit:
     table: pd.DataFrame
     nested_n_components: dict[str, int] = field(default_factory=dict)
     model: str = PLS
+    #: LOSO only: whether each trial lay outside the applicability domain of the model fitted without its specimen.
+    held_out_flags: np.ndarray | None = None
 
 
 @dataclass
@@ -234,12 +238,14 @@ def _judged(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([table, predictive_ovl(table, perceived)], axis=1)
 
 
-def law_settings(X: np.ndarray, freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None) -> dict:
-    """peak_law_cv's keywords for one pad x condition: the grid, how many spectra a row holds, the pad's ridges."""
+def law_settings(X: np.ndarray, freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None, specimens=None) -> dict:
+    """peak_law_cv's keywords for one pad x condition: the grid, how many spectra a row holds, the pad's ridges,
+    and the surface of each row (its specimen: a specimen's presses share where its peak is, docs/peak_law.md)."""
     freq = np.asarray(freq_per_mm, dtype=float)
     if freq.size == 0 or X.shape[1] % freq.size:
         raise InputError(f"{X.shape[1]} features are not whole spectra of the {freq.size}-frequency grid")
-    return {"freq_per_mm": freq, "n_blocks": X.shape[1] // freq.size, "pad_ridge_period_mm": pad_ridge_period_mm}
+    return {"freq_per_mm": freq, "n_blocks": X.shape[1] // freq.size, "pad_ridge_period_mm": pad_ridge_period_mm,
+            "surfaces": None if specimens is None else np.asarray(specimens).astype(str)}
 
 
 def _peak_law_fit(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, pad: str,
@@ -259,24 +265,37 @@ def _peak_law_fit(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: p
 
 def _model_fits(analysis: StudyAnalysis, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, pad: str,
                 condition: str, cv: str, law: dict) -> list[ConditionFit]:
-    """Every requested family on one pad x condition x CV scheme, under the same folds.
+    """Every requested family on one pad x condition x CV scheme, under the same folds."""
+    fits = [family_fit(model, X, y, meta, analysis.perceived, pad, condition, cv, law=law,
+                       max_components=analysis.max_components) for model in analysis.models]
+    return sorted(fits, key=lambda f: analysis.models.index(f.model))
+
+
+def family_fit(model: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, pad: str,
+               condition: str, cv: str, *, law: dict | None = None,
+               max_components: int = DEFAULT_MAX_COMPONENTS) -> ConditionFit:
+    """One family cross-validated on one pad x condition under ``cv`` (LOSO nested for PLS), as the study does it.
 
     The training mean's RMSE (the null model) is PLS's 0-component CV RMSE, the training-fold mean under these
-    folds; without a PLS fit it is computed by the same function (pls_cv at one component).
+    folds; the peak law's fit carries the same number (pls_cv at one component computes it).
     """
-    fits = []
-    null_rmse = None
-    if PLS in analysis.models:
-        fits.append(_condition_fit(X, y, meta, analysis.perceived, pad, condition, cv, analysis.max_components))
-        null_rmse = float(fits[-1].cv_rmse[0])
-    if PEAK_LAW in analysis.models:
-        if null_rmse is None:
-            specimens = meta["specimen"].astype(str).to_numpy()
-            _check_cv_size(X, y, specimens, pad, condition, cv, 1)
-            kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
-            null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
-        fits.append(_peak_law_fit(X, y, meta, analysis.perceived, pad, condition, cv, null_rmse, law))
-    return sorted(fits, key=lambda f: analysis.models.index(f.model))
+    if model == PLS:
+        return _condition_fit(X, y, meta, perceived, pad, condition, cv, max_components)
+    specimens = meta["specimen"].astype(str).to_numpy()
+    _check_cv_size(X, y, specimens, pad, condition, cv, 1)
+    kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
+    null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
+    return _peak_law_fit(X, y, meta, perceived, pad, condition, cv, null_rmse, law)
+
+
+def held_out_flags(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict) -> np.ndarray:
+    """The applicability flag each held-out trial of a LOSO fit would have carried (model/applicability.py for PLS,
+    with each specimen's nested component count; the law's own domain for the peak law)."""
+    if fit.model == PEAK_LAW:
+        return peak_law_flags(X, y, specimens, **law)
+    readout = PeakPowerLaw(**{k: law[k] for k in ("freq_per_mm", "n_blocks", "pad_ridge_period_mm")})
+    counts = fit.nested_n_components or {str(s): fit.best_n_components for s in specimens}
+    return pls_flags(X, y, specimens, counts, readout)
 
 
 def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
@@ -464,11 +483,12 @@ def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, 
             y = dataset.targets(meta, analysis.perceived, path=study.root / RATINGS_CSV)
             specimens = meta["specimen"].astype(str).to_numpy()
             permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, analysis.seed)
-            law = (law_settings(X, analysis.freq_per_mm, study.pad_ridge_period_mm.get(pad))
-                   if PEAK_LAW in analysis.models else None)
+            law = law_settings(X, analysis.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
             matrices[(pad, condition)] = (X, y, meta, specimens, permutations, law)
         X, y, meta, specimens, permutations, law = matrices[(pad, condition)]
         for fit in _model_fits(analysis, X, y, meta, pad, condition, cv, law):
+            if cv == "loso":
+                fit.held_out_flags = held_out_flags(fit, X, y, specimens, law)
             analysis.fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
     return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))

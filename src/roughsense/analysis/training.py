@@ -2,8 +2,11 @@
 
 This is ``roughsense fit`` without the command line: the CLI parses options, calls :func:`train_model`, prints
 the CV result and writes the file. Nothing here prints or writes, so a notebook gets the same model as the CLI.
-``pls`` (the paper's) chooses its component count by CV; the peak law (``peak-law``) chooses nothing from the data,
-so its CV only reports how well it predicts held-out trials, beside the training mean under the same folds.
+``pls`` (the paper's) chooses its component count by CV; the peak law (``peak-law``, the default: the family that
+passes its controls for surfaces never seen) chooses nothing from the data, so its CV only reports how well it
+predicts held-out trials, beside the training mean under the same folds. Whatever the CV, every model is also judged
+as the study judges it for new surfaces (analysis/assessment.py): the file records its controls, its 90 % interval
+and its applicability domain.
 """
 from __future__ import annotations
 
@@ -13,18 +16,21 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from sklearn.base import clone
 
 from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.families import PEAK_LAW, PLS, check_model_name
+from ..model.applicability import SpectrumDomain, fit_domain
+from ..model.families import DEFAULT_MODEL, PEAK_LAW, PLS, check_model_name
 from ..model.modelfile import feature_definition_for
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.pls import SIMPLS
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, fold_ids, pls_cv
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
+from .assessment import UnseenAssessment, assess_unseen
 from .controls import fold_mean_predictions
 
 RULES = ("min", "1se")
@@ -57,6 +63,8 @@ class TrainedModel:
     n_samples: int
     n_features: int
     family: str = PLS
+    unseen: UnseenAssessment | None = None
+    domain: SpectrumDomain | None = None  # PLS's applicability domain (the law's is in the fitted law)
 
 
 def parse_cv(text: str) -> str | int:
@@ -73,7 +81,8 @@ def parse_cv(text: str) -> str | int:
     return k
 
 
-def check_training_options(condition: str, rule: str | None, max_components: int | None, model: str = PLS) -> str:
+def check_training_options(condition: str, rule: str | None, max_components: int | None,
+                           model: str = DEFAULT_MODEL) -> str:
     """Refuse options before any image is read; returns the model family's name.
 
     ``rule`` and ``max_components`` choose PLS's component count: given with the peak law (which has none to
@@ -136,7 +145,7 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
 
 def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str | None = None,
                 seed: int = 0, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
-                progress: Callable | None = None, model: str = PLS, roi: Roi | None = None) -> TrainedModel:
+                progress: Callable | None = None, model: str = DEFAULT_MODEL, roi: Roi | None = None) -> TrainedModel:
     """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
     default), or the peak law with the pad's ridge period left out of its peak search.
 
@@ -164,13 +173,38 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         training["study_roi"] = study_roi if isinstance(study_roi, str) else list(study_roi)
     what = f"pad {pad!r} at {condition}"
     _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)  # either family: copies of one image teach nothing
+    training["target_range"] = [float(np.min(y)), float(np.max(y))]
+    specimens = meta["specimen"].astype(str).to_numpy()
+    law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
+                       pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))
     if family == PEAK_LAW:
-        law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
-                           pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))
-        return _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training, what=what)
+        trained = _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training, what=what)
+    else:
+        trained = _train_pls(X, y, meta, cv, rule=rule, seed=seed, max_components=max_components, law=law,
+                             definition=definition, training=training, what=what, manifest=study.root / MANIFEST_CSV)
+    settings = {"freq_per_mm": law.freq_per_mm, "n_blocks": law.n_blocks,
+                "pad_ridge_period_mm": law.pad_ridge_period_mm, "surfaces": specimens}
+    try:
+        unseen = assess_unseen(family, X, y, meta, dataset.perceived_roughness(study), pad=pad, condition=condition,
+                               law=settings, max_components=max_components or DEFAULT_MAX_COMPONENTS, seed=seed)
+    except InputError as exc:  # a design too small for leave-one-specimen-out: said, never silently skipped
+        training["unseen"] = {"cv": "loso (nested)", "passes_controls": None,
+                              "failure": f"this model could not be judged for surfaces it never saw ({exc.message}); "
+                                         "its predictions for new surfaces are untested and carry no interval"}
+        return trained
+    training["unseen"] = unseen.record()
+    training["interval"] = unseen.interval.to_dict()
+    return dataclasses.replace(trained, unseen=unseen)
+
+
+def _train_pls(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, cv: str | int, *, rule: str | None, seed: int,
+               max_components: int | None, law: PeakPowerLaw, definition: dict, training: dict, what: str,
+               manifest) -> TrainedModel:
+    """PLS: the component count chosen by ``rule`` under ``cv``, the model fitted on every trial, and its
+    applicability domain (limits cross-validated over specimens; ``law``'s peak readout of the same trials)."""
     rule = rule or "min"
     result = cross_validate(X, y, meta, cv, seed=seed, max_components=max_components, what=what)
-    _refuse_no_better_than_mean(result, what, study.root / MANIFEST_CSV)
+    _refuse_no_better_than_mean(result, what, manifest)
     chosen = result.best_n_components if rule == "min" else result.one_se_n_components
     training.update({
         "rule": rule,
@@ -182,7 +216,9 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         "n_components": int(chosen),
     })
     fitted = SIMPLS(n_components=chosen).fit(X, y)
-    return TrainedModel(fitted, result, int(chosen), definition, training, int(len(y)), int(X.shape[1]))
+    domain = fit_domain(fitted, X, y, meta["specimen"].astype(str).to_numpy(), law=clone(law))
+    return TrainedModel(fitted, result, int(chosen), definition, training, int(len(y)), int(X.shape[1]),
+                        domain=domain)
 
 
 #: Spectra whose spread across trials is below this fraction of their size are the same spectrum (rounding noise).
@@ -212,7 +248,7 @@ def _train_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFra
     """The peak law's CV beside the training mean's, and the law fitted on every trial (nothing is chosen)."""
     try:
         result = cross_validate_law(law, X, y, meta, scheme, seed=seed)
-        fitted = law.fit(X, y)
+        fitted = law.fit(X, y, surfaces=meta["specimen"].astype(str).to_numpy())
     except PLSConfigError as exc:
         raise ConfigError(f"{exc.message} ({what})") from None
     except ValueError as exc:
@@ -238,8 +274,8 @@ def cross_validate_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd
     groups = meta["specimen"].to_numpy() if scheme == "loso" else None
     fid, name = fold_ids(n, None if scheme == "loso" else scheme, groups, seed)
     law_predictions = peak_law_cv(X, y, groups=fid, freq_per_mm=law.freq_per_mm, n_blocks=law.n_blocks,
-                                  pad_ridge_period_mm=law.pad_ridge_period_mm,
-                                  exclusion_per_mm=law.exclusion_per_mm, epsilon=law.epsilon)[0]
+                                  pad_ridge_period_mm=law.pad_ridge_period_mm, exclusion_per_mm=law.exclusion_per_mm,
+                                  epsilon=law.epsilon, surfaces=meta["specimen"].astype(str).to_numpy())[0]
     n_folds = int(fid.max()) + 1
     fold_size = np.bincount(fid, minlength=n_folds)
     predictions = np.column_stack([fold_mean_predictions(y, fid), law_predictions])

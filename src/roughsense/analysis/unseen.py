@@ -3,7 +3,9 @@
 This is the question a user of the sensor asks (what will it say about a new surface?), so the report and the
 terminal summary lead with it. Every number comes from the LOSO fits and controls already computed; the only new
 ones are the training mean's per-specimen RMSE (so the model and the null are compared on the same metric) and
-Spearman's rho between each specimen's mean prediction and its perceived roughness.
+Spearman's rho between each specimen's mean prediction and its perceived roughness; the empirical coverage of the 90 %
+prediction interval on held-out specimens (model/interval.py: each specimen's interval from the others' residuals);
+and how often the applicability flag fell on a held-out specimen's trials (overall, and its worst specimen).
 """
 from __future__ import annotations
 
@@ -13,10 +15,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..model.interval import held_out_coverage
 from .controls import fold_mean_predictions
 
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
-                  "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated"]
+                  "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
+                  "pi90_coverage_specimens", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
 
 
 def null_specimen_rmse(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.Series:
@@ -56,6 +60,21 @@ def _control(controls: pd.DataFrame, fit) -> dict:
             "passes": bool(row["passes"])}
 
 
+def _coverage(prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray) -> dict:
+    trials, surfaces = held_out_coverage(prediction, target, specimens, floor=float(np.min(target)))
+    return {"pi90_coverage_trials": trials, "pi90_coverage_specimens": surfaces}
+
+
+def _flag_shares(fit) -> dict:
+    flags = getattr(fit, "held_out_flags", None)
+    if flags is None:
+        return {"flagged_share": float("nan"), "flagged_max_share": float("nan"), "flagged_max_specimen": ""}
+    shares = pd.Series(np.asarray(flags, dtype=float), index=fit.predictions["specimen"].to_numpy()).groupby(
+        level=0, sort=False).mean()
+    return {"flagged_share": float(np.mean(flags)), "flagged_max_share": float(shares.max()),
+            "flagged_max_specimen": str(shares.idxmax())}
+
+
 def unseen_summary(analysis) -> pd.DataFrame:
     """One row per model x pad x condition of the nested LOSO fits (UNSEEN_COLUMNS); empty without LOSO.
 
@@ -76,5 +95,6 @@ def unseen_summary(analysis) -> pd.DataFrame:
             "null_rmse": float(null_specimen_rmse(fit.predictions, analysis.perceived).mean()),
             "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.cv_rmse[0]),
             **_control(analysis.controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
+            **_coverage(prediction, target, fit.predictions["specimen"].to_numpy()), **_flag_shares(fit),
         })
     return pd.DataFrame(rows, columns=UNSEEN_COLUMNS)

@@ -34,8 +34,9 @@ Rule = Annotated[str | None, typer.Option(
     help="PLS component choice: min (lowest CV RMSE, the paper's rule; the default) or 1se (fewest within one SE "
          "of it).")]
 ModelName = Annotated[str, typer.Option(
-    "--model", help="Model family: pls (the paper's PLS1 on the spectrum) or peak-law (a power law of where the "
-                    "spectrum peaks and how high, built for surfaces never seen in training).")]
+    "--model", help="Model family: peak-law (the default: a power law of where the spectrum peaks and how high, "
+                    "the family that passes its controls for surfaces never seen in training) or pls (the paper's "
+                    "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", whole=True),
     help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
@@ -47,16 +48,20 @@ FitRoi = Annotated[str | None, typer.Option(
 
 
 def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_components: MaxComponents = None,
-        cv: CV = "loo", rule: Rule = None, seed: FitSeed = 0, jobs: Jobs = None, model: ModelName = "pls",
+        cv: CV = "loo", rule: Rule = None, seed: FitSeed = 0, jobs: Jobs = None, model: ModelName = "peak-law",
         force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False,
         roi: FitRoi = None) -> None:
-    """Fit a model for one pad and force condition: the paper's PLS1 (SIMPLS, X centred) or the peak law.
+    """Fit a model for one pad and force condition: the peak law (default) or the paper's PLS1 (SIMPLS, X centred).
 
+    Use the default peak law to score surfaces you never trained on; use --model pls to reproduce the paper.
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
     specimen's perceived roughness (geometric mean over participants). For PLS the number of components is
     chosen by cross-validation and the CV curve is printed; the peak law chooses nothing from the data, so its CV
-    RMSE is printed beside the training mean's under the same folds. Either is stored in the model file with the
-    feature definition, so `roughsense predict` recomputes features exactly as here.
+    RMSE is printed beside the training mean's under the same folds. Either model is then judged as the study
+    judges it for new surfaces (nested leave-one-specimen-out against the training mean and 199 shuffled
+    targets): one line says if it fails, and the file records it with the model's 90 % prediction interval and
+    applicability domain. The feature definition is stored too, so `roughsense predict` recomputes features
+    exactly as here.
     """
     from .._util.atomic import check_can_write
     from ..analysis.training import check_training_options, parse_cv, train_model
@@ -76,14 +81,52 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
                           model=family, roi=None if override is None else override.roi)
     save_model(out, trained.model, feature_definition=trained.feature_definition, training=trained.training,
-               force=force)
+               force=force, domain=trained.domain)
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
                f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
     if override is not None:
         typer.echo(f"line read at --roi {_roi_text(override.roi)} (the study's [sensor] roi: "
                    f"{_roi_text(loaded.sensor.roi)})")
     _echo_cv(trained)
+    _echo_unseen(trained.unseen)
     typer.echo(f"wrote {out}")
+    _warn_failed_controls(trained.training)
+
+
+def _echo_unseen(unseen) -> None:
+    """The model as the study judges it for new surfaces: RMSE beside the training mean's, p, the interval."""
+    import math
+
+    if unseen is None:  # too small a design to judge: the warning after writing says so
+        return
+    interval = unseen.interval
+    width = (f"x{math.exp(-interval.trial_log_halfwidth):.2f}-x{math.exp(interval.trial_log_halfwidth):.2f} "
+             f"per trial, x{math.exp(-interval.surface_log_halfwidth):.2f}-x{math.exp(interval.surface_log_halfwidth):.2f} "
+             "per surface" if interval.finite else "not computable (too few specimens)")
+    typer.echo(f"surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
+               f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
+               f"90 % prediction interval {width}")
+
+
+def _p_text(p: float, n_permutations: int) -> str:
+    """A permutation p as it can honestly be stated: never 0, at best below 1 / (shufflings + 1)."""
+    if not n_permutations:
+        return "not run"
+    floor = 1.0 / (n_permutations + 1)
+    return f"< {2 * floor:.3g} ({n_permutations} shufflings)" if p <= floor * (1 + 1e-9) else f"= {p:.3f}"
+
+
+def _warn_failed_controls(training) -> None:
+    """The one line a model that fails its controls earns, on stderr (``fit`` after writing, ``predict`` before
+    scoring)."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+
+    unseen = training.get("unseen") if isinstance(training, dict) else None
+    failure = unseen.get("failure") if isinstance(unseen, dict) else None
+    if isinstance(failure, str) and failure:
+        warnings.warn(RoughsenseWarning(failure), stacklevel=2)
 
 
 def _echo_cv(trained) -> None:
@@ -159,13 +202,19 @@ PredictPxPerMm = Annotated[float | None, typer.Option(
          "an image's line is shorter than 1/f_min.")]
 
 
+SameSurface = Annotated[bool, typer.Option(
+    "--same-surface", help="The images are presses of one surface: the peak law reads its period from all of them "
+                           "together, and a surface roughness with its interval is added (--study groups by "
+                           "specimen on its own).")]
+
+
 def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
                                               help="Seed of --study builtin.")] = 0,
             specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = None,
             force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
             source: Source = None, live: Live = False, max_frames: MaxFrames = None, roi: PredictRoi = None,
-            px_per_mm: PredictPxPerMm = None) -> None:
+            px_per_mm: PredictPxPerMm = None, same_surface: SameSurface = False) -> None:
     """Predict perceived roughness from contact images with a fitted model.
 
     Features are recomputed with the model's own definition (camera scale, ROI, band, frequencies).
@@ -173,6 +222,10 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     with --images-1n ... --images-2n ... --images-3n ...; an image whose name says another force than its
     slot (e.g. _1N_ in the 2N slot) is refused. With --live --source SRC, a single-force model scores camera
     frames continuously. --roi and --px-per-mm read images the model's crop or scale does not fit.
+
+    Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
+    (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
+    (outside); with --study or --same-surface, each surface's mean roughness and interval too.
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
@@ -196,9 +249,12 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
-    extrapolates = _score_into(table, loaded, trials, jobs, override)
+    surfaces = table["specimen"].astype(str).to_numpy() if "specimen" in table else (
+        ["surface"] * len(trials) if same_surface else None)
+    scores = _score_into(table, loaded, trials, jobs, override, surfaces)
     _show_or_write(table, out, from_study=study is not None)
-    _echo_extrapolation(loaded, extrapolates)
+    _echo_extrapolation(loaded, scores)
+    _warn_failed_controls(loaded.training)
 
 
 def _check_image_sources(given: list[str], specimens, study) -> None:
@@ -211,16 +267,20 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
 
 
-def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None):
-    """Score the trials and add their images, pad, condition, roughness and extrapolation flag to ``table``.
+def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, surfaces=None):
+    """Score the trials and add their images, pad, condition, model, roughness, interval and flags to ``table``.
 
-    The flag is written ``true``/``false`` (any CSV reader's booleans); the boolean array is returned. An
-    overridden ROI or scale is written in its own column (``roi``, ``px_per_mm``): what a number was read with.
+    Roughness is a ratio to the reference specimen, rounded to 3 significant digits (the panel's own precision is
+    coarser); the flag is written ``true``/``false`` (any CSV reader's booleans), and ``outside`` says what lies
+    outside the model's domain. An overridden ROI or scale is written in its own column (``roi``, ``px_per_mm``).
+    Returns the scores.
     """
-    from ..model.predict import model_condition, model_pad, score_and_flag
+    import numpy as np
+
+    from ..model.predict import model_condition, model_pad, score_trials
 
     images = [image for trial in trials for image in trial]
-    roughness, extrapolates = score_and_flag(loaded, images, n_jobs=jobs, progress=progress, override=override)
+    scores = score_trials(loaded, images, n_jobs=jobs, progress=progress, override=override, surfaces=surfaces)
     if len(loaded.conditions) == 1:
         table["image"] = [str(t[0]) for t in trials]
     else:
@@ -228,32 +288,74 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None):
             table[f"image_{condition}"] = [str(t[i]) for t in trials]
     table["pad"] = model_pad(loaded)
     table["condition"] = model_condition(loaded)
+    table["model"] = loaded.family
     if override is not None and override.roi is not None:
         table["roi"] = _roi_text(override.roi)
     if override is not None and override.px_per_mm is not None:
         table["px_per_mm"] = override.px_per_mm
-    table["roughness"] = roughness
-    table["extrapolates"] = ["true" if flag else "false" for flag in extrapolates]
-    return extrapolates
+    name = roughness_column(loaded)
+    table[name] = _three_digits(scores.roughness)
+    if np.isfinite(scores.low).all():
+        table["pi90_low"], table["pi90_high"] = _three_digits(scores.low), _three_digits(scores.high)
+    if scores.surface_roughness is not None:
+        table[f"surface_{name}"] = _three_digits(scores.surface_roughness)
+        if np.isfinite(scores.surface_low).all():
+            table["surface_pi90_low"] = _three_digits(scores.surface_low)
+            table["surface_pi90_high"] = _three_digits(scores.surface_high)
+    table["extrapolates"] = ["true" if flag else "false" for flag in scores.flagged]
+    table["outside"] = scores.reasons
+    return scores
 
 
-EXTRAPOLATION_WHY = "features outside the training range; the prediction is held at the edge of what the model saw"
+def roughness_column(loaded) -> str:
+    """``roughness_rel_<reference>``: the column says what the number is a ratio to."""
+    from ..io.names import is_safe_name
+
+    reference = loaded.training.get("reference_specimen") if isinstance(loaded.training, dict) else None
+    # a name no file may carry (an edited model file) still gives a column that says the value is relative
+    return f"roughness_rel_{reference}" if is_safe_name(reference) else "roughness_rel_reference"
 
 
-def _echo_extrapolation(loaded, extrapolates) -> None:
-    """How many predictions extrapolate, and why that matters (PLS flags none: it has no range it holds to)."""
-    from ..model.families import PLS
+def _three_digits(values) -> list[str]:
+    """Values as text with 3 significant digits (written as is: a float column would print 1.23 as 1.2299...)."""
+    import numpy as np
 
-    if loaded.family == PLS:
-        return
-    count = int(extrapolates.sum())
-    verb = "extrapolates" if count == 1 else "extrapolate"
-    typer.echo(f"{count} of {counted(len(extrapolates), 'prediction')} {verb}" + (
-        f": {EXTRAPOLATION_WHY}" if count else " (all within the training range)"))
+    return [f"{v:.3g}" for v in np.asarray(values, dtype=float)]
+
+
+EXTRAPOLATION_WHY = "outside what the model was trained on; the `outside` column says how"
+
+
+def _echo_extrapolation(loaded, scores) -> None:
+    """How many predictions lie outside the model's domain; every one of them is one line naming the most common
+    reason (a wrong pad, scale or ROI does that), and a model without an interval says so. Wrapped to the terminal."""
+    import shutil
+    import textwrap
+
+    from ..model.predict import model_interval
+
+    def echo(text: str) -> None:
+        typer.echo(textwrap.fill(text, width=shutil.get_terminal_size().columns, subsequent_indent="  "))
+
+    flagged = scores.flagged
+    count, total = int(flagged.sum()), len(flagged)
+    if count == total and total > 1:
+        reasons = [r for r in scores.reasons if r]
+        common = max(set(reasons), key=reasons.count)
+        echo(f"every prediction ({total}) lies outside what the model was trained on, e.g. {common}; check "
+                   "that the images are of the model's pad, scale and ROI")
+    elif count:
+        verb = "lies" if count == 1 else "lie"
+        echo(f"{count} of {counted(total, 'prediction')} {verb} {EXTRAPOLATION_WHY}")
+    else:
+        echo(f"{'all ' if total > 1 else ''}{counted(total, 'prediction')} within what the model was trained on")
+    if model_interval(loaded) is None:
+        echo("no prediction interval: the model file has none it can use (written before intervals, or from "
+                   "too few specimens); refit it with roughsense fit")
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-_CONSTANT_COLUMNS = ("pad", "condition", "roi", "px_per_mm")
+_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm")
 
 
 def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None:
@@ -268,17 +370,33 @@ def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None
 
 def _terminal_table(table, *, from_study: bool) -> str:
     """The predictions for a terminal: columns that never change in a line above, a study's image paths left to
-    --out (its specimen and repetition name each trial), and the rest wrapped to the terminal's width."""
+    --out (its specimen and repetition name each trial), and the rest wrapped to the terminal's width; then each
+    surface's roughness and each distinct reason a trial lies outside the model's domain."""
     import shutil
+    import textwrap
 
     constant = [c for c in _CONSTANT_COLUMNS if c in table.columns]
     heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
     dropped = constant + ([c for c in table.columns if c.startswith("image")] if from_study else [])
+    surface = [c for c in table.columns if c.startswith("surface_")]
+    dropped.append("outside")  # too long for a column: said below the table, once per distinct reason
     if from_study:
         heading += "; each trial's images: add --out PRED.csv"
     width = shutil.get_terminal_size().columns
-    body = table.drop(columns=dropped).to_string(index=False, float_format=lambda v: f"{v:.6g}", line_width=width)
-    return f"{heading}\n{body}" if heading else body
+    body = table.drop(columns=dropped + surface).to_string(index=False, line_width=width)
+    lines = [*textwrap.wrap(heading, width=width, subsequent_indent="  "), body] if heading else [body]
+    if surface:
+        key = "specimen" if "specimen" in table else None
+        for name, rows in (table.groupby(key, sort=False) if key else [("surface", table)]):
+            first = rows.iloc[0]
+            interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']})"
+                        if "surface_pi90_low" in rows else "")
+            lines.append(f"surface {name}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
+    reasons = table["outside"][table["outside"].astype(bool)]
+    for reason, count in reasons.value_counts().items():
+        lines.extend(textwrap.wrap(f"outside what the model was trained on ({counted(int(count), 'trial')}): {reason}",
+                                   width=width, subsequent_indent="  "))
+    return "\n".join(lines)
 
 
 def register(app: typer.Typer) -> None:
@@ -354,4 +472,5 @@ def _predict_live(loaded, source: str, max_frames: int | None, override=None) ->
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
     if summary.extrapolated:
-        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: {EXTRAPOLATION_WHY}")
+        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on (period, "
+                   "peak strength or spectrum shape)")

@@ -1,6 +1,7 @@
 """``roughsense study``: the paper's whole analysis of a study folder, written as a report."""
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -127,6 +128,18 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     return index, root, builtin
 
 
+def which_model_line(unseen) -> str:
+    """Which model to use for what, in one sentence: the families that pass their controls for unseen surfaces in
+    every pad x condition score new surfaces (`roughsense fit`'s default); PLS reproduces the paper."""
+    from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+
+    passing = unseen.groupby("model", sort=False)["passes"].agg(lambda v: int(sum(bool(x) for x in v)))
+    cells = unseen.groupby("model", sort=False).size()
+    tally = ", ".join(f"{model} passes in {passing[model]} of {cells[model]}" for model in cells.index)
+    return (f"Which model to use: {DEFAULT_MODEL} (roughsense fit's default) to score surfaces never trained on; "
+            f"{PAPER_MODEL} to reproduce the paper. Controls for unseen surfaces per pad x condition: {tally}.")
+
+
 def unseen_lines(analysis) -> list[str]:
     """The question users ask first, in a headline and one line per pad: how well each model predicts an unseen
     surface (nested LOSO mean per-specimen RMSE against the training mean's, permutation p, Spearman's rho)."""
@@ -145,6 +158,7 @@ def unseen_lines(analysis) -> list[str]:
             p = f"p {r.permutation_p:.3f}" if r.n_permutations else "no permutations"
             verdict = "" if r.passes else ", fails controls"
             verdict += ", not below the training mean" if r.rmse >= r.null_rmse else ""
-            parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{verdict})")
+            cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"
+            parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{cover}{verdict})")
         lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
-    return lines
+    return [*lines, which_model_line(unseen)]

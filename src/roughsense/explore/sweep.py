@@ -27,7 +27,7 @@ from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
 from ..io.sensor_settings import DEFAULT_PX_PER_MM
-from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
+from ..model.families import MODEL_FAMILIES, PAPER_MODEL, check_model_name
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
 from ..paper import (
     PAPER_FORCES_N,
@@ -105,7 +105,7 @@ class Cell:
     max_components: int
     cv: tuple[str, ...]
     code: str = ""  # fingerprint of the twin and analysis that compute it (explore.version)
-    models: tuple[str, ...] = (DEFAULT_MODEL,)  # the families fitted on the cell's spectra, in MODEL_FAMILIES order
+    models: tuple[str, ...] = (PAPER_MODEL,)  # the families fitted on the cell's spectra, in MODEL_FAMILIES order
 
     def columns(self) -> dict:
         """The design as result columns: one scalar per design parameter (lists as text; ``model`` lists the
@@ -134,7 +134,7 @@ class Sweep:
     cells: list[Cell]
     cv: tuple[str, ...]
     source: dict = field(default_factory=dict)  # the parsed file, to tell one sweep from another
-    models: tuple[str, ...] = (DEFAULT_MODEL,)
+    models: tuple[str, ...] = (PAPER_MODEL,)
 
 
 def forces_label(forces_n) -> str:
@@ -296,7 +296,7 @@ def _models(settings: dict, axes_in: dict, path: Path) -> tuple[str, ...]:
     elif MODEL_KEY in settings:
         where, values = f"[sweep] {MODEL_KEY}", [settings[MODEL_KEY]]
     else:
-        return (DEFAULT_MODEL,)
+        return (PAPER_MODEL,)
     try:
         names = [check_model_name(v, option=where) for v in values]
     except ConfigError as exc:
@@ -446,7 +446,7 @@ def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
     return points
 
 
-def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (DEFAULT_MODEL,)) -> list[Cell]:
+def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (PAPER_MODEL,)) -> list[Cell]:
     """One cell per design and seed, its id a hash of everything it computes from, the code included.
 
     The model families enter the hash only when they are not the paper's PLS alone: a sweep without the ``model``
@@ -470,7 +470,7 @@ def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (DEFAULT_MOD
                 sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],
                 max_components=run["max_components"], cv=run["cv"], code=code,
             )
-            hashed = content if models == (DEFAULT_MODEL,) else {**content, "models": list(models)}
+            hashed = content if models == (PAPER_MODEL,) else {**content, "models": list(models)}
             digest = hashlib.sha256(json.dumps(hashed, sort_keys=True).encode()).hexdigest()[:16]
             cells.append(Cell(id=digest, **content, models=models))
     return cells

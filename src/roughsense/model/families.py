@@ -1,7 +1,9 @@
 """The model families, chosen by name wherever a model is chosen (``--model``, model files, the ``model`` column).
 
-``pls`` is the paper's PLS1 (SIMPLS) on the spectral amplitudes and stays the default everywhere; ``peak-law`` is
-:class:`roughsense.model.peak_law.PeakPowerLaw`, built to predict surfaces the model never saw. This module imports
+``pls`` is the paper's PLS1 (SIMPLS) on the spectral amplitudes: the paper's reproduction and design sweeps use it
+(:data:`PAPER_MODEL`). ``peak-law`` is :class:`roughsense.model.peak_law.PeakPowerLaw`, built to predict surfaces the
+model never saw; it passes its controls for unseen surfaces where PLS fails them, so ``fit`` writes it unless told
+otherwise (:data:`DEFAULT_MODEL`). This module imports
 nothing heavy, so the command line can list and check the names without loading scikit-learn.
 """
 from __future__ import annotations
@@ -12,7 +14,11 @@ PLS = "pls"
 PEAK_LAW = "peak-law"
 #: Every family, the paper's first.
 MODEL_FAMILIES = (PLS, PEAK_LAW)
-DEFAULT_MODEL = PLS
+#: What ``roughsense fit`` writes unless --model says otherwise: the family that answers "how rough does a surface I
+#: never trained on feel?" (the study's "surfaces never seen" section judges it).
+DEFAULT_MODEL = PEAK_LAW
+#: The paper's model: its reproduction and the design sweeps' default family.
+PAPER_MODEL = PLS
 
 
 def check_model_name(name: object, *, option: str = "--model") -> str:

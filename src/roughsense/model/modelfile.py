@@ -6,7 +6,9 @@ version. The document::
 
     {"format": "roughsense-model", "version": 1, "roughsense_version": "...",
      "model":    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
-                  "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]]}
+                  "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]],
+                  "applicability": {"rotations": [[p] x A], "loadings": [[p] x A], "score_var": [A],
+                                    "t2_limit": t, "q_limit": q, "level": 0.95}   (optional: see below)}
                  | {"kind": "peak-power-law", ...}  (the peak law's section: see :mod:`.peak_law_file`),
      "features": {"spectrum": <SpatialSpectrum.feature_definition()>, "conditions": ["1N"] | ["1N","2N","3N"]},
      "training": {study, pad, condition, cv, cv_rmse, best_n_components, ...},
@@ -23,6 +25,12 @@ row's features sum to a few hundred at most; responses are ratings, within 1e6 (
 on such data gives coefficients of order one (|c| <= :data:`MAX_COEFFICIENT` is a millionfold margin), and
 each intercept is ``y_mean - x_mean . c`` by construction, so it is bounded by ``|y_mean| + |x_mean| . |c|``.
 Within these bounds every prediction of a computed spectrum is a finite number.
+
+Impossible values. Perceived roughness is a positive ratio to the reference, but PLS is linear and can predict a
+value <= 0. A loaded PLS model holds its predictions at or above a floor, half the smoothest roughness it was trained
+on (``training``'s ``target_range``; :data:`MIN_ROUGHNESS` for a file without one), and flags every value it held.
+``applicability`` is PLS's applicability domain (:mod:`.applicability`); a file written before it existed loads
+without it, and its spectra are then not checked.
 """
 from __future__ import annotations
 
@@ -40,6 +48,7 @@ from .._util import atomic
 from .._util.checks import POSITIVE_INT, Real, short_repr
 from ..errors import ModelFileError
 from . import peak_law_file
+from .applicability import SpectrumDomain
 from .families import PLS
 from .peak_law import PeakPowerLaw
 from .peak_law_file import LoadedPeakLaw
@@ -55,6 +64,8 @@ _TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "tr
 MAX_COEFFICIENT = 1e6
 MAX_X_MEAN = 1e6
 MAX_Y_MEAN = 1e6
+#: The least roughness a PLS file without a trained range may predict (a positive ratio to the reference).
+MIN_ROUGHNESS = 0.01
 
 
 @dataclass(frozen=True)
@@ -72,10 +83,20 @@ class LoadedModel:
     features: dict
     training: dict
     roughsense_version: str
+    domain: SpectrumDomain | None = None
 
     @property
     def n_features(self) -> int:
         return int(self.coef_path.shape[0])
+
+    @property
+    def floor(self) -> float:
+        """The least roughness the model predicts: half the smoothest it was trained on (a positive ratio)."""
+        stored = self.training.get("target_range") if isinstance(self.training, dict) else None
+        if isinstance(stored, list) and len(stored) == 2 and all(Real(0.0, MAX_Y_MEAN, low_open=True).accepts(v)
+                                                                  for v in stored) and stored[0] <= stored[1]:
+            return 0.5 * float(stored[0])
+        return MIN_ROUGHNESS
 
     @property
     def conditions(self) -> list[str]:
@@ -98,14 +119,31 @@ class LoadedModel:
             )
         return X
 
-    def predict(self, X) -> np.ndarray:
-        """Predicted perceived roughness, exactly as the fitted :class:`SIMPLS` predicts it."""
+    def linear_predict(self, X) -> np.ndarray:
+        """The fitted :class:`SIMPLS`'s own prediction (may be <= 0: see :meth:`predict`)."""
         k = self.n_components - 1
         return linear_predict(self._inputs(X), self.coef_path[:, k], self.intercept_path[k])
 
-    def extrapolates(self, X) -> np.ndarray:
-        """Always False: PLS has no training range it holds a prediction to (it is linear everywhere)."""
-        return np.zeros(self._inputs(X).shape[0], dtype=bool)
+    def predict(self, X, surfaces=None) -> np.ndarray:
+        """Predicted perceived roughness, held at :attr:`floor` or above (``surfaces`` is accepted, not needed)."""
+        return np.maximum(self.linear_predict(X), self.floor)
+
+    def applicability(self, X, surfaces=None) -> list[str]:
+        """Per row, why its prediction is not to be trusted ('' where nothing says so): a spectrum outside the
+        applicability domain, or a prediction held at the floor."""
+        raw = self.linear_predict(X)
+        shape = self.domain.reasons(self._inputs(X), surfaces) if self.domain is not None else [""] * raw.size
+        reasons = []
+        for value, why in zip(raw, shape):
+            parts = [why] if why else []
+            if value < self.floor:
+                parts.append(f"PLS gave {value:.3g}, below half the smoothest trained surface; held at {self.floor:.3g}")
+            reasons.append("; ".join(parts))
+        return reasons
+
+    def extrapolates(self, X, surfaces=None) -> np.ndarray:
+        """True where :meth:`applicability` gives a reason."""
+        return np.array([bool(reason) for reason in self.applicability(X)], dtype=bool)
 
 
 #: A loaded model file of either family: both predict, say whether they extrapolate, and carry their features.
@@ -128,9 +166,15 @@ def _floats(values) -> list:
     return np.asarray(values, dtype=np.float64).tolist()
 
 
-def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, training: dict) -> dict:
-    """The JSON document of a fitted model (see the module docstring); a law is checked as a loaded file would be."""
+def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, training: dict,
+                   domain: SpectrumDomain | None = None) -> dict:
+    """The JSON document of a fitted model (see the module docstring); a law is checked as a loaded file would be.
+
+    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.applicability.fit_domain`).
+    """
     section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else _pls_section(model)
+    if domain is not None:
+        section["applicability"] = domain.to_dict()
     features = _check_feature_definition(feature_definition, section["n_features"], None)
     if section["kind"] == peak_law_file.KIND:  # refuse now what load_model would refuse later
         peak_law_file.loaded_law(section, features, training=training, roughsense_version=_version(), path=None)
@@ -169,10 +213,10 @@ def _pls_section(model: SIMPLS) -> dict:
 
 
 def save_model(path: str | os.PathLike[str], model: SIMPLS | PeakPowerLaw, *, feature_definition: dict,
-               training: dict, force: bool = False) -> Path:
+               training: dict, force: bool = False, domain: SpectrumDomain | None = None) -> Path:
     """Write the model file atomically; an existing file is replaced only with ``force``."""
     target = atomic.check_can_write(path, force=force)
-    document = model_document(model, feature_definition=feature_definition, training=training)
+    document = model_document(model, feature_definition=feature_definition, training=training, domain=domain)
     text = json.dumps(document, indent=1, allow_nan=False) + "\n"
     return atomic.write_text(target, text)
 
@@ -253,8 +297,8 @@ def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
     if model.get("kind") != KIND:
         fail(f"model kind {short_repr(model.get('kind'))} is not supported (expected {KIND!r} or {peak_law_file.KIND!r})")
     expected = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
-    if set(model) != expected:
-        fail(f"\"model\" must have exactly the fields {', '.join(sorted(expected))}")
+    if set(model) - {"applicability"} != expected:
+        fail(f"\"model\" must have exactly the fields {', '.join(sorted(expected))} (and optionally applicability)")
     A, p = model["n_components"], model["n_features"]
     for name, value in (("n_components", A), ("n_features", p)):
         if not POSITIVE_INT.accepts(value):
@@ -268,6 +312,7 @@ def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
         fail(f"model.y_mean must be a finite number, got {short_repr(y_mean)}")
     _check_pls_bounds(x_mean, y_mean, coef, intercepts, path)
     features = _check_feature_definition(document["features"], p, path)
+    domain = _domain(model["applicability"], x_mean, A, p, features, path) if "applicability" in model else None
     return LoadedModel(
         path=path,
         n_components=A,
@@ -279,7 +324,29 @@ def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
         features=features,
         training=document["training"],
         roughsense_version=document["roughsense_version"],
+        domain=domain,
     )
+
+
+def _domain(section, x_mean: np.ndarray, A: int, p: int, features: dict, path: Path | None) -> SpectrumDomain:
+    """A PLS file's applicability section, checked: shapes, finite numbers, positive variances and limits."""
+    fields = {"rotations", "loadings", "score_var", "t2_limit", "q_limit", "level"}
+    if not isinstance(section, dict) or set(section) - {"peak"} != fields:
+        raise ModelFileError("model.applicability must have exactly the fields rotations, loadings, score_var, "
+                             "t2_limit, q_limit, level (and optionally peak)", path=path)
+    rotations = _array(section["rotations"], (A, p), "model.applicability.rotations", path)
+    loadings = _array(section["loadings"], (A, p), "model.applicability.loadings", path)
+    score_var = _array(section["score_var"], (A,), "model.applicability.score_var", path)
+    for name in ("t2_limit", "q_limit", "level"):
+        if not Real(0.0, MAX_COEFFICIENT, low_open=True).accepts(section[name]):
+            raise ModelFileError(f"model.applicability.{name} must be a positive number, got "
+                                 f"{short_repr(section[name])}", path=path)
+    if np.any(score_var <= 0) or max(np.abs(rotations).max(), np.abs(loadings).max()) > MAX_COEFFICIENT:
+        raise ModelFileError("model.applicability holds a non-positive score variance or a value beyond "
+                             f"{MAX_COEFFICIENT:g}", path=path)
+    peak = peak_law_file.peak_domain(section["peak"], features, path) if "peak" in section else None
+    return SpectrumDomain(x_mean, rotations.T.copy(), loadings.T.copy(), score_var, float(section["t2_limit"]),
+                          float(section["q_limit"]), peak, len(features["conditions"]))
 
 
 def _check_pls_bounds(x_mean: np.ndarray, y_mean: float, coef: np.ndarray, intercepts: np.ndarray,

@@ -4,7 +4,12 @@ The section beside the document's ``features`` (whose spectrum holds the frequen
 
     {"kind": "peak-power-law", "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
      "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2], "scale": s,
-     "feature_min": [2], "feature_max": [2], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude"]}
+     "feature_min": [2], "feature_max": [2], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude"],
+     "clarity_limit": c}
+
+``feature_min``/``feature_max`` are the range of the rows the fit kept and ``clarity_limit`` the least clear peak it
+accepts (:func:`~roughsense.model.peak_law.domain_reasons`); a file written before ``clarity_limit`` existed loads
+without it, and its predictions are then not checked for a clear peak.
 
 Why each field is bounded. The checksum of a model file is unkeyed, so anyone can edit a number and re-sign it: the
 field checks are what refuse a file that would predict nonsense. The bounds are loose enough for any law fitted on
@@ -26,7 +31,7 @@ from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
-from .peak_law import FEATURE_NAMES, PeakPowerLaw, check_grid, outside_range, peak_features, predict_law, search_bins
+from .peak_law import FEATURE_NAMES, PeakPowerLaw, PeakReadout, check_grid, domain_reasons, peak_readout, predict_law, search_bins
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -44,6 +49,8 @@ _SCALARS: dict[str, Constraint] = {
 _PAD_PERIOD = Real(BOUNDS["ridge_period_mm"].low, BOUNDS["ridge_period_mm"].high)
 _PAIRS = ("coefficients", "feature_min", "feature_max")
 FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_PAIRS, "feature_names")
+#: Fields a file may lack (written before they existed).
+OPTIONAL_FIELDS = ("clarity_limit",)
 
 
 @dataclass(frozen=True)
@@ -62,6 +69,7 @@ class LoadedPeakLaw:
     scale_: float
     feature_min_: np.ndarray
     feature_max_: np.ndarray
+    clarity_limit_: float | None
     features: dict
     training: dict
     roughsense_version: str
@@ -75,24 +83,34 @@ class LoadedPeakLaw:
         """Force conditions, in the order a trial's images are concatenated (one for a single-force model)."""
         return list(self.features["conditions"])
 
-    def law_features(self, X) -> np.ndarray:
-        """(n, 2) log peak frequency and log peak amplitude of each row, as the fitted law reads them."""
+    def _readout(self, X, surfaces=None) -> PeakReadout:
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 2 or X.shape[1] != self.n_features:
             raise ModelFileError(f"the model expects {self.n_features} features per sample, got shape {X.shape}",
                                  path=self.path)
         if not np.all(np.isfinite(X)) or np.any(X < 0):
             raise InputError("a spectrum holds a negative or non-finite amplitude; the peak law reads amplitudes")
-        return peak_features(X, self.freq_per_mm, n_blocks=self.n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
-                             exclusion_per_mm=self.exclusion_per_mm)
+        return peak_readout(X, self.freq_per_mm, n_blocks=self.n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
+                            exclusion_per_mm=self.exclusion_per_mm, surfaces=surfaces)
 
-    def predict(self, X) -> np.ndarray:
+    def law_features(self, X, surfaces=None) -> np.ndarray:
+        """(n, 2) log peak frequency and log peak amplitude of each row, as the fitted law reads them."""
+        return self._readout(X, surfaces).features
+
+    def predict(self, X, surfaces=None) -> np.ndarray:
         """Predicted perceived roughness, exactly as the fitted :class:`PeakPowerLaw` predicts it."""
-        return predict_law(self.law_features(X), self.intercept_, self.coef_, self.feature_min_, self.feature_max_)
+        return predict_law(self.law_features(X, surfaces), self.intercept_, self.coef_, self.feature_min_,
+                           self.feature_max_)
 
-    def extrapolates(self, X) -> np.ndarray:
-        """True where a row's features fall outside the training range (its prediction is held at the edge)."""
-        return outside_range(self.law_features(X), self.feature_min_, self.feature_max_)
+    def applicability(self, X, surfaces=None) -> list[str]:
+        """Per row, what lies outside what the law was fitted on ('' where nothing does)."""
+        step = float(self.freq_per_mm[1] - self.freq_per_mm[0]) if self.freq_per_mm.size > 1 else 0.0
+        return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
+                              step)
+
+    def extrapolates(self, X, surfaces=None) -> np.ndarray:
+        """True where a row lies outside the law's domain (:meth:`applicability` says how)."""
+        return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
 
 
 def law_section(model: PeakPowerLaw) -> dict:
@@ -113,6 +131,7 @@ def law_section(model: PeakPowerLaw) -> dict:
         "feature_min": [float(v) for v in model.feature_min_],
         "feature_max": [float(v) for v in model.feature_max_],
         "feature_names": list(FEATURE_NAMES),
+        "clarity_limit": float(model.clarity_limit_),
     }
 
 
@@ -122,7 +141,7 @@ def check_fields(section: dict, path: Path | None) -> int:
     if missing:
         raise ModelFileError(f"the peak-law model lacks the field(s) {', '.join('model.' + m for m in missing)}",
                              path=path)
-    unknown = sorted(set(section) - set(FIELDS))
+    unknown = sorted(set(section) - set(FIELDS) - set(OPTIONAL_FIELDS))
     if unknown:
         raise ModelFileError(f"the peak-law model has unknown field(s) {', '.join('model.' + str(u) for u in unknown)}",
                              path=path)
@@ -153,11 +172,13 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
     except ValueError as exc:
         raise ModelFileError(f"model.pad_ridge_period_mm and model.exclusion_per_mm: {exc}", path=path) from None
     _check_finite_predictions(scalars["intercept"], pairs, path)
+    clarity = _checked(section, "clarity_limit", _BOUNDED, path) if "clarity_limit" in section else None
     return LoadedPeakLaw(
         path=path, freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,
         exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"], intercept_=scalars["intercept"],
         coef_=pairs["coefficients"], scale_=scalars["scale"], feature_min_=pairs["feature_min"],
-        feature_max_=pairs["feature_max"], features=features, training=training, roughsense_version=roughsense_version,
+        feature_max_=pairs["feature_max"], clarity_limit_=clarity, features=features, training=training,
+        roughsense_version=roughsense_version,
     )
 
 
@@ -201,3 +222,33 @@ def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) 
         raise ModelFileError(
             f"model.intercept and model.coefficients give log roughness from {lowest:.4g} to {highest:.4g} over the "
             f"training range; a prediction must stay within exp(+-{_MAX_LOG_ROUGHNESS:g})", path=path)
+
+
+def peak_domain(section, features: dict, path: Path | None):
+    """A PLS file's peak readout domain (``model.applicability.peak``), checked like the law's own fields."""
+    from .applicability import PeakDomain
+
+    where = "model.applicability.peak"
+    if not isinstance(section, dict) or set(section) != {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm",
+                                                         "exclusion_per_mm"}:
+        raise ModelFileError(f"{where} must have exactly the fields log_frequency_range, clarity_limit, "
+                             "pad_ridge_period_mm, exclusion_per_mm", path=path)
+    span = section["log_frequency_range"]
+    if not isinstance(span, list) or len(span) != 2 or not all(_BOUNDED.accepts(v) for v in span) or span[0] > span[1]:
+        raise ModelFileError(f"{where}.log_frequency_range must be two increasing numbers, got {shown(span)}",
+                             path=path)
+    period = section["pad_ridge_period_mm"]
+    if period is not None and not _PAD_PERIOD.accepts(period):
+        raise ModelFileError(f"{where}.pad_ridge_period_mm must be {_PAD_PERIOD.describe()} or null", path=path)
+    for name in ("clarity_limit", "exclusion_per_mm"):
+        constraint = _BOUNDED if name == "clarity_limit" else _SCALARS["exclusion_per_mm"]
+        if not constraint.accepts(section[name]):
+            raise ModelFileError(f"{where}.{name} must be {constraint.describe()}, got {shown(section[name])}",
+                                 path=path)
+    freq = _grid(features["spectrum"], path)
+    try:
+        search_bins(freq, period, section["exclusion_per_mm"])
+    except ValueError as exc:
+        raise ModelFileError(f"{where}: {exc}", path=path) from None
+    return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
+                      None if period is None else float(period), float(section["exclusion_per_mm"]))

@@ -2,8 +2,9 @@
 
 The model file carries its feature definition, so the spectra are recomputed exactly as in training;
 a combined-force model takes each trial's images in the order of its conditions (1 N, 2 N, 3 N).
-Every model also says which predictions extrapolate (a peak law's features outside its training range; never
-for PLS), so a user sees when a number was held at the edge of what the model saw.
+Every model also says, per prediction, what lies outside what it was trained on (its applicability domain: a peak
+law's period, peak strength or an unclear peak; PLS's spectrum shape, or a value held to the trained roughness), and
+a model file with an interval gives each prediction its 90 % prediction interval (model/interval.py).
 :func:`score_images` trusts that order; the ``groups_from_*`` functions build it from what a user gives
 (a manifest, one flag per force) and refuse what contradicts a slot.
 """
@@ -133,10 +134,66 @@ def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 
 
 def score_and_flag(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                   override: SensorOverride | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted roughness and whether each prediction extrapolates, from one pass over the images."""
+                   override: SensorOverride | None = None, surfaces=None) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted roughness and whether each prediction lies outside the model's domain, from one pass over the images.
+
+    ``surfaces``: one label per trial; trials with the same label are presses of one surface (a peak law reads
+    their period together).
+    """
+    scores = score_trials(loaded, images, n_jobs=n_jobs, progress=progress, override=override, surfaces=surfaces)
+    return scores.roughness, scores.flagged
+
+
+@dataclass(frozen=True)
+class Scores:
+    """Per trial: roughness, its interval (NaN without one) and what lies outside the model's domain ('' if
+    nothing); per surface (when trials were grouped into surfaces): the mean roughness and its interval."""
+
+    roughness: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    reasons: list[str]
+    surface_roughness: np.ndarray | None = None
+    surface_low: np.ndarray | None = None
+    surface_high: np.ndarray | None = None
+
+    @property
+    def flagged(self) -> np.ndarray:
+        return np.array([bool(reason) for reason in self.reasons], dtype=bool)
+
+
+def model_interval(loaded: AnyModel):
+    """The model file's prediction interval, or None (a file written before intervals, or too few specimens)."""
+    from .interval import PredictionInterval
+
+    stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
+    if not isinstance(stored, dict):
+        return None
+    try:
+        interval = PredictionInterval(float(stored["trial_log_halfwidth"]), float(stored["surface_log_halfwidth"]),
+                                      float(stored["level"]))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return interval if interval.finite and 0 < interval.level < 1 else None
+
+
+def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                 override: SensorOverride | None = None, surfaces=None) -> Scores:
+    """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``)."""
     X = image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
-    return loaded.predict(X), loaded.extrapolates(X)
+    roughness = loaded.predict(X, surfaces=surfaces)
+    reasons = loaded.applicability(X, surfaces=surfaces)
+    interval = model_interval(loaded)
+    nan = np.full(roughness.shape, np.nan)
+    low, high = interval.trial_bounds(roughness) if interval is not None else (nan, nan)
+    if surfaces is None:
+        return Scores(roughness, low, high, reasons)
+    import pandas as pd
+
+    labels = pd.Series(np.asarray(surfaces))
+    surface = pd.Series(roughness).groupby(labels).transform("mean").to_numpy()
+    s_low, s_high = interval.surface_bounds(surface) if interval is not None else (nan, nan)
+    return Scores(roughness, low, high, reasons, surface, s_low, s_high)
 
 
 def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None

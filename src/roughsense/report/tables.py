@@ -345,7 +345,7 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                      _cell(_num(r["null_rmse"], 3)), _cell(_num(r["cv_rmse"], 3)), _cell(_num(r["null_cv_rmse"], 3)),
                      _cell(f"{r['permutation_p']:.3f}" if r["n_permutations"] else "—"),
                      _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]))),
-                     _cell(rho)])
+                     _cell(rho), _cell(_coverage_text(r)), _cell(_flag_text(r))])
     return {
         "title": "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition",
         "caption": ("Every specimen is predicted by a model fitted without any of its images (PLS: its component count "
@@ -356,11 +356,27 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                     "the two can rank a model and the training mean differently). Permutation p: the same "
                     "cross-validation on specimen-shuffled targets (see Controls). Spearman's rho: each rated specimen's "
                     "mean prediction against its perceived roughness (the reference, 1 by definition, left out). "
-                    f"{FLAG} marks a model that fails its controls."),
+                    "90 % interval coverage: the share of held-out trials (and of specimens, by their mean prediction) "
+                    "whose perceived roughness lies in the interval built from the other specimens' residuals (goal "
+                    "85-95 %). Flagged: the share of held-out trials the model's applicability check would have "
+                    f"flagged, and its worst specimen. {FLAG} marks a model that fails its controls."),
         "columns": ["Model", "Pad", "Condition", "Mean RMSE", "Training mean RMSE", "Pooled RMSE",
-                    "Training mean, pooled", "Permutation p", "Controls", "Spearman ρ"],
+                    "Training mean, pooled", "Permutation p", "Controls", "Spearman ρ",
+                    "90 % interval coverage (trials / specimens)", "Flagged when held out (worst specimen)"],
         "rows": rows,
     }
+
+
+def _coverage_text(row) -> str:
+    if pd.isna(row.get("pi90_coverage_trials", np.nan)):
+        return "—"
+    return f"{row['pi90_coverage_trials']:.0%} / {row['pi90_coverage_specimens']:.0%}"
+
+
+def _flag_text(row) -> str:
+    if pd.isna(row.get("flagged_share", np.nan)):
+        return "—"
+    return f"{row['flagged_share']:.0%} ({row['flagged_max_specimen']}: {row['flagged_max_share']:.0%})"
 
 
 def _quiet_nanmean(values) -> float:

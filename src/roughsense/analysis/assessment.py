@@ -1,0 +1,77 @@
+"""What a model file says about itself: how it predicts surfaces it never saw, its controls, and its interval.
+
+``roughsense fit`` writes a model for new surfaces, so whatever CV the user chose for the fit, the model is also
+judged the way the study judges it (analysis/unseen.py): nested leave-one-specimen-out against the training mean
+and against specimen-shuffled targets, with the same functions, folds and shufflings. A model that fails them is
+still written (a user may want it), but the file records the failure and ``fit`` and ``predict`` say it in one line.
+The 90 % prediction interval comes from the same out-of-fold predictions (model/interval.py).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..model.interval import PredictionInterval
+from . import controls as _controls
+from .study_analysis import family_fit
+from .unseen import null_specimen_rmse
+
+
+@dataclass(frozen=True)
+class UnseenAssessment:
+    """Nested LOSO of one model: per-specimen and pooled RMSE beside the training mean's, the permutation
+    control, and the prediction interval its out-of-fold residuals give."""
+
+    rmse: float
+    null_rmse: float
+    pooled_rmse: float
+    null_pooled_rmse: float
+    permutation_p: float
+    n_permutations: int
+    passes: bool
+    interval: PredictionInterval
+
+    @property
+    def failure(self) -> str:
+        """One line naming each control the model fails, with its numbers ('' when it passes them all)."""
+        problems = []
+        if not self.pooled_rmse < self.null_pooled_rmse:
+            problems.append(f"no better than the training mean (RMSE {self.pooled_rmse:.3f} vs {self.null_pooled_rmse:.3f})")
+        if self.n_permutations and not self.permutation_p < _controls.ALPHA:
+            problems.append(f"not better than shuffled targets (permutation p = {self.permutation_p:.3f} >= "
+                            f"{_controls.ALPHA:g}, {self.n_permutations} shufflings)")
+        if not problems:
+            return ""
+        return ("this model FAILS its controls for surfaces it never saw (nested leave-one-specimen-out): "
+                + "; ".join(problems) + ". Its predictions for new surfaces are not better than guessing")
+
+    def record(self) -> dict:
+        """The model file's ``unseen`` entry (JSON values; a number the design cannot give is null)."""
+        def finite(value: float) -> float | None:
+            return value if math.isfinite(value) else None
+
+        return {"cv": "loso (nested)", "rmse": finite(self.rmse), "null_rmse": finite(self.null_rmse),
+                "pooled_rmse": finite(self.pooled_rmse), "null_pooled_rmse": finite(self.null_pooled_rmse),
+                "permutation_p": finite(self.permutation_p), "n_permutations": self.n_permutations,
+                "passes_controls": self.passes, "failure": self.failure}
+
+
+def assess_unseen(family: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, *,
+                  pad: str, condition: str, law: dict | None, max_components: int, seed: int,
+                  n_permutations: int = _controls.DEFAULT_PERMUTATIONS) -> UnseenAssessment:
+    """Nested LOSO of ``family`` on one pad x condition, its controls and its interval (the study's arithmetic)."""
+    fit = family_fit(family, X, y, meta, perceived, pad, condition, "loso", law=law, max_components=max_components)
+    specimens = meta["specimen"].astype(str).to_numpy()
+    permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
+    row = _controls.control_row(fit, X, y, specimens, permutations, law)
+    predictions = fit.predictions["prediction"].to_numpy(dtype=float)
+    interval = PredictionInterval.from_cv(predictions, y, specimens, floor=float(np.min(y)))
+    return UnseenAssessment(
+        rmse=float(fit.table["rmse"].mean()),
+        null_rmse=float(null_specimen_rmse(fit.predictions, perceived).mean()),
+        pooled_rmse=float(row["rmse"]), null_pooled_rmse=float(row["null_rmse"]),
+        permutation_p=float(row["permutation_p"]), n_permutations=int(row["n_permutations"]),
+        passes=bool(row["passes"]), interval=interval)

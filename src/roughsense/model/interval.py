@@ -1,0 +1,108 @@
+"""90 % prediction intervals from a model's own leave-one-specimen-out residuals (split-conformal, in logs).
+
+Perceived roughness is a positive ratio to the reference, and its errors grow with it, so residuals are taken in
+logs (log perceived - log predicted) and an interval is ``prediction x exp(-h) .. prediction x exp(+h)``: always
+positive, wider in absolute terms for rougher surfaces. ``h`` is the conformal quantile of the absolute residuals
+of out-of-fold predictions under leave-one-specimen-out: the ceil((n + 1) level)-th smallest of n, which covers a
+new exchangeable residual with probability at least ``level``. Two are kept:
+
+- per trial (one press, or one combined trial): over every trial's residual;
+- per surface (the mean prediction of a surface's presses): over every specimen's, so n is the number of specimens.
+
+Trials of one specimen share its target, so their residuals are not independent: the per-trial quantile is honest
+about the spread of presses, and the per-surface one about the spread between surfaces; the study checks both on
+held-out specimens (analysis/unseen.py) rather than trusting the theorem.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+#: The interval's nominal coverage.
+INTERVAL_LEVEL = 0.9
+
+
+def conformal_halfwidth(absolute_residuals, level: float = INTERVAL_LEVEL) -> float:
+    """The ceil((n + 1) level)-th smallest |residual| (inf when n is too small for the level)."""
+    values = np.sort(np.asarray(absolute_residuals, dtype=np.float64).ravel())
+    rank = math.ceil((values.size + 1) * level)
+    return float(values[rank - 1]) if 1 <= rank <= values.size else float("inf")
+
+
+def positive(predictions, floor: float) -> np.ndarray:
+    """Predictions held at ``floor`` or above (PLS can predict <= 0; a log residual needs a positive value)."""
+    return np.maximum(np.asarray(predictions, dtype=np.float64), floor)
+
+
+def log_residuals(predictions, targets, surfaces, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-trial and per-surface residuals log(target) - log(prediction); a surface's prediction is its trials'
+    mean, as :meth:`PredictionInterval.surface_bounds` predicts one."""
+    predicted = positive(predictions, floor)
+    targets = np.asarray(targets, dtype=np.float64)
+    trial = np.log(targets) - np.log(predicted)
+    frame = pd.DataFrame({"surface": np.asarray(surfaces), "prediction": predicted, "target": targets})
+    means = frame.groupby("surface", sort=False).mean()
+    return trial, np.log(means["target"].to_numpy()) - np.log(means["prediction"].to_numpy())
+
+
+@dataclass(frozen=True)
+class PredictionInterval:
+    """Half-widths (log units) of the interval around a trial's and a surface's prediction."""
+
+    trial_log_halfwidth: float
+    surface_log_halfwidth: float
+    level: float = INTERVAL_LEVEL
+    n_trials: int = 0
+    n_surfaces: int = 0
+
+    @classmethod
+    def from_cv(cls, predictions, targets, surfaces, *, floor: float, level: float = INTERVAL_LEVEL
+                ) -> PredictionInterval:
+        """From out-of-fold (LOSO) predictions of the training trials, their targets and specimens."""
+        trial, surface = log_residuals(predictions, targets, surfaces, floor)
+        return cls(conformal_halfwidth(np.abs(trial), level), conformal_halfwidth(np.abs(surface), level), level,
+                   int(trial.size), int(surface.size))
+
+    @property
+    def finite(self) -> bool:
+        return math.isfinite(self.trial_log_halfwidth) and math.isfinite(self.surface_log_halfwidth)
+
+    def trial_bounds(self, predictions) -> tuple[np.ndarray, np.ndarray]:
+        predicted = np.asarray(predictions, dtype=np.float64)
+        return predicted * math.exp(-self.trial_log_halfwidth), predicted * math.exp(self.trial_log_halfwidth)
+
+    def surface_bounds(self, predictions) -> tuple[np.ndarray, np.ndarray]:
+        predicted = np.asarray(predictions, dtype=np.float64)
+        return predicted * math.exp(-self.surface_log_halfwidth), predicted * math.exp(self.surface_log_halfwidth)
+
+    def to_dict(self) -> dict:
+        """The model file's ``interval`` entry; a half-width too few residuals cannot give is null."""
+        def finite(value: float) -> float | None:
+            return value if math.isfinite(value) else None
+
+        return {"level": self.level, "trial_log_halfwidth": finite(self.trial_log_halfwidth),
+                "surface_log_halfwidth": finite(self.surface_log_halfwidth), "n_trials": self.n_trials,
+                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out"}
+
+
+def held_out_coverage(predictions, targets, surfaces, *, floor: float, level: float = INTERVAL_LEVEL
+                      ) -> tuple[float, float]:
+    """Empirical coverage of the intervals on held-out specimens: each specimen's interval is built from the
+    other specimens' residuals only, then asked whether it holds the specimen's perceived roughness.
+
+    Returns (share of trials covered, share of specimens whose surface interval covers them).
+    """
+    trial, surface = log_residuals(predictions, targets, surfaces, floor)
+    codes, _ = pd.factorize(pd.Series(np.asarray(surfaces)), sort=False)
+    covered_trials = 0
+    covered_surfaces = 0
+    for code in range(surface.size):
+        mine = codes == code
+        h_trial = conformal_halfwidth(np.abs(trial[~mine]), level)
+        h_surface = conformal_halfwidth(np.abs(np.delete(surface, code)), level)
+        covered_trials += int(np.sum(np.abs(trial[mine]) <= h_trial))
+        covered_surfaces += int(abs(surface[code]) <= h_surface)
+    return covered_trials / trial.size, covered_surfaces / surface.size
