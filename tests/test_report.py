@@ -14,6 +14,7 @@ from roughsense import paper
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import OutputExistsError
 from roughsense.report import write_report
+from roughsense.report.tables import control_text, permutation_p_text
 
 from .test_study_analysis import synthetic_study
 
@@ -313,8 +314,11 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
         model, pad, condition = names[row["Model"][0]], row["Pad"][0], row["Condition"][0]
         mine = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
         assert row["Mean RMSE"][0] == f"{mine['rmse'].mean():.3f}"
-        assert row["Permutation p"][0] == f"{controls.loc[(model, pad, condition), 'permutation_p']:.3f}"
-        assert row["Controls"][0].startswith("passes") == bool(controls.loc[(model, pad, condition), "passes"])
+        control = controls.loc[(model, pad, condition)]
+        assert row["Permutation p"][0] == permutation_p_text(control["permutation_p"], control["n_permutations"])
+        assert row["Controls"][0].startswith("passes") == bool(control["passes"])
+        above = float(row["Mean RMSE"][0]) >= float(row["Training mean RMSE"][0])
+        assert ("per-specimen RMSE" in row["Controls"][0]) == (bool(control["passes"]) and above)
     # The paper's tables keep the paper's PLS; the peak law's are labelled as its own.
     assert "Root mean squared error (RMSE), smooth pad, LOO, peak-law model" in html
     peak = _table(html, "Root mean squared error (RMSE), fingerprint pad, LOO, peak-law model")
@@ -333,3 +337,24 @@ def test_unseen_section_labels_the_twin_and_built_in_agreement(simulated_report_
     physics = (tmp_path / "physics" / "index.html").read_text()
     section = physics.split('<h2 id="unseen">', 1)[1].split('id="glance"', 1)[0]
     assert "ratings_from = physics" in section and "partly built in" in section
+
+
+def test_a_permutation_p_is_never_0_and_names_its_shufflings():
+    assert permutation_p_text(0.005, 199) == "≤ 0.005 (199 shufflings)"
+    assert permutation_p_text(1 / 2000, 1999) == "≤ 0.0005 (1999 shufflings)"  # not "0.000"
+    assert permutation_p_text(0.02, 199) == "0.020" and permutation_p_text(0.02, 199, ".2g") == "0.02"
+    assert permutation_p_text(0.5, 0) == "—"
+
+
+def test_control_text_names_the_pooled_training_mean_and_a_pass_on_pooled_rmse_only():
+    failing = {"beats_null": False, "beats_permutation": False, "n_permutations": 199, "permutation_p": 0.13,
+               "rmse": 0.462, "null_rmse": 0.461}
+    assert control_text(failing) == ("† pooled RMSE 0.462 not below the training mean's 0.461; no better than "
+                                     "shuffled targets (p = 0.13)")
+    passing = {"beats_null": True, "beats_permutation": True, "n_permutations": 199, "permutation_p": 0.005,
+               "rmse": 0.438, "null_rmse": 0.461}
+    assert control_text(passing) == "passes (p ≤ 0.005, none of 199 shufflings as good)"
+    assert control_text(passing, mean_rmse=0.30, null_mean_rmse=0.354) == "passes (p ≤ 0.005, none of 199 shufflings as good)"
+    assert control_text(passing, mean_rmse=0.365, null_mean_rmse=0.354) == (
+        "passes (p ≤ 0.005, none of 199 shufflings as good), on pooled RMSE only: its mean per-specimen RMSE 0.365 is not below "
+        "the training mean's 0.354")

@@ -166,7 +166,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
             paper_pads,
         ),
         tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
-        claims=tables.claims_table(analysis.claims, paper_pads),
+        claims=tables.claims_table(analysis.claims, paper_pads, analysis.controls),
         verdict_rule=VERDICT_RULE,
         controls=tables.controls_report_table(analysis.controls),
         paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
