@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.report.tables import permutation_p_text
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
@@ -70,7 +71,9 @@ def _check_unseen_lines(stdout: str, out) -> None:
     for model in ("pls", "peak-law"):
         assert f"{model} {loso[loso.model == model]['rmse'].mean():.2f} (p " in lines[first + 1]
     controls = pd.read_csv(out / "controls.csv").query("cv == 'loso' and condition == 'combined'")
-    assert f"p {controls.set_index('model').loc['peak-law', 'permutation_p']:.3f}" in lines[first + 1]
+    peak = controls.set_index("model").loc["peak-law"]
+    p = permutation_p_text(peak["permutation_p"], peak["n_permutations"], at_most="<=")
+    assert f"p {p}" in lines[first + 1] and "p 0.000" not in stdout
 
 
 def test_study_refuses_a_non_empty_report_folder(run_cli, small_study, tmp_path):
@@ -86,6 +89,7 @@ def test_study_with_a_missing_file_names_it(run_cli, study_copy, tmp_path):
     (study_copy / "ratings.csv").unlink()
     code, _, err = run_cli("study", "--data", study_copy, "--out", tmp_path / "r")
     assert code == 2 and "ratings.csv" in err and err.count("\n") == 1
+    assert err.rstrip().endswith(f"run `roughsense check {study_copy}` to list every problem")
     assert not (tmp_path / "r").exists()
 
 

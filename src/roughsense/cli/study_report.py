@@ -85,12 +85,11 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     from ..analysis import dataset
     from ..analysis.study_analysis import CV_SCHEMES, analyse_study
     from ..errors import RoughsenseWarning
-    from ..io.study import read_study
     from ..report import write_report
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
-    study = read_study(root, require_ratings=True)
+    study = _read_folder(root, builtin=builtin)
     definition = dataset.spectrum_for(study).feature_definition()
     features, was_cached = cache.cached_frame(
         cache.features_key(study, definition),
@@ -127,9 +126,26 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     return index, root, builtin
 
 
+def _read_folder(root, *, builtin: bool):
+    """read_study, which stops at the first problem: its line says how to see them all (``roughsense check``)."""
+    import shlex
+
+    from ..errors import RoughsenseError
+    from ..io.study import read_study
+
+    try:
+        return read_study(root, require_ratings=True)
+    except RoughsenseError as exc:
+        if not builtin:
+            exc.message = f"{exc.message}; run `roughsense check {shlex.quote(str(root))}` to list every problem"
+        raise
+
+
 def unseen_lines(analysis) -> list[str]:
     """The question users ask first, in a headline and one line per pad: how well each model predicts an unseen
     surface (nested LOSO mean per-specimen RMSE against the training mean's, permutation p, Spearman's rho)."""
+    from ..report.tables import permutation_p_text
+
     unseen = analysis.unseen_summary()
     if unseen.empty:
         return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
@@ -142,7 +158,8 @@ def unseen_lines(analysis) -> list[str]:
     for pad, group in rows.groupby("pad", sort=False):
         parts = []
         for r in group.itertuples():
-            p = f"p {r.permutation_p:.3f}" if r.n_permutations else "no permutations"
+            p = f"p {permutation_p_text(r.permutation_p, r.n_permutations, at_most='<=')}" if r.n_permutations \
+                else "no permutations"
             verdict = "" if r.passes else ", fails controls"
             verdict += ", not below the training mean" if r.rmse >= r.null_rmse else ""
             parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{verdict})")
