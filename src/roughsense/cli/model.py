@@ -150,7 +150,8 @@ PredictRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Read the line elsewhere than the model's ROI: 'center', 'auto' (the band with the most horizontal "
          "texture; for images smaller than the model's crop) or X,Y,W,H in px. The spectrum stays the model's; "
-         "the ROI used is written beside each prediction.")]
+         "the ROI used is written beside each prediction. 'auto' warns when the images' field along the line "
+         "differs from the model's by more than 20 %.")]
 PredictPxPerMm = Annotated[float | None, typer.Option(
     "--px-per-mm", show_default=False, parser=number_option("--px-per-mm", quantity="px_per_mm",
                                                            must="a positive number (px/mm) from 0.01 to 100000"),
@@ -176,7 +177,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
-    from ..model.predict import SensorOverride
+    from ..model.predict import SensorOverride, warn_field_of_view
 
     override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = _split_image_flags(images or [])
@@ -196,6 +197,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
+    warn_field_of_view(loaded, override, [image for trial in trials for image in trial])
     extrapolates = _score_into(table, loaded, trials, jobs, override)
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, extrapolates)
