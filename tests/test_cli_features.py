@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
-from roughsense.cli.features import unit_names
 from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid, spatial_spectrum
 
 PX_PER_MM = 34.9
