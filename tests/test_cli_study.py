@@ -181,3 +181,16 @@ def test_a_participant_missing_a_session_is_one_warning_line_and_in_the_report(r
     assert warnings_lines and first.participant in warnings_lines[0]
     assert "Traceback" not in err and ".py:" not in err  # no raw Python warning with a source line
     assert first.participant in (out / "index.html").read_text().split("<dt>warnings</dt>")[1][:400]
+
+
+def test_study_writes_its_figures_in_the_format_and_resolution_asked(run_cli, small_study, tmp_path):
+    out = tmp_path / "svg"
+    code, _, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "2", "--no-loso",
+                           "--permutations", "0", "--figure-format", "SVG", "--dpi", "50")
+    assert code == 0, err
+    assert (out / "cv_curves.svg").is_file() and not list(out.glob("*.png"))
+    for bad, needle in ((["--figure-format", "jpg"], "--figure-format must be one of png, svg, pdf"),
+                        (["--dpi", "5"], "--dpi")):
+        code, _, err = run_cli("study", "--data", small_study, "--out", tmp_path / "bad", *bad)
+        assert code == 2 and needle in err and err.count("\n") == 1 and "Traceback" not in err
+        assert not (tmp_path / "bad").exists()

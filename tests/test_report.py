@@ -358,3 +358,62 @@ def test_control_text_names_the_pooled_training_mean_and_a_pass_on_pooled_rmse_o
     assert control_text(passing, mean_rmse=0.365, null_mean_rmse=0.354) == (
         "passes (p ≤ 0.005, none of 199 shufflings as good), on pooled RMSE only: its mean per-specimen RMSE 0.365 is not below "
         "the training mean's 0.354")
+
+
+@pytest.mark.parametrize("figure_format", ["svg", "pdf"])
+def test_figures_in_a_vector_format_are_written_and_shown(tmp_path, figure_format):
+    """--figure-format svg embeds the SVGs; pdf writes PDFs, shows a PNG of each and links the PDF."""
+    from roughsense.report import FigureStyle
+    from roughsense.report.html import report_owned
+
+    study, features = synthetic_study(repetitions=2, seed=6, pads=("smooth",))
+    study.extra = {"simulation": {"seed": 42}}
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    out = tmp_path / "report"
+    write_report(analysis, out, style=FigureStyle(figure_format, 60))
+    drawn = sorted(p.name for p in out.iterdir() if p.suffix in (".png", ".svg", ".pdf"))
+    assert drawn and all(name.endswith(f".{figure_format}") for name in drawn)
+    assert all(report_owned(Path(name)) for name in drawn)
+    html = (out / "index.html").read_text()
+    shown = "image/svg+xml" if figure_format == "svg" else "image/png"
+    assert html.count(f'src="data:{shown};base64,') == len(drawn)
+    assert all(f'<a href="{name}">{name}</a>' in html for name in drawn)
+    if figure_format == "svg":
+        assert all("SIMULATED DATA (seed 42)" in (out / name).read_text() for name in drawn)  # the stamp, as text
+    first = {name: (out / name).read_bytes() for name in drawn}
+    write_report(analysis, out, style=FigureStyle(figure_format, 60), force=True)
+    assert {name: (out / name).read_bytes() for name in drawn} == first  # reruns give the same bytes
+
+
+def test_the_simulated_stamp_sits_above_every_axes_and_component_ticks_are_whole():
+    """The stamp covered axis labels in a corner; it now sits above the top axes. Component counts tick by 1s."""
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+
+    fig, ax = plt.subplots()
+    ax.plot([1, 2, 3], [1, 2, 3])
+    ax.set_xlabel("x label")
+    ax.set_title("title")
+    fig.tight_layout()
+    stamp = figures.mark_simulated(fig).texts[-1]
+    renderer = fig.canvas.get_renderer()
+    box = stamp.get_window_extent(renderer)
+    for artist in (ax, ax.xaxis.label, ax.yaxis.label, ax.title, *ax.get_xticklabels(), *ax.get_yticklabels()):
+        assert not box.overlaps(artist.get_window_extent(renderer)), artist
+    plt.close(fig)
+    cv = pd.DataFrame({"pad": "smooth", "cv": "loo", "condition": "1N", "n_components": [0, 1, 2, 3],
+                       "rmse": [0.5, 0.3, 0.25, 0.26]})
+    chosen = pd.DataFrame({"pad": ["smooth"], "condition": ["1N"], "cv": ["loo"], "best_n_components": [2]})
+    fig = figures.cv_curves_figure(cv, chosen)
+    fig.canvas.draw()
+    ticks = [t for t in fig.axes[0].get_xticks() if fig.axes[0].get_xlim()[0] <= t <= fig.axes[0].get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    plt.close(fig)
+
+
+def test_the_cli_figure_options_match_the_report():
+    from roughsense.cli import _common
+    from roughsense.report import figures
+
+    assert _common.FIGURE_FORMATS == figures.FIGURE_FORMATS and _common.DEFAULT_DPI == figures.DEFAULT_DPI

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import Jobs, number_option, progress, stage
+from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, stage
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -46,6 +46,8 @@ def register(app: typer.Typer) -> None:
         permutations: int = typer.Option(199, "--permutations", parser=number_option("--permutations", whole=True, low=0),
                                          help="Specimen-level shufflings per model for the permutation control "
                                          "(0: skip it; at least 199 for p-values to 0.005)."),
+        figure_format: FigureFormat = "png",
+        dpi: Dpi = DEFAULT_DPI,
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
@@ -55,7 +57,7 @@ def register(app: typer.Typer) -> None:
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
         from .._util.lock import output_lock
-        from ..report import open_report_dir
+        from ..report import FigureStyle, open_report_dir
 
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
@@ -64,7 +66,8 @@ def register(app: typer.Typer) -> None:
             staging = open_report_dir(out, force)
             try:
                 index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                                no_loso=no_loso, jobs=jobs, permutations=permutations)
+                                                no_loso=no_loso, jobs=jobs, permutations=permutations,
+                                                style=FigureStyle(check_figure_format(figure_format), dpi))
             except BaseException:
                 staging.abort()
                 raise
@@ -74,7 +77,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
-             jobs: int, permutations: int) -> tuple[Path, Path, bool]:
+             jobs: int, permutations: int, style) -> tuple[Path, Path, bool]:
     """The analysis of a study (``--data`` or the built-in one), written through ``staging``.
 
     Returns index.html, the study folder and whether it is the built-in study.
@@ -114,7 +117,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
-        index = write_report(analysis, out, meta=meta, staging=staging)
+        index = write_report(analysis, out, meta=meta, staging=staging, style=style)
     for line in unseen_lines(analysis):
         typer.echo(line)
     loo = analysis.results("loo")
