@@ -229,3 +229,27 @@ def test_features_refuses_to_replace_a_definition_file_without_force(run_cli, tm
     code, _, err = run_cli("features", images[0], "--out", tmp_path / "f.csv")
     assert code == 2 and "f.spectrum.json" in err and "--force" in err and err.count("\n") == 1
     assert not (tmp_path / "f.csv").exists() and (tmp_path / "f.spectrum.json").read_text() == "mine"
+
+
+def test_plot_draws_one_images_line_and_spectrum(run_cli, tmp_path, images):
+    """--plot: the contact line and the spectrum with its peak marked, in the format the file name says."""
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    code, stdout, err = run_cli("features", images[1], "--out", tmp_path / "f.csv", "--plot", tmp_path / "one.svg")
+    assert code == 0, err
+    svg = (tmp_path / "one.svg").read_text()
+    assert svg.startswith("<?xml") and "peak 0.325" in svg and "one.svg" in stdout
+    line, box = SpatialSpectrum().fit().line(images[1])
+    assert box == (10, 465, 1900, 150) and line.shape == (1900,)
+    spectrum = spatial_spectrum(images[1])
+    fig = figures.line_spectrum_figure(line, 34.9, frequency_grid(), spectrum, "t")
+    marked = fig.axes[1].lines[1]
+    assert marked.get_xdata()[0] == frequency_grid()[spectrum.argmax()]
+    plt.close(fig)
+    for bad, needle in ((["--plot", tmp_path / "p.png", images[0], images[1]], "exactly one IMAGE"),
+                        (["--plot", tmp_path / "p.jpg", images[0]], "must end in .png, .svg or .pdf")):
+        code, _, err = run_cli("features", "--out", tmp_path / "g.csv", *bad)
+        assert code == 2 and needle in err and err.count("\n") == 1 and not (tmp_path / "g.csv").exists()

@@ -66,6 +66,9 @@ def features(
     jobs: Jobs = None,
     force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
     max_pixels: MaxPixels = None,
+    plot: Annotated[Path | None, typer.Option(
+        "--plot", show_default=False, help="Also draw the one IMAGE's contact line and spectrum, its peak marked, "
+        "into this file (.png, .svg or .pdf).")] = None,
 ) -> None:
     """Turn contact images into normalised spatial spectra (the paper's section 3.2).
 
@@ -86,6 +89,7 @@ def features(
         raise ConfigError("no images given; pass IMAGE... or --study DIR")
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
+    _check_plot(plot, images, force)
     check_can_write(out, force=force)
     check_can_write(definition_path(out), force=force)
     f_min, f_max = _band(band)
@@ -106,6 +110,33 @@ def features(
     write_csv(out, table.rename(columns=dict(zip(names, unit_names(spectrum.freq_per_mm_)))))
     write_text(definition_path(out), json.dumps(spectrum.feature_definition(), indent=2) + "\n")
     typer.echo(f"wrote {len(paths)} x {len(names)} features to {out} (grid and settings: {definition_path(out)})")
+    if plot is not None:
+        _plot(plot, spectrum, paths[0], table[names].to_numpy(float)[0])
+
+
+def _check_plot(plot: Path | None, images, force: bool) -> None:
+    """--plot draws one image, into a file named by its format; checked before any work."""
+    from .._util.atomic import check_can_write
+
+    if plot is None:
+        return
+    if not images or len(images) != 1:
+        raise ConfigError("--plot draws one image: give exactly one IMAGE (not several, not --study)")
+    if plot.suffix.lower().lstrip(".") not in ("png", "svg", "pdf"):
+        raise ConfigError(f"--plot: {plot.name!r} must end in .png, .svg or .pdf (the format it is written in)")
+    check_can_write(plot, force=force)
+
+
+def _plot(plot: Path, spectrum, image: Path, amplitude) -> None:
+    """Draw the image's line and spectrum (report/figures.py) and write it atomically."""
+    from .._util.atomic import write_bytes
+    from ..report import figures
+
+    line, box = spectrum.line(image)
+    fig = figures.line_spectrum_figure(line, float(spectrum.px_per_mm), spectrum.freq_per_mm_, amplitude,
+                                       f"{Path(image).name}: crop x={box[0]}, y={box[1]}, {box[2]} x {box[3]} px")
+    write_bytes(plot, figures.figure_bytes(fig, plot.suffix.lower().lstrip(".")))
+    typer.echo(f"drew its line and spectrum in {plot}")
 
 
 def definition_path(out: Path) -> Path:

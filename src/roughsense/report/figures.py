@@ -244,3 +244,28 @@ def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str
     axes[0, 0].set_ylabel("predicted roughness of the unseen specimen (mean ± SD)")
     fig.tight_layout()
     return fig
+
+
+def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: str):
+    """One image: the gray level along its contact line (top) and its normalised spectrum with the peak marked.
+
+    What ``roughsense features --plot`` draws, so a user can see where the spectrum's peak comes from.
+    """
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 5.6))
+    x_mm = np.arange(len(line)) / px_per_mm
+    top.plot(x_mm, line, color="0.25", lw=0.8)
+    top.set_xlabel("position along the line (mm)")
+    top.set_ylabel("gray level (0-1)")
+    top.set_title(title, fontsize=9)
+    freq, amplitude = np.asarray(freq_per_mm, float), np.asarray(amplitude, float)
+    peak = int(np.argmax(amplitude))
+    bottom.plot(freq, amplitude, "-o", color="#2f5d8a", ms=3, lw=1.2)
+    bottom.plot([freq[peak]], [amplitude[peak]], "o", mfc="none", mec="red", ms=11)
+    bottom.annotate(f"peak {freq[peak]:.3f} mm$^{{-1}}$ (wavelength {1 / freq[peak]:.2f} mm)", (freq[peak], amplitude[peak]),
+                    xytext=(8, -4), textcoords="offset points", color="red", fontsize=8, va="top")
+    bottom.set_xlabel("spatial frequency (mm$^{-1}$)")
+    bottom.set_ylabel("normalised amplitude")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
