@@ -197,8 +197,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
-    warn_field_of_view(loaded, override, [image for trial in trials for image in trial])
     extrapolates = _score_into(table, loaded, trials, jobs, override)
+    warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, extrapolates)
 
