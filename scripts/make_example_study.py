@@ -53,6 +53,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         sim = simulate_study(Path(tmp) / "sim", with_image_size(config, 1920, 400), jobs=1)
         manifest = pd.read_csv(sim / "manifest.csv")
+        readme = (args.out / "README.md").read_bytes() if (args.out / "README.md").is_file() else None
         if args.out.exists():
             shutil.rmtree(args.out)
         (args.out / "images").mkdir(parents=True)
@@ -77,6 +78,8 @@ def main() -> None:
         ratings["rating"] = ratings["rating"].round(2)
         ratings.to_csv(args.out / "ratings.csv", index=False)
         (args.out / "study.toml").write_text(STUDY_TOML)
+        if readme is not None:  # the folder's README (copied out with it by `roughsense example`) is kept as it is
+            (args.out / "README.md").write_bytes(readme)
     sizes = [p.stat().st_size for p in (args.out / "images").iterdir()]
     print(f"wrote {len(sizes)} images ({np.mean(sizes) / 1024:.1f} KiB each on average) to {args.out}")
 

@@ -380,3 +380,22 @@ def test_the_report_names_the_failed_control_and_states_the_rule(mixed_analysis)
     assert len(texts) == len(failed) > 0
     assert all("fingerprint" in t and "shuffled targets p" in t for t in texts)
     assert len(_claims.VERDICT_RULE) == 5 and all(v in " ".join(_claims.VERDICT_RULE) for v in VERDICTS)
+
+
+def test_claim_ps_print_as_bounds_never_0_and_the_training_means_rho_is_explained(analysis):
+    """The permutation claim's p names its shufflings at the floor; a p that underflowed to 0 prints as a bound;
+    the training mean's rho in the alignment claim says what it means."""
+    from roughsense.report.tables import permutation_p_text
+
+    table = claims_table(analysis.claims, None, analysis.controls)
+    p_column = table["columns"].index("p")
+    for row, (_, c) in zip(table["rows"], analysis.claims.iterrows()):
+        printed = row[p_column]["ours"]
+        assert printed not in ("0", "0.0") and not printed.startswith("0e")
+        if c["key"] == "beats_controls" and not pd.isna(c["p"]):
+            control = _pls(analysis.controls).set_index(["pad", "condition", "cv"]).loc[(c["pad"], "combined", c["cv"])]
+            assert printed == permutation_p_text(control["permutation_p"], control["n_permutations"], ".2g")
+    zero = analysis.claims.iloc[[0]].assign(p=0.0, key="aligns")
+    assert claims_table(zero)["rows"][0][p_column]["ours"] == "< 0.0001"
+    for detail in analysis.claims.loc[analysis.claims.key == "aligns", "detail"]:
+        assert "the training mean's own rho = " in detail and ("so it" in detail or "backwards" in detail)

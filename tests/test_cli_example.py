@@ -27,7 +27,8 @@ def test_a_study_folder_is_copied_whole_and_refused_a_second_time_without_force(
     code, out, err = run_cli("example", "my-study")
     assert code == 0, err
     copy = _tree(tmp_path / "my-study")
-    assert copy == _tree(DATA / "examples" / "my-study") and len(copy) == 34  # 30 images and 4 files
+    assert copy == _tree(DATA / "examples" / "my-study") and len(copy) == 35  # 30 images, 4 files and its README
+    assert "synthetic" in (tmp_path / "my-study" / "README.md").read_text()
     assert "my-study" in out
     code, _, err = run_cli("example", "my-study")
     assert code == 2 and err.strip().count("\n") == 0 and "already exists; pass --force" in err

@@ -1,6 +1,7 @@
 """``roughsense features`` at the command line: CSV contract, study folders and every bad input."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import cv2
@@ -8,9 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
-from roughsense.sensor.spectrum import frequency_grid, spatial_spectrum
+from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid, spatial_spectrum
 
 PX_PER_MM = 34.9
 
@@ -37,8 +39,12 @@ def test_features_csv_has_image_column_and_round_tripping_grid(run_cli, tmp_path
     assert code == 0, err
     table = pd.read_csv(out)
     assert list(table.columns[:1]) == ["image"] and len(table.columns) == 46
-    headers = np.array([float(c) for c in table.columns[1:]])
+    assert table.columns[1] == "f_0.1000_per_mm" and table.columns[2] == "f_0.1205_per_mm"  # the unit in the header
+    definition = json.loads((tmp_path / "features.spectrum.json").read_text())  # the grid, exact, stored once
+    headers = np.array(definition["freq_per_mm"])
     np.testing.assert_array_equal(headers, frequency_grid())
+    assert [f"f_{f:.4f}_per_mm" for f in headers] == list(table.columns[1:])
+    assert SpatialSpectrum.from_definition(definition).feature_definition() == definition
     assert list(table["image"]) == [str(p) for p in images]
     for path, row in zip(images, table.iloc[:, 1:].to_numpy()):
         np.testing.assert_allclose(row, spatial_spectrum(path), rtol=1e-12)
@@ -53,7 +59,9 @@ def test_features_options_reach_the_library(run_cli, tmp_path, images):
     code, _, err = run_cli("features", images[1], "--out", out, *args)
     assert code == 0, err
     table = pd.read_csv(out)
-    np.testing.assert_array_equal([float(c) for c in table.columns[1:]], frequency_grid(0.15, 0.9, 20))
+    grid = json.loads((tmp_path / "f.spectrum.json").read_text())["freq_per_mm"]
+    np.testing.assert_array_equal(grid, frequency_grid(0.15, 0.9, 20))
+    assert len(table.columns) == 21 and all(c.startswith("f_") and c.endswith("_per_mm") for c in table.columns[1:])
     expected = spatial_spectrum(
         images[1], px_per_mm=30, roi=(5, 400, 1800, 120), rows=7, f_min_per_mm=0.15, f_max_per_mm=0.9, n_freqs=20, window="none"
     )
@@ -83,13 +91,13 @@ def test_features_for_a_study_carry_the_manifest_and_use_its_sensor_settings(run
     assert list(table.columns[:5]) == list(manifest.columns)
     pd.testing.assert_frame_equal(table[manifest.columns], manifest)
     assert list(table["condition"]) == ["1N", "2N", "1N", "2N"]
-    features = table[[c for c in table.columns if c[0].isdigit()]].to_numpy(float)
+    features = table[[c for c in table.columns if c.startswith("f_")]].to_numpy(float)
     for rel, row in zip(table["image"], features):
         np.testing.assert_allclose(row, spatial_spectrum(study / rel, px_per_mm=20.0, roi="auto"), rtol=1e-12)
     # an explicit option overrides the study's setting
     code, _, err = run_cli("features", "--study", study, "--out", out, "--force", "--px-per-mm", "25")
     assert code == 0, err
-    row = pd.read_csv(out).iloc[0][[c for c in table.columns if c[0].isdigit()]].to_numpy(float)
+    row = pd.read_csv(out).iloc[0][[c for c in table.columns if c.startswith("f_")]].to_numpy(float)
     np.testing.assert_allclose(row, spatial_spectrum(study / table["image"][0], px_per_mm=25.0, roi="auto"), rtol=1e-12)
 
 
@@ -208,3 +216,40 @@ def test_png_with_damaged_image_data_is_refused_whatever_rows_are_read(tmp_path,
 def test_non_finite_roi_is_a_clean_error(run_cli, tmp_path, images, roi):
     out = tmp_path / "features.csv"
     _assert_clean_failure(run_cli("features", images[0], "--out", out, f"--roi={roi}"), out, "ROI")
+
+
+def test_unit_names_keep_every_frequency_distinct():
+    assert unit_names([0.1, 0.12045454545]) == ["f_0.1000_per_mm", "f_0.1205_per_mm"]
+    fine = frequency_grid(0.1, 0.1001, 5)  # closer than 4 decimals tell apart
+    assert len(set(unit_names(fine))) == 5
+
+
+def test_features_refuses_to_replace_a_definition_file_without_force(run_cli, tmp_path, images):
+    (tmp_path / "f.spectrum.json").write_text("mine")
+    code, _, err = run_cli("features", images[0], "--out", tmp_path / "f.csv")
+    assert code == 2 and "f.spectrum.json" in err and "--force" in err and err.count("\n") == 1
+    assert not (tmp_path / "f.csv").exists() and (tmp_path / "f.spectrum.json").read_text() == "mine"
+
+
+def test_plot_draws_one_images_line_and_spectrum(run_cli, tmp_path, images):
+    """--plot: the contact line and the spectrum with its peak marked, in the format the file name says."""
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    code, stdout, err = run_cli("features", images[1], "--out", tmp_path / "f.csv", "--plot", tmp_path / "one.svg")
+    assert code == 0, err
+    svg = (tmp_path / "one.svg").read_text()
+    assert svg.startswith("<?xml") and "peak 0.325" in svg and "one.svg" in stdout
+    line, box = SpatialSpectrum().fit().line(images[1])
+    assert box == (10, 465, 1900, 150) and line.shape == (1900,)
+    spectrum = spatial_spectrum(images[1])
+    fig = figures.line_spectrum_figure(line, 34.9, frequency_grid(), spectrum, "t")
+    marked = fig.axes[1].lines[1]
+    assert marked.get_xdata()[0] == frequency_grid()[spectrum.argmax()]
+    plt.close(fig)
+    for bad, needle in ((["--plot", tmp_path / "p.png", images[0], images[1]], "exactly one IMAGE"),
+                        (["--plot", tmp_path / "p.jpg", images[0]], "must end in .png, .svg or .pdf")):
+        code, _, err = run_cli("features", "--out", tmp_path / "g.csv", *bad)
+        assert code == 2 and needle in err and err.count("\n") == 1 and not (tmp_path / "g.csv").exists()

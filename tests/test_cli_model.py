@@ -492,6 +492,12 @@ def test_every_shipped_sample_scores_with_roi_auto(run_cli, paper_scale_study, t
     pred = tmp_path / "p.csv"
     code, _, err = run_cli("predict", model, "--roi", "auto", *SAMPLES, "--out", pred)
     assert code == 0, err
+    # the first sample is 640 px wide: 18.3 mm of line against the model's 54.4 mm, said in one warning line
+    warned = [line for line in err.splitlines() if "--roi auto reads" in line]
+    assert len(warned) == 1 and "warning" in warned[0] and "18.3 mm" in warned[0] and "54.4 mm (-66%)" in warned[0]
+    full = next(p for p in SAMPLES if "1920x1080" in p.name)  # the model's own field: no warning
+    code, _, err = run_cli("predict", model, "--roi", "auto", full)
+    assert code == 0 and "--roi auto reads" not in err, err
     table = pd.read_csv(pred)
     assert list(table["image"]) == [str(p) for p in SAMPLES] and set(table["roi"]) == {"auto"}
     assert np.isfinite(roughness(table)).all()

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.report.tables import permutation_p_text
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
@@ -70,7 +71,9 @@ def _check_unseen_lines(stdout: str, out) -> None:
     for model in ("pls", "peak-law"):
         assert f"{model} {loso[loso.model == model]['rmse'].mean():.2f} (p " in lines[first + 1]
     controls = pd.read_csv(out / "controls.csv").query("cv == 'loso' and condition == 'combined'")
-    assert f"p {controls.set_index('model').loc['peak-law', 'permutation_p']:.3f}" in lines[first + 1]
+    peak = controls.set_index("model").loc["peak-law"]
+    p = permutation_p_text(peak["permutation_p"], peak["n_permutations"], at_most="<=")
+    assert f"p {p}" in lines[first + 1] and "p 0.000" not in stdout
 
 
 def test_study_refuses_a_non_empty_report_folder(run_cli, small_study, tmp_path):
@@ -86,6 +89,7 @@ def test_study_with_a_missing_file_names_it(run_cli, study_copy, tmp_path):
     (study_copy / "ratings.csv").unlink()
     code, _, err = run_cli("study", "--data", study_copy, "--out", tmp_path / "r")
     assert code == 2 and "ratings.csv" in err and err.count("\n") == 1
+    assert err.rstrip().endswith(f"run `roughsense check {study_copy}` to list every problem")
     assert not (tmp_path / "r").exists()
 
 
@@ -178,3 +182,16 @@ def test_a_participant_missing_a_session_is_one_warning_line_and_in_the_report(r
     assert warnings_lines and first.participant in warnings_lines[0]
     assert "Traceback" not in err and ".py:" not in err  # no raw Python warning with a source line
     assert first.participant in (out / "index.html").read_text().split("<dt>warnings</dt>")[1][:400]
+
+
+def test_study_writes_its_figures_in_the_format_and_resolution_asked(run_cli, small_study, tmp_path):
+    out = tmp_path / "svg"
+    code, _, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "2", "--no-loso",
+                           "--permutations", "0", "--figure-format", "SVG", "--dpi", "50")
+    assert code == 0, err
+    assert (out / "cv_curves.svg").is_file() and not list(out.glob("*.png"))
+    for bad, needle in ((["--figure-format", "jpg"], "--figure-format must be one of png, svg, pdf"),
+                        (["--dpi", "5"], "--dpi")):
+        code, _, err = run_cli("study", "--data", small_study, "--out", tmp_path / "bad", *bad)
+        assert code == 2 and needle in err and err.count("\n") == 1 and "Traceback" not in err
+        assert not (tmp_path / "bad").exists()

@@ -758,3 +758,31 @@ def test_the_report_leaves_out_a_file_that_does_not_read_back(tmp_path):
     with pytest.warns(UserWarning, match="does not read back") as caught:
         write_explore_report(sweep, tmp_path / "out")
     assert str(damaged) in str(caught[0].message)
+
+
+def test_the_shipped_tiny_sweep_runs_enough_seeds_for_intervals():
+    """tiny.toml is the first sweep a user runs: its report must conclude (intervals, verdicts), not say "too few"."""
+    from roughsense.explore.paired import MIN_SEEDS
+
+    shipped = Path(__file__).resolve().parents[1] / "src" / "roughsense" / "data" / "examples" / "tiny.toml"
+    sweep = read_sweep(shipped)
+    assert len({cell.seed for cell in sweep.cells}) >= MIN_SEEDS
+
+
+@pytest.mark.parametrize(("verdict", "rmse", "words"), [
+    ("below the training mean (2 seeds: too few for an interval; run >= 3 seeds)", 0.3,
+     "design (combined) is below the training mean (2 seeds"),
+    ("not below the training mean (2 seeds: too few for an interval; run >= 3 seeds)", 0.5,
+     "design (combined) is not below the training mean"),
+    ("does not beat the training mean", 0.3, "does not beat the training mean under LOSO: RMSE 0.300 against 0.400 "
+     "(lower, but the paired 95 % interval of the difference includes 0)."),
+])
+def test_the_best_design_flag_is_a_sentence(monkeypatch, verdict, rmse, words):
+    from roughsense.explore import report
+
+    table = pd.DataFrame([{"model": "pls", "condition": "combined", "cv": "loso", "rmse": rmse, "null_rmse": 0.4,
+                           "null_verdict": verdict}])
+    monkeypatch.setattr(report, "best_per_model", lambda frame: [{"model": "pls", "condition": "combined"}])
+    monkeypatch.setattr(report, "_match", lambda frame, anchor: pd.Series(True, index=frame.index))
+    [flag] = report._best_flags(table)
+    assert flag.startswith("The best pls design") and words in flag

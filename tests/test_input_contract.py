@@ -58,6 +58,14 @@ def tree(root: Path) -> dict[str, tuple[int, int]]:
             for p in root.rglob("*") if p.is_file() or p.is_symlink()}
 
 
+def study_error(run_cli, root: Path, out: Path) -> str:
+    """``study``'s one error line for a folder problem, without the pointer to ``check`` it ends with (checked here)."""
+    line = one_error(*run_cli(*study_args(root, out))[::2])
+    hint = f"; run `roughsense check {root}` to list every problem"
+    assert line.endswith(hint), line
+    return line.removesuffix(hint)
+
+
 def one_error(code: int, err: str) -> str:
     """The one error line of a refused run (warnings and stage lines may precede it, all roughsense's own)."""
     assert code == 2, err
@@ -621,7 +629,7 @@ def test_the_issue_examples_now_say_what_to_do(run_cli, sandbox, tmp_path):
     assert "found specimen;shape;wavelength_mm, x; the header mixes ',' and ';' separators" in line
     assert "CSV UTF-8 (comma delimited)" in line
     (sandbox / "specimens.csv").write_bytes("\ufeffspecimen,shape,wavelength_mm\nR2,rectangular,0,5\n".encode())
-    line = one_error(*run_cli(*study_args(sandbox, tmp_path / "r"))[::2])
+    line = study_error(run_cli, sandbox, tmp_path / "r")
     assert line.endswith("row 2: 4 fields but the header has 3 (extra value '5'); a decimal comma? "
                          "write numbers with a point (0.5, not 0,5)")
 
@@ -638,7 +646,7 @@ def test_a_rating_cell_means_the_same_to_study_and_ratings(run_cli, sandbox, tmp
     """Item 4/5: study read '1_0' as 10 while ratings refused it; 1e308 gave sd = inf. One parser, one line each."""
     edit_csv(sandbox / "ratings.csv", 4, "rating", cell)
     where = f"{sandbox / 'ratings.csv'}, row 4, column 'rating': "
-    by_study = one_error(*run_cli(*study_args(sandbox, tmp_path / "report"))[::2])
+    by_study = study_error(run_cli, sandbox, tmp_path / "report")
     by_ratings = one_error(*run_cli("ratings", sandbox / "ratings.csv", "--out", tmp_path / "summary.csv")[::2])
     assert by_study == by_ratings == f"roughsense: error: {where}{message}"
     assert not (tmp_path / "report").exists() and not (tmp_path / "summary.csv").exists()

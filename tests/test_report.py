@@ -14,6 +14,7 @@ from roughsense import paper
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import OutputExistsError
 from roughsense.report import write_report
+from roughsense.report.tables import control_text, permutation_p_text
 
 from .test_study_analysis import synthetic_study
 
@@ -313,8 +314,11 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
         model, pad, condition = names[row["Model"][0]], row["Pad"][0], row["Condition"][0]
         mine = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
         assert row["Mean RMSE"][0] == f"{mine['rmse'].mean():.3f}"
-        assert row["Permutation p"][0] == f"{controls.loc[(model, pad, condition), 'permutation_p']:.3f}"
-        assert row["Controls"][0].startswith("passes") == bool(controls.loc[(model, pad, condition), "passes"])
+        control = controls.loc[(model, pad, condition)]
+        assert row["Permutation p"][0] == permutation_p_text(control["permutation_p"], control["n_permutations"])
+        assert row["Controls"][0].startswith("passes") == bool(control["passes"])
+        above = float(row["Mean RMSE"][0]) >= float(row["Training mean RMSE"][0])
+        assert ("per-specimen RMSE" in row["Controls"][0]) == (bool(control["passes"]) and above)
     # The paper's tables keep the paper's PLS; the peak law's are labelled as its own.
     assert "Root mean squared error (RMSE), smooth pad, LOO, peak-law model" in html
     peak = _table(html, "Root mean squared error (RMSE), fingerprint pad, LOO, peak-law model")
@@ -333,3 +337,83 @@ def test_unseen_section_labels_the_twin_and_built_in_agreement(simulated_report_
     physics = (tmp_path / "physics" / "index.html").read_text()
     section = physics.split('<h2 id="unseen">', 1)[1].split('id="glance"', 1)[0]
     assert "ratings_from = physics" in section and "partly built in" in section
+
+
+def test_a_permutation_p_is_never_0_and_names_its_shufflings():
+    assert permutation_p_text(0.005, 199) == "≤ 0.005 (199 shufflings)"
+    assert permutation_p_text(1 / 2000, 1999) == "≤ 0.0005 (1999 shufflings)"  # not "0.000"
+    assert permutation_p_text(0.02, 199) == "0.020" and permutation_p_text(0.02, 199, ".2g") == "0.02"
+    assert permutation_p_text(0.5, 0) == "—"
+
+
+def test_control_text_names_the_pooled_training_mean_and_a_pass_on_pooled_rmse_only():
+    failing = {"beats_null": False, "beats_permutation": False, "n_permutations": 199, "permutation_p": 0.13,
+               "rmse": 0.462, "null_rmse": 0.461}
+    assert control_text(failing) == ("† pooled RMSE 0.462 not below the training mean's 0.461; no better than "
+                                     "shuffled targets (p = 0.13)")
+    passing = {"beats_null": True, "beats_permutation": True, "n_permutations": 199, "permutation_p": 0.005,
+               "rmse": 0.438, "null_rmse": 0.461}
+    assert control_text(passing) == "passes (p ≤ 0.005, none of 199 shufflings as good)"
+    assert control_text(passing, mean_rmse=0.30, null_mean_rmse=0.354) == "passes (p ≤ 0.005, none of 199 shufflings as good)"
+    assert control_text(passing, mean_rmse=0.365, null_mean_rmse=0.354) == (
+        "passes (p ≤ 0.005, none of 199 shufflings as good), on pooled RMSE only: its mean per-specimen RMSE 0.365 is not below "
+        "the training mean's 0.354")
+
+
+@pytest.mark.parametrize("figure_format", ["svg", "pdf"])
+def test_figures_in_a_vector_format_are_written_and_shown(tmp_path, figure_format):
+    """--figure-format svg embeds the SVGs; pdf writes PDFs, shows a PNG of each and links the PDF."""
+    from roughsense.report import FigureStyle
+    from roughsense.report.html import report_owned
+
+    study, features = synthetic_study(repetitions=2, seed=6, pads=("smooth",))
+    study.extra = {"simulation": {"seed": 42}}
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    out = tmp_path / "report"
+    write_report(analysis, out, style=FigureStyle(figure_format, 60))
+    drawn = sorted(p.name for p in out.iterdir() if p.suffix in (".png", ".svg", ".pdf"))
+    assert drawn and all(name.endswith(f".{figure_format}") for name in drawn)
+    assert all(report_owned(Path(name)) for name in drawn)
+    html = (out / "index.html").read_text()
+    shown = "image/svg+xml" if figure_format == "svg" else "image/png"
+    assert html.count(f'src="data:{shown};base64,') == len(drawn)
+    assert all(f'<a href="{name}">{name}</a>' in html for name in drawn)
+    if figure_format == "svg":
+        assert all("SIMULATED DATA (seed 42)" in (out / name).read_text() for name in drawn)  # the stamp, as text
+    first = {name: (out / name).read_bytes() for name in drawn}
+    write_report(analysis, out, style=FigureStyle(figure_format, 60), force=True)
+    assert {name: (out / name).read_bytes() for name in drawn} == first  # reruns give the same bytes
+
+
+def test_the_simulated_stamp_sits_above_every_axes_and_component_ticks_are_whole():
+    """The stamp covered axis labels in a corner; it now sits above the top axes. Component counts tick by 1s."""
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+
+    fig, ax = plt.subplots()
+    ax.plot([1, 2, 3], [1, 2, 3])
+    ax.set_xlabel("x label")
+    ax.set_title("title")
+    fig.tight_layout()
+    stamp = figures.mark_simulated(fig).texts[-1]
+    renderer = fig.canvas.get_renderer()
+    box = stamp.get_window_extent(renderer)
+    for artist in (ax, ax.xaxis.label, ax.yaxis.label, ax.title, *ax.get_xticklabels(), *ax.get_yticklabels()):
+        assert not box.overlaps(artist.get_window_extent(renderer)), artist
+    plt.close(fig)
+    cv = pd.DataFrame({"pad": "smooth", "cv": "loo", "condition": "1N", "n_components": [0, 1, 2, 3],
+                       "rmse": [0.5, 0.3, 0.25, 0.26]})
+    chosen = pd.DataFrame({"pad": ["smooth"], "condition": ["1N"], "cv": ["loo"], "best_n_components": [2]})
+    fig = figures.cv_curves_figure(cv, chosen)
+    fig.canvas.draw()
+    ticks = [t for t in fig.axes[0].get_xticks() if fig.axes[0].get_xlim()[0] <= t <= fig.axes[0].get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    plt.close(fig)
+
+
+def test_the_cli_figure_options_match_the_report():
+    from roughsense.cli import _common
+    from roughsense.report import figures
+
+    assert _common.FIGURE_FORMATS == figures.FIGURE_FORMATS and _common.DEFAULT_DPI == figures.DEFAULT_DPI

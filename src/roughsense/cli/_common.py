@@ -95,6 +95,27 @@ Jobs = Annotated[int | None, typer.Option(
          "results do not depend on it.")]
 
 
+#: The report figures' formats and default resolution (report/figures.py's; literals keep --help light).
+FIGURE_FORMATS = ("png", "svg", "pdf")
+DEFAULT_DPI = 110
+
+
+def check_figure_format(text: str) -> str:
+    """``--figure-format``: png, svg or pdf (any case), else one line naming the choices."""
+    if text.lower() not in FIGURE_FORMATS:
+        raise ConfigError(f"--figure-format must be one of {', '.join(FIGURE_FORMATS)}, got {text!r}")
+    return text.lower()
+
+
+#: ``--figure-format`` and ``--dpi`` on every command that draws figures (study, explore).
+FigureFormat = Annotated[str, typer.Option(
+    "--figure-format", help="Format of the figure files: png, svg (vector, embedded as is) or pdf (vector; the page "
+    "shows a PNG of each figure and links its PDF).")]
+Dpi = Annotated[int, typer.Option(
+    "--dpi", parser=number_option("--dpi", whole=True, low=30, high=1200),
+    help="Resolution of the figures' raster parts in dots per inch (30 to 1200).")]
+
+
 def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 

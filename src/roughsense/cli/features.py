@@ -23,7 +23,9 @@ def _band(text: str) -> tuple[float, float]:
 
 
 FeaturesOut = Annotated[Path, typer.Option(
-    "--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency in mm^-1.")]
+    "--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency, "
+    "named with its unit (f_0.1205_per_mm). Beside it, OUT.spectrum.json holds the exact grid (freq_per_mm) and "
+    "every setting that made the spectra.")]
 Images = Annotated[list[Path] | None, typer.Argument(
     metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False)]
 StudyDir = Annotated[str | None, typer.Option(
@@ -64,6 +66,9 @@ def features(
     jobs: Jobs = None,
     force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
     max_pixels: MaxPixels = None,
+    plot: Annotated[Path | None, typer.Option(
+        "--plot", show_default=False, help="Also draw the one IMAGE's contact line and spectrum, its peak marked, "
+        "into this file (.png, .svg or .pdf).")] = None,
 ) -> None:
     """Turn contact images into normalised spatial spectra (the paper's section 3.2).
 
@@ -71,7 +76,9 @@ def features(
     spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. Nothing is
     written if any image fails; the error names that file.
     """
-    from .._util.atomic import check_can_write, write_csv
+    import json
+
+    from .._util.atomic import check_can_write, write_csv, write_text
     from ..analysis.dataset import study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
@@ -82,7 +89,9 @@ def features(
         raise ConfigError("no images given; pass IMAGE... or --study DIR")
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
+    _check_plot(plot, images, force)
     check_can_write(out, force=force)
+    check_can_write(definition_path(out), force=force)
     f_min, f_max = _band(band)
     loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
     if loaded is not None:
@@ -97,8 +106,53 @@ def features(
     else:
         paths = list(images)
         table = _image_features(spectrum, paths)
-    write_csv(out, table)
-    typer.echo(f"wrote {len(paths)} x {len(spectrum.get_feature_names_out())} features to {out}")
+    names = [str(c) for c in spectrum.get_feature_names_out()]
+    write_csv(out, table.rename(columns=dict(zip(names, unit_names(spectrum.freq_per_mm_)))))
+    write_text(definition_path(out), json.dumps(spectrum.feature_definition(), indent=2) + "\n")
+    typer.echo(f"wrote {len(paths)} x {len(names)} features to {out} (grid and settings: {definition_path(out)})")
+    if plot is not None:
+        _plot(plot, spectrum, paths[0], table[names].to_numpy(float)[0])
+
+
+def _check_plot(plot: Path | None, images, force: bool) -> None:
+    """--plot draws one image, into a file named by its format; checked before any work."""
+    from .._util.atomic import check_can_write
+
+    if plot is None:
+        return
+    if not images or len(images) != 1:
+        raise ConfigError("--plot draws one image: give exactly one IMAGE (not several, not --study)")
+    if plot.suffix.lower().lstrip(".") not in ("png", "svg", "pdf"):
+        raise ConfigError(f"--plot: {plot.name!r} must end in .png, .svg or .pdf (the format it is written in)")
+    check_can_write(plot, force=force)
+
+
+def _plot(plot: Path, spectrum, image: Path, amplitude) -> None:
+    """Draw the image's line and spectrum (report/figures.py) and write it atomically."""
+    from .._util.atomic import write_bytes
+    from ..report import figures
+
+    line, box = spectrum.line(image)
+    fig = figures.line_spectrum_figure(line, float(spectrum.px_per_mm), spectrum.freq_per_mm_, amplitude,
+                                       f"{Path(image).name}: crop x={box[0]}, y={box[1]}, {box[2]} x {box[3]} px")
+    write_bytes(plot, figures.figure_bytes(fig, plot.suffix.lower().lstrip(".")))
+    typer.echo(f"drew its line and spectrum in {plot}")
+
+
+def definition_path(out: Path) -> Path:
+    """Where the spectra's definition goes beside the CSV: features.csv -> features.spectrum.json."""
+    out = Path(out)
+    return out.with_name(f"{out.stem if out.suffix.lower() == '.csv' else out.name}.spectrum.json")
+
+
+def unit_names(freq_per_mm) -> list[str]:
+    """A spectrum column's header with its unit, f_0.1205_per_mm: the fewest decimals (at least 4) that keep every
+    name distinct. The exact grid is in the definition file, so nobody parses a header to get a number back."""
+    for decimals in range(4, 17):
+        names = [f"f_{float(f):.{decimals}f}_per_mm" for f in freq_per_mm]
+        if len(set(names)) == len(names):
+            return names
+    return [f"f_{float(f)!r}_per_mm" for f in freq_per_mm]
 
 
 def _spectrum(*, px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_pixels):

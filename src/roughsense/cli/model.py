@@ -109,11 +109,11 @@ def _echo_unseen(unseen) -> None:
 
 
 def _p_text(p: float, n_permutations: int) -> str:
-    """A permutation p as it can honestly be stated: never 0, at best below 1 / (shufflings + 1)."""
-    if not n_permutations:
-        return "not run"
-    floor = 1.0 / (n_permutations + 1)
-    return f"< {2 * floor:.3g} ({n_permutations} shufflings)" if p <= floor * (1 + 1e-9) else f"= {p:.3f}"
+    """A permutation p as the report states it (never 0: at its floor, a bound naming the shufflings)."""
+    from ..report.tables import permutation_p_text
+
+    text = permutation_p_text(p, n_permutations, at_most="<=")
+    return text if text.startswith("<=") or text == "—" else f"= {text}"
 
 
 def _warn_failed_controls(training) -> None:
@@ -193,7 +193,8 @@ PredictRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Read the line elsewhere than the model's ROI: 'center', 'auto' (the band with the most horizontal "
          "texture; for images smaller than the model's crop) or X,Y,W,H in px. The spectrum stays the model's; "
-         "the ROI used is written beside each prediction.")]
+         "the ROI used is written beside each prediction. 'auto' warns when the images' field along the line "
+         "differs from the model's by more than 20 %.")]
 PredictPxPerMm = Annotated[float | None, typer.Option(
     "--px-per-mm", show_default=False, parser=number_option("--px-per-mm", quantity="px_per_mm",
                                                            must="a positive number (px/mm) from 0.01 to 100000"),
@@ -229,7 +230,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
-    from ..model.predict import SensorOverride
+    from ..model.predict import SensorOverride, warn_field_of_view
 
     override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = _split_image_flags(images or [])
@@ -252,6 +253,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     surfaces = table["specimen"].astype(str).to_numpy() if "specimen" in table else (
         ["surface"] * len(trials) if same_surface else None)
     scores = _score_into(table, loaded, trials, jobs, override, surfaces)
+    warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
     _warn_failed_controls(loaded.training)

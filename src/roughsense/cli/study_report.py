@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import Jobs, number_option, progress, stage
+from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, stage
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -47,6 +47,8 @@ def register(app: typer.Typer) -> None:
         permutations: int = typer.Option(199, "--permutations", parser=number_option("--permutations", whole=True, low=0),
                                          help="Specimen-level shufflings per model for the permutation control "
                                          "(0: skip it; at least 199 for p-values to 0.005)."),
+        figure_format: FigureFormat = "png",
+        dpi: Dpi = DEFAULT_DPI,
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
@@ -56,7 +58,7 @@ def register(app: typer.Typer) -> None:
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
         from .._util.lock import output_lock
-        from ..report import open_report_dir
+        from ..report import FigureStyle, open_report_dir
 
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
@@ -65,7 +67,8 @@ def register(app: typer.Typer) -> None:
             staging = open_report_dir(out, force)
             try:
                 index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                                no_loso=no_loso, jobs=jobs, permutations=permutations)
+                                                no_loso=no_loso, jobs=jobs, permutations=permutations,
+                                                style=FigureStyle(check_figure_format(figure_format), dpi))
             except BaseException:
                 staging.abort()
                 raise
@@ -75,7 +78,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
-             jobs: int, permutations: int) -> tuple[Path, Path, bool]:
+             jobs: int, permutations: int, style) -> tuple[Path, Path, bool]:
     """The analysis of a study (``--data`` or the built-in one), written through ``staging``.
 
     Returns index.html, the study folder and whether it is the built-in study.
@@ -86,12 +89,11 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     from ..analysis import dataset
     from ..analysis.study_analysis import CV_SCHEMES, analyse_study
     from ..errors import RoughsenseWarning
-    from ..io.study import read_study
     from ..report import write_report
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
-    study = read_study(root, require_ratings=True)
+    study = _read_folder(root, builtin=builtin)
     definition = dataset.spectrum_for(study).feature_definition()
     features, was_cached = cache.cached_frame(
         cache.features_key(study, definition),
@@ -116,7 +118,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
-        index = write_report(analysis, out, meta=meta, staging=staging)
+        index = write_report(analysis, out, meta=meta, staging=staging, style=style)
     for line in unseen_lines(analysis):
         typer.echo(line)
     loo = analysis.results("loo")
@@ -140,9 +142,26 @@ def which_model_line(unseen) -> str:
             f"{PAPER_MODEL} to reproduce the paper. Controls for unseen surfaces per pad x condition: {tally}.")
 
 
+def _read_folder(root, *, builtin: bool):
+    """read_study, which stops at the first problem: its line says how to see them all (``roughsense check``)."""
+    import shlex
+
+    from ..errors import RoughsenseError
+    from ..io.study import read_study
+
+    try:
+        return read_study(root, require_ratings=True)
+    except RoughsenseError as exc:
+        if not builtin:
+            exc.message = f"{exc.message}; run `roughsense check {shlex.quote(str(root))}` to list every problem"
+        raise
+
+
 def unseen_lines(analysis) -> list[str]:
     """The question users ask first, in a headline and one line per pad: how well each model predicts an unseen
     surface (nested LOSO mean per-specimen RMSE against the training mean's, permutation p, Spearman's rho)."""
+    from ..report.tables import permutation_p_text
+
     unseen = analysis.unseen_summary()
     if unseen.empty:
         return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
@@ -155,7 +174,8 @@ def unseen_lines(analysis) -> list[str]:
     for pad, group in rows.groupby("pad", sort=False):
         parts = []
         for r in group.itertuples():
-            p = f"p {r.permutation_p:.3f}" if r.n_permutations else "no permutations"
+            p = f"p {permutation_p_text(r.permutation_p, r.n_permutations, at_most='<=')}" if r.n_permutations \
+                else "no permutations"
             verdict = "" if r.passes else ", fails controls"
             verdict += ", not below the training mean" if r.rmse >= r.null_rmse else ""
             cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"

@@ -117,9 +117,17 @@ def _best_flags(table: pd.DataFrame) -> list[str]:
     for anchor in best_per_model(table):
         row = table[_match(table, anchor) & (table["cv"] == cv)].iloc[0]
         if not row["null_verdict"].startswith("beats"):
-            flags.append(f"The best {anchor[MODEL_KEY]} design ({row['condition']}) {row['null_verdict']} under "
-                         f"{cv.upper()}: RMSE {row['rmse']:.3f} against {row['null_rmse']:.3f}.")
+            flags.append(f"The best {anchor[MODEL_KEY]} design ({row['condition']}) {_null_clause(row)} under "
+                         f"{cv.upper()}: RMSE {row['rmse']:.3f} against {row['null_rmse']:.3f}"
+                         + (" (lower, but the paired 95 % interval of the difference includes 0)."
+                            if row["null_verdict"].startswith("does not") and row["rmse"] < row["null_rmse"] else "."))
     return flags
+
+
+def _null_clause(row) -> str:
+    """The verdict against the training mean as a predicate: ``is below ...`` / ``does not beat ...``."""
+    verdict = str(row["null_verdict"])
+    return f"is {verdict}" if verdict.startswith(("below", "not below")) else verdict
 
 
 SUMMARY_LEVELS = ["rmse", "rmse_ci95", "ovl", "ovl_ci95"]

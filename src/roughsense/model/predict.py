@@ -333,3 +333,36 @@ def groups_from_study(loaded: AnyModel, study, specimens: Sequence[str] = ()) ->
         groups.append(tuple(slots))
         meta.append({"specimen": specimen, "repetition": int(repetition)})
     return groups, pd.DataFrame(meta)
+
+
+#: ``--roi auto`` on images whose field along the line differs from the model's by more than this warns.
+FIELD_TOLERANCE = 0.20
+
+
+def warn_field_of_view(loaded: AnyModel, override: SensorOverride | None, images: Sequence) -> float | None:
+    """With ``--roi auto``, warn when the first image's field along the line (crop width / px_per_mm, in mm) differs
+    from the model's by more than :data:`FIELD_TOLERANCE`: the spectrum then averages over a different length of
+    contact, so amplitudes shift even where the grating is the same. Returns the relative difference (or None)."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..io.images import header_size, read_bytes
+    from ..io.sensor_settings import CENTER_CROP_PX
+
+    if override is None or override.roi != "auto" or not images or not isinstance(images[0], (str, os.PathLike)):
+        return None
+    stored = loaded.features["spectrum"]
+    size = header_size(read_bytes(images[0]))
+    if size is None:
+        return None
+    roi = stored["roi"]
+    model_mm = (roi[2] if not isinstance(roi, str) else CENTER_CROP_PX[0]) / float(stored["px_per_mm"])
+    px_per_mm = override.px_per_mm or float(stored["px_per_mm"])
+    field_mm = min(CENTER_CROP_PX[0], size[0]) / px_per_mm
+    change = field_mm / model_mm - 1
+    if abs(change) > FIELD_TOLERANCE:
+        warnings.warn(RoughsenseWarning(
+            f"--roi auto reads {field_mm:.1f} mm of line in {Path(images[0]).name}, the model was trained on "
+            f"{model_mm:.1f} mm ({change:+.0%}): spectra over a different field are not comparable; crop the images "
+            "to the model's field (--roi X,Y,W,H) or fit a model on images like these"), stacklevel=2)
+    return change

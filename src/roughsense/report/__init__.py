@@ -4,6 +4,6 @@ It renders what the analysis returns and computes nothing of its own; it sits ab
 """
 from __future__ import annotations
 
-from .html import check_report_dir, open_report_dir, write_report
+from .html import FigureStyle, check_report_dir, open_report_dir, write_report
 
-__all__ = ["check_report_dir", "open_report_dir", "write_report"]
+__all__ = ["FigureStyle", "check_report_dir", "open_report_dir", "write_report"]

@@ -12,23 +12,44 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
 from .. import paper
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
 
-def png_bytes(figure, *, dpi: int = 110) -> bytes:
-    """Render a figure to PNG bytes and close it (no timestamp metadata, so reruns give the same bytes)."""
+#: The formats a report's figures can be written in, and the resolution of their raster parts (dots per inch).
+FIGURE_FORMATS = ("png", "svg", "pdf")
+DEFAULT_DPI = 110
+#: Each format's timestamp and tool entries left out, so a rerun gives the same bytes.
+_NO_STAMP = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None},
+             "pdf": {"CreationDate": None, "Creator": None, "Producer": None}}
+MIME_TYPES = {"png": "image/png", "svg": "image/svg+xml", "pdf": "application/pdf"}
+plt.rcParams["svg.hashsalt"] = "roughsense"  # SVG element ids from a fixed salt, not a random one
+
+
+def figure_bytes(figure, figure_format: str = "png", *, dpi: int = DEFAULT_DPI, close: bool = True) -> bytes:
+    """Render a figure as PNG, SVG or PDF bytes (no timestamps: reruns give the same bytes), closing it unless told."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight", metadata={"Software": None})
-    plt.close(figure)
+    figure.savefig(buffer, format=figure_format, dpi=dpi, bbox_inches="tight", metadata=_NO_STAMP[figure_format])
+    if close:
+        plt.close(figure)
     return buffer.getvalue()
 
 
+def png_bytes(figure, *, dpi: int = DEFAULT_DPI) -> bytes:
+    """Render a figure to PNG bytes and close it."""
+    return figure_bytes(figure, "png", dpi=dpi)
+
+
 def mark_simulated(figure, text: str = "SIMULATED DATA"):
-    """Stamp a figure in its corner, so a copied PNG of a simulated study never passes for real data."""
-    figure.text(0.003, 0.003, text, ha="left", va="bottom", fontsize=9, fontweight="bold", color="#b00020",
+    """Stamp a figure above its top edge, so a copied image of a simulated study never passes for real data.
+
+    Above every axes, not in a corner: a corner stamp covered tick and axis labels. The saved image's tight
+    bounding box grows to hold it.
+    """
+    figure.text(0.005, 1.0, text, ha="left", va="bottom", fontsize=9, fontweight="bold", color="#b00020",
                 bbox={"boxstyle": "round,pad=0.25", "fc": "white", "ec": "#b00020", "alpha": 0.9})
     return figure
 
@@ -108,6 +129,7 @@ def cv_curves_figure(cv_table: pd.DataFrame, chosen: pd.DataFrame):
                     if len(value):
                         ax.plot([n], [float(value.iloc[0])], "o", mfc="none", mec="red", ms=9)
             ax.set_title(f"{pad} pad, {cv.upper()}")
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a component count is a whole number
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, ncol=2)
             if row == len(schemes) - 1:
@@ -220,5 +242,30 @@ def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str
         _predicted_vs_perceived_axes(ax, top, f"{pad} pad, {condition}, leave-one-specimen-out")
         ax.legend(fontsize=7, loc="upper left")
     axes[0, 0].set_ylabel("predicted roughness of the unseen specimen (mean ± SD)")
+    fig.tight_layout()
+    return fig
+
+
+def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: str):
+    """One image: the gray level along its contact line (top) and its normalised spectrum with the peak marked.
+
+    What ``roughsense features --plot`` draws, so a user can see where the spectrum's peak comes from.
+    """
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 5.6))
+    x_mm = np.arange(len(line)) / px_per_mm
+    top.plot(x_mm, line, color="0.25", lw=0.8)
+    top.set_xlabel("position along the line (mm)")
+    top.set_ylabel("gray level (0-1)")
+    top.set_title(title, fontsize=9)
+    freq, amplitude = np.asarray(freq_per_mm, float), np.asarray(amplitude, float)
+    peak = int(np.argmax(amplitude))
+    bottom.plot(freq, amplitude, "-o", color="#2f5d8a", ms=3, lw=1.2)
+    bottom.plot([freq[peak]], [amplitude[peak]], "o", mfc="none", mec="red", ms=11)
+    bottom.annotate(f"peak {freq[peak]:.3f} mm$^{{-1}}$ (wavelength {1 / freq[peak]:.2f} mm)", (freq[peak], amplitude[peak]),
+                    xytext=(8, -4), textcoords="offset points", color="red", fontsize=8, va="top")
+    bottom.set_xlabel("spatial frequency (mm$^{-1}$)")
+    bottom.set_ylabel("normalised amplitude")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig

@@ -15,6 +15,7 @@ import base64
 import datetime as _dt
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import jinja2
@@ -41,7 +42,20 @@ def template_environment() -> jinja2.Environment:
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
                  "components.csv")
-_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)\.png$")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)"
+                            r"\.(png|svg|pdf)$")
+
+
+@dataclass(frozen=True)
+class FigureStyle:
+    """How the report's figures are written: ``png``, ``svg`` or ``pdf``, at ``dpi`` for raster parts.
+
+    The page embeds PNG and SVG figures as they are; a browser does not show a PDF in <img>, so a PDF report
+    embeds a PNG of the same figure and links the PDF file beside index.html.
+    """
+
+    figure_format: str = "png"
+    dpi: int = figures.DEFAULT_DPI
 
 
 def report_owned(rel: Path) -> bool:
@@ -136,16 +150,16 @@ def unseen_words(analysis) -> list[str]:
     return lines
 
 
-def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
-    """Every file of the report, by name, as bytes."""
+def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = FigureStyle()) -> dict[str, bytes]:
+    """Every file of the report, by name, as bytes; ``style``: the figures' format and resolution."""
     meta = dict(meta or {})
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     cv_schemes = ["loo", "loso"] if has_loso else ["loo"]
     results = {cv: analysis.results(cv) for cv in cv_schemes}
     chosen = analysis.chosen_components()
     files = _data_files(analysis, results, chosen)
-    unseen_figure = _unseen_figure(analysis, results, files)
-    figure_list = _figures(analysis, results, chosen, cv_schemes, files)
+    unseen_figure = _unseen_figure(analysis, results, files, style)
+    figure_list = _figures(analysis, results, chosen, cv_schemes, files, style)
     paper_pads = tuple(analysis.paper_pads)
     pls_chosen = chosen[chosen["model"] == PLS]
     template = template_environment().get_template("report.html.j2")
@@ -166,7 +180,7 @@ def render_report(analysis, *, meta: dict | None = None) -> dict[str, bytes]:
             paper_pads,
         ),
         tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
-        claims=tables.claims_table(analysis.claims, paper_pads),
+        claims=tables.claims_table(analysis.claims, paper_pads, analysis.controls),
         verdict_rule=VERDICT_RULE,
         controls=tables.controls_report_table(analysis.controls),
         paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
@@ -197,32 +211,38 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     return files
 
 
-def _figure(analysis, files: dict[str, bytes], name: str, fig, caption: str) -> dict:
-    """Render one figure into ``files`` (PNG), stamped if the data are simulated; its entry for the page."""
+def _figure(analysis, files: dict[str, bytes], stem: str, fig, caption: str, style: FigureStyle) -> dict:
+    """Render one figure into ``files`` (``style``'s format), stamped if the data are simulated; its page entry."""
+    name = f"{stem}.{style.figure_format}"
     check_name(name, what="report file name")  # built from pad names: the study contract's name rule
     if analysis.simulation is not None:
         figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
         caption = "Simulated data. " + caption
-    files[name] = figures.png_bytes(fig)
-    return {"name": name, "caption": caption, "data": base64.b64encode(files[name]).decode("ascii")}
+    files[name] = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
+    shown = "png" if style.figure_format == "pdf" else style.figure_format
+    page = files[name] if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)
+    figures.plt.close(fig)
+    return {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
+            "data": base64.b64encode(page).decode("ascii")}
 
 
-def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, bytes]) -> dict | None:
+def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, bytes],
+                   style: FigureStyle) -> dict | None:
     """Predicted against perceived per specimen under LOSO, every model, the combined condition (or the last one)."""
     if "loso" not in results:
         return None
     conditions = list(dict.fromkeys(results["loso"]["condition"]))
     condition = "combined" if "combined" in conditions else conditions[-1]
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
-    return _figure(analysis, files, "unseen_surfaces.png",
+    return _figure(analysis, files, "unseen_surfaces",
                    figures.unseen_figure(results["loso"], analysis.perceived, condition),
                    f"Surfaces never seen: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
-                   f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.")
+                   f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.", style)
 
 
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
-             files: dict[str, bytes]) -> list[dict]:
-    """Draw every figure of the Figures section into ``files`` (PNG) and return them for the page."""
+             files: dict[str, bytes], style: FigureStyle) -> list[dict]:
+    """Draw every figure of the Figures section into ``files`` (``style``'s format) and return them for the page."""
     paper_pads = tuple(analysis.paper_pads)
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
     pls = {cv: frame[frame["model"] == PLS] for cv, frame in results.items()}
@@ -230,31 +250,31 @@ def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, c
     figure_list = []
     for pad in analysis.pads:
         figure_list.append(_figure(
-            analysis, files, f"spectra_{pad}.png",
+            analysis, files, f"spectra_{pad}",
             figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
-            f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7)."))
+            f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).", style))
     if PLS in analysis.models:
         figure_list.append(_figure(
-            analysis, files, "cv_curves.png",
+            analysis, files, "cv_curves",
             figures.cv_curves_figure(cv_table[cv_table["model"] == PLS], chosen[chosen["model"] == PLS]),
             "Cross-validated RMSE of PLS against the number of components, LOO (top) and LOSO (bottom); red circles "
             "mark the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the "
-            "training mean."))
+            "training mean.", style))
         for pad in analysis.pads:
             figure_list.append(_figure(
-                analysis, files, f"ovl_sd_{pad}.png",
+                analysis, files, f"ovl_sd_{pad}",
                 figures.ovl_sd_figure(pls["loo"], analysis.perceived, pad, analysis.shapes, paper=pad in paper_pads),
-                f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9)."))
+                f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9).", style))
     for model in analysis.models:
         for cv in cv_schemes:
             rows = results[cv][results[cv]["model"] == model]
             suffix = "" if model == PLS else f"_{model}"
             figure_list.append(_figure(
-                analysis, files, f"predicted_vs_perceived_{cv}{suffix}.png",
+                analysis, files, f"predicted_vs_perceived_{cv}{suffix}",
                 figures.predicted_vs_perceived_figure(rows, analysis.perceived, cv,
                                                       paper=paper_pads if model == PLS else False),
                 f"Predicted (mean ± SD over repetitions) against perceived roughness, {model}, {cv.upper()}; "
-                "grey: identity."))
+                "grey: identity.", style))
     return figure_list
 
 
@@ -284,11 +304,11 @@ def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str])
 
 
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
-                 staging: atomic.FolderSwap | None = None) -> Path:
+                 staging: atomic.FolderSwap | None = None, style: FigureStyle = FigureStyle()) -> Path:
     """Write the report folder whole; ``staging`` is the one :func:`open_report_dir` made before the analysis."""
     swap = staging if staging is not None else open_report_dir(out_dir, force)
     try:
-        files = render_report(analysis, meta=meta)
+        files = render_report(analysis, meta=meta, style=style)
         for name, data in files.items():
             atomic.write_bytes(swap.path / name, data)
     except BaseException:

@@ -13,6 +13,7 @@ import pandas as pd
 from .. import paper as published
 from ..model.families import PLS
 
+COMBINED = "combined"
 CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", "combined": "Dataset combination"}
 
 
@@ -257,19 +258,49 @@ def tests_table(tests: pd.DataFrame, paper_values: bool = True) -> dict:
     }
 
 
-def control_text(row) -> str:
-    """'passes' or what the model fails, for a row of controls.csv."""
+def permutation_p_text(p, n_permutations, spec: str = ".3f", *, at_most: str = "≤") -> str:
+    """A permutation p as a reader may quote it: never 0, and at its floor a bound naming the shufflings.
+
+    With n shufflings p = (1 + shufflings as good) / (1 + n) is at least 1 / (n + 1); when none was as good the
+    value says only that p is at most that ("≤ 0.005 (199 shufflings)"), not that it is 0.005 or 0.
+    """
+    if not n_permutations or pd.isna(p):
+        return "—"
+    floor = 1.0 / (int(n_permutations) + 1)
+    if float(p) <= floor * (1 + 1e-9):
+        return f"{at_most} {floor:.2g} ({int(n_permutations)} shufflings)"
+    return f"{float(p):{spec}}"
+
+
+def _p_phrase(row) -> str:
+    """``p = 0.02`` or ``p ≤ 0.005, none of 199 shufflings as good``, for a row of controls.csv."""
+    text = permutation_p_text(row["permutation_p"], row["n_permutations"], ".2g")
+    if text.startswith("≤"):
+        return f"p {text.split(' (')[0]}, none of {int(row['n_permutations'])} shufflings as good"
+    return f"p = {text}"
+
+
+def control_text(row, *, mean_rmse: float | None = None, null_mean_rmse: float | None = None) -> str:
+    """'passes' or what the model fails, for a row of controls.csv.
+
+    The controls compare pooled RMSE (over all trials), so the training mean quoted is the pooled one, named so;
+    given the mean per-specimen RMSE of the model and of the training mean (a table showing those), a model that
+    passes while its mean is not below the training mean's says so instead of reading a bare "passes".
+    """
     if row is None:
         return "—"
     fails = []
     if not row["beats_null"]:
-        fails.append(f"not below the training mean ({row['null_rmse']:.3f})")
+        fails.append(f"pooled RMSE {row['rmse']:.3f} not below the training mean's {row['null_rmse']:.3f}")
     if row["n_permutations"] and not row["beats_permutation"]:
-        fails.append(f"no better than shuffled targets (p = {row['permutation_p']:.2g})")
-    if not fails:
-        return ("passes" + (f" (p = {row['permutation_p']:.2g})" if row["n_permutations"] else
-                            " (training mean only; no permutations)"))
-    return f"{FLAG} " + "; ".join(fails)
+        fails.append(f"no better than shuffled targets ({_p_phrase(row)})")
+    if fails:
+        return f"{FLAG} " + "; ".join(fails)
+    text = "passes" + (f" ({_p_phrase(row)})" if row["n_permutations"] else " (training mean only; no permutations)")
+    if mean_rmse is not None and null_mean_rmse is not None and mean_rmse >= null_mean_rmse:
+        text += (f", on pooled RMSE only: its mean per-specimen RMSE {mean_rmse:.3f} is not below the training "
+                 f"mean's {null_mean_rmse:.3f}")
+    return text
 
 
 def _of_model(controls: pd.DataFrame, model: str) -> pd.DataFrame:
@@ -302,6 +333,7 @@ def headline_table(analysis, paper_pads=None) -> dict:
     loo = analysis.results("loo")
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     loso = analysis.results("loso") if has_loso else None
+    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"]) if has_loso else None
     for (model, pad, condition), g in loo.groupby(["model", "pad", "condition"], sort=False):
         allowed = (paper_pads is None or pad in paper_pads) and model == PLS
         printed_rmse = published.PAPER_SUMMARIES.get((pad, "rmse", condition, "all")) if allowed else None
@@ -313,9 +345,11 @@ def headline_table(analysis, paper_pads=None) -> dict:
                  _cell(control_text(_control_row(analysis.controls, pad, condition, "loo", model)))]
         if loso is not None:
             h = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
+            null = unseen["null_rmse"].get((model, pad, condition))
             cells += [_cell(_num(h["rmse"].mean())), _cell(_num(_quiet_nanmean(h["ovl"]))),
                       _cell(_num(_quiet_nanmean(h["ovl_predictive"]))),
-                      _cell(control_text(_control_row(analysis.controls, pad, condition, "loso", model)))]
+                      _cell(control_text(_control_row(analysis.controls, pad, condition, "loso", model),
+                                         mean_rmse=float(h["rmse"].mean()), null_mean_rmse=null))]
         rows.append(cells)
     columns = ["Model", "Pad", "Condition", "LOO: mean RMSE", "LOO: mean OVL", "LOO: mean predictive OVL",
                "LOO: controls"]
@@ -343,8 +377,9 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
         rho = "—" if pd.isna(r["spearman_rho"]) else f"{r['spearman_rho']:.2f} (n = {int(r['n_rated'])})"
         rows.append([_cell(model_title(r["model"])), _cell(r["pad"]), _cell(r["condition"]), _cell(_num(r["rmse"], 3)),
                      _cell(_num(r["null_rmse"], 3)), _cell(_num(r["cv_rmse"], 3)), _cell(_num(r["null_cv_rmse"], 3)),
-                     _cell(f"{r['permutation_p']:.3f}" if r["n_permutations"] else "—"),
-                     _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]))),
+                     _cell(permutation_p_text(r["permutation_p"], r["n_permutations"])),
+                     _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]),
+                                        mean_rmse=r["rmse"], null_mean_rmse=r["null_rmse"])),
                      _cell(rho), _cell(_coverage_text(r)), _cell(_flag_text(r))])
     return {
         "title": "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition",
@@ -394,7 +429,7 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
                      _cell(f"{r['rmse']:.3f}"),
                      _cell(f"{r['null_rmse']:.3f}"),
                      _cell(f"{r['permuted_rmse_median']:.3f}" if r["n_permutations"] else "—"),
-                     _cell(f"{r['permutation_p']:.3f}" if r["n_permutations"] else "—"),
+                     _cell(permutation_p_text(r["permutation_p"], r["n_permutations"])),
                      _cell(str(int(r["n_permutations"]))), _cell(control_text(r))])
     return {
         "title": "Controls: training mean and specimen-shuffled targets",
@@ -423,17 +458,29 @@ def _verdict_text(c) -> str:
     return str(c["verdict"])
 
 
-def claims_table(claims: pd.DataFrame, paper_pads=None) -> dict:
+def _claim_p(c, controls: pd.DataFrame | None) -> str:
+    """A claim's p as printed: a permutation p through :func:`permutation_p_text`, a p that underflowed to 0 as a bound."""
+    if pd.isna(c["p"]):
+        return "—"
+    if c.get("key") == "beats_controls" and controls is not None:
+        row = _control_row(controls, c["pad"], COMBINED, c["cv"])
+        if row is not None:
+            return permutation_p_text(row["permutation_p"], row["n_permutations"], ".2g")
+    return "< 0.0001" if c["p"] == 0 else f"{c['p']:.2g}"
+
+
+def claims_table(claims: pd.DataFrame, paper_pads=None, controls: pd.DataFrame | None = None) -> dict:
     """claims.csv as a table: each claim once per pad and CV scheme, our statistic, p, margin and verdict.
 
     The paper's own figure for a claim is shown only where the study's design is the paper's (``paper_pads``:
     the pads that qualify; None: all).
+    ``controls``: controls.csv, to print the permutation claim's p with its shufflings.
     """
     rows = []
     for _, c in claims.iterrows():
         pads = {"both": set(published.PAPER_PADS), "": set()}.get(c["pad"], {c["pad"]})
         allowed = paper_pads is None or (bool(paper_pads) and pads <= set(paper_pads))
-        p = "—" if pd.isna(c["p"]) else f"{c['p']:.2g}"
+        p = _claim_p(c, controls)
         statistic = "—" if pd.isna(c["statistic"]) else f"{c['statistic']:.3g}"
         margin = c.get("equivalence_margin", float("nan"))
         tost = "—" if pd.isna(margin) else f"±{margin:.3g}" + (

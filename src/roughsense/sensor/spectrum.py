@@ -368,6 +368,14 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
                 future.cancel()
             pool.shutdown(wait=True, cancel_futures=True)
 
+    def line(self, image) -> tuple[np.ndarray, tuple[int, int, int, int]]:
+        """The gray line (values along the row, one per px) whose spectrum :meth:`transform` takes, and its crop
+        (x, y, w, h): what ``roughsense features --plot`` draws beside the spectrum."""
+        plan = self._plan()
+        pixels = as_image(image, max_pixels=plan.max_pixels)
+        box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
+        return extract_line(pixels, box, plan.rows), box
+
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float."""
         return np.asarray([repr(float(f)) for f in self._plan().freq_per_mm], dtype=object)
