@@ -648,3 +648,31 @@ def test_a_pls_model_no_better_than_the_training_mean_is_refused():
         _refuse_no_better_than_mean(result, "pad 'x' at 1N", Path("manifest.csv"))
     learnable = pls_cv(X, X[:, :3].sum(axis=1), max_components=4)  # y in X's span: components help
     _refuse_no_better_than_mean(learnable, "pad 'x' at 1N", Path("manifest.csv"))
+
+
+def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(run_cli, study_dir, tmp_path):
+    """Issue 27: whatever --cv, the model is judged as the study judges it (nested LOSO against the training mean
+    and shuffled targets); the file records it with the 90 % interval, and a failure is one line in fit and predict."""
+    for model in ("peak-law", "pls"):
+        out = tmp_path / f"{model}.json"
+        code, stdout, err = fit(run_cli, study_dir, out, "--condition", "2N", "--model", model)
+        assert code == 0, err
+        training = json.loads(out.read_text())["training"]
+        unseen = training["unseen"]
+        assert unseen["cv"] == "loso (nested)" and unseen["n_permutations"] == 199
+        assert "surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE" in stdout
+        warned = [line for line in err.splitlines() if "FAILS its controls" in line]
+        assert bool(warned) == (not unseen["passes_controls"]) == bool(unseen["failure"])
+        assert len(warned) <= 1 and (not warned or warned[0].endswith(unseen["failure"]))
+        assert training["interval"]["level"] == 0.9 and training["target_range"][0] > 0
+        code, _, predicted_err = run_cli("predict", out, "--study", study_dir, "--out", tmp_path / f"{model}.csv")
+        assert code == 0, predicted_err
+        assert [line for line in predicted_err.splitlines() if "FAILS its controls" in line] == warned
+        table = pd.read_csv(tmp_path / f"{model}.csv", dtype=str)
+        assert set(table["model"]) == {model}
+        for column in ("roughness_rel_R3", "pi90_low", "pi90_high", "surface_roughness_rel_R3"):
+            if column in table:  # 3 significant digits, and positive
+                assert all(len(v.lstrip("0.").replace(".", "").split("e")[0]) <= 3 for v in table[column]), column
+                assert (table[column].astype(float) > 0).all()
+        assert (table["pi90_low"].astype(float) < table["roughness_rel_R3"].astype(float)).all() if "pi90_low" in table \
+            else training["interval"]["trial_log_halfwidth"] is None

@@ -100,9 +100,13 @@ def _echo_unseen(unseen) -> None:
     if unseen is None:  # too small a design to judge: the warning after writing says so
         return
     interval = unseen.interval
-    width = (f"x{math.exp(-interval.trial_log_halfwidth):.2f}-x{math.exp(interval.trial_log_halfwidth):.2f} "
-             f"per trial, x{math.exp(-interval.surface_log_halfwidth):.2f}-x{math.exp(interval.surface_log_halfwidth):.2f} "
-             "per surface" if interval.finite else "not computable (too few specimens)")
+
+    def span(halfwidth: float, what: str) -> str:
+        if not math.isfinite(halfwidth):
+            return f"none {what} (too few specimens for a 90 % interval)"
+        return f"x{math.exp(-halfwidth):.2f}-x{math.exp(halfwidth):.2f} {what}"
+
+    width = f"{span(interval.trial_log_halfwidth, 'per trial')}, {span(interval.surface_log_halfwidth, 'per surface')}"
     typer.echo(f"surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
                f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
                f"90 % prediction interval {width}")

@@ -88,7 +88,8 @@ class SpectrumDomain:
     def reasons(self, X, surfaces=None) -> list[str]:
         """Per row, how its spectrum lies outside the training spectra ('' where it does not)."""
         t2, q = self.statistics(X)
-        peak = self.peak.reasons(X, self.n_blocks, surfaces) if self.peak is not None else [""] * len(t2)
+        readable = self.peak is not None and np.all(np.asarray(X) >= 0)  # amplitude spectra: a peak to read
+        peak = self.peak.reasons(X, self.n_blocks, surfaces) if readable else [""] * len(t2)
         reasons = []
         for t2_row, q_row, why in zip(t2, q, peak):
             parts = [why] if why else []
@@ -136,7 +137,7 @@ def fit_domain(model: SIMPLS, X: np.ndarray, y: np.ndarray, groups, law: PeakPow
     in_sample = SpectrumDomain.of(model)
     t2_own, q_own = in_sample.statistics(X)
     peak, n_blocks = None, 1
-    if law is not None:
+    if law is not None and np.all(np.asarray(X) >= 0):  # a peak is read from amplitude spectra only
         peak = PeakDomain.of(law.fit(X, y, surfaces=np.asarray(groups)))
         n_blocks = int(law.n_blocks)
     return SpectrumDomain.of(model, max(t2_limit, float(np.quantile(t2_own, DOMAIN_LEVEL))),

@@ -71,6 +71,7 @@ class PredictionInterval:
         return math.isfinite(self.trial_log_halfwidth) and math.isfinite(self.surface_log_halfwidth)
 
     def trial_bounds(self, predictions) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) around each trial's prediction (0 and inf when the half-width is not known)."""
         predicted = np.asarray(predictions, dtype=np.float64)
         return predicted * math.exp(-self.trial_log_halfwidth), predicted * math.exp(self.trial_log_halfwidth)
 

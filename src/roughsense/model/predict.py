@@ -10,6 +10,7 @@ a model file with an interval gives each prediction its 90 % prediction interval
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -169,12 +170,19 @@ def model_interval(loaded: AnyModel):
     stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
     if not isinstance(stored, dict):
         return None
+    def halfwidth(value) -> float:  # null: too few residuals for the level (no interval of that kind)
+        if value is None:
+            return math.inf
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < 50:
+            raise ValueError("not a log half-width")
+        return float(value)
+
     try:
-        interval = PredictionInterval(float(stored["trial_log_halfwidth"]), float(stored["surface_log_halfwidth"]),
-                                      float(stored["level"]))
+        interval = PredictionInterval(halfwidth(stored["trial_log_halfwidth"]),
+                                      halfwidth(stored["surface_log_halfwidth"]), float(stored["level"]))
     except (KeyError, TypeError, ValueError):
         return None
-    return interval if interval.finite and 0 < interval.level < 1 else None
+    return interval if math.isfinite(interval.trial_log_halfwidth) and 0 < interval.level < 1 else None
 
 
 def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
@@ -192,7 +200,8 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 
     labels = pd.Series(np.asarray(surfaces))
     surface = pd.Series(roughness).groupby(labels).transform("mean").to_numpy()
-    s_low, s_high = interval.surface_bounds(surface) if interval is not None else (nan, nan)
+    known = interval is not None and math.isfinite(interval.surface_log_halfwidth)
+    s_low, s_high = interval.surface_bounds(surface) if known else (nan, nan)
     return Scores(roughness, low, high, reasons, surface, s_low, s_high)
 
 
