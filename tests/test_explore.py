@@ -340,7 +340,8 @@ def test_combined_condition_over_other_forces():
         for repetition in (1, 2):
             for force in ("1N", "2N", "4N"):
                 rows.append({"image": f"{specimen}_{force}_{repetition}", "pad": "smooth", "specimen": specimen,
-                             "repetition": repetition, "condition": force, "0.1": rng.random(), "0.2": rng.random()})
+                             "repetition": repetition, "condition": force,
+                             "spectrum@0.1": rng.random(), "spectrum@0.2": rng.random()})
     features = pd.DataFrame(rows)
     X, meta = condition_matrix(features, "smooth", "combined", combined_forces=["1N", "4N"])
     single = {f: condition_matrix(features, "smooth", f)[0] for f in ("1N", "4N")}

@@ -28,7 +28,7 @@ def cache_dir() -> Path:
 
 
 #: Bumped whenever what an entry holds changes: older entries are then simply not found.
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 _CHECKSUM_PREFIX = b"#sha256="
 
 

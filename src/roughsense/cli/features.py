@@ -72,7 +72,7 @@ def features(
     written if any image fails; the error names that file.
     """
     from .._util.atomic import check_can_write, write_csv
-    from ..analysis.dataset import study_features
+    from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
 
@@ -93,7 +93,7 @@ def features(
                          window=window, max_pixels=max_pixels)
     if loaded is not None:
         paths = loaded.image_paths
-        table = study_features(loaded, spectrum=spectrum, progress=progress)
+        table = plain_names(study_features(loaded, spectrum=spectrum, progress=progress), source=loaded.root / "manifest.csv")
     else:
         paths = list(images)
         table = _image_features(spectrum, paths)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis.dataset import spectrum_columns
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
 from ..io.protocol import nominal_force_label
@@ -99,8 +100,7 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
         "repetition": [t.repetition for t in trials],
         "contact_fraction": [round(f, 6) for f in fractions],
     })
-    names = [str(c) for c in spectrum.get_feature_names_out()]
-    features = pd.concat([manifest, pd.DataFrame(X, columns=names)], axis=1)
+    features = pd.concat([manifest, pd.DataFrame(X, columns=spectrum_columns(spectrum.freq_per_mm_))], axis=1)
     study = Study(
         root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE_SPECIMEN,
         sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(cell.forces_n)),
