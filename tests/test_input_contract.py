@@ -324,6 +324,22 @@ def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_plac
     assert (tmp_path / "r1" / "predictions.csv").read_bytes() != (tmp_path / "r4" / "predictions.csv").read_bytes()
 
 
+def test_the_features_key_covers_study_toml(sandbox):
+    """Issue 28.2: study.toml ([protocol] forces_n labels each image's condition) and the manifest as read are keyed."""
+    loaded = read_study(sandbox)
+    key = cache.features_key(loaded, {"x": 1})
+    toml = sandbox / "study.toml"
+    text = toml.read_text()
+    assert "forces_n = [1.0, 2.0, 3.0]" in text
+    toml.write_text(text.replace("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1, 2, 3]"))
+    assert cache.features_key(read_study(sandbox), {"x": 1}) != key
+    toml.write_text(text)
+    assert cache.features_key(read_study(sandbox), {"x": 1}) == key
+    relabelled = read_study(sandbox)
+    relabelled.manifest["condition"] = relabelled.manifest["condition"].replace({"2N": "2.5N"})
+    assert cache.features_key(relabelled, {"x": 1}) != key
+
+
 def test_an_image_rewritten_in_place_with_its_mtime_restored_gets_a_new_key(sandbox):
     loaded = read_study(sandbox)
     key = cache.features_key(loaded, {"x": 1})
