@@ -20,6 +20,9 @@ from .._util.checks import short_repr
 #: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
 _WHOLE = re.compile(r"[+-]?[0-9]+", re.ASCII)
+#: A whole number written with a leading zero (``0104``): no count is written so, but a decimal comma in a
+#: comma-separated file leaves one (``2,0104`` split into ``2`` and ``0104``).
+_LEADING_ZERO = re.compile(r"[+-]?0[0-9]", re.ASCII)
 _COMMA_NUMBER = re.compile(r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII)
 _NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
 #: Whole numbers written with a point or an exponent are exact up to here (2**53); larger ones need digits only.
@@ -96,6 +99,10 @@ def _from_text(text: str, whole: bool) -> float | int:
         if lowered in ("inf", "infinity", "nan"):
             raise NumberError(f"not a finite number: {short_repr(text)}")
         raise NumberError(f"not a number: {short_repr(text)}{spelling_hint(stripped)}")
+    if whole and _LEADING_ZERO.match(stripped):
+        plain = stripped.lstrip("+-").lstrip("0") or "0"
+        raise NumberError(f"not a number: {short_repr(text)} (a whole number with a leading zero: write {plain}; "
+                          "or a decimal comma split a number here?)")
     if whole and _WHOLE.fullmatch(stripped):
         return int(stripped)  # exact, however many digits (a seed)
     value = float(stripped)

@@ -34,7 +34,7 @@ from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
 from .ratings import read_ratings_table
 from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
-from .tables import csv_line, has_column, read_table, read_text, refuse_unknown
+from .tables import csv_line, read_table, read_text, refuse_unknown
 
 #: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"
@@ -209,7 +209,7 @@ def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str
     frame = read_table(
         path,
         MANIFEST_COLUMNS,
-        positive=["force_n", *(["nominal_force_n"] if has_column(path, "nominal_force_n") else [])],
+        positive=["force_n", "nominal_force_n"],  # read from the parsed header (a quoted name is still the column)
         integer=["repetition"],
         numeric=["contact_fraction"],
         text=["image", "specimen", "pad"],

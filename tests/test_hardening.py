@@ -1,0 +1,157 @@
+"""Issue 28, the third hardening pass: no header, cache key, decimal comma or spelling changes a number silently,
+and every size is bounded before work. Each test names the item it covers."""
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from roughsense.errors import InputError
+from roughsense.io import tables
+from roughsense.io.problems import Problems
+from roughsense.io.study import load_study, read_study
+
+from .test_dataset import make_study
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    return make_study(tmp_path_factory.mktemp("tiny") / "study", pads=("smooth",), repetitions=2)
+
+
+@pytest.fixture()
+def study(tiny, tmp_path):
+    return shutil.copytree(tiny, tmp_path / "study")
+
+
+def one_error(run_cli, *args) -> str:
+    code, _, err = run_cli(*args)
+    assert code == 2 and "Traceback" not in err, err
+    lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def check_output(run_cli, root) -> str:
+    """What `roughsense check` prints of a folder it refuses (one line per problem)."""
+    code, out, err = run_cli("check", root)
+    assert code == 2 and "Traceback" not in err, err
+    return out + err
+
+
+def manifest_lines(root) -> list[str]:
+    return (root / "manifest.csv").read_text().splitlines()
+
+
+def write_lines(path, lines) -> None:
+    path.write_text("\n".join(lines) + "\n")
+
+
+# --------------------------------------------------------------------------- 3. field counts and leading zeros
+
+
+def test_a_decimal_comma_before_a_blank_optional_column_is_refused(study):
+    """28.3: ``2,0104,2`` under force_n,repetition,timestamp read as repetition 104 and `check` said OK."""
+    lines = manifest_lines(study)
+    header = lines[0].split(",")
+    assert header[-2:] == ["force_n", "repetition"]
+    lines[0] += ",timestamp"
+    fields = lines[1].split(",")
+    lines[1] = ",".join([*fields[:-2], "2,0104", fields[-1], ""])  # force 2,0104 (decimal comma), timestamp blank
+    lines[2:] = [line + "," for line in lines[2:]]
+    write_lines(study / "manifest.csv", lines)
+    with pytest.raises(InputError, match=r"7 fields but the header has 6 \(extra empty field\)") as info:
+        read_study(study)
+    assert info.value.row == 2
+    lines[1] = ",".join([*fields[:-2], "2", "0104", ""])  # the same count as the header: the leading zero is refused
+    write_lines(study / "manifest.csv", lines)
+    with pytest.raises(InputError, match=r"not a number: '0104' \(a whole number with a leading zero: write 104") as info:
+        read_study(study)
+    assert info.value.row == 2 and info.value.column == "repetition"
+
+
+def test_check_lists_every_row_of_the_wrong_width(run_cli, study):
+    lines = manifest_lines(study)
+    lines[1] += ","
+    lines[3] = lines[3].rsplit(",", 1)[0]
+    write_lines(study / "manifest.csv", lines)
+    code, out, err = run_cli("check", study)
+    assert code == 2
+    text = out + err
+    assert "row 2: 6 fields but the header has 5" in text and "row 4: 4 fields but the header has 5" in text
+
+
+# --------------------------------------------------------------------------- 6. a quoted header
+
+
+@pytest.mark.parametrize("cell, message", [
+    ("\u0661", "(write the digits 0-9)"), ("\uff13", "(write the digits 0-9)"),
+    ('"1,0"', "(a decimal comma: write 1.0)"), ("0", "must be positive"),
+])
+def test_a_quoted_header_is_read_by_the_number_parser(study, cell, message):
+    """28.6: ``"nominal_force_n"`` (R's write.csv quotes every name) skipped the parser: 1 and 3 in other scripts."""
+    lines = manifest_lines(study)
+    lines[0] = ",".join(f'"{name}"' for name in lines[0].split(",")) + ',"nominal_force_n"'
+    lines[1:] = [line + ",2" for line in lines[1:]]
+    lines[1] = lines[1][: -len(",2")] + f",{cell}"
+    write_lines(study / "manifest.csv", lines)
+    with pytest.raises(InputError) as info:
+        read_study(study)
+    assert message in info.value.message and info.value.column == "nominal_force_n" and info.value.row == 2
+
+
+# --------------------------------------------------------------------------- 7. duplicate column names
+
+
+@pytest.mark.parametrize("file, column", [("manifest.csv", "force_n"), ("ratings.csv", "rating"),
+                                          ("specimens.csv", "wavelength_mm")])
+def test_a_column_named_twice_is_refused(run_cli, study, file, column):
+    """28.7: pandas read the second force_n or rating as force_n.1 and it was ignored."""
+    path = study / file
+    lines = path.read_text().splitlines()
+    lines[0] += f", {column}"
+    lines[1:] = [line + ",7" for line in lines[1:]]
+    write_lines(path, lines)
+    line = check_output(run_cli, study)
+    assert f"{path}: column '{column}' appears twice in the header" in line
+
+
+# --------------------------------------------------------------------------- 12. CSV size and width
+
+
+def test_a_csv_too_large_or_too_wide_is_refused_before_it_is_read(run_cli, study, monkeypatch):
+    """28.12: 2 million columns took 97 s and 3.7 GB; a 6 GB sparse ratings.csv ran `check` out of memory."""
+    ratings = study / "ratings.csv"
+    with ratings.open("r+b") as handle:
+        handle.truncate(tables.MAX_CSV_BYTES + 1)  # sparse: costs no disk
+    line = check_output(run_cli, study)
+    assert f"{ratings}: is larger than 100 MB; refusing to read it" in line
+    manifest = study / "manifest.csv"
+    manifest.write_text(",".join(f"c{i}" for i in range(200_000)) + "\n")
+    line = check_output(run_cli, study)
+    assert f"{manifest}: has 200000 columns; a study file has at most {tables.MAX_CSV_COLUMNS}" in line
+
+
+# --------------------------------------------------------------------------- 16. the encoding is named
+
+
+@pytest.mark.parametrize("encoding, name", [("utf-16-le", "UTF-16LE (no byte-order mark)"), ("utf-16", "UTF-16"),
+                                            ("utf-16-be", "UTF-16BE (no byte-order mark)")])
+def test_a_wide_encoding_is_named(study, encoding, name):
+    path = study / "ratings.csv"
+    path.write_bytes(path.read_text().encode(encoding))
+    problems = Problems()
+    load_study(study, problems=problems)
+    messages = problems.lines()
+    assert any(f"ratings.csv: is {name} text, not UTF-8; save it as UTF-8" in m for m in messages), messages
+
+
+def test_a_markdown_sheet_with_a_column_named_twice_is_refused(tmp_path):
+    """28.7 for the other ratings reader: a filled-in Markdown sheet kept the last of two rating columns."""
+    from roughsense.io.ratings import read_ratings
+
+    path = tmp_path / "sheet.md"
+    path.write_text("| participant | session | specimen | rating | rating |\n|---|---|---|---|---|\n| P1 | 1 | R2 | 5 | 0.5 |\n")
+    with pytest.raises(InputError, match="table column 'rating' appears twice in the header") as info:
+        read_ratings(path)
+    assert info.value.row == 1
