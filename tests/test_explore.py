@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.analysis import dataset
 from roughsense.analysis.dataset import study_features
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import ConfigError, OutputExistsError
@@ -122,7 +123,7 @@ def test_cell_equals_simulate_then_study(tmp_path):
     cell_study, cold = explore_cell.cell_features(cell, warm_start=False)
     as_read = cell_study.ratings.astype({"session": str}).reset_index(drop=True)  # the CSV keeps sessions as text
     pd.testing.assert_frame_equal(as_read, study.ratings.reset_index(drop=True), check_dtype=False)  # simulate's panel
-    freq = [c for c in cold.columns if c[0].isdigit()]
+    freq = dataset.frequency_columns(cold)
     ours = cold.set_index("image").loc[features["image"].str.removeprefix("images/")]
     assert np.array_equal(ours[freq].to_numpy(), features[freq].to_numpy())
     assert np.array_equal(ours["force_n"].to_numpy(), features["force_n"].to_numpy())

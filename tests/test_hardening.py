@@ -155,3 +155,48 @@ def test_a_markdown_sheet_with_a_column_named_twice_is_refused(tmp_path):
     with pytest.raises(InputError, match="table column 'rating' appears twice in the header") as info:
         read_ratings(path)
     assert info.value.row == 1
+
+
+# --------------------------------------------------------------------------- 4. specimen specs, 14. seeds
+
+SWEEP = """
+[sweep]
+seeds = [{seed}]
+repetitions = 2
+specimens = ["R2", "R3", {spec}]
+image_size_px = [480, 160]
+max_components = 4
+[axes]
+pad = ["smooth"]
+"""
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("rect:1_5", "not a number: '1_5' (no '_' between digits: write 15)"),
+    ("rand:1.5:0.2:1_0", "the seed is not a number: '1_0'"),
+    ("sin:3:\u0661", "(write the digits 0-9)"),
+    ("rand:1.5:0.2:9223372036854775808", "the seed must be at most 9223372036854775807"),
+])
+def test_a_specimen_spec_is_read_by_the_number_parser(run_cli, tmp_path, spec, message):
+    """28.4: ``rect:1_5`` simulated a 15 mm grating (float() reads digit groups); the seed of rand: is bounded."""
+    line = one_error(run_cli, "simulate", "--out", tmp_path / "s", "--specimens", f"R3,{spec}", "--pads", "smooth")
+    assert f"specimen '{spec}'" in line and message in line
+    assert not (tmp_path / "s").exists()
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP.format(seed=0, spec=f'"{spec}"'))
+    line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
+    assert message in line and str(sweep) in line
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--seed", "9223372036854775808"], "--seed must be at most 9223372036854775807"),
+    (["--seed", "1e23"], "--seed must be at most 9223372036854775807, got 1e+23"),
+])
+def test_a_seed_is_bounded_where_it_is_read(run_cli, tmp_path, args, message):
+    """28.14: seeds >= 2**63 ended in ArrowInvalid or OverflowError after the work they seeded."""
+    line = one_error(run_cli, "simulate", "--out", tmp_path / "s", "--specimens", "R3", *args)
+    assert message in line
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP.format(seed=2**63, spec='"R4"'))
+    line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
+    assert "[sweep] seeds: expected a whole number from 0 to 9223372036854775807" in line

@@ -62,9 +62,9 @@ def parse_float_list(text: str, *, name: str) -> list[float]:
 
 def check_seed(seed: int) -> int:
     """A seed for numpy.random.default_rng: a whole number >= 0 (a negative one is refused by NumPy)."""
-    from .._util.checks import Integer, check  # numpy: not for --help
+    from .._util.checks import MAX_SEED, SEED, check  # numpy: not for --help
 
-    return check(seed, Integer(0), name="--seed", must="a whole number >= 0")
+    return check(seed, SEED, name="--seed", must=f"a whole number from 0 to {MAX_SEED}")
 
 
 def usable_cores() -> int:

@@ -56,7 +56,7 @@ MaxPixels = Annotated[int | None, typer.Option(
 
 def features(
     out: FeaturesOut, images: Images = None, study: StudyDir = None,
-    seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+    seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
                                       help="Seed of --study builtin.")] = 0,
     px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",

@@ -37,7 +37,7 @@ ModelName = Annotated[str, typer.Option(
     "--model", help="Model family: pls (the paper's PLS1 on the spectrum) or peak-law (a power law of where the "
                     "spectrum peaks and how high, built for surfaces never seen in training).")]
 FitSeed = Annotated[int, typer.Option(
-    "--seed", parser=number_option("--seed", whole=True),
+    "--seed", parser=number_option("--seed", quantity="seed"),
     help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
@@ -160,7 +160,7 @@ PredictPxPerMm = Annotated[float | None, typer.Option(
 
 
 def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
-            seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+            seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
                                               help="Seed of --study builtin.")] = 0,
             specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = None,
             force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,

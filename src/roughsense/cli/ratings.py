@@ -12,7 +12,7 @@ from ..errors import ConfigError, RoughsenseWarning
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ._common import check_seed, number_option, parse_name_list
 
-_SEED = number_option("--seed", whole=True)
+_SEED = number_option("--seed", quantity="seed")
 _PARTICIPANTS = number_option("--participants", low=1, whole=True)
 _SESSIONS = number_option("--sessions", low=1, whole=True)
 

@@ -30,7 +30,7 @@ def register(app: typer.Typer) -> None:
                                  "or builtin (the default): the paper's study simulated with --seed, generated on "
                                  "first use and cached (a folder named builtin: ./builtin)."),
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
-        seed: int = typer.Option(DEFAULT_SEED, "--seed", parser=number_option("--seed", whole=True),
+        seed: int = typer.Option(DEFAULT_SEED, "--seed", parser=number_option("--seed", quantity="seed"),
                                  help="Seed of the built-in simulated study (and any random draw)."),
         # 20 is model.pls_cv.DEFAULT_MAX_COMPONENTS (tests/test_architecture.py checks it): a literal keeps --help light.
         max_components: int = typer.Option(20, "--max-components",

@@ -15,7 +15,7 @@ import math
 import re
 from dataclasses import dataclass, replace
 
-from .._util.checks import short_repr
+from .._util.checks import MAX_SEED, short_repr
 
 #: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
@@ -38,6 +38,11 @@ class NumberError(ValueError):
         self.message = message
 
 
+def _show(number: float | int) -> str:
+    """A bound or value in a message: an int exactly (a seed's 9223372036854775807), a float as ``%g``."""
+    return str(number) if isinstance(number, int) else f"{number:g}"
+
+
 @dataclass(frozen=True)
 class Bounds:
     """A quantity's accepted range: ``low`` (excluded if ``low_open``) to ``high``; ``noun`` starts its messages."""
@@ -51,9 +56,9 @@ class Bounds:
     def describe(self) -> str:
         kind = "a whole number" if self.whole else "a number"
         if self.low is not None and self.high is not None and not self.low_open:
-            return f"{kind} from {self.low:g} to {self.high:g}"
-        parts = [f"{'>' if self.low_open else '>='} {self.low:g}"] if self.low is not None else []
-        parts += [f"<= {self.high:g}"] if self.high is not None else []
+            return f"{kind} from {_show(self.low)} to {_show(self.high)}"
+        parts = [f"{'>' if self.low_open else '>='} {_show(self.low)}"] if self.low is not None else []
+        parts += [f"<= {_show(self.high)}"] if self.high is not None else []
         return " ".join([kind, " and ".join(parts)]).strip()
 
 
@@ -72,6 +77,8 @@ BOUNDS: dict[str, Bounds] = {
     "wavelength_mm": Bounds(1e-3, 1e3),
     # Camera scale: 1 px per 10 cm up to 10 nm per px (the paper: 34.9 px/mm).
     "px_per_mm": Bounds(1e-2, 1e5),
+    # Seeds are stored as signed 64-bit integers (see _util.checks.MAX_SEED).
+    "seed": Bounds(0, MAX_SEED, whole=True),
     # A pad's ridge period: 1 um (finer is no ridge a camera sees) to 100 mm (coarser than any specimen).
     "ridge_period_mm": Bounds(1e-3, 100.0),
 }
@@ -144,7 +151,7 @@ def _is_numpy_number(value: object) -> bool:
 
 def _within(number: float | int, bounds: Bounds, written: object) -> float | int:
     """``number`` if in ``bounds`` (and whole, if asked); else the one message of each kind of miss."""
-    shown = f"{number:g}"
+    shown = _show(number)
     noun = f"{bounds.noun} " if bounds.noun else ""
     if bounds.whole and number != math.floor(number):
         raise NumberError(f"{noun}must be a whole number, got {shown}")
@@ -152,9 +159,9 @@ def _within(number: float | int, bounds: Bounds, written: object) -> float | int
         if number <= 0 <= bounds.low and (bounds.low > 0 or bounds.low_open):  # the usual slip: say it plainly
             raise NumberError(f"{noun}must be positive, got {shown}")
         relation = "above" if bounds.low_open else "at least"
-        raise NumberError(f"{noun}must be {relation} {bounds.low:g}, got {shown}")
+        raise NumberError(f"{noun}must be {relation} {_show(bounds.low)}, got {shown}")
     if bounds.high is not None and number > bounds.high:
-        raise NumberError(f"{noun}must be at most {bounds.high:g}, got {shown}")
+        raise NumberError(f"{noun}must be at most {_show(bounds.high)}, got {shown}")
     if bounds.whole:
         if isinstance(number, float) and abs(number) > _EXACT_WHOLE:
             raise NumberError(f"{noun}must be written with digits only above 2**53, got {short_repr(written)}")
