@@ -200,3 +200,36 @@ def test_a_seed_is_bounded_where_it_is_read(run_cli, tmp_path, args, message):
     sweep.write_text(SWEEP.format(seed=2**63, spec='"R4"'))
     line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
     assert "[sweep] seeds: expected a whole number from 0 to 9223372036854775807" in line
+
+
+# --------------------------------------------------------------------------- 5. TOML spellings, on the parsed document
+
+
+def test_a_multiline_string_does_not_hide_a_toml_spelling(study):
+    """28.5: after a multi-line string holding \\\""" the old pattern lost track: px_per_mm = 3_49 read as 349."""
+    toml = study / "study.toml"
+    text = toml.read_text()
+    assert "px_per_mm = 20.0" in text
+    toml.write_text(text.replace("[study]\n", '[study]\nnote = """a \\""" px_per_mm = 1 """\n')
+                    .replace("px_per_mm = 20.0", "px_per_mm = 2_0"))
+    with pytest.raises(InputError, match=r"line \d+: '2_0' is not a number as roughsense reads one \(no '_' between digits"):
+        read_study(study)
+
+
+def test_valid_toml_with_number_like_text_is_accepted(study):
+    """28.5: ``1_000`` inside a string and a key named ``inf`` were refused as numbers."""
+    toml = study / "study.toml"
+    text = toml.read_text()
+    toml.write_text(text.replace('name = "tiny"', "name = \"batch 1_000 0x10 inf\"\n# a comment 1_0\ninf = 1.0")
+                    + "\n[pads.inf]\nridge_period_mm = 1.5\n[pads.'1_000']\nridge_period_mm = 2e0\n")
+    with pytest.warns(Warning, match="unknown key 'inf' in \\[study\\] ignored"):  # a warning, not a refusal
+        study_ = read_study(study)
+    assert study_.name == "batch 1_000 0x10 inf" and study_.pad_ridge_period_mm == {"inf": 1.5, "1_000": 2.0}
+
+
+def test_a_sweep_file_is_held_to_the_same_rule(run_cli, tmp_path):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('[sweep]\nname = """x \\""" max_components = 1 """\n' + SWEEP.format(seed=0, spec='"R4"')
+                     .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4"))
+    line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
+    assert "'0x4' is not a number as roughsense reads one" in line

@@ -399,7 +399,7 @@ def test_a_deeply_nested_toml_is_one_line(run_cli, sandbox, tmp_path):
 
 def test_protocol_and_fit_refuse_a_negative_seed(run_cli, sandbox, tmp_path):
     line = one_error(*run_cli("protocol", "--out", tmp_path / "p.csv", "--seed", "-1")[::2])
-    assert "--seed must be a whole number >= 0, got -1" in line
+    assert "--seed must be at least 0, got -1" in line
     line = one_error(*run_cli("fit", "--study", sandbox, "--pad", "smooth", "--condition", "1N", "--out",
                               tmp_path / "m.json", "--cv", "3", "--seed", "-5")[::2])
     assert "--seed" in line

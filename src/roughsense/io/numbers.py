@@ -179,8 +179,10 @@ def number_or_nan(text: object) -> float:
 
 # TOML has number spellings of its own (``1_000``, ``0x10``, ``0o7``, ``0b1``, ``inf``, ``nan``) that its parser turns into
 # numbers before any reader of ours sees the text; a study.toml or sweep file is held to the CSV's spellings instead.
-_TOML_STRING_OR_COMMENT = re.compile(r'"""(?:.|\n)*?"""|\'\'\'(?:.|\n)*?\'\'\'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*')
-_TOML_NUMBER = re.compile(r"(?<![\w.])[+-]?(?:0[xob][0-9A-Fa-f_]+|\d[\d_]*(?:\.[\d_]*)?(?:[eE][+-]?[\d_]+)?|inf|nan)(?![\w.])")
+# tomllib keeps no spelling, so the document it accepted is walked again here, value by value: keys, table headers,
+# strings (escapes and multi-line ones included) and comments are stepped over by TOML's own grammar, never matched
+# with a pattern, so ``\"""`` inside a string, ``1_000`` in a name or a key named ``inf`` is never taken for a number.
+_BARE_END = frozenset(",]}#\n\r\t ")
 
 
 def _foreign(token: str) -> bool:
@@ -189,16 +191,96 @@ def _foreign(token: str) -> bool:
     return "_" in bare or bare[:2] in ("0x", "0o", "0b") or bare in ("inf", "nan")
 
 
+def _string_end(text: str, pos: int) -> int:
+    """Where the TOML string starting at ``pos`` ends (past its closing quote); the text is valid TOML."""
+    quote = text[pos]
+    if text.startswith(quote * 3, pos):
+        cursor = pos + 3
+        while True:
+            if quote == '"' and text[cursor] == "\\":
+                cursor += 2  # an escape: an escaped quote never closes the string
+                continue
+            if text.startswith(quote * 3, cursor):
+                run = len(text[cursor:cursor + 5]) - len(text[cursor:cursor + 5].lstrip(quote))
+                return cursor + run  # up to two quotes before the delimiter belong to the string
+            cursor += 1
+    cursor = pos + 1
+    while text[cursor] != quote:
+        cursor += 2 if quote == '"' and text[cursor] == "\\" else 1
+    return cursor + 1
+
+
+def _skip_blank(text: str, pos: int, *, lines: bool = True) -> int:
+    """Past spaces, tabs, comments and (with ``lines``) newlines."""
+    while pos < len(text):
+        if text[pos] == "#":
+            end = text.find("\n", pos)
+            pos = len(text) if end < 0 else end
+        elif text[pos] in " \t" or (lines and text[pos] in "\r\n"):
+            pos += 1
+        else:
+            break
+    return pos
+
+
+def _key_end(text: str, pos: int, stop: str) -> int:
+    """Past a (dotted, maybe quoted) key, at the ``stop`` character that follows it (``=`` or ``]``)."""
+    while text[pos] != stop:
+        pos = _string_end(text, pos) if text[pos] in "\"'" else pos + 1
+    return pos
+
+
+def _value_tokens(text: str, pos: int, found: list[tuple[int, str]]) -> int:
+    """Walk one value at ``pos``, adding each bare token (a number, bool or date) to ``found``; returns its end."""
+    pos = _skip_blank(text, pos)
+    if text[pos] in "\"'":
+        return _string_end(text, pos)
+    if text[pos] in "[{":
+        close, pos = "]" if text[pos] == "[" else "}", pos + 1
+        while True:
+            pos = _skip_blank(text, pos)
+            if text[pos] == close:
+                return pos + 1
+            if text[pos] == ",":
+                pos += 1
+                continue
+            if close == "}":
+                pos = _key_end(text, pos, "=") + 1
+            pos = _value_tokens(text, pos, found)
+    end = pos
+    while end < len(text) and text[end] not in _BARE_END:
+        end += 1
+    if text[end:end + 1] == " " and re.fullmatch(r"\d{4}-\d\d-\d\d", text[pos:end]):  # a date, a space, a time
+        end += 1
+        while end < len(text) and text[end] not in _BARE_END:
+            end += 1
+    found.append((pos, text[pos:end]))
+    return end
+
+
+def _bare_values(text: str) -> list[tuple[int, str]]:
+    """(offset, spelling) of every bare value (number, bool, date) of a TOML text that tomllib accepted."""
+    found: list[tuple[int, str]] = []
+    pos = _skip_blank(text, 0)
+    while pos < len(text):
+        if text[pos] == "[":  # a table header: [a."b.c"] or [[a]]
+            pos = _key_end(text, pos + 1, "]") + 1
+            pos += text[pos] == "]"
+        else:
+            pos = _value_tokens(text, _key_end(text, pos, "=") + 1, found)
+        pos = _skip_blank(text, pos)
+    return found
+
+
 def toml_spelling_problem(text: str) -> str | None:
     """The first number in a TOML text written in a spelling a CSV cell may not use, as a one-line problem, or None.
 
-    Strings and comments are left out, so a name such as ``"R_1"`` or a comment is never mistaken for a number.
+    ``text`` must be a document tomllib accepted (the caller parses first): the walk relies on its grammar.
     """
-    bare = _TOML_STRING_OR_COMMENT.sub(lambda m: " " * len(m.group(0)), text)
-    match = next((m for m in _TOML_NUMBER.finditer(bare) if _foreign(m.group(0))), None)
+    match = next(((pos, token) for pos, token in _bare_values(text) if _foreign(token)), None)
     if match is None:
         return None
-    line = text.count("\n", 0, match.start()) + 1
-    token = match.group(0)
+    line = text.count("\n", 0, match[0]) + 1
+    token = match[1]
     hint = spelling_hint(token) or " (write plain digits 0-9, a point and an optional exponent)"
     return f"line {line}: {token!r} is not a number as roughsense reads one{hint}"
