@@ -706,6 +706,33 @@ def test_a_cell_file_is_checked_against_the_cell_its_name_says(tmp_path):
     assert store.check_cell(first) == f"{results}: holds no rows"
 
 
+def test_a_cell_file_missing_rows_its_design_promises_is_computed_again(tmp_path):
+    """Issue 28.8: a cell whose rows of one condition (or model family) were dropped counted as finished."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from roughsense.explore.store import SPECIMEN_SCHEMA
+
+    sweep, store = _stored_sweep(tmp_path, "[0]")
+    (cell,) = sweep.cells
+    results = tmp_path / "out" / "results" / f"cell-{cell.id}.parquet"
+    specimens = tmp_path / "out" / "specimens" / f"cell-{cell.id}.parquet"
+    frame, rows = pd.read_parquet(results), pd.read_parquet(specimens)
+    pq.write_table(_pa_table(frame[frame.condition != "combined"]), results)
+    assert store.check_cell(cell) == f"{results}: lacks the rows of combined loo pls (and 1 more)"
+    pq.write_table(_pa_table(pd.concat([frame, frame.iloc[:1]])), results)
+    assert store.check_cell(cell) == f"{results}: holds rows its cell's design does not promise, or one row twice"
+    pq.write_table(_pa_table(frame), results)
+    assert store.check_cell(cell) is None
+    for kept, problem in ((rows[rows.cv != "loso"], "lacks the rows of 1N loso pls (and 3 more)"),
+                          (rows.iloc[1:], "1N loo pls holds 3 specimen rows, its result row counts 4")):
+        pq.write_table(pa.Table.from_pandas(kept[SPECIMEN_SCHEMA.names], schema=SPECIMEN_SCHEMA, preserve_index=False),
+                       specimens)
+        assert store.check_cell(cell) == f"{specimens}: {problem}"
+    with pytest.warns(UserWarning, match="computing it again"):
+        assert store.finished() == set()
+
+
 def _pa_table(frame):
     import pyarrow as pa
 

@@ -112,11 +112,21 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     return study, features
 
 
+def cell_conditions(cell: Cell) -> tuple[list[str], list[str]]:
+    """(force labels in order, conditions analysed): "combined" joins them when the design has several forces."""
+    labels = [nominal_force_label(f) for f in sorted(cell.forces_n)]
+    return labels, [*labels, "combined"] if len(labels) > 1 else labels
+
+
+def result_keys(cell: Cell) -> set[tuple[str, str, str]]:
+    """(condition, CV scheme, model family) of every result row the cell computes: what a finished cell holds."""
+    return {(condition, cv, model) for condition in cell_conditions(cell)[1] for cv in cell.cv for model in cell.models}
+
+
 def analyse_cell(cell: Cell):
     """The study analysis of one cell (every condition, CV scheme and model family)."""
     study, features = cell_features(cell)
-    labels = study.condition_labels()
-    conditions = [*labels, "combined"] if len(labels) > 1 else labels
+    labels, conditions = cell_conditions(cell)
     # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
     return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
                          cv_schemes=cell.cv, combined_forces=labels, n_permutations=0, models=cell.models), study
