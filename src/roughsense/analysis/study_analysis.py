@@ -373,6 +373,7 @@ def analyse_study(
     signed-rank tests stay about the paper's PLS.
     """
     models = _check_models(models)
+    _controls.check_permutations(n_permutations)  # before the features: the shufflings are held in memory at once
     perceived = _perceived_by_enough_people(study)
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)

@@ -7,7 +7,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
-from ..sensor.settings import SPECTRUM_DEFAULTS
+from ..sensor.settings import MAX_N_FREQS, SPECTRUM_DEFAULTS
 from ._common import Jobs, number_option, parse_float_list, progress
 from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
@@ -45,7 +45,8 @@ Rows = Annotated[int, typer.Option(
     help="Average the N central rows of the crop (1 = the paper's middle row).")]
 Band = Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")]
 NFreqs = Annotated[int, typer.Option(
-    "--n-freqs", parser=number_option("--n-freqs", whole=True), help="Number of evenly spaced frequencies in the band.")]
+    "--n-freqs", parser=number_option("--n-freqs", low=2, high=MAX_N_FREQS, whole=True),
+    help=f"Number of evenly spaced frequencies in the band (2 to {MAX_N_FREQS}).")]
 Window = Annotated[str, typer.Option(
     "--window", help=f"Taper before the DFT: '{SPECTRUM_DEFAULTS.window}' (default) or 'none' (the paper's literal choice).")]
 MaxPixels = Annotated[int | None, typer.Option(

@@ -8,6 +8,7 @@ import typer
 
 from .._util.text import counted
 from ._common import Jobs, number_option, progress, stage
+from ._defaults import MAX_PERMUTATIONS
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -43,9 +44,10 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(
             False, "--force",
             help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
-        permutations: int = typer.Option(199, "--permutations", parser=number_option("--permutations", whole=True, low=0),
-                                         help="Specimen-level shufflings per model for the permutation control "
-                                         "(0: skip it; at least 199 for p-values to 0.005)."),
+        permutations: int = typer.Option(199, "--permutations", parser=number_option(
+            "--permutations", whole=True, low=0, high=MAX_PERMUTATIONS),
+            help="Specimen-level shufflings per model for the permutation control "
+            f"(0: skip it; at least 199 for p-values to 0.005; at most {MAX_PERMUTATIONS})."),
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 
