@@ -233,3 +233,70 @@ def test_a_sweep_file_is_held_to_the_same_rule(run_cli, tmp_path):
                      .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4"))
     line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
     assert "'0x4' is not a number as roughsense reads one" in line
+
+
+# --------------------------------------------------------------------------- 13. live and capture read max_pixels
+
+
+def png_claiming(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` px (its data is empty: never decoded here)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+
+
+@pytest.fixture(scope="module")
+def model_2n(tiny, tmp_path_factory):
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("model") / "m.json"
+    assert main(["fit", "--study", str(tiny), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    return path
+
+
+def test_live_and_capture_refuse_a_frame_above_max_pixels_before_decoding(run_cli, tmp_path, model_2n):
+    """28.13: a 16000 x 15000 PNG peaked at 1.9 GB (predict --live) and 3.2 GB (capture, which wrote it)."""
+    big = tmp_path / "big.png"
+    big.write_bytes(png_claiming(16000, 15000))
+    pattern = tmp_path / "frames"
+    pattern.mkdir()
+    (pattern / "f_0000.png").write_bytes(png_claiming(16000, 15000))
+    for source in (big, pattern / "f_%04d.png"):
+        line = one_error(run_cli, "predict", model_2n, "--live", "--source", source, "--max-frames", "1")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        line = one_error(run_cli, "capture", "--source", source, "--out", tmp_path / "captured", "--specimen", "R2",
+                         "--pad", "smooth")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        assert not (tmp_path / "captured").exists()
+
+
+def test_a_frame_above_the_studys_max_pixels_is_not_written(tiny):
+    import numpy as np
+
+    from roughsense.io.sensor_settings import SensorSettings
+    from roughsense.rig.camera import open_source
+    from roughsense.rig.capture import _check_frame
+
+    image = next((tiny / "images").iterdir())
+    with pytest.raises(InputError, match=r"frames? is 600 ?x ?64 px|image is 600 x 64 px"):
+        open_source(image, max_pixels=1000)
+    with open_source(image) as frames:
+        frame = frames.read_fresh()
+    with pytest.raises(InputError, match="above the study's \\[sensor\\] max_pixels of 0.001 Mpx; nothing of it was written"):
+        _check_frame(frame, SensorSettings(max_pixels=1000), frames)
+    _check_frame(frame, SensorSettings(roi=(0, 0, 600, 64)), frames)
+    assert np.asarray(frame).shape == (64, 600, 3)
+
+
+@pytest.mark.parametrize("value", ["1e300", "1073741825", "2e9"])
+def test_a_pixel_limit_beyond_what_opencv_decodes_is_refused(study, value):
+    """28.16: ``[sensor] max_pixels = 1e300`` was accepted."""
+    toml = study / "study.toml"
+    toml.write_text(toml.read_text().replace("[sensor]\n", f"[sensor]\nmax_pixels = {value}\n"))
+    with pytest.raises(InputError, match=r"\[sensor\] max_pixels must be a whole number of pixels from 1 to 1073741824"):
+        read_study(study)
