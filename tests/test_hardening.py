@@ -300,3 +300,36 @@ def test_a_pixel_limit_beyond_what_opencv_decodes_is_refused(study, value):
     toml.write_text(toml.read_text().replace("[sensor]\n", f"[sensor]\nmax_pixels = {value}\n"))
     with pytest.raises(InputError, match=r"\[sensor\] max_pixels must be a whole number of pixels from 1 to 1073741824"):
         read_study(study)
+
+
+# --------------------------------------------------------------------------- 15. --out equal to an input
+
+
+def test_an_output_that_is_an_input_is_refused_even_with_force(run_cli, study, tmp_path, model_2n):
+    """28.15: `ratings r.csv --out r.csv --force` replaced the raw ratings; fit and predict destroyed their inputs."""
+    model = tmp_path / "m.json"
+    shutil.copy(model_2n, model)
+    image = next((study / "images").iterdir())
+    cases = [
+        (["ratings", study / "ratings.csv", "--out", study / "ratings.csv"], study / "ratings.csv"),
+        (["fit", "--study", study, "--pad", "smooth", "--condition", "2N", "--out", study / "manifest.csv"],
+         study / "manifest.csv"),
+        (["predict", model, image, "--out", model], model),
+        (["predict", model, image, "--out", image], image),
+        (["predict", model, "--study", study, "--out", study / "images" / "x.csv"], study / "images"),
+        (["features", image, "--out", image], image),
+        (["features", "--study", study, "--out", study / "specimens.csv"], study / "specimens.csv"),
+        (["protocol", "--seed", "1", "--specimens", study / "specimens.csv", "--out", study / "specimens.csv"],
+         study / "specimens.csv"),
+        (["study", "--data", study, "--out", study], study),
+    ]
+    for args, victim in cases:
+        before = victim.read_bytes() if victim.is_file() else None
+        line = one_error(run_cli, *args, "--force")
+        assert "--force does not change this" in line and "--out" in line, line
+        if before is not None:
+            assert victim.read_bytes() == before, args
+    link = tmp_path / "link.json"
+    link.hardlink_to(model)  # the same file under another name
+    line = one_error(run_cli, "predict", model, image, "--out", link, "--force")
+    assert f"is an input of this run {model}" in line

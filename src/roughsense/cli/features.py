@@ -8,7 +8,7 @@ import typer
 
 from ..errors import ConfigError
 from ..sensor.settings import MAX_N_FREQS, SPECTRUM_DEFAULTS
-from ._common import Jobs, number_option, parse_float_list, progress
+from ._common import Jobs, number_option, parse_float_list, progress, run_inputs
 from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
 
@@ -83,7 +83,7 @@ def features(
         raise ConfigError("no images given; pass IMAGE... or --study DIR")
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
-    check_can_write(out, force=force)
+    check_can_write(out, force=force, inputs=run_inputs(images or [], study=study))
     f_min, f_max = _band(band)
     loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
     if loaded is not None:

@@ -9,7 +9,7 @@ import typer
 
 from .._util.text import counted
 from ..errors import ConfigError
-from ._common import Jobs, check_seed, number_option, progress
+from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -69,7 +69,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     override = SensorOverride.parse(roi=roi)
     scheme = parse_cv(cv)
     check_seed(seed)
-    check_can_write(out, force=force)
+    check_can_write(out, force=force, inputs=run_inputs(study=study))
     study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     loaded = read_study(study, require_ratings=True)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
@@ -191,7 +191,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
         return
     _check_image_sources(given, specimens, study)
     if out is not None:
-        check_can_write(out, force=force)
+        check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)

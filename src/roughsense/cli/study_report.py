@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import Jobs, number_option, progress, stage
+from ._common import Jobs, number_option, progress, run_inputs, stage
 from ._defaults import MAX_PERMUTATIONS
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
@@ -56,9 +56,11 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
+        from .._util.atomic import refuse_inputs
         from .._util.lock import output_lock
         from ..report import open_report_dir
 
+        refuse_inputs(out, run_inputs(study=data))  # a report swapped in over its own study: refused, --force or not
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
         # occupied --out (or one another run is writing) before minutes of work, not after.
