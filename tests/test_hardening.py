@@ -333,3 +333,19 @@ def test_an_output_that_is_an_input_is_refused_even_with_force(run_cli, study, t
     link.hardlink_to(model)  # the same file under another name
     line = one_error(run_cli, "predict", model, image, "--out", link, "--force")
     assert f"is an input of this run {model}" in line
+
+
+# --------------------------------------------------------------------------- 16. minor
+
+
+def test_check_lists_every_file_name_too_long(run_cli, study):
+    """28.16: `check` stopped at the first "File name too long" instead of listing every row."""
+    lines = manifest_lines(study)
+    for k, letter in ((1, "x"), (3, "y")):
+        fields = lines[k].split(",")
+        fields[0] = f"images/{letter * 300}.png"
+        lines[k] = ",".join(fields)
+    write_lines(study / "manifest.csv", lines)
+    text = check_output(run_cli, study)
+    for row in (2, 4):
+        assert f"manifest.csv, row {row}, column 'image': image file cannot be looked up (File name too long)" in text
