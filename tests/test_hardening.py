@@ -211,7 +211,7 @@ def test_a_multiline_string_does_not_hide_a_toml_spelling(study):
     text = toml.read_text()
     assert "px_per_mm = 20.0" in text
     toml.write_text(text.replace("[study]\n", '[study]\nnote = """a \\""" px_per_mm = 1 """\n')
-                    .replace("px_per_mm = 20.0", "px_per_mm = 2_0"))
+                    .replace("px_per_mm = 20.0", "px_per_mm = 2_0") + '# a comment quoting """\n')
     with pytest.raises(InputError, match=r"line \d+: '2_0' is not a number as roughsense reads one \(no '_' between digits"):
         read_study(study)
 
@@ -230,7 +230,7 @@ def test_valid_toml_with_number_like_text_is_accepted(study):
 def test_a_sweep_file_is_held_to_the_same_rule(run_cli, tmp_path):
     sweep = tmp_path / "sweep.toml"
     sweep.write_text('[sweep]\nname = """x \\""" max_components = 1 """\n' + SWEEP.format(seed=0, spec='"R4"')
-                     .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4"))
+                     .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4") + '# """\n')
     line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
     assert "'0x4' is not a number as roughsense reads one" in line
 
