@@ -423,7 +423,7 @@ def test_one_participant_left_is_one_line_not_a_numpy_warning(run_cli, sandbox, 
     ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [true, 2, 3]", "got True"),
     ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1e308, 2, 3]", "up to 100"),
     ("forces_n = [1.0, 2.0, 3.0]", 'forces_n = "1,2,3"', "non-empty list of numbers"),
-    ('roi = "center"', 'roi = "center"\nmax_pixels = true', "max_pixels must be a positive whole number"),
+    ('roi = "center"', 'roi = "center"\nmax_pixels = true', "max_pixels must be a whole number of pixels from 1 to"),
     ('name = "simulated"', "name = [1]", "[study] name must be text"),
 ])
 def test_toml_values_of_the_wrong_kind_are_refused(sandbox, old, new, message):
