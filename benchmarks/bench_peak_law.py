@@ -61,7 +61,7 @@ def study_of(seed: int):
 def law_settings(study, features, pad: str, condition: str) -> dict:
     from roughsense.analysis import dataset
 
-    return {"freq_per_mm": np.array([float(c) for c in dataset.frequency_columns(features)]),
+    return {"freq_per_mm": dataset.column_frequencies(dataset.frequency_columns(features)),
             "n_blocks": 3 if condition == "combined" else 1,
             "pad_ridge_period_mm": study.pad_ridge_period_mm.get(pad)}
 

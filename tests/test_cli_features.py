@@ -152,7 +152,7 @@ def test_px_per_mm_must_be_positive(run_cli, tmp_path, images, value):
 
 @pytest.mark.parametrize("args, words", [
     (["--band", "1.0,0.1"], ["band"]), (["--band", "0.1"], ["--band"]), (["--roi", "1,2,3"], ["ROI"]),
-    (["--n-freqs", "1"], ["n_freqs"]), (["--rows", "151"], ["rows 151", "150 px"]),
+    (["--n-freqs", "1"], ["--n-freqs must be at least 2"]), (["--rows", "151"], ["rows 151", "150 px"]),
     (["--roi", "0,0,1900,20", "--rows", "21"], ["rows 21"]),
 ])
 def test_bad_options_fail_cleanly(run_cli, tmp_path, images, args, words):

@@ -133,12 +133,14 @@ def test_version_and_help_import_nothing_heavy(args):
 
 def test_the_literal_defaults_in_the_options_are_the_layers_own():
     """A few option defaults are literals so that --help stays light; they must equal the layers' values."""
+    from roughsense.analysis.controls import MAX_PERMUTATIONS
     from roughsense.cli import _defaults as literal
     from roughsense.io.images import DEFAULT_MAX_PIXELS
     from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
     from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
 
     assert literal.DEFAULT_MAX_PIXELS == DEFAULT_MAX_PIXELS
+    assert literal.MAX_PERMUTATIONS == MAX_PERMUTATIONS
     assert (literal.CENTER_CROP_PX, literal.DEFAULT_PX_PER_MM, literal.DEFAULT_ROI) == (
         CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI)
     assert (literal.DEFAULT_FINGERPRINT_PERIOD_MM, literal.DEFAULT_RIDGE_HEIGHT_MM, literal.PAD_NAMES) == (

@@ -7,7 +7,7 @@ import pytest
 from sklearn.cross_decomposition import PLSRegression
 
 from roughsense import pls_cv, pls_cv_many
-from roughsense.analysis import controls
+from roughsense.analysis import controls, dataset
 from roughsense.analysis.study_analysis import analyse_study
 
 from .test_study_analysis import _regression_data, synthetic_study
@@ -122,7 +122,7 @@ def test_a_model_that_only_recognises_specimens_fails_the_permutation_control():
     study, features = synthetic_study(repetitions=4, seed=9, pads=("smooth",))
     rng = np.random.default_rng(3)
     codes = {s: rng.normal(size=45) for s in features["specimen"].unique()}  # a random fingerprint per specimen
-    freq = [c for c in features.columns if c[0].isdigit()]
+    freq = dataset.frequency_columns(features)
     features = features.copy()
     features[freq] = np.vstack([codes[s] + rng.normal(0, 0.05, 45) for s in features["specimen"]])
     analysis = analyse_study(study, features=features, max_components=6, conditions=("1N",), n_permutations=39,

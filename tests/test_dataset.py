@@ -80,7 +80,7 @@ def features(study):
 def test_features_are_the_sensor_spectra_of_each_manifest_image(study, features):
     assert len(features) == len(study.manifest) == 2 * 6 * 2 * 3
     freq = dataset.frequency_columns(features)
-    np.testing.assert_array_equal([float(c) for c in freq], frequency_grid())
+    np.testing.assert_array_equal(dataset.column_frequencies(freq), frequency_grid())
     for column in ("image", "specimen", "pad", "repetition", "condition"):
         assert list(features[column]) == list(study.manifest[column])
     spectrum = SpatialSpectrum(px_per_mm=PX_PER_MM, roi=ROI).fit()
@@ -89,7 +89,7 @@ def test_features_are_the_sensor_spectra_of_each_manifest_image(study, features)
         np.testing.assert_allclose(features[freq].iloc[i].to_numpy(float), expected, rtol=1e-12)
     # the grating's fundamental is where the spectrum peaks (within one grid step)
     row = features[(features.specimen == "R2") & (features.condition == "2N")].iloc[0]
-    peak = float(freq[int(np.argmax(row[freq].to_numpy(float)))])
+    peak = dataset.column_frequencies(freq)[int(np.argmax(row[freq].to_numpy(float)))]
     assert abs(peak - 1 / SPECIMENS["R2"]) <= 0.9 / 44
 
 
@@ -126,6 +126,28 @@ def test_combined_refuses_an_incomplete_trial(tmp_path):
     assert info.value.path == root / "manifest.csv"
     X, _ = dataset.condition_matrix(features, "fingerprint", "1N")  # the single forces still work
     assert X.shape == (12, 45)
+
+
+def test_a_manifest_column_named_by_a_number_is_no_spectrum_column(tmp_path, features):
+    """Issue 28.1: a header such as 0.0795, 3, nan or Infinity stays a manifest column; X and the grid are unchanged."""
+    root = make_study(tmp_path / "extra", pads=("fingerprint", "smooth"), repetitions=2)
+    manifest = pd.read_csv(root / "manifest.csv", dtype=str)
+    for header in (repr(float(frequency_grid()[0])), "0.0795", "3", "nan", "Infinity"):
+        manifest[header] = "0.5"
+    manifest.to_csv(root / "manifest.csv", index=False)
+    extra = dataset.study_features(read_study(root))
+    assert dataset.frequency_columns(extra) == dataset.frequency_columns(features)
+    for condition in ("2N", "combined"):
+        np.testing.assert_array_equal(dataset.condition_matrix(extra, "smooth", condition)[0],
+                                      dataset.condition_matrix(features, "smooth", condition)[0])
+    with pytest.raises(InputError, match="column '0.1' has the name of a spectrum frequency"):
+        dataset.plain_names(extra)  # a file for people would hold two columns named 0.1
+    plain = dataset.plain_names(features)
+    assert [float(c) for c in plain.columns[-45:]] == list(frequency_grid())
+    manifest["spectrum@0.3"] = "1"
+    manifest.to_csv(root / "manifest.csv", index=False)
+    with pytest.raises(InputError, match="column 'spectrum@0.3' starts with 'spectrum@'"):
+        dataset.study_features(read_study(root))
 
 
 def test_unknown_pad_or_condition(features):

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.analysis import dataset
 from roughsense.analysis.dataset import study_features
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import ConfigError, OutputExistsError
@@ -122,7 +123,7 @@ def test_cell_equals_simulate_then_study(tmp_path):
     cell_study, cold = explore_cell.cell_features(cell, warm_start=False)
     as_read = cell_study.ratings.astype({"session": str}).reset_index(drop=True)  # the CSV keeps sessions as text
     pd.testing.assert_frame_equal(as_read, study.ratings.reset_index(drop=True), check_dtype=False)  # simulate's panel
-    freq = [c for c in cold.columns if c[0].isdigit()]
+    freq = dataset.frequency_columns(cold)
     ours = cold.set_index("image").loc[features["image"].str.removeprefix("images/")]
     assert np.array_equal(ours[freq].to_numpy(), features[freq].to_numpy())
     assert np.array_equal(ours["force_n"].to_numpy(), features["force_n"].to_numpy())
@@ -340,7 +341,8 @@ def test_combined_condition_over_other_forces():
         for repetition in (1, 2):
             for force in ("1N", "2N", "4N"):
                 rows.append({"image": f"{specimen}_{force}_{repetition}", "pad": "smooth", "specimen": specimen,
-                             "repetition": repetition, "condition": force, "0.1": rng.random(), "0.2": rng.random()})
+                             "repetition": repetition, "condition": force,
+                             "spectrum@0.1": rng.random(), "spectrum@0.2": rng.random()})
     features = pd.DataFrame(rows)
     X, meta = condition_matrix(features, "smooth", "combined", combined_forces=["1N", "4N"])
     single = {f: condition_matrix(features, "smooth", f)[0] for f in ("1N", "4N")}
@@ -702,6 +704,33 @@ def test_a_cell_file_is_checked_against_the_cell_its_name_says(tmp_path):
         assert problem in store.check_cell(first)
     pq.write_table(_pa_table(frame.iloc[:0]), results)
     assert store.check_cell(first) == f"{results}: holds no rows"
+
+
+def test_a_cell_file_missing_rows_its_design_promises_is_computed_again(tmp_path):
+    """Issue 28.8: a cell whose rows of one condition (or model family) were dropped counted as finished."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from roughsense.explore.store import SPECIMEN_SCHEMA
+
+    sweep, store = _stored_sweep(tmp_path, "[0]")
+    (cell,) = sweep.cells
+    results = tmp_path / "out" / "results" / f"cell-{cell.id}.parquet"
+    specimens = tmp_path / "out" / "specimens" / f"cell-{cell.id}.parquet"
+    frame, rows = pd.read_parquet(results), pd.read_parquet(specimens)
+    pq.write_table(_pa_table(frame[frame.condition != "combined"]), results)
+    assert store.check_cell(cell) == f"{results}: lacks the rows of combined loo pls (and 1 more)"
+    pq.write_table(_pa_table(pd.concat([frame, frame.iloc[:1]])), results)
+    assert store.check_cell(cell) == f"{results}: holds rows its cell's design does not promise, or one row twice"
+    pq.write_table(_pa_table(frame), results)
+    assert store.check_cell(cell) is None
+    for kept, problem in ((rows[rows.cv != "loso"], "lacks the rows of 1N loso pls (and 3 more)"),
+                          (rows.iloc[1:], "1N loo pls holds 3 specimen rows, its result row counts 4")):
+        pq.write_table(pa.Table.from_pandas(kept[SPECIMEN_SCHEMA.names], schema=SPECIMEN_SCHEMA, preserve_index=False),
+                       specimens)
+        assert store.check_cell(cell) == f"{specimens}: {problem}"
+    with pytest.warns(UserWarning, match="computing it again"):
+        assert store.finished() == set()
 
 
 def _pa_table(frame):

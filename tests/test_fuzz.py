@@ -41,7 +41,11 @@ HOSTILE_CELLS = [
     "line\nbreak", "2", "3.0", "rectangular", "other", "sinusoidal", "images/smooth_R2_1N_r01.png",
     "./images/smooth_R2_1N_r01.png", "images//smooth_R2_2N_r01.png",
     "1_0", "\u0661", "\u0663.\u0665", "0x10", "1e6", "1e-7", " 2 ", "2.01 N", "0,5", "+.5", "5.",  # issue 22: spellings
+    "0104", "007", "-01", "00", "2,0104",  # issue 28: leading zeros of a decimal comma's split
 ]
+#: Issue 28: headers a user may write: quoted (R's write.csv), named by a number, a spectrum column's mark, twice.
+HOSTILE_HEADERS = ['"force_n"', '"nominal_force_n"', "nominal_force_n", "0.1", "3", "nan", "Infinity", "0.0795",
+                   "spectrum@0.1", "force_n", "rating", "image", "timestamp", " repetition "]
 TOML_VALUES = [
     "true", "false", "0", "-1", "1e308", "nan", "inf", "-inf", '"center"', '"auto"', '"1,2,3,4"', '""', "[]", "[true, 2, 3]",
     "[1, 2, 3]", "[0, 0, 1900, 150]", "[0, 10, 400, 10]", "[1e308, 1, 1]", "[[1]]", "{a = 1}", '"../x"', '"R2"',
@@ -116,6 +120,8 @@ def table_edit(file, kind, index):
             rows.insert(i, [])
         elif kind == "extra_field":
             rows[i] = [*rows[i], "surplus"]
+        elif kind == "extra_blank":  # issue 28: a blank field beyond the header counts too
+            rows[i] = [*rows[i], ""]
         elif kind == "short_row":
             rows[i] = rows[i][:-1]
         elif kind == "drop_column":
@@ -234,6 +240,25 @@ def image_edit(index, kind, fraction, data):
     return apply
 
 
+def add_column(file, header, cell):
+    """Issue 28: a column added with a hostile header (quoted, a number, a duplicate) and one value in every row."""
+    def apply(root: Path) -> None:
+        rows = _rows(root / file)
+        if rows:
+            _write_rows(root / file, [[*rows[0], header], *([*r, cell] if r else r for r in rows[1:])])
+    return apply
+
+
+def quote_all(file):
+    """Issue 28: every field quoted, headers included, as R's write.csv saves a table."""
+    def apply(root: Path) -> None:
+        rows = _rows(root / file)
+        buffer = io.StringIO()
+        csv.writer(buffer, lineterminator="\n", quoting=csv.QUOTE_ALL).writerows(rows)
+        (root / file).write_bytes(buffer.getvalue().encode("utf-8", errors="surrogatepass"))
+    return apply
+
+
 def rename_everywhere(column, old, new):
     """Rename a pad/specimen/participant in every file (consistent data whose only fault is the name)."""
     def apply(root: Path) -> None:
@@ -256,8 +281,10 @@ fractions = st.floats(0, 1)
 mutations = st.one_of(
     st.builds(set_cell, st.sampled_from(CSV_FILES), st.integers(0, 40), st.integers(0, 10), cells),
     st.builds(table_edit, st.sampled_from(CSV_FILES),
-              st.sampled_from(["drop_row", "dup_row", "blank_line", "extra_field", "short_row", "drop_column",
-                               "dup_column", "header_only", "empty"]), st.integers(0, 40)),
+              st.sampled_from(["drop_row", "dup_row", "blank_line", "extra_field", "extra_blank", "short_row",
+                               "drop_column", "dup_column", "header_only", "empty"]), st.integers(0, 40)),
+    st.builds(add_column, st.sampled_from(CSV_FILES), st.sampled_from(HOSTILE_HEADERS), cells),
+    st.builds(quote_all, st.sampled_from(CSV_FILES)),
     st.builds(raw_edit, st.sampled_from([*CSV_FILES, "study.toml"]),
               st.sampled_from(["truncate", "latin1", "utf16", "bom", "crlf", "splice", "overwrite", "delete", "folder"]),
               fractions, blobs),
@@ -676,3 +703,145 @@ def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
     else:
         assert np.isfinite(reading.force_n) and reading.stable
     assert time.monotonic() - started < 1.0
+
+
+# --------------------------------------------------------------------------- issue 28: the new rules as properties
+
+#: TOML number spellings: those a CSV cell may use, and TOML's own (digit groups, bases, inf, nan).
+TOML_NUMBERS = ["1", "-2", "+3", "1.5", "1e3", "0.5", "2E-1", "1_000", "0x10", "0o7", "0b1", "inf", "-inf", "nan",
+                "+nan", "1_0.5", "1e1_0"]
+#: Characters of strings and keys that look like numbers, or end strings early to a pattern: quotes, backslashes.
+TOML_TEXT = st.text(alphabet=st.sampled_from(list("ax1_0 ='\"\\\n#[]inf")), max_size=12)
+
+
+def _foreign(spelling: str) -> bool:
+    bare = spelling.lstrip("+-")
+    return "_" in bare or bare[:2] in ("0x", "0o", "0b") or bare in ("inf", "nan")
+
+
+@st.composite
+def toml_strings(draw) -> str:
+    """A TOML string of any of the four kinds holding ``TOML_TEXT``; quotes escaped at random where allowed."""
+    text = draw(TOML_TEXT)
+    kind = draw(st.sampled_from(["basic", "multi", "literal", "multi_literal"]))
+    if kind == "literal" and "'" not in text and "\n" not in text:
+        return f"'{text}'"
+    if kind == "multi_literal" and "\'\'\'" not in text and not text.endswith("'"):
+        return f"\'\'\'{text}\'\'\'"
+    out, run = [], 0
+    for ch in text:
+        if ch == "\\":
+            out.append("\\\\")
+            run = 0
+        elif ch == '"' and kind == "multi" and run < 2 and not draw(st.booleans()):
+            out.append('"')  # up to two unescaped quotes inside a multi-line string
+            run += 1
+        elif ch == '"':
+            out.append('\\"')
+            run = 0
+        elif ch == "\n" and kind != "multi":
+            out.append("\\n")
+            run = 0
+        else:
+            out.append(ch)
+            run = 0
+    body = "".join(out)
+    if kind == "multi":
+        return '"""' + body + ('\\"' if body.endswith('"') else "") + '"""'
+    return f'"{body}"'
+
+
+@settings(FUZZ, max_examples=max(300, EXAMPLES * 4))
+@given(data=st.data())
+def test_the_toml_spelling_check_sees_values_only(data):
+    """A TOML number is refused iff it is spelled as no CSV cell may be; strings, keys and comments never are."""
+    import tomllib
+
+    from roughsense.io.numbers import toml_spelling_problem
+
+    lines, spellings = ["[t]"], []
+    for k in range(data.draw(st.integers(1, 5))):
+        key = data.draw(st.sampled_from(["a", "inf", "nan", "1_000", "0x10", f"k{k}", '"q.1_0"', "'x = 0x1'"]))
+        values = data.draw(st.lists(st.one_of(st.sampled_from(TOML_NUMBERS), toml_strings()), min_size=1, max_size=3))
+        spellings += [v for v in values if v in TOML_NUMBERS]
+        value = values[0] if len(values) == 1 else "[" + ", ".join(values) + "]"
+        comment = data.draw(st.sampled_from(["", " # 1_0 0x2", " #"]))
+        lines.append(f"{key}{k} = {value}{comment}" if not key.startswith(("'", '"')) else f"{key[:-1]}{k}{key[-1]} = {value}")
+    text = "\n".join(lines) + "\n"
+    try:
+        tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        event("not TOML")
+        return
+    problem = toml_spelling_problem(text)
+    foreign = [s for s in spellings if _foreign(s)]
+    assert (problem is not None) == bool(foreign), (text, problem)
+    if problem is not None:
+        assert any(repr(s) in problem for s in foreign), (text, problem)
+
+
+@settings(FUZZ, max_examples=max(100, EXAMPLES))
+@given(header=st.integers(1, 5), rows=st.lists(st.lists(st.sampled_from(["1", ""]), min_size=0, max_size=6).map(
+    lambda r: ["1", *r]), min_size=1, max_size=5))
+def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, header, rows):
+    """Issue 28.3: blanks count; a row wider or narrower than the header is refused, never shifted or padded."""
+    from roughsense.errors import InputError
+    from roughsense.io.tables import read_table
+
+    path = tmp_path_factory.mktemp("widths") / "t.csv"
+    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
+    try:
+        read_table(path, [])
+        read = True
+    except InputError as exc:
+        read = False
+        assert "fields but the header has" in exc.message, exc.message
+    assert read == all(len(r) == header for r in rows), (header, rows)
+
+
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), min_size=1, max_size=8))
+def test_a_specimen_spec_reads_its_numbers_as_every_reader_does(text):
+    """Issue 28.4: a spec's number is what parse_number reads (no 1_5 as 15 mm), or the spec is refused."""
+    from roughsense.errors import ConfigError
+    from roughsense.io.numbers import NumberError, parse_number
+    from roughsense.sim.specimens import parse_specimen
+
+    try:
+        expected = float(parse_number(text))
+    except NumberError:
+        expected = None
+    try:
+        got = parse_specimen(f"rect:{text}").wavelength_mm
+    except ConfigError:
+        got = None
+    assert got is None or got == expected, (text, got, expected)
+    if expected is None:
+        assert got is None
+
+
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(seed=st.one_of(st.integers(-5, 5), st.integers(2**63 - 3, 2**63 + 3), st.integers(0, 2**80)),
+       zeros=st.integers(0, 2))
+def test_every_seed_reader_bounds_a_seed_alike(seed, zeros):
+    """Issue 28.14: a seed is a whole number from 0 to 2**63 - 1 (and written without leading zeros) everywhere."""
+    import typer
+
+    from roughsense._util.checks import MAX_SEED, SEED
+    from roughsense.cli._common import number_option
+    from roughsense.errors import ConfigError
+    from roughsense.sim.specimens import parse_specimen
+
+    text = "0" * zeros + str(seed)
+    valid = 0 <= seed <= MAX_SEED and (zeros == 0 or text == "0")
+    try:
+        option = number_option("--seed", quantity="seed")(text)
+    except (typer.BadParameter, ConfigError):
+        option = None
+    assert (option == seed) if valid else option is None, (text, option)
+    try:
+        spec = parse_specimen(f"rand:1.5:0.2:{text}").seed
+    except ConfigError:
+        spec = None
+    assert (spec == seed) if valid else spec is None, (text, spec)
+    assert SEED.accepts(seed) == (0 <= seed <= MAX_SEED)

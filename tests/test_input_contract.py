@@ -332,6 +332,22 @@ def test_study_recomputes_a_truncated_cache_entry_and_an_image_rewritten_in_plac
     assert (tmp_path / "r1" / "predictions.csv").read_bytes() != (tmp_path / "r4" / "predictions.csv").read_bytes()
 
 
+def test_the_features_key_covers_study_toml(sandbox):
+    """Issue 28.2: study.toml ([protocol] forces_n labels each image's condition) and the manifest as read are keyed."""
+    loaded = read_study(sandbox)
+    key = cache.features_key(loaded, {"x": 1})
+    toml = sandbox / "study.toml"
+    text = toml.read_text()
+    assert "forces_n = [1.0, 2.0, 3.0]" in text
+    toml.write_text(text.replace("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1, 2, 3]"))
+    assert cache.features_key(read_study(sandbox), {"x": 1}) != key
+    toml.write_text(text)
+    assert cache.features_key(read_study(sandbox), {"x": 1}) == key
+    relabelled = read_study(sandbox)
+    relabelled.manifest["condition"] = relabelled.manifest["condition"].replace({"2N": "2.5N"})
+    assert cache.features_key(relabelled, {"x": 1}) != key
+
+
 def test_an_image_rewritten_in_place_with_its_mtime_restored_gets_a_new_key(sandbox):
     loaded = read_study(sandbox)
     key = cache.features_key(loaded, {"x": 1})
@@ -391,7 +407,7 @@ def test_a_deeply_nested_toml_is_one_line(run_cli, sandbox, tmp_path):
 
 def test_protocol_and_fit_refuse_a_negative_seed(run_cli, sandbox, tmp_path):
     line = one_error(*run_cli("protocol", "--out", tmp_path / "p.csv", "--seed", "-1")[::2])
-    assert "--seed must be a whole number >= 0, got -1" in line
+    assert "--seed must be at least 0, got -1" in line
     line = one_error(*run_cli("fit", "--study", sandbox, "--pad", "smooth", "--condition", "1N", "--out",
                               tmp_path / "m.json", "--cv", "3", "--seed", "-5")[::2])
     assert "--seed" in line
@@ -415,7 +431,7 @@ def test_one_participant_left_is_one_line_not_a_numpy_warning(run_cli, sandbox, 
     ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [true, 2, 3]", "got True"),
     ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1e308, 2, 3]", "up to 100"),
     ("forces_n = [1.0, 2.0, 3.0]", 'forces_n = "1,2,3"', "non-empty list of numbers"),
-    ('roi = "center"', 'roi = "center"\nmax_pixels = true', "max_pixels must be a positive whole number"),
+    ('roi = "center"', 'roi = "center"\nmax_pixels = true', "max_pixels must be a whole number of pixels from 1 to"),
     ('name = "simulated"', "name = [1]", "[study] name must be text"),
 ])
 def test_toml_values_of_the_wrong_kind_are_refused(sandbox, old, new, message):
@@ -681,6 +697,8 @@ def test_study_toml_numbers_are_bounded_and_spelled_as_in_a_csv(run_cli, sandbox
     (lambda d: d["model"]["intercepts"].__setitem__(-1, 1e300), "model.intercepts["),
     (lambda d: d["model"].update(y_mean=1e300), "model.y_mean is 1e+300; a rating is at most 1e+06"),
     (lambda d: d["model"]["x_mean"].__setitem__(0, -1e200), "model.x_mean holds 1e+200"),
+    # Issue 28.10: a re-signed file with 200,000 frequencies made predict reach 24 GB.
+    (lambda d: d["features"]["spectrum"].update(n_freqs=200_000), "spectrum has n_freqs 200000; at most 5000"),
 ])
 def test_a_resigned_model_file_with_extreme_numbers_is_refused(run_cli, base, model_document, tmp_path, edit, message):
     """Item 5: the checksum is unkeyed, so 1e308 coefficients re-signed made predict write inf with exit 0."""

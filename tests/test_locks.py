@@ -39,8 +39,9 @@ max_components = 3
 pad = ["smooth"]
 """
 _HOLD = """
-import sys, time
+import signal, sys, time
 from roughsense._util.lock import output_lock
+signal.signal(signal.SIGTERM, signal.default_int_handler)  # as roughsense's own entry point does
 with output_lock(sys.argv[1], command="explore"):
     print("held", flush=True)
     time.sleep(120)
@@ -59,8 +60,9 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def _stop(process: subprocess.Popen, timeout_s: float = 60.0) -> None:
-    """Ctrl-C, as a user stops a run: the lock must go with it."""
-    process.send_signal(signal.SIGINT)
+    """``kill``, as a user stops a run: the lock must go with it. SIGTERM, not SIGINT: a process started in the
+    background (``make test &``, nohup, a script) inherits SIGINT ignored and would never stop (issue 28)."""
+    process.send_signal(signal.SIGTERM)
     try:
         process.wait(timeout=timeout_s)
     except subprocess.TimeoutExpired:
@@ -81,7 +83,7 @@ def holder(tmp_path):
     yield out, process
     if process.poll() is None:
         _stop(process)
-    assert not lock_path(out).exists()  # released on Ctrl-C
+    assert not lock_path(out).exists()  # released when the run is stopped
 
 
 def test_every_command_that_writes_a_folder_is_refused_naming_the_holder(holder, tmp_path, run_cli, monkeypatch):

@@ -289,3 +289,15 @@ def test_a_typed_force_is_spelled_as_every_number_roughsense_reads(typed, hint):
 def test_a_scale_line_with_digits_of_another_script_is_not_a_reading():
     assert parse_scale_line("ST,GS +\u0662\u0660\u0665 g") is None
     assert parse_scale_line("ST,GS +205 g").force_n == pytest.approx(0.205 * 9.80665)
+
+
+@pytest.mark.parametrize("typed, grams", [("1e2 g", 100.0), ("100 g", 100.0), ("1.0e-1 kg", 100.0), ("+1E2G", 100.0)])
+def test_a_typed_force_with_a_unit_takes_every_spelling_a_number_may_have(typed, grams):
+    """Issue 28.16: 100 g was accepted and 1e2 g refused; both are read by the one number parser."""
+    assert parse_typed_force(typed, 2.0) == pytest.approx(grams * 9.80665 / 1000)
+
+
+@pytest.mark.parametrize("typed, hint", [("1_0 g", "no '_' between digits: write 10"), ("\u0662 kg", "write the digits 0-9")])
+def test_a_typed_force_with_a_unit_is_refused_with_the_numbers_hint(typed, hint):
+    with pytest.raises(_Retry, match=hint):
+        parse_typed_force(typed, 2.0)

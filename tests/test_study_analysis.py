@@ -12,13 +12,14 @@ from scipy import integrate, stats
 from sklearn.cross_decomposition import PLSRegression
 
 from roughsense import paper as published
+from roughsense.analysis import dataset
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import InputError
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.study import Study
 
 FREQS = np.linspace(0.1, 1.0, 45)
-FREQ_COLUMNS = [repr(float(f)) for f in FREQS]
+FREQ_COLUMNS = dataset.spectrum_columns(FREQS)
 
 
 def synthetic_study(*, repetitions: int = 6, seed: int = 0, pads=("smooth", "fingerprint")):

@@ -43,7 +43,7 @@ def _cell(study, features, perceived, pad, condition):
     specimens = meta["specimen"].astype(str).to_numpy()
     trained = np.isin(specimens, paper.PAPER_SPECIMENS)
     y = dataset.targets(meta[trained], perceived)
-    grid = np.array([float(c) for c in dataset.frequency_columns(features)])
+    grid = dataset.column_frequencies(dataset.frequency_columns(features))
     law = {"freq_per_mm": grid, "n_blocks": 3 if condition == "combined" else 1,
            "pad_ridge_period_mm": study.pad_ridge_period_mm.get(pad)}
     return X[trained], y, specimens[trained], X[~trained], specimens[~trained], law

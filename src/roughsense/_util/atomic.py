@@ -12,11 +12,11 @@ import os
 import re
 import secrets
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
-from ..errors import OutputExistsError, RoughsenseError
+from ..errors import ConfigError, OutputExistsError, RoughsenseError
 
 
 def _umask() -> int:
@@ -30,14 +30,48 @@ def _default_file_mode() -> int:
     return 0o666 & ~_umask()
 
 
-def check_can_write(path: str | os.PathLike[str], *, force: bool = False) -> Path:
-    """Refuse to replace an existing file unless ``force``: user data is never overwritten silently."""
+def check_can_write(path: str | os.PathLike[str], *, force: bool = False,
+                    inputs: Iterable[str | os.PathLike[str]] = ()) -> Path:
+    """Refuse to replace an existing file unless ``force``, and one of the run's ``inputs`` even with it
+    (:func:`refuse_inputs`): user data is never overwritten silently."""
     target = Path(path)
+    refuse_inputs(target, inputs)
     if target.exists() and not force:
         raise OutputExistsError("already exists; pass --force to replace it", path=target)
     if target.exists() and target.is_dir():
         raise OutputExistsError("is a folder, expected a file path", path=target)
     return target
+
+
+def _resolved(path: Path) -> Path:
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError):  # a symlink loop: compare the path as written
+        return path.absolute()
+
+
+def refuse_inputs(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]], *,
+                  option: str = "--out") -> None:
+    """Refuse an output that is an input of the same run, --force or not: the run would replace what it reads.
+
+    An output is an input when it resolves to it (through symbolic links, or as a hard link of it), lies inside an
+    input folder (a study's images/), or is a folder holding an input (a report written over its study).
+    """
+    target = _resolved(Path(path))
+    for item in inputs:
+        source = _resolved(Path(item))
+        inside = source.is_dir() and target.is_relative_to(source)
+        if target == source or inside or source.is_relative_to(target) or _same_file(Path(path), Path(item)):
+            what = "inside the input folder" if inside and target != source else "an input of this run"
+            raise ConfigError(f"{option} {path} is {what} {item}; choose another path (--force does not change this: "
+                              "the run would overwrite what it reads)")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 @contextlib.contextmanager

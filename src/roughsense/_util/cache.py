@@ -1,7 +1,8 @@
 """Where roughsense keeps what it can recompute: the built-in simulated study and extracted features.
 
 The cache is ``$ROUGHSENSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/roughsense``, else ``~/.cache/roughsense``.
-Entries are keyed by content, so a stale entry is never reused: features are keyed by the manifest,
+Entries are keyed by content, so a stale entry is never reused: features are keyed by every input that shapes
+the cached frame -- manifest.csv and study.toml as written, the manifest as read (with each image's condition),
 the sensor settings and every image's size, mtime, ctime and inode; each entry carries a checksum and one
 that fails it is recomputed.
 """
@@ -28,7 +29,7 @@ def cache_dir() -> Path:
 
 
 #: Bumped whenever what an entry holds changes: older entries are then simply not found.
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 _CHECKSUM_PREFIX = b"#sha256="
 
 
@@ -43,11 +44,15 @@ def image_fingerprint(path: Path) -> str:
 
 
 def features_key(study, feature_definition: dict) -> str:
+    """The key of a study's features: a change to any file or setting that shapes the frame gives a new key."""
     digest = hashlib.sha256()
     digest.update(f"format {CACHE_FORMAT}\n".encode())
     digest.update(str(Path(study.root).resolve()).encode())
     digest.update(json.dumps(feature_definition, sort_keys=True, default=str).encode())
-    digest.update((Path(study.root) / "manifest.csv").read_bytes())
+    for name in ("manifest.csv", "study.toml"):  # study.toml's [protocol] forces_n labels each image's condition
+        path = Path(study.root) / name
+        digest.update(f"{name}\0".encode() + (path.read_bytes() if path.is_file() else b"") + b"\0")
+    digest.update(study.manifest.to_csv(index=False, lineterminator="\n", float_format="%.17g").encode())
     for relative, path in zip(study.manifest["image"], study.image_paths):
         digest.update(f"{relative}\0{image_fingerprint(path)}\n".encode())
     return digest.hexdigest()[:24]

@@ -103,6 +103,10 @@ class Options:
 
 POSITIVE = Real(0.0, low_open=True)
 POSITIVE_INT = Integer(1)
+#: The largest seed: results store it as a signed 64-bit integer (Parquet, pandas), so a larger one would fail
+#: only after the work it seeded. Every reader of a seed (options, sweep files, specs) bounds it here.
+MAX_SEED = 2**63 - 1
+SEED = Integer(0, MAX_SEED)
 
 
 def check(value, constraint: Constraint, *, name: str, error: type[RoughsenseError] = ConfigError, must: str | None = None):

@@ -23,6 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
+from .._util.checks import Integer, check
 from ..model.families import PEAK_LAW, PLS
 from ..model.peak_law import peak_law_cv
 from ..model.pls import single_threaded_blas
@@ -30,6 +31,9 @@ from ..model.pls_cv import nested_group_predictions, pls_cv_many
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = 199
+#: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
+#: 10^9 of them ran out of memory after half a minute; more is refused before any work.
+MAX_PERMUTATIONS = 10_000
 #: A model passes the permutation control when p < ALPHA.
 ALPHA = 0.05
 
@@ -38,6 +42,12 @@ CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
 #: The model family of a row (roughsense.model.families); the last column of controls.csv.
 MODEL_COLUMN = "model"
+
+
+def check_permutations(n_permutations: int) -> int:
+    """The number of shufflings, refused unless a whole number from 0 to :data:`MAX_PERMUTATIONS`."""
+    return check(n_permutations, Integer(0, MAX_PERMUTATIONS), name="permutations",
+                 must=f"a whole number from 0 to {MAX_PERMUTATIONS}")
 
 
 def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:

@@ -13,11 +13,38 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError, InputError
-from ..io.study import RATINGS_CSV, STUDY_TOML, Study
+from ..io.study import MANIFEST_CSV, RATINGS_CSV, STUDY_TOML, Study
 from ..paper import COMBINED, FORCE_CONDITIONS
 from .ratings import aggregate_ratings
 
 TRIAL_KEYS = ("specimen", "pad", "repetition")
+#: The analysis's own mark on a spectrum column (``spectrum@0.1`` holds the amplitude at 0.1 mm^-1). Spectrum
+#: columns are found by this mark, never by parsing headers: a manifest column named ``0.1`` or ``nan`` stays a
+#: manifest column. Files written for people (``features``, the report) use the bare frequency (:func:`plain_names`).
+SPECTRUM_PREFIX = "spectrum@"
+
+
+def spectrum_columns(freq_per_mm) -> list[str]:
+    """The feature table's column of each frequency (mm^-1): the prefix and the shortest round-tripping decimal."""
+    return [f"{SPECTRUM_PREFIX}{float(f)!r}" for f in freq_per_mm]
+
+
+def column_frequencies(columns: Sequence[str]) -> np.ndarray:
+    """The frequency (mm^-1) of each spectrum column, read back from the names :func:`spectrum_columns` made."""
+    return np.array([float(str(c)[len(SPECTRUM_PREFIX):]) for c in columns], dtype=np.float64)
+
+
+def plain_names(table: pd.DataFrame, *, source=None) -> pd.DataFrame:
+    """``table`` with each spectrum column named by its bare frequency (``0.1``), as files for people show it.
+
+    A non-spectrum column already named so would make two columns of one name: refused, naming it.
+    """
+    freq = frequency_columns(table)
+    plain = {c: c[len(SPECTRUM_PREFIX):] for c in freq}
+    clash = next((str(c) for c in table.columns if c not in plain and str(c) in plain.values()), None)
+    if clash is not None:
+        raise InputError(f"column {clash!r} has the name of a spectrum frequency; rename it", path=source)
+    return table.rename(columns=plain)
 
 
 def spectrum_for(study: Study, *, n_jobs: int = 1):
@@ -34,33 +61,29 @@ def spectrum_for(study: Study, *, n_jobs: int = 1):
 def study_features(
     study: Study, *, n_jobs: int = 1, progress: Callable | None = None, spectrum=None
 ) -> pd.DataFrame:
-    """Manifest columns plus one column per grid frequency (named by the frequency in mm^-1).
+    """Manifest columns plus one column per grid frequency (:func:`spectrum_columns`).
 
     ``progress(iterable, total=, description=)`` wraps the image stream (the CLI passes a rich bar).
     ``spectrum`` overrides the study's own sensor settings (a fitted SpatialSpectrum).
     """
+    marked = [str(c) for c in study.manifest.columns if str(c).startswith(SPECTRUM_PREFIX)]
+    if marked:  # before any image is read
+        raise InputError(f"column {marked[0]!r} starts with {SPECTRUM_PREFIX!r}, which marks roughsense's spectrum "
+                         "columns; rename it", path=study.root / MANIFEST_CSV)
     spectrum = spectrum if spectrum is not None else spectrum_for(study, n_jobs=n_jobs)
     paths = study.image_paths
     rows = spectrum.iter_transform(paths)
     if progress is not None:
         rows = progress(rows, total=len(paths), description="spectra")
     X = np.vstack(list(rows)) if paths else np.empty((0, spectrum.freq_per_mm_.size))
-    names = [str(c) for c in spectrum.get_feature_names_out()]
+    names = spectrum_columns(spectrum.freq_per_mm_)
     spectra = pd.DataFrame(X, columns=names, index=study.manifest.index)
     return pd.concat([study.manifest.reset_index(drop=True), spectra.reset_index(drop=True)], axis=1)
 
 
-def _is_frequency(name: object) -> bool:
-    try:
-        float(str(name))
-    except ValueError:
-        return False
-    return True
-
-
 def frequency_columns(features: pd.DataFrame) -> list[str]:
-    """The spectrum columns: those named by a number (a frequency in mm^-1), in order."""
-    return [c for c in features.columns if _is_frequency(c)]
+    """The spectrum columns (those :func:`spectrum_columns` named), in order."""
+    return [c for c in features.columns if isinstance(c, str) and c.startswith(SPECTRUM_PREFIX)]
 
 
 def conditions_of(condition: str, available: Sequence[str] = FORCE_CONDITIONS) -> list[str]:

@@ -392,6 +392,7 @@ def analyse_study(
     signed-rank tests stay about the paper's PLS.
     """
     models = _check_models(models)
+    _controls.check_permutations(n_permutations)  # before the features: the shufflings are held in memory at once
     perceived = _perceived_by_enough_people(study)
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
@@ -452,13 +453,14 @@ def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFram
                     seed: int) -> StudyAnalysis:
     """The analysis's record of the study (targets, shapes, mean spectra) before any model is fitted."""
     freq_columns = dataset.frequency_columns(features)
-    mean_spectra = features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index()
+    mean_spectra = dataset.plain_names(
+        features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index())
     return StudyAnalysis(
         study_name=study.name,
         reference_specimen=study.reference_specimen,
         perceived=perceived,
         shapes=dict(zip(study.specimens["specimen"], study.specimens["shape"])),
-        freq_per_mm=np.array([float(c) for c in freq_columns]),
+        freq_per_mm=dataset.column_frequencies(freq_columns),
         mean_spectra=mean_spectra,
         max_components=max_components,
         simulation=study.simulation,

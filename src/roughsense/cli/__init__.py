@@ -182,5 +182,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. ``kill`` (SIGTERM) stops a run as Ctrl-C does: its lock and half-built output
+    go with it. A run started in the background (``&``, nohup, a script) ignores Ctrl-C's SIGINT, so SIGTERM is
+    the signal that reaches it."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     sys.exit(main())

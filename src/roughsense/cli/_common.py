@@ -7,6 +7,7 @@ import threading
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Annotated, TypeVar
 
 import typer
@@ -62,9 +63,22 @@ def parse_float_list(text: str, *, name: str) -> list[float]:
 
 def check_seed(seed: int) -> int:
     """A seed for numpy.random.default_rng: a whole number >= 0 (a negative one is refused by NumPy)."""
-    from .._util.checks import Integer, check  # numpy: not for --help
+    from .._util.checks import MAX_SEED, SEED, check  # numpy: not for --help
 
-    return check(seed, Integer(0), name="--seed", must="a whole number >= 0")
+    return check(seed, SEED, name="--seed", must=f"a whole number from 0 to {MAX_SEED}")
+
+
+def run_inputs(*files: os.PathLike[str] | str | Iterable, study: os.PathLike[str] | str | None = None) -> list[Path]:
+    """Every path a run reads: ``files`` (paths or lists of them) and, for a study folder, its files and images/.
+
+    What no ``--out`` of the run may be (:func:`roughsense._util.atomic.refuse_inputs`). ``builtin`` is the cache's.
+    """
+    paths = [Path(f) for item in files for f in ([item] if isinstance(item, (str, os.PathLike)) else item)]
+    if study is None or str(study) == "builtin":
+        return paths
+    root = Path(study)
+    names = ("study.toml", "specimens.csv", "manifest.csv", "ratings.csv", "images")  # io.study's contract
+    return [*paths, *(root / name for name in names)]
 
 
 def usable_cores() -> int:

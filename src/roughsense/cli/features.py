@@ -7,8 +7,8 @@ from typing import Annotated
 import typer
 
 from ..errors import ConfigError
-from ..sensor.settings import SPECTRUM_DEFAULTS
-from ._common import Jobs, number_option, parse_float_list, progress
+from ..sensor.settings import MAX_N_FREQS, SPECTRUM_DEFAULTS
+from ._common import Jobs, number_option, parse_float_list, progress, run_inputs
 from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
 
@@ -47,7 +47,8 @@ Rows = Annotated[int, typer.Option(
     help="Average the N central rows of the crop (1 = the paper's middle row).")]
 Band = Annotated[str, typer.Option("--band", help="Frequency band F_MIN,F_MAX in mm^-1.")]
 NFreqs = Annotated[int, typer.Option(
-    "--n-freqs", parser=number_option("--n-freqs", whole=True), help="Number of evenly spaced frequencies in the band.")]
+    "--n-freqs", parser=number_option("--n-freqs", low=2, high=MAX_N_FREQS, whole=True),
+    help=f"Number of evenly spaced frequencies in the band (2 to {MAX_N_FREQS}).")]
 Window = Annotated[str, typer.Option(
     "--window", help=f"Taper before the DFT: '{SPECTRUM_DEFAULTS.window}' (default) or 'none' (the paper's literal choice).")]
 MaxPixels = Annotated[int | None, typer.Option(
@@ -58,7 +59,7 @@ MaxPixels = Annotated[int | None, typer.Option(
 
 def features(
     out: FeaturesOut, images: Images = None, study: StudyDir = None,
-    seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+    seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
                                       help="Seed of --study builtin.")] = 0,
     px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
@@ -79,7 +80,7 @@ def features(
     import json
 
     from .._util.atomic import check_can_write, write_csv, write_text
-    from ..analysis.dataset import study_features
+    from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
 
@@ -90,8 +91,8 @@ def features(
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
     _check_plot(plot, images, force)
-    check_can_write(out, force=force)
-    check_can_write(definition_path(out), force=force)
+    check_can_write(out, force=force, inputs=run_inputs(images or [], study=study))
+    check_can_write(definition_path(out), force=force, inputs=run_inputs(images or [], study=study))
     f_min, f_max = _band(band)
     loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
     if loaded is not None:
@@ -102,7 +103,7 @@ def features(
                          window=window, max_pixels=max_pixels)
     if loaded is not None:
         paths = loaded.image_paths
-        table = study_features(loaded, spectrum=spectrum, progress=progress)
+        table = plain_names(study_features(loaded, spectrum=spectrum, progress=progress), source=loaded.root / "manifest.csv")
     else:
         paths = list(images)
         table = _image_features(spectrum, paths)

@@ -9,7 +9,7 @@ import typer
 
 from .._util.text import counted
 from ..errors import ConfigError
-from ._common import Jobs, check_seed, number_option, progress
+from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 20
@@ -38,7 +38,7 @@ ModelName = Annotated[str, typer.Option(
                     "the family that passes its controls for surfaces never seen in training) or pls (the paper's "
                     "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
-    "--seed", parser=number_option("--seed", whole=True),
+    "--seed", parser=number_option("--seed", quantity="seed"),
     help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
@@ -74,7 +74,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     override = SensorOverride.parse(roi=roi)
     scheme = parse_cv(cv)
     check_seed(seed)
-    check_can_write(out, force=force)
+    check_can_write(out, force=force, inputs=run_inputs(study=study))
     study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
     loaded = read_study(study, require_ratings=True)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
@@ -214,7 +214,7 @@ SameSurface = Annotated[bool, typer.Option(
 
 
 def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
-            seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", whole=True),
+            seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
                                               help="Seed of --study builtin.")] = 0,
             specimens: Specimens = None, out: PredictionsOut = None, jobs: Jobs = None,
             force: Annotated[bool, typer.Option("--force", help="Replace PRED.csv if it exists.")] = False,
@@ -249,7 +249,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
         return
     _check_image_sources(given, specimens, study)
     if out is not None:
-        check_can_write(out, force=force)
+        check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)

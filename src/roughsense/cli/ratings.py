@@ -12,7 +12,7 @@ from ..errors import ConfigError, RoughsenseWarning
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
 from ._common import check_seed, number_option, parse_name_list
 
-_SEED = number_option("--seed", whole=True)
+_SEED = number_option("--seed", quantity="seed")
 _PARTICIPANTS = number_option("--participants", low=1, whole=True)
 _SESSIONS = number_option("--sessions", low=1, whole=True)
 
@@ -86,7 +86,7 @@ def ratings(
     from ..io.names import check_name
     from ..io.ratings import read_ratings
 
-    check_can_write(out, force=force)
+    check_can_write(out, force=force, inputs=[ratings_file])
     check_name(reference, what="--reference")
     names = _specimen_names(specimens) if specimens is not None else None
     frame = read_ratings(ratings_file, specimens=names, reference=reference)
@@ -136,7 +136,7 @@ def protocol(
     check_seed(seed)
     check_name(reference, what="--reference")
     fmt = _sheet_format(sheet, out, force)
-    check_can_write(out, force=force)
+    check_can_write(out, force=force, inputs=[specimens] if specimens is not None and Path(specimens).is_file() else [])
     names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
     _check_panel(participants, sessions, len({n for n in names if n != reference}))
     schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))

@@ -13,7 +13,7 @@ from ._defaults import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, P
 ORDER = 40
 #: Number options are read by the one number parser (io.numbers): '1_0', non-ASCII digits and 'inf' are refused.
 _PERIOD = number_option("--fingerprint-period-mm", quantity="ridge_period_mm", must="a positive number of mm from 0.001 to 100")
-_SEED = number_option("--seed", whole=True)
+_SEED = number_option("--seed", quantity="seed")
 _HEIGHT = number_option("--ridge-height-mm", low=0.0, low_open=True, must="a positive number of mm")
 
 

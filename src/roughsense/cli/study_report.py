@@ -8,7 +8,8 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, stage
+from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
+from ._defaults import MAX_PERMUTATIONS
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
 
 ORDER = 5
@@ -31,7 +32,7 @@ def register(app: typer.Typer) -> None:
                                  "or builtin (the default): the paper's study simulated with --seed, generated on "
                                  "first use and cached (a folder named builtin: ./builtin)."),
         out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
-        seed: int = typer.Option(DEFAULT_SEED, "--seed", parser=number_option("--seed", whole=True),
+        seed: int = typer.Option(DEFAULT_SEED, "--seed", parser=number_option("--seed", quantity="seed"),
                                  help="Seed of the built-in simulated study (and any random draw)."),
         # 20 is model.pls_cv.DEFAULT_MAX_COMPONENTS (tests/test_architecture.py checks it): a literal keeps --help light.
         max_components: int = typer.Option(20, "--max-components",
@@ -44,9 +45,10 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(
             False, "--force",
             help="Replace an earlier report in a non-empty --out folder as a whole (files you added to it are kept)."),
-        permutations: int = typer.Option(199, "--permutations", parser=number_option("--permutations", whole=True, low=0),
-                                         help="Specimen-level shufflings per model for the permutation control "
-                                         "(0: skip it; at least 199 for p-values to 0.005)."),
+        permutations: int = typer.Option(199, "--permutations", parser=number_option(
+            "--permutations", whole=True, low=0, high=MAX_PERMUTATIONS),
+            help="Specimen-level shufflings per model for the permutation control "
+            f"(0: skip it; at least 199 for p-values to 0.005; at most {MAX_PERMUTATIONS})."),
         figure_format: FigureFormat = "png",
         dpi: Dpi = DEFAULT_DPI,
     ) -> None:
@@ -57,9 +59,11 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
+        from .._util.atomic import refuse_inputs
         from .._util.lock import output_lock
         from ..report import FigureStyle, open_report_dir
 
+        refuse_inputs(out, run_inputs(study=data))  # a report swapped in over its own study: refused, --force or not
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
         # occupied --out (or one another run is writing) before minutes of work, not after.

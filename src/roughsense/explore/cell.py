@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis.dataset import spectrum_columns
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
 from ..io.protocol import nominal_force_label
@@ -99,8 +100,7 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
         "repetition": [t.repetition for t in trials],
         "contact_fraction": [round(f, 6) for f in fractions],
     })
-    names = [str(c) for c in spectrum.get_feature_names_out()]
-    features = pd.concat([manifest, pd.DataFrame(X, columns=names)], axis=1)
+    features = pd.concat([manifest, pd.DataFrame(X, columns=spectrum_columns(spectrum.freq_per_mm_))], axis=1)
     study = Study(
         root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE_SPECIMEN,
         sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(cell.forces_n)),
@@ -112,11 +112,21 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     return study, features
 
 
+def cell_conditions(cell: Cell) -> tuple[list[str], list[str]]:
+    """(force labels in order, conditions analysed): "combined" joins them when the design has several forces."""
+    labels = [nominal_force_label(f) for f in sorted(cell.forces_n)]
+    return labels, [*labels, "combined"] if len(labels) > 1 else labels
+
+
+def result_keys(cell: Cell) -> set[tuple[str, str, str]]:
+    """(condition, CV scheme, model family) of every result row the cell computes: what a finished cell holds."""
+    return {(condition, cv, model) for condition in cell_conditions(cell)[1] for cv in cell.cv for model in cell.models}
+
+
 def analyse_cell(cell: Cell):
     """The study analysis of one cell (every condition, CV scheme and model family)."""
     study, features = cell_features(cell)
-    labels = study.condition_labels()
-    conditions = [*labels, "combined"] if len(labels) > 1 else labels
+    labels, conditions = cell_conditions(cell)
     # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
     return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
                          cv_schemes=cell.cv, combined_forces=labels, n_permutations=0, models=cell.models), study

@@ -30,7 +30,7 @@ import pyarrow.parquet as pq
 from .._util import atomic
 from .._util.checks import short_repr, shown
 from ..errors import OutputExistsError, RoughsenseWarning
-from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS
+from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS, result_keys
 from .sweep import COLUMN_KINDS, MODEL_KEY, Cell, Sweep
 
 SWEEP_COPY = "sweep.toml"
@@ -141,7 +141,9 @@ class ResultStore:
         return done
 
     def check_cell(self, cell: Cell) -> str | None:
-        """Why the stored files of ``cell`` cannot be trusted (naming the file), or None if both are that cell's."""
+        """Why the stored files of ``cell`` cannot be trusted (naming the file), or None if both are that cell's,
+        whole: every row its design promises (:func:`_missing_rows`)."""
+        frames = []
         for sub, schema in ((RESULTS_DIR, RESULT_SCHEMA), (SPECIMENS_DIR, SPECIMEN_SCHEMA)):
             path = self.root / sub / cell_file(cell.id)
             try:
@@ -154,7 +156,8 @@ class ResultStore:
             wrong = _other_cell(frame, cell)
             if wrong is not None:
                 return f"{path}: is not the cell its name says ({wrong})"
-        return None
+            frames.append((path, frame))
+        return _missing_rows(cell, *frames)
 
     def write_cell(self, results: pd.DataFrame, specimens: pd.DataFrame, cell_id: str) -> None:
         """Specimens first, results last: the results file is the cell's 'done' mark."""
@@ -186,6 +189,35 @@ class ResultStore:
         if not tables:
             return schema.empty_table().to_pandas()
         return pa.concat_tables(tables).to_pandas()
+
+
+def _missing_rows(cell: Cell, results: tuple[Path, pd.DataFrame], specimens: tuple[Path, pd.DataFrame]) -> str | None:
+    """What a cell's files lack of the rows its design promises, or None.
+
+    The results hold one row per condition x CV scheme x model family (:func:`.cell.result_keys`), each once; the
+    specimens file, for each of those, one row per specimen its result row counts. A cell with rows dropped (a
+    model family's, say) would otherwise count as finished and be missing from every summary.
+    """
+    keys = ["condition", "cv", MODEL_KEY]
+    expected = result_keys(cell)
+    (results_path, summary), (specimens_path, rows) = results, specimens
+    found = list(summary[keys].astype(str).itertuples(index=False, name=None))
+    listed = set(rows[keys].astype(str).itertuples(index=False, name=None))
+    for path, have in ((results_path, found), (specimens_path, listed)):
+        missing = sorted(expected - set(have))
+        if missing:
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            return f"{path}: lacks the rows of {' '.join(missing[0])}{more}"
+    if len(found) != len(set(found)) or set(found) != expected:
+        return f"{results_path}: holds rows its cell's design does not promise, or one row twice"
+    counts = rows.groupby(keys, sort=False).size()
+    promised = summary.set_index(keys)["n_specimens"]
+    for key, count in counts.items():
+        wanted = promised.get(key)
+        if wanted is not None and wanted == wanted and int(wanted) != int(count):  # (NaN: a cell with no count)
+            return (f"{specimens_path}: {' '.join(map(str, key))} holds {count} specimen rows, its result row counts "
+                    f"{int(wanted)}")
+    return None
 
 
 def _other_cell(frame: pd.DataFrame, cell: Cell) -> str | None:

@@ -19,7 +19,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._util.checks import POSITIVE, Integer, Real, short_repr
+from .._util.checks import MAX_SEED, POSITIVE, Integer, Real, short_repr
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
@@ -334,7 +334,7 @@ def _run_settings(settings: dict, path: Path) -> dict:
         raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {short_repr(seeds)}")
     if len(seeds) > MAX_CELLS:
         raise _error(path, f"[sweep] seeds: {len(seeds)} seeds, above the limit of {MAX_CELLS} cells per sweep")
-    seeds = [_whole(path, "[sweep] seeds", s, 0) for s in seeds]
+    seeds = [_whole(path, "[sweep] seeds", s, 0, MAX_SEED) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
     max_components = _whole(path, "[sweep] max_components", settings.get("max_components", DEFAULT_MAX_COMPONENTS), 1)

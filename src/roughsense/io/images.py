@@ -23,6 +23,9 @@ GRAY_WEIGHTS_RGB = (0.298936021293775, 0.587043074451121, 0.114020904255103)
 #: small file that inflates to gigabytes (a "decompression bomb") cannot exhaust memory. 100 Mpx is above
 #: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
 DEFAULT_MAX_PIXELS = 100_000_000
+#: The highest pixel limit a study or option may set: OpenCV's decoders refuse images above 2**30 pixels anyway,
+#: so a larger limit (``max_pixels = 1e300``) would only promise what no read can keep.
+MAX_PIXELS_LIMIT = 2**30
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

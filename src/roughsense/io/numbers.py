@@ -15,11 +15,14 @@ import math
 import re
 from dataclasses import dataclass, replace
 
-from .._util.checks import short_repr
+from .._util.checks import MAX_SEED, short_repr
 
 #: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
 _WHOLE = re.compile(r"[+-]?[0-9]+", re.ASCII)
+#: A whole number written with a leading zero (``0104``): no count is written so, but a decimal comma in a
+#: comma-separated file leaves one (``2,0104`` split into ``2`` and ``0104``).
+_LEADING_ZERO = re.compile(r"[+-]?0[0-9]", re.ASCII)
 _COMMA_NUMBER = re.compile(r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII)
 _NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
 #: Whole numbers written with a point or an exponent are exact up to here (2**53); larger ones need digits only.
@@ -35,6 +38,11 @@ class NumberError(ValueError):
         self.message = message
 
 
+def _show(number: float | int) -> str:
+    """A bound or value in a message: an int exactly (a seed's 9223372036854775807), a float as ``%g``."""
+    return str(number) if isinstance(number, int) else f"{number:g}"
+
+
 @dataclass(frozen=True)
 class Bounds:
     """A quantity's accepted range: ``low`` (excluded if ``low_open``) to ``high``; ``noun`` starts its messages."""
@@ -48,9 +56,9 @@ class Bounds:
     def describe(self) -> str:
         kind = "a whole number" if self.whole else "a number"
         if self.low is not None and self.high is not None and not self.low_open:
-            return f"{kind} from {self.low:g} to {self.high:g}"
-        parts = [f"{'>' if self.low_open else '>='} {self.low:g}"] if self.low is not None else []
-        parts += [f"<= {self.high:g}"] if self.high is not None else []
+            return f"{kind} from {_show(self.low)} to {_show(self.high)}"
+        parts = [f"{'>' if self.low_open else '>='} {_show(self.low)}"] if self.low is not None else []
+        parts += [f"<= {_show(self.high)}"] if self.high is not None else []
         return " ".join([kind, " and ".join(parts)]).strip()
 
 
@@ -69,6 +77,8 @@ BOUNDS: dict[str, Bounds] = {
     "wavelength_mm": Bounds(1e-3, 1e3),
     # Camera scale: 1 px per 10 cm up to 10 nm per px (the paper: 34.9 px/mm).
     "px_per_mm": Bounds(1e-2, 1e5),
+    # Seeds are stored as signed 64-bit integers (see _util.checks.MAX_SEED).
+    "seed": Bounds(0, MAX_SEED, whole=True),
     # A pad's ridge period: 1 um (finer is no ridge a camera sees) to 100 mm (coarser than any specimen).
     "ridge_period_mm": Bounds(1e-3, 100.0),
 }
@@ -96,6 +106,10 @@ def _from_text(text: str, whole: bool) -> float | int:
         if lowered in ("inf", "infinity", "nan"):
             raise NumberError(f"not a finite number: {short_repr(text)}")
         raise NumberError(f"not a number: {short_repr(text)}{spelling_hint(stripped)}")
+    if whole and _LEADING_ZERO.match(stripped):
+        plain = stripped.lstrip("+-").lstrip("0") or "0"
+        raise NumberError(f"not a number: {short_repr(text)} (a whole number with a leading zero: write {plain}; "
+                          "or a decimal comma split a number here?)")
     if whole and _WHOLE.fullmatch(stripped):
         return int(stripped)  # exact, however many digits (a seed)
     value = float(stripped)
@@ -137,7 +151,7 @@ def _is_numpy_number(value: object) -> bool:
 
 def _within(number: float | int, bounds: Bounds, written: object) -> float | int:
     """``number`` if in ``bounds`` (and whole, if asked); else the one message of each kind of miss."""
-    shown = f"{number:g}"
+    shown = _show(number)
     noun = f"{bounds.noun} " if bounds.noun else ""
     if bounds.whole and number != math.floor(number):
         raise NumberError(f"{noun}must be a whole number, got {shown}")
@@ -145,9 +159,9 @@ def _within(number: float | int, bounds: Bounds, written: object) -> float | int
         if number <= 0 <= bounds.low and (bounds.low > 0 or bounds.low_open):  # the usual slip: say it plainly
             raise NumberError(f"{noun}must be positive, got {shown}")
         relation = "above" if bounds.low_open else "at least"
-        raise NumberError(f"{noun}must be {relation} {bounds.low:g}, got {shown}")
+        raise NumberError(f"{noun}must be {relation} {_show(bounds.low)}, got {shown}")
     if bounds.high is not None and number > bounds.high:
-        raise NumberError(f"{noun}must be at most {bounds.high:g}, got {shown}")
+        raise NumberError(f"{noun}must be at most {_show(bounds.high)}, got {shown}")
     if bounds.whole:
         if isinstance(number, float) and abs(number) > _EXACT_WHOLE:
             raise NumberError(f"{noun}must be written with digits only above 2**53, got {short_repr(written)}")
@@ -165,8 +179,10 @@ def number_or_nan(text: object) -> float:
 
 # TOML has number spellings of its own (``1_000``, ``0x10``, ``0o7``, ``0b1``, ``inf``, ``nan``) that its parser turns into
 # numbers before any reader of ours sees the text; a study.toml or sweep file is held to the CSV's spellings instead.
-_TOML_STRING_OR_COMMENT = re.compile(r'"""(?:.|\n)*?"""|\'\'\'(?:.|\n)*?\'\'\'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*')
-_TOML_NUMBER = re.compile(r"(?<![\w.])[+-]?(?:0[xob][0-9A-Fa-f_]+|\d[\d_]*(?:\.[\d_]*)?(?:[eE][+-]?[\d_]+)?|inf|nan)(?![\w.])")
+# tomllib keeps no spelling, so the document it accepted is walked again here, value by value: keys, table headers,
+# strings (escapes and multi-line ones included) and comments are stepped over by TOML's own grammar, never matched
+# with a pattern, so ``\"""`` inside a string, ``1_000`` in a name or a key named ``inf`` is never taken for a number.
+_BARE_END = frozenset(",]}#\n\r\t ")
 
 
 def _foreign(token: str) -> bool:
@@ -175,16 +191,96 @@ def _foreign(token: str) -> bool:
     return "_" in bare or bare[:2] in ("0x", "0o", "0b") or bare in ("inf", "nan")
 
 
+def _string_end(text: str, pos: int) -> int:
+    """Where the TOML string starting at ``pos`` ends (past its closing quote); the text is valid TOML."""
+    quote = text[pos]
+    if text.startswith(quote * 3, pos):
+        cursor = pos + 3
+        while True:
+            if quote == '"' and text[cursor] == "\\":
+                cursor += 2  # an escape: an escaped quote never closes the string
+                continue
+            if text.startswith(quote * 3, cursor):
+                run = len(text[cursor:cursor + 5]) - len(text[cursor:cursor + 5].lstrip(quote))
+                return cursor + run  # up to two quotes before the delimiter belong to the string
+            cursor += 1
+    cursor = pos + 1
+    while text[cursor] != quote:
+        cursor += 2 if quote == '"' and text[cursor] == "\\" else 1
+    return cursor + 1
+
+
+def _skip_blank(text: str, pos: int, *, lines: bool = True) -> int:
+    """Past spaces, tabs, comments and (with ``lines``) newlines."""
+    while pos < len(text):
+        if text[pos] == "#":
+            end = text.find("\n", pos)
+            pos = len(text) if end < 0 else end
+        elif text[pos] in " \t" or (lines and text[pos] in "\r\n"):
+            pos += 1
+        else:
+            break
+    return pos
+
+
+def _key_end(text: str, pos: int, stop: str) -> int:
+    """Past a (dotted, maybe quoted) key, at the ``stop`` character that follows it (``=`` or ``]``)."""
+    while text[pos] != stop:
+        pos = _string_end(text, pos) if text[pos] in "\"'" else pos + 1
+    return pos
+
+
+def _value_tokens(text: str, pos: int, found: list[tuple[int, str]]) -> int:
+    """Walk one value at ``pos``, adding each bare token (a number, bool or date) to ``found``; returns its end."""
+    pos = _skip_blank(text, pos)
+    if text[pos] in "\"'":
+        return _string_end(text, pos)
+    if text[pos] in "[{":
+        close, pos = "]" if text[pos] == "[" else "}", pos + 1
+        while True:
+            pos = _skip_blank(text, pos)
+            if text[pos] == close:
+                return pos + 1
+            if text[pos] == ",":
+                pos += 1
+                continue
+            if close == "}":
+                pos = _key_end(text, pos, "=") + 1
+            pos = _value_tokens(text, pos, found)
+    end = pos
+    while end < len(text) and text[end] not in _BARE_END:
+        end += 1
+    if text[end:end + 1] == " " and re.fullmatch(r"\d{4}-\d\d-\d\d", text[pos:end]):  # a date, a space, a time
+        end += 1
+        while end < len(text) and text[end] not in _BARE_END:
+            end += 1
+    found.append((pos, text[pos:end]))
+    return end
+
+
+def _bare_values(text: str) -> list[tuple[int, str]]:
+    """(offset, spelling) of every bare value (number, bool, date) of a TOML text that tomllib accepted."""
+    found: list[tuple[int, str]] = []
+    pos = _skip_blank(text, 0)
+    while pos < len(text):
+        if text[pos] == "[":  # a table header: [a."b.c"] or [[a]]
+            pos = _key_end(text, pos + 1, "]") + 1
+            pos += text[pos] == "]"
+        else:
+            pos = _value_tokens(text, _key_end(text, pos, "=") + 1, found)
+        pos = _skip_blank(text, pos)
+    return found
+
+
 def toml_spelling_problem(text: str) -> str | None:
     """The first number in a TOML text written in a spelling a CSV cell may not use, as a one-line problem, or None.
 
-    Strings and comments are left out, so a name such as ``"R_1"`` or a comment is never mistaken for a number.
+    ``text`` must be a document tomllib accepted (the caller parses first): the walk relies on its grammar.
     """
-    bare = _TOML_STRING_OR_COMMENT.sub(lambda m: " " * len(m.group(0)), text)
-    match = next((m for m in _TOML_NUMBER.finditer(bare) if _foreign(m.group(0))), None)
+    match = next(((pos, token) for pos, token in _bare_values(text) if _foreign(token)), None)
     if match is None:
         return None
-    line = text.count("\n", 0, match.start()) + 1
-    token = match.group(0)
+    line = text.count("\n", 0, match[0]) + 1
+    token = match[1]
     hint = spelling_hint(token) or " (write plain digits 0-9, a point and an optional exponent)"
     return f"line {line}: {token!r} is not a number as roughsense reads one{hint}"

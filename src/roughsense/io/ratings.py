@@ -19,7 +19,7 @@ from ..paper import REFERENCE_SPECIMEN
 from .names import check_name_column
 from .numbers import NumberError, parse_number
 from .problems import Problems, flag
-from .tables import csv_line, missing_columns, read_table, refuse_unknown
+from .tables import MAX_CSV_BYTES, csv_line, missing_columns, read_table, read_text, refuse_unknown
 
 RATING_COLUMNS = ("participant", "session", "specimen", "rating")
 KEY_COLUMNS = ("participant", "session", "specimen")
@@ -151,10 +151,7 @@ def _read_markdown_sheet(path: Path) -> pd.DataFrame:
 
     The frame's index is ``line - 2`` so that errors name the line of the Markdown file.
     """
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise InputError("is not UTF-8 text", path=path) from None
+    lines = read_text(path, max_bytes=MAX_CSV_BYTES).splitlines()  # the CSVs' size and encoding rules
     rows, index, header = [], [], None
     for number, line in enumerate(lines, start=1):
         text = line.strip()
@@ -164,6 +161,10 @@ def _read_markdown_sheet(path: Path) -> pd.DataFrame:
         cells = [c.strip() for c in text.strip("|").split("|")]
         if header is None:
             header = [c.lower() for c in cells]
+            twice = next((c for k, c in enumerate(header) if c and c in header[:k]), None)
+            if twice is not None and set(RATING_COLUMNS) <= set(header):
+                raise InputError(f"table column {twice!r} appears twice in the header; remove or rename one",
+                                 path=path, row=number)
             continue
         if all(re.fullmatch(r":?-+:?", c) for c in cells):
             continue

@@ -12,7 +12,7 @@ import numpy as np
 
 from .._util.checks import POSITIVE, check, is_number
 from ..errors import ConfigError
-from .images import DEFAULT_MAX_PIXELS
+from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
 DEFAULT_PX_PER_MM = 34.9  # the paper's camera: 349 px/cm (section 2.1)
@@ -47,9 +47,11 @@ class SensorSettings:
 
 
 def check_max_pixels(value: object, *, option: str = "max_pixels") -> int:
-    """A pixel limit: a positive whole number (see :data:`DEFAULT_MAX_PIXELS`)."""
-    if not (is_number(value) and math.isfinite(value) and value == int(value) and value >= 1):
-        raise ConfigError(f"{option} must be a positive whole number of pixels, got {value!r}")
+    """A pixel limit: a whole number of pixels from 1 to :data:`~.images.MAX_PIXELS_LIMIT` (default
+    :data:`DEFAULT_MAX_PIXELS`)."""
+    if not (is_number(value) and math.isfinite(value) and value == int(value) and 1 <= value <= MAX_PIXELS_LIMIT):
+        raise ConfigError(f"{option} must be a whole number of pixels from 1 to {MAX_PIXELS_LIMIT} (OpenCV decodes "
+                          f"no larger image), got {value!r}")
     return int(value)
 
 

@@ -34,7 +34,7 @@ from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
 from .ratings import read_ratings_table
 from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
-from .tables import csv_line, has_column, read_table, read_text, refuse_unknown
+from .tables import csv_line, read_table, read_text, refuse_unknown
 
 #: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"
@@ -209,7 +209,7 @@ def read_manifest(path: str | os.PathLike[str], *, known_specimens: Iterable[str
     frame = read_table(
         path,
         MANIFEST_COLUMNS,
-        positive=["force_n", *(["nominal_force_n"] if has_column(path, "nominal_force_n") else [])],
+        positive=["force_n", "nominal_force_n"],  # read from the parsed header (a quoted name is still the column)
         integer=["repetition"],
         numeric=["contact_fraction"],
         text=["image", "specimen", "pad"],
@@ -347,8 +347,9 @@ def _read_tables(root: Path, settings: dict, problems: Problems | None, *, requi
         if settings["forces_n"] is not None:
             manifest = assign_nominal_forces(manifest, settings["forces_n"], manifest_path, problems=problems)
         if check_images:
-            flag(problems, [isinstance(rel, str) and not (root / rel).is_file() for rel in manifest["image"]],
-                 lambda i: InputError(f"image file not found: {manifest['image'].iloc[i]}", path=manifest_path,
+            missing = [_image_file_problem(root, rel) for rel in manifest["image"]]
+            flag(problems, [why is not None for why in missing],
+                 lambda i: InputError(f"{missing[i]}: {manifest['image'].iloc[i]}", path=manifest_path,
                                       row=csv_line(i), column="image"))
         _warn_pad_case(settings["config"], manifest, settings["toml_path"])
     ratings = None
@@ -360,6 +361,17 @@ def _read_tables(root: Path, settings: dict, problems: Problems | None, *, requi
     elif require_ratings:
         report(problems, InputError("file not found (the analysis needs participants' ratings)", path=ratings_path))
     return {"specimens": specimens, "manifest": manifest, "ratings": ratings}
+
+
+def _image_file_problem(root: Path, relative: object) -> str | None:
+    """Why a manifest image is not a readable file (``image file not found``), or None; an OS error such as
+    "File name too long" is that row's problem, so `check` goes on listing the others."""
+    if not isinstance(relative, str):
+        return None  # a blank cell (only when collecting): reported as empty already
+    try:
+        return None if (root / relative).is_file() else "image file not found"
+    except OSError as exc:
+        return f"image file cannot be looked up ({exc.strerror or type(exc).__name__})"
 
 
 def _warn_pad_case(config: Mapping, manifest: pd.DataFrame, toml_path: Path) -> None:

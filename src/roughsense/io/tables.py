@@ -2,6 +2,7 @@
 """
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import os
@@ -70,12 +71,32 @@ def read_text(path: Path, *, max_bytes: int | None = None) -> str:
         raise InputError("is a folder, expected a file", path=path) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    wide = _wide_encoding(raw)
+    if wide is not None:  # UTF-16 decodes as UTF-8 full of NULs (without a BOM): say what it is, not garbage
+        raise InputError(f"is {wide} text, not UTF-8; save it as UTF-8 (e.g. CSV UTF-8 in Excel)", path=path)
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
         raise InputError(f"is not UTF-8 text (byte 0x{raw[exc.start]:02x}); save it as UTF-8",
                          path=path, row=line) from None
+
+
+def _wide_encoding(raw: bytes) -> str | None:
+    """``"UTF-16LE"`` (or BE, or UTF-32) if the bytes are text in a wide encoding, with or without a BOM, else None."""
+    for bom, name in ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"),
+                      (codecs.BOM_UTF16_LE, "UTF-16"), (codecs.BOM_UTF16_BE, "UTF-16")):
+        if raw.startswith(bom):
+            return name
+    head = raw[:4096]
+    if b"\x00" not in head:
+        return None
+    odd, even = head[1::2].count(0), head[0::2].count(0)
+    if odd > len(head) // 4 and even == 0:
+        return "UTF-16LE (no byte-order mark)"
+    if even > len(head) // 4 and odd == 0:
+        return "UTF-16BE (no byte-order mark)"
+    return None
 
 
 def _semicolon_header(text: str) -> bool:
@@ -125,29 +146,75 @@ def _from_semicolons(path: Path, text: str) -> str:
     return out.getvalue()
 
 
-def _check_row_widths(path: Path, text: str, problems: Problems | None = None) -> None:
-    """Refuse each data row with non-empty fields beyond the header's, naming its line.
+#: A study's CSVs are a few MB (a manifest of 10^5 images is about 10 MB); far larger is not a study file, and is
+#: refused before it is read (a 6 GB sparse file would exhaust memory).
+MAX_CSV_BYTES = 100_000_000
+#: More columns than any study file needs (manifest: 5 required, a few optional, a user's notes): a header of
+#: millions of columns is refused before pandas spends minutes and gigabytes on it.
+MAX_CSV_COLUMNS = 1000
+
+
+def _header_of(path: Path, reader) -> list[str] | None:
+    """The header's column names (stripped); its own trailing delimiters name no column and are not counted.
+
+    Too many columns, or one name twice (pandas would read the second ``force_n`` as ``force_n.1`` and ignore it),
+    is a problem with the whole file: raised even when collecting.
+    """
+    header = next(reader, None)
+    if header is None:
+        return None
+    header = [name.strip() for name in header]
+    if len(header) > MAX_CSV_COLUMNS:
+        raise InputError(f"has {len(header)} columns; a study file has at most {MAX_CSV_COLUMNS}", path=path)
+    seen: dict[str, int] = {}
+    for position, name in enumerate(header, start=1):
+        if name and name in seen:
+            raise InputError(f"column {name!r} appears twice in the header (columns {seen[name]} and {position}); "
+                             "remove or rename one", path=path)
+        seen[name] = position
+    return header
+
+
+def _row_width_problem(row: list[str], width: int, raw_width: int) -> str | None:
+    """Why a data row's field count is not the header's (blanks included), or None.
+
+    A row wider than the header, even by empty fields, is how a decimal comma shifts values (``2,0104,2`` read as
+    force 2, repetition 104); a shorter row leaves a value under the wrong column. The header's own trailing
+    delimiters (a spreadsheet's) may be repeated by the rows.
+    """
+    extra = [value.strip() for value in row[width:] if value.strip()]
+    if extra:  # a nameless column (the header's trailing delimiter) holds no data either
+        decimal = "; a decimal comma? write numbers with a point (0.5, not 0,5)" if extra[0].isdigit() else ""
+        return f"{len(row)} fields but the header has {width} (extra value {extra[0]!r}){decimal}"
+    if len(row) in (width, raw_width):
+        return None
+    if len(row) < width:
+        return f"{len(row)} fields but the header has {width}; write one field per column (an empty one as ,,)"
+    return (f"{len(row)} fields but the header has {width} (extra empty field); a decimal comma (write 0.5, not 0,5) "
+            "or a trailing delimiter? every row needs the header's number of fields")
+
+
+def _check_shape(path: Path, text: str, problems: Problems | None = None) -> None:
+    """Refuse duplicate or too many columns, and each data row whose field count is not the header's, by its line.
 
     pandas would take the first column as the index and shift every value one column left (or, with
-    ``index_col=False``, drop the extras with only a warning). Empty extra fields -- a spreadsheet's
-    trailing delimiter -- are accepted. Undecodable or malformed files are left for pandas to report.
+    ``index_col=False``, drop the extras with only a warning, and fill a short row with blanks). Blank lines are
+    left to :func:`_parse_csv`; malformed files to pandas.
     """
     try:
         with io.StringIO(text, newline="") as handle:
             reader = csv.reader(handle, skipinitialspace=True)
-            header = next(reader, None)
+            header = _header_of(path, reader)
             if header is None:
                 return
-            while header and not header[-1].strip():
+            raw_width = len(header)
+            while header and not header[-1]:
                 header.pop()  # the header's own trailing delimiter names no column
-            width = len(header)
             start = reader.line_num + 1
             for row in reader:
-                extra = [value.strip() for value in row[width:] if value.strip()]
-                if extra:
-                    decimal = "; a decimal comma? write numbers with a point (0.5, not 0,5)" if extra[0].isdigit() else ""
-                    report(problems, InputError(f"{len(row)} fields but the header has {width} "
-                                                f"(extra value {extra[0]!r}){decimal}", path=path, row=start))
+                problem = _row_width_problem(row, len(header), raw_width) if row else None
+                if problem is not None:
+                    report(problems, InputError(problem, path=path, row=start))
                 start = reader.line_num + 1
     except csv.Error:
         return
@@ -197,10 +264,10 @@ def read_table(
 
 def _parse_csv(path: Path, dtypes: dict, problems: Problems | None = None) -> pd.DataFrame:
     """The file as a frame whose row i is file line i + 2; blank lines at the end dropped, inside refused."""
-    content = read_text(path)
+    content = read_text(path, max_bytes=MAX_CSV_BYTES)
     if _semicolon_header(content):
         content = _from_semicolons(path, content)
-    _check_row_widths(path, content, problems)
+    _check_shape(path, content, problems)
     try:
         # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
         # skip_blank_lines=False keeps DataFrame row i on file line i + 2, so every error names the right line.
@@ -258,16 +325,6 @@ def _numeric_column(cells: pd.Series, path: Path, *, positive: bool, integer: bo
     if not integer:
         return values
     return values.astype("Int64") if values.isna().any() else values.astype(np.int64)
-
-
-def has_column(path: Path, column: str) -> bool:
-    try:
-        with path.open(encoding="utf-8-sig") as handle:
-            header = handle.readline(100_000)
-    except (OSError, UnicodeDecodeError):
-        return False  # read_table then names the real problem
-    separator = ";" if _semicolon_header(header) else ","
-    return column in [c.strip() for c in header.strip().split(separator)]
 
 
 def _toml_value(value: object) -> str:

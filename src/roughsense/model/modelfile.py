@@ -47,6 +47,7 @@ import numpy as np
 from .._util import atomic
 from .._util.checks import POSITIVE_INT, Real, short_repr
 from ..errors import ModelFileError
+from ..sensor.settings import MAX_N_FREQS
 from . import peak_law_file
 from .applicability import SpectrumDomain
 from .families import PLS
@@ -413,6 +414,8 @@ def _check_feature_definition(features, n_features: int, path: Path | None) -> d
     n_freqs = spectrum.get("n_freqs")
     if not POSITIVE_INT.accepts(n_freqs):
         fail("the feature definition's spectrum needs a positive whole n_freqs")
+    if n_freqs > MAX_N_FREQS:  # before a grid of that size is built for every image
+        fail(f"the feature definition's spectrum has n_freqs {n_freqs}; at most {MAX_N_FREQS} are accepted")
     if n_freqs * len(conditions) != n_features:
         fail(
             f"the feature definition gives {n_freqs} frequencies x {len(conditions)} condition(s), "

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from ..errors import ConfigError, InputError, RoughsenseWarning
+from ..io.images import DEFAULT_MAX_PIXELS, header_size
 
 #: Frames dropped before a capture on a live device: V4L2 queues 4 buffers by default, plus the one in flight.
 DEVICE_DISCARD = 5
@@ -85,9 +86,10 @@ def _describe(spec: str | int) -> tuple[str | int, bool]:
 class FrameSource:
     """One open video source. Use as a context manager; frames are (H, W, 3) uint8 RGB."""
 
-    def __init__(self, spec: str | int, *, discard: int | None = None) -> None:
+    def __init__(self, spec: str | int, *, discard: int | None = None, max_pixels: int = DEFAULT_MAX_PIXELS) -> None:
         target, self.is_device = _describe(spec)
         self.name = str(spec)
+        self.max_pixels = int(max_pixels)
         if discard is None:
             discard = DEVICE_DISCARD if self.is_device else 0
         if discard < 0:
@@ -96,6 +98,8 @@ class FrameSource:
         if not self.is_device and "%" not in str(target) and not Path(target).exists():
             raise InputError("video source not found (expected a camera index, a video file or an image pattern)",
                              path=self.name)
+        if not self.is_device:
+            _check_image_header(str(target), self.max_pixels, self.name)  # before OpenCV decodes a frame of it
         with _decoder_messages() as messages:
             self._cap = cv2.VideoCapture(target)
             opened = self._cap.isOpened()
@@ -107,6 +111,15 @@ class FrameSource:
             # Not every backend honours this; the explicit discard covers the others.
             self._cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)
         self.frames_read = 0
+        self._check_size(int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+
+    def _check_size(self, width: int, height: int) -> None:
+        """Refuse frames above ``max_pixels`` (the source's stated size, then each decoded frame's)."""
+        if width * height > self.max_pixels:
+            self.close()
+            raise InputError(f"frames are {width} x {height} px ({width * height / 1e6:.3g} Mpx), above the limit of "
+                             f"{self.max_pixels / 1e6:.3g} Mpx; raise [sensor] max_pixels in study.toml if it is genuine",
+                             path=self.name)
 
     # ------------------------------------------------------------------ reading
 
@@ -133,6 +146,7 @@ class FrameSource:
                                      path=self.name)
                 return None
             self.frames_read += 1
+            self._check_size(frame.shape[1], frame.shape[0])
             if not messages:
                 return _to_rgb(frame)
             warnings.warn(RoughsenseWarning(f"{self.name}: frame {self.frames_read} decoded with errors "
@@ -172,6 +186,38 @@ class FrameSource:
         return f"FrameSource({self.name!r}, {kind}, discard={self.discard})"
 
 
+#: Bytes read of an image source to find its size in its header (a JPEG's size may follow 64 kB of EXIF).
+_HEADER_BYTES = 1 << 20
+
+
+def _check_image_header(target: str, max_pixels: int, name: str) -> None:
+    """An image file (or a pattern's first image) whose header states more than ``max_pixels``: refused unread.
+
+    A video file's header is not an image's: its size is checked once opened (``CAP_PROP_FRAME_*``).
+    """
+    paths = [target] if "%" not in target else [_pattern_file(target, i) for i in (0, 1)]
+    path = next((Path(p) for p in paths if p is not None and Path(p).is_file()), None)
+    if path is None:
+        return
+    try:
+        with path.open("rb") as handle:
+            head = np.frombuffer(handle.read(_HEADER_BYTES), np.uint8)
+    except OSError:
+        return  # OpenCV names the problem
+    size = header_size(head)
+    if size is not None and size[0] * size[1] > max_pixels:
+        raise InputError(f"image is {size[0]} x {size[1]} px ({size[0] * size[1] / 1e6:.3g} Mpx), above the limit of "
+                         f"{max_pixels / 1e6:.3g} Mpx; raise [sensor] max_pixels in study.toml if it is genuine",
+                         path=name if path == Path(target) else path)
+
+
+def _pattern_file(pattern: str, index: int) -> str | None:
+    try:
+        return pattern % index
+    except (TypeError, ValueError):
+        return None
+
+
 def _said(messages: list[str]) -> str:
     """The decoder's first messages as one short clause of an error or warning line."""
     text = "; ".join(messages[:2])
@@ -187,6 +233,8 @@ def _to_rgb(frame: np.ndarray) -> np.ndarray:
     return frame[:, :, ::-1]
 
 
-def open_source(spec: str | int | os.PathLike[str], *, discard: int | None = None) -> FrameSource:
+def open_source(spec: str | int | os.PathLike[str], *, discard: int | None = None,
+                max_pixels: int = DEFAULT_MAX_PIXELS) -> FrameSource:
     """Open ``spec``: "0" (camera index), "/dev/video2", "rtsp://...", "run.avi" or "frames/img_%04d.png"."""
-    return FrameSource(os.fspath(spec) if isinstance(spec, os.PathLike) else spec, discard=discard)
+    return FrameSource(os.fspath(spec) if isinstance(spec, os.PathLike) else spec, discard=discard,
+                       max_pixels=max_pixels)

@@ -27,7 +27,7 @@ from .._util.lock import output_lock
 from ..errors import ConfigError, InputError, OutputExistsError
 from ..io.names import NAME_RULE, check_name, is_safe_name
 from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
-from ..io.sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, Roi, SensorSettings, parse_roi, roi_misfit
+from ..io.sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings, parse_roi, roi_misfit
 from ..io.study import (
     IMAGES_DIR,
     MANIFEST_CSV,
@@ -293,7 +293,7 @@ class _Session:
         low_n, high_n = self.window[nominal]
         force_n = self.force_input.read_force(nominal, low_n=low_n, high_n=high_n, label=label)
         frame = self.source.read_fresh()
-        _check_frame(frame, self.folder.sensor.roi, self.source)
+        _check_frame(frame, self.folder.sensor, self.source)
         stamp = self.clock().astimezone(UTC).isoformat(timespec="milliseconds")
         if self.writer is None:
             self.writer = _start_writing(self.folder, self.specimens_update)
@@ -310,10 +310,15 @@ class _Session:
         self.log(f"  saved {rel} at {force_n:.3f} N")
 
 
-def _check_frame(frame: np.ndarray, roi: Roi, source: FrameSource) -> None:
-    """Refuse a frame the analysis could not crop (wrong camera resolution) before any of it is written."""
+def _check_frame(frame: np.ndarray, sensor: SensorSettings, source: FrameSource) -> None:
+    """Refuse a frame the analysis could not crop (wrong camera resolution), or one above the study's
+    ``[sensor] max_pixels`` (its images must read back), before any of it is written."""
     height, width = frame.shape[:2]
-    problem = roi_misfit(roi, width, height)
+    if width * height > sensor.max_pixels:
+        raise InputError(f"frame is {width}x{height} px ({width * height / 1e6:.3g} Mpx), above the study's [sensor] "
+                         f"max_pixels of {sensor.max_pixels / 1e6:.3g} Mpx; nothing of it was written",
+                         path=getattr(source, "name", None))
+    problem = roi_misfit(sensor.roi, width, height)
     if problem is not None:
         raise InputError(
             f"frame is {width}x{height} px, {problem}; set the camera's resolution or the study's roi",

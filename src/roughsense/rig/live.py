@@ -36,7 +36,13 @@ def live_scores(
     if max_frames is not None and max_frames < 1:
         raise ValueError("max_frames must be at least 1")
     own = not isinstance(source, FrameSource)
+    # Opened now, not on the first frame: a source refused (missing, above max_pixels) is one line before any display.
     frames = open_source(source) if own else source
+    return _scored_frames(frames, own, score_frame, max_frames=max_frames, min_interval_s=min_interval_s)
+
+
+def _scored_frames(frames: FrameSource, own: bool, score_frame, *, max_frames: int | None, min_interval_s: float):
+    """:func:`live_scores`' loop over an open source (closed at the end if ``own``)."""
     try:
         scored = 0
         last = -float("inf")

@@ -37,6 +37,8 @@ _READING = re.compile(
     r"(?P<sign>[+-])?\s*(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>kg|mn|g|n)$",
     re.IGNORECASE | re.ASCII,  # the digits 0-9 only, as every number reader of roughsense (io/numbers.py)
 )
+#: A typed force with its unit: the number before it is read by the one number parser, as a unit-less one is.
+_TYPED_UNIT = re.compile(r"^(?P<number>.*?\S)\s*(?P<unit>kg|mn|g|n)$", re.IGNORECASE | re.ASCII)
 _UNSTABLE_FLAGS = {"US", "OL"}
 _LINE_END = re.compile(rb"[\r\n]")
 #: Longest line kept while waiting for its end: real readings are under 30 bytes; more is noise or a wrong baud rate.
@@ -71,12 +73,14 @@ def parse_typed_force(text: str, nominal_force_n: float) -> float:
     text = text.strip()
     if not text:
         return float(nominal_force_n)
-    try:
-        value = float(parse_number(text))  # the one spelling of a number: no 1_0, no other scripts' digits
+    unit = _TYPED_UNIT.match(text)
+    number, factor = (unit["number"], _UNIT_TO_N[unit["unit"].lower()]) if unit else (text, 1.0)
+    try:  # the one spelling of a number, with or without a unit: 1e2 g is 100 g; no 1_0, no other scripts' digits
+        value = float(parse_number(number)) * factor
     except NumberError as exc:
         reading = parse_scale_line(text) if exc.message.startswith("not a number") else None
         if reading is None:
-            raise _Retry(f"force {short_repr(text)} is not a number{spelling_hint(text)} (type newtons such as 2.01, "
+            raise _Retry(f"force {short_repr(text)} is not a number{spelling_hint(number)} (type newtons such as 2.01, "
                          "or 205 g, or 0.205 kg)") from None
         value = reading.force_n
     if not math.isfinite(value):

@@ -26,3 +26,8 @@ class SpectrumDefaults:
 
 
 SPECTRUM_DEFAULTS = SpectrumDefaults()
+#: Most frequencies a grid may hold. A line of a few thousand pixels resolves about a hundred frequencies in the
+#: paper's band, so 5000 oversamples it fifty-fold (a fine grid locates a peak); the DFT basis grows with the grid
+#: (about 0.4 GB at 5000 frequencies on the paper's 1900 px line; 200,000 frequencies from a re-signed model file
+#: took 24 GB), so a larger grid is refused before any image is read.
+MAX_N_FREQS = 5000

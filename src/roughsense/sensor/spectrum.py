@@ -43,7 +43,7 @@ from ..io.sensor_settings import (
     parse_roi,
     roi_misfit,
 )
-from .settings import SPECTRUM_DEFAULTS, WINDOWS
+from .settings import MAX_N_FREQS, SPECTRUM_DEFAULTS, WINDOWS
 
 #: Pillow warns on stderr (DecompressionBombWarning) above this many pixels; larger PNGs go to OpenCV instead.
 _PILLOW_QUIET_PIXELS = 89_478_485
@@ -75,7 +75,7 @@ def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
     hi = check(f_max_per_mm, POSITIVE, name="f_max_per_mm", must="a positive number (mm^-1)")
     if not lo < hi:
         raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
-    check(n_freqs, Integer(2), name="n_freqs")
+    check(n_freqs, Integer(2, MAX_N_FREQS), name="n_freqs")
 
 
 # --------------------------------------------------------------------------- the spectrum of one line

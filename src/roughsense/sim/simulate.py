@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .._util import atomic
-from .._util.checks import POSITIVE, POSITIVE_INT, Integer, check
+from .._util.checks import MAX_SEED, POSITIVE, POSITIVE_INT, SEED, Integer, check
 from .._util.workers import process_pool
 from ..errors import ConfigError, OutputExistsError
 from ..io.names import check_name
@@ -88,8 +88,8 @@ class SimulationConfig:
                               ("--ridge-height-mm", self.ridge_height_mm)):
             check(value, POSITIVE, name=option, must="a positive number of mm")
         check_repetitions(self.repetitions)
-        for option, value, least in (("--seed", self.seed, 0), ("participants", self.participants, 2),
-                                     ("sessions", self.sessions, 1)):
+        check(self.seed, SEED, name="--seed", must=f"a whole number from 0 to {MAX_SEED}")
+        for option, value, least in (("participants", self.participants, 2), ("sessions", self.sessions, 1)):
             check(value, Integer(least), name=option, must=f"a whole number, at least {least}")
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]

@@ -13,6 +13,7 @@ import numpy as np
 from .._util.checks import POSITIVE, check
 from ..errors import ConfigError
 from ..io.names import NAME_RULE, is_safe_name
+from ..io.numbers import NumberError, parse_number
 from ..paper import PAPER_WAVELENGTHS_MM
 
 SPECIMEN_LENGTH_MM = 50.0
@@ -170,10 +171,7 @@ def parse_specimen(text: str) -> Specimen:
     lo, hi = arity[kind]
     if not lo <= len(parts) <= hi:
         raise ConfigError(f"specimen {text!r}: {kind} takes {lo}" + (f" to {hi}" if hi > lo else "") + f" numbers. {SPEC_HELP}")
-    try:
-        numbers = [float(p) for p in parts]
-    except ValueError:
-        raise ConfigError(f"specimen {text!r}: {rest!r} is not a list of numbers. {SPEC_HELP}") from None
+    numbers = [_spec_number(text, part, seed=kind == "rand" and k == 2) for k, part in enumerate(parts)]
     # The spec becomes the specimen's name in the study folder and in image names: ':' is not a name character.
     text = "_".join([text.partition(":")[0].strip(), *(part.strip() for part in parts)])
     if not is_safe_name(text):
@@ -189,7 +187,15 @@ def parse_specimen(text: str) -> Specimen:
         return circular(numbers[0], name=text)
     if kind == "sin":
         return sinusoidal(numbers[0], numbers[1], name=text)
-    seed = numbers[2] if len(numbers) > 2 else 0.0
-    if seed != int(seed) or seed < 0:
-        raise ConfigError(f"specimen {text!r}: the seed must be a whole number >= 0")
-    return random_grating(numbers[0], numbers[1], seed=int(seed), name=text)
+    return random_grating(numbers[0], numbers[1], seed=int(numbers[2]) if len(numbers) > 2 else 0, name=text)
+
+
+def _spec_number(spec: str, part: str, *, seed: bool) -> float | int:
+    """One number of a spec by the one number parser (``1_5`` is not 15 mm); a seed is whole and bounded."""
+    try:
+        return parse_number(part, quantity="seed") if seed else float(parse_number(part))
+    except NumberError as exc:
+        if not seed:
+            raise ConfigError(f"specimen {spec!r}: {exc.message}. {SPEC_HELP}") from None
+        message = exc.message
+        raise ConfigError(f"specimen {spec!r}: the seed {'is ' if message.startswith('not') else ''}{message}") from None
