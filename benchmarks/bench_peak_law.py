@@ -1,4 +1,5 @@
-"""Benchmark the peak power law against issue 19's goals, on the seeds it reports and on seeds nobody looked at.
+"""Benchmark the peak power law (the default model) against issue 27's goals, on the seeds the choices were made on
+and on seeds nobody looked at.
 
 For each seed of the built-in simulated study (paper's ratings), each pad and each condition (1N, 2N, 3N, combined),
 under leave-one-specimen-out (LOSO):
@@ -8,10 +9,14 @@ under leave-one-specimen-out (LOSO):
   study's seed), the whole LOSO rerun on each, p = (1 + #shuffled CV RMSE <= real) / 200 on the pooled trial
   RMSE, as controls.csv computes it;
 - Spearman rho of the specimen-mean LOSO predictions against perceived roughness over the 13 rated specimens
-  (the reference R3 is left out: its value is fixed by definition).
-Seeds 0, 1 and 2 are the ones the issue reports, and the law's features, detector, Huber fit and clipping were
-chosen while looking at them; seeds 3, 4 and 5 were not looked at (held out). Goals (issue 19): LOSO RMSE <= 0.20
-smooth / <= 0.25 fingerprint, p <= 0.01, beats the training mean, rho >= 0.9.
+  (the reference R3 is left out: its value is fixed by definition);
+- the empirical coverage of the 90 % prediction interval on held-out specimens (model/interval.py), and the
+  largest share of a held-out specimen's trials that the law's applicability domain flags.
+Seeds 0, 1 and 2 are the ones the issues report, and the law's features, detector, Huber fit, clipping, reading a
+specimen's peak from all its presses (issue 27) and the domain's margins were chosen while looking at them; seeds 3,
+4 and 5 were not looked at (held out). Goals (issue 27): LOSO RMSE <= 0.20 smooth / <= 0.22 fingerprint, p <= 0.01
+and below the training mean in every cell, rho >= 0.9 on at least 5 of 6 seeds, 85-95 % coverage (combined, seeds
+0-2).
 
 Speed (one BLAS thread for every contender, as the study's controls run): ``peak_law_cv`` on 200 target columns
 (the real ratings + 199 shufflings) of the largest model (smooth, combined: 140 trials x 135 amplitudes, 14 LOSO
@@ -37,9 +42,13 @@ from threadpoolctl import threadpool_limits
 REPORTED_SEEDS = (0, 1, 2)
 HELD_OUT_SEEDS = (3, 4, 5)
 CONDITIONS = ("1N", "2N", "3N", "combined")
-RMSE_GOAL = {"smooth": 0.20, "fingerprint": 0.25}
+RMSE_GOAL = {"smooth": 0.20, "fingerprint": 0.22}  # issue 27 (issue 19 asked 0.25 on the fingerprint pad)
 P_GOAL = 0.01
 RHO_GOAL = 0.9
+#: ... on at least this many of the 6 seeds (per pad x condition)
+RHO_SEEDS = 5
+#: Empirical coverage of the 90 % interval on held-out specimens (trials), combined condition, seeds 0-2.
+COVERAGE_GOAL = (0.85, 0.95)
 N_PERMUTATIONS = 199
 MAX_COMPONENTS = 20
 
@@ -58,12 +67,14 @@ def study_of(seed: int):
     return study, features, dataset.perceived_roughness(study)
 
 
-def law_settings(study, features, pad: str, condition: str) -> dict:
+def law_settings(study, features, pad: str, condition: str, specimens=None) -> dict:
+    """The study's own peak-law settings; with ``specimens``, a specimen's presses share its peak (as the study)."""
     from roughsense.analysis import dataset
 
     return {"freq_per_mm": dataset.column_frequencies(dataset.frequency_columns(features)),
             "n_blocks": 3 if condition == "combined" else 1,
-            "pad_ridge_period_mm": study.pad_ridge_period_mm.get(pad)}
+            "pad_ridge_period_mm": study.pad_ridge_period_mm.get(pad),
+            "surfaces": None if specimens is None else np.asarray(specimens)}
 
 
 def pls_loso(X, Y, specimens) -> np.ndarray:
@@ -106,9 +117,11 @@ def permutation_p(real, shuffled, y, Y) -> float:
 
 
 def evaluate_model(study, features, perceived, pad: str, condition: str, seed: int) -> list[dict]:
-    """Both models and the null of one seed x pad x condition under LOSO, with their permutation p."""
+    """Both models and the null of one seed x pad x condition under LOSO: RMSE, rho, p, the 90 % interval's coverage
+    of held-out specimens, and the largest share of a held-out specimen's trials the law's domain flags."""
     from roughsense.analysis import controls, dataset
-    from roughsense.model.peak_law import peak_law_cv
+    from roughsense.model.interval import held_out_coverage
+    from roughsense.model.peak_law import held_out_flags, peak_law_cv
 
     X, meta = dataset.condition_matrix(features, pad, condition)
     y = dataset.targets(meta, perceived)
@@ -116,14 +129,19 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     perms = controls.specimen_permutations(len(pd.unique(specimens)), N_PERMUTATIONS, seed)
     Y = controls.permuted_targets(y, specimens, perms)
     both = np.column_stack([y, Y])
-    law = peak_law_cv(X, both, groups=specimens, **law_settings(study, features, pad, condition))
+    settings = law_settings(study, features, pad, condition, specimens)
+    law = peak_law_cv(X, both, groups=specimens, **settings)
     pls = pls_loso(X, both, specimens)
     null = judge(null_loso(y, specimens), y, meta, perceived, study.reference_specimen)
+    flags = pd.Series(held_out_flags(X, y, specimens, **settings), index=specimens).groupby(level=0).mean()
     rows = []
     for model, predictions in (("peak-law", law), ("pls", pls)):
         scores = judge(predictions[0], y, meta, perceived, study.reference_specimen)
+        trials, surfaces = held_out_coverage(predictions[0], y, specimens, floor=float(y.min()))
         rows.append({"seed": seed, "pad": pad, "condition": condition, "model": model, **scores,
-                     "null_rmse": null["rmse"], "p": permutation_p(predictions[0], predictions[1:], y, Y)})
+                     "null_rmse": null["rmse"], "p": permutation_p(predictions[0], predictions[1:], y, Y),
+                     "coverage_trials": trials, "coverage_specimens": surfaces,
+                     "flagged_max": float(flags.max()) if model == "peak-law" else float("nan")})
     return rows
 
 
@@ -143,25 +161,27 @@ def accuracy_table(seeds) -> pd.DataFrame:
     frame["p_ok"] = frame["p"] <= P_GOAL
     frame["null_ok"] = frame["rmse"] < frame["null_rmse"]
     frame["rho_ok"] = frame["rho"] >= RHO_GOAL
+    frame["coverage_ok"] = frame["coverage_trials"].between(COVERAGE_GOAL[0], COVERAGE_GOAL[1])
     return frame
 
 
 def print_table(frame: pd.DataFrame) -> None:
     print("\nLOSO, mean per-specimen RMSE (null = training mean), permutation p (199), Spearman rho (13 rated)")
-    print(f"{'seed':>4} {'pad':>11} {'cond':>8} | {'law RMSE':>8} {'p':>6} {'rho':>5} | {'PLS RMSE':>8} {'p':>6} "
-          f"{'rho':>5} | {'null':>5}")
+    print(f"{'seed':>4} {'pad':>11} {'cond':>8} | {'law RMSE':>8} {'p':>6} {'rho':>5} {'cover':>5} {'flag':>4} | "
+          f"{'PLS RMSE':>8} {'p':>6} {'rho':>5} {'cover':>5} | {'null':>5}")
     for (seed, pad, condition), group in frame.groupby(["seed", "pad", "condition"], sort=False):
         law = group[group.model == "peak-law"].iloc[0]
         pls = group[group.model == "pls"].iloc[0]
-        print(f"{seed:>4} {pad:>11} {condition:>8} | {law.rmse:8.3f} {law.p:6.3f} {law.rho:5.2f} | "
-              f"{pls.rmse:8.3f} {pls.p:6.3f} {pls.rho:5.2f} | {law.null_rmse:5.3f}")
+        print(f"{seed:>4} {pad:>11} {condition:>8} | {law.rmse:8.3f} {law.p:6.3f} {law.rho:5.2f} "
+              f"{law.coverage_trials:5.2f} {law.flagged_max:4.1f} | {pls.rmse:8.3f} {pls.p:6.3f} {pls.rho:5.2f} "
+              f"{pls.coverage_trials:5.2f} | {law.null_rmse:5.3f}")
 
 
 def print_goals(frame: pd.DataFrame) -> None:
-    """One PASS/MISS line per goal, seed group and pad, naming every model that misses."""
-    print("\nIssue 19 goals for the peak law (each pad x 1N, 2N, 3N, combined):")
+    """One PASS/MISS line per goal, seed group and pad, naming every model that misses (issue 27's goals)."""
+    print("\nIssue 27 goals for the default model, the peak law (each pad x 1N, 2N, 3N, combined):")
     law = frame[frame.model == "peak-law"]
-    goals = (("rmse_ok", "LOSO RMSE <= goal (0.20 smooth, 0.25 fingerprint)", "rmse"), ("p_ok", "p <= 0.01", "p"),
+    goals = (("rmse_ok", "LOSO RMSE <= goal (0.20 smooth, 0.22 fingerprint)", "rmse"), ("p_ok", "p <= 0.01", "p"),
              ("null_ok", "beats the training mean", "rmse"), ("rho_ok", "Spearman rho >= 0.9", "rho"))
     for label, seeds in (("reported seeds 0-2", REPORTED_SEEDS), ("held-out seeds 3-5", HELD_OUT_SEEDS)):
         part = law[law.seed.isin(seeds)]
@@ -174,6 +194,20 @@ def print_goals(frame: pd.DataFrame) -> None:
                 verdict = "PASS" if misses.empty else "MISS"
                 where = "; ".join(f"seed {r.seed} {r.condition} {getattr(r, value):.3f}" for r in misses.itertuples())
                 print(f"{verdict} {label:>18} {pad:>11}: {text}" + (f" -- misses: {where}" if where else ""))
+    seeds_ok = law.groupby(["pad", "condition"])["rho_ok"].sum()
+    verdict = "PASS" if (seeds_ok >= RHO_SEEDS).all() else "MISS"
+    print(f"{verdict} rho >= {RHO_GOAL} on at least {RHO_SEEDS} of the seeds, per pad x condition: "
+          + ", ".join(f"{pad} {cond} {int(n)}" for (pad, cond), n in seeds_ok.items()))
+    combined = law[(law.condition == "combined") & law.seed.isin(REPORTED_SEEDS)]
+    verdict = "PASS" if combined["coverage_ok"].all() else "MISS"
+    print(f"{verdict} 90 % interval covers {COVERAGE_GOAL[0]:.0%}-{COVERAGE_GOAL[1]:.0%} of held-out trials, combined, "
+          "seeds 0-2: " + ", ".join(f"seed {r.seed} {r.pad} {r.coverage_trials:.3f} (specimens {r.coverage_specimens:.2f})"
+                                     for r in combined.itertuples()))
+    held = law[law.condition == "combined"]
+    print("  (seeds 3-5, held out: " + ", ".join(f"seed {r.seed} {r.pad} {r.coverage_trials:.3f}"
+                                                 for r in held[held.seed.isin(HELD_OUT_SEEDS)].itertuples()) + ")")
+    print(f"largest share of a held-out specimen's trials the law flags: {law['flagged_max'].max():.2f} "
+          "(goal < 0.20)")
 
 
 def speed(repeats: int, peer_targets: int) -> None:
@@ -189,10 +223,11 @@ def speed(repeats: int, peer_targets: int) -> None:
     specimens = meta["specimen"].astype(str).to_numpy()
     perms = controls.specimen_permutations(len(pd.unique(specimens)), N_PERMUTATIONS, 0)
     Y = np.column_stack([y, controls.permuted_targets(y, specimens, perms)])
-    settings = law_settings(study, features, "smooth", "combined")
+    settings = law_settings(study, features, "smooth", "combined", specimens)
     ours = _median_time(lambda: peak_law_cv(X, Y, groups=specimens, **settings), repeats)
     batched = peak_law_cv(X, Y, groups=specimens, **settings)
     F = peak_features(X, **settings)
+    fit_settings = {k: v for k, v in settings.items() if k != "surfaces"}
 
     def huber_loop():
         for b in range(peer_targets):
@@ -205,7 +240,8 @@ def speed(repeats: int, peer_targets: int) -> None:
         for b in range(peer_targets):
             for name in np.unique(specimens):
                 held = specimens == name
-                out[b, held] = PeakPowerLaw(**settings).fit(X[~held], Y[~held, b]).predict(X[held])
+                out[b, held] = PeakPowerLaw(**fit_settings).fit(X[~held], Y[~held, b], surfaces=specimens[~held]).predict(
+                    X[held], surfaces=specimens[held])
         return out
 
     peer = _median_time(huber_loop, max(1, repeats // 2)) * Y.shape[1] / peer_targets

@@ -78,8 +78,8 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "model", "roughness_rel_R3", "extrapolates",
-                                   "outside"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "model", "roughness_rel_R3", "pi90_low", "pi90_high",
+                                   "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -108,7 +108,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "roughness_rel_R3",
-                                   "extrapolates", "outside"] and len(table) == 2
+                                   "pi90_low", "pi90_high", "extrapolates", "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
@@ -127,7 +127,8 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "roughness_rel_R3", "surface_roughness_rel_R3", "extrapolates", "outside"]
+                                     "model", "roughness_rel_R3", "pi90_low", "pi90_high", "surface_roughness_rel_R3",
+                                     "extrapolates", "outside"]
     assert len(grouped) == len(meta) == 18
     expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
     for f in ("1N", "2N", "3N"):

@@ -417,3 +417,43 @@ def test_the_cli_figure_options_match_the_report():
     from roughsense.report import figures
 
     assert _common.FIGURE_FORMATS == figures.FIGURE_FORMATS and _common.DEFAULT_DPI == figures.DEFAULT_DPI
+
+
+@pytest.mark.browser
+def test_the_first_screen_answers(report_dir, simulated_report_dir):
+    """Issue 30: at 1400 x 900 px the top of the page says which model to use for new surfaces, its error against the
+    training mean with its interval's coverage, where it passes its controls and how far to trust it; then the
+    contents. The per-specimen tables are collapsed (the page's height is what a reader scrolls)."""
+    found = _chromium()
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must install Debian's chromium and chromium-driver (see .ci/run)")
+        pytest.skip("chromium/chromedriver not installed")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+
+    browser, driver_path = found
+    options = webdriver.ChromeOptions()
+    options.binary_location = browser
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
+                 "--window-size=1400,900"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
+    try:
+        for folder, simulated in ((report_dir, False), (simulated_report_dir, True)):
+            driver.get((folder / "index.html").resolve().as_uri())
+            answer = driver.find_element(By.ID, "answer")
+            bottom = driver.execute_script("const r = arguments[0].getBoundingClientRect(); return r.bottom", answer)
+            assert bottom <= 900, bottom  # the whole answer on the first screen
+            text = answer.text
+            assert "training mean" in text and "passes its controls" in text and "How far to trust it" in text
+            assert ("SIMULATED" in text) == simulated
+            nav = driver.find_element(By.TAG_NAME, "nav")
+            assert driver.execute_script("return arguments[0].getBoundingClientRect().top", nav) > bottom
+            collapsed = driver.find_elements(By.CSS_SELECTOR, "details.table:not([open])")
+            assert len(collapsed) >= 4 and not collapsed[0].find_element(By.TAG_NAME, "table").is_displayed()
+            height = driver.execute_script("return document.documentElement.scrollHeight")
+            assert height > 900
+    finally:
+        driver.quit()

@@ -98,3 +98,50 @@ def unseen_summary(analysis) -> pd.DataFrame:
             **_coverage(prediction, target, fit.predictions["specimen"].to_numpy()), **_flag_shares(fit),
         })
     return pd.DataFrame(rows, columns=UNSEEN_COLUMNS)
+
+
+UNSURE_COLUMNS = ["model", "pad", "condition", "specimen", "perceived", "prediction", "pi90_low", "pi90_high",
+                  "covered", "flagged_share"]
+
+
+def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
+    """The held-out specimens a model is least sure of, per pad (combined condition, or the last): those whose
+    presses its applicability check flagged, then those its 90 % interval missed, then the widest intervals.
+
+    Each specimen's interval is built as in the coverage check: from the other specimens' LOSO residuals only.
+    """
+    from ..model.interval import conformal_halfwidth, log_residuals
+
+    frames = []
+    for fit in analysis.ordered_fits():
+        if fit.cv != "loso" or fit.model != model:
+            continue
+        frames.append((fit, fit.predictions))
+    conditions = list(dict.fromkeys(f.condition for f, _ in frames))
+    if not frames:
+        return pd.DataFrame(columns=UNSURE_COLUMNS)
+    condition = "combined" if "combined" in conditions else conditions[-1]
+    perceived = analysis.perceived.set_index("specimen")["gmean"]
+    rows = []
+    for fit, predictions in frames:
+        if fit.condition != condition:
+            continue
+        specimens = predictions["specimen"].to_numpy()
+        prediction = predictions["prediction"].to_numpy(dtype=float)
+        target = predictions["specimen"].map(perceived).to_numpy(dtype=float)
+        _, surface = log_residuals(prediction, target, specimens, float(np.min(target)))
+        names = pd.unique(pd.Series(specimens))
+        flags = fit.held_out_flags if fit.held_out_flags is not None else np.zeros(len(specimens), dtype=bool)
+        for i, name in enumerate(names):
+            mine = specimens == name
+            halfwidth = conformal_halfwidth(np.abs(np.delete(surface, i)))
+            mean = float(np.maximum(prediction[mine], float(np.min(target))).mean())
+            rows.append({"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
+                         "perceived": float(perceived[name]), "prediction": mean,
+                         "pi90_low": mean * np.exp(-halfwidth), "pi90_high": mean * np.exp(halfwidth),
+                         "covered": bool(abs(surface[i]) <= halfwidth), "flagged_share": float(np.mean(flags[mine]))})
+    table = pd.DataFrame(rows, columns=UNSURE_COLUMNS)
+    table["width"] = table["pi90_high"] - table["pi90_low"]
+    table = table.sort_values(["pad", "flagged_share", "covered", "width"], ascending=[True, False, True, False],
+                              kind="stable")
+    return table.groupby("pad", sort=False).head(per_pad).drop(columns="width").reset_index(drop=True)

@@ -21,8 +21,11 @@ The law, in logs, with 3 parameters::
 - *Fit*: Huber's M-estimator (epsilon 1.345, scale by the median absolute residual, iteratively reweighted least
   squares), because an image whose peak was misread (a fingerprint pad's lobe or a low-frequency shading hump) is an
   outlier that least squares would follow.
-- *Prediction*: features are clipped to the range seen in training (a power law is not carried past its data) and
-  :meth:`PeakPowerLaw.extrapolates` says which inputs fell outside it.
+- *Surfaces*: rows labelled as presses of one surface share where its peak is (read from their mean spectrum);
+  each keeps its own peak amplitude there (:func:`peak_features`).
+- *Prediction*: features are clipped to the range of the training rows the fit kept (a power law is not carried
+  past its data), and :meth:`PeakPowerLaw.applicability` says, in a user's words, what lies outside what the law
+  was fitted on (period, peak strength, a spectrum with no clear peak, presses that disagree).
 
 Nothing is chosen from the targets: the features, their number and epsilon are fixed, so cross-validating the fit is
 all the nesting there is (docs/peak_law.md says how they were chosen, and on which data). Every fold of a

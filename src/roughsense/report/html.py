@@ -24,10 +24,12 @@ import pandas as pd
 from .. import __version__, paper
 from .._util import atomic
 from ..analysis.claims import VERDICT_RULE, VERDICTS
+from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
-from ..model.families import PLS
+from ..model.families import DEFAULT_MODEL, PLS
 from . import figures, tables
+from .answer import answer_lines
 
 
 def template_environment() -> jinja2.Environment:
@@ -112,12 +114,10 @@ def plain_words(analysis) -> list[str]:
         lines.append("This study is user data (study.toml has no [simulation] table): every result below is a finding "
                      "about these images and ratings.")
     if not analysis.controls.empty:
-        failing = analysis.controls[~analysis.controls["passes"].astype(bool)]
-        if len(failing):
-            items = ", ".join(f"{getattr(r, 'model', PLS)} {r.pad} {r.condition} ({str(r.cv).upper()})"
-                              for r in failing.itertuples())
+        failing = failing_models(analysis)
+        if failing:
             lines.append(f"{len(failing)} of {len(analysis.controls)} models fail their controls (no better than "
-                         f"specimen-shuffled targets and/or the training mean): {items}. A LOO model that fails is "
+                         "specimen-shuffled targets and/or the training mean; listed below). A LOO model that fails is "
                          "recognising specimens rather than reading roughness; a LOSO model that fails does not "
                          "generalise to unseen specimens. Their RMSE and OVL are no evidence for the method.")
         else:
@@ -127,6 +127,14 @@ def plain_words(analysis) -> list[str]:
         lines.append(", ".join(f"{int(counts.get(v, 0))} {v}" for v in VERDICTS if counts.get(v, 0))
                      + " of the paper's claims, by pad and CV scheme (Claims below).")
     return lines
+
+
+def failing_models(analysis) -> list[str]:
+    """Every model that fails its controls, as "model pad condition (CV)": listed once, collapsed, on the page."""
+    if analysis.controls.empty:
+        return []
+    failing = analysis.controls[~analysis.controls["passes"].astype(bool)]
+    return [f"{getattr(r, 'model', PLS)} {r.pad} {r.condition} ({str(r.cv).upper()})" for r in failing.itertuples()]
 
 
 def unseen_words(analysis) -> list[str]:
@@ -173,6 +181,8 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         headline=tables.headline_table(analysis, paper_pads),
         unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
         unseen_words=unseen_words(analysis),
+        unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
+                                                    else analysis.models[0])),
         unseen_figure=unseen_figure,
         components=tables.components_table(
             pls_chosen.drop(columns="model"),
@@ -187,6 +197,8 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         simulation=analysis.simulation,
         paper_note=analysis.paper_note,
         findings=plain_words(analysis),
+        failing=failing_models(analysis),
+        answer=answer_lines(analysis),
         sections=_sections(analysis, results, cv_schemes),
         figures=figure_list,
         max_components=analysis.max_components,
@@ -221,6 +233,8 @@ def _figure(analysis, files: dict[str, bytes], stem: str, fig, caption: str, sty
     files[name] = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
     shown = "png" if style.figure_format == "pdf" else style.figure_format
     page = files[name] if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)
+    if shown == "png":
+        page = figures.page_preview(page)
     figures.plt.close(fig)
     return {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
             "data": base64.b64encode(page).decode("ascii")}

@@ -524,3 +524,21 @@ def paper_predictive_table(paper_predictive: pd.DataFrame) -> dict:
         "columns": ["Pad", "Condition", "Paper's OVL (mean)", "Predictive OVL (mean)", "Specimens with predictive OVL ≥ 0.75"],
         "rows": rows,
     }
+
+
+def unsure_table(unsure: pd.DataFrame) -> dict:
+    """analysis.unseen.unsure_specimens() as a table: the held-out surfaces the default model is least sure of."""
+    rows = [[_cell(r.pad), _cell(r.specimen), _cell(f"{r.perceived:.2f}"), _cell(f"{r.prediction:.2f}"),
+             _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"), _cell("yes" if r.covered else "no"),
+             _cell(f"{r.flagged_share:.0%}")] for r in unsure.itertuples()]
+    model = str(unsure["model"].iloc[0]) if len(unsure) else ""
+    condition = str(unsure["condition"].iloc[0]) if len(unsure) else ""
+    return {
+        "title": f"Surfaces it is unsure of: {model_title(model)}, {condition}, each specimen held out",
+        "caption": ("Per pad, the held-out specimens whose presses the model's applicability check flagged, then those "
+                    "its 90 % interval missed, then the widest intervals. Prediction: the mean of the specimen's "
+                    "held-out predictions; interval: from the other specimens' residuals only; flagged: the share of "
+                    "its presses the model fitted without it would have marked as outside what it was trained on."),
+        "columns": ["Pad", "Specimen", "Perceived", "Predicted", "90 % interval", "Covered", "Flagged presses"],
+        "rows": rows,
+    }

@@ -1,0 +1,69 @@
+"""The report's first screen: the answer to the question users ask, in a few lines, before anything else.
+
+Which model to use for a surface never trained on, how wrong it is there against the training mean, how often its
+90 % interval held the panel's value, where it passes its controls, and how far to trust it (whose images these
+are). Every number comes from the analysis's "surfaces never seen" summary (analysis/unseen.py), the same table
+the report shows below, so the first screen and the table cannot disagree.
+"""
+from __future__ import annotations
+
+import pandas as pd
+
+from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+from .tables import model_title
+
+
+def answer_lines(analysis) -> list[str]:
+    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it."""
+    unseen = analysis.unseen_summary()
+    if unseen.empty:
+        return ["Not answered: leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any "
+                "model predicts a surface it never saw. The leave-one-out results below describe specimens seen in "
+                "training."]
+    passes = unseen["passes"].fillna(False).astype(bool)
+    lines = [_use_line(unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
+    return [line for line in lines if line]
+
+
+def _condition(unseen: pd.DataFrame) -> str:
+    return "combined" if (unseen["condition"] == "combined").any() else str(unseen["condition"].iloc[-1])
+
+
+def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
+    """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
+    condition = _condition(unseen)
+    model = DEFAULT_MODEL if (unseen["model"] == DEFAULT_MODEL).any() else str(unseen["model"].iloc[0])
+    rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition)]
+    if not passes[unseen["model"] == model].any():
+        return (f"No model here passes its controls for surfaces never seen, {model_title(model)} included: this study "
+                "supports no roughness score for a new surface.")
+    per_pad = "; ".join(
+        f"{r.pad} pad {r.rmse:.2f} vs {r.null_rmse:.2f}" + (
+            f", its 90 % interval held {r.pi90_coverage_trials:.0%} of held-out presses"
+            if pd.notna(r.pi90_coverage_trials) else "")
+        for r in rows.itertuples())
+    return (f"To score a surface the model never saw, use the {model_title(model)} ({model}, what roughsense fit writes "
+            f"by default). Its error on surfaces held out of training ({condition}, mean per-specimen RMSE vs the "
+            f"training mean's): {per_pad}.")
+
+
+def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
+    """Where each model passes its controls (training mean and shuffled targets), pad x condition."""
+    parts = []
+    for model, rows in unseen.groupby("model", sort=False):
+        ok = passes[rows.index]
+        where = ", ".join(f"{r.pad} {r.condition}" for r in rows[~ok].itertuples())
+        parts.append(f"{model_title(model)} passes in {int(ok.sum())} of {len(rows)}" + (f" (not {where})" if where else ""))
+    return (f"Which model passes its controls for new surfaces (below the training mean and better than specimen-"
+            f"shuffled targets, nested leave-one-specimen-out), per pad x condition: {'; '.join(parts)}. The paper's "
+            f"{PAPER_MODEL} is for reproducing the paper, not for new surfaces where it fails them.")
+
+
+def _trust_line(analysis) -> str:
+    """How far to trust the numbers: whose images and ratings these are."""
+    if analysis.simulation is None:
+        return ("How far to trust it: these are your images and ratings; the numbers are findings about them, for "
+                "surfaces like the ones held out here.")
+    seed = analysis.simulation.get("seed", "not recorded")
+    return (f"How far to trust it: SIMULATED data (the digital twin, seed {seed}), not measurements. The numbers hold "
+            "for the twin; a real rig confirms them only with real images and ratings of surfaces held out of training.")
