@@ -33,6 +33,7 @@ STUDY_TOML = f"""# An example study folder (see README.md here and docs/tutorial
 [study]
 name = "my-study"
 reference_specimen = "R3"      # rated 1 by definition, never rated by the participants
+synthetic = "roughsense's digital twin, downscaled {DOWNSCALE}x: an example, not real sensor data"
 
 [sensor]
 px_per_mm = {PX_PER_MM}          # this camera's scale along the line

@@ -815,3 +815,25 @@ def test_the_best_design_flag_is_a_sentence(monkeypatch, verdict, rmse, words):
     monkeypatch.setattr(report, "_match", lambda frame, anchor: pd.Series(True, index=frame.index))
     [flag] = report._best_flags(table)
     assert flag.startswith("The best pls design") and words in flag
+
+
+@pytest.mark.parametrize("figure_format", ["svg", "pdf"])
+def test_explore_writes_its_figures_in_the_format_asked(two_model_cell, tmp_path, figure_format):
+    """Issue 30: --figure-format and --dpi on explore as on study: each axis's figure a file beside index.html,
+    shown on the page (SVG as is; a PNG for a PDF) and linked."""
+    from roughsense.explore.report import write_explore_report
+    from roughsense.report.html import FigureStyle
+
+    sweep, cell, *_, summary, per_specimen = two_model_cell
+    store = ResultStore(tmp_path / "out", sweep)
+    store.prepare()
+    store.write_cell(summary, per_specimen, cell.id)
+    index = write_explore_report(sweep, tmp_path / "out", style=FigureStyle(figure_format, 60))
+    written = sorted((tmp_path / "out").glob(f"axis_*.{figure_format}"))
+    assert written
+    html = index.read_text()
+    mime = "image/svg+xml" if figure_format == "svg" else "image/png"
+    for path in written:
+        assert f'href="{path.name}"' in html and f'data-name="{path.name}"' in html
+        assert path.read_bytes()[:5] == (b"<?xml" if figure_format == "svg" else b"%PDF-")
+    assert f"data:{mime};base64," in html

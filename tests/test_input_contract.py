@@ -719,3 +719,15 @@ def test_a_fitted_model_is_far_inside_the_model_file_bounds(model_document):
     assert np.abs(model["x_mean"]).max() < MAX_X_MEAN / 1000
     x_mean, coef = np.array(model["x_mean"]), np.array(model["coefficients"])
     np.testing.assert_allclose(model["intercepts"], model["y_mean"] - coef @ x_mean, rtol=1e-9, atol=1e-12)
+
+
+
+def test_a_synthetic_declaration_must_say_where_the_images_came_from(tmp_path):
+    """Issue 30: [study] synthetic marks a folder of synthetic images (the shipped example); it must be text."""
+    from roughsense.errors import InputError
+    from roughsense.io.study import _read_settings, read_config
+
+    (tmp_path / "study.toml").write_text('[study]\nsynthetic = 1\n')
+    assert read_config(tmp_path / "study.toml")["study"]["synthetic"] == 1
+    with pytest.raises(InputError, match=r"\[study\] synthetic must say, as text"):
+        _read_settings(tmp_path, None)

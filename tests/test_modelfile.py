@@ -328,3 +328,24 @@ def test_a_law_that_cannot_be_stored_is_not_written(tmp_path, saved_law):
     with pytest.raises(ModelFileError, match=r"model\.coefficients\[0\]"):
         mf.save_model(target, law, feature_definition=mf.feature_definition_for(spectrum(), ["2N"]), training={})
     assert not target.exists()
+
+
+def test_a_resigned_law_predicting_beyond_a_ratings_bound_is_refused(tmp_path):
+    """Issue 28, item 16: a re-signed peak-law file whose law reaches 9e303 inside its own feature range is refused
+    (bounded as PLS files are, 1e6), not loaded to predict it."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    rng = np.random.default_rng(0)
+    grid = np.linspace(0.1, 1.0, 45)
+    X = np.array([np.exp(-0.5 * ((grid - 1 / p) / 0.02) ** 2) + 0.05 + 0.01 * rng.random(45)
+                  for p in np.repeat([2.0, 3.0, 4.0, 5.0], 3)])
+    y = np.repeat([0.6, 1.0, 1.4, 1.8], 3)
+    law = PeakPowerLaw(freq_per_mm=grid).fit(X, y)
+    path = tmp_path / "law.json"
+    mf.save_model(path, law, feature_definition=mf.feature_definition_for(spectrum(), ["1N"]), training=TRAINING)
+
+    def inflate(document):
+        document["model"]["intercept"] = 699.0  # exp(699) ~ 9e303 somewhere in its feature box
+    rewrite(path, inflate)
+    with pytest.raises(mf.ModelFileError, match="within 1e-6 to 1e6"):
+        mf.load_model(path)

@@ -100,6 +100,8 @@ def test_every_sh_block_runs_twice_and_leaves_what_it_says(tutorial_run):
     assert len(pd.read_csv(work / "sample-features.csv")) == 5
     report = work / "my-report"
     assert (report / "index.html").is_file()
+    page = (report / "index.html").read_text()  # the example's images are synthetic: never called user data
+    assert "user data" not in page and "images are synthetic" in page
     results = pd.read_csv(report / "results.csv")
     assert set(results["specimen"]) == {"R2", "R3", "R4", "R5", "C3"} and set(results["pad"]) == {"fingerprint"}
     prediction = pd.read_csv(work / "my-prediction.csv")

@@ -84,6 +84,8 @@ class StudyAnalysis:
     paper_predictive: pd.DataFrame = field(default_factory=pd.DataFrame)
     #: The study's [simulation] table (seed and settings) when a simulator wrote it; None for real data.
     simulation: dict | None = None
+    #: study.toml's ``[study] synthetic``: where a folder's synthetic images came from (not measurements); None else.
+    synthetic: str | None = None
     #: Whether the paper's per-specimen values describe this study, per pad, and why not where they do not.
     paper_pads: tuple[str, ...] = ()
     paper_note: str = ""
@@ -464,6 +466,7 @@ def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFram
         mean_spectra=mean_spectra,
         max_components=max_components,
         simulation=study.simulation,
+        synthetic=study.synthetic,
         seed=int(seed),
         wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
             "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),

@@ -6,7 +6,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
-from ._common import number_option, progress
+from ._common import DEFAULT_DPI, Dpi, FigureFormat, check_figure_format, number_option, progress
 
 _WORKERS = number_option("--workers", whole=True)
 
@@ -26,6 +26,8 @@ def register(app: typer.Typer) -> None:
                                              "of an existing Dask cluster, instead of a local one."),
         force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "
                                    "replaced) or other files (kept)."),
+        figure_format: FigureFormat = "png",
+        dpi: Dpi = DEFAULT_DPI,
     ) -> None:
         """Run every cell (grid point x seed) of a sweep of the digital twin, then write the sweep's report.
 
@@ -38,12 +40,14 @@ def register(app: typer.Typer) -> None:
         from ..explore.report import write_explore_report
         from ..explore.runner import check_options, run_sweep
         from ..explore.sweep import read_sweep
+        from ..report.html import FigureStyle
 
+        style = FigureStyle(check_figure_format(figure_format), dpi)
         check_options(workers, scheduler)  # bounds and an empty address: before the sweep is even read
         sweep = read_sweep(sweep_file)
         with output_lock(out, command="explore"):  # two sweeps into one --out would mix their cells
             outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
-            index = write_explore_report(sweep, out)
+            index = write_explore_report(sweep, out, style=style)
         line = f"{counted(outcome.computed, 'cell')} computed, {outcome.skipped} already finished"
         if outcome.failures:
             line += f", {len(outcome.failures)} failed (see {Path(out) / 'failures.csv'})"

@@ -16,8 +16,11 @@ ORDER = 5
 DEFAULT_SEED = 0
 
 
-def _source_label(simulation: dict | None, *, builtin: bool) -> str:
-    """"simulated" whenever study.toml has a [simulation] table, with its seed; "user data" otherwise."""
+def _source_label(simulation: dict | None, *, builtin: bool, synthetic: str | None = None) -> str:
+    """"simulated" whenever study.toml has a [simulation] table, with its seed; "synthetic" where [study] synthetic
+    says so; "user data" otherwise."""
+    if simulation is None and synthetic:
+        return f"synthetic images, not measurements: {synthetic}"
     if simulation is None:
         return "user data (no [simulation] table in study.toml)"
     where = "built-in simulated study (digital twin)" if builtin else "simulated study (digital twin)"
@@ -114,7 +117,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     meta = {
         "study folder": str(Path(root).resolve()),
-        "source": _source_label(study.simulation, builtin=builtin),
+        "source": _source_label(study.simulation, builtin=builtin, synthetic=study.synthetic),
         "images": f"{len(study.manifest)} ({', '.join(study.pads)} {'pad' if len(study.pads) == 1 else 'pads'}; "
                   f"{counted(len(study.specimens), 'specimen')})",
         "features": "from cache" if was_cached else "extracted",

@@ -8,7 +8,8 @@ from pathlib import Path
 import pandas as pd
 
 from .._util import atomic
-from ..report.explore_page import html_table, render_explore
+from ..report.explore_page import axis_figure_files, html_table, render_explore
+from ..report.html import FigureStyle
 from .paired import MARGINS, MIN_SEEDS, too_few
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
 from .summary import (
@@ -59,8 +60,10 @@ def _describe(anchor: dict, skip: str | None = None) -> str:
     return ", ".join(parts)
 
 
-def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dict | None = None) -> Path:
-    """Write index.html and summary.csv from the rows stored under ``out`` (finished cells only)."""
+def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dict | None = None,
+                         style: FigureStyle = FigureStyle()) -> Path:
+    """Write index.html, summary.csv and each axis's figure (``style``: format and resolution) from the rows stored
+    under ``out`` (finished cells only)."""
     out = Path(out)
     store = ResultStore.reader(out, sweep)
     results = store.read()
@@ -88,9 +91,12 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
     summary = _summary_view(table, shown)
     fail_view = failures[["cell", "seed", *[c for c in shown if c in failures.columns], "error"]] \
         if not failures.empty else failures
+    figure_files, shown = axis_figure_files(axes, style)
     html = render_explore(name=sweep.name, meta=meta, best=best_frame, axes=axes, questions=questions,
                           summary=summary, failures=fail_view, limits=LIMITS,
-                          notes=_best_flags(table), rule=_rule(results))
+                          notes=_best_flags(table), rule=_rule(results), shown=shown)
+    for name, data in figure_files.items():
+        atomic.write_bytes(out / name, data)
     if not table.empty:  # every design per model; ``model`` last, as columns are only ever added
         atomic.write_csv(out / SUMMARY_CSV, _csv_columns(table), float_format="%.6g")
     atomic.write_bytes(out / REPORT, html)

@@ -2,7 +2,7 @@
 
 Layout (docs/study.md)::
 
-    study.toml      [study] name, reference_specimen; [sensor] px_per_mm, roi; [protocol] forces_n;
+    study.toml      [study] name, reference_specimen, synthetic; [sensor] px_per_mm, roi; [protocol] forces_n;
                     [pads.NAME] ridge_period_mm (a pad with fingerprint-like ridges)
     specimens.csv   specimen, shape, wavelength_mm, geometry columns
     manifest.csv    image, specimen, pad, force_n, repetition [, nominal_force_n, contact_fraction, timestamp]
@@ -58,7 +58,7 @@ SHAPES = ("rectangular", "circular", "sinusoidal", "random", "other")
 #: simulator's own record of its settings. An unknown table or key is a warning naming it, so a typo such as
 #: ``roi_typo`` is noticed. Add a key here when a reader starts using it.
 CONFIG_KEYS: dict[str, frozenset[str] | None] = {
-    "study": frozenset({"name", "reference_specimen"}),
+    "study": frozenset({"name", "reference_specimen", "synthetic"}),
     "sensor": frozenset({"px_per_mm", "roi", "max_pixels"}),
     "protocol": frozenset({"forces_n"}),
     "pads": None,  # one sub-table per pad name: [pads.fingerprint] ridge_period_mm = 1.0
@@ -103,6 +103,15 @@ class Study:
 
     def condition_labels(self) -> list[str]:
         return [nominal_force_label(f) for f in self.forces_n]
+
+    @property
+    def synthetic(self) -> str | None:
+        """``[study] synthetic``: where synthetic images came from (an example made from the twin's images), or None.
+
+        Such a folder has no [simulation] table (no simulator wrote it as a study), yet its results are no findings
+        about a real sensor; the report says so instead of calling it user data.
+        """
+        return self.extra.get("synthetic")
 
     @property
     def simulation(self) -> dict | None:
@@ -307,7 +316,8 @@ def load_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     return Study(
         root=root, name=settings["name"], reference_specimen=settings["reference"], sensor=settings["sensor"],
         forces_n=settings["forces_n"], **tables, pad_ridge_period_mm=settings["ridges"] or {},
-        extra={k: v for k, v in config.items() if k not in ("study", "sensor", "protocol", "pads")},
+        extra={**{k: v for k, v in config.items() if k not in ("study", "sensor", "protocol", "pads")},
+               **({"synthetic": settings["synthetic"]} if settings.get("synthetic") else {})},
     )
 
 
@@ -321,6 +331,10 @@ def _read_settings(root: Path, problems: Problems | None) -> dict:
     forces_n = attempt(problems, parse_forces, config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)),
                        path=toml_path)
     study_cfg = config.get("study", {})
+    synthetic = study_cfg.get("synthetic")
+    if synthetic is not None and not (isinstance(synthetic, str) and synthetic.strip()):
+        report(problems, InputError(f"[study] synthetic must say, as text, where the images came from; got "
+                                    f"{short_repr(synthetic)}", path=toml_path))
     name = study_cfg.get("name", root.name)
     if not isinstance(name, str):
         report(problems, InputError(f"[study] name must be text, got {short_repr(name)}", path=toml_path))
@@ -328,7 +342,8 @@ def _read_settings(root: Path, problems: Problems | None) -> dict:
     reference = attempt(problems, check_name, study_cfg.get("reference_specimen", REFERENCE_SPECIMEN),
                         path=toml_path, what="[study] reference_specimen")
     return {"config": config, "ridges": ridges, "sensor": sensor, "forces_n": forces_n, "name": name,
-            "reference": reference, "toml_path": toml_path}
+            "reference": reference, "toml_path": toml_path,
+            "synthetic": synthetic.strip() if isinstance(synthetic, str) and synthetic.strip() else None}
 
 
 def _read_tables(root: Path, settings: dict, problems: Problems | None, *, require_ratings: bool,

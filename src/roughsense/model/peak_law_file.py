@@ -37,8 +37,9 @@ KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
 LIMIT = 1e3
 _BOUNDED = Real(-LIMIT, LIMIT)
-#: |log roughness| the law may reach anywhere in its feature box: exp() of it is finite and positive.
-_MAX_LOG_ROUGHNESS = 700.0
+#: |log roughness| the law may reach anywhere in its feature box: predictions between 1e-6 and 1e6, the bound of a
+#: rating (``io.numbers.BOUNDS``) and of a PLS file's values; a re-signed law predicting 9e303 is refused.
+_MAX_LOG_ROUGHNESS = math.log(1e6)
 _SCALARS: dict[str, Constraint] = {
     "exclusion_per_mm": Real(0.0, 10.0, low_open=True),
     "epsilon": Real(0.0, 100.0, low_open=True),
@@ -221,7 +222,7 @@ def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) 
     if not (math.isfinite(highest) and math.isfinite(lowest)) or max(abs(highest), abs(lowest)) > _MAX_LOG_ROUGHNESS:
         raise ModelFileError(
             f"model.intercept and model.coefficients give log roughness from {lowest:.4g} to {highest:.4g} over the "
-            f"training range; a prediction must stay within exp(+-{_MAX_LOG_ROUGHNESS:g})", path=path)
+            f"training range; a prediction must stay within 1e-6 to 1e6", path=path)
 
 
 def peak_domain(section, features: dict, path: Path | None):

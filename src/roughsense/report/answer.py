@@ -61,6 +61,9 @@ def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
 
 def _trust_line(analysis) -> str:
     """How far to trust the numbers: whose images and ratings these are."""
+    if analysis.simulation is None and getattr(analysis, "synthetic", None):
+        return (f"How far to trust it: the images are synthetic ({analysis.synthetic}), not measurements; the numbers "
+                "illustrate the analysis, they are no finding about a real sensor.")
     if analysis.simulation is None:
         return ("How far to trust it: these are your images and ratings; the numbers are findings about them, for "
                 "surfaces like the ones held out here.")

@@ -13,7 +13,7 @@ import pandas as pd
 from .. import __version__, paper
 from .._util.checks import is_number
 from . import figures
-from .html import template_environment
+from .html import FigureStyle, template_environment
 
 CV_STYLE = {"loo": ("#2f5d8a", "o", "LOO"), "loso": ("#b5472b", "s", "LOSO")}
 MODEL_LINES = ("-", "--", ":", "-.")  # one line style per model family, in the order the rows give them
@@ -107,18 +107,35 @@ def html_table(frame: pd.DataFrame, title: str, caption: str = "") -> dict:
     return {"title": title, "caption": caption, "columns": columns, "rows": rows}
 
 
+def axis_figure_files(axes: list[dict], style: FigureStyle = FigureStyle()) -> tuple[dict[str, bytes], list[dict]]:
+    """Each axis's figure as a file in ``style``'s format (``axis_<name>.<ext>``) and its page entry (what the page
+    embeds: the file itself, or for PDF a PNG of it; name; MIME type)."""
+    files, shown = {}, []
+    for item in axes:
+        fig = axis_figure(item["rows"], item["axis"], item["order"])
+        name = f"axis_{item['axis']}.{style.figure_format}"
+        files[name] = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
+        kind = "png" if style.figure_format == "pdf" else style.figure_format
+        page = files[name] if kind == style.figure_format else figures.figure_bytes(fig, kind, dpi=style.dpi, close=False)
+        figures.plt.close(fig)
+        shown.append({"name": name, "mime": figures.MIME_TYPES[kind],
+                      "data": base64.b64encode(figures.page_preview(page) if kind == "png" else page).decode("ascii")})
+    return files, shown
+
+
 def render_explore(*, name: str, meta: dict, best: pd.DataFrame | None, axes: list[dict], questions: list[dict],
                    summary: pd.DataFrame, failures: pd.DataFrame, limits: list[str],
-                   generated: str | None = None, notes: list[str] | None = None, rule: str = "") -> bytes:
-    """index.html of a sweep; ``axes`` items hold axis, order, rows (a slice), anchor text; figures are embedded."""
+                   generated: str | None = None, notes: list[str] | None = None, rule: str = "",
+                   shown: list[dict] | None = None) -> bytes:
+    """index.html of a sweep; ``axes`` items hold axis, order, rows (a slice), anchor text; ``shown``: each axis's
+    figure as :func:`axis_figure_files` gives it (PNG at the default resolution when None)."""
+    shown = shown if shown is not None else axis_figure_files(axes)[1]
     sections = []
-    for item in axes:
-        png = figures.png_bytes(axis_figure(item["rows"], item["axis"], item["order"]))
+    for item, figure in zip(axes, shown):
         rows = item["rows"]
         family = ["model"] if "model" in rows.columns and item["axis"] != "model" and rows["model"].nunique() > 1 else []
         sections.append({
-            "axis": item["axis"], "anchor": item["anchor"],
-            "image": base64.b64encode(png).decode("ascii"),
+            "axis": item["axis"], "anchor": item["anchor"], "figure": figure,
             "table": html_table(rows[[item["axis"], *family, "cv", "condition",
                                       *[c for m in ("rmse", "null_rmse", "ovl") for c in rows.columns
                                         if c == m or c.startswith(f"{m}_ci")],

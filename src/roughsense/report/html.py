@@ -111,7 +111,8 @@ def plain_words(analysis) -> list[str]:
             "for a specimen the model never saw (LOSO), whether models beat specimen-shuffled targets and the training "
             "mean (Controls), and which of the paper's claims hold under those checks (Claims).")
     else:
-        lines.append("This study is user data (study.toml has no [simulation] table): every result below is a finding "
+        lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
+                     "This study is user data (study.toml has no [simulation] table): every result below is a finding "
                      "about these images and ratings.")
     if not analysis.controls.empty:
         failing = failing_models(analysis)
@@ -127,6 +128,11 @@ def plain_words(analysis) -> list[str]:
         lines.append(", ".join(f"{int(counts.get(v, 0))} {v}" for v in VERDICTS if counts.get(v, 0))
                      + " of the paper's claims, by pad and CV scheme (Claims below).")
     return lines
+
+
+def _synthetic_words(analysis) -> str:
+    return (f"This study's images are synthetic, not measurements (study.toml [study] synthetic: {analysis.synthetic}): "
+            "the results illustrate the analysis and are no finding about a real sensor or real people.")
 
 
 def failing_models(analysis) -> list[str]:
@@ -154,7 +160,8 @@ def unseen_words(analysis) -> list[str]:
                          "contact that the images show, so agreement between images and ratings is partly built in; "
                          "judge the models on the paper's ratings (ratings_from = paper).")
     else:
-        lines.append("This is user data: the results are findings about these images and these ratings.")
+        lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
+                     "This is user data: the results are findings about these images and these ratings.")
     return lines
 
 
