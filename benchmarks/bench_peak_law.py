@@ -137,7 +137,7 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     rows = []
     for model, predictions in (("peak-law", law), ("pls", pls)):
         scores = judge(predictions[0], y, meta, perceived, study.reference_specimen)
-        trials, surfaces = held_out_coverage(predictions[0], y, specimens, floor=float(y.min()))
+        trials, surfaces = held_out_coverage(predictions[0], y, specimens)
         rows.append({"seed": seed, "pad": pad, "condition": condition, "model": model, **scores,
                      "null_rmse": null["rmse"], "p": permutation_p(predictions[0], predictions[1:], y, Y),
                      "coverage_trials": trials, "coverage_specimens": surfaces,

@@ -157,15 +157,18 @@ def _law_refit_rmse(X, y, folds, law):
 
 
 def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
+    from .test_study_analysis import FREQS
+
     """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
-    from roughsense.model.peak_law import HUBER_EPSILON, huber_irls, kept_rows, predict_law
+    from roughsense.model.peak_law import HUBER_EPSILON, domain_margins, huber_irls, kept_rows, predict_law
 
     eps = HUBER_EPSILON if epsilon is None else epsilon
     beta, scale = huber_irls(features[train], np.log(y[train])[None], np.ones((1, int(train.sum())), bool), epsilon=eps)
     kept = kept_rows(features[train], np.log(y[train]), beta[0, 0], float(scale[0, 0]), eps,
                      None if surfaces is None else np.asarray(surfaces)[train])
     low, high = features[train][kept].min(axis=0), features[train][kept].max(axis=0)
-    return predict_law(features[test], beta[0, 0, 0], beta[0, 0, 1:], low, high)
+    step = float(np.diff(FREQS)[0])  # the law is applied within its domain: the kept range and its margins
+    return predict_law(features[test], beta[0, 0, 0], beta[0, 0, 1:], *domain_margins(step, low, high))
 
 
 @pytest.mark.parametrize("cv", ["loo", "loso"])

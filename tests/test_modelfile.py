@@ -225,7 +225,10 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     np.testing.assert_array_equal(loaded.extrapolates(new), [False, True])
     np.testing.assert_array_equal(loaded.extrapolates(new), law.extrapolates(new))
     np.testing.assert_allclose(loaded.predict(new), law.predict(new), rtol=1e-12, atol=0)
-    edge = np.exp(law.intercept_ + np.clip(law.features(new[1:]), law.feature_min_, law.feature_max_) @ law.coef_)
+    from roughsense.model.peak_law import domain_margins
+
+    low, high = domain_margins(float(np.diff(law.freq_per_mm_)[0]), law.feature_min_, law.feature_max_)
+    edge = np.exp(law.intercept_ + np.clip(law.features(new[1:]), low, high) @ law.coef_)
     np.testing.assert_allclose(loaded.predict(new[1:]), edge, rtol=1e-12)
     assert law.features(new[1:])[0, 0] < law.feature_min_[0]  # its peak lies below the lowest trained frequency
     document = json.loads(path.read_text())

@@ -182,12 +182,16 @@ def test_identical_blocks_read_as_one(seed, ridge):
 
 
 def test_extrapolation_is_flagged_and_held_at_the_edge():
-    """A period shorter than any trained one: flagged, and predicted as the shortest trained feature would be."""
+    """A period shorter than any trained one: flagged, and predicted as the edge of the law's domain (the kept
+    training range widened by its margins) would be: held exactly where it is flagged."""
+    from roughsense.model.peak_law import domain_margins
+
     X, y, _ = specimen_spectra(seed=4)
     model = PeakPowerLaw(freq_per_mm=GRID).fit(X, y)
     outside = sensor().transform([line_image(1.3, 0.2)])
     assert model.extrapolates(outside)[0] and not model.extrapolates(X).any()
-    held = np.clip(model.features(outside), model.feature_min_, model.feature_max_)
+    low, high = domain_margins(GRID[1] - GRID[0], model.feature_min_, model.feature_max_)
+    held = np.clip(model.features(outside), low, high)
     expected = np.exp(model.intercept_ + held @ model.coef_)
     np.testing.assert_allclose(model.predict(outside), expected, rtol=1e-12)
 

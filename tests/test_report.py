@@ -229,8 +229,8 @@ def _chromium() -> tuple[str, str] | None:
     return (browser, driver) if browser and driver else None
 
 
-@pytest.mark.browser
-def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
+def _headless_chromium(window: str):
+    """A headless Chromium of the given window size ("W,H"); skipped where it is missing, a failure in CI."""
     found = _chromium()
     if found is None:
         if os.environ.get("CI"):
@@ -238,16 +238,22 @@ def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
         pytest.skip("chromium/chromedriver not installed")
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
-    from selenium.webdriver.common.by import By
 
     browser, driver_path = found
     options = webdriver.ChromeOptions()
     options.binary_location = browser
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--window-size=1280,2000"):
+                 f"--window-size={window}"):
         options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
+    return webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
+
+
+@pytest.mark.browser
+def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
+    from selenium.webdriver.common.by import By
+
+    driver = _headless_chromium("1280,2000")
     try:
         driver.get((report_dir / "index.html").resolve().as_uri())
         assert "roughsense report" in driver.title
@@ -424,22 +430,9 @@ def test_the_first_screen_answers(report_dir, simulated_report_dir):
     """Issue 30: at 1400 x 900 px the top of the page says which model to use for new surfaces, its error against the
     training mean with its interval's coverage, where it passes its controls and how far to trust it; then the
     contents. The per-specimen tables are collapsed (the page's height is what a reader scrolls)."""
-    found = _chromium()
-    if found is None:
-        if os.environ.get("CI"):
-            pytest.fail("CI must install Debian's chromium and chromium-driver (see .ci/run)")
-        pytest.skip("chromium/chromedriver not installed")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
 
-    browser, driver_path = found
-    options = webdriver.ChromeOptions()
-    options.binary_location = browser
-    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
-                 "--window-size=1400,900"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
+    driver = _headless_chromium("1400,900")
     try:
         for folder, simulated in ((report_dir, False), (simulated_report_dir, True)):
             driver.get((folder / "index.html").resolve().as_uri())

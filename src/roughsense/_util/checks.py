@@ -78,7 +78,10 @@ class Real:
     high_open: bool = False
 
     def accepts(self, value: object) -> bool:
-        if not is_number(value) or not math.isfinite(value):
+        try:  # a 400-digit JSON integer is a number that no float holds: refused, not an OverflowError
+            if not is_number(value) or not math.isfinite(value):
+                return False
+        except OverflowError:
             return False
         if self.low is not None and (value <= self.low if self.low_open else value < self.low):
             return False

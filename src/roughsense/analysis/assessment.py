@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..model.families import PLS
 from ..model.interval import PredictionInterval
 from . import controls as _controls
 from .study_analysis import family_fit
@@ -39,14 +40,17 @@ class UnseenAssessment:
         """One line naming each control the model fails, with its numbers ('' when it passes them all)."""
         problems = []
         if not self.pooled_rmse < self.null_pooled_rmse:
-            problems.append(f"no better than the training mean (RMSE {self.pooled_rmse:.3f} vs {self.null_pooled_rmse:.3f})")
+            problems.append(f"no better than the training mean (pooled RMSE {self.pooled_rmse:.3f} vs "
+                            f"{self.null_pooled_rmse:.3f})")
         if self.n_permutations and not self.permutation_p < _controls.ALPHA:
             problems.append(f"not better than shuffled targets (permutation p = {self.permutation_p:.3f} >= "
                             f"{_controls.ALPHA:g}, {self.n_permutations} shufflings)")
         if not problems:
             return ""
+        verdict = ("Its predictions for new surfaces are no better than guessing" if len(problems) == 2 else
+                   "Its predictions for new surfaces are not shown to be better than guessing")
         return ("this model FAILS its controls for surfaces it never saw (nested leave-one-specimen-out): "
-                + "; ".join(problems) + ". Its predictions for new surfaces are not better than guessing")
+                + "; ".join(problems) + f". {verdict}")
 
     def record(self) -> dict:
         """The model file's ``unseen`` entry (JSON values; a number the design cannot give is null)."""
@@ -68,7 +72,11 @@ def assess_unseen(family: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame,
     permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
     row = _controls.control_row(fit, X, y, specimens, permutations, law)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
-    interval = PredictionInterval.from_cv(predictions, y, specimens, floor=float(np.min(y)))
+    alone = None
+    if law is not None and law.get("surfaces") is not None and family != PLS:  # a press read without its surface
+        alone = family_fit(family, X, y, meta, perceived, pad, condition, "loso", law={**law, "surfaces": None},
+                           max_components=max_components).predictions["prediction"].to_numpy(dtype=float)
+    interval = PredictionInterval.from_cv(predictions, y, specimens, alone_predictions=alone)
     return UnseenAssessment(
         rmse=float(fit.table["rmse"].mean()),
         null_rmse=float(null_specimen_rmse(fit.predictions, perceived).mean()),

@@ -61,7 +61,7 @@ def _control(controls: pd.DataFrame, fit) -> dict:
 
 
 def _coverage(prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray) -> dict:
-    trials, surfaces = held_out_coverage(prediction, target, specimens, floor=float(np.min(target)))
+    trials, surfaces = held_out_coverage(prediction, target, specimens)
     return {"pi90_coverage_trials": trials, "pi90_coverage_specimens": surfaces}
 
 
@@ -110,7 +110,7 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
 
     Each specimen's interval is built as in the coverage check: from the other specimens' LOSO residuals only.
     """
-    from ..model.interval import conformal_halfwidth, log_residuals
+    from ..model.interval import conformal_halfwidth, held_out_floors, log_residuals
 
     frames = []
     for fit in analysis.ordered_fits():
@@ -129,13 +129,14 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
         specimens = predictions["specimen"].to_numpy()
         prediction = predictions["prediction"].to_numpy(dtype=float)
         target = predictions["specimen"].map(perceived).to_numpy(dtype=float)
-        _, surface = log_residuals(prediction, target, specimens, float(np.min(target)))
+        floors = held_out_floors(target, specimens)
+        _, surface = log_residuals(prediction, target, specimens, floors)
         names = pd.unique(pd.Series(specimens))
         flags = fit.held_out_flags if fit.held_out_flags is not None else np.zeros(len(specimens), dtype=bool)
         for i, name in enumerate(names):
             mine = specimens == name
             halfwidth = conformal_halfwidth(np.abs(np.delete(surface, i)))
-            mean = float(np.maximum(prediction[mine], float(np.min(target))).mean())
+            mean = float(np.maximum(prediction[mine], floors[mine]).mean())
             rows.append({"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
                          "perceived": float(perceived[name]), "prediction": mean,
                          "pi90_low": mean * np.exp(-halfwidth), "pi90_high": mean * np.exp(halfwidth),

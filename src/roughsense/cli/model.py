@@ -245,6 +245,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             raise ConfigError("live scoring needs both --live and --source SRC")
         if given:
             raise ConfigError(f"give either {given[0]} or --live --source SRC, not both")
+        if same_surface:
+            raise ConfigError("--same-surface groups images given at once; live frames are scored one by one")
         _predict_live(load_model(model), source, max_frames, override)
         return
     _check_image_sources(given, specimens, study)
@@ -326,7 +328,7 @@ def _three_digits(values) -> list[str]:
     """Values as text with 3 significant digits (written as is: a float column would print 1.23 as 1.2299...)."""
     import numpy as np
 
-    return [f"{v:.3g}" for v in np.asarray(values, dtype=float)]
+    return [f"{float(f'{v:.3g}'):g}" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230, not 1.23e+03
 
 
 EXTRAPOLATION_WHY = "outside what the model was trained on; the `outside` column says how"
@@ -478,5 +480,4 @@ def _predict_live(loaded, source: str, max_frames: int | None, override=None) ->
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
     if summary.extrapolated:
-        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on (period, "
-                   "peak strength or spectrum shape)")
+        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on")

@@ -32,12 +32,25 @@ def conformal_halfwidth(absolute_residuals, level: float = INTERVAL_LEVEL) -> fl
     return float(values[rank - 1]) if 1 <= rank <= values.size else float("inf")
 
 
-def positive(predictions, floor: float) -> np.ndarray:
-    """Predictions held at ``floor`` or above (PLS can predict <= 0; a log residual needs a positive value)."""
+def positive(predictions, floor) -> np.ndarray:
+    """Predictions held at ``floor`` (a number, or one per row) or above (PLS can predict <= 0; a log residual
+    needs a positive value)."""
     return np.maximum(np.asarray(predictions, dtype=np.float64), floor)
 
 
-def log_residuals(predictions, targets, surfaces, floor: float) -> tuple[np.ndarray, np.ndarray]:
+def held_out_floors(targets, surfaces) -> np.ndarray:
+    """Per row, the floor a model fitted without the row's surface holds its predictions at: half the smallest
+    target of the *other* surfaces (a loaded PLS file's floor), so a held-out rating never raises its own prediction."""
+    targets = np.asarray(targets, dtype=np.float64)
+    codes, _ = pd.factorize(pd.Series(np.asarray(surfaces)), sort=False)
+    smallest = pd.Series(targets).groupby(codes).min().to_numpy()
+    order = np.argsort(smallest)
+    first, second = smallest[order[0]], smallest[order[1]] if smallest.size > 1 else np.inf
+    others = np.where(codes == order[0], second, first)
+    return 0.5 * others
+
+
+def log_residuals(predictions, targets, surfaces, floor) -> tuple[np.ndarray, np.ndarray]:
     """Per-trial and per-surface residuals log(target) - log(prediction); a surface's prediction is its trials'
     mean, as :meth:`PredictionInterval.surface_bounds` predicts one."""
     predicted = positive(predictions, floor)
@@ -57,14 +70,30 @@ class PredictionInterval:
     level: float = INTERVAL_LEVEL
     n_trials: int = 0
     n_surfaces: int = 0
+    #: A press read alone (no other press of its surface given): the peak law reads it less surely than with its
+    #: surface's other presses, so its interval is calibrated on LOSO predictions made that way. NaN: the same.
+    alone_log_halfwidth: float = float("nan")
 
     @classmethod
-    def from_cv(cls, predictions, targets, surfaces, *, floor: float, level: float = INTERVAL_LEVEL
-                ) -> PredictionInterval:
-        """From out-of-fold (LOSO) predictions of the training trials, their targets and specimens."""
+    def from_cv(cls, predictions, targets, surfaces, *, floor=None, level: float = INTERVAL_LEVEL,
+                alone_predictions=None) -> PredictionInterval:
+        """From out-of-fold (LOSO) predictions of the training trials, their targets and specimens.
+
+        ``floor``: what predictions are held at (default: each held-out specimen's deployed floor,
+        :func:`held_out_floors`); ``alone_predictions``: the same trials each read alone, if that differs.
+        """
+        floor = held_out_floors(targets, surfaces) if floor is None else floor
         trial, surface = log_residuals(predictions, targets, surfaces, floor)
+        alone = float("nan")
+        if alone_predictions is not None:
+            alone = conformal_halfwidth(np.abs(log_residuals(alone_predictions, targets, surfaces, floor)[0]), level)
         return cls(conformal_halfwidth(np.abs(trial), level), conformal_halfwidth(np.abs(surface), level), level,
-                   int(trial.size), int(surface.size))
+                   int(trial.size), int(surface.size), alone)
+
+    def press_halfwidth(self, read_alone: bool) -> float:
+        """The half-width of a trial's interval: read alone, or with its surface's other presses."""
+        return self.alone_log_halfwidth if read_alone and math.isfinite(self.alone_log_halfwidth) \
+            else self.trial_log_halfwidth
 
     @property
     def finite(self) -> bool:
@@ -85,17 +114,20 @@ class PredictionInterval:
             return value if math.isfinite(value) else None
 
         return {"level": self.level, "trial_log_halfwidth": finite(self.trial_log_halfwidth),
-                "surface_log_halfwidth": finite(self.surface_log_halfwidth), "n_trials": self.n_trials,
+                "surface_log_halfwidth": finite(self.surface_log_halfwidth),
+                "alone_log_halfwidth": finite(self.alone_log_halfwidth), "n_trials": self.n_trials,
                 "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out"}
 
 
-def held_out_coverage(predictions, targets, surfaces, *, floor: float, level: float = INTERVAL_LEVEL
+def held_out_coverage(predictions, targets, surfaces, *, floor=None, level: float = INTERVAL_LEVEL
                       ) -> tuple[float, float]:
     """Empirical coverage of the intervals on held-out specimens: each specimen's interval is built from the
     other specimens' residuals only, then asked whether it holds the specimen's perceived roughness.
 
-    Returns (share of trials covered, share of specimens whose surface interval covers them).
+    Returns (share of trials covered, share of specimens whose surface interval covers them). ``floor`` as in
+    :meth:`PredictionInterval.from_cv`.
     """
+    floor = held_out_floors(targets, surfaces) if floor is None else floor
     trial, surface = log_residuals(predictions, targets, surfaces, floor)
     codes, _ = pd.factorize(pd.Series(np.asarray(surfaces)), sort=False)
     covered_trials = 0

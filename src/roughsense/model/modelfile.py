@@ -138,13 +138,15 @@ class LoadedModel:
         for value, why in zip(raw, shape):
             parts = [why] if why else []
             if value < self.floor:
-                parts.append(f"PLS gave {value:.3g}, below half the smoothest trained surface; held at {self.floor:.3g}")
+                whose = "half the smoothest trained surface" if self.floor != MIN_ROUGHNESS else "the least roughness " \
+                    "an older model file may give"
+                parts.append(f"PLS gave {value:.3g}, below {whose}; held at {self.floor:.3g}")
             reasons.append("; ".join(parts))
         return reasons
 
     def extrapolates(self, X, surfaces=None) -> np.ndarray:
         """True where :meth:`applicability` gives a reason."""
-        return np.array([bool(reason) for reason in self.applicability(X)], dtype=bool)
+        return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
 
 
 #: A loaded model file of either family: both predict, say whether they extrapolate, and carry their features.
@@ -176,6 +178,8 @@ def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, tr
     section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else _pls_section(model)
     if domain is not None:
         section["applicability"] = domain.to_dict()
+        _domain(section["applicability"], np.asarray(section["x_mean"]), section["n_components"], section["n_features"],
+                _check_feature_definition(feature_definition, section["n_features"], None), None)  # as loading will
     features = _check_feature_definition(feature_definition, section["n_features"], None)
     if section["kind"] == peak_law_file.KIND:  # refuse now what load_model would refuse later
         peak_law_file.loaded_law(section, features, training=training, roughsense_version=_version(), path=None)

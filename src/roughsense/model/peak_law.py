@@ -412,8 +412,8 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X, surfaces=None) -> np.ndarray:
-        return predict_law(self.features(X, surfaces), self.intercept_, self.coef_, self.feature_min_,
-                           self.feature_max_)
+        return predict_law(self.features(X, surfaces), self.intercept_, self.coef_,
+                           *domain_margins(_step(self.freq_per_mm_), self.feature_min_, self.feature_max_))
 
     def extrapolates(self, X, surfaces=None) -> np.ndarray:
         """True for each row outside the law's applicability domain (:meth:`applicability` gives the reasons)."""
@@ -424,9 +424,8 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
-        step = float(self.freq_per_mm_[1] - self.freq_per_mm_[0]) if self.freq_per_mm_.size > 1 else 0.0
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              step)
+                              _step(self.freq_per_mm_))
 
 
 def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: float, epsilon: float,
@@ -456,9 +455,15 @@ def _kept(absolute: np.ndarray, scale: np.ndarray, epsilon: float, train: np.nda
     return np.where(kept.any(axis=2, keepdims=True), kept, train[:, None, :])
 
 
+def _step(freq_per_mm: np.ndarray) -> float:
+    """The grid's spacing (mm^-1); 0 for a one-bin grid."""
+    return float(freq_per_mm[1] - freq_per_mm[0]) if len(freq_per_mm) > 1 else 0.0
+
+
 def predict_law(features: np.ndarray, intercept: float, coef: np.ndarray, low: np.ndarray, high: np.ndarray
                 ) -> np.ndarray:
-    """exp(intercept + clip(features) . coef): the law's prediction, features held to the training range."""
+    """exp(intercept + clip(features) . coef): the law's prediction, features held to [low, high] (the law's
+    domain, :func:`domain_margins`)."""
     return np.exp(intercept + np.clip(features, low, high) @ np.asarray(coef, dtype=np.float64))
 
 
@@ -472,24 +477,30 @@ def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.
 
 
 def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far (log units) below ``low`` and above ``high`` a feature may lie and still count as inside.
+    """The law's domain: the kept training range (``low``, ``high``: (..., 2)) widened by what a feature may lie
+    beyond it and still count as inside. The law is applied unclipped inside and held at the domain's edge outside,
+    so a prediction is held exactly when it is flagged.
 
     The period is read to about half a grid bin, so two gratings of one period can read 1-2 % apart: half a bin
     either side of the trained frequencies. The peak strength varies from press to press by more than that:
     :data:`LOG_MARGIN` either side.
     """
     step = float(freq_step_per_mm)
-    below = np.array([np.log1p(0.5 * step / np.exp(low[0])), LOG_MARGIN])
-    above = np.array([np.log1p(0.5 * step / np.exp(high[0])), LOG_MARGIN])
+    low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
+    below, above = np.full(low.shape, LOG_MARGIN), np.full(high.shape, LOG_MARGIN)
+    below[..., 0] = np.log1p(0.5 * step / np.exp(low[..., 0]))
+    above[..., 0] = np.log1p(0.5 * step / np.exp(high[..., 0]))
     return low - below, high + above
 
 
-def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[str]:
+def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, shown=None) -> list[str]:
     """Per row, what lies outside the range [low, high] (margins included), in a user's words ('' where nothing).
 
-    The frequency is said as a period (what a user designs), the amplitude as the peak's strength.
+    The frequency is said as a period (what a user designs), the amplitude as the peak's strength; ``shown``: the
+    range the message quotes (the trained one, without the margins), default [low, high].
     """
     outside = outside_each(features, low, high)
+    low, high = (low, high) if shown is None else shown
     reasons = []
     for row, (period_out, strength_out) in zip(features, outside):
         parts = []
@@ -509,7 +520,7 @@ def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clar
     """Per row, every way it lies outside the law's domain ('' where none): period and peak strength outside the
     kept training range (:func:`domain_margins`), a spectrum with no clear peak, presses that disagree on where the
     peak is. ``clarity_limit`` None: a model file written before the clarity was kept (not checked)."""
-    reasons = range_reasons(readout.features, *domain_margins(freq_step_per_mm, low, high))
+    reasons = range_reasons(readout.features, *domain_margins(freq_step_per_mm, low, high), shown=(low, high))
     for i, clarity in enumerate(readout.clarity):
         parts = [reasons[i]] if reasons[i] else []
         if clarity_limit is not None and clarity < clarity_limit:
@@ -536,8 +547,10 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
 
     Leave-one-out without ``groups``; leave-one-group-out (e.g. leave-one-specimen-out) with them. Equal to refitting
     :class:`PeakPowerLaw` on every training fold (to rounding): the features do not depend on the targets, so they are
-    computed once, and all folds and targets go through one batched IRLS. ``surfaces``: as :func:`peak_features`
-    (a surface's peak is read from its own presses only, so with surfaces = groups no fold sees its held-out rows).
+    computed once, and all folds and targets go through one batched IRLS. ``surfaces``: as :func:`peak_features`.
+    With folds that hold whole surfaces (leave-one-specimen-out with surfaces = specimens) it equals refits of the
+    estimator; with folds that split a surface (LOO), a held-out press shares its surface's peak read from all its
+    presses -- spectra only, never a rating -- which a refit on the training presses alone cannot reproduce.
     """
     check_settings(epsilon=epsilon)
     freq_per_mm = check_grid(freq_per_mm)  # as PeakPowerLaw given a grid: at least 3 bins
@@ -561,7 +574,8 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
     beta, scale = huber_irls(features, log_targets, ~held_out, epsilon=epsilon)
-    low, high = fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces)
+    low, high = domain_margins(_step(freq_per_mm),
+                               *fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces))
     predictions = np.empty_like(targets)
     for fold in range(n_folds):
         rows = held_out[fold]

@@ -31,7 +31,17 @@ from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
-from .peak_law import FEATURE_NAMES, PeakPowerLaw, PeakReadout, check_grid, domain_reasons, peak_readout, predict_law, search_bins
+from .peak_law import (
+    FEATURE_NAMES,
+    PeakPowerLaw,
+    PeakReadout,
+    check_grid,
+    domain_margins,
+    domain_reasons,
+    peak_readout,
+    predict_law,
+    search_bins,
+)
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -100,8 +110,9 @@ class LoadedPeakLaw:
 
     def predict(self, X, surfaces=None) -> np.ndarray:
         """Predicted perceived roughness, exactly as the fitted :class:`PeakPowerLaw` predicts it."""
-        return predict_law(self.law_features(X, surfaces), self.intercept_, self.coef_, self.feature_min_,
-                           self.feature_max_)
+        step = float(self.freq_per_mm[1] - self.freq_per_mm[0]) if self.freq_per_mm.size > 1 else 0.0
+        return predict_law(self.law_features(X, surfaces), self.intercept_, self.coef_,
+                           *domain_margins(step, self.feature_min_, self.feature_max_))
 
     def applicability(self, X, surfaces=None) -> list[str]:
         """Per row, what lies outside what the law was fitted on ('' where nothing does)."""
@@ -172,7 +183,9 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
         search_bins(freq, period, scalars["exclusion_per_mm"])
     except ValueError as exc:
         raise ModelFileError(f"model.pad_ridge_period_mm and model.exclusion_per_mm: {exc}", path=path) from None
-    _check_finite_predictions(scalars["intercept"], pairs, path)
+    step = float(freq[1] - freq[0]) if freq.size > 1 else 0.0  # predictions reach the domain's widened edges
+    low, high = domain_margins(step, pairs["feature_min"], pairs["feature_max"])
+    _check_finite_predictions(scalars["intercept"], {**pairs, "feature_min": low, "feature_max": high}, path)
     clarity = _checked(section, "clarity_limit", _BOUNDED, path) if "clarity_limit" in section else None
     return LoadedPeakLaw(
         path=path, freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,

@@ -164,25 +164,30 @@ class Scores:
 
 
 def model_interval(loaded: AnyModel):
-    """The model file's prediction interval, or None (a file written before intervals, or too few specimens)."""
+    """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
+    trial's). A malformed entry is refused in one line naming the field, never silently dropped."""
+    from .._util.checks import Real
+    from ..errors import ModelFileError
     from .interval import PredictionInterval
 
     stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
-    if not isinstance(stored, dict):
+    if stored is None:
         return None
-    def halfwidth(value) -> float:  # null: too few residuals for the level (no interval of that kind)
-        if value is None:
-            return math.inf
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < 50:
-            raise ValueError("not a log half-width")
-        return float(value)
-
-    try:
-        interval = PredictionInterval(halfwidth(stored["trial_log_halfwidth"]),
-                                      halfwidth(stored["surface_log_halfwidth"]), float(stored["level"]))
-    except (KeyError, TypeError, ValueError):
-        return None
-    return interval if math.isfinite(interval.trial_log_halfwidth) and 0 < interval.level < 1 else None
+    widths = dict.fromkeys(("trial_log_halfwidth", "surface_log_halfwidth"), math.inf)
+    widths["alone_log_halfwidth"] = math.nan
+    if not isinstance(stored, dict) or not Real(0.5, 0.999).accepts(stored.get("level")):
+        raise ModelFileError("training.interval must hold a level between 0.5 and 0.999", path=loaded.path)
+    for name in widths:
+        value = stored.get(name)
+        if value is None:  # null: too few residuals for the level; absent (alone): written before it existed
+            continue
+        if not Real(0.0, 50.0).accepts(value):
+            raise ModelFileError(f"training.interval.{name} must be a log half-width from 0 to 50 or null, got "
+                                 f"{str(value)[:40]}", path=loaded.path)
+        widths[name] = float(value)
+    interval = PredictionInterval(widths["trial_log_halfwidth"], widths["surface_log_halfwidth"],
+                                  float(stored["level"]), alone_log_halfwidth=widths["alone_log_halfwidth"])
+    return interval if math.isfinite(interval.trial_log_halfwidth) else None
 
 
 def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
@@ -193,7 +198,11 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     reasons = loaded.applicability(X, surfaces=surfaces)
     interval = model_interval(loaded)
     nan = np.full(roughness.shape, np.nan)
-    low, high = interval.trial_bounds(roughness) if interval is not None else (nan, nan)
+    if interval is not None:  # a press read alone is read less surely (the peak law): its own calibration
+        width = interval.press_halfwidth(read_alone=surfaces is None)
+        low, high = roughness * math.exp(-width), roughness * math.exp(width)
+    else:
+        low, high = nan, nan
     if surfaces is None:
         return Scores(roughness, low, high, reasons)
     import pandas as pd

@@ -32,19 +32,23 @@ def _condition(unseen: pd.DataFrame) -> str:
 def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
     condition = _condition(unseen)
-    model = DEFAULT_MODEL if (unseen["model"] == DEFAULT_MODEL).any() else str(unseen["model"].iloc[0])
-    rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition)]
-    if not passes[unseen["model"] == model].any():
-        return (f"No model here passes its controls for surfaces never seen, {model_title(model)} included: this study "
-                "supports no roughness score for a new surface.")
+    passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
+    if not passing:
+        return ("No model here passes its controls for surfaces never seen: this study supports no roughness score "
+                "for a new surface.")
+    model = DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
+    rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition) & passes]
+    if rows.empty:  # it passes only in other conditions: quote those
+        rows = unseen[(unseen["model"] == model) & passes].drop_duplicates("pad")
     per_pad = "; ".join(
-        f"{r.pad} pad {r.rmse:.2f} vs {r.null_rmse:.2f}" + (
+        f"{r.pad} pad{'' if r.condition == condition else f' ({r.condition})'} {r.rmse:.2f} vs {r.null_rmse:.2f}" + (
             f", its 90 % interval held {r.pi90_coverage_trials:.0%} of held-out presses"
             if pd.notna(r.pi90_coverage_trials) else "")
         for r in rows.itertuples())
-    return (f"To score a surface the model never saw, use the {model_title(model)} ({model}, what roughsense fit writes "
-            f"by default). Its error on surfaces held out of training ({condition}, mean per-specimen RMSE vs the "
-            f"training mean's): {per_pad}.")
+    default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
+    return (f"To score a surface the model never saw, use the {model_title(model)} ({model}{default}) on the pads and "
+            f"conditions where it passes its controls (next line). Its error on surfaces held out of training "
+            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}.")
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
@@ -54,9 +58,11 @@ def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
         ok = passes[rows.index]
         where = ", ".join(f"{r.pad} {r.condition}" for r in rows[~ok].itertuples())
         parts.append(f"{model_title(model)} passes in {int(ok.sum())} of {len(rows)}" + (f" (not {where})" if where else ""))
-    return (f"Which model passes its controls for new surfaces (below the training mean and better than specimen-"
-            f"shuffled targets, nested leave-one-specimen-out), per pad x condition: {'; '.join(parts)}. The paper's "
-            f"{PAPER_MODEL} is for reproducing the paper, not for new surfaces where it fails them.")
+    shuffled = " and better than specimen-shuffled targets" if unseen["n_permutations"].max() > 0 else \
+        " (no shuffled targets: --permutations 0)"
+    return (f"Which model passes its controls for new surfaces (below the training mean{shuffled}, nested "
+            f"leave-one-specimen-out), per pad x condition: {'; '.join(parts)}. The paper's {PAPER_MODEL} is for "
+            "reproducing the paper, not for new surfaces where it fails them.")
 
 
 def _trust_line(analysis) -> str:
