@@ -680,3 +680,22 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
                 assert (table[column].astype(float) > 0).all()
         assert (table["pi90_low"].astype(float) < table["roughness_rel_R3"].astype(float)).all() if "pi90_low" in table \
             else training["interval"]["trial_log_halfwidth"] is None
+
+
+def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_cli, study_dir, data, tmp_path):
+    """Issue 27: bare images are read one by one, which the peak law does less surely than a surface's presses
+    together; the model file keeps both calibrations and predict uses the one that matches how it read."""
+    import math
+
+    model = tmp_path / "law.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    interval = json.loads(model.read_text())["training"]["interval"]
+    _, _, meta = data("1N")
+    images = [study_dir / name for name in meta["image"][:3]]
+    for extra, width in (((), interval["alone_log_halfwidth"]), (("--same-surface",), interval["trial_log_halfwidth"])):
+        code, _, err = run_cli("predict", model, *images, *extra, "--out", tmp_path / "p.csv", "--force")
+        assert code == 0, err
+        table = pd.read_csv(tmp_path / "p.csv")
+        ratio = table["pi90_high"] / roughness(table)
+        np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
+        assert ("surface_roughness_rel_R3" in table) == bool(extra)

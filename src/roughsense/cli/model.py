@@ -107,6 +107,8 @@ def _echo_unseen(unseen) -> None:
         return f"x{math.exp(-halfwidth):.2f}-x{math.exp(halfwidth):.2f} {what}"
 
     width = f"{span(interval.trial_log_halfwidth, 'per trial')}, {span(interval.surface_log_halfwidth, 'per surface')}"
+    if math.isfinite(interval.alone_log_halfwidth):
+        width += f", {span(interval.alone_log_halfwidth, 'per press read alone')}"
     typer.echo(f"surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
                f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
                f"90 % prediction interval {width}")
@@ -399,7 +401,8 @@ def _terminal_table(table, *, from_study: bool) -> str:
             first = rows.iloc[0]
             interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']})"
                         if "surface_pi90_low" in rows else "")
-            lines.append(f"surface {name}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
+            label = f"surface {name}" if key else "the surface (every image: --same-surface)"
+            lines.append(f"{label}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
     reasons = table["outside"][table["outside"].astype(bool)]
     for reason, count in reasons.value_counts().items():
         lines.extend(textwrap.wrap(f"outside what the model was trained on ({counted(int(count), 'trial')}): {reason}",
