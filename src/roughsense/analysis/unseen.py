@@ -66,7 +66,7 @@ def _coverage(prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray)
 
 
 def _flag_shares(fit) -> dict:
-    flags = getattr(fit, "held_out_flags", None)
+    flags = fit.held_out_flags
     if flags is None:
         return {"flagged_share": float("nan"), "flagged_max_share": float("nan"), "flagged_max_specimen": ""}
     shares = pd.Series(np.asarray(flags, dtype=float), index=fit.predictions["specimen"].to_numpy()).groupby(
@@ -110,37 +110,31 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
 
     Each specimen's interval is built as in the coverage check: from the other specimens' LOSO residuals only.
     """
-    from ..model.interval import conformal_halfwidth, held_out_floors, log_residuals
+    from ..model.interval import held_out_floors, held_out_halfwidths, log_residuals
 
-    frames = []
-    for fit in analysis.ordered_fits():
-        if fit.cv != "loso" or fit.model != model:
-            continue
-        frames.append((fit, fit.predictions))
-    conditions = list(dict.fromkeys(f.condition for f, _ in frames))
-    if not frames:
+    fits = [f for f in analysis.ordered_fits() if f.cv == "loso" and f.model == model]
+    if not fits:
         return pd.DataFrame(columns=UNSURE_COLUMNS)
+    conditions = list(dict.fromkeys(f.condition for f in fits))
     condition = "combined" if "combined" in conditions else conditions[-1]
     perceived = analysis.perceived.set_index("specimen")["gmean"]
     rows = []
-    for fit, predictions in frames:
-        if fit.condition != condition:
-            continue
-        specimens = predictions["specimen"].to_numpy()
-        prediction = predictions["prediction"].to_numpy(dtype=float)
-        target = predictions["specimen"].map(perceived).to_numpy(dtype=float)
+    for fit in (f for f in fits if f.condition == condition):
+        specimens = fit.predictions["specimen"].to_numpy()
+        prediction = fit.predictions["prediction"].to_numpy(dtype=float)
+        target = fit.predictions["specimen"].map(perceived).to_numpy(dtype=float)
         floors = held_out_floors(target, specimens)
         _, surface = log_residuals(prediction, target, specimens, floors)
-        names = pd.unique(pd.Series(specimens))
+        halfwidths = held_out_halfwidths(surface)
         flags = fit.held_out_flags if fit.held_out_flags is not None else np.zeros(len(specimens), dtype=bool)
-        for i, name in enumerate(names):
+        for i, name in enumerate(pd.unique(pd.Series(specimens))):
             mine = specimens == name
-            halfwidth = conformal_halfwidth(np.abs(np.delete(surface, i)))
             mean = float(np.maximum(prediction[mine], floors[mine]).mean())
             rows.append({"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
                          "perceived": float(perceived[name]), "prediction": mean,
-                         "pi90_low": mean * np.exp(-halfwidth), "pi90_high": mean * np.exp(halfwidth),
-                         "covered": bool(abs(surface[i]) <= halfwidth), "flagged_share": float(np.mean(flags[mine]))})
+                         "pi90_low": mean * np.exp(-halfwidths[i]), "pi90_high": mean * np.exp(halfwidths[i]),
+                         "covered": bool(abs(surface[i]) <= halfwidths[i]),
+                         "flagged_share": float(np.mean(flags[mine]))})
     table = pd.DataFrame(rows, columns=UNSURE_COLUMNS)
     table["width"] = table["pi90_high"] - table["pi90_low"]
     table = table.sort_values(["pad", "flagged_share", "covered", "width"], ascending=[True, False, True, False],

@@ -99,10 +99,11 @@ class PredictionInterval:
     def finite(self) -> bool:
         return math.isfinite(self.trial_log_halfwidth) and math.isfinite(self.surface_log_halfwidth)
 
-    def trial_bounds(self, predictions) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) around each trial's prediction (0 and inf when the half-width is not known)."""
+    def trial_bounds(self, predictions, *, read_alone: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) around each trial's prediction (:meth:`press_halfwidth`; 0 and inf when it is not known)."""
         predicted = np.asarray(predictions, dtype=np.float64)
-        return predicted * math.exp(-self.trial_log_halfwidth), predicted * math.exp(self.trial_log_halfwidth)
+        width = self.press_halfwidth(read_alone)
+        return predicted * math.exp(-width), predicted * math.exp(width)
 
     def surface_bounds(self, predictions) -> tuple[np.ndarray, np.ndarray]:
         predicted = np.asarray(predictions, dtype=np.float64)
@@ -131,11 +132,14 @@ def held_out_coverage(predictions, targets, surfaces, *, floor=None, level: floa
     trial, surface = log_residuals(predictions, targets, surfaces, floor)
     codes, _ = pd.factorize(pd.Series(np.asarray(surfaces)), sort=False)
     covered_trials = 0
-    covered_surfaces = 0
     for code in range(surface.size):
         mine = codes == code
-        h_trial = conformal_halfwidth(np.abs(trial[~mine]), level)
-        h_surface = conformal_halfwidth(np.abs(np.delete(surface, code)), level)
-        covered_trials += int(np.sum(np.abs(trial[mine]) <= h_trial))
-        covered_surfaces += int(abs(surface[code]) <= h_surface)
-    return covered_trials / trial.size, covered_surfaces / surface.size
+        covered_trials += int(np.sum(np.abs(trial[mine]) <= conformal_halfwidth(np.abs(trial[~mine]), level)))
+    covered_surfaces = np.abs(surface) <= held_out_halfwidths(surface, level)
+    return covered_trials / trial.size, float(np.mean(covered_surfaces))
+
+
+def held_out_halfwidths(surface_residuals, level: float = INTERVAL_LEVEL) -> np.ndarray:
+    """Per surface, the half-width of its interval built from the *other* surfaces' residuals only."""
+    residuals = np.abs(np.asarray(surface_residuals, dtype=np.float64))
+    return np.array([conformal_halfwidth(np.delete(residuals, i), level) for i in range(residuals.size)])

@@ -198,11 +198,8 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     reasons = loaded.applicability(X, surfaces=surfaces)
     interval = model_interval(loaded)
     nan = np.full(roughness.shape, np.nan)
-    if interval is not None:  # a press read alone is read less surely (the peak law): its own calibration
-        width = interval.press_halfwidth(read_alone=surfaces is None)
-        low, high = roughness * math.exp(-width), roughness * math.exp(width)
-    else:
-        low, high = nan, nan
+    # a press read alone is read less surely (the peak law): it has its own calibration
+    low, high = interval.trial_bounds(roughness, read_alone=surfaces is None) if interval is not None else (nan, nan)
     if surfaces is None:
         return Scores(roughness, low, high, reasons)
     import pandas as pd
