@@ -152,7 +152,7 @@ def test_the_simulated_study_cache_covers_every_module_a_simulation_loads(tmp_pa
 
 
 def test_a_sweep_cell_fingerprint_covers_the_twin_and_the_analysis():
-    from roughsense.explore.version import ENTRY_POINTS
+    from roughsense.explore.code_fingerprint import ENTRY_POINTS
 
     cell = set(module_closure(*ENTRY_POINTS))
     assert set(module_closure("roughsense.sim.simulate")) <= cell

@@ -20,7 +20,6 @@ from roughsense.errors import ConfigError, OutputExistsError
 from roughsense.explore import cell as explore_cell
 from roughsense.explore.runner import run_sweep
 from roughsense.explore.store import ResultStore
-from roughsense.explore.summary import ci95
 from roughsense.explore.sweep import read_sweep
 from roughsense.io.study import read_study
 from roughsense.sensor.spectrum import SpatialSpectrum
@@ -121,6 +120,9 @@ def test_cell_equals_simulate_then_study(tmp_path):
     features = study_features(study, spectrum=SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=roi).fit())
     # Cold contact solves: the cell's spectra are bit-identical to the ones read back from the PNG files.
     cell_study, cold = explore_cell.cell_features(cell, warm_start=False)
+    # One table: the cell's manifest is the folder's as read_study returns it (images by name: no files).
+    folder = study.manifest.assign(image=study.manifest["image"].str.removeprefix("images/"))
+    pd.testing.assert_frame_equal(cell_study.manifest, folder)
     as_read = cell_study.ratings.astype({"session": str}).reset_index(drop=True)  # the CSV keeps sessions as text
     pd.testing.assert_frame_equal(as_read, study.ratings.reset_index(drop=True), check_dtype=False)  # simulate's panel
     freq = dataset.frequency_columns(cold)
@@ -220,14 +222,19 @@ def test_a_folder_of_another_sweep_or_of_user_files_is_refused(tmp_path):
     assert (mine / "notes.txt").read_text() == "keep"
 
 
-def test_ci95_is_the_t_interval():
+def test_mean_interval_is_the_t_interval():
     from scipy import stats
 
-    values = [0.3, 0.5, 0.4, 0.6]
-    mean, half, n = ci95(values)
-    low, high = stats.t.interval(0.95, 3, loc=np.mean(values), scale=stats.sem(values))
+    from roughsense.analysis.metrics import mean_interval
+
+    values = [0.3, 0.5, 0.4, 0.6, np.nan]
+    mean, half, n = mean_interval(values)
+    low, high = stats.t.interval(0.95, 3, loc=np.mean(values[:4]), scale=stats.sem(values[:4]))
     assert (mean, n) == (pytest.approx(0.45), 4) and half == pytest.approx((high - low) / 2)
-    assert np.isnan(ci95([0.2])[1])
+    assert np.isnan(mean_interval([0.2])[1]) and mean_interval([0.2])[:1] == (0.2,)
+    assert np.isnan(mean_interval([])[0]) and mean_interval([])[2] == 0
+    low, high = stats.t.interval(0.9, 3, loc=np.mean(values[:4]), scale=stats.sem(values[:4]))
+    assert mean_interval(values, alpha=0.1)[1] == pytest.approx((high - low) / 2)
 
 
 # --------------------------------------------------------------------------- on Dask
@@ -302,7 +309,7 @@ def _chromium():
 @pytest.mark.slow
 @pytest.mark.browser
 def test_explore_report_renders_in_headless_chromium(local_run):
-    from roughsense.explore.report import write_explore_report
+    from roughsense.explore.write_report import write_explore_report
 
     sweep, out, _ = local_run
     index = write_explore_report(sweep, out)
@@ -436,7 +443,7 @@ def test_model_axis_rows_equal_the_study_analysis_of_each_model(two_model_cell):
 
 
 def test_model_axis_report_puts_the_families_side_by_side(two_model_cell, tmp_path):
-    from roughsense.explore.report import SUMMARY_CSV, write_explore_report
+    from roughsense.explore.write_report import SUMMARY_CSV, write_explore_report
 
     sweep, cell, *_, summary, per_specimen = two_model_cell
     store = ResultStore(tmp_path / "out", sweep)
@@ -473,19 +480,25 @@ def test_side_by_side_keeps_each_family_beside_the_other():
 
 # --------------------------------------------------------------------------- answers from paired intervals
 
-def test_mde_80_is_the_paired_t_formula_and_close_to_the_noncentral_solution():
+def test_mde_80_is_the_noncentral_t_solution_statsmodels_gives():
+    """The exact effect a two-sided paired t-test detects with the stated power, as statsmodels' TTestPower solves it."""
     from scipy import stats
 
-    from roughsense.explore.paired import mde_80
+    from roughsense.explore.paired import mde_80, paired_t_power
 
-    for n, sd in ((3, 0.05), (4, 0.0582), (10, 0.2)):
-        direct = (stats.t.ppf(0.975, n - 1) + stats.t.ppf(0.8, n - 1)) * sd / np.sqrt(n)
-        assert mde_80(sd, n) == pytest.approx(direct, rel=1e-12)
-    assert np.isnan(mde_80(0.1, 1))
-    power = pytest.importorskip("statsmodels.stats.power")
-    for n in (3, 4, 6, 12):  # the exact noncentral-t effect size (in sd units) is a little larger at small n
-        exact = power.TTestPower().solve_power(nobs=n, alpha=0.05, power=0.8, alternative="two-sided")
-        assert mde_80(1.0, n) == pytest.approx(exact, rel=0.06) and mde_80(1.0, n) <= exact * 1.001
+    power = pytest.importorskip("statsmodels.stats.power").TTestPower()
+    cases = [(n, 0.05, 0.8) for n in (3, 4, 5, 6, 12, 30, 100)] + [
+        (n, alpha, p) for n in (3, 4, 8, 20) for alpha, p in ((0.1, 0.5), (0.05, 0.95))] + [(5, 0.01, 0.9)]
+    for n, alpha, p in cases:  # (statsmodels' own bracket fails for 3 or 4 pairs at alpha 0.01, power 0.9)
+        exact = power.solve_power(nobs=n, alpha=alpha, power=p, alternative="two-sided")
+        assert mde_80(1.0, n, alpha, p) == pytest.approx(exact, rel=2e-5)
+        assert paired_t_power(mde_80(1.0, n, alpha, p), n, alpha) == pytest.approx(p, abs=1e-9)
+    assert mde_80(0.05, 4) == pytest.approx(0.05 * mde_80(1.0, 4), rel=1e-12)  # in units of the differences' SD
+    shortcut = (stats.t.ppf(0.975, 2) + stats.t.ppf(0.8, 2)) / np.sqrt(3)
+    assert mde_80(1.0, 3) > 1.05 * shortcut  # the textbook shortcut understates it at 3 seeds
+    assert mde_80(1.0, 2) > 10 and np.isnan(mde_80(0.1, 1)) and np.isnan(mde_80(np.nan, 4))
+    with pytest.raises(ValueError, match="power"):
+        mde_80(1.0, 4, power=1.0)
 
 
 def _diffs(mean: float, half: float, n: int = 4) -> np.ndarray:
@@ -557,7 +570,7 @@ SEEDED = TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "fingerprint"]').rep
 
 def _report_of(tmp_path: Path, seeds: str):
     """A tiny two-pad sweep's cells computed in this process (no Dask) and its report."""
-    from roughsense.explore.report import SUMMARY_CSV, write_explore_report
+    from roughsense.explore.write_report import SUMMARY_CSV, write_explore_report
 
     sweep = read_sweep(_sweep_file(tmp_path, SEEDED.replace("seeds = [0, 1]", f"seeds = {seeds}")))
     store = ResultStore(tmp_path / "out", sweep)
@@ -779,7 +792,7 @@ def test_damaged_cells_are_computed_again_and_said_never_a_crash(tmp_path, monke
 
 
 def test_the_report_leaves_out_a_file_that_does_not_read_back(tmp_path):
-    from roughsense.explore.report import write_explore_report
+    from roughsense.explore.write_report import write_explore_report
 
     sweep, _ = _stored_sweep(tmp_path, "[0, 1, 2]")
     damaged = tmp_path / "out" / "results" / f"cell-{sweep.cells[0].id}.parquet"
@@ -807,7 +820,7 @@ def test_the_shipped_tiny_sweep_runs_enough_seeds_for_intervals():
      "(lower, but the paired 95 % interval of the difference includes 0)."),
 ])
 def test_the_best_design_flag_is_a_sentence(monkeypatch, verdict, rmse, words):
-    from roughsense.explore import report
+    from roughsense.explore import write_report as report
 
     table = pd.DataFrame([{"model": "pls", "condition": "combined", "cv": "loso", "rmse": rmse, "null_rmse": 0.4,
                            "null_verdict": verdict}])
@@ -821,7 +834,7 @@ def test_the_best_design_flag_is_a_sentence(monkeypatch, verdict, rmse, words):
 def test_explore_writes_its_figures_in_the_format_asked(two_model_cell, tmp_path, figure_format):
     """Issue 30: --figure-format and --dpi on explore as on study: each axis's figure a file beside index.html,
     shown on the page (SVG as is; a PNG for a PDF) and linked."""
-    from roughsense.explore.report import write_explore_report
+    from roughsense.explore.write_report import write_explore_report
     from roughsense.report.html import FigureStyle
 
     sweep, cell, *_, summary, per_specimen = two_model_cell

@@ -28,15 +28,13 @@ from ..model.families import PEAK_LAW, PLS
 from ..model.peak_law import peak_law_cv
 from ..model.pls import single_threaded_blas
 from ..model.pls_cv import nested_group_predictions, pls_cv_many
+from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = 199
 #: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
 MAX_PERMUTATIONS = 10_000
-#: A model passes the permutation control when p < ALPHA.
-ALPHA = 0.05
-
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN

@@ -1,4 +1,5 @@
-"""The paper's performance indices (§3.4) and statistics (§4): OVL, per-specimen RMSE, summaries, signed-rank.
+"""The paper's performance indices (§3.4) and statistics (§4): OVL, per-specimen RMSE, summaries, signed-rank, and
+the one significance level and t-interval of the mean that the controls and the sweeps share.
 
 Everything here works on plain arrays and small per-specimen tables, so the study analysis, the report
 and the tests against the published tables all share one definition of each number.
@@ -19,6 +20,9 @@ from ..errors import ConfigError, InputError
 EXACT_MAX_N = 15
 
 OVERALL_GROUP = "all"
+
+#: The significance level of every test and interval: a control passes when p < ALPHA, intervals are 1 - ALPHA.
+ALPHA = 0.05
 
 
 # --------------------------------------------------------------------------- overlap coefficient
@@ -293,6 +297,26 @@ def compare_conditions(
             "method": test.method,
         })
     return pd.DataFrame(rows, columns=["comparison", "statistic", "p", "p_adjusted", "n", "method"])
+
+
+# --------------------------------------------------------------------------- t-interval of a mean
+
+
+def mean_interval(values, alpha: float = ALPHA) -> tuple[float, float, int]:
+    """Mean of the finite ``values``, the half-width of its two-sided t-interval (1 - ``alpha``), and their count.
+
+    NaN mean for no values, NaN half-width for one: the replicate-based intervals of sweeps and paired comparisons.
+    """
+    from scipy.stats import t
+
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    n = int(x.size)
+    if n == 0:
+        return float("nan"), float("nan"), 0
+    if n == 1:
+        return float(x[0]), float("nan"), 1
+    return float(x.mean()), float(t.ppf(1 - alpha / 2, n - 1) * x.std(ddof=1) / np.sqrt(n)), n
 
 
 # --------------------------------------------------------------------------- equivalence (TOST)

@@ -37,9 +37,9 @@ def register(app: typer.Typer) -> None:
         and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
         """
         from .._util.lock import output_lock
-        from ..explore.report import write_explore_report
         from ..explore.runner import check_options, run_sweep
         from ..explore.sweep import read_sweep
+        from ..explore.write_report import write_explore_report
         from ..report.html import FigureStyle
 
         style = FigureStyle(check_figure_format(figure_format), dpi)

@@ -11,11 +11,11 @@ __all__ = ["read_sweep", "run_sweep", "run_cell", "write_explore_report"]
 
 if TYPE_CHECKING:
     from .cell import run_cell
-    from .report import write_explore_report
     from .runner import run_sweep
     from .sweep import read_sweep
+    from .write_report import write_explore_report
 
-_HOME = {"read_sweep": "sweep", "run_sweep": "runner", "run_cell": "cell", "write_explore_report": "report"}
+_HOME = {"read_sweep": "sweep", "run_sweep": "runner", "run_cell": "cell", "write_explore_report": "write_report"}
 
 
 def __getattr__(name: str):

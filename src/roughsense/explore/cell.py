@@ -20,11 +20,12 @@ import pandas as pd
 from ..analysis.dataset import spectrum_columns
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
-from ..io.protocol import nominal_force_label
+from ..io.protocol import assign_nominal_forces, nominal_force_label
 from ..io.sensor_settings import CENTER_CROP_PX, SensorSettings
 from ..io.study import Study
 from ..paper import REFERENCE_SPECIMEN
 from ..sensor.spectrum import SpatialSpectrum, resolve_roi
+from ..sim.manifest import trial_manifest
 from ..sim.optics import Camera
 from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
 from .allocator import relax_frozen_malloc_thresholds
@@ -66,6 +67,8 @@ def simulation_config(cell: Cell) -> SimulationConfig:
 def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.DataFrame]:
     """The cell's study in memory (no images) and its feature table (manifest columns + spectrum).
 
+    Its manifest is the table a simulated folder's manifest.csv holds (sim.manifest), as the study reader returns it.
+
     ``warm_start=False`` solves every contact from scratch, as ``simulate`` does: the features are then
     bit-identical to those of the simulated study folder (tests compare them).
     """
@@ -90,16 +93,8 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
             yield frame
 
     X = np.vstack(list(spectrum.iter_transform(frames())))
-    manifest = pd.DataFrame({
-        "image": [t.image for t in trials],
-        "specimen": [t.specimen.name for t in trials],
-        "pad": [t.pad.name for t in trials],
-        "force_n": [t.exposure.force_read_n for t in trials],
-        "nominal_force_n": [t.nominal_force_n for t in trials],
-        "condition": [nominal_force_label(t.nominal_force_n) for t in trials],
-        "repetition": [t.repetition for t in trials],
-        "contact_fraction": [round(f, 6) for f in fractions],
-    })
+    # The folder's manifest table (images by name: there are no files), with the conditions read_study gives it.
+    manifest = assign_nominal_forces(trial_manifest(trials, [t.image for t in trials], fractions), config.forces_n)
     features = pd.concat([manifest, pd.DataFrame(X, columns=spectrum_columns(spectrum.freq_per_mm_))], axis=1)
     study = Study(
         root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE_SPECIMEN,
@@ -182,7 +177,7 @@ def run_cell(cell: Cell) -> dict:
     started = time.perf_counter()
     relax_frozen_malloc_thresholds()  # Dask's workers start with a setting that slows a cell 2.4x
     try:
-        from .version import code_fingerprint
+        from .code_fingerprint import code_fingerprint
 
         if cell.code and cell.code != code_fingerprint():
             raise RoughsenseError(f"this worker runs different roughsense code ({code_fingerprint()}) from the client "

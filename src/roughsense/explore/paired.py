@@ -13,10 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import optimize, stats
+
+from ..analysis.controls import training_mean_predictions
+from ..analysis.metrics import ALPHA, mean_interval
 
 MIN_SEEDS = 3  # two seeds leave one degree of freedom: t = 12.7, an interval wider than any effect asked about
-ALPHA = 0.05
 POWER = 0.8
 #: Equivalence margins, fixed before the rerun of data/examples/paper_questions.toml. RMSE (perceived units, the
 #: reference R3 = 1): 0.05, 5 % of the reference's roughness and a quarter of the paper's best LOO error (~0.2), a
@@ -33,15 +35,32 @@ def too_few(n: int) -> str:
     return f"{n} seed{'s' if n != 1 else ''}: too few for an interval; run >= {MIN_SEEDS} seeds"
 
 
+def paired_t_power(effect: float, n: int, alpha: float = ALPHA) -> float:
+    """Power of the two-sided paired t-test on ``n`` pairs against a true mean difference of ``effect`` SDs.
+
+    The statistic is noncentral t (n - 1 degrees of freedom, noncentrality effect * sqrt(n)); the far tail is taken
+    as the upper tail at -effect, which stays finite where the lower tail of a large noncentrality does not.
+    """
+    df, noncentrality = n - 1, effect * math.sqrt(n)
+    critical = stats.t.ppf(1 - alpha / 2, df)
+    return float(stats.nct.sf(critical, df, noncentrality) + stats.nct.sf(critical, df, -noncentrality))
+
+
 def mde_80(sd_diff: float, n: int, alpha: float = ALPHA, power: float = POWER) -> float:
     """Smallest paired difference a two-sided paired t-test on ``n`` seeds detects with 80 % power.
 
-    (t_{1-alpha/2, n-1} + t_{power, n-1}) * sd_diff / sqrt(n): the usual approximation of the noncentral-t solution
-    (within 5 % of it from 3 seeds, tests/test_explore.py), so a reader can redo it by hand.
+    Solved exactly from the noncentral t (:func:`paired_t_power`), since the textbook shortcut
+    (t_{1-alpha/2} + t_{power}) * sd / sqrt(n) understates it by 5 % at 3 seeds and 2 % at 4.
     """
+    if not alpha < power < 1:
+        raise ValueError(f"mde_80: power must lie between alpha ({alpha}) and 1, got {power}")
     if n < 2 or not np.isfinite(sd_diff):
         return math.nan
-    return float((stats.t.ppf(1 - alpha / 2, n - 1) + stats.t.ppf(power, n - 1)) * sd_diff / math.sqrt(n))
+    high = (stats.t.ppf(1 - alpha / 2, n - 1) + stats.t.ppf(power, n - 1)) / math.sqrt(n)  # the shortcut: a start
+    while paired_t_power(high, n, alpha) < power:
+        high *= 2
+    effect = optimize.brentq(lambda d: paired_t_power(d, n, alpha) - power, 0.0, high, xtol=1e-12)
+    return float(effect * sd_diff)
 
 
 @dataclass(frozen=True)
@@ -92,13 +111,10 @@ def judge(d, metric: str = "rmse") -> Paired:
     """The verdict of per-seed differences ``d`` on ``metric`` (lower RMSE, higher OVL is better)."""
     d = np.asarray(d, dtype=float)
     d = d[np.isfinite(d)]
-    n = int(d.size)
+    mean, half, n = mean_interval(d)
     margin = MARGINS.get(metric, math.nan)
-    mean = float(d.mean()) if n else math.nan
     if n < MIN_SEEDS:
         return Paired(n, mean, math.nan, math.nan, math.nan, margin, "too few seeds", math.nan)
-    sd = float(d.std(ddof=1))
-    half = float(stats.t.ppf(1 - ALPHA / 2, n - 1) * sd / math.sqrt(n))
     low, high = mean - half, mean + half
     bound = 1.0 if RANGES.get(metric, (0, math.inf))[1] == 1.0 else math.inf  # a difference of OVLs is in [-1, 1]
     low, high = max(low, -bound), min(high, bound)
@@ -108,20 +124,14 @@ def judge(d, metric: str = "rmse") -> Paired:
         verdict = "equivalent"
     else:
         verdict = "undetermined"
-    return Paired(n, mean, low, high, mde_80(sd, n), margin, verdict, max(abs(low), abs(high)))
+    return Paired(n, mean, low, high, mde_80(float(d.std(ddof=1)), n), margin, verdict, max(abs(low), abs(high)))
 
 
 def level(values, metric: str) -> tuple[float, float, float, int]:
     """Mean of a level over seeds and its 95 % interval clipped to the quantity's range (NaN below MIN_SEEDS)."""
-    x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
-    n = int(x.size)
-    if n == 0:
-        return math.nan, math.nan, math.nan, 0
-    mean = float(x.mean())
+    mean, half, n = mean_interval(values)
     if n < MIN_SEEDS:
         return mean, math.nan, math.nan, n
-    half = float(stats.t.ppf(1 - ALPHA / 2, n - 1) * x.std(ddof=1) / math.sqrt(n))
     lo, hi = RANGES.get(metric, (-math.inf, math.inf))
     return mean, max(mean - half, lo), min(mean + half, hi), n
 
@@ -130,24 +140,21 @@ def null_rmse(specimens: pd.DataFrame, reference_rows: int | None = None) -> pd.
     """The training mean's RMSE under the same CV, mean over specimens, per stored (cell, pad, condition, cv, model).
 
     From the stored per-specimen targets (``gmean``): every specimen has the same number of rows in a cell (one per
-    mount), so under LOSO a held-out specimen is predicted by the mean target of the others, under LOO a row by the
-    mean of the other rows, ``(S - g) / (N - 1)`` with N = mounts x specimens (``repetitions`` column). Each
-    specimen's rows share one target, so its RMSE is the distance of that prediction from its target; the mean
-    over specimens is on the same footing as a cell's ``rmse``. tests/test_explore.py checks it against the
-    analysis's own training-mean fold (ConditionFit.cv_rmse[0]).
+    mount, the ``repetitions`` column, or ``reference_rows``), so its rows are rebuilt and predicted by the analysis's
+    own training-mean model (analysis.controls.training_mean_predictions: LOSO leaves out the specimen, LOO the
+    row). Each specimen's rows share one target and one prediction, so its RMSE is their distance; the mean over
+    specimens is on the same footing as a cell's ``rmse`` (tests/test_explore.py checks it against the analysis).
     """
     keys = ["cell", "pad", "condition", "cv", "model"]
     out = {}
     for key, group in specimens.groupby(keys, sort=False, dropna=False):
         g = group["gmean"].to_numpy(dtype=float)
-        k = g.size
-        if k < 2:
+        if g.size < 2:
             out[key] = math.nan
             continue
-        if key[3] == "loso":
-            prediction = (g.sum() - g) / (k - 1)
-        else:
-            rows = int(group["repetitions"].iloc[0]) if reference_rows is None else reference_rows
-            prediction = (rows * g.sum() - g) / (rows * k - 1)
+        rows = int(group["repetitions"].iloc[0]) if reference_rows is None else reference_rows
+        rows = 1 if key[3] == "loso" else rows  # LOSO leaves a specimen's rows out together: one stands for all
+        y = np.repeat(g, rows)
+        prediction = training_mean_predictions(y, np.repeat(np.arange(g.size), rows), key[3])[::rows]
         out[key] = float(np.abs(prediction - g).mean())
     return pd.Series(out, dtype=float).rename_axis(keys).rename("null_rmse")

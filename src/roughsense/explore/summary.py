@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
+from ..analysis.metrics import mean_interval
 from ..model.families import MODEL_FAMILIES
 from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
 from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
@@ -26,19 +26,6 @@ METRICS = ("rmse", "ovl")
 #: The columns summary.csv adds for each design's comparison with its family's best design and with its null.
 COMPARISON_COLUMNS = ["diff_mean", "ci_low", "ci_high", "margin", "mde_80", "verdict", "n_paired",
                       "null_diff_mean", "null_ci_low", "null_ci_high", "null_verdict"]
-
-
-def ci95(values) -> tuple[float, float, int]:
-    """Mean and half-width of the t-based 95 % interval of the mean (NaN width for a single value)."""
-    x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
-    n = x.size
-    if n == 0:
-        return math.nan, math.nan, 0
-    if n == 1:
-        return float(x[0]), math.nan, 1
-    half = float(stats.t.ppf(0.975, n - 1) * x.std(ddof=1) / math.sqrt(n))
-    return float(x.mean()), half, n
 
 
 def with_null(results: pd.DataFrame, specimens: pd.DataFrame) -> pd.DataFrame:
@@ -70,7 +57,7 @@ def seed_table(results: pd.DataFrame) -> pd.DataFrame:
     for key, group in results.groupby(keys, dropna=False, sort=False):
         row = dict(zip(keys, key))
         for metric in metrics:
-            mean, half, n = ci95(group[metric])
+            mean, half, n = mean_interval(group[metric])
             _, low, high, _ = level(group[metric], metric)
             row[metric], row[f"{metric}_ci95"] = mean, half if n >= MIN_SEEDS else math.nan
             row[f"{metric}_ci_low"], row[f"{metric}_ci_high"] = low, high

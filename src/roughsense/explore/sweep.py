@@ -452,7 +452,7 @@ def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (PAPER_MODEL
     The model families enter the hash only when they are not the paper's PLS alone: a sweep without the ``model``
     axis hashes exactly the content it always did, and any other set of families gives other ids.
     """
-    from .version import code_fingerprint
+    from .code_fingerprint import code_fingerprint
 
     code = code_fingerprint()
     cells = []
