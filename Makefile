@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: study test lint bench samples dist clean-venv
+.PHONY: study test lint bench samples dist docs clean-venv
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "roughsense needs Python >= 3.11"'
@@ -31,6 +31,12 @@ bench: $(STAMP)
 dist: $(STAMP)
 	@log=$$(mktemp) && if $(BIN)/python -m build --outdir dist . >$$log 2>&1; then tail -n 1 $$log; rm -f $$log; \
 	else cat $$log; rm -f $$log; exit 1; fi
+
+# The API reference from the public names' docstrings (pdoc), into build/api; any warning fails (tests/test_api_docs.py
+# runs the same command).
+docs: $(STAMP)
+	@rm -rf build/api && err=$$($(BIN)/python -m pdoc --docformat numpy --output-directory build/api roughsense \
+	2>&1 >/dev/null) && [ -z "$$err" ] || { echo "$$err"; exit 1; }; echo "build/api/roughsense.html"
 
 samples: $(STAMP)
 	$(BIN)/python scripts/make_samples.py

@@ -2,7 +2,9 @@
 
 Reference implementation of Yanwari & Okamoto, Sensors 25:2598 (2025), with a digital twin of the rig.
 The public names below are imported lazily so that ``import roughsense`` (and the CLI's startup)
-does not pay for scikit-learn, OpenCV or matplotlib until they are used.
+does not pay for scikit-learn, OpenCV or matplotlib until they are used; ``dir(roughsense)`` lists them
+all (and tab completion offers them) before any is loaded. Each has numpydoc sections with examples, and
+``make docs`` renders them as the API reference (build/api).
 """
 from __future__ import annotations
 
@@ -48,3 +50,8 @@ def __getattr__(name: str):
     value = getattr(importlib.import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value
+
+
+def __dir__() -> list[str]:
+    """The public API and the module's own dunders: what ``dir()`` and tab completion show, loaded or not."""
+    return sorted({*__all__, "__all__", "__doc__", "__file__", "__name__", "__path__"})

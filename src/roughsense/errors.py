@@ -45,7 +45,30 @@ def one_line(text: str) -> str:
 
 
 class RoughsenseError(Exception):
-    """A problem with the user's input, files or options (never a bug in roughsense)."""
+    """A problem with the user's input, files or options (never a bug in roughsense).
+
+    Catch this one class to handle every failure a user can fix; the CLI prints it as one line and exits 2.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, in words that make sense on their own.
+    path : str or os.PathLike, optional
+        The file or folder it is about; ``str(error)`` starts with it.
+    row : int, optional
+        The row of that file.
+    column : str, optional
+        The column of that file.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> error = rs.RoughsenseError("not a number: 'abc'", path="ratings.csv", row=3, column="rating")
+    >>> print(error)
+    ratings.csv, row 3, column 'rating': not a number: 'abc'
+    >>> error.row, error.message
+    (3, "not a number: 'abc'")
+    """
 
     def __init__(
         self,
@@ -74,19 +97,82 @@ class RoughsenseError(Exception):
 
 
 class InputError(RoughsenseError):
-    """Bad data: an unreadable image, a malformed CSV row, NaN features, an unknown specimen."""
+    """Bad data: an unreadable image, a malformed CSV row, NaN features, an unknown specimen.
+
+    Parameters
+    ----------
+    message, path, row, column
+        As :class:`RoughsenseError`.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> try:
+    ...     rs.read_study("no-such-folder")
+    ... except rs.InputError as error:
+    ...     print(error)
+    no-such-folder: study folder not found
+    """
 
 
 class ConfigError(RoughsenseError):
-    """Bad options or parameters: a non-positive px-per-mm, an ROI outside the image, too many components."""
+    """Bad options or parameters: a non-positive px-per-mm, an ROI outside the image, too many components.
+
+    Parameters
+    ----------
+    message, path, row, column
+        As :class:`RoughsenseError`.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> try:
+    ...     rs.SpreadModel(kind="linear").fit([1.0, 2.0], [0.2, 0.4])
+    ... except rs.ConfigError as error:
+    ...     print(error)
+    SpreadModel: kind must be one of weber, constant, got 'linear'
+    """
 
 
 class ModelFileError(RoughsenseError):
-    """A model document that is damaged, truncated, of an unknown version, or does not match its input."""
+    """A model document that is damaged, truncated, of an unknown version, or does not match its input.
+
+    Parameters
+    ----------
+    message, path, row, column
+        As :class:`RoughsenseError`.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> try:
+    ...     rs.load_model("no-such-model.json")
+    ... except rs.ModelFileError as error:
+    ...     print(error)
+    no-such-model.json: model file not found
+    """
 
 
 class OutputExistsError(RoughsenseError):
-    """Refusing to overwrite something the user made; ``--force`` is the way through."""
+    """Refusing to overwrite something the user made; ``--force`` is the way through.
+
+    Parameters
+    ----------
+    message, path, row, column
+        As :class:`RoughsenseError`.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import roughsense as rs
+    >>> Path("old-study").mkdir()
+    >>> _ = (Path("old-study") / "notes.txt").write_text("mine")
+    >>> try:
+    ...     rs.StudyWriter("old-study")
+    ... except rs.OutputExistsError as error:
+    ...     print(error)
+    old-study: folder exists and is not empty; pass --force to write into it
+    """
 
 
 class RoughsenseWarning(UserWarning):

@@ -51,6 +51,26 @@ def overlap(mean1, sd1, mean2, sd2):
     NaN or infinite input gives NaN (e.g. the reference specimen, whose perceived SD is undefined);
     a negative SD is an error; an SD of 0 is a point mass, whose overlap with anything is 0 (the limit
     as the SD shrinks), except two identical point masses, which overlap completely (1).
+
+    Parameters
+    ----------
+    mean1, sd1 : float or array-like
+        The first normal density (e.g. people's perceived roughness and its SD).
+    mean2, sd2 : float or array-like
+        The second (e.g. the sensor's predictions of it).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The overlap, from 0 (disjoint) to 1 (identical).
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> round(rs.overlap(1.39, 0.35, 1.33, 0.18), 3)
+    0.681
+    >>> rs.overlap(1.0, 0.2, [1.0, 2.0], 0.2).round(3)  # broadcasts
+    array([1.   , 0.012])
     """
     m1, s1, m2, s2 = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (mean1, sd1, mean2, sd2)))
     if np.any(s1 < 0) or np.any(s2 < 0):

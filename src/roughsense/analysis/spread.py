@@ -36,12 +36,40 @@ class SpreadModel(BaseEstimator):
     the pooled SD, whatever the mean (the spread the paper's sensor shows). Specimens without a spread
     (the reference, whose SD is NaN) are ignored. scikit-learn conventions: parameters in ``__init__``,
     fitted values with a trailing underscore, ``fit`` returns self.
+
+    Parameters
+    ----------
+    kind : {"weber", "constant"}
+        The spread grows in proportion to the perceived value, or stays the same.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> spread = rs.SpreadModel().fit([0.5, 1.0, 1.5, 2.0], [0.1, 0.2, 0.3, 0.4])  # SD = 20 % of the mean
+    >>> round(spread.slope_, 3), round(spread.predict_sd(1.4), 3)
+    (0.2, 0.28)
+    >>> round(spread.predictive_sd(1.4, 0.1), 3)  # people's spread plus the sensor's own scatter
+    0.298
     """
 
     def __init__(self, kind: str = "weber"):
         self.kind = kind
 
     def fit(self, gmean, sd) -> SpreadModel:
+        """Learn the spread from each specimen's perceived value and the SD of its ratings.
+
+        Parameters
+        ----------
+        gmean : array-like
+            (n_specimens,) perceived roughness (geometric mean of the ratings).
+        sd : array-like
+            (n_specimens,) the SD of the ratings; NaN for a specimen without one (the reference).
+
+        Returns
+        -------
+        SpreadModel
+            This model, fitted: ``intercept_``, ``slope_``, ``n_specimens_``.
+        """
         if self.kind not in KINDS:
             raise ConfigError(f"SpreadModel: kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
         gmean = np.asarray(gmean, dtype=float).ravel()
@@ -61,7 +89,18 @@ class SpreadModel(BaseEstimator):
         return self
 
     def predict_sd(self, mean):
-        """Spread of people's ratings of a surface whose perceived value is ``mean`` (never negative)."""
+        """Spread of people's ratings of a surface whose perceived value is ``mean`` (never negative).
+
+        Parameters
+        ----------
+        mean : float or array-like
+            Perceived values.
+
+        Returns
+        -------
+        float or numpy.ndarray
+            The SD of the ratings, shaped like ``mean``.
+        """
         self._check_fitted()
         mean = np.asarray(mean, dtype=float)
         result = self.intercept_ + self.slope_ * np.maximum(mean, 0.0)
@@ -72,6 +111,18 @@ class SpreadModel(BaseEstimator):
 
         E[s(X)^2] = (a + b m)^2 + b^2 sd^2 for s(x) = a + b x, so the variance is that plus sd^2: the
         people's spread around each prediction and the sensor's own scatter between repetitions.
+
+        Parameters
+        ----------
+        mean : float or array-like
+            The mean of a surface's predictions.
+        sd : float or array-like
+            Their SD over repetitions.
+
+        Returns
+        -------
+        float or numpy.ndarray
+            The SD of what a person would say of the surface, as the sensor predicts it.
         """
         self._check_fitted()
         mean = np.asarray(mean, dtype=float)

@@ -392,6 +392,51 @@ def analyse_study(
     the forces the "combined" condition concatenates; default 1N, 2N, 3N. ``models``: the families to fit
     (roughsense.model.families; every one by default), each under the same folds and controls; the claims and the
     signed-rank tests stay about the paper's PLS.
+
+    Parameters
+    ----------
+    study : Study
+        A study with ratings (:func:`read_study`).
+    features : pandas.DataFrame, optional
+        The images' spectra, if already computed; default computed here.
+    max_components : int
+        The largest PLS component count cross-validated.
+    conditions : sequence of str
+        Force conditions to analyse ("1N", ..., "combined").
+    cv_schemes : sequence of str
+        "loo" (the paper's) and/or "loso" (leave one specimen out: surfaces the model never saw).
+    n_jobs : int
+        Threads computing the features.
+    progress : callable, optional
+        Wraps the feature loop, e.g. a progress bar.
+    n_permutations : int
+        Shufflings of the permutation control.
+    seed : int
+        Seeds the shufflings.
+    combined_forces : sequence of str, optional
+        The conditions "combined" concatenates (default 1N, 2N, 3N).
+    models : sequence of str
+        Model families to fit: "pls", "peak-law".
+
+    Returns
+    -------
+    StudyAnalysis
+        Per-specimen results (``results("loo")``, ``results("loso")``), ``controls``, ``claims`` with verdicts,
+        ``cv_table``, ``summary()`` and what ``roughsense study`` writes into its report.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> from roughsense.sim import SimulationConfig
+    >>> config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "R4", "C3", "C4"), forces_n=(2.0,),
+    ...                           repetitions=2)
+    >>> study = rs.read_study(rs.simulate_study("simulated", config))
+    >>> analysis = rs.analyse_study(study, conditions=["2N"], max_components=3, n_permutations=19)
+    >>> loso = analysis.results("loso")
+    >>> list(loso.columns[:6]), sorted(set(loso["model"]))
+    (['pad', 'specimen', 'condition', 'pred_mean', 'pred_sd', 'ovl'], ['peak-law', 'pls'])
+    >>> list(analysis.controls[["cv", "model"]].itertuples(index=False, name=None))
+    [('loo', 'pls'), ('loso', 'pls'), ('loo', 'peak-law'), ('loso', 'peak-law')]
     """
     models = _check_models(models)
     _controls.check_permutations(n_permutations)  # before the features: the shufflings are held in memory at once

@@ -296,7 +296,36 @@ def check_simulation_complete(root: Path, config: Mapping) -> None:
 
 
 def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, check_images: bool = True) -> Study:
-    """Read and validate a study folder. Raises InputError naming the first problem found."""
+    """Read and validate a study folder. Raises InputError naming the first problem found.
+
+    ``roughsense check`` lists every problem at once instead.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        The study folder (docs/study.md: study.toml, specimens.csv, manifest.csv, ratings.csv, images/).
+    require_ratings : bool
+        Refuse a folder without ratings.csv (the analysis needs them; features do not).
+    check_images : bool
+        Check that every image the manifest names is a file (its pixels are read only when used).
+
+    Returns
+    -------
+    Study
+        The folder in memory: ``name``, ``manifest``, ``specimens``, ``ratings`` (None without them), ``sensor``,
+        ``image_paths``, ``pads``, ``specimen_names``, ``condition_labels()``; the images stay on disk.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> from roughsense.sim import SimulationConfig
+    >>> config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3"), forces_n=(2.0,), repetitions=1)
+    >>> study = rs.read_study(rs.simulate_study("simulated", config))
+    >>> study.name, study.pads, study.specimen_names, study.condition_labels()
+    ('simulated', ['smooth'], ['R2', 'R3'], ['2N'])
+    >>> list(study.ratings.columns)
+    ['participant', 'session', 'specimen', 'rating']
+    """
     return load_study(root, require_ratings=require_ratings, check_images=check_images)
 
 

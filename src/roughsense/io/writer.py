@@ -94,6 +94,39 @@ class StudyWriter:
     A non-empty folder is refused unless ``force`` (then files roughsense writes are replaced, and
     nothing else is touched) or ``resume`` (the rig appends to its own earlier session). ``source="captured"``
     (the rig) also refuses a simulated folder, whatever else allows it.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        The study folder (made if missing, with its ``images/``).
+    force : bool
+        Write into a non-empty folder, replacing roughsense's own files.
+    resume : bool
+        Append to an earlier session of the rig.
+    source : str, optional
+        ``"captured"`` for the rig's real frames.
+
+    Examples
+    --------
+    A study folder by hand (docs/study.md gives every column): two synthetic images, then read back.
+
+    >>> import numpy as np
+    >>> import pandas as pd
+    >>> import roughsense as rs
+    >>> writer = rs.StudyWriter("by-hand")
+    >>> x_mm = np.arange(1920) / 34.9
+    >>> rows = []
+    >>> for specimen, period in [("R2", 2.0), ("R3", 3.0)]:
+    ...     image = np.tile(127 + 100 * np.sin(2 * np.pi * x_mm / period), (160, 1)).astype(np.uint8)
+    ...     rows.append({"image": writer.write_image(f"{specimen}.png", image), "specimen": specimen,
+    ...                  "pad": "smooth", "force_n": 2.0, "repetition": 1})
+    >>> _ = writer.write_manifest(pd.DataFrame(rows))
+    >>> _ = writer.write_specimens(pd.DataFrame({"specimen": ["R2", "R3"], "shape": "rectangular",
+    ...                                          "wavelength_mm": [2.0, 3.0]}))
+    >>> _ = writer.write_config(name="by-hand", forces_n=[2.0])
+    >>> study = rs.read_study("by-hand")
+    >>> study.specimen_names, study.condition_labels()
+    (['R2', 'R3'], ['2N'])
     """
 
     def __init__(self, root: str | os.PathLike[str], *, force: bool = False, resume: bool = False,
@@ -118,6 +151,26 @@ class StudyWriter:
         forces_n: Sequence[float] = DEFAULT_FORCES_N,
         extra: Mapping[str, Mapping[str, object]] | None = None,
     ) -> Path:
+        """Write ``study.toml``.
+
+        Parameters
+        ----------
+        name : str
+            The study's name.
+        reference_specimen : str
+            The specimen whose perceived roughness is 1 (the modulus of the ratings).
+        sensor : SensorSettings
+            The camera's scale and the contact band's crop.
+        forces_n : sequence of float
+            The protocol's nominal forces (N).
+        extra : mapping, optional
+            Further tables, e.g. ``{"pads": {"fingerprint": {"ridge_period_mm": 1.0}}}``.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         roi = sensor.roi if isinstance(sensor.roi, str) else list(sensor.roi)
         tables: dict[str, Mapping[str, object]] = {
             "study": {"name": name, "reference_specimen": reference_specimen},
@@ -129,19 +182,54 @@ class StudyWriter:
         return atomic.write_text(self.root / STUDY_TOML, dump_toml(tables))
 
     def write_specimens(self, specimens: pd.DataFrame) -> Path:
+        """Write ``specimens.csv``.
+
+        Parameters
+        ----------
+        specimens : pandas.DataFrame
+            Columns specimen, shape, wavelength_mm (and any geometry columns).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         missing = [c for c in SPECIMEN_COLUMNS if c not in specimens.columns]
         if missing:
             raise ValueError(f"specimens table lacks {missing}")
         return atomic.write_csv(self.root / SPECIMENS_CSV, specimens)
 
     def write_manifest(self, manifest: pd.DataFrame) -> Path:
+        """Write ``manifest.csv``, one row per image.
+
+        Parameters
+        ----------
+        manifest : pandas.DataFrame
+            Columns image (relative to the folder), specimen, pad, force_n, repetition.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         missing = [c for c in MANIFEST_COLUMNS if c not in manifest.columns]
         if missing:
             raise ValueError(f"manifest lacks {missing}")
         return atomic.write_csv(self.root / MANIFEST_CSV, manifest)
 
     def append_manifest_row(self, row: Mapping[str, object]) -> Path:
-        """Append one row by rewriting the file atomically: a crash never leaves half a row."""
+        """Append one row by rewriting the file atomically: a crash never leaves half a row.
+
+        Parameters
+        ----------
+        row : mapping
+            One manifest row (:meth:`write_manifest`'s columns).
+
+        Returns
+        -------
+        pathlib.Path
+            The manifest.
+        """
         path = self.root / MANIFEST_CSV
         new = pd.DataFrame([dict(row)])
         if path.exists():
@@ -152,15 +240,53 @@ class StudyWriter:
         return self.write_manifest(new)
 
     def write_ratings(self, ratings: pd.DataFrame) -> Path:
+        """Write ``ratings.csv``.
+
+        Parameters
+        ----------
+        ratings : pandas.DataFrame
+            Columns participant, session, specimen, rating (magnitude estimates).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         return atomic.write_csv(self.root / RATINGS_CSV, ratings)
 
     def image_path(self, name: str) -> Path:
+        """Where :meth:`write_image` puts an image.
+
+        Parameters
+        ----------
+        name : str
+            The image's file name.
+
+        Returns
+        -------
+        pathlib.Path
+            ``images/<name>`` in the folder.
+        """
         return self.root / IMAGES_DIR / name
 
     def write_image(self, name: str, image: np.ndarray, *, params: Sequence[int] = ()) -> str:
         """Encode and write ``images/<name>`` atomically; returns the manifest-relative path.
 
         ``params`` are OpenCV's ``imwrite`` flags (e.g. the PNG compression strategy); the file stays a standard one.
+
+        Parameters
+        ----------
+        name : str
+            The file name; its extension picks the format (PNG without one).
+        image : numpy.ndarray
+            Gray (h, w) or RGB (h, w, 3) pixels, uint8 or uint16.
+        params : sequence of int
+            OpenCV's ``imwrite`` flags.
+
+        Returns
+        -------
+        str
+            The path for the manifest's image column, ``images/<name>``.
         """
         import cv2  # local: the study contract should not pay for OpenCV at import
 

@@ -236,7 +236,37 @@ def _version() -> str:
 
 
 def load_model(path: str | os.PathLike[str]) -> AnyModel:
-    """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file."""
+    """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file.
+
+    A model file is JSON, never pickle, so loading one from someone else runs nothing. ``roughsense fit`` writes
+    them (``save_model`` in roughsense.model.modelfile from Python).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model file.
+
+    Returns
+    -------
+    LoadedModel or LoadedPeakLaw
+        The model (PLS or the peak law), ready to ``predict`` spectra computed as its ``features`` say, and to
+        say which it extrapolates (``applicability``); ``training`` holds what it was fitted on.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> from roughsense.model.modelfile import save_model
+    >>> f = rs.frequency_grid()
+    >>> periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    >>> X = np.exp(-((f - 1 / periods[:, None]) / 0.05) ** 2) + 0.01
+    >>> law = rs.PeakPowerLaw().fit(X, (periods / 3) ** 0.9)
+    >>> features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
+    >>> _ = save_model("law.json", law, feature_definition=features, training={"study": "gratings"})
+    >>> model = rs.load_model("law.json")
+    >>> model.family, model.conditions, model.predict(X[::2]).round(2)
+    ('peak-law', ['2N'], array([0.69, 1.  , 1.3 , 1.58]))
+    """
     path = Path(path)
     try:
         with path.open("rb") as handle:

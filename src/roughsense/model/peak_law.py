@@ -343,6 +343,38 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
     Fitted: ``coef_`` (2,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
     ``feature_max_`` (the range of the rows the fit kept, used to clip and to flag: see :func:`kept_rows`),
     ``freq_per_mm_``.
+
+    Parameters
+    ----------
+    freq_per_mm : array-like, optional
+        (K,) the spectra's frequencies in mm^-1; default K evenly spaced over 0.1-1.0.
+    n_blocks : int
+        Spectra side by side in a row (3 for a combined-force trial).
+    pad_ridge_period_mm : float, optional
+        A fingerprint pad's ridge period (mm): its frequency is no surface's peak.
+    exclusion_per_mm : float
+        How far either side of the pad's ridge frequency is left out (mm^-1).
+    epsilon : float
+        Huber's constant: residuals beyond ``epsilon`` robust SDs are down-weighted.
+
+    Examples
+    --------
+    Spectra peaking at 1/period, from gratings of 2-5 mm, two presses each:
+
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> f = rs.frequency_grid()
+    >>> periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    >>> X = np.exp(-((f - 1 / periods[:, None]) / 0.05) ** 2) + 0.01
+    >>> y = (periods / 3) ** 0.9  # perceived roughness grows with the period
+    >>> law = rs.PeakPowerLaw().fit(X, y)
+    >>> law.predict(X[::2]).round(2)
+    array([0.69, 1.  , 1.3 , 1.58])
+    >>> unseen = np.exp(-((f - 1 / np.array([[2.5], [8.0]])) / 0.05) ** 2) + 0.01
+    >>> law.predict(unseen).round(2)  # 8 mm lies beyond the law's domain: held at its edge
+    array([0.85, 1.66])
+    >>> law.applicability(unseen)
+    ['', 'period 8.00 mm outside the trained 2.00-5.00 mm']
     """
 
     def __init__(self, freq_per_mm=None, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
@@ -377,7 +409,20 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                        epsilon=self.epsilon)
 
     def features(self, X, surfaces=None) -> np.ndarray:
-        """The law's two inputs for each row (log peak frequency, log peak amplitude)."""
+        """The law's two inputs for each row (log peak frequency, log peak amplitude).
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_blocks x K) spectra.
+        surfaces : array-like, optional
+            (n_samples,) labels: rows of one surface share where its peak is read.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples, 2) log peak frequency (mm^-1) and log peak amplitude.
+        """
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
@@ -391,6 +436,22 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                             pad_ridge_period_mm=self.pad_ridge_period_mm, exclusion_per_mm=float(self.exclusion_per_mm))
 
     def fit(self, X, y, surfaces=None):
+        """Fit the law by Huber's M-estimator and record the range of the rows it kept.
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_blocks x K) spectra (non-negative amplitudes).
+        y : array-like
+            (n_samples,) perceived roughness, positive (the law is fitted in logs).
+        surfaces : array-like, optional
+            (n_samples,) labels: rows of one surface share where its peak is read.
+
+        Returns
+        -------
+        PeakPowerLaw
+            This estimator, fitted.
+        """
         self._check_params()
         X, y = validate_data(self, X, y, y_numeric=True, ensure_min_samples=2)
         _check_positive(X)
@@ -412,15 +473,52 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X, surfaces=None) -> np.ndarray:
+        """Perceived roughness by the law, each feature held to the law's domain.
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_blocks x K) spectra.
+        surfaces : array-like, optional
+            (n_samples,) labels: rows of one surface share where its peak is read.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples,) predictions (positive).
+        """
         return predict_law(self.features(X, surfaces), self.intercept_, self.coef_,
                            *domain_margins(_step(self.freq_per_mm_), self.feature_min_, self.feature_max_))
 
     def extrapolates(self, X, surfaces=None) -> np.ndarray:
-        """True for each row outside the law's applicability domain (:meth:`applicability` gives the reasons)."""
+        """True for each row outside the law's applicability domain (:meth:`applicability` gives the reasons).
+
+        Parameters
+        ----------
+        X, surfaces
+            As :meth:`predict`.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples,) booleans.
+        """
         return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
 
     def applicability(self, X, surfaces=None) -> list[str]:
-        """Per row, what lies outside what the law was fitted on, in a user's words ('' where nothing does)."""
+        """Per row, what lies outside what the law was fitted on, in a user's words ('' where nothing does).
+
+        Parameters
+        ----------
+        X, surfaces
+            As :meth:`predict`.
+
+        Returns
+        -------
+        list of str
+            One reason per row: period or peak strength beyond the trained range, no clear peak, presses that
+            disagree; '' where the row is inside.
+        """
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
@@ -551,6 +649,37 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     With folds that hold whole surfaces (leave-one-specimen-out with surfaces = specimens) it equals refits of the
     estimator; with folds that split a surface (LOO), a held-out press shares its surface's peak read from all its
     presses -- spectra only, never a rating -- which a refit on the training presses alone cannot reproduce.
+
+    Parameters
+    ----------
+    X : array-like
+        (n, n_blocks x K) spectra.
+    Y : array-like
+        (n, B) or (n,) perceived roughness, positive.
+    groups : array-like, optional
+        (n,) labels: leave one group out; default leave-one-out.
+    freq_per_mm : array-like
+        (K,) the spectra's frequencies (at least 3).
+    n_blocks, pad_ridge_period_mm, exclusion_per_mm, epsilon
+        As :class:`PeakPowerLaw`.
+    surfaces : array-like, optional
+        (n,) labels: rows of one surface share where its peak is read.
+
+    Returns
+    -------
+    numpy.ndarray
+        (B, n) out-of-fold predictions.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> f = rs.frequency_grid()
+    >>> periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    >>> X = np.exp(-((f - 1 / periods[:, None]) / 0.05) ** 2) + 0.01
+    >>> y = (periods / 3) ** 0.9
+    >>> rs.peak_law_cv(X, y, groups=periods, freq_per_mm=f).round(2)  # each period held out in turn
+    array([[0.97, 0.97, 1.  , 1.  , 1.3 , 1.3 , 1.34, 1.34]])
     """
     check_settings(epsilon=epsilon)
     freq_per_mm = check_grid(freq_per_mm)  # as PeakPowerLaw given a grid: at least 3 bins

@@ -109,12 +109,44 @@ class SIMPLS(RegressorMixin, BaseEstimator):
 
     Signs follow the paper's eq. (2), r = s/||s||; MATLAB's SVD may flip a component's weights, scores and
     loadings together, which leaves the coefficients unchanged.
+
+    Parameters
+    ----------
+    n_components : int
+        How many components to fit (at most what the data support: min(n - 1, rank of centred X)).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> rng = np.random.default_rng(0)
+    >>> X = rng.normal(size=(12, 6))
+    >>> y = 3 + X @ [1.0, 0.5, 0, 0, 0, 0] + 0.1 * rng.normal(size=12)
+    >>> model = rs.SIMPLS(n_components=3).fit(X, y)
+    >>> model.coef_[:2].round(1)  # y's weights on the first two columns
+    array([0.9, 0.5])
+    >>> model.predict(X[:2]).round(2), model.predict(X[:2], n_components=1).round(2)
+    (array([3.01, 4.71]), array([2.98, 4.6 ]))
     """
 
     def __init__(self, n_components: int = 2):
         self.n_components = n_components
 
     def fit(self, X, y):
+        """Fit ``n_components`` components, and with them every smaller model (``coef_path_``).
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_features) predictors, e.g. spectra.
+        y : array-like
+            (n_samples,) the response, e.g. perceived roughness.
+
+        Returns
+        -------
+        SIMPLS
+            This estimator, fitted.
+        """
         k = self.n_components
         check(k, POSITIVE_INT, name="n_components", error=PLSConfigError, must="a positive whole number")
         X, y = validate_xy(self, X, y)
@@ -187,7 +219,20 @@ class SIMPLS(RegressorMixin, BaseEstimator):
         self.pct_var_ = np.vstack([(P**2).sum(axis=0) / (X0**2).sum(), Q**2 / (y0 @ y0)])
 
     def predict(self, X, n_components: int | None = None):
-        """Predictions of the model with ``n_components`` (default: all fitted) components."""
+        """Predictions of the model with ``n_components`` (default: all fitted) components.
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_features) predictors with the training columns.
+        n_components : int, optional
+            A count from 1 to the fitted one; no refit is needed.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples,) predictions.
+        """
         check_is_fitted(self, "coef_path_")
         try:
             X = validate_data(self, X, reset=False, dtype=np.float64)

@@ -111,6 +111,43 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     The result equals refitting :class:`SIMPLS` on every training fold, to rounding.
     ``cap=True`` treats ``max_components`` as an upper bound: if the data (or the smallest training fold)
     support fewer components, the curve stops there instead of raising -- for a default, not a user's choice.
+
+    Parameters
+    ----------
+    X : array-like
+        (n_samples, n_features) predictors.
+    y : array-like
+        (n_samples,) the response.
+    max_components : int
+        The largest component count cross-validated.
+    cv : "loo" or int
+        Leave-one-out, or shuffled K-fold with this many folds.
+    groups : array-like, optional
+        (n_samples,) labels: leave one group out (with the default ``cv``).
+    random_state : int, optional
+        Seeds the K-fold shuffle.
+    cap : bool
+        Stop at what the data support instead of raising.
+
+    Returns
+    -------
+    PLSCVResult
+        ``rmse`` and ``rmse_se`` (max_components + 1,), ``predictions`` (n_samples, max_components + 1), index =
+        number of components (0: the training fold's mean); ``best_n_components`` (least RMSE) and
+        ``one_se_n_components`` (fewest within one standard error of it); ``folds`` and ``scheme``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> rng = np.random.default_rng(0)
+    >>> X = rng.normal(size=(12, 6))
+    >>> y = 3 + X @ [1.0, 0.5, 0, 0, 0, 0] + 0.1 * rng.normal(size=12)
+    >>> cv = rs.pls_cv(X, y, max_components=4)
+    >>> cv.scheme, cv.rmse.round(2), cv.best_n_components, cv.one_se_n_components
+    ('leave-one-out', array([1.63, 0.53, 0.33, 0.18, 0.15]), 4, 3)
+    >>> rs.pls_cv(X, y, max_components=4, groups=np.repeat(np.arange(6), 2)).scheme
+    'leave-one-group-out'
     """
     if cap:
         try:
@@ -186,6 +223,35 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     as one batch: for the small problems of a study this is several times faster than B calls of
     :func:`pls_cv`, and it equals them (and refits) to rounding. ``cap=True`` lowers the component count
     for all targets alike when some target's data support fewer.
+
+    Parameters
+    ----------
+    X : array-like
+        (n_samples, n_features) predictors.
+    Y : array-like
+        (n_samples, n_targets) one response per column.
+    max_components, cv, groups, random_state, cap
+        As :func:`pls_cv`.
+
+    Returns
+    -------
+    PLSCVBatch
+        ``rmse`` (n_targets, max_components + 1), ``predictions`` (n_targets, n_samples, max_components + 1),
+        ``best_n_components`` (n_targets,), ``folds`` and ``scheme``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> rng = np.random.default_rng(0)
+    >>> X = rng.normal(size=(12, 6))
+    >>> y = 3 + X @ [1.0, 0.5, 0, 0, 0, 0] + 0.1 * rng.normal(size=12)
+    >>> Y = np.column_stack([y, rng.permutation(y)])  # the real target and a shuffled one
+    >>> batch = rs.pls_cv_many(X, Y, max_components=4)
+    >>> batch.rmse.shape, batch.predictions.shape
+    ((2, 5), (2, 12, 5))
+    >>> np.allclose(batch.rmse[0], rs.pls_cv(X, y, max_components=4).rmse)
+    True
     """
     if groups is not None and cv == "loo":
         cv = None

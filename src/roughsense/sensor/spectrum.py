@@ -65,7 +65,29 @@ def frequency_grid(
     f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
     n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
 ) -> np.ndarray:
-    """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0)."""
+    """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0).
+
+    Parameters
+    ----------
+    f_min_per_mm, f_max_per_mm : float
+        The band's ends (mm^-1), 0 < f_min < f_max.
+    n_freqs : int
+        How many frequencies (at least 2).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_freqs,) frequencies in mm^-1, the grid every spectrum is evaluated on.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> grid = rs.frequency_grid()
+    >>> grid.size, float(grid[0]), float(grid[-1])
+    (45, 0.1, 1.0)
+    >>> rs.frequency_grid(0.2, 1.0, 5)
+    array([0.2, 0.4, 0.6, 0.8, 1. ])
+    """
     _check_band(f_min_per_mm, f_max_per_mm, n_freqs)
     return np.linspace(float(f_min_per_mm), float(f_max_per_mm), int(n_freqs))
 
@@ -266,7 +288,45 @@ def spatial_spectrum(
     n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
     window: str = SPECTRUM_DEFAULTS.window,
 ) -> np.ndarray:
-    """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid."""
+    """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid.
+
+    The function form of :class:`SpatialSpectrum` for a single image (docs/sensor.md gives every step).
+
+    Parameters
+    ----------
+    image : str, os.PathLike or numpy.ndarray
+        An image file, or its pixels (gray or RGB; uint8, uint16 or float in 0-1).
+    px_per_mm : float
+        The camera's scale, pixels per mm (the paper's rig: 34.9).
+    roi : {"center", "auto"} or tuple of int
+        Where the contact band is: the 1900 x 150 px centre crop, the band with the strongest horizontal
+        texture, or an explicit crop (x, y, w, h) in pixels.
+    rows : int
+        How many central rows of the crop are averaged into the line.
+    f_min_per_mm, f_max_per_mm, n_freqs
+        The frequency grid (:func:`frequency_grid`).
+    window : str
+        The window applied to the line ("hann", the default, or "none").
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_freqs,) amplitudes, normalised to unit area over mm^-1.
+
+    Examples
+    --------
+    A synthetic band whose brightness repeats every 2 mm peaks near 0.5 mm^-1:
+
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> x_mm = np.arange(700) / 34.9
+    >>> image = np.tile(0.5 + 0.4 * np.sin(2 * np.pi * x_mm / 2.0), (20, 1))
+    >>> spectrum = rs.spatial_spectrum(image, px_per_mm=34.9, roi=(0, 0, 700, 20))
+    >>> spectrum.shape
+    (45,)
+    >>> round(float(rs.frequency_grid()[spectrum.argmax()]), 2)
+    0.51
+    """
     plan = _Plan.build(px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window)
     return plan.spectrum(image)
 
@@ -293,6 +353,27 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
     Stateless: ``fit`` only validates the settings and records the grid in ``freq_per_mm_``, so it can
     sit in front of a regressor in a Pipeline and be cross-validated like any other step.
     ``n_jobs`` threads overlap decoding (OpenCV releases the GIL); ``-1`` uses every core.
+
+    Parameters
+    ----------
+    px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window
+        As :func:`spatial_spectrum`.
+    n_jobs : int
+        Threads decoding images (``-1``: every core).
+    max_pixels : int
+        The largest image decoded, in pixels (a guard against decompression bombs).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import roughsense as rs
+    >>> x_mm = np.arange(700) / 34.9
+    >>> images = [np.tile(0.5 + 0.4 * np.sin(2 * np.pi * x_mm / period), (20, 1)) for period in (2.0, 4.0)]
+    >>> spectra = rs.SpatialSpectrum(roi=(0, 0, 700, 20)).fit_transform(images)
+    >>> spectra.shape
+    (2, 45)
+    >>> rs.SpatialSpectrum().get_feature_names_out()[:3]
+    array(['0.1', '0.12045454545454545', '0.14090909090909093'], dtype=object)
     """
 
     def __init__(
@@ -336,17 +417,52 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         return (os.cpu_count() or 1) if n == -1 else int(n)
 
     def fit(self, X=None, y=None) -> SpatialSpectrum:
+        """Check the settings and record the grid in ``freq_per_mm_``; no image is read.
+
+        Parameters
+        ----------
+        X, y : ignored
+            Accepted for scikit-learn's API.
+
+        Returns
+        -------
+        SpatialSpectrum
+            This transformer.
+        """
         self.freq_per_mm_ = self._plan().freq_per_mm
         self._jobs()
         return self
 
     def transform(self, X) -> np.ndarray:
+        """The spectra of the images, one row each.
+
+        Parameters
+        ----------
+        X : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_images, n_freqs) spectra, in the order given.
+        """
         n_freqs = self._plan().freq_per_mm.size
         rows = list(self.iter_transform(X))
         return np.vstack(rows) if rows else np.empty((0, n_freqs))
 
     def iter_transform(self, images: Iterable) -> Iterator[np.ndarray]:
-        """Yield one spectrum per image, in order, holding at most ~2 x n_jobs decoded images at a time."""
+        """Yield one spectrum per image, in order, holding at most ~2 x n_jobs decoded images at a time.
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays (read lazily, so a long list costs no memory).
+
+        Returns
+        -------
+        iterator of numpy.ndarray
+            One (n_freqs,) spectrum per image.
+        """
         plan = self._plan()
         jobs = self._jobs()
         numbered = enumerate(images)
@@ -370,18 +486,48 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     def line(self, image) -> tuple[np.ndarray, tuple[int, int, int, int]]:
         """The gray line (values along the row, one per px) whose spectrum :meth:`transform` takes, and its crop
-        (x, y, w, h): what ``roughsense features --plot`` draws beside the spectrum."""
+        (x, y, w, h): what ``roughsense features --plot`` draws beside the spectrum.
+
+        Parameters
+        ----------
+        image : str, os.PathLike or numpy.ndarray
+            One image file or pixel array.
+
+        Returns
+        -------
+        line : numpy.ndarray
+            (w,) gray values of the crop's central row(s).
+        box : tuple of int
+            The crop (x, y, w, h) in pixels.
+        """
         plan = self._plan()
         pixels = as_image(image, max_pixels=plan.max_pixels)
         box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
         return extract_line(pixels, box, plan.rows), box
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
-        """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float."""
+        """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float.
+
+        Parameters
+        ----------
+        input_features : ignored
+            Accepted for scikit-learn's API.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_freqs,) strings.
+        """
         return np.asarray([repr(float(f)) for f in self._plan().freq_per_mm], dtype=object)
 
     def feature_definition(self) -> dict:
-        """JSON-able record of everything needed to recompute these features from the same images."""
+        """JSON-able record of everything needed to recompute these features from the same images.
+
+        Returns
+        -------
+        dict
+            Settings and conventions; a model file stores it, and :meth:`from_definition` reads it back.
+        """
         plan = self._plan()
         roi = plan.roi if isinstance(plan.roi, str) else list(plan.roi)
         return {
@@ -407,7 +553,20 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     @classmethod
     def from_definition(cls, definition: dict, *, n_jobs: int = 1, max_pixels: int = DEFAULT_MAX_PIXELS) -> SpatialSpectrum:
-        """Rebuild the transformer from :meth:`feature_definition` (e.g. one stored in a model file)."""
+        """Rebuild the transformer from :meth:`feature_definition` (e.g. one stored in a model file).
+
+        Parameters
+        ----------
+        definition : dict
+            A :meth:`feature_definition`.
+        n_jobs, max_pixels
+            As the constructor's (they do not change the features, so the definition leaves them out).
+
+        Returns
+        -------
+        SpatialSpectrum
+            A transformer computing the same features.
+        """
         try:
             if definition.get("kind") != "roughsense.SpatialSpectrum" or definition.get("version") != FEATURE_VERSION:
                 raise KeyError("kind/version")

@@ -376,6 +376,38 @@ def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None 
 
     ``seed`` overrides ``config.seed``. ``progress(iterable, total=, description=)`` may wrap the image loop
     (the CLI passes its progress bar, ``roughsense.cli._common.progress``); the library itself prints nothing.
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        The study folder to write; built beside it and swapped in when complete.
+    config : SimulationConfig, optional
+        Pads, specimens, forces, repetitions, panel, camera and bench noise (roughsense.sim); default the
+        paper's full study (840 images).
+    seed : int, optional
+        Overrides ``config.seed``.
+    force : bool
+        Replace an existing study folder.
+    jobs : int, optional
+        Worker processes rendering images (default: one per core).
+    progress : callable, optional
+        Wraps the image loop, e.g. a progress bar.
+
+    Returns
+    -------
+    pathlib.Path
+        The study folder, ready for :func:`read_study`.
+
+    Examples
+    --------
+    >>> import roughsense as rs
+    >>> from roughsense.sim import SimulationConfig
+    >>> config = SimulationConfig(pads=("smooth",), specimens=("R2", "C4"), forces_n=(2.0,), repetitions=1)
+    >>> path = rs.simulate_study("simulated", config, seed=1)
+    >>> sorted(p.name for p in path.iterdir())
+    ['.simulation-complete', 'images', 'manifest.csv', 'ratings.csv', 'specimens.csv', 'study.toml']
+    >>> sorted(p.name for p in (path / "images").iterdir())
+    ['smooth_C4_2N_r01.png', 'smooth_R2_2N_r01.png']
     """
     config = config if config is not None else SimulationConfig()
     if seed is not None:
