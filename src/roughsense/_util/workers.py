@@ -1,4 +1,7 @@
-"""Worker processes that die with the process that started them.
+"""How many workers this process may run, and worker processes that die with the process that started them.
+
+Cores are counted once, here (:func:`usable_cores`): the share of the machine this process may run on (a container's
+or taskset's CPU affinity), which ``os.cpu_count()`` ignores.
 
 A ``kill -9`` of ``roughsense simulate`` gives its pool no chance to shut down: without help, the workers keep
 rendering into the folder, then idle for ever. Each worker therefore ties its life to its parent's: on Linux the
@@ -21,6 +24,14 @@ from concurrent.futures import ProcessPoolExecutor
 
 PARENT_POLL_S = 0.5
 _PR_SET_PDEATHSIG = 1
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (a container's or taskset's share, not the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _arm_parent_death_signal() -> bool:
