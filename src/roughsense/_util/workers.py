@@ -20,7 +20,10 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where a pool is made: counting cores (the CLI's --jobs) stays light
+    from concurrent.futures import ProcessPoolExecutor
 
 PARENT_POLL_S = 0.5
 _PR_SET_PDEATHSIG = 1
@@ -66,6 +69,7 @@ def die_with_parent(parent_pid: int) -> None:
 def process_pool(max_workers: int) -> ProcessPoolExecutor:
     """A ``ProcessPoolExecutor`` whose workers end within about a second of this process's death."""
     import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
 
     # fork (Linux) or spawn: either way the worker's parent is this process, which the initializer checks.
     method = "fork" if sys.platform.startswith("linux") else "spawn"
