@@ -79,7 +79,9 @@ def bench_solver(repeats: int) -> None:
 def bench_stages(repeats: int) -> None:
     import cv2
 
-    from roughsense.sim.simulate import SimulationConfig, _rng, plan_trials, png_params, render, trial_line
+    from roughsense.sim.optics import render
+    from roughsense.sim.plan import rng
+    from roughsense.sim.simulate import SimulationConfig, plan_trials, png_params, trial_line
 
     config = SimulationConfig(specimens=("R4.5", "C3"), repetitions=1)
     pads, specimens = config.validate()
@@ -92,7 +94,7 @@ def bench_stages(repeats: int) -> None:
         frames, render_t = {}, {}
         for what, camera in (("stored", trial.camera), ("whole", whole_camera)):
             rend = lambda: render(camera, line, band_center_px=540.0, lighting=trial.exposure.lighting,
-                                  rng=_rng(0, 1), spots=trial.mount.spots)
+                                  rng=rng(0, 1), spots=trial.mount.spots)
             render_t[what] = median_time(rend, repeats)
             frames[what] = rend()
         encode = {}
@@ -109,13 +111,13 @@ def bench_stages(repeats: int) -> None:
 
 def bench_full(jobs: int, repeats: int, frames: str = "stored") -> tuple[float, float, int]:
     """Median and best wall time of the default study, and its images' size on disk (bytes)."""
-    from roughsense.sim import simulate
+    from roughsense.sim import png, simulate
 
     config = simulate.SimulationConfig()
-    saved = simulate.png_params
+    saved = png.png_params
     if frames == "whole":  # as before issue 12: whole frames, OpenCV's default PNG (workers fork and inherit this)
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, stored_height_px=0))
-        simulate.png_params = lambda: ()
+        png.png_params = lambda: ()  # where the workers' write_trial looks it up
     times, size = [], 0
     try:
         for _ in range(repeats):
@@ -128,7 +130,7 @@ def bench_full(jobs: int, repeats: int, frames: str = "stored") -> tuple[float, 
             finally:
                 shutil.rmtree(out, ignore_errors=True)
     finally:
-        simulate.png_params = saved
+        png.png_params = saved
     return statistics.median(times), min(times), size
 
 

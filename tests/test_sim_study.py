@@ -183,11 +183,12 @@ def test_numeric_options_are_checked_even_when_no_pad_uses_them(tmp_path, change
 
 def test_every_ridge_of_a_long_domain_gets_its_own_height_error():
     from roughsense.sim.bench import MAX_RIDGES, draw_mount
-    from roughsense.sim.simulate import _ridges_in_domain, plan_trials
+    from roughsense.sim.simulate import plan_trials
+    from roughsense.sim.trial_contact import ridges_in_domain
 
     config = _config(pads=("fingerprint",), specimens=("rand:1:0.1",), forces_n=(1.0,), fingerprint_period_mm=0.2)
     pads, specimens = config.validate()
-    assert _ridges_in_domain(pads[0], specimens[0]) == 250  # a 50 mm random grating under 0.2 mm ridges
+    assert ridges_in_domain(pads[0], specimens[0]) == 250  # a 50 mm random grating under 0.2 mm ridges
     mount = plan_trials(config, pads, specimens)[0].mount
     offsets = np.asarray(mount.ridge_offsets_mm)
     assert offsets.size == 250 and np.unique(offsets).size == 250

@@ -1,4 +1,7 @@
-"""Worker processes that die with the process that started them.
+"""How many workers this process may run, and worker processes that die with the process that started them.
+
+Cores are counted once, here (:func:`usable_cores`): the share of the machine this process may run on (a container's
+or taskset's CPU affinity), which ``os.cpu_count()`` ignores.
 
 A ``kill -9`` of ``roughsense simulate`` gives its pool no chance to shut down: without help, the workers keep
 rendering into the folder, then idle for ever. Each worker therefore ties its life to its parent's: on Linux the
@@ -17,10 +20,21 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where a pool is made: counting cores (the CLI's --jobs) stays light
+    from concurrent.futures import ProcessPoolExecutor
 
 PARENT_POLL_S = 0.5
 _PR_SET_PDEATHSIG = 1
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (a container's or taskset's share, not the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _arm_parent_death_signal() -> bool:
@@ -55,6 +69,7 @@ def die_with_parent(parent_pid: int) -> None:
 def process_pool(max_workers: int) -> ProcessPoolExecutor:
     """A ``ProcessPoolExecutor`` whose workers end within about a second of this process's death."""
     import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
 
     # fork (Linux) or spawn: either way the worker's parent is this process, which the initializer checks.
     method = "fork" if sys.platform.startswith("linux") else "spawn"

@@ -12,6 +12,7 @@ from typing import Annotated, TypeVar
 
 import typer
 
+from .._util.workers import usable_cores
 from ..errors import ConfigError
 
 T = TypeVar("T")
@@ -79,14 +80,6 @@ def run_inputs(*files: os.PathLike[str] | str | Iterable, study: os.PathLike[str
     root = Path(study)
     names = ("study.toml", "specimens.csv", "manifest.csv", "ratings.csv", "images")  # io.study's contract
     return [*paths, *(root / name for name in names)]
-
-
-def usable_cores() -> int:
-    """The cores this process may run on (a container's or taskset's share, not the machine's)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 #: ``--jobs`` above this many per usable core only queues work (and simulate would fork that many processes at once).

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
@@ -16,39 +17,44 @@ _PERIOD = number_option("--fingerprint-period-mm", quantity="ridge_period_mm", m
 _SEED = number_option("--seed", quantity="seed")
 _HEIGHT = number_option("--ridge-height-mm", low=0.0, low_open=True, must="a positive number of mm")
 
+# The command's options, declared once here so that the command itself reads as what it does.
+Out = Annotated[Path, typer.Option("--out", help="Study folder to write (must be new, empty or an interrupted "
+                                                 "simulation, unless --force).")]
+Seed = Annotated[int, typer.Option("--seed", parser=_SEED,
+                                   help="Master seed: the same seed gives byte-identical files.")]
+Pads = Annotated[str, typer.Option("--pads", help="Pads: smooth, fingerprint (comma-separated).")]
+Specimens = Annotated[str, typer.Option(
+    "--specimens", metavar="LIST", show_default=False,
+    help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
+         "above). Default: the paper's 14, R2..R5 and C2..C5.")]
+Forces = Annotated[str, typer.Option("--forces", help="Nominal pressing forces in N.")]
+Repetitions = Annotated[int, typer.Option(
+    "--repetitions", parser=number_option("--repetitions", whole=True),
+    help="Mounts per pad and specimen (each mount steps through the forces).")]
+Period = Annotated[float, typer.Option("--fingerprint-period-mm", parser=_PERIOD,
+                                       help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5).")]
+RidgeHeight = Annotated[float, typer.Option("--ridge-height-mm", parser=_HEIGHT,
+                                            help="Ridge height of the fingerprint pad (not in the paper).")]
+RatingsFrom = Annotated[str, typer.Option(
+    "--ratings-from",
+    help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
+         "finger for any other specimen) or 'physics' (the simulated finger for every specimen).")]
+StoredHeight = Annotated[int, typer.Option(
+    "--stored-height-px", parser=number_option("--stored-height-px", whole=True),
+    help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the "
+         "paper's centred crop is unchanged); 0 stores whole frames.")]
+Force = Annotated[bool, typer.Option(
+    "--force",
+    help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; "
+         "files you added to it are kept; a folder that is not a simulated study is refused). An interrupted "
+         "simulation is replaced without it.")]
+
 
 def simulate(
-    out: Path = typer.Option(..., "--out", help="Study folder to write (must be new, empty or an interrupted "
-                                                "simulation, unless --force)."),
-    seed: int = typer.Option(0, "--seed", parser=_SEED, help="Master seed: the same seed gives byte-identical files."),
-    pads: str = typer.Option(",".join(PAD_NAMES), "--pads", help="Pads: smooth, fingerprint (comma-separated)."),
-    specimens: str = typer.Option(
-        ",".join(PAPER_SPECIMENS), "--specimens", metavar="LIST", show_default=False,
-        help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
-             "above). Default: the paper's 14, R2..R5 and C2..C5.",
-    ),
-    forces: str = typer.Option(",".join(f"{f:g}" for f in PAPER_FORCES_N), "--forces", help="Nominal pressing forces in N."),
-    repetitions: int = typer.Option(PAPER_REPETITIONS, "--repetitions", parser=number_option("--repetitions", whole=True),
-                                    help="Mounts per pad and specimen (each mount steps through the forces)."),
-    fingerprint_period_mm: float = typer.Option(DEFAULT_FINGERPRINT_PERIOD_MM, "--fingerprint-period-mm", parser=_PERIOD,
-                                                help="Ridge period of the fingerprint pad (paper: 1.0; human-sized: 0.5)."),
-    ridge_height_mm: float = typer.Option(DEFAULT_RIDGE_HEIGHT_MM, "--ridge-height-mm", parser=_HEIGHT,
-                                          help="Ridge height of the fingerprint pad (not in the paper)."),
-    ratings_from: str = typer.Option(
-        "paper", "--ratings-from",
-        help="Where the panel's ratings come from: 'paper' (the paper's values for its presets, the simulated "
-             "finger for any other specimen) or 'physics' (the simulated finger for every specimen).",
-    ),
-    stored_height_px: int = typer.Option(
-        320, "--stored-height-px", parser=number_option("--stored-height-px", whole=True),
-        help="Rows of each stored frame, centred on the 1080-row sensor (a sensor window holding the band; the "
-             "paper's centred crop is unchanged); 0 stores whole frames."),
-    jobs: Jobs = None,
-    force: bool = typer.Option(
-        False, "--force",
-        help="Replace an earlier, complete simulated study as a whole (the new one is built beside it and swapped in; "
-             "files you added to it are kept; a folder that is not a simulated study is refused). An interrupted "
-             "simulation is replaced without it."),
+    out: Out, seed: Seed = 0, pads: Pads = ",".join(PAD_NAMES), specimens: Specimens = ",".join(PAPER_SPECIMENS),
+    forces: Forces = ",".join(f"{f:g}" for f in PAPER_FORCES_N), repetitions: Repetitions = PAPER_REPETITIONS,
+    fingerprint_period_mm: Period = DEFAULT_FINGERPRINT_PERIOD_MM, ridge_height_mm: RidgeHeight = DEFAULT_RIDGE_HEIGHT_MM,
+    ratings_from: RatingsFrom = "paper", stored_height_px: StoredHeight = 320, jobs: Jobs = None, force: Force = False,
 ) -> None:
     """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
 

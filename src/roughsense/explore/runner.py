@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util.checks import short_repr
+from .._util.workers import usable_cores
 from ..errors import ConfigError, RoughsenseWarning
 from .cell import run_cell
 from .store import ResultStore
@@ -59,10 +60,7 @@ class SweepOutcome:
 
 def default_workers() -> int:
     """One single-threaded worker process per core this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+    return usable_cores()
 
 
 def max_workers() -> int:

@@ -19,7 +19,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._util.checks import MAX_SEED, POSITIVE, Integer, Real, short_repr
+from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, short_repr, shown
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
@@ -145,32 +145,59 @@ def _error(path: Path, message: str) -> ConfigError:
     return ConfigError(message, path=path)
 
 
-def _number(path, where, value, *, positive=True) -> float:
-    if not (POSITIVE if positive else Real()).accepts(value):
-        raise _error(path, f"{where}: expected a positive number, got {value!r}")
-    return float(value)
+def _checked(path: Path, where: str, value, constraint: Constraint):
+    """``value`` cast by its constraint, or one line naming where it was read, built from the constraint."""
+    if constraint.accepts(value):
+        return constraint.cast(value)
+    if isinstance(constraint, Options):
+        raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(constraint.values)})")
+    raise _error(path, f"{where}: expected {constraint.describe()}, got {shown(value)}")
 
 
-def _whole(path, where, value, least, most=None) -> int:
-    if not Integer(least, most).accepts(value):
-        bounds = f">= {least}" if most is None else f"from {least} to {most}"
-        raise _error(path, f"{where}: expected a whole number {bounds}, got {short_repr(value)}")
-    return int(value)
-
-
+_POSITIVE = Described(POSITIVE, "a positive number")
+#: What each design value must be (one value in [sweep], each value of an axis); checks that need more than the
+#: value's kind and range follow in :data:`_DESIGN_FURTHER`.
+DESIGN_CONSTRAINTS: dict[str, Constraint] = {
+    "pad": Options(PAD_NAMES), "fingerprint_period_mm": _POSITIVE, "ridge_height_mm": _POSITIVE,
+    "pad_modulus_mpa": _POSITIVE, "field_length_mm": _POSITIVE, "repetitions": Integer(2, MAX_REPETITION),
+    "ratings_from": Options(RATINGS_FROM),
+}
+#: What each run setting must be (each element, for the lists ``seeds`` and ``image_size_px``).
+RUN_CONSTRAINTS: dict[str, Constraint] = {
+    "seeds": SEED, "max_components": POSITIVE_INT, "participants": Integer(2, MAX_PARTICIPANTS),
+    "sessions": Integer(1, MAX_SESSIONS), "image_size_px": Integer(16),
+}
 #: The keyword of :func:`sim.limits.pad_problem` each pad key is checked with, and its unit's factor.
 _PAD_LIMITS = {"fingerprint_period_mm": ("period_mm", 1.0), "ridge_height_mm": ("ridge_height_mm", 1.0),
                "pad_modulus_mpa": ("modulus_pa", 1e6)}
 
 
-def _pad_value(path: Path, key: str, value, where: str) -> float:
-    """A pad parameter, positive and within what the twin computes (sim.limits)."""
-    number = _number(path, where, value)
+def _pad_value(path: Path, key: str, number: float, where: str) -> float:
+    """A pad parameter within what the twin computes (sim.limits)."""
     keyword, factor = _PAD_LIMITS[key]
     problem = pad_problem(**{keyword: number * factor}, names=(where, where, where))
     if problem:
         raise _error(path, problem)
     return number
+
+
+def _field_length(path: Path, key: str, length: float, where: str) -> float:
+    if length < MIN_FIELD_MM:
+        raise _error(path, f"{where}: {length:g} mm is shorter than {MIN_FIELD_MM:g} mm, the longest wavelength "
+                           "the spectrum (0.1-1 mm^-1) resolves")
+    return length
+
+
+def _forces(path: Path, key: str, value, where: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or not value:
+        raise _error(path, f"{where}: expected a non-empty list of forces in N, got {value!r}")
+    try:
+        forces = tuple(sorted(check_force(f, option=f"{where}: every force") for f in value))
+    except ConfigError as exc:
+        raise _error(path, exc.message) from None
+    if len(set(forces_label(forces).split(","))) != len(forces):
+        raise _error(path, f"{where}: forces {value!r} are not distinct")
+    return forces
 
 
 def _specimen_name(path: Path, where: str, text: str) -> str:
@@ -184,53 +211,38 @@ def _specimen_name(path: Path, where: str, text: str) -> str:
     return specimen.name
 
 
+def _specimens(path: Path, key: str, value, where: str) -> str | tuple[str, ...]:
+    """A named specimen set, or a list of specimens (at least 4 besides the reference), each within the twin."""
+    if isinstance(value, str):
+        if value not in SPECIMEN_SETS:
+            raise _error(path, f"{where}: unknown specimen set {value!r} (expected one of "
+                               f"{', '.join(SPECIMEN_SETS)}, or a list of specimens)")
+        return value
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise _error(path, f"{where}: expected a list of specimens or a set name, got {value!r}")
+    names = [_specimen_name(path, where, text) for text in value]
+    if len(set(names)) != len(names):
+        raise _error(path, f"{where}: a specimen is listed twice in {value!r}")
+    rated = [n for n in names if n != REFERENCE_SPECIMEN]
+    if len(rated) < 4:
+        raise _error(path, f"{where}: give at least 4 specimens besides the reference R3 (leave-one-specimen-out "
+                           "needs 3 to choose the components of each held-out one)")
+    return tuple(text.strip() for text in value)  # the specs as written: the simulator parses them again
+
+
+#: The checks of a design value that its constraint cannot state: the twin's limits, lists of forces and specimens.
+_DESIGN_FURTHER = {"fingerprint_period_mm": _pad_value, "ridge_height_mm": _pad_value, "pad_modulus_mpa": _pad_value,
+                   "field_length_mm": _field_length, "forces_n": _forces, "specimens": _specimens}
+
+
 def _check_value(path: Path, key: str, value, where: str):
     """One design value, checked and normalised (lists become tuples); raises naming the key and value."""
-    if key == "pad":
-        if not isinstance(value, str) or value.strip().lower() not in PAD_NAMES:
-            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(PAD_NAMES)})")
-        return value.strip().lower()
-    if key in _PAD_LIMITS:
-        return _pad_value(path, key, value, where)
-    if key == "field_length_mm":
-        length = _number(path, where, value)
-        if length < MIN_FIELD_MM:
-            raise _error(path, f"{where}: {value!r} mm is shorter than {MIN_FIELD_MM:g} mm, the longest wavelength "
-                               "the spectrum (0.1-1 mm^-1) resolves")
-        return length
-    if key == "forces_n":
-        if not isinstance(value, list) or not value:
-            raise _error(path, f"{where}: expected a non-empty list of forces in N, got {value!r}")
-        try:
-            forces = tuple(sorted(check_force(f, option=f"{where}: every force") for f in value))
-        except ConfigError as exc:
-            raise _error(path, exc.message) from None
-        if len(set(forces_label(forces).split(","))) != len(forces):
-            raise _error(path, f"{where}: forces {value!r} are not distinct")
-        return forces
-    if key == "specimens":
-        if isinstance(value, str):
-            if value not in SPECIMEN_SETS:
-                raise _error(path, f"{where}: unknown specimen set {value!r} (expected one of "
-                                   f"{', '.join(SPECIMEN_SETS)}, or a list of specimens)")
-            return value
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise _error(path, f"{where}: expected a list of specimens or a set name, got {value!r}")
-        names = [_specimen_name(path, where, text) for text in value]
-        if len(set(names)) != len(names):
-            raise _error(path, f"{where}: a specimen is listed twice in {value!r}")
-        rated = [n for n in names if n != REFERENCE_SPECIMEN]
-        if len(rated) < 4:
-            raise _error(path, f"{where}: give at least 4 specimens besides the reference R3 (leave-one-specimen-out "
-                               "needs 3 to choose the components of each held-out one)")
-        return tuple(text.strip() for text in value)  # the specs as written: the simulator parses them again
-    if key == "repetitions":
-        return _whole(path, where, value, 2, MAX_REPETITION)
-    if key == "ratings_from":
-        if value not in RATINGS_FROM:
-            raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(RATINGS_FROM)})")
-        return value
-    raise AssertionError(key)
+    if key == "pad" and isinstance(value, str):
+        value = value.strip().lower()
+    if key in DESIGN_CONSTRAINTS:
+        value = _checked(path, where, value, DESIGN_CONSTRAINTS[key])
+    further = _DESIGN_FURTHER.get(key)
+    return value if further is None else further(path, key, value, where)
 
 
 def _label(key: str, value) -> object:
@@ -334,25 +346,23 @@ def _run_settings(settings: dict, path: Path) -> dict:
         raise _error(path, f"[sweep] seeds: expected a non-empty list of whole numbers, got {short_repr(seeds)}")
     if len(seeds) > MAX_CELLS:
         raise _error(path, f"[sweep] seeds: {len(seeds)} seeds, above the limit of {MAX_CELLS} cells per sweep")
-    seeds = [_whole(path, "[sweep] seeds", s, 0, MAX_SEED) for s in seeds]
+    seeds = [_checked(path, "[sweep] seeds", s, RUN_CONSTRAINTS["seeds"]) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
-    max_components = _whole(path, "[sweep] max_components", settings.get("max_components", DEFAULT_MAX_COMPONENTS), 1)
-    participants = _whole(path, "[sweep] participants", settings.get("participants", PAPER_PARTICIPANTS), 2,
-                          MAX_PARTICIPANTS)
-    sessions = _whole(path, "[sweep] sessions", settings.get("sessions", PAPER_SESSIONS), 1, MAX_SESSIONS)
+    given = {"max_components": DEFAULT_MAX_COMPONENTS, "participants": PAPER_PARTICIPANTS, "sessions": PAPER_SESSIONS}
+    run = {key: _checked(path, f"[sweep] {key}", settings.get(key, default), RUN_CONSTRAINTS[key])
+           for key, default in given.items()}
     size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
-    width_px, height_px = (_whole(path, "[sweep] image_size_px", v, 16) for v in size)
+    width_px, height_px = (_checked(path, "[sweep] image_size_px", v, RUN_CONSTRAINTS["image_size_px"]) for v in size)
     if width_px * height_px > DEFAULT_MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
         raise _error(path, f"[sweep] image_size_px: {width_px} x {height_px} px is above the limit of "
                            f"{DEFAULT_MAX_PIXELS / 1e6:g} Mpx per frame")
     cv = settings.get("cv", list(CV_SCHEMES))
     if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
         raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")
-    return dict(seeds=seeds, max_components=max_components, participants=participants, sessions=sessions,
-                width_px=width_px, height_px=height_px, cv=tuple(c for c in CV_SCHEMES if c in cv))
+    return dict(seeds=seeds, **run, width_px=width_px, height_px=height_px, cv=tuple(c for c in CV_SCHEMES if c in cv))
 
 
 def _axes(axes_in: dict, path: Path) -> dict[str, list]:

@@ -13,9 +13,8 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
 
-from .._util.checks import MAX_SEED, short_repr
+from .._util.checks import SEED, Integer, Real, short_repr, shown
 
 #: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
@@ -38,50 +37,29 @@ class NumberError(ValueError):
         self.message = message
 
 
-def _show(number: float | int) -> str:
-    """A bound or value in a message: an int exactly (a seed's 9223372036854775807), a float as ``%g``."""
-    return str(number) if isinstance(number, int) else f"{number:g}"
-
-
-@dataclass(frozen=True)
-class Bounds:
-    """A quantity's accepted range: ``low`` (excluded if ``low_open``) to ``high``; ``noun`` starts its messages."""
-
-    low: float | None = None
-    high: float | None = None
-    low_open: bool = False
-    whole: bool = False
-    noun: str = ""
-
-    def describe(self) -> str:
-        kind = "a whole number" if self.whole else "a number"
-        if self.low is not None and self.high is not None and not self.low_open:
-            return f"{kind} from {_show(self.low)} to {_show(self.high)}"
-        parts = [f"{'>' if self.low_open else '>='} {_show(self.low)}"] if self.low is not None else []
-        parts += [f"<= {_show(self.high)}"] if self.high is not None else []
-        return " ".join([kind, " and ".join(parts)]).strip()
-
-
-#: Every bounded quantity a user writes, with why its bounds are where they are. Readers name a key of this
-#: table; a bound defined elsewhere (the protocol's force limit) is quoted from here, never restated.
-BOUNDS: dict[str, Bounds] = {
+#: Every bounded quantity a user writes, with why its bounds are where they are: an interval of the one constraint
+#: vocabulary (``_util.checks``). Readers name a key of this table; a bound defined elsewhere (the protocol's force
+#: limit) is quoted from here, never restated.
+BOUNDS: dict[str, Real | Integer] = {
     # A magnitude estimate is a ratio to the reference (1.0): a million times rougher or smoother is no
     # estimate, and within 1e-6..1e6 every gmean, SD and reciprocal of a panel's ratings is finite.
-    "rating": Bounds(1e-6, 1e6, noun="a magnitude estimate"),
+    "rating": Real(1e-6, 1e6),
     # A fingertip presses with a few newtons (the paper: 1-3 N); 100 N on a specimen is about the pad's modulus.
-    "force_n": Bounds(0.0, 100.0, low_open=True),
+    "force_n": Real(0.0, 100.0, low_open=True),
     # The paper's 10 repetitions; the limit bounds the work a manifest or an option can ask for.
-    "repetition": Bounds(0, 10_000, whole=True),
-    "contact_fraction": Bounds(0.0, 1.0),
+    "repetition": Integer(0, 10_000),
+    "contact_fraction": Real(0.0, 1.0),
     # Specimen wavelengths are millimetres (the paper: 2-5 mm); 1 um to 1 m covers every macroscopic texture.
-    "wavelength_mm": Bounds(1e-3, 1e3),
+    "wavelength_mm": Real(1e-3, 1e3),
     # Camera scale: 1 px per 10 cm up to 10 nm per px (the paper: 34.9 px/mm).
-    "px_per_mm": Bounds(1e-2, 1e5),
+    "px_per_mm": Real(1e-2, 1e5),
     # Seeds are stored as signed 64-bit integers (see _util.checks.MAX_SEED).
-    "seed": Bounds(0, MAX_SEED, whole=True),
+    "seed": SEED,
     # A pad's ridge period: 1 um (finer is no ridge a camera sees) to 100 mm (coarser than any specimen).
-    "ridge_period_mm": Bounds(1e-3, 100.0),
+    "ridge_period_mm": Real(1e-3, 100.0),
 }
+#: What a quantity's messages start with, where a bare "must be positive" would not say what was wrong.
+NOUNS = {"rating": "a magnitude estimate"}
 
 
 def spelling_hint(text: str) -> str:
@@ -126,13 +104,12 @@ def parse_number(value: object, *, quantity: str = "", low: float | None = None,
     :class:`NumberError` with one of the messages every reader shows: ``not a number: '1_0' (...)``, ``not a
     finite number: 'inf'``, ``must be positive, got 0``, ``must be at most 100, got 1e308``.
     """
-    bounds = BOUNDS.get(quantity, Bounds())
+    bounds = BOUNDS.get(quantity, Real())
+    whole = whole or isinstance(bounds, Integer)
     if low is not None or high is not None or low_open:
-        bounds = Bounds(low, high, low_open, bounds.whole, bounds.noun)
-    if whole and not bounds.whole:
-        bounds = replace(bounds, whole=True)
+        bounds = Real(low, high, low_open)
     if isinstance(value, str):
-        number = _from_text(value, bounds.whole)
+        number = _from_text(value, whole)
     elif isinstance(value, (int, float)) and not isinstance(value, bool) or _is_numpy_number(value):
         number = value if isinstance(value, int) else float(value)
         if isinstance(number, int) and abs(number) > _LARGEST_FLOAT:
@@ -141,7 +118,7 @@ def parse_number(value: object, *, quantity: str = "", low: float | None = None,
             raise NumberError(f"not a finite number: {number}")
     else:
         raise NumberError(f"not a number: {short_repr(value)}")
-    return _within(number, bounds, value)
+    return _within(number, bounds, whole, NOUNS.get(quantity, ""), value)
 
 
 def _is_numpy_number(value: object) -> bool:
@@ -149,22 +126,17 @@ def _is_numpy_number(value: object) -> bool:
     return bool(kind) and kind.kind in "iuf"
 
 
-def _within(number: float | int, bounds: Bounds, written: object) -> float | int:
+def _within(number: float | int, bounds: Real | Integer, whole: bool, noun: str, written: object) -> float | int:
     """``number`` if in ``bounds`` (and whole, if asked); else the one message of each kind of miss."""
-    shown = _show(number)
-    noun = f"{bounds.noun} " if bounds.noun else ""
-    if bounds.whole and number != math.floor(number):
-        raise NumberError(f"{noun}must be a whole number, got {shown}")
-    if bounds.low is not None and (number <= bounds.low if bounds.low_open else number < bounds.low):
-        if number <= 0 <= bounds.low and (bounds.low > 0 or bounds.low_open):  # the usual slip: say it plainly
-            raise NumberError(f"{noun}must be positive, got {shown}")
-        relation = "above" if bounds.low_open else "at least"
-        raise NumberError(f"{noun}must be {relation} {_show(bounds.low)}, got {shown}")
-    if bounds.high is not None and number > bounds.high:
-        raise NumberError(f"{noun}must be at most {_show(bounds.high)}, got {shown}")
-    if bounds.whole:
+    lead = f"{noun} " if noun else ""
+    if whole and number != math.floor(number):
+        raise NumberError(f"{lead}must be a whole number, got {shown(number)}")
+    problem = bounds.miss(number)
+    if problem is not None:
+        raise NumberError(f"{lead}{problem}, got {shown(number)}")
+    if whole:
         if isinstance(number, float) and abs(number) > _EXACT_WHOLE:
-            raise NumberError(f"{noun}must be written with digits only above 2**53, got {short_repr(written)}")
+            raise NumberError(f"{lead}must be written with digits only above 2**53, got {short_repr(written)}")
         return int(number)
     return float(number)
 

@@ -40,6 +40,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
+from ..errors import ConfigError, InputError
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 
 FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude")
@@ -68,6 +70,21 @@ LOG_MARGIN = 0.5
 MIN_AGREEMENT = 1 / 3
 #: Features more than this (in log units) outside the training range count as extrapolation (rounding aside).
 _RANGE_TOL = 1e-9
+#: The law's settings and what each must be (scikit-learn's ``_parameter_constraints``, in roughsense's vocabulary).
+SETTINGS = {
+    "n_blocks": Described(POSITIVE_INT, "a positive whole number"),
+    "pad_ridge_period_mm": Described(AnyOf(POSITIVE, None), "a positive number of mm or None"),
+    "exclusion_per_mm": Described(POSITIVE, "a positive number"),
+    "epsilon": Described(POSITIVE, "a positive number"),
+}
+
+
+class PeakLawConfigError(ConfigError, ValueError):
+    """An impossible setting of the law (its grid, blocks, epsilon, ridge exclusion); a ValueError for scikit-learn."""
+
+
+class PeakLawInputError(InputError, ValueError):
+    """Spectra, targets, groups or surfaces the law cannot use; also a ValueError for scikit-learn."""
 
 
 # --------------------------------------------------------------------------- features that move with the surface
@@ -82,7 +99,7 @@ def search_bins(freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None, excl
     if pad_ridge_period_mm is not None:
         allowed &= np.abs(freq_per_mm - 1.0 / float(pad_ridge_period_mm)) > float(exclusion_per_mm)
     if not allowed.any():
-        raise ValueError(
+        raise PeakLawConfigError(
             f"no frequency of the band {freq_per_mm[0]:g}-{freq_per_mm[-1]:g} mm^-1 is left to search for a peak "
             f"(pad ridge period {pad_ridge_period_mm} mm excluded +-{exclusion_per_mm:g} mm^-1)")
     return allowed
@@ -97,36 +114,21 @@ def check_grid(freq_per_mm, min_bins: int = 3) -> np.ndarray:
     steps = np.diff(freq) if freq.ndim == 1 else np.zeros(0)
     if freq.ndim != 1 or freq.size < min_bins or freq.size == 0 or not np.all(np.isfinite(freq)) or freq[0] <= 0 \
             or not np.all(steps > 0) or (steps.size and not np.allclose(steps, steps[0], rtol=1e-6)):
-        raise ValueError(f"freq_per_mm must be at least {min_bins} positive, evenly spaced, increasing frequencies "
-                         f"(mm^-1), got {np.array2string(freq.ravel()[:6], precision=4)}")
+        raise PeakLawConfigError(f"freq_per_mm must be at least {min_bins} positive, evenly spaced, increasing "
+                                 f"frequencies (mm^-1), got {np.array2string(freq.ravel()[:6], precision=4)}")
     return freq
 
 
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-
-
-def _check_blocks(n_blocks) -> int:
-    if not isinstance(n_blocks, (int, np.integer)) or isinstance(n_blocks, (bool, np.bool_)) or n_blocks < 1:
-        raise ValueError(f"n_blocks must be a positive whole number, got {n_blocks!r}")
-    return int(n_blocks)
-
-
-def check_settings(*, pad_ridge_period_mm=None, **positive) -> None:
-    """Refuse a setting that is not a positive finite number (a bool is not one); the ridge period may be None."""
-    for name, value in positive.items():
-        if not _is_number(value) or not np.isfinite(value) or value <= 0:
-            raise ValueError(f"{name} must be a positive number, got {value!r}")
-    period = pad_ridge_period_mm
-    if period is not None and (not _is_number(period) or not np.isfinite(period) or period <= 0):
-        raise ValueError(f"pad_ridge_period_mm must be a positive number of mm or None, got {period!r}")
+def check_settings(**settings) -> dict:
+    """The settings given, each checked against :data:`SETTINGS` (a bool is no number) and cast (ints, floats)."""
+    return check_params(settings, SETTINGS, error=PeakLawConfigError)
 
 
 def _check_spectra(spectra: np.ndarray) -> None:
     if not np.all(np.isfinite(spectra)):
-        raise ValueError("spectra contain NaN or infinite values")
+        raise PeakLawInputError("spectra contain NaN or infinite values")
     if np.any(spectra < 0):
-        raise ValueError("Negative values in data passed to PeakPowerLaw: spectra are amplitudes")
+        raise PeakLawInputError("Negative values in data passed to PeakPowerLaw: spectra are amplitudes")
 
 
 def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
@@ -164,16 +166,16 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
                  exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, surfaces=None) -> PeakReadout:
     """:func:`peak_features` with the clarity and agreement of each row's surface (:class:`PeakReadout`)."""
     freq = check_grid(freq_per_mm, min_bins=1)  # the estimator's default grid may be coarser than 3 bins
-    n_blocks = _check_blocks(n_blocks)
-    check_settings(pad_ridge_period_mm=pad_ridge_period_mm, exclusion_per_mm=exclusion_per_mm)
+    n_blocks = check_settings(n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
+                              exclusion_per_mm=exclusion_per_mm)["n_blocks"]
     spectra = np.asarray(spectra, dtype=np.float64)
     if spectra.ndim != 2:
-        raise ValueError(f"spectra must be a 2-D array (rows x features), got shape {spectra.shape}")
+        raise PeakLawInputError(f"spectra must be a 2-D array (rows x features), got shape {spectra.shape}")
     _check_spectra(spectra)
     n, width = spectra.shape
     k_bins = freq.size
     if width != n_blocks * k_bins:
-        raise ValueError(f"{width} features are not {n_blocks} block(s) of the {k_bins}-frequency grid")
+        raise PeakLawInputError(f"{width} features are not {n_blocks} block(s) of the {k_bins}-frequency grid")
     mean = spectra.reshape(n, n_blocks, k_bins).mean(axis=1)
     allowed = search_bins(freq, pad_ridge_period_mm, exclusion_per_mm)
     log_amp = _log(mean)
@@ -204,7 +206,7 @@ def surface_codes(surfaces, n: int) -> np.ndarray:
     """Integer codes 0..S-1 of the rows' surface labels (order of first appearance), checked against ``n`` rows."""
     labels = np.asarray(surfaces)
     if labels.ndim != 1 or labels.shape[0] != n:
-        raise ValueError(f"surfaces must give one label per row ({n}), got shape {labels.shape}")
+        raise PeakLawInputError(f"surfaces must give one label per row ({n}), got shape {labels.shape}")
     _, first, codes = np.unique(labels, return_index=True, return_inverse=True)
     order = np.argsort(np.argsort(first))  # relabel by first appearance, so codes do not depend on sorting labels
     return order[codes.ravel()]
@@ -393,15 +395,16 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         return tags
 
     def _grid(self, n_features: int) -> np.ndarray:
-        blocks = _check_blocks(self.n_blocks)
+        blocks = check_settings(n_blocks=self.n_blocks)["n_blocks"]
         if n_features % blocks:
-            raise ValueError(f"{n_features} feature(s) cannot be split into {blocks} equal spectra")
+            raise PeakLawInputError(f"{n_features} feature(s) cannot be split into {blocks} equal spectra")
         k_bins = n_features // blocks
         if self.freq_per_mm is None:
             return np.linspace(*_DEFAULT_BAND_PER_MM, k_bins)
         freq = check_grid(self.freq_per_mm)
         if freq.size != k_bins:
-            raise ValueError(f"{n_features} feature(s) in {blocks} block(s) do not match the {freq.size}-frequency grid")
+            raise PeakLawInputError(
+                f"{n_features} feature(s) in {blocks} block(s) do not match the {freq.size}-frequency grid")
         return freq
 
     def _check_params(self) -> None:
@@ -457,7 +460,8 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         _check_positive(X)
         y = np.asarray(y, dtype=np.float64)
         if np.any(y <= 0):
-            raise ValueError("perceived roughness must be positive (magnitude estimates); the law is fitted in logs")
+            raise PeakLawInputError(
+                "perceived roughness must be positive (magnitude estimates); the law is fitted in logs")
         self.freq_per_mm_ = self._grid(X.shape[1])
         readout = self._readout(X, surfaces)
         features = readout.features
@@ -632,7 +636,7 @@ def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clar
 
 def _check_positive(X: np.ndarray) -> None:
     if np.any(X < 0):
-        raise ValueError("Negative values in data passed to PeakPowerLaw: spectra are amplitudes")
+        raise PeakLawInputError("Negative values in data passed to PeakPowerLaw: spectra are amplitudes")
 
 
 # --------------------------------------------------------------------------- cross-validation, batched
@@ -687,19 +691,20 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     Y = np.asarray(Y, dtype=np.float64)
     n = X.shape[0] if X.ndim == 2 else -1
     if X.ndim != 2 or Y.ndim not in (1, 2) or Y.shape[0] != n:
-        raise ValueError(f"X (shape {X.shape}) must be rows x features and Y (shape {Y.shape}) one row per row of X")
+        raise PeakLawInputError(
+            f"X (shape {X.shape}) must be rows x features and Y (shape {Y.shape}) one row per row of X")
     targets = (Y[:, None] if Y.ndim == 1 else Y).T
     if not np.all(np.isfinite(targets)) or np.any(targets <= 0):
-        raise ValueError("perceived roughness must be positive and finite (magnitude estimates); the law is fitted "
+        raise PeakLawInputError("perceived roughness must be positive and finite (magnitude estimates); the law is fitted "
                          "in logs")
     if groups is not None and len(groups) != n:
-        raise ValueError(f"groups has {len(groups)} entries for {n} rows of X")
+        raise PeakLawInputError(f"groups has {len(groups)} entries for {n} rows of X")
     features = peak_features(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
                              exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     fold_of = np.arange(n) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     n_folds = int(fold_of.max()) + 1
     if n_folds < 2:
-        raise ValueError("cross-validation needs at least 2 folds")
+        raise PeakLawConfigError("cross-validation needs at least 2 folds")
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
     beta, scale = huber_irls(features, log_targets, ~held_out, epsilon=epsilon)

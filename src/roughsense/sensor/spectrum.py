@@ -21,7 +21,8 @@ from functools import lru_cache
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from .._util.checks import POSITIVE, Integer, Options, check
+from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, Integer, Options, check, check_params
+from .._util.workers import usable_cores
 from ..errors import ConfigError, InputError
 from ..io.images import (
     DEFAULT_MAX_PIXELS,
@@ -58,6 +59,18 @@ __all__ = [
 ]
 
 FEATURE_VERSION = 1
+_FREQUENCY = Described(POSITIVE, "a positive number (mm^-1)")
+#: The settings and what each must be (scikit-learn's ``_parameter_constraints``, in roughsense's vocabulary); the
+#: region of interest and the pixel limit are the study folder's (``io.sensor_settings``).
+SETTINGS = {
+    "px_per_mm": Described(POSITIVE, "a positive number"),
+    "rows": Integer(1),
+    "window": Described(Options(WINDOWS), f"one of {', '.join(WINDOWS)}"),
+    "f_min_per_mm": _FREQUENCY,
+    "f_max_per_mm": _FREQUENCY,
+    "n_freqs": Integer(2, MAX_N_FREQS),
+}
+N_JOBS = Described(AnyOf(POSITIVE_INT, Integer(-1, -1)), "a positive whole number or -1")
 
 
 def frequency_grid(
@@ -93,11 +106,10 @@ def frequency_grid(
 
 
 def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
-    lo = check(f_min_per_mm, POSITIVE, name="f_min_per_mm", must="a positive number (mm^-1)")
-    hi = check(f_max_per_mm, POSITIVE, name="f_max_per_mm", must="a positive number (mm^-1)")
-    if not lo < hi:
+    band = check_params({"f_min_per_mm": f_min_per_mm, "f_max_per_mm": f_max_per_mm}, SETTINGS)
+    if not band["f_min_per_mm"] < band["f_max_per_mm"]:
         raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
-    check(n_freqs, Integer(2, MAX_N_FREQS), name="n_freqs")
+    check_params({"n_freqs": n_freqs}, SETTINGS)
 
 
 # --------------------------------------------------------------------------- the spectrum of one line
@@ -141,10 +153,6 @@ def _normalise(amplitude: np.ndarray, freq_per_mm: np.ndarray, name: str | None,
 
 
 # --------------------------------------------------------------------------- crop and line
-
-
-def _check_px_per_mm(px_per_mm) -> float:
-    return check(px_per_mm, POSITIVE, name="px_per_mm", must="a positive number")
 
 
 #: ``auto`` looks at every 2nd row and every 4th column: the band is ~150 rows tall and its texture spans
@@ -215,10 +223,9 @@ class _Plan:
     @classmethod
     def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window,
               max_pixels=DEFAULT_MAX_PIXELS) -> _Plan:
-        px = _check_px_per_mm(px_per_mm)
+        px = check_params({"px_per_mm": px_per_mm}, SETTINGS)["px_per_mm"]
         max_pixels = check_max_pixels(max_pixels)
-        check(rows, Integer(1), name="rows")
-        check(window, Options(WINDOWS), name="window", must=f"one of {', '.join(WINDOWS)}")
+        check_params({"rows": rows, "window": window}, SETTINGS)
         roi = parse_roi(roi)
         crop_h = CENTER_CROP_PX[1] if roi == "center" else roi[3] if not isinstance(roi, str) else None
         if crop_h is not None and rows > crop_h:
@@ -411,10 +418,8 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         )
 
     def _jobs(self) -> int:
-        n = self.n_jobs
-        if not Integer(-1).accepts(n) or n == 0:
-            raise ConfigError(f"n_jobs must be a positive whole number or -1, got {n!r}")
-        return (os.cpu_count() or 1) if n == -1 else int(n)
+        n = check(self.n_jobs, N_JOBS, name="n_jobs")
+        return usable_cores() if n == -1 else n
 
     def fit(self, X=None, y=None) -> SpatialSpectrum:
         """Check the settings and record the grid in ``freq_per_mm_``; no image is read.
