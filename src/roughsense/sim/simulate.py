@@ -22,6 +22,7 @@ from ..io.writer import StudyWriter
 from ..paper import REFERENCE_SPECIMEN
 from .config import SimulationConfig, ridge_periods, with_image_size
 from .frames import render_trial, trial_line
+from .manifest import trial_manifest
 from .overwrite import check_overwritable, is_complete_simulation, is_simulated_study, simulation_owned
 from .panel import PANEL_SPAWN_KEY, percept, simulate_panel
 from .plan import Trial, check_unique_images, force_key, plan_trials
@@ -146,16 +147,6 @@ class SimulationRun:
                 for result in pool.map(write_trial, tasks, chunksize=4):
                     results.append(result)
                     yield result[0]
-        trials = self.trials
-        manifest = pd.DataFrame({
-            "image": [r[0] for r in results],
-            "specimen": [t.specimen.name for t in trials],
-            "pad": [t.pad.name for t in trials],
-            "force_n": [t.exposure.force_read_n for t in trials],
-            "nominal_force_n": [t.nominal_force_n for t in trials],
-            "repetition": [t.repetition for t in trials],
-            "contact_fraction": [round(r[1], 6) for r in results],
-            "true_force_n": [round(t.exposure.force_true_n, 6) for t in trials],
-        })
+        manifest = trial_manifest(self.trials, [r[0] for r in results], [r[1] for r in results])
         self.writer.write_manifest(manifest)
         atomic.write_text(staging / COMPLETE_MARKER, f"seed = {self.config.seed}\nimages = {len(results)}\n")
