@@ -2,7 +2,7 @@
 
 Reads the paper's perceived roughness as shipped in roughsense.data.paper (the only place the finger model meets
 the paper's results), fits the receptor depth, the saturation strain and the exponent
-(roughsense.sim.finger_fit), then the participants' spreads to the paper's SDs, runs the leave-one-specimen-out
+(scripts/finger_fit.py), then the participants' spreads to the paper's SDs, runs the leave-one-specimen-out
 check beside that of a two-parameter geometric law with no mechanics (log rating = b log(period/3) + c [circular]),
 says which fitted parameters ended on their search bounds, and prints the constants to paste into
 src/roughsense/sim/finger.py. docs/simulator.md quotes its numbers; tests/test_docs_figures.py recomputes them.
@@ -15,9 +15,7 @@ import math
 
 import numpy as np
 
-from roughsense.paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
-from roughsense.sim import finger as finger_model
-from roughsense.sim.finger_fit import (
+from finger_fit import (
     DEPTHS_MM,
     SATURATIONS,
     Validation,
@@ -27,6 +25,8 @@ from roughsense.sim.finger_fit import (
     leave_one_out,
     paired_p,
 )
+from roughsense.paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
+from roughsense.sim import finger as finger_model
 from roughsense.sim.panel import paper_perceived
 from roughsense.sim.specimens import PRESETS
 

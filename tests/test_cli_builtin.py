@@ -72,3 +72,32 @@ def test_a_real_folder_named_builtin_is_reached_as_dot_slash(run_cli, cache, tin
     assert code == 0, err
     assert "./builtin" in err
     assert len(pd.read_csv(tmp_path / "builtin.csv")) == len(pd.read_csv(cache / "manifest.csv"))
+
+
+def test_a_cached_folder_is_built_once_and_replaces_older_versions_and_killed_runs(tmp_path, monkeypatch):
+    """_util/cache.cached_folder: a complete entry is reused; another version's complete entry and a killed run's
+    partial sibling are removed before a build; an entry of another stem is left alone."""
+    from roughsense._util import atomic
+    from roughsense._util.cache import cached_folder, folder_entry
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path))
+    built = []
+
+    def build(root):
+        with atomic.staged_folder(root) as staging:
+            (staging / "done").write_text("yes")
+        built.append(root)
+
+    def get(version):
+        return cached_folder("thing-seed1", version, build, is_complete=lambda r: (r / "done").is_file(),
+                             marker="done")
+
+    old = get("v1")
+    assert built == [old] and old == folder_entry("thing-seed1", "v1") and get("v1") == old and len(built) == 1
+    other = tmp_path / "thing-seed12-v1"
+    (other / "done").parent.mkdir()
+    (other / "done").write_text("yes")
+    partial = tmp_path / f".thing-seed1-v0{atomic.PARTIAL_TAG}999999999-x"
+    partial.mkdir()
+    new = get("v2")
+    assert built == [old, new] and not old.exists() and not partial.exists() and other.exists()

@@ -131,8 +131,9 @@ def _finger_section() -> str:
 
 @pytest.fixture(scope="module")
 def finger_validation():
+    from scripts.finger_fit import geometric_leave_one_out, leave_one_out
+
     from roughsense.paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
-    from roughsense.sim.finger_fit import geometric_leave_one_out, leave_one_out
     from roughsense.sim.panel import paper_perceived
     from roughsense.sim.specimens import PRESETS
 
@@ -146,7 +147,7 @@ def finger_validation():
 
 
 def test_the_finger_is_no_better_than_the_geometric_law_as_the_docs_say(finger_validation):
-    from roughsense.sim.finger_fit import DEPTHS_MM, SATURATIONS, paired_p
+    from scripts.finger_fit import DEPTHS_MM, SATURATIONS, paired_p
 
     finger, law, human_log_sd = finger_validation
     text = _finger_section()

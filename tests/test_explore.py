@@ -21,6 +21,7 @@ from roughsense.explore import cell as explore_cell
 from roughsense.explore.runner import run_sweep
 from roughsense.explore.store import ResultStore
 from roughsense.explore.sweep import read_sweep
+from roughsense.io.protocol import nominal_force_label
 from roughsense.io.study import read_study
 from roughsense.sensor.spectrum import SpatialSpectrum
 from roughsense.sim import contact
@@ -427,7 +428,7 @@ def test_model_axis_rows_equal_the_study_analysis_of_each_model(two_model_cell):
     assert set(summary["model"]) == set(per_specimen["model"]) == {"pls", "peak-law"}
     # Every pad x condition x CV scheme once per model.
     assert summary.groupby("model").size().to_dict() == {"pls": 4 * 2, "peak-law": 4 * 2}
-    labels = study.condition_labels()
+    labels = [nominal_force_label(f) for f in study.forces_n]
     alone = analyse_study(study, features=features, max_components=cell.max_components,
                           conditions=[*labels, "combined"], cv_schemes=cell.cv, combined_forces=labels,
                           n_permutations=0, models=("peak-law",))
@@ -547,7 +548,7 @@ def test_null_rmse_from_the_stored_targets_is_the_analysis_training_mean(two_mod
     from roughsense.explore.paired import null_rmse
 
     sweep, cell, study, features, summary, per_specimen = two_model_cell
-    labels = study.condition_labels()
+    labels = [nominal_force_label(f) for f in study.forces_n]
     analysis = analyse_study(study, features=features, max_components=cell.max_components,
                              conditions=[*labels, "combined"], cv_schemes=cell.cv, combined_forces=labels,
                              n_permutations=0, models=("pls",))

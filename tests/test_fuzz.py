@@ -431,11 +431,10 @@ def test_damaged_study_folders_give_boring_outcomes(run_cli, base, combined_mode
 @pytest.fixture()
 def quick_figures(monkeypatch):
     """Rasterising figures is test_report's job; here it would spend the fuzz budget on matplotlib."""
-    import matplotlib.pyplot as plt
-
     from roughsense.report import figures
 
-    monkeypatch.setattr(figures, "png_bytes", lambda figure, dpi=110: (plt.close(figure), b"\x89PNG")[1])
+    monkeypatch.setattr(figures, "figure_bytes", lambda figure, figure_format="png", **options: b"\x89PNG")
+    monkeypatch.setattr(figures, "page_preview", lambda png, **options: png)
 
 
 @NO_RAW_WARNINGS

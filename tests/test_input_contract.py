@@ -45,11 +45,10 @@ def sandbox(base, tmp_path):
 @pytest.fixture()
 def quick_figures(monkeypatch):
     """Skip rasterising the report's figures (test_report covers them); the tables are what these tests compare."""
-    import matplotlib.pyplot as plt
-
     from roughsense.report import figures
 
-    monkeypatch.setattr(figures, "png_bytes", lambda figure, dpi=110: (plt.close(figure), b"\x89PNG")[1])
+    monkeypatch.setattr(figures, "figure_bytes", lambda figure, figure_format="png", **options: b"\x89PNG")
+    monkeypatch.setattr(figures, "page_preview", lambda png, **options: png)
 
 
 def tree(root: Path) -> dict[str, tuple[int, int]]:

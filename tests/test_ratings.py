@@ -13,15 +13,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy import stats
 
-from roughsense.analysis.ratings import (
-    MissingRatingsWarning,
-    aggregate_ratings,
-    make_schedule,
-    render_sheet,
-)
+from roughsense.analysis.ratings import MissingRatingsWarning, aggregate_ratings, make_schedule
 from roughsense.errors import ConfigError, InputError, RoughsenseWarning
 from roughsense.io.ratings import natural_key, read_ratings, validate_ratings
 from roughsense.paper import PAPER_SPECIMENS
+from roughsense.report.ratings_sheet import render_sheet
 
 
 def ratings_frame(table: dict[tuple[str, str], list[float]]) -> pd.DataFrame:

@@ -11,11 +11,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy import integrate
+from scripts.finger_fit import fit_readout, fit_spread, leave_one_out
 
 from roughsense.errors import ConfigError
 from roughsense.paper import PAPER_SPECIMENS
 from roughsense.sim import finger as finger_model
-from roughsense.sim.finger_fit import fit_readout, fit_spread, leave_one_out
 from roughsense.sim.specimens import PRESETS, circular, rectangular, sinusoidal
 
 PAPER = pd.read_csv(Path(__file__).parents[1] / "src/roughsense/data/paper/perceived_roughness.csv",
@@ -186,7 +186,9 @@ def test_roughness_rises_with_amplitude_at_fixed_wavelength(wavelength_mm):
 def test_the_finger_never_reads_the_papers_tables(monkeypatch):
     """Physics ratings need no paper table at run time: with the reader broken they still come out, and the
     finger's modules do not mention the shipped results."""
-    from roughsense.sim import finger_fit, panel
+    from scripts import finger_fit
+
+    from roughsense.sim import panel
 
     def refuse():
         raise AssertionError("the paper's table was read")
@@ -214,7 +216,7 @@ def test_subsurface_stress_is_in_equilibrium_and_shift_equivariant(pressure, dep
 
 def test_the_geometric_yardstick_is_two_parameter_least_squares_held_out():
     """finger_fit.geometric_leave_one_out against the normal equations solved by hand, fold by fold."""
-    from roughsense.sim.finger_fit import geometric_leave_one_out
+    from scripts.finger_fit import geometric_leave_one_out
 
     gmean = PAPER.loc[RATED, "perceived_gmean"].to_numpy(float)
     law = geometric_leave_one_out([PRESETS[n] for n in RATED], gmean)

@@ -18,8 +18,10 @@ REFERENCE_SPECIMEN = "R3"
 #: The paper's gratings: rectangular (R) and circular (C), wavelength 2-5 mm in 0.5 mm steps.
 PAPER_WAVELENGTHS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
 PAPER_SPECIMENS = tuple(f"{shape}{w:g}" for shape in "RC" for w in PAPER_WAVELENGTHS_MM)
-#: The pads the paper tested (Tables 1-3 and 4-6).
-PAPER_PADS = ("fingerprint", "smooth")
+#: The pads the paper tested (Tables 1-3 and 4-6): one with fingerprint-like ridges, one smooth.
+FINGERPRINT_PAD = "fingerprint"
+SMOOTH_PAD = "smooth"
+PAPER_PADS = (FINGERPRINT_PAD, SMOOTH_PAD)
 #: The protocol (Section 3): each specimen pressed at 1, 2 and 3 N, 10 repetitions; 10 participants rate each
 #: specimen in 3 sessions.
 PAPER_FORCES_N = (1.0, 2.0, 3.0)
@@ -33,14 +35,14 @@ PAPER_CONDITIONS = (*FORCE_CONDITIONS, COMBINED)
 
 #: Number of PLS components chosen by leave-one-out CV (Section 4).
 PAPER_BEST_N_COMPONENTS = {
-    ("fingerprint", "1N"): 8,
-    ("fingerprint", "2N"): 8,
-    ("fingerprint", "3N"): 10,
-    ("fingerprint", "combined"): 12,
-    ("smooth", "1N"): 11,
-    ("smooth", "2N"): 10,
-    ("smooth", "3N"): 12,
-    ("smooth", "combined"): 15,
+    (FINGERPRINT_PAD, "1N"): 8,
+    (FINGERPRINT_PAD, "2N"): 8,
+    (FINGERPRINT_PAD, "3N"): 10,
+    (FINGERPRINT_PAD, COMBINED): 12,
+    (SMOOTH_PAD, "1N"): 11,
+    (SMOOTH_PAD, "2N"): 10,
+    (SMOOTH_PAD, "3N"): 12,
+    (SMOOTH_PAD, COMBINED): 15,
 }
 
 #: LOO RMSE of the fingerprint combined model around its minimum (Figure 8 caption).
@@ -61,19 +63,19 @@ PAPER_TESTS = {
 #: rectangular and overall rows do not follow from its own per-specimen values (docs/perception.md),
 #: which is why the report shows these printed values rather than recomputing them.
 PAPER_SUMMARIES = {
-    **{("fingerprint", "ovl", c, g): v for g, values in {
+    **{(FINGERPRINT_PAD, "ovl", c, g): v for g, values in {
         "rectangular": [(0.52, 0.20), (0.54, 0.20), (0.53, 0.20), (0.55, 0.13)],
         "circular": [(0.58, 0.12), (0.58, 0.11), (0.58, 0.11), (0.57, 0.14)],
         "all": [(0.56, 0.15), (0.56, 0.15), (0.56, 0.16), (0.56, 0.13)],
     }.items() for c, v in zip(PAPER_CONDITIONS, values)},
-    **{("fingerprint", "rmse", c, "all"): v for c, v in
+    **{(FINGERPRINT_PAD, "rmse", c, "all"): v for c, v in
        zip(PAPER_CONDITIONS, [(0.26, 0.11), (0.25, 0.09), (0.25, 0.10), (0.21, 0.07)])},
-    **{("smooth", "ovl", c, g): v for g, values in {
+    **{(SMOOTH_PAD, "ovl", c, g): v for g, values in {
         "rectangular": [(0.65, 0.16), (0.63, 0.18), (0.60, 0.19), (0.64, 0.20)],
         "circular": [(0.53, 0.16), (0.55, 0.15), (0.49, 0.11), (0.50, 0.17)],
         "all": [(0.59, 0.17), (0.59, 0.16), (0.55, 0.16), (0.57, 0.19)],
     }.items() for c, v in zip(PAPER_CONDITIONS, values)},
-    **{("smooth", "rmse", c, "all"): v for c, v in
+    **{(SMOOTH_PAD, "rmse", c, "all"): v for c, v in
        zip(PAPER_CONDITIONS, [(0.16, 0.05), (0.18, 0.05), (0.16, 0.05), (0.13, 0.03)])},
 }
 

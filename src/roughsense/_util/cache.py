@@ -1,6 +1,8 @@
 """Where roughsense keeps what it can recompute: the built-in simulated study and extracted features.
 
 The cache is ``$ROUGHSENSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/roughsense``, else ``~/.cache/roughsense``.
+A whole folder (the built-in study) is an entry named by its stem and version (:func:`cached_folder`): the caller
+says how to build it, so this layer knows nothing of the simulator.
 Entries are keyed by content, so a stale entry is never reused: features are keyed by every input that shapes
 the cached frame -- manifest.csv and study.toml as written, the manifest as read (with each image's condition),
 the sensor settings and every image's size, mtime, ctime and inode; each entry carries a checksum and one
@@ -12,6 +14,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -92,3 +95,28 @@ def cached_frame(key: str, compute: Callable[[], pd.DataFrame], *, kind: str = "
     except Exception:  # the cache is an optimisation: never fail the run because it cannot be written
         pass
     return frame, False
+
+
+def folder_entry(stem: str, version: str) -> Path:
+    """Where the cached folder ``stem`` of ``version`` lives (or will live)."""
+    return cache_dir() / f"{stem}-{version}"
+
+
+def cached_folder(stem: str, version: str, build: Callable[[Path], object], *,
+                  is_complete: Callable[[Path], bool], marker: str) -> Path:
+    """The folder ``stem`` of ``version``, built by ``build(path)`` once and reused while ``is_complete`` says so.
+
+    ``build`` writes beside the entry and swaps it in whole, so a killed run leaves no entry (only a partial sibling
+    the next call removes), never a half-written one that later runs would trust. Complete entries of other
+    versions (``marker`` inside) are roughsense's own and never read again, so they are removed.
+    """
+    root = folder_entry(stem, version)
+    if is_complete(root):
+        return root
+    for stale in cache_dir().glob(f"{stem}-*"):
+        if stale != root and (stale / marker).is_file():
+            shutil.rmtree(stale, ignore_errors=True)
+    for partial in cache_dir().glob(f".{stem}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
+        atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
+    build(root)
+    return root

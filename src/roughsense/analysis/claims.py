@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import KW_ONLY, dataclass
 from itertools import combinations
 
 import numpy as np
@@ -29,7 +30,7 @@ import pandas as pd
 from scipy import stats
 
 from ..model.families import PLS
-from ..paper import COMBINED, FORCE_CONDITIONS
+from ..paper import COMBINED, FINGERPRINT_PAD, FORCE_CONDITIONS, SMOOTH_PAD
 from .controls import ALPHA, training_mean_predictions
 from .metrics import compare_conditions, paired_tost, signed_rank, slope_tost, specimen_table
 
@@ -84,15 +85,15 @@ CLAIMS = {
 }
 
 PAPER_SAYS = {
-    "combined_beats_singles": {"fingerprint": "W = 6, 14, 0; p = 0.0048, 0.00072 (adjusted), 0.00012",
-                               "smooth": "stated without a test (Section 4)"},
-    "combined_lowest_mean": {"fingerprint": "0.21 vs 0.26, 0.25, 0.25", "smooth": "0.13 vs 0.16, 0.18, 0.16"},
+    "combined_beats_singles": {FINGERPRINT_PAD: "W = 6, 14, 0; p = 0.0048, 0.00072 (adjusted), 0.00012",
+                               SMOOTH_PAD: "stated without a test (Section 4)"},
+    "combined_lowest_mean": {FINGERPRINT_PAD: "0.21 vs 0.26, 0.25, 0.25", SMOOTH_PAD: "0.13 vs 0.16, 0.18, 0.16"},
     "smooth_beats_fingerprint": {"both": "W = 6, p < 0.0017; 0.13 vs 0.21"},
-    "rmse_below_sd": {"fingerprint": "combined RMSE 0.15-0.35 vs SD 0.12-0.64: 'most specimens'"},
-    "ovl_same_across_forces": {"fingerprint": "0.56 in all four conditions"},
+    "rmse_below_sd": {FINGERPRINT_PAD: "combined RMSE 0.15-0.35 vs SD 0.12-0.64: 'most specimens'"},
+    "ovl_same_across_forces": {FINGERPRINT_PAD: "0.56 in all four conditions"},
     "ovl_pads_comparable": {"both": "0.56 vs 0.59, 0.59, 0.55, 0.57 (Tables 2, 5)"},
-    "low_ovl_specimens": {"fingerprint": "all 12 cells below 0.5 (Table 2)"},
-    "sd_flat": {"fingerprint": "prediction SD about 0.2 for all sizes; people's SD grows (Fig. 9)"},
+    "low_ovl_specimens": {FINGERPRINT_PAD: "all 12 cells below 0.5 (Table 2)"},
+    "sd_flat": {FINGERPRINT_PAD: "prediction SD about 0.2 for all sizes; people's SD grows (Fig. 9)"},
     "aligns": {"any": "'largely aligns with human subjective roughness' (Conclusions)"},
     "beats_controls": {"any": "not tested in the paper"},
     "ratings_rise": {"": "'larger ridge and groove sizes resulted in higher roughness ratings' (Table 1)"},
@@ -150,17 +151,37 @@ def _paper_text(key: str, pad: str) -> str:
     return says.get(pad) or says.get("any") or says.get("") or ""
 
 
-def _row(key, pad, cv, statistic, p, rule, detail="", *, holds, rests_on=(), margin=float("nan"),
-         equivalence_p=float("nan"), null_meets=None, correction="none", testable=True) -> dict:
-    """A claim's evidence; its verdict is added by :func:`_judge` once its premise is looked up in the controls."""
-    return {"claim": CLAIMS[key], "pad": pad, "cv": cv, "statistic": float(statistic), "p": float(p),
-            "rule": rule, "detail": detail, "paper": _paper_text(key, pad), "key": key, "_rests_on": list(rests_on),
-            "holds": bool(holds), "equivalence_margin": float(margin), "equivalence_p": float(equivalence_p),
-            "null_meets": null_meets, "alpha": ALPHA, "correction": correction, "_testable": testable}
+@dataclass(frozen=True)
+class ClaimTest:
+    """One claim tested on one pad and CV scheme: its statistic and evidence, before its premise is looked up.
+
+    Its verdict also needs the controls of the models it ``rests_on``; :func:`_claim_row` adds them.
+    """
+
+    key: str
+    pad: str
+    cv: str
+    statistic: float
+    p: float
+    rule: str
+    detail: str = ""
+    _: KW_ONLY
+    holds: bool
+    rests_on: Sequence[tuple[str, str]] = ()  # (pad, condition) of each model the claim rests on
+    margin: float = float("nan")
+    equivalence_p: float = float("nan")
+    null_meets: bool | None = None
+    correction: str = "none"
+    testable: bool = True
+
+    def evidence(self, premise_passes: bool) -> Evidence:
+        return Evidence(testable=self.testable, holds=bool(self.holds), p=float(self.p), premise_passes=premise_passes,
+                        null_meets=self.null_meets, equivalence_margin=float(self.margin),
+                        equivalence_p=float(self.equivalence_p))
 
 
-def _untestable(key, pad, cv, why) -> dict:
-    return _row(key, pad, cv, np.nan, np.nan, "", why, holds=False, testable=False)
+def _untestable(key, pad, cv, why) -> ClaimTest:
+    return ClaimTest(key, pad, cv, np.nan, np.nan, "", why, holds=False, testable=False)
 
 
 def _largest_p(ps) -> float:
@@ -183,7 +204,7 @@ def _combined_beats_singles(results, pad, cv):
     lower = all(series[COMBINED].mean() < series[c].mean() for c in FORCE_CONDITIONS)
     worst = table.loc[table["p_adjusted"].idxmax()]
     detail = "; ".join(f"{r.comparison}: W = {r.statistic:g}, adjusted p = {r.p_adjusted:.2g}" for r in table.itertuples())
-    return _row(key, pad, cv, worst["statistic"], worst["p_adjusted"],
+    return ClaimTest(key, pad, cv, worst["statistic"], worst["p_adjusted"],
                 "test: signed rank of combined against each single force (statistic, p: the weakest comparison); "
                 "holds: the combined mean RMSE is lower than each", detail, holds=lower,
                 rests_on=[(pad, c) for c in (*FORCE_CONDITIONS, COMBINED)],
@@ -200,7 +221,7 @@ def _combined_lowest_mean(results, pad, cv):
     margin = means[COMBINED] - min(means[c] for c in singles)
     table = compare_conditions(series, COMBINED, singles, bonferroni=1)
     detail = ", ".join(f"{c} {v:.3f}" for c, v in means.items())
-    return _row(key, pad, cv, margin, _largest_p(table["p"]),
+    return ClaimTest(key, pad, cv, margin, _largest_p(table["p"]),
                 "test: signed rank of combined against each single force (p: the largest); holds: combined mean "
                 "RMSE minus the lowest single-force mean < 0 (statistic)", detail, holds=margin < 0,
                 rests_on=[(pad, c) for c in (*singles, COMBINED)],
@@ -209,19 +230,19 @@ def _combined_lowest_mean(results, pad, cv):
 
 def _smooth_beats_fingerprint(results, pads, cv):
     key = "smooth_beats_fingerprint"
-    if not {"smooth", "fingerprint"} <= set(pads):
+    if not {SMOOTH_PAD, FINGERPRINT_PAD} <= set(pads):
         return _untestable(key, "both", cv, "needs both the smooth and the fingerprint pad")
-    a = _by_condition(results, "smooth", "rmse").get(COMBINED)
-    b = _by_condition(results, "fingerprint", "rmse").get(COMBINED)
+    a = _by_condition(results, SMOOTH_PAD, "rmse").get(COMBINED)
+    b = _by_condition(results, FINGERPRINT_PAD, "rmse").get(COMBINED)
     if a is None or b is None:
         return _untestable(key, "both", cv, "needs the combined condition")
     common = a.index.intersection(b.index)
     test = signed_rank(a.loc[common].to_numpy(), b.loc[common].to_numpy())
-    return _row(key, "both", cv, test.statistic, test.p,
+    return ClaimTest(key, "both", cv, test.statistic, test.p,
                 "test: signed rank over specimens; holds: the smooth pad's mean RMSE is lower",
                 f"mean RMSE smooth {a.loc[common].mean():.3f}, fingerprint {b.loc[common].mean():.3f}",
                 holds=a.loc[common].mean() < b.loc[common].mean(),
-                rests_on=[("smooth", COMBINED), ("fingerprint", COMBINED)])
+                rests_on=[(SMOOTH_PAD, COMBINED), (FINGERPRINT_PAD, COMBINED)])
 
 
 def _rmse_below_sd(results, null, pad, cv):
@@ -233,7 +254,7 @@ def _rmse_below_sd(results, null, pad, cv):
     base = null[(null.pad == pad) & (null.condition == COMBINED)].set_index("specimen").reindex(rows["specimen"])
     null_below = int((base["rmse"].to_numpy() < rows["sd"].to_numpy()).sum())
     p = stats.binomtest(below, n, 0.5, alternative="greater").pvalue
-    return _row(key, pad, cv, below / n, p,
+    return ClaimTest(key, pad, cv, below / n, p,
                 "test: one-sided sign test (p); holds: more than half of the rated specimens have RMSE < SD "
                 "(statistic: the share); the training mean meets it when its own share is above half",
                 f"{below} of {n} specimens; training mean: {null_below} of {n}", holds=below > n / 2,
@@ -252,7 +273,7 @@ def _ovl_same_across_forces(results, pad, cv):
     pairs = list(combinations(frame.columns, 2))
     tosts = [paired_tost(frame[a], frame[b], OVL_MARGIN) for a, b in pairs]
     largest = max(abs(t.estimate) for t in tosts)
-    return _row(key, pad, cv, test.statistic, test.pvalue,
+    return ClaimTest(key, pad, cv, test.statistic, test.pvalue,
                 f"test of a difference: Friedman (p); equivalence: paired TOST of the mean OVL difference of every "
                 f"pair of conditions within ±{OVL_MARGIN} (equivalence_p: the largest); holds: every pair's mean "
                 "difference within the margin",
@@ -264,9 +285,9 @@ def _ovl_same_across_forces(results, pad, cv):
 
 def _ovl_pads_comparable(results, pads, cv):
     key = "ovl_pads_comparable"
-    if not {"smooth", "fingerprint"} <= set(pads):
+    if not {SMOOTH_PAD, FINGERPRINT_PAD} <= set(pads):
         return _untestable(key, "both", cv, "needs both the smooth and the fingerprint pad")
-    a, b = _by_condition(results, "smooth", "ovl"), _by_condition(results, "fingerprint", "ovl")
+    a, b = _by_condition(results, SMOOTH_PAD, "ovl"), _by_condition(results, FINGERPRINT_PAD, "ovl")
     conditions = [c for c in a if c in b]
     if not conditions:
         return _untestable(key, "both", cv, "the pads share no condition")
@@ -277,12 +298,12 @@ def _ovl_pads_comparable(results, pads, cv):
         ps.append(min(1.0, signed_rank(pair.iloc[:, 0].to_numpy(), pair.iloc[:, 1].to_numpy()).p * len(conditions)))
         tosts.append(paired_tost(pair.iloc[:, 0], pair.iloc[:, 1], OVL_MARGIN).p)
     largest = float(np.max(np.abs(diffs)))
-    return _row(key, "both", cv, largest, min(ps),
+    return ClaimTest(key, "both", cv, largest, min(ps),
                 "test of a difference: signed rank per condition (p: the smallest adjusted); equivalence: paired TOST "
                 f"of the mean OVL difference within ±{OVL_MARGIN} in every condition (equivalence_p: the largest); "
                 "holds: largest |difference of mean OVL| (statistic) within the margin",
                 ", ".join(f"{c} {d:+.2f}" for c, d in zip(conditions, diffs)), holds=largest < OVL_MARGIN,
-                rests_on=[(pad, c) for pad in ("smooth", "fingerprint") for c in conditions], margin=OVL_MARGIN,
+                rests_on=[(pad, c) for pad in (SMOOTH_PAD, FINGERPRINT_PAD) for c in conditions], margin=OVL_MARGIN,
                 equivalence_p=_largest_p(tosts),
                 correction=f"signed rank: Bonferroni x{len(conditions)}; TOST: none (intersection-union over "
                            f"the {len(conditions)} conditions)")
@@ -296,7 +317,7 @@ def _low_ovl_specimens(results, null, pad, cv):
     below = int((rows["ovl"] < 0.5).sum())
     base = null[(null.pad == pad) & null.specimen.isin(LOW_OVL_SPECIMENS)]
     null_below = int((base["ovl"] < 0.5).sum())
-    return _row(key, pad, cv, below / len(rows), np.nan,
+    return ClaimTest(key, pad, cv, below / len(rows), np.nan,
                 "descriptive, no test: every one of these cells has OVL < 0.5 (statistic: the share); the training "
                 "mean meets it when all its cells do", f"{below} of {len(rows)} cells; training mean: {null_below} "
                 f"of {len(base)}", holds=below == len(rows), rests_on=[(pad, c) for c in dict.fromkeys(rows.condition)],
@@ -314,7 +335,7 @@ def _sd_flat(results, pad, cv):
     positive = bool((rows["pred_sd"] > 0).all() and (rows["gmean"] > 0).all())
     flat = slope_tost(np.log2(rows["gmean"]), np.log2(rows["pred_sd"]), SD_SLOPE_MARGIN) if positive else None
     slope = flat.estimate if flat else float("nan")
-    return _row(key, pad, cv, rho, p,
+    return ClaimTest(key, pad, cv, rho, p,
                 "test of a rise: Spearman of the prediction SD on perceived roughness (statistic, p); equivalence: "
                 f"TOST of the least-squares slope of log2 SD on log2 perceived roughness within ±{SD_SLOPE_MARGIN:.3f} "
                 f"(the SD changes by less than x{SD_RATIO_PER_DOUBLING} per doubling); holds: the slope within it",
@@ -333,7 +354,7 @@ def _aligns(results, null, pad, cv):
         return _untestable(key, pad, cv, "the predictions or the perceived roughness are constant")
     base = null[(null.pad == pad) & (null.condition == COMBINED)]
     null_rho = _quiet(stats.spearmanr, base["gmean"], base["pred_mean"])[0]
-    return _row(key, pad, cv, rho, p,
+    return ClaimTest(key, pad, cv, rho, p,
                 "test: Spearman over specimens, the reference included (statistic, p); holds: rho > 0; the training "
                 "mean meets it when its own rho > 0", f"{len(rows)} specimens; {_null_rho_words(null_rho)}",
                 holds=rho > 0, rests_on=[(pad, COMBINED)], null_meets=bool(null_rho > 0))
@@ -354,27 +375,27 @@ def _beats_controls(controls, pad, cv):
     if row.empty or not row["n_permutations"].iloc[0]:
         return _untestable(key, pad, cv, "needs the combined condition and the permutation control")
     r = row.iloc[0]
-    return _row(key, pad, cv, r["rmse"], r["permutation_p"],
+    return ClaimTest(key, pad, cv, r["rmse"], r["permutation_p"],
                 "the control the other claims rest on (so it rests on no other): test: permutation p; holds: CV RMSE "
                 "(statistic) below the training mean's", f"CV RMSE {r['rmse']:.3f}, training mean {r['null_rmse']:.3f}, "
                 f"shuffled median {r['permuted_rmse_median']:.3f} ({int(r['n_permutations'])} shufflings)",
                 holds=bool(r["rmse"] < r["null_rmse"]))
 
 
-def _ratings_rise(known: pd.DataFrame) -> dict:
+def _ratings_rise(known: pd.DataFrame) -> ClaimTest:
     groups = [g for _, g in known.groupby("shape", sort=False) if len(g) >= 3]
     if not groups:
         return _untestable("ratings_rise", "", "none", "needs at least 3 specimens of a shape with a period")
     tests = [(g["shape"].iloc[0], *_quiet(stats.spearmanr, g["wavelength_mm"], g["gmean"])) for g in groups]
     worst = max(tests, key=lambda t: t[2])
-    return _row("ratings_rise", "", "none", worst[1], _largest_p(t[2] for t in tests),
+    return ClaimTest("ratings_rise", "", "none", worst[1], _largest_p(t[2] for t in tests),
                 "test: Spearman per shape (statistic, p: the weakest shape); holds: every shape's rho > 0",
                 "; ".join(f"{s}: rho = {r:.2f}, p = {p:.2g}" for s, r, p in tests),
                 holds=all(rho > 0 for _, rho, _ in tests),
                 correction=f"none (intersection-union: each of the {len(tests)} shapes must reject)")
 
 
-def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> list[dict]:
+def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> list[ClaimTest]:
     people = perceived.assign(shape=perceived["specimen"].map(shapes),
                               wavelength_mm=perceived["specimen"].map(wavelengths))
     known = people.dropna(subset=["wavelength_mm"])
@@ -387,7 +408,7 @@ def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> 
                                 "needs circular and rectangular gratings of at least 3 common periods"))
     else:
         test = signed_rank(circ.loc[common].to_numpy(), rect.loc[common].to_numpy())
-        rows.append(_row("circular_rougher", "", "none", test.statistic, test.p,
+        rows.append(ClaimTest("circular_rougher", "", "none", test.statistic, test.p,
                          "test: signed rank over periods; holds: the median difference circular - rectangular > 0",
                          f"{int((circ.loc[common] > rect.loc[common]).sum())} of {len(common)} periods",
                          holds=float(np.median(circ.loc[common] - rect.loc[common])) > 0))
@@ -396,7 +417,7 @@ def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> 
         rows.append(_untestable("human_sd_grows", "", "none", "needs at least 4 rated specimens"))
     else:
         rho, p = _quiet(stats.spearmanr, rated["gmean"], rated["sd"])
-        rows.append(_row("human_sd_grows", "", "none", rho, p, "test: Spearman; holds: rho > 0",
+        rows.append(ClaimTest("human_sd_grows", "", "none", rho, p, "test: Spearman; holds: rho > 0",
                          f"{len(rated)} rated specimens", holds=rho > 0))
     return rows
 
@@ -411,23 +432,23 @@ def _failed_control(r) -> str:
     return f"{r['pad']} {r['condition']} {str(r['cv']).upper()} ({'; '.join(why)})"
 
 
-def _judge(row: dict, controls: pd.DataFrame) -> dict:
-    """Look up the premise of ``row`` in the controls and give it its verdict by the one rule."""
-    models = row.pop("_rests_on")
+def _claim_row(claim: ClaimTest, controls: pd.DataFrame, simulation: dict | None) -> dict:
+    """The row of claims.csv: the premise of ``claim`` looked up in the controls, and its verdict by the one rule."""
     failed = []
-    for pad, condition in models:
-        hit = controls[(controls.pad == pad) & (controls.condition == condition) & (controls.cv == row["cv"])]
+    for pad, condition in claim.rests_on:
+        hit = controls[(controls.pad == pad) & (controls.condition == condition) & (controls.cv == claim.cv)]
         if hit.empty:
-            failed.append(f"{pad} {condition} {row['cv'].upper()} (no controls were run)")
+            failed.append(f"{pad} {condition} {claim.cv.upper()} (no controls were run)")
         elif not bool(hit.iloc[0]["passes"]):
             failed.append(_failed_control(hit.iloc[0]))
-    row.update(rests_on="; ".join(f"{pad} {condition} {row['cv']}" for pad, condition in models),
-               premise_passes=not failed, failed_controls="; ".join(failed))
-    row["verdict"] = verdict(Evidence(
-        testable=row.pop("_testable"), holds=row["holds"], p=row["p"], premise_passes=row["premise_passes"],
-        null_meets=row["null_meets"], equivalence_margin=row["equivalence_margin"],
-        equivalence_p=row["equivalence_p"], alpha=row["alpha"]))
-    return row
+    evidence = claim.evidence(premise_passes=not failed)
+    return {"claim": CLAIMS[claim.key], "pad": claim.pad, "cv": claim.cv, "statistic": float(claim.statistic),
+            "p": evidence.p, "verdict": verdict(evidence), "rule": claim.rule, "detail": claim.detail,
+            "paper": _paper_text(claim.key, claim.pad), "basis": _basis(claim, simulation), "key": claim.key,
+            "rests_on": "; ".join(f"{pad} {condition} {claim.cv}" for pad, condition in claim.rests_on),
+            "premise_passes": evidence.premise_passes, "failed_controls": "; ".join(failed), "holds": evidence.holds,
+            "equivalence_margin": evidence.equivalence_margin, "equivalence_p": evidence.equivalence_p,
+            "null_meets": claim.null_meets, "alpha": evidence.alpha, "correction": claim.correction}
 
 
 def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
@@ -460,20 +481,20 @@ def training_mean_results(analysis, cv: str) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
 
 
-def _basis(row: dict, simulation: dict | None) -> str:
+def _basis(claim: ClaimTest, simulation: dict | None) -> str:
     if simulation is None:
         return "finding"
-    if row["key"] in RATING_CLAIMS:
+    if claim.key in RATING_CLAIMS:
         if simulation.get("ratings_from", "paper") == "paper":
             return "property of the simulator (its default ratings for the paper's specimens are drawn from Table 1)"
         return ("property of the simulator (its ratings come from its simulated finger, ratings_from = "
                 f"{simulation.get('ratings_from')}: a model of people, not people)")
-    if row["key"] == "rmse_below_sd" and row["cv"] == "loo":
+    if claim.key == "rmse_below_sd" and claim.cv == "loo":
         return "property of the simulator (its noise was tuned so LOO errors land in the paper's range)"
     return "finding on simulated data"
 
 
-def _scheme_claims(analysis, cv: str, controls: pd.DataFrame) -> list[dict]:
+def _scheme_claims(analysis, cv: str, controls: pd.DataFrame) -> list[ClaimTest]:
     """Every sensor claim of one CV scheme, on the PLS fits and the training mean under the same folds."""
     pads = analysis.pads
     people = analysis.perceived[["specimen", "gmean", "sd"]]
@@ -501,12 +522,10 @@ def evaluate_claims(analysis, wavelengths: dict | None = None) -> pd.DataFrame:
     controls = _of_pls(analysis.controls)
     if controls is None or controls.empty:
         controls = pd.DataFrame(columns=["pad", "condition", "cv", "passes"])
-    rows = _rating_claims(analysis.perceived, analysis.shapes, wavelengths or analysis.wavelengths)
+    tested = _rating_claims(analysis.perceived, analysis.shapes, wavelengths or analysis.wavelengths)
     for cv in schemes:
-        rows += _scheme_claims(analysis, cv, controls)
-    rows = [_judge(row, controls) for row in rows]
-    for row in rows:
-        row["basis"] = _basis(row, analysis.simulation)
+        tested += _scheme_claims(analysis, cv, controls)
+    rows = [_claim_row(claim, controls, analysis.simulation) for claim in tested]
     order = {key: i for i, key in enumerate(CLAIMS)}
     frame = pd.DataFrame(rows)
     frame["_order"] = frame["key"].map(order)

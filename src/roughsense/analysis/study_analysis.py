@@ -311,24 +311,24 @@ def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd
             continue
         results = analysis.results(cv)
         results = results[results["model"] == PLS].drop(columns="model")  # the paper's model, as the paper tested
-        singles = [c for c in conditions if c != "combined"]
+        singles = [c for c in conditions if c != paper.COMBINED]
         for pad in analysis.pads:
-            if "combined" not in conditions or not singles:
+            if paper.COMBINED not in conditions or not singles:
                 break
             by_condition = {
                 c: results[(results.pad == pad) & (results.condition == c)].set_index("specimen")["rmse"]
                 for c in conditions
             }
-            table = compare_conditions(by_condition, "combined", singles, bonferroni=len(singles))
+            table = compare_conditions(by_condition, paper.COMBINED, singles, bonferroni=len(singles))
             table["comparison"] = f"{pad}: " + table["comparison"].astype(str)
             table["cv"] = cv
             frames.append(table)
         pads = analysis.pads
         if len(pads) == 2:
-            first, second = sorted(pads, key=lambda p: (p != "smooth", p))
+            first, second = sorted(pads, key=lambda p: (p != paper.SMOOTH_PAD, p))
             rows = []
             # The paper compares the pads on the combined condition only (Section 4); so do we.
-            for condition in [c for c in conditions if c == "combined"] or list(conditions[-1:]):
+            for condition in [c for c in conditions if c == paper.COMBINED] or list(conditions[-1:]):
                 a = results[(results.pad == first) & (results.condition == condition)].set_index("specimen")["rmse"]
                 b = results[(results.pad == second) & (results.condition == condition)].set_index("specimen")["rmse"]
                 common = a.index.intersection(b.index)

@@ -16,6 +16,7 @@ import pandas as pd
 from scipy import stats
 
 from ..model.interval import held_out_coverage
+from ..paper import COMBINED
 from .controls import fold_mean_predictions
 
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
@@ -116,7 +117,7 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
     if not fits:
         return pd.DataFrame(columns=UNSURE_COLUMNS)
     conditions = list(dict.fromkeys(f.condition for f in fits))
-    condition = "combined" if "combined" in conditions else conditions[-1]
+    condition = COMBINED if COMBINED in conditions else conditions[-1]
     perceived = analysis.perceived.set_index("specimen")["gmean"]
     rows = []
     for fit in (f for f in fits if f.condition == condition):

@@ -5,6 +5,8 @@ read them from here and tests/test_cli_style.py checks each equals its home's va
 """
 from __future__ import annotations
 
+from ..paper import FINGERPRINT_PAD, SMOOTH_PAD  # no NumPy: paper.py reads its tables on first use
+
 #: roughsense.io.images.DEFAULT_MAX_PIXELS
 DEFAULT_MAX_PIXELS = 100_000_000
 #: roughsense.io.sensor_settings: the paper's camera scale (349 px/cm), its crop and the default ROI.
@@ -16,4 +18,4 @@ MAX_PERMUTATIONS = 10_000
 #: roughsense.sim.pads
 DEFAULT_FINGERPRINT_PERIOD_MM = 1.0
 DEFAULT_RIDGE_HEIGHT_MM = 0.2
-PAD_NAMES = ("smooth", "fingerprint")
+PAD_NAMES = (SMOOTH_PAD, FINGERPRINT_PAD)

@@ -30,38 +30,33 @@ def simulator_fingerprint() -> str:
     return code_fingerprint(*SIMULATOR_ENTRY_POINTS, data_packages=SIMULATOR_DATA)
 
 
+def _stem(seed: int) -> str:
+    return f"simulated-study-seed{seed}"
+
+
 def builtin_study_path(seed: int) -> Path:
     """Where the built-in study of ``seed`` lives (or will live) in the cache."""
-    from .._util.cache import cache_dir
+    from .._util.cache import folder_entry
 
-    return cache_dir() / f"simulated-study-seed{seed}-{simulator_fingerprint()}"
+    return folder_entry(_stem(seed), simulator_fingerprint())
 
 
 def builtin_study(seed: int, jobs: int | None = None) -> Path:
     """The simulated paper study, generated once per seed (and simulator version) into the cache, reused after.
 
-    The simulator builds it beside its cache entry and swaps it in whole, so a killed run leaves no entry (only a
-    partial sibling the next run removes), never a half-written one that later runs would trust.
+    The cache (``_util/cache.cached_folder``) keeps the entry whole; this says what goes in it.
     """
-    import shutil
-
-    from .._util import atomic
-    from .._util.cache import cache_dir
+    from .._util.cache import cached_folder
+    from ..io.study import COMPLETE_MARKER
     from ..sim import simulate as sim
 
-    root = builtin_study_path(seed)
-    if sim.is_complete_simulation(root):
-        return root
-    # Studies an older simulator cached for this seed are roughsense's own cache entries (about 0.4 GB each).
-    for stale in cache_dir().glob(f"simulated-study-seed{seed}-*"):
-        if stale != root and (stale / sim.COMPLETE_MARKER).is_file():
-            shutil.rmtree(stale, ignore_errors=True)
-    for partial in cache_dir().glob(f".simulated-study-seed{seed}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
-        atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
-    print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
-          "later runs reuse it", file=sys.stderr, flush=True)
-    sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
-    return root
+    def simulate(root: Path) -> None:
+        print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
+              "later runs reuse it", file=sys.stderr, flush=True)
+        sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
+
+    return cached_folder(_stem(seed), simulator_fingerprint(), simulate, is_complete=sim.is_complete_simulation,
+                         marker=COMPLETE_MARKER)
 
 
 def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None = None) -> Path:

@@ -19,7 +19,7 @@ def check(folder: Folder) -> None:
     (semicolons, decimal commas) is read with a warning. Nothing is written.
     """
     from ..errors import InputError
-    from ..io.check import check_study
+    from ..io.study_check import check_study
 
     result = check_study(folder)
     if not result.ok:

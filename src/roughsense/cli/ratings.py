@@ -129,8 +129,9 @@ def protocol(
     import numpy as np
 
     from .._util.atomic import check_can_write, write_csv, write_text
-    from ..analysis.ratings import make_schedule, render_sheet
+    from ..analysis.ratings import make_schedule
     from ..io.names import check_name
+    from ..report.ratings_sheet import render_sheet
 
     _check_panel(participants, sessions, 1)  # the counts alone, before anything is read or drawn
     check_seed(seed)

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from .._util.text import counted
+from ..paper import COMBINED
 from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
 from ._defaults import MAX_PERMUTATIONS
 from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
@@ -172,7 +173,7 @@ def unseen_lines(analysis) -> list[str]:
     unseen = analysis.unseen_summary()
     if unseen.empty:
         return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
-    condition = "combined" if (unseen["condition"] == "combined").any() else str(unseen["condition"].iloc[-1])
+    condition = COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
     rows = unseen[unseen["condition"] == condition]
     best = rows.loc[rows["rmse"].idxmin()]
     lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "

@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..analysis.metrics import mean_interval
 from ..model.families import MODEL_FAMILIES
+from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
 from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
 
@@ -163,7 +164,7 @@ def _tagged(column: str, model: str) -> str:
 
 def axis_slice(table: pd.DataFrame, axis: str, order: list) -> tuple[pd.DataFrame, dict | None]:
     """The axis's values with every other design column held at the best design that has this axis."""
-    mask = table["pad"] == "fingerprint" if axis in FINGERPRINT_ONLY else None
+    mask = table["pad"] == FINGERPRINT_PAD if axis in FINGERPRINT_ONLY else None
     anchor = best_design(table, mask)
     if anchor is None:
         return table.iloc[0:0], None
@@ -276,14 +277,14 @@ def _fingerprint_question(results: pd.DataFrame, anchor: dict | None, cv: str) -
     title = "Would a fingerprint pad at human scale (0.5 mm ridge period) recover the smooth pad's accuracy?"
     uncovered = Question(title, False, "", how_to_cover='pad = ["smooth", "fingerprint"] and '
                          'fingerprint_period_mm = [1.0, 0.5] in [axes]')
-    has = (results["pad"] == "smooth").any() and (results["fingerprint_period_mm"] == 0.5).any()
+    has = (results["pad"] == SMOOTH_PAD).any() and (results["fingerprint_period_mm"] == 0.5).any()
     if not has or anchor is None:
         return uncovered
-    ridge = anchor["ridge_height_mm"] if anchor["pad"] == "fingerprint" else PAPER_DESIGN["ridge_height_mm"]
+    ridge = anchor["ridge_height_mm"] if anchor["pad"] == FINGERPRINT_PAD else PAPER_DESIGN["ridge_height_mm"]
     nan = math.nan
-    designs = [("smooth", _with(anchor, pad="smooth", fingerprint_period_mm=nan, ridge_height_mm=nan)),
-               ("fingerprint, 1.0 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=1.0, ridge_height_mm=ridge)),
-               ("fingerprint, 0.5 mm", _with(anchor, pad="fingerprint", fingerprint_period_mm=0.5, ridge_height_mm=ridge))]
+    designs = [("smooth", _with(anchor, pad=SMOOTH_PAD, fingerprint_period_mm=nan, ridge_height_mm=nan)),
+               ("fingerprint, 1.0 mm", _with(anchor, pad=FINGERPRINT_PAD, fingerprint_period_mm=1.0, ridge_height_mm=ridge)),
+               ("fingerprint, 0.5 mm", _with(anchor, pad=FINGERPRINT_PAD, fingerprint_period_mm=0.5, ridge_height_mm=ridge))]
     condition = _condition_of(results, anchor)
     frame = pd.concat([compare(results, designs, condition, c) for c in sorted(set(results["cv"]))])
     judged = frame[(frame["cv"] == cv)].set_index("design")

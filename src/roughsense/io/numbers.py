@@ -141,14 +141,6 @@ def _within(number: float | int, bounds: Real | Integer, whole: bool, noun: str,
     return float(number)
 
 
-def number_or_nan(text: object) -> float:
-    """A cell's number by :func:`parse_number`'s spelling rule (no bounds), or NaN: a table's first pass."""
-    try:
-        return float(parse_number(text))
-    except (NumberError, OverflowError):
-        return math.nan
-
-
 # TOML has number spellings of its own (``1_000``, ``0x10``, ``0o7``, ``0b1``, ``inf``, ``nan``) that its parser turns into
 # numbers before any reader of ours sees the text; a study.toml or sweep file is held to the CSV's spellings instead.
 # tomllib keeps no spelling, so the document it accepted is walked again here, value by value: keys, table headers,

@@ -31,7 +31,7 @@ from .images import DEFAULT_MAX_PIXELS
 from .names import check_name, check_name_column
 from .numbers import BOUNDS, toml_spelling_problem
 from .problems import Problems, attempt, flag, report, same_but_case
-from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, nominal_force_label, parse_forces
+from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
 from .ratings import read_ratings_table
 from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
 from .tables import csv_line, read_table, read_text, refuse_unknown
@@ -100,9 +100,6 @@ class Study:
     @property
     def specimen_names(self) -> list[str]:
         return list(self.specimens["specimen"])
-
-    def condition_labels(self) -> list[str]:
-        return [nominal_force_label(f) for f in self.forces_n]
 
     @property
     def synthetic(self) -> str | None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import pandas as pd
 
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+from ..paper import COMBINED
 from .tables import model_title
 
 
@@ -26,7 +27,7 @@ def answer_lines(analysis) -> list[str]:
 
 
 def _condition(unseen: pd.DataFrame) -> str:
-    return "combined" if (unseen["condition"] == "combined").any() else str(unseen["condition"].iloc[-1])
+    return COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
 
 
 def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:

@@ -1,6 +1,6 @@
 """The report's figures (matplotlib, Agg backend): the paper's Figs. 7-9 and a calibration plot.
 
-Each function returns a Figure so tests and users can inspect it; ``png_bytes`` renders it for the report.
+Each function returns a Figure so tests and users can inspect it; ``figure_bytes`` renders it for the report.
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import pandas as pd
 from matplotlib.ticker import MaxNLocator
 
 from .. import paper
+from ..paper import COMBINED
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
@@ -52,11 +53,6 @@ def page_preview(png: bytes, colours: int = PREVIEW_COLOURS) -> bytes:
     buffer = io.BytesIO()
     palette.save(buffer, format="PNG", optimize=True)
     return buffer.getvalue()
-
-
-def png_bytes(figure, *, dpi: int = DEFAULT_DPI) -> bytes:
-    """Render a figure to PNG bytes and close it."""
-    return figure_bytes(figure, "png", dpi=dpi)
 
 
 def mark_simulated(figure, text: str = "SIMULATED DATA"):
@@ -174,7 +170,7 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
             axes[0, col].plot(x, rows["ovl"], marker=marker, lw=1, label=condition)
             axes[1, col].plot(x, rows["pred_sd"], marker=marker, lw=1, label=f"prediction {condition}")
         axes[1, col].plot(x, human_sd.reindex(names), "k-", marker="*", lw=2, label="participants")
-        published = _paper_rows(pad, "combined").reindex(names)
+        published = _paper_rows(pad, COMBINED).reindex(names)
         if paper and published["ovl"].notna().any():
             axes[0, col].plot(x, published["ovl"], ":", color="0.45", marker=".", lw=1.5, label="paper, combined")
         for row, label in ((0, "OVL"), (1, "SD")):
@@ -209,7 +205,7 @@ def predicted_vs_perceived_figure(results: pd.DataFrame, perceived: pd.DataFrame
             rows = results[(results.pad == pad) & (results.condition == condition)]
             x = truth.reindex(rows["specimen"]).to_numpy() + offset
             ax.errorbar(x, rows["pred_mean"], yerr=rows["pred_sd"], fmt=marker, ms=4, capsize=2, lw=0.8, label=condition)
-        published = _paper_rows(pad, "combined") if allowed(pad) else pd.DataFrame()
+        published = _paper_rows(pad, COMBINED) if allowed(pad) else pd.DataFrame()
         if len(published):
             ax.plot(_paper_perceived().reindex(published.index), published["pred_mean"], "x", color="0.45", ms=5,
                     label="paper, combined")

@@ -28,6 +28,7 @@ from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
 from ..model.families import DEFAULT_MODEL, PLS
+from ..paper import COMBINED
 from . import figures, tables
 from .answer import answer_lines
 
@@ -253,7 +254,7 @@ def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, 
     if "loso" not in results:
         return None
     conditions = list(dict.fromkeys(results["loso"]["condition"]))
-    condition = "combined" if "combined" in conditions else conditions[-1]
+    condition = COMBINED if COMBINED in conditions else conditions[-1]
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
     return _figure(analysis, files, "unseen_surfaces",
                    figures.unseen_figure(results["loso"], analysis.perceived, condition),

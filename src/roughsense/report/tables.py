@@ -12,9 +12,9 @@ import pandas as pd
 
 from .. import paper as published
 from ..model.families import PLS
+from ..paper import COMBINED, FINGERPRINT_PAD
 
-COMBINED = "combined"
-CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", "combined": "Dataset combination"}
+CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", COMBINED: "Dataset combination"}
 
 
 def _num(value, digits: int = 2) -> str:
@@ -205,7 +205,7 @@ def components_table(chosen: pd.DataFrame, nested: dict | None = None, paper_pad
             allowed = paper_pads is None or pad in paper_pads
             paper_n = published.PAPER_BEST_N_COMPONENTS.get((pad, condition)) if cv == "loo" and allowed else None
             paper_rmse = (published.PAPER_FIG8_RMSE.get(paper_n) if cv == "loo" and (pad, condition) ==
-                          ("fingerprint", "combined") else None)
+                          (FINGERPRINT_PAD, COMBINED) else None)
             counts = sorted(nested.get((pad, condition), {}).values()) if cv == "loso" else []
             best_text = str(int(best)) + (f" (nested {counts[0]}–{counts[-1]})" if counts else "")
             cells.append(_cell(best_text, str(paper_n) if paper_n is not None else None))

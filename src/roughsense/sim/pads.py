@@ -7,13 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 
 YOUNG_PA = 0.17e6  # PVC plastisol, paper section 2.2
 POISSON = 0.49  # nearly incompressible rubber-like solid; not in the paper, chosen (docs/simulator.md)
 DEFAULT_FINGERPRINT_PERIOD_MM = 1.0  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
 DEFAULT_RIDGE_HEIGHT_MM = 0.2  # not in the paper; chosen, see docs/simulator.md
 RIDGE_EDGE_MM = 0.05  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
-PAD_NAMES = ("smooth", "fingerprint")
+PAD_NAMES = (SMOOTH_PAD, FINGERPRINT_PAD)
 
 
 @dataclass(frozen=True)
@@ -79,12 +80,12 @@ def make_pad(name: str, *, fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PE
              ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM) -> Pad:
     """``smooth`` or ``fingerprint`` (with a configurable ridge period and height)."""
     key = name.strip().lower()
-    if key == "smooth":
-        return Pad("smooth")
-    if key == "fingerprint":
+    if key == SMOOTH_PAD:
+        return Pad(SMOOTH_PAD)
+    if key == FINGERPRINT_PAD:
         if not (math.isfinite(fingerprint_period_mm) and fingerprint_period_mm > 0):
             raise ConfigError(f"fingerprint period must be a positive number of mm, got {fingerprint_period_mm:g}")
         if not (math.isfinite(ridge_height_mm) and ridge_height_mm > 0):
             raise ConfigError(f"fingerprint ridge height must be a positive number of mm, got {ridge_height_mm:g}")
-        return Pad("fingerprint", period_mm=float(fingerprint_period_mm), ridge_height_mm=float(ridge_height_mm))
+        return Pad(FINGERPRINT_PAD, period_mm=float(fingerprint_period_mm), ridge_height_mm=float(ridge_height_mm))
     raise ConfigError(f"unknown pad {name!r}; expected one of {', '.join(PAD_NAMES)}")

@@ -1,7 +1,8 @@
 """Fitting and validating the simulated finger (:mod:`roughsense.sim.finger`) against given ratings.
 
-The functions take the targets as arguments and read no table: ``scripts/fit_finger.py`` passes the paper's
-values and prints the constants committed in ``finger.py``; the tests run the leave-one-specimen-out check.
+Not part of the package: the fitted constants are committed in ``finger.py``, so only ``fit_finger.py`` beside this
+file (which passes the paper's values and prints those constants) and the tests use it. The functions take the
+targets as arguments and read no table.
 
 Free parameters: the receptor depth (searched over the SA1 range 0.5-1.0 mm), the saturation strain (searched on
 a log grid over 3-30 %) and the psychophysical exponent (least squares in logs, through R3 = 1, in closed form).
@@ -20,9 +21,9 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.stats import spearmanr, wilcoxon
 
-from ..paper import REFERENCE_SPECIMEN
-from .finger import FINGER, Finger, _median_variance, contact_pressures, sa1_rate, subsurface_strain
-from .specimens import PRESETS, Specimen
+from roughsense.paper import REFERENCE_SPECIMEN
+from roughsense.sim.finger import FINGER, Finger, _median_variance, contact_pressures, sa1_rate, subsurface_strain
+from roughsense.sim.specimens import PRESETS, Specimen
 
 DEPTHS_MM = tuple(round(0.5 + 0.05 * i, 2) for i in range(11))  # SA1 (Merkel) depth range, 0.5-1.0 mm
 # SA1 rate-intensity functions are near linear over everyday indentations (docs/simulator.md): a saturation below a

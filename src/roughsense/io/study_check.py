@@ -8,12 +8,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._util.text import counted
 from .problems import MAX_LISTED, Problems
 from .study import load_study
-
-
-def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 @dataclass
@@ -32,12 +29,12 @@ class CheckResult:
 
     def summary(self) -> str:
         """The one line of a folder without problems."""
-        ratings = "no ratings.csv" if self.n_ratings is None else _count(self.n_ratings, "rating")
-        return f"study OK: {_count(self.n_images, 'image')}, {_count(self.n_specimens, 'specimen')}, {ratings}"
+        ratings = "no ratings.csv" if self.n_ratings is None else counted(self.n_ratings, "rating")
+        return f"study OK: {counted(self.n_images, 'image')}, {counted(self.n_specimens, 'specimen')}, {ratings}"
 
     def failure(self) -> str:
         """The one error line after the listed problems."""
-        return (f"{_count(len(self.problems), 'problem')} (listed above); fix them and run "
+        return (f"{counted(len(self.problems), 'problem')} (listed above); fix them and run "
                 "`roughsense check` again")
 
 
