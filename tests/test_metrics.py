@@ -14,7 +14,6 @@ import roughsense
 from roughsense import paper as published
 from roughsense.analysis.metrics import (
     compare_conditions,
-    format_mean_sd,
     overlap,
     shape_summary,
     signed_rank,
@@ -210,7 +209,6 @@ def test_shape_summary_is_mean_and_sample_sd_per_shape_then_all():
     assert summary.loc["circular", "mean"] == pytest.approx(0.7)
     assert summary.loc["circular", "sd"] == pytest.approx(0.2)  # sample SD of 0.5, 0.7, 0.9
     assert summary.loc["all", "n"] == 4 and np.isnan(summary.loc["rectangular", "sd"])
-    assert format_mean_sd(0.5567, 0.1549) == "0.56 ± 0.15"
     with pytest.raises(InputError, match="C4"):
         shape_summary(table, {k: v for k, v in shapes.items() if k != "C4"}, "ovl")
 

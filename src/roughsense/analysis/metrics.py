@@ -186,11 +186,6 @@ def shape_summary(table: pd.DataFrame, shapes: Mapping[str, str], column: str) -
     return pd.DataFrame(rows, columns=["group", "mean", "sd", "n"])
 
 
-def format_mean_sd(mean: float, sd: float, digits: int = 2) -> str:
-    """The paper's "0.52 ± 0.20" notation."""
-    return f"{mean:.{digits}f} ± {sd:.{digits}f}"
-
-
 # --------------------------------------------------------------------------- signed-rank test
 
 

@@ -36,6 +36,7 @@ from ..paper import (
     PAPER_SESSIONS,
     PAPER_SPECIMENS,
     REFERENCE_SPECIMEN,
+    SMOOTH_PAD,
 )
 from ..sensor.settings import SPECTRUM_DEFAULTS
 from ..sim.limits import pad_problem, panel_problem, specimen_problem
@@ -72,7 +73,7 @@ FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless f
 MODEL_KEY = "model"
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
 DEFAULTS = {
-    "pad": "smooth", "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
+    "pad": SMOOTH_PAD, "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
     "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": PAPER_FORCES_N,
     "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": "paper",
 }
@@ -395,7 +396,7 @@ def _check_size(path: Path, fixed: dict, axes: dict[str, list], run: dict) -> No
     field lengths that would make the same frame; counted from the axes, so nothing is built to find out."""
     cells = 0
     for pad in _values("pad", fixed, axes):
-        grid = math.prod(len(v) for k, v in axes.items() if k != "pad" and not (pad == "smooth" and k in FINGERPRINT_ONLY))
+        grid = math.prod(len(v) for k, v in axes.items() if k != "pad" and not (pad == SMOOTH_PAD and k in FINGERPRINT_ONLY))
         cells += grid * len(run["seeds"])
     if cells > MAX_CELLS:
         sizes = " x ".join(f"{len(v)} {k}" for k, v in axes.items())
@@ -446,7 +447,7 @@ def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
     points, seen = [], set()
     for combo in itertools.product(*(axes[k] for k in keys)):
         point = {**fixed, **dict(zip(keys, combo))}
-        if point["pad"] == "smooth":
+        if point["pad"] == SMOOTH_PAD:
             for key in FINGERPRINT_ONLY:
                 point[key] = None
         signature = json.dumps({k: _label(k, v) for k, v in point.items()}, sort_keys=True)

@@ -569,10 +569,6 @@ def predict_law(features: np.ndarray, intercept: float, coef: np.ndarray, low: n
     return np.exp(intercept + np.clip(features, low, high) @ np.asarray(coef, dtype=np.float64))
 
 
-def outside_range(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    return np.any(outside_each(features, low, high), axis=1)
-
-
 def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """(n, 2) booleans: which of a row's two features lies outside the range (rounding aside)."""
     return (features < low - _RANGE_TOL) | (features > high + _RANGE_TOL)

@@ -134,17 +134,6 @@ def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
 
 
-def score_and_flag(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                   override: SensorOverride | None = None, surfaces=None) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted roughness and whether each prediction lies outside the model's domain, from one pass over the images.
-
-    ``surfaces``: one label per trial; trials with the same label are presses of one surface (a peak law reads
-    their period together).
-    """
-    scores = score_trials(loaded, images, n_jobs=n_jobs, progress=progress, override=override, surfaces=surfaces)
-    return scores.roughness, scores.flagged
-
-
 @dataclass(frozen=True)
 class Scores:
     """Per trial: roughness, its interval (NaN without one) and what lies outside the model's domain ('' if
