@@ -11,7 +11,7 @@ Three stages, each after a published account of macroscopic roughness (spatial c
    (Flamant) kernels in Fourier form (Johnson 1985, section 2.8): a pressure harmonic P cos(kx) gives
    sigma_z = -P (1 + kz) e^(-kz), sigma_x = -P (1 - kz) e^(-kz), sigma_y = nu (sigma_x + sigma_z). The SA1 drive is
    the compressive vertical strain there, turned into a saturating drive r = 1 - exp(-strain / saturation_strain)
-   (not rectified: tension between contacts lowers it; docs/simulator.md compares the alternatives). Roughness
+   (not rectified: tension between contacts lowers it; CHANGELOG.md records the alternatives compared). Roughness
    follows the *spatial variation* of SA1 firing (Connor & Johnson 1992; Blake, Hsiao & Johnson 1997), summarised by
    the SD of r along the line: the root-mean-square
    difference between two receptors, averaged over all their separations, is sqrt(2) times that SD.
