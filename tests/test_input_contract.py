@@ -26,6 +26,8 @@ from roughsense.io.tables import dump_toml
 from roughsense.io.writer import StudyWriter
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
+FORCES_TOML = "forces_n = [\n    1.0,\n    2.0,\n    3.0,\n]"  # the writer's study.toml (tomli-w: an item a line)
+
 SPECIMENS = ("R2", "R3", "R4", "C2")
 
 
@@ -267,13 +269,20 @@ def test_header_size_matches_the_decoded_image(ext, width, height, colour, deep)
     assert header_size(encoded) == (decoded.shape[1], decoded.shape[0])
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.int16])
+def test_header_size_of_a_tiff_pillow_cannot_open(dtype):
+    ok, encoded = cv2.imencode(".tif", np.zeros((7, 5, 3), dtype))  # OpenCV reads these; Pillow has no mode for them
+    assert ok and cv2.imdecode(encoded, cv2.IMREAD_UNCHANGED).shape == (7, 5, 3)
+    assert header_size(encoded) == (5, 7)
+
+
 def test_bomb_headers_of_every_format_are_refused(tmp_path, no_decoding):
     from roughsense.io.images import check_pixels
 
     jpeg = b"\xff\xd8\xff\xc0\x00\x11\x08" + struct.pack(">HH", 60000, 60000) + b"\x03" + b"\x00" * 9
     tiff = b"II*\x00\x08\x00\x00\x00" + struct.pack("<H", 2) + struct.pack("<HHII", 256, 4, 1, 60000) \
         + struct.pack("<HHII", 257, 4, 1, 60000) + b"\x00" * 4
-    bmp = b"BM" + b"\x00" * 12 + struct.pack("<Iii", 40, 60000, -60000) + b"\x00" * 30
+    bmp = b"BM" + b"\x00" * 12 + struct.pack("<IiiHH", 40, 60000, -60000, 1, 24) + b"\x00" * 30
     for name, data in (("b.jpg", jpeg), ("b.tif", tiff), ("b.bmp", bmp), ("b.png", png_claiming(60000, 60000))):
         with pytest.raises(InputError, match="60000 x 60000 px"):
             check_pixels(np.frombuffer(data, np.uint8), 100_000_000, tmp_path / name)
@@ -337,8 +346,8 @@ def test_the_features_key_covers_study_toml(sandbox):
     key = cache.features_key(loaded, {"x": 1})
     toml = sandbox / "study.toml"
     text = toml.read_text()
-    assert "forces_n = [1.0, 2.0, 3.0]" in text
-    toml.write_text(text.replace("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1, 2, 3]"))
+    assert FORCES_TOML in text
+    toml.write_text(text.replace(FORCES_TOML, "forces_n = [1, 2, 3]"))
     assert cache.features_key(read_study(sandbox), {"x": 1}) != key
     toml.write_text(text)
     assert cache.features_key(read_study(sandbox), {"x": 1}) == key
@@ -427,9 +436,9 @@ def test_one_participant_left_is_one_line_not_a_numpy_warning(run_cli, sandbox, 
 @pytest.mark.parametrize("old, new, message", [
     ('roi = "center"', "roi = [true, 0, 1900, 150]", "not true/false"),
     ("px_per_mm = 34.9", "px_per_mm = true", "px_per_mm must be a positive number"),
-    ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [true, 2, 3]", "got True"),
-    ("forces_n = [1.0, 2.0, 3.0]", "forces_n = [1e308, 2, 3]", "up to 100"),
-    ("forces_n = [1.0, 2.0, 3.0]", 'forces_n = "1,2,3"', "non-empty list of numbers"),
+    (FORCES_TOML, "forces_n = [true, 2, 3]", "got True"),
+    (FORCES_TOML, "forces_n = [1e308, 2, 3]", "up to 100"),
+    (FORCES_TOML, 'forces_n = "1,2,3"', "non-empty list of numbers"),
     ('roi = "center"', 'roi = "center"\nmax_pixels = true', "max_pixels must be a whole number of pixels from 1 to"),
     ('name = "simulated"', "name = [1]", "[study] name must be text"),
 ])

@@ -6,6 +6,7 @@ hand with the PID of a process that has ended.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import signal
@@ -198,33 +199,64 @@ def test_released_on_error_and_on_ctrl_c(tmp_path, run_cli):
     with output_lock(out), output_lock(out):  # the CLI's lock around the library's: the same run, not a second one
         pass
     assert not lock_path(out).exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["mine"]  # nothing of the lock's is left beside the folder
 
 
-def test_without_flock_a_live_pid_holds_the_lock_and_a_dead_one_does_not(tmp_path, monkeypatch):
-    monkeypatch.setattr(lock_module, "_flock", lambda fd: None)  # a file system without flock
+def _no_flock(*args):
+    raise OSError(errno.ENOSYS, "Function not implemented")
+
+
+_HOLD_WITHOUT_FLOCK = """
+import errno, fcntl
+def no_flock(*args):
+    raise OSError(errno.ENOSYS, "Function not implemented")
+fcntl.flock = no_flock
+""" + _HOLD
+
+
+def test_without_flock_a_live_run_holds_the_lock_and_a_killed_one_does_not(tmp_path, monkeypatch):
+    """A file system without flock: filelock's marker file stands in, and a killed run's marker is taken over."""
+    import fcntl
+
+    monkeypatch.setattr(fcntl, "flock", _no_flock)
     out = tmp_path / "out"
-    host = socket.gethostname()
-    for pid, where, refused in ((os.getppid(), host, "PID"), (_dead_pid(), "elsewhere", "if it is not running, delete"),
-                                (_dead_pid(), host, None)):
-        lock_path(out).write_text(json.dumps({"pid": pid, "host": where, "started": "then"}))
-        if refused:
-            with pytest.raises(OutputBusyError, match=refused):
-                output_lock(out).__enter__()
-            assert json.loads(lock_path(out).read_text())["pid"] == pid  # left as it was
-        else:
-            with pytest.warns(UserWarning, match=f"PID {pid}"), output_lock(out):
-                pass
-            assert not lock_path(out).exists()
+    process = subprocess.Popen([sys.executable, "-c", _HOLD_WITHOUT_FLOCK, str(out)], env=ENV, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        assert process.stdout.readline().strip() == b"held", process.stderr.read()
+        with pytest.raises(OutputBusyError, match=f"PID {process.pid} on {socket.gethostname()}"):
+            output_lock(out).__enter__()
+        assert json.loads(lock_path(out).read_text())["pid"] == process.pid  # left as it was
+    finally:
+        process.kill()  # kill -9: nothing is cleaned up
+        process.wait()
+    assert lock_path(out).exists()
+    with pytest.warns(UserWarning, match=f"took over the lock of a run that has ended .*PID {process.pid}"), \
+            output_lock(out):
+        pass
+    assert not lock_path(out).exists()
 
 
-def test_the_lock_file_is_roughsense_own():
+def test_a_killed_runs_lock_is_taken_over(tmp_path):
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-c", _HOLD, str(out)], env=ENV, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    assert process.stdout.readline().strip() == b"held", process.stderr.read()
+    process.kill()
+    process.wait()
+    with pytest.warns(UserWarning, match=f"PID {process.pid}"), output_lock(out):
+        pass
+    assert not lock_path(out).exists()
+
+
+def test_the_lock_files_are_roughsense_own():
     assert atomic.is_temporary(lock_path("some/out")) and lock_path("some/out").name == ".out.roughsense-lock"
+    assert atomic.is_temporary(Path("some/.out.roughsense-lock.flock"))
 
 
 def test_a_parent_folder_one_cannot_write_is_named_with_what_to_do(tmp_path, monkeypatch):
     """The lock lives beside --out; where the parent is not writable (another user's folder) the line says so,
     instead of the misleading 'No such file or directory' of the read-only fallback."""
-    from roughsense._util import lock as lock_module
     from roughsense.errors import RoughsenseError
 
     real_open = os.open

@@ -94,6 +94,23 @@ def test_the_wheel_holds_the_data_and_the_entry_point(dist):
     assert not any("/tests/" in n or n.startswith(("tests/", "build/")) for n in names)
 
 
+def _requires(wheel: Path) -> list[str]:
+    metadata = zipfile.ZipFile(wheel).read(f"roughsense-{VERSION}.dist-info/METADATA").decode()
+    return [line.removeprefix("Requires-Dist:").strip() for line in metadata.splitlines()
+            if line.startswith("Requires-Dist:")]
+
+
+def test_the_wheel_requires_no_contact_mechanics_chain_at_run_time(dist):
+    """ContactMechanics (GPL-3, with muFFT and NuMPI) only checks the twin in a test: a user's install never pulls it."""
+    requires = _requires(dist["wheel"])
+    assert any(r.startswith("numpy") for r in requires)
+    chain = ("contactmechanics", "mufft", "numpi", "surfacetopography")
+    runtime = [r for r in requires if "extra ==" not in r]
+    assert not [r for r in runtime if r.lower().startswith(chain)], runtime
+    assert all('extra == "test"' in r for r in requires if r.lower().startswith(chain))
+    assert any(r.lower().startswith("contactmechanics") for r in requires)  # still in the test extra
+
+
 def test_the_sdist_holds_the_sources_docs_tests_and_example(dist):
     prefix = f"roughsense-{VERSION}/"
     with tarfile.open(dist["sdist"]) as sdist:
@@ -136,6 +153,8 @@ def _example_from_the_installed_package(bin_dir: Path, tmp_path: Path, env: dict
 
 
 def test_the_wheel_installs_and_runs_in_a_clean_venv(clean_venv, dist, tmp_path):
+    listed = _run([clean_venv / "bin" / "python", "-m", "pip", "list", "--format=freeze"]).stdout.lower()
+    assert not [n for n in ("contactmechanics", "mufft", "numpi") if f"\n{n}==" in f"\n{listed}"], listed
     _check_installed(clean_venv, tmp_path / "wheel")
     # The report renders from the installed template, with the paper's published values from the installed tables.
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROUGHSENSE_DEBUG")}

@@ -148,7 +148,8 @@ def write_csv(path: str | os.PathLike[str], frame, **to_csv_kwargs) -> Path:
 
 PARTIAL_TAG = ".roughsense-partial-"
 RETIRED_TAG = ".roughsense-retired-"
-LOCK_TAG = ".roughsense-lock"  # _util/lock.py: a running command's claim on the folder of that name
+LOCK_TAG = ".roughsense-lock"  # _util/lock.py: who holds the claim of a running command on the folder of that name
+FLOCK_SUFFIX = ".flock"  # _util/lock.py: ``.NAME.roughsense-lock.flock``, the file filelock holds the claim on
 MAX_CARRIED_FILES = 1000  # beyond this, --out is somebody's working folder, not an output folder
 _RENAME_EXCHANGE = 2  # linux/fs.h
 _TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp in atomic_open (older versions: no PID)
@@ -156,10 +157,10 @@ _TEMP_FILE = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")  # mkstemp in atomic_open 
 
 def is_temporary(path: str | os.PathLike[str]) -> bool:
     """True for a temporary file of :func:`atomic_open` (``.NAME.PID.XXXXXXXX.tmp``), a staging/retired folder or a
-    lock file (``.NAME.roughsense-lock``)."""
+    lock's files (``.NAME.roughsense-lock`` and ``.NAME.roughsense-lock.flock``)."""
     name = Path(path).name
     return (bool(_TEMP_FILE.match(name)) or PARTIAL_TAG in name or RETIRED_TAG in name
-            or (name.startswith(".") and name.endswith(LOCK_TAG)))
+            or (name.startswith(".") and name.endswith((LOCK_TAG, LOCK_TAG + FLOCK_SUFFIX))))
 
 
 def _pid_alive(pid: int) -> bool:
@@ -337,13 +338,14 @@ class FolderSwap:
 
 
 @contextlib.contextmanager
-def staged_folder(target: str | os.PathLike[str], *, owned=lambda rel: True) -> Iterator[Path]:
+def staged_folder(target: str | os.PathLike[str] | FolderSwap, *, owned=lambda rel: True) -> Iterator[Path]:
     """``with staged_folder(out) as tmp:`` write everything into ``tmp``; on a clean exit it becomes ``out``.
 
     On an exception nothing changes at ``out``; on a kill, a ``.out.roughsense-partial-*`` sibling remains and
-    the next run into ``out`` removes it.
+    the next run into ``out`` removes it. ``target`` may be a :class:`FolderSwap` made earlier, so that an
+    unwritable place fails before long work rather than after it.
     """
-    swap = FolderSwap(target, owned=owned)
+    swap = target if isinstance(target, FolderSwap) else FolderSwap(target, owned=owned)
     try:
         yield swap.path
     except BaseException:

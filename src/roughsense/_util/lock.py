@@ -4,18 +4,17 @@ Two runs into one folder each write whole files, yet leave a folder that is neit
 the cells of two sweeps under one sweep.toml, a capture's frames beside a simulation's). So the second run is
 refused at once, with one line naming the first (its PID, host and start time).
 
-The lock is a file *beside* the folder, ``.NAME.roughsense-lock``, not inside it: simulate, study and example swap
-the whole folder, which would carry a lock inside along with it. Who holds it is the kernel's answer, not the
-file's: the holder keeps an ``flock`` on the file, which the OS drops however the process ends (even kill -9),
-so a lock file that nobody holds is a dead run's and is taken over, with a warning naming it. The file's text
-(PID, host, start time) only tells the refused run whom it waits for. Where a file system has no ``flock``, a
-lock whose PID is not alive on this host counts as dead.
+The lock lives *beside* the folder, not inside it: simulate, study and example swap the whole folder, which would
+carry a lock inside along with it. Two files: ``filelock`` holds the kernel's lock on
+``.NAME.roughsense-lock.flock`` (an ``flock`` the OS drops however the process ends, even kill -9; on a file system
+without one, filelock's marker file, broken when its PID is gone), and ``.NAME.roughsense-lock`` records who holds
+it (PID, host, start time) so a refused run can say whom it waits for. The record is kept apart because filelock
+owns its file's content. A record found when the lock is free is a dead run's: it is taken over, with a warning
+naming it.
 """
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import json
 import os
 import socket
@@ -26,13 +25,14 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ..errors import RoughsenseError, RoughsenseWarning
-from .atomic import LOCK_TAG, _pid_alive
+import filelock
 
-_ATTEMPTS = 20  # a holder releasing between our open and our flock: try again on the new file
-_READ_WAIT_S = 1.0  # a holder that has just taken the file writes its PID within milliseconds
-_NO_FLOCK = (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL)
-_HELD: dict[Path, int] = {}  # lock files this process holds: a command's library call may take its CLI's lock again
+from ..errors import RoughsenseError, RoughsenseWarning
+from .atomic import FLOCK_SUFFIX, LOCK_TAG
+
+_READ_WAIT_S = 1.0  # a holder that has just taken the lock writes its record within milliseconds
+_RETRY_S = 0.2  # a lock file removed by a run letting go as we took it: filelock tries again on the new one
+_HELD: dict[Path, int] = {}  # locks this process holds: a command's library call may take its CLI's lock again
 
 
 class OutputBusyError(RoughsenseError):
@@ -41,7 +41,7 @@ class OutputBusyError(RoughsenseError):
 
 @dataclass(frozen=True)
 class Holder:
-    """What a lock file says about the run that made it."""
+    """What a lock's record says about the run that made it."""
 
     pid: int | None
     host: str = "?"
@@ -55,7 +55,7 @@ class Holder:
 
 
 def lock_path(out: str | os.PathLike[str]) -> Path:
-    """The lock file of ``out``: beside the real folder, so every spelling of one folder shares one lock."""
+    """The lock's record of ``out``: beside the real folder, so every spelling of one folder shares one lock."""
     real = Path(os.path.realpath(os.path.abspath(out)))
     return real.parent / f".{real.name}{LOCK_TAG}"
 
@@ -71,30 +71,13 @@ def _parse(text: bytes) -> Holder | None:
         return None
 
 
-def _read(fd: int) -> Holder | None:
-    return _parse(os.pread(fd, 4096, 0)) if os.fstat(fd).st_size else None
-
-
-def _flock(fd: int) -> bool | None:
-    """True: the lock is ours; False: a live process holds it; None: this file system has no flock."""
+def _read(path: Path) -> bytes:
+    """The record's bytes (at most 4 kB); empty if there is none."""
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return False
-    except OSError as exc:
-        if exc.errno in _NO_FLOCK:
-            return None
-        raise
-    return True
-
-
-def _same_file(fd: int, path: Path) -> bool:
-    """Is the file we locked still the one at ``path``? (A releasing holder unlinks it before letting go.)"""
-    try:
-        here, ours = os.stat(path, follow_symlinks=False), os.fstat(fd)
-    except FileNotFoundError:
-        return False
-    return (here.st_dev, here.st_ino) == (ours.st_dev, ours.st_ino)
+        with open(path, "rb") as handle:
+            return handle.read(4096)
+    except OSError:
+        return b""
 
 
 class OutputLock:
@@ -104,9 +87,8 @@ class OutputLock:
         self.out = Path(out)
         self.path = lock_path(out)
         self.command = command
-        self._fd: int | None = None
+        self._lock: filelock.BaseFileLock | None = None
         self._owner = os.getpid()
-        self._nested = False
 
     def __enter__(self) -> OutputLock:
         self.acquire()
@@ -116,51 +98,48 @@ class OutputLock:
         self.release()
 
     def acquire(self) -> None:
-        if self.path in _HELD and _HELD[self.path] == os.getpid():
-            self._nested = True  # this process already holds it (the CLI around the library): nothing to take
-            return
-        for _ in range(_ATTEMPTS):
-            fd = self._open()
-            try:
-                taken = _flock(fd)
-                if taken is False:
-                    raise self._busy(self._wait_for_holder(fd))
-                if taken is None:
-                    self._check_without_flock(fd)
-                if taken and not _same_file(fd, self.path):
-                    os.close(fd)
-                    continue
-                self._take(fd)
-                return
-            except BaseException:
-                if self._fd != fd:
-                    with contextlib.suppress(OSError):
-                        os.close(fd)
-                raise
-        raise OutputBusyError("another run keeps taking and releasing this folder's lock; try again", path=self.out)
-
-    def _open(self) -> int:
-        flags = os.O_NOFOLLOW | os.O_CLOEXEC
+        if _HELD.get(self.path) == os.getpid():
+            return  # this process already holds it (the CLI around the library): nothing to take
+        lock = filelock.FileLock(_flock_path(self.path), timeout=_RETRY_S)
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # filelock's note when it falls back to a marker file: the record says who
+                lock.acquire()
+        except filelock.Timeout:
+            if not os.path.lexists(lock.lock_file):  # no run holds a file there: the place would not let one be made
+                self._refuse_place(lock.lock_file)
+            raise self._busy(self._wait_for_holder()) from None
+        except OSError as exc:
+            self._refuse_place(lock.lock_file, exc)
+        try:
+            self._take()
+        except BaseException:
+            lock.release()
+            raise
+        self._lock = lock
+        _HELD[self.path] = os.getpid()
+
+    def _refuse_place(self, path: str, exc: OSError | None = None) -> None:
+        """The lock file cannot be made beside ``out``: one line with the OS's reason (asked again if not known)."""
+        if exc is None:
             try:
-                return os.open(self.path, os.O_RDWR | os.O_CREAT | flags, 0o666)
-            except PermissionError:  # another user's lock file: reading it is enough to name its holder
-                if not self.path.exists():
-                    raise PermissionError(errno.EACCES, os.strerror(errno.EACCES)) from None
-                return os.open(self.path, os.O_RDONLY | flags)
-        except PermissionError:
+                os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
+                os.unlink(path)
+            except OSError as error:
+                exc = error
+            else:  # it can be made after all: a run was letting go as we looked
+                raise self._busy(self._wait_for_holder())
+        if isinstance(exc, PermissionError):
             raise RoughsenseError(
                 f"cannot create the lock file {self.path.name} beside it in {self.path.parent}: permission denied "
                 "(a run locks its output from the parent folder; choose an --out whose parent you can write)",
                 path=self.out) from None
-        except OSError as exc:
-            raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=self.out) from None
+        raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=self.out) from None
 
-    def _wait_for_holder(self, fd: int) -> Holder | None:
-        """The holder's details; a holder that took the file a moment ago may not have written them yet."""
+    def _wait_for_holder(self) -> Holder | None:
+        """The holder's record; a holder that took the lock a moment ago may not have written it yet."""
         deadline = time.monotonic() + _READ_WAIT_S
-        while (holder := _read(fd)) is None and time.monotonic() < deadline:
+        while (holder := _parse(_read(self.path))) is None and time.monotonic() < deadline:
             time.sleep(0.02)
         return holder
 
@@ -169,21 +148,10 @@ class OutputLock:
         return OutputBusyError(f"another run is writing this folder ({who}); wait for it to end, or stop it",
                                path=self.out)
 
-    def _check_without_flock(self, fd: int) -> None:
-        """No flock here: a PID alive on this host (or any PID on another host, which cannot be asked) holds it."""
-        holder = _read(fd)
-        if holder is None or holder.pid is None:
-            return
-        if holder.host != socket.gethostname():
-            raise OutputBusyError(f"another run may be writing this folder ({holder.describe()}); if it is not "
-                                  f"running, delete {self.path}", path=self.out)
-        if _pid_alive(holder.pid) and holder.pid != os.getpid():
-            raise self._busy(holder)
-
-    def _take(self, fd: int) -> None:
-        """Write our details over a dead run's (saying so), and keep the file open: the flock lives with it."""
-        if os.fstat(fd).st_size:  # a dead run's file (a live run's is held, a released one removed)
-            stale = _read(fd) or Holder(None, command=f"its lock file {self.path.name} did not read back")
+    def _take(self) -> None:
+        """Write our record over a dead run's (saying so): with the lock ours, any record left is from a run that ended."""
+        if stale_text := _read(self.path):
+            stale = _parse(stale_text) or Holder(None, command=f"its lock file {self.path.name} did not read back")
             warnings.warn(RoughsenseWarning(
                 f"{self.out}: took over the lock of a run that has ended ({stale.describe()}); a folder it was "
                 "writing is checked as usual"), stacklevel=4)
@@ -191,26 +159,52 @@ class OutputLock:
         text = json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "started": started,
                            "command": f"roughsense {self.command}".strip()})
         try:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, (text + "\n").encode("utf-8"), 0)
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.path)  # another user's record cannot be rewritten in place, but can be replaced
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+            with os.fdopen(fd, "w", encoding="utf-8") as handle:
+                handle.write(text + "\n")
         except OSError as exc:
             raise RoughsenseError(f"cannot write here: {exc.strerror or exc} (the lock file {self.path} of a run "
                                   "that has ended; delete it)", path=self.out) from None
-        self._fd = fd
-        _HELD[self.path] = os.getpid()
 
     def release(self) -> None:
-        """Remove the file, then let go (in that order, so a waiting run never locks a file already removed)."""
-        fd, self._fd = self._fd, None
-        if fd is None or os.getpid() != self._owner:
+        """Remove the record, then let go (in that order, so the next run never finds our record and takes it for
+        a dead run's)."""
+        lock, self._lock = self._lock, None
+        if lock is None or os.getpid() != self._owner:
             return
         _HELD.pop(self.path, None)
         try:
-            if _same_file(fd, self.path):
-                with contextlib.suppress(OSError):
-                    os.unlink(self.path)
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
         finally:
-            os.close(fd)
+            lock.release()
+            _remove_if_free(_flock_path(self.path))
+
+
+def _flock_path(record: Path) -> Path:
+    return record.with_name(record.name + FLOCK_SUFFIX)
+
+
+def _remove_if_free(path: Path) -> None:
+    """Delete filelock's file (which it keeps) when no run holds it, so a finished run leaves nothing beside ``out``.
+
+    It is taken again and unlinked while held: a run that opened it a moment before locks a file that is gone,
+    which filelock notices and retries on a new one (within ``_RETRY_S``).
+    """
+    probe = filelock.FileLock(path, timeout=0)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            probe.acquire()
+    except (filelock.Timeout, OSError):
+        return  # another run has it now
+    try:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+    finally:
+        probe.release()
 
 
 @contextlib.contextmanager

@@ -51,7 +51,7 @@ def _files(node, prefix: Path = Path()) -> list[tuple[Path, bytes]]:
 
 def _copy_folder(node, out: Path, force: bool) -> int:
     """Swap in a whole copy (a killed run leaves the earlier folder); with --force the user's own files are kept."""
-    from .._util.atomic import FolderSwap
+    from .._util.atomic import staged_folder
     from .._util.lock import output_lock
     from ..io.writer import refuse_captured
 
@@ -61,15 +61,10 @@ def _copy_folder(node, out: Path, force: bool) -> int:
         refuse_captured(out, "an example is not copied over captured frames; choose a new folder")
         content = _files(node)
         ours = {str(rel) for rel, _ in content} | {str(parent) for rel, _ in content for parent in rel.parents}
-        swap = FolderSwap(out, owned=lambda rel: str(rel) in ours)
-        try:
+        with staged_folder(out, owned=lambda rel: str(rel) in ours) as folder:
             for rel, data in content:
-                (swap.path / rel).parent.mkdir(parents=True, exist_ok=True)
-                (swap.path / rel).write_bytes(data)
-        except BaseException:
-            swap.abort()
-            raise
-        swap.commit()
+                (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+                (folder / rel).write_bytes(data)
     return len(content)
 
 

@@ -1,14 +1,18 @@
 """Image decoding and MATLAB-compatible grayscale: the only place that decodes image files.
 
 Decoding goes through OpenCV (``imdecode`` releases the GIL, so a thread pool scales over files) and keeps
-the file's bit depth, so 16-bit images are not silently reduced to 8 bits. Failures become one
-:class:`~roughsense.errors.InputError` naming the file, never a codec message on stderr.
+the file's bit depth, so 16-bit images are not silently reduced to 8 bits. Headers are read with Pillow,
+which reads only the header. Failures become one :class:`~roughsense.errors.InputError` naming the file,
+never a codec message on stderr.
 """
 from __future__ import annotations
 
 import contextlib
+import io
 import os
+import threading
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +33,8 @@ MAX_PIXELS_LIMIT = 2**30
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_MODES = {0: "L", 2: "RGB", 6: "RGBA"}  # 8-bit colour types whose rows Pillow's "zip" decoder unpacks as they are
+_PILLOW_GUARD = threading.Lock()  # Pillow's bomb limit is a module global: one header read at a time lifts it
 _cv2 = None
 
 
@@ -44,27 +50,29 @@ def _opencv():
     return _cv2
 
 
+def _png_chunks(raw: memoryview) -> Iterator[tuple[memoryview, memoryview, int]]:
+    """(type, body, stored CRC) of each chunk after the signature; stops at a chunk the file cuts short."""
+    pos = len(_PNG_SIGNATURE)
+    while pos + 12 <= len(raw):
+        end = pos + 12 + int.from_bytes(raw[pos : pos + 4], "big")
+        if end > len(raw):
+            return
+        yield raw[pos + 4 : pos + 8], raw[pos + 8 : end - 4], int.from_bytes(raw[end - 4 : end], "big")
+        pos = end
+
+
 def _png_is_complete(data: np.ndarray) -> bool:
-    """Walk the PNG chunk list and check every chunk's CRC.
+    """Check every chunk's CRC, up to IEND.
 
     A truncated or corrupted file is refused here, before a decoder sees it: libpng would print its own
     message to stderr, and a decoder that stops early (see :func:`decode_png_top_rows`) would not notice
     damage below the rows it reads. The CRCs cost about 2 % of a full decode.
     """
-    raw = data.data
-    size = len(raw)
-    pos = len(_PNG_SIGNATURE)
-    while pos + 12 <= size:
-        length = int.from_bytes(raw[pos : pos + 4], "big")
-        end = pos + 12 + length
-        if end > size:
+    for kind, body, stored in _png_chunks(data.data):
+        if zlib.crc32(body, zlib.crc32(kind)) != stored:
             return False
-        stored = int.from_bytes(raw[end - 4 : end], "big")
-        if zlib.crc32(raw[pos + 4 : end - 4]) != stored:
-            return False
-        if bytes(raw[pos + 4 : pos + 8]) == b"IEND":
+        if kind == b"IEND":
             return True
-        pos = end
     return False
 
 
@@ -100,101 +108,43 @@ def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
 def header_size(data: np.ndarray) -> tuple[int, int] | None:
     """(width, height) in pixels from the file's header alone, or None if the format is not recognised.
 
-    Parsed by hand for PNG (IHDR), JPEG (the SOF marker), TIFF (the first IFD, the page OpenCV decodes) and
-    BMP; any other format is asked of Pillow, whose ``Image.open`` reads only the header. Nothing is decoded,
-    so a file claiming billions of pixels costs nothing to inspect.
+    Pillow's ``Image.open`` reads the header and decodes nothing, so a file claiming billions of pixels costs
+    nothing to inspect. Its own bomb guard is lifted for the call: it warns on stderr above 89 Mpx and refuses
+    above 179 Mpx without giving the size, where ours is a setting (:func:`check_pixels`) and names the size.
     """
-    raw = bytes(data[:32])
-    if raw[:8] == _PNG_SIGNATURE:
-        if len(raw) < 24 or raw[12:16] != b"IHDR":
-            return None
-        return int.from_bytes(raw[16:20], "big"), int.from_bytes(raw[20:24], "big")
-    if raw[:2] == b"\xff\xd8":
-        return _jpeg_size(data)
-    if raw[:4] in (b"II*\x00", b"MM\x00*"):
-        return _tiff_size(data)
-    if raw[:2] == b"BM" and len(raw) >= 26:
-        header_bytes = int.from_bytes(raw[14:18], "little")
-        if header_bytes == 12:  # OS/2 BITMAPCOREHEADER: 16-bit sizes
-            return int.from_bytes(raw[18:20], "little"), int.from_bytes(raw[20:22], "little")
-        width = int.from_bytes(raw[18:22], "little", signed=True)
-        height = int.from_bytes(raw[22:26], "little", signed=True)
-        return abs(width), abs(height)  # a negative height is a top-down bitmap
-    return _pillow_size(data)
-
-
-def _jpeg_size(data: np.ndarray) -> tuple[int, int] | None:
-    """Walk the JPEG markers up to the first start-of-frame (SOF0..SOF15 but DHT, JPG, DAC)."""
-    raw = data.data
-    size = len(raw)
-    pos = 2
-    while pos + 4 <= size:
-        if raw[pos] != 0xFF:
-            return None
-        marker = raw[pos + 1]
-        if marker == 0xFF:  # fill byte
-            pos += 1
-            continue
-        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length
-            pos += 2
-            continue
-        length = int.from_bytes(raw[pos + 2 : pos + 4], "big")
-        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            if pos + 9 > size:
-                return None
-            height = int.from_bytes(raw[pos + 5 : pos + 7], "big")
-            width = int.from_bytes(raw[pos + 7 : pos + 9], "big")
-            return width, height
-        if marker == 0xDA or length < 2:  # start of scan before any frame header: not a JPEG we know
-            return None
-        pos += 2 + length
-    return None
-
-
-def _tiff_size(data: np.ndarray) -> tuple[int, int] | None:
-    """ImageWidth (256) and ImageLength (257) from the first IFD of a classic TIFF."""
-    raw = data.data
-    order = "little" if bytes(raw[:2]) == b"II" else "big"
-    size = len(raw)
-    offset = int.from_bytes(raw[4:8], order)
-    if offset + 2 > size:
-        return None
-    count = int.from_bytes(raw[offset : offset + 2], order)
-    width = height = None
-    for k in range(count):
-        entry = offset + 2 + 12 * k
-        if entry + 12 > size:
-            return None
-        tag = int.from_bytes(raw[entry : entry + 2], order)
-        kind = int.from_bytes(raw[entry + 2 : entry + 4], order)
-        if tag in (256, 257):
-            value = int.from_bytes(raw[entry + 8 : entry + 10], order) if kind == 3 else int.from_bytes(
-                raw[entry + 8 : entry + 12], order)
-            if tag == 256:
-                width = value
-            else:
-                height = value
-    return (width, height) if width is not None and height is not None else None
-
-
-def _pillow_size(data: np.ndarray) -> tuple[int, int] | None:
-    import io
-    import warnings
-
     from PIL import Image
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # Pillow's own DecompressionBombWarning: our limit decides
-            with Image.open(io.BytesIO(data.data)) as image:
-                return tuple(image.size)
-    except Image.DecompressionBombError:  # more than twice Pillow's limit (about 179 Mpx)
-        return _HUGE
-    except Exception:  # not a format Pillow knows, or a damaged header
+    stream = io.BytesIO(data.data)
+    with _PILLOW_GUARD:
+        saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            with Image.open(stream) as image:
+                return image.size
+        except Exception:  # not a format Pillow opens, or a damaged header
+            pass
+        finally:
+            Image.MAX_IMAGE_PIXELS = saved
+    return _tiff_size(stream)
+
+
+def _tiff_size(stream: io.BytesIO) -> tuple[int, int] | None:
+    """ImageWidth and ImageLength from a classic TIFF's first IFD (the page OpenCV decodes).
+
+    For the pixel layouts OpenCV reads but Pillow does not open (float or int16 RGB, float64), so their size
+    is still known before decoding.
+    """
+    from PIL import TiffImagePlugin
+
+    header = stream.getbuffer()[:8].tobytes()
+    if header[:4] not in (b"II*\x00", b"MM\x00*"):
         return None
-
-
-_HUGE = (1 << 31, 1 << 31)  # "larger than any limit": Pillow refused to report the size
+    try:
+        directory = TiffImagePlugin.ImageFileDirectory_v2(header)
+        stream.seek(directory.next)
+        directory.load(stream)
+        return int(directory[256]), int(directory[257])
+    except Exception:  # a damaged directory, or one without the two sizes
+        return None
 
 
 def check_pixels(data: np.ndarray, max_pixels: int, path: str | os.PathLike[str] | None = None) -> tuple[int, int]:
@@ -229,7 +179,7 @@ def png_size(data: np.ndarray) -> tuple[int, int] | None:
         return None
     width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
     bit_depth, colour_type, interlace = head[24], head[25], head[28]
-    if bit_depth != 8 or colour_type not in (0, 2, 6) or interlace != 0:
+    if bit_depth != 8 or colour_type not in _PNG_MODES or interlace != 0:
         return None
     return height, width
 
@@ -239,30 +189,21 @@ def decode_png_top_rows(data: np.ndarray, stop_row: int) -> np.ndarray | None:
 
     PNG rows are filtered against the row above, so decoding must start at the top, but it can stop at
     the last row the sensor uses: for the paper's centred crop that is half the inflate and unfilter work.
-    Pillow's decoder fills exactly the tile it is given, which is what makes the early stop possible.
+    Pillow's ``Image.frombytes`` with its PNG ("zip") decoder fills an image of the size it is given and
+    stops there, so the compressed stream is passed whole and only the rows asked for are decoded.
     """
-    import io
-
     from PIL import Image
 
+    size = png_size(data)
+    if size is None or not 0 < stop_row < size[0]:
+        return None
+    mode = _PNG_MODES[int(data[25])]
+    stream = b"".join(body for kind, body, _ in _png_chunks(data.data) if kind == b"IDAT")
     try:
-        with Image.open(io.BytesIO(data.data)) as image:
-            width, height = image.size
-            if stop_row >= height or len(image.tile) != 1:
-                return None
-            tile = image.tile[0]
-            image._size = (width, stop_row)
-            extents = (0, 0, width, stop_row)
-            image.tile = [tile._replace(extents=extents) if hasattr(tile, "_replace") else (tile[0], extents, *tile[2:])]
-            image.load()
-            pixels = np.asarray(image)
-    except Exception:  # any surprise (a Pillow without these internals, an odd file): decode the usual way
+        pixels = np.asarray(Image.frombytes(mode, (size[1], stop_row), stream, "zip", mode))
+    except (ValueError, OSError):  # the stream ends before those rows, or does not inflate: decode the usual way
         return None
-    if pixels.shape[:2] != (stop_row, width):
-        return None
-    if pixels.ndim == 3:
-        pixels = pixels[:, :, :3]
-    return pixels
+    return pixels[:, :, :3] if pixels.ndim == 3 else pixels
 
 
 def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:

@@ -327,30 +327,25 @@ def _numeric_column(cells: pd.Series, path: Path, *, positive: bool, integer: bo
     return values.astype("Int64") if values.isna().any() else values.astype(np.int64)
 
 
-def _toml_value(value: object) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        return repr(float(value))
-    if isinstance(value, str):  # a TOML basic string: quotes, backslashes and control characters escaped
-        escaped = "".join(
-            "\\" + ch if ch in '"\\' else f"\\u{ord(ch):04X}" if ord(ch) < 0x20 or ord(ch) == 0x7F else ch
-            for ch in value
-        )
-        return f'"{escaped}"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {type(value).__name__} to TOML")
-
-
 def dump_toml(tables: Mapping[str, Mapping[str, object]]) -> str:
-    """Tiny TOML writer for flat tables of scalars and lists (all study.toml needs)."""
-    lines: list[str] = []
+    """study.toml's text from tables of scalars and lists, by tomli-w (NumPy scalars written as Python numbers).
+
+    A dotted table name (``"pads.fingerprint"``) is a table inside a table, as it reads in a TOML header.
+    """
+    import tomli_w
+
+    document: dict[str, dict] = {}
     for table, values in tables.items():
-        lines.append(f"[{table}]")
-        for key, value in values.items():
-            lines.append(f"{key} = {_toml_value(value)}")
-        lines.append("")
-    return "\n".join(lines)
+        node = document
+        for part in table.split("."):
+            node = node.setdefault(part, {})
+        node.update({key: _plain(value) for key, value in values.items()})
+    return tomli_w.dumps(document)
+
+
+def _plain(value: object) -> object:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value

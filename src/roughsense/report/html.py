@@ -328,13 +328,7 @@ def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str])
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
                  staging: atomic.FolderSwap | None = None, style: FigureStyle = FigureStyle()) -> Path:
     """Write the report folder whole; ``staging`` is the one :func:`open_report_dir` made before the analysis."""
-    swap = staging if staging is not None else open_report_dir(out_dir, force)
-    try:
-        files = render_report(analysis, meta=meta, style=style)
-        for name, data in files.items():
-            atomic.write_bytes(swap.path / name, data)
-    except BaseException:
-        swap.abort()
-        raise
-    swap.commit()
+    with atomic.staged_folder(staging if staging is not None else open_report_dir(out_dir, force)) as folder:
+        for name, data in render_report(analysis, meta=meta, style=style).items():
+            atomic.write_bytes(folder / name, data)
     return Path(out_dir) / "index.html"

@@ -12,6 +12,7 @@ the next free name (``..._2N-2.png``). Only manifest rows define the study, so o
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from collections.abc import Callable, Sequence
@@ -23,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from .._util.checks import POSITIVE, check
-from .._util.lock import output_lock
+from .._util.lock import OutputLock, lock_path, output_lock
 from ..errors import ConfigError, InputError, OutputExistsError
 from ..io.names import NAME_RULE, check_name, is_safe_name
 from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
@@ -225,17 +226,22 @@ def capture_session(
     wavelength_mm: float | None = None,
     log: Callable[[str], None] | None = None,
     clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+    held: OutputLock | None = None,
 ) -> CaptureResult:
     """Run (or resume) the protocol for one specimen on one pad, writing into the study folder ``root``.
 
     ``forces_n``, ``px_per_mm`` and ``roi`` default to the folder's study.toml (or the paper's values in a
     new folder); a value that contradicts study.toml is refused. Nothing is written until the first frame
-    is in hand, so a source or scale that fails at once leaves the folder as it was.
+    is in hand, so a source or scale that fails at once leaves the folder as it was. One writer per folder at a
+    time: the run holds the folder's lock, taken here, or ``held``, the lock a caller took already (the command
+    line takes it before it opens the camera, so a second capture names the first, not a busy camera).
     """
     log = log or (lambda text: print(text, file=sys.stderr, flush=True))
     root = Path(root)
     _check_capture_options(specimen, pad, repetitions, shape, wavelength_mm)
-    with output_lock(root, command="capture"):  # one writer per folder (a capture, a simulation, ...) at a time
+    if held is not None and held.path != lock_path(root):
+        raise ValueError(f"the lock held is {held.path}'s, not {root}'s")
+    with output_lock(root, command="capture") if held is None else contextlib.nullcontext():
         folder = _inspect(root, forces_n, px_per_mm, roi)
         forces = tuple(float(f) for f in (forces_n or folder.forces_n))
         specimens_update, incomplete = _merge_specimen(folder, specimen, shape.lower() if shape else None, wavelength_mm)

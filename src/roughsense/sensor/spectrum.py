@@ -46,9 +46,6 @@ from ..io.sensor_settings import (
 )
 from .settings import MAX_N_FREQS, SPECTRUM_DEFAULTS, WINDOWS
 
-#: Pillow warns on stderr (DecompressionBombWarning) above this many pixels; larger PNGs go to OpenCV instead.
-_PILLOW_QUIET_PIXELS = 89_478_485
-
 __all__ = [
     "SpatialSpectrum",
     "combine_forces",
@@ -273,8 +270,8 @@ class _Plan:
         if self.roi == "auto":
             return None, None
         size = png_size(data)
-        if size is None or size[0] * size[1] > _PILLOW_QUIET_PIXELS:
-            return None, None  # above Pillow's own bomb limit it would warn on stderr; OpenCV decodes it quietly
+        if size is None:
+            return None, None
         box = resolve_roi(self.roi, np.empty((*size, 0), dtype=np.uint8), name=name)
         x, y, w, h = box
         if self.rows > h:
