@@ -310,7 +310,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     -------
     Study
         The folder in memory: ``name``, ``manifest``, ``specimens``, ``ratings`` (None without them), ``sensor``,
-        ``image_paths``, ``pads``, ``specimen_names``, ``condition_labels()``; the images stay on disk.
+        ``image_paths``, ``pads``, ``specimen_names``; the images stay on disk.
 
     Examples
     --------
@@ -318,7 +318,7 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     >>> from roughsense.sim import SimulationConfig
     >>> config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3"), forces_n=(2.0,), repetitions=1)
     >>> study = rs.read_study(rs.simulate_study("simulated", config))
-    >>> study.name, study.pads, study.specimen_names, study.condition_labels()
+    >>> study.name, study.pads, study.specimen_names, sorted(study.manifest["condition"].unique())
     ('simulated', ['smooth'], ['R2', 'R3'], ['2N'])
     >>> list(study.ratings.columns)
     ['participant', 'session', 'specimen', 'rating']

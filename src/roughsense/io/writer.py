@@ -125,7 +125,7 @@ class StudyWriter:
     ...                                          "wavelength_mm": [2.0, 3.0]}))
     >>> _ = writer.write_config(name="by-hand", forces_n=[2.0])
     >>> study = rs.read_study("by-hand")
-    >>> study.specimen_names, study.condition_labels()
+    >>> study.specimen_names, sorted(study.manifest["condition"].unique())
     (['R2', 'R3'], ['2N'])
     """
 

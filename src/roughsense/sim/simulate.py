@@ -126,12 +126,8 @@ class SimulationRun:
                                             reference=REFERENCE_SPECIMEN, ratings_from=config.ratings_from))
 
     def __iter__(self) -> Iterator[str]:
-        try:
+        with atomic.staged_folder(self._swap):
             yield from self._build()
-        except BaseException:
-            self._swap.abort()
-            raise
-        self._swap.commit()
 
     def _build(self) -> Iterator[str]:
         staging = self.writer.root
