@@ -16,8 +16,9 @@ $(STAMP): pyproject.toml
 study: $(STAMP)
 	$(BIN)/roughsense study --out report --force
 
+# One worker per core, at most 4 (pytest-xdist); a test file's tests share a worker, so its module fixtures run once.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --numprocesses auto --maxprocesses 4 --dist loadfile
 
 # ruff (pyproject's [tool.ruff]) and the import layers (pyproject's [tool.importlinter]; docs/architecture.md).
 lint: $(STAMP)
