@@ -63,7 +63,7 @@ def register(app: typer.Typer) -> None:
         rectangular / circular / overall summaries, and Wilcoxon signed-rank tests -- under the paper's leave-one-out CV
         and under leave-one-specimen-out CV, side by side with the paper's published values.
         """
-        from .._util.atomic import refuse_inputs
+        from .._util.atomic import refuse_inputs, staged_folder
         from .._util.lock import output_lock
         from ..report import FigureStyle, open_report_dir
 
@@ -71,15 +71,10 @@ def register(app: typer.Typer) -> None:
         started = time.perf_counter()
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
         # occupied --out (or one another run is writing) before minutes of work, not after.
-        with output_lock(out, command="study"):
-            staging = open_report_dir(out, force)
-            try:
-                index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                                no_loso=no_loso, jobs=jobs, permutations=permutations,
-                                                style=FigureStyle(check_figure_format(figure_format), dpi))
-            except BaseException:
-                staging.abort()
-                raise
+        with output_lock(out, command="study"), staged_folder(open_report_dir(out, force)) as staging:
+            index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
+                                            no_loso=no_loso, jobs=jobs, permutations=permutations,
+                                            style=FigureStyle(check_figure_format(figure_format), dpi))
         where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
@@ -87,7 +82,7 @@ def register(app: typer.Typer) -> None:
 
 def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
              jobs: int, permutations: int, style) -> tuple[Path, Path, bool]:
-    """The analysis of a study (``--data`` or the built-in one), written through ``staging``.
+    """The analysis of a study (``--data`` or the built-in one), its report written into the folder ``staging``.
 
     Returns index.html, the study folder and whether it is the built-in study.
     """
@@ -97,7 +92,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     from ..analysis import dataset
     from ..analysis.study_analysis import CV_SCHEMES, analyse_study
     from ..errors import RoughsenseWarning
-    from ..report import write_report
+    from ..report import write_report_files
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
@@ -126,7 +121,8 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
-        index = write_report(analysis, out, meta=meta, staging=staging, style=style)
+        write_report_files(analysis, staging, meta=meta, style=style)
+    index = out / "index.html"
     for line in unseen_lines(analysis):
         typer.echo(line)
     loo = analysis.results("loo")

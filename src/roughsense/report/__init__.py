@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["FigureStyle", "check_report_dir", "open_report_dir", "write_report"]
+__all__ = ["FigureStyle", "check_report_dir", "open_report_dir", "write_report", "write_report_files"]
 
 
 def __getattr__(name: str):

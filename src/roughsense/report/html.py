@@ -326,9 +326,15 @@ def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str])
 
 
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
-                 staging: atomic.FolderSwap | None = None, style: FigureStyle = FigureStyle()) -> Path:
-    """Write the report folder whole; ``staging`` is the one :func:`open_report_dir` made before the analysis."""
-    with atomic.staged_folder(staging if staging is not None else open_report_dir(out_dir, force)) as folder:
-        for name, data in render_report(analysis, meta=meta, style=style).items():
-            atomic.write_bytes(folder / name, data)
+                 style: FigureStyle = FigureStyle()) -> Path:
+    """Write the report folder whole: built beside ``out_dir`` and swapped in, so a failure leaves it as it was."""
+    with atomic.staged_folder(open_report_dir(out_dir, force)) as folder:
+        write_report_files(analysis, folder, meta=meta, style=style)
     return Path(out_dir) / "index.html"
+
+
+def write_report_files(analysis, folder: Path, *, meta: dict | None = None, style: FigureStyle = FigureStyle()) -> None:
+    """The report's files into ``folder``, a staging folder whose swap the caller owns (the study command opens it
+    before the analysis, so an unwritable ``--out`` fails before minutes of work)."""
+    for name, data in render_report(analysis, meta=meta, style=style).items():
+        atomic.write_bytes(folder / name, data)
