@@ -17,7 +17,7 @@ from sklearn.pipeline import Pipeline
 
 import roughsense
 from roughsense.errors import ConfigError, InputError
-from roughsense.io.images import GRAY_WEIGHTS_RGB, load_gray
+from roughsense.io.images import GRAY_WEIGHTS_RGB, to_gray
 from roughsense.sensor.spectrum import (
     SpatialSpectrum,
     combine_forces,
@@ -81,10 +81,10 @@ def test_gray_weights_are_matlabs_rgb2gray():
     np.testing.assert_allclose(np.round(GRAY_WEIGHTS_RGB, 4), [0.2989, 0.5870, 0.1140])
 
 
-def test_load_gray_scales_8_and_16_bit_to_unit_range():
+def test_to_gray_scales_8_and_16_bit_to_unit_range():
     rgb8 = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]]], dtype=np.uint8)
-    np.testing.assert_allclose(load_gray(rgb8)[0], [*GRAY_WEIGHTS_RGB, 1.0], rtol=1e-12)
-    np.testing.assert_allclose(load_gray(rgb8.astype(np.uint16) * 257), load_gray(rgb8), rtol=1e-12)
+    np.testing.assert_allclose(to_gray(rgb8)[0], [*GRAY_WEIGHTS_RGB, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(to_gray(rgb8.astype(np.uint16) * 257), to_gray(rgb8), rtol=1e-12)
 
 
 # --------------------------------------------------------------------------- the line spectrum
@@ -210,7 +210,7 @@ def test_rgb_and_gray_files_agree_and_8_and_16_bit_agree(tmp_path):
 def test_crop_middle_row_and_rows_average_match_a_manual_computation():
     rng = np.random.default_rng(3)
     rgb = rng.integers(0, 256, size=(1080, 1920, 3), dtype=np.uint8)
-    gray = load_gray(rgb)
+    gray = to_gray(rgb)
     grid = frequency_grid()
     x0, y0 = 10, 465  # 1900 x 150 centred on 1920 x 1080
     for rows, first in [(1, 74), (4, 73), (150, 0)]:

@@ -105,7 +105,7 @@ class Cell:
     height_px: int
     max_components: int
     cv: tuple[str, ...]
-    code: str = ""  # fingerprint of the twin and analysis that compute it (explore.version)
+    code: str = ""  # fingerprint of the twin and analysis that compute it (explore.code_fingerprint)
     models: tuple[str, ...] = (PAPER_MODEL,)  # the families fitted on the cell's spectra, in MODEL_FAMILIES order
 
     def columns(self) -> dict:

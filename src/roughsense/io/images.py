@@ -274,11 +274,3 @@ def to_gray(pixels: np.ndarray) -> np.ndarray:
     if scale != 1.0:
         gray /= scale
     return gray
-
-
-def load_gray(image) -> np.ndarray:
-    """Decode (if a path) and convert the whole image to gray, float64, 8/16-bit intensities scaled to [0, 1]."""
-    gray = to_gray(as_image(image))
-    if not np.all(np.isfinite(gray)):
-        raise InputError("image contains NaN or infinite values", path=image if isinstance(image, (str, os.PathLike)) else None)
-    return gray

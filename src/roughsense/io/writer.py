@@ -194,10 +194,7 @@ class StudyWriter:
         pathlib.Path
             The file written.
         """
-        missing = [c for c in SPECIMEN_COLUMNS if c not in specimens.columns]
-        if missing:
-            raise ValueError(f"specimens table lacks {missing}")
-        return atomic.write_csv(self.root / SPECIMENS_CSV, specimens)
+        return self._write_table(SPECIMENS_CSV, specimens, SPECIMEN_COLUMNS)
 
     def write_manifest(self, manifest: pd.DataFrame) -> Path:
         """Write ``manifest.csv``, one row per image.
@@ -212,10 +209,14 @@ class StudyWriter:
         pathlib.Path
             The file written.
         """
-        missing = [c for c in MANIFEST_COLUMNS if c not in manifest.columns]
+        return self._write_table(MANIFEST_CSV, manifest, MANIFEST_COLUMNS)
+
+    def _write_table(self, name: str, table: pd.DataFrame, required: Sequence[str]) -> Path:
+        """A caller's bug, not a user's: the sources build these tables, so a missing column is a plain ValueError."""
+        missing = [c for c in required if c not in table.columns]
         if missing:
-            raise ValueError(f"manifest lacks {missing}")
-        return atomic.write_csv(self.root / MANIFEST_CSV, manifest)
+            raise ValueError(f"{name} lacks {missing}")
+        return atomic.write_csv(self.root / name, table)
 
     def append_manifest_row(self, row: Mapping[str, object]) -> Path:
         """Append one row by rewriting the file atomically: a crash never leaves half a row.
