@@ -276,6 +276,25 @@ def test_header_size_of_a_tiff_pillow_cannot_open(dtype):
     assert header_size(encoded) == (5, 7)
 
 
+@pytest.mark.parametrize("width, height", [(10_000, 10_000), (20_000, 20_000)])  # above Pillow's warning, its refusal
+def test_a_huge_header_is_measured_silently_and_pillows_own_limit_is_left_as_it_was(width, height):
+    import warnings
+    import zlib
+
+    from PIL import Image
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+           + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+    limit = Image.MAX_IMAGE_PIXELS
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # Pillow's DecompressionBombWarning would be an error here
+        assert header_size(np.frombuffer(png, np.uint8)) == (width, height)
+    assert limit == Image.MAX_IMAGE_PIXELS
+
+
 def test_bomb_headers_of_every_format_are_refused(tmp_path, no_decoding):
     from roughsense.io.images import check_pixels
 

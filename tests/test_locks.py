@@ -14,6 +14,7 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -273,3 +274,50 @@ def test_a_parent_folder_one_cannot_write_is_named_with_what_to_do(tmp_path, mon
     message = str(info.value)
     assert "permission denied" in message and "choose an --out whose parent you can write" in message
     assert str(tmp_path / "out") in message
+
+
+def _try_as_nobody(out: Path) -> str:
+    """In a forked child running as user nobody: what taking ``out``'s lock gives (the error, or "got it")."""
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child reports through the pipe
+        os.close(read)
+        try:
+            os.setgid(65534)
+            os.setuid(65534)
+            with warnings.catch_warnings(), output_lock(out, command="other"):
+                warnings.simplefilter("ignore")  # the take-over's warning: the parent checks the outcome
+                text = "got it"
+        except BaseException as exc:
+            text = f"{type(exc).__name__}: {exc}"
+        os.write(write, text.encode())
+        os._exit(0)
+    os.close(write)
+    os.waitpid(pid, 0)
+    with os.fdopen(read, "rb") as handle:
+        return handle.read().decode()
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="switching user needs root")
+def test_another_user_in_a_shared_folder_is_told_who_holds_it_and_takes_over_a_dead_run():
+    import shutil
+    import tempfile
+
+    shared = Path(tempfile.mkdtemp(prefix="roughsense-shared-", dir="/tmp"))  # pytest's tmp_path is root's alone
+    os.chmod(shared, 0o777)
+    out = shared / "out"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom roughsense._util.lock import output_lock\n"
+         f"with output_lock({str(out)!r}, command='simulate'):\n    print('held', flush=True); time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        busy = _try_as_nobody(out)
+        assert busy.startswith("OutputBusyError") and "roughsense simulate, PID" in busy
+        holder.kill()
+        holder.wait()
+        assert _try_as_nobody(out) == "got it"  # a dead run's lock is taken over (with a warning), not refused
+    finally:
+        holder.kill()
+        holder.wait()
+        shutil.rmtree(shared, ignore_errors=True)

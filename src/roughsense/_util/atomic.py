@@ -338,14 +338,16 @@ class FolderSwap:
 
 
 @contextlib.contextmanager
-def staged_folder(target: str | os.PathLike[str] | FolderSwap, *, owned=lambda rel: True) -> Iterator[Path]:
+def staged_folder(target: str | os.PathLike[str] | FolderSwap, *, owned=None) -> Iterator[Path]:
     """``with staged_folder(out) as tmp:`` write everything into ``tmp``; on a clean exit it becomes ``out``.
 
     On an exception nothing changes at ``out``; on a kill, a ``.out.roughsense-partial-*`` sibling remains and
     the next run into ``out`` removes it. ``target`` may be a :class:`FolderSwap` made earlier, so that an
     unwritable place fails before long work rather than after it.
     """
-    swap = target if isinstance(target, FolderSwap) else FolderSwap(target, owned=owned)
+    if isinstance(target, FolderSwap) and owned is not None:
+        raise TypeError("staged_folder: a FolderSwap already says what it owns; pass owned= to FolderSwap")
+    swap = target if isinstance(target, FolderSwap) else FolderSwap(target, owned=owned or (lambda rel: True))
     try:
         yield swap.path
     except BaseException:

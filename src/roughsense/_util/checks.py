@@ -39,7 +39,8 @@ def shown(value: object) -> str:
     """A value or bound as a message quotes it: an int exactly (a seed's 9223372036854775807), a float with ``:g``
     (never ``np.float64(...)``), anything else as a short repr."""
     if is_whole_number(value):
-        return str(int(value))
+        text = str(int(value))  # Python's own int() of a 400-digit JSON number: still one short line
+        return text if len(text) <= 40 else f"{text[:20]}...({len(text)} digits)"
     return f"{value:g}" if is_number(value) else short_repr(value)
 
 

@@ -32,6 +32,7 @@ from .atomic import FLOCK_SUFFIX, LOCK_TAG
 
 _READ_WAIT_S = 1.0  # a holder that has just taken the lock writes its record within milliseconds
 _RETRY_S = 0.2  # a lock file removed by a run letting go as we took it: filelock tries again on the new one
+_SHARED_MODE = 0o666  # the lock file any user may lock: two users writing one shared folder wait for each other
 _HELD: dict[Path, int] = {}  # locks this process holds: a command's library call may take its CLI's lock again
 
 
@@ -100,7 +101,7 @@ class OutputLock:
     def acquire(self) -> None:
         if _HELD.get(self.path) == os.getpid():
             return  # this process already holds it (the CLI around the library): nothing to take
-        lock = filelock.FileLock(_flock_path(self.path), timeout=_RETRY_S)
+        lock = filelock.FileLock(_flock_path(self.path), timeout=_RETRY_S, mode=_SHARED_MODE)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # filelock's note when it falls back to a marker file: the record says who
@@ -109,6 +110,10 @@ class OutputLock:
             if not os.path.lexists(lock.lock_file):  # no run holds a file there: the place would not let one be made
                 self._refuse_place(lock.lock_file)
             raise self._busy(self._wait_for_holder()) from None
+        except PermissionError as exc:
+            if not os.path.lexists(lock.lock_file):
+                self._refuse_place(lock.lock_file, exc)
+            raise self._foreign(lock.lock_file) from None
         except OSError as exc:
             self._refuse_place(lock.lock_file, exc)
         try:
@@ -135,6 +140,14 @@ class OutputLock:
                 "(a run locks its output from the parent folder; choose an --out whose parent you can write)",
                 path=self.out) from None
         raise RoughsenseError(f"cannot write here: {exc.strerror or exc}", path=self.out) from None
+
+    def _foreign(self, flock_file: str) -> RoughsenseError:
+        """Another user's lock file we may not open: their run, if its record says so, else one that has ended."""
+        holder = _parse(_read(self.path))
+        if holder is not None:
+            return self._busy(holder)
+        return RoughsenseError(f"cannot lock it: {flock_file} beside it belongs to another user and is not writable "
+                               "by you; if no run is writing this folder, delete that file", path=self.out)
 
     def _wait_for_holder(self) -> Holder | None:
         """The holder's record; a holder that took the lock a moment ago may not have written it yet."""
@@ -193,7 +206,7 @@ def _remove_if_free(path: Path) -> None:
     It is taken again and unlinked while held: a run that opened it a moment before locks a file that is gone,
     which filelock notices and retries on a new one (within ``_RETRY_S``).
     """
-    probe = filelock.FileLock(path, timeout=0)
+    probe = filelock.FileLock(path, timeout=0, mode=_SHARED_MODE)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

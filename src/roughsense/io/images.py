@@ -11,6 +11,7 @@ import contextlib
 import io
 import os
 import threading
+import warnings
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
@@ -34,7 +35,7 @@ MAX_PIXELS_LIMIT = 2**30
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_MODES = {0: "L", 2: "RGB", 6: "RGBA"}  # 8-bit colour types whose rows Pillow's "zip" decoder unpacks as they are
-_PILLOW_GUARD = threading.Lock()  # Pillow's bomb limit is a module global: one header read at a time lifts it
+_PILLOW_GUARD = threading.Lock()  # Pillow's bomb limit is a module global: one read at a time lifts it
 _cv2 = None
 
 
@@ -109,22 +110,38 @@ def header_size(data: np.ndarray) -> tuple[int, int] | None:
     """(width, height) in pixels from the file's header alone, or None if the format is not recognised.
 
     Pillow's ``Image.open`` reads the header and decodes nothing, so a file claiming billions of pixels costs
-    nothing to inspect. Its own bomb guard is lifted for the call: it warns on stderr above 89 Mpx and refuses
-    above 179 Mpx without giving the size, where ours is a setting (:func:`check_pixels`) and names the size.
+    nothing to inspect. Its own bomb guard refuses above 179 Mpx without giving the size, where ours is a setting
+    (:func:`check_pixels`) and names it: only for such a file is Pillow's limit lifted, one read at a time, so
+    another Pillow user in the process is left unguarded for no ordinary image. Pillow's warnings (its bomb
+    warning above 89 Mpx, odd metadata) are not the user's business here and stay off stderr.
     """
     from PIL import Image
 
     stream = io.BytesIO(data.data)
-    with _PILLOW_GUARD:
-        saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
-        try:
-            with Image.open(stream) as image:
-                return image.size
-        except Exception:  # not a format Pillow opens, or a damaged header
-            pass
-        finally:
-            Image.MAX_IMAGE_PIXELS = saved
-    return _tiff_size(stream)
+    try:
+        return _pillow_size(stream)
+    except Image.DecompressionBombError:
+        with contextlib.suppress(Exception), _PILLOW_GUARD:
+            saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+            try:
+                return _pillow_size(stream)
+            finally:
+                Image.MAX_IMAGE_PIXELS = saved
+    except Exception:  # not a format Pillow opens, or a damaged header
+        pass
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _tiff_size(stream)
+
+
+def _pillow_size(stream: io.BytesIO) -> tuple[int, int]:
+    from PIL import Image
+
+    stream.seek(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with Image.open(stream) as image:
+            return image.size
 
 
 def _tiff_size(stream: io.BytesIO) -> tuple[int, int] | None:
