@@ -44,6 +44,14 @@ def shown(value: object) -> str:
     return f"{value:g}" if is_number(value) else short_repr(value)
 
 
+def given(value: object) -> str:
+    """A value a user gave, as the "got ..." of a message: like :func:`shown`, but a float keeps its decimal point
+    (``repetitions = 3.0`` is refused as "got 3.0", never the self-contradicting "got 3")."""
+    if is_number(value) and not is_whole_number(value):
+        return short_repr(float(value))
+    return shown(value)
+
+
 class Constraint(Protocol):
     def accepts(self, value: object) -> bool: ...
 
@@ -192,7 +200,7 @@ def check(value, constraint: Constraint, *, name: str, error: type[RoughsenseErr
     ``must`` replaces the constraint's own wording where a message says more (units, what the value is for).
     """
     if not constraint.accepts(value):
-        raise error(f"{name} must be {must or constraint.describe()}, got {shown(value)}")
+        raise error(f"{name} must be {must or constraint.describe()}, got {given(value)}")
     return constraint.cast(value)
 
 

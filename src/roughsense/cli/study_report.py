@@ -72,19 +72,21 @@ def register(app: typer.Typer) -> None:
         # The report is built beside --out and swapped in whole; making that folder now fails an unwritable or
         # occupied --out (or one another run is writing) before minutes of work, not after.
         with output_lock(out, command="study"), staged_folder(open_report_dir(out, force)) as staging:
-            index, root, builtin = _analyse(staging, data=data, out=out, seed=seed, max_components=max_components,
-                                            no_loso=no_loso, jobs=jobs, permutations=permutations,
-                                            style=FigureStyle(check_figure_format(figure_format), dpi))
+            index, root, builtin, summary = _analyse(
+                staging, data=data, out=out, seed=seed, max_components=max_components, no_loso=no_loso, jobs=jobs,
+                permutations=permutations, style=FigureStyle(check_figure_format(figure_format), dpi))
+        for line in summary:  # once the report is in place: nothing is announced that was not written
+            typer.echo(line)
         where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
 
 
 def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components: int, no_loso: bool,
-             jobs: int, permutations: int, style) -> tuple[Path, Path, bool]:
+             jobs: int, permutations: int, style) -> tuple[Path, Path, bool, list[str]]:
     """The analysis of a study (``--data`` or the built-in one), its report written into the folder ``staging``.
 
-    Returns index.html, the study folder and whether it is the built-in study.
+    Returns index.html, the study folder, whether it is the built-in study, and the summary lines to print.
     """
     import warnings
 
@@ -122,16 +124,15 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
         write_report_files(analysis, staging, meta=meta, style=style)
-    index = out / "index.html"
-    for line in unseen_lines(analysis):
-        typer.echo(line)
+    summary = list(unseen_lines(analysis))
     loo = analysis.results("loo")
     loo = loo[loo["model"] == "pls"]
     for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
-        typer.echo(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL {group['ovl'].mean():.3f}, "
-                   f"{counted(analysis.condition_fit(pad, condition, 'loo').best_n_components, 'component')} "
-                   "(pls, LOO)")
-    return index, root, builtin
+        summary.append(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL "
+                       f"{group['ovl'].mean():.3f}, "
+                       f"{counted(analysis.condition_fit(pad, condition, 'loo').best_n_components, 'component')} "
+                       "(pls, LOO)")
+    return out / "index.html", root, builtin, summary
 
 
 def which_model_line(unseen) -> str:

@@ -19,7 +19,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, short_repr, shown
+from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
@@ -152,7 +152,7 @@ def _checked(path: Path, where: str, value, constraint: Constraint):
         return constraint.cast(value)
     if isinstance(constraint, Options):
         raise _error(path, f"{where}: unknown value {value!r} (expected one of {', '.join(constraint.values)})")
-    raise _error(path, f"{where}: expected {constraint.describe()}, got {shown(value)}")
+    raise _error(path, f"{where}: expected {constraint.describe()}, got {given(value)}")
 
 
 _POSITIVE = Described(POSITIVE, "a positive number")

@@ -335,15 +335,17 @@ def _weighted_lstsq(design: np.ndarray, targets: np.ndarray, weights: np.ndarray
 
 
 class PeakPowerLaw(RegressorMixin, BaseEstimator):
-    """scikit-learn regressor: spectra (n, n_blocks x K) -> perceived roughness, by the peak power law above.
+    """scikit-learn regressor: spectra (n, n_blocks x K) -> perceived roughness, by a power law of the spectrum's peak.
+
+    roughness = exp(intercept + coef . (log peak frequency, log peak amplitude)), fitted by Huber regression in logs.
 
     ``freq_per_mm``: the spectra's grid (K frequencies; default K evenly spaced over 0.1-1.0 mm^-1);
     ``n_blocks``: spectra per row (3 for a combined-force trial); ``pad_ridge_period_mm``: the pad's ridge period
     (a fingerprint pad's), whose frequency is left out of the peak search; ``epsilon``: Huber's constant.
     ``fit``, ``predict`` and ``applicability`` take ``surfaces`` (one label per row; rows of one surface share
-    where its peak is, see :func:`peak_features`).
+    where its peak is, read on their mean spectrum).
     Fitted: ``coef_`` (2,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
-    ``feature_max_`` (the range of the rows the fit kept, used to clip and to flag: see :func:`kept_rows`),
+    ``feature_max_`` (the range of the rows the Huber fit kept, weight >= 0.5, used to clip and to flag),
     ``freq_per_mm_``.
 
     Parameters
