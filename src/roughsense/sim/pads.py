@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._util.checks import POSITIVE, AnyOf, Real, check
 from ..errors import ConfigError
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 
@@ -28,10 +29,9 @@ class Pad:
     poisson: float = POISSON
 
     def __post_init__(self) -> None:
-        if self.period_mm is not None and not (math.isfinite(self.period_mm) and self.period_mm > 0):
-            raise ConfigError(f"pad {self.name!r}: the ridge period must be a positive number of mm, got {self.period_mm!r}")
-        if not (math.isfinite(self.ridge_height_mm) and self.ridge_height_mm >= 0):
-            raise ConfigError(f"pad {self.name!r}: the ridge height must be >= 0 mm, got {self.ridge_height_mm!r}")
+        check(self.period_mm, AnyOf(POSITIVE, None), name=f"pad {self.name!r}: the ridge period",
+              must="a positive number of mm")
+        check(self.ridge_height_mm, Real(0.0), name=f"pad {self.name!r}: the ridge height", must=">= 0 mm")
 
     @property
     def contact_modulus_pa(self) -> float:
@@ -83,9 +83,7 @@ def make_pad(name: str, *, fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PE
     if key == SMOOTH_PAD:
         return Pad(SMOOTH_PAD)
     if key == FINGERPRINT_PAD:
-        if not (math.isfinite(fingerprint_period_mm) and fingerprint_period_mm > 0):
-            raise ConfigError(f"fingerprint period must be a positive number of mm, got {fingerprint_period_mm:g}")
-        if not (math.isfinite(ridge_height_mm) and ridge_height_mm > 0):
-            raise ConfigError(f"fingerprint ridge height must be a positive number of mm, got {ridge_height_mm:g}")
-        return Pad(FINGERPRINT_PAD, period_mm=float(fingerprint_period_mm), ridge_height_mm=float(ridge_height_mm))
+        period = check(fingerprint_period_mm, POSITIVE, name="fingerprint period", must="a positive number of mm")
+        height = check(ridge_height_mm, POSITIVE, name="fingerprint ridge height", must="a positive number of mm")
+        return Pad(FINGERPRINT_PAD, period_mm=period, ridge_height_mm=height)
     raise ConfigError(f"unknown pad {name!r}; expected one of {', '.join(PAD_NAMES)}")
