@@ -40,17 +40,9 @@ def _tail_masses(mean, sd, lo, hi):
 def overlap(mean1, sd1, mean2, sd2):
     """Overlap coefficient OVL = ∫ min(f1, f2) dx of two normal densities (paper eq. 9), in closed form.
 
-    The log-densities differ by a quadratic, so the densities cross at most twice. Between consecutive
-    crossings one density lies below the other throughout, so the integral of the minimum over that
-    interval is simply the smaller of the two normal probabilities of the interval. This needs no
-    case split on which SD is larger and degrades gracefully to the single crossing at the midpoint when
-    the SDs are equal (the quadratic term vanishes; the stable root formula then sends the second root
-    to infinity).
-
-    Broadcasts like numpy; returns a float for scalar input. Conventions:
-    NaN or infinite input gives NaN (e.g. the reference specimen, whose perceived SD is undefined);
-    a negative SD is an error; an SD of 0 is a point mass, whose overlap with anything is 0 (the limit
-    as the SD shrinks), except two identical point masses, which overlap completely (1).
+    Broadcasts like numpy; a float for scalar input. NaN or infinite input gives NaN (e.g. the reference specimen,
+    whose perceived SD is undefined); a negative SD is an error; an SD of 0 is a point mass, overlapping nothing
+    (0, the limit as the SD shrinks) but an identical point mass (1).
 
     Parameters
     ----------
@@ -81,20 +73,7 @@ def overlap(mean1, sd1, mean2, sd2):
     # Work on safe stand-ins where the formula does not apply; those entries are overwritten below.
     m1r, m2r = np.where(regular, m1, 0.0), np.where(regular, m2, 0.0)
     s1r, s2r = np.where(regular, s1, 1.0), np.where(regular, s2, 1.0)
-    v1, v2 = s1r**2, s2r**2
-    # s2²(x−m1)² − s1²(x−m2)² + 2 s1² s2² ln(s1/s2) = 0  →  a x² + 2 b x + c = 0
-    a = v2 - v1
-    b = m2r * v1 - m1r * v2
-    c = v2 * m1r**2 - v1 * m2r**2 + 2.0 * v1 * v2 * np.log(s1r / s2r)
-    root_disc = s1r * s2r * np.sqrt((m1r - m2r) ** 2 + 2.0 * (v1 - v2) * np.log(s1r / s2r))
-    q = -(b + np.where(b >= 0, 1.0, -1.0) * root_disc)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r1 = np.where(q != 0, c / q, np.nan)
-        r2 = np.where(a != 0, q / a, np.nan)
-    # q == 0 only when the densities coincide (b = 0 and no discriminant): nothing to split.
-    r1 = np.where(np.isnan(r1), np.inf, r1)
-    r2 = np.where(np.isnan(r2), np.inf, r2)
-    x_lo, x_hi = np.minimum(r1, r2), np.maximum(r1, r2)
+    x_lo, x_hi = _crossings(m1r, s1r, m2r, s2r)
     edges = (np.full_like(x_lo, -np.inf), x_lo, x_hi, np.full_like(x_lo, np.inf))
     total = np.zeros_like(x_lo)
     for lo, hi in zip(edges[:-1], edges[1:]):
@@ -106,6 +85,31 @@ def overlap(mean1, sd1, mean2, sd2):
     result = np.where(regular, np.clip(total, 0.0, 1.0), np.nan)
     result = np.where(degenerate, np.where(both_points_equal, 1.0, 0.0), result)
     return float(result) if result.ndim == 0 else result
+
+
+def _crossings(m1, s1, m2, s2) -> tuple[np.ndarray, np.ndarray]:
+    """Where two normal densities cross (lower, upper; +inf where they cross once or not at all).
+
+    The log-densities differ by a quadratic, so they cross at most twice, and between consecutive crossings one
+    density lies below the other throughout: the integral of the minimum there is the smaller of the two normal
+    probabilities of the interval (:func:`overlap`), with no case split on which SD is larger. Equal SDs degrade to
+    the single crossing at the midpoint (the quadratic term vanishes; the stable root formula sends the second root
+    to infinity).
+    """
+    v1, v2 = s1**2, s2**2
+    # s2²(x−m1)² − s1²(x−m2)² + 2 s1² s2² ln(s1/s2) = 0  →  a x² + 2 b x + c = 0
+    a = v2 - v1
+    b = m2 * v1 - m1 * v2
+    c = v2 * m1**2 - v1 * m2**2 + 2.0 * v1 * v2 * np.log(s1 / s2)
+    root_disc = s1 * s2 * np.sqrt((m1 - m2) ** 2 + 2.0 * (v1 - v2) * np.log(s1 / s2))
+    q = -(b + np.where(b >= 0, 1.0, -1.0) * root_disc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.where(q != 0, c / q, np.nan)
+        r2 = np.where(a != 0, q / a, np.nan)
+    # q == 0 only when the densities coincide (b = 0 and no discriminant): nothing to split.
+    r1 = np.where(np.isnan(r1), np.inf, r1)
+    r2 = np.where(np.isnan(r2), np.inf, r2)
+    return np.minimum(r1, r2), np.maximum(r1, r2)
 
 
 # --------------------------------------------------------------------------- per-specimen table

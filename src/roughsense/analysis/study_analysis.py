@@ -370,59 +370,30 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
     return matching, note
 
 
-def analyse_study(
-    study: Study,
-    *,
-    features: pd.DataFrame | None = None,
-    max_components: int = DEFAULT_MAX_COMPONENTS,
-    conditions: Sequence[str] = paper.PAPER_CONDITIONS,
-    cv_schemes: Sequence[str] = CV_SCHEMES,
-    n_jobs: int = 1,
-    progress: Callable | None = None,
-    n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
-    seed: int = 0,
-    combined_forces: Sequence[str] | None = None,
-    models: Sequence[str] = MODEL_FAMILIES,
-) -> StudyAnalysis:
-    """Run the paper's whole analysis on a validated study; ``features`` may come from a cache.
-
-    Besides the paper's analysis: the controls of every model (``n_permutations`` specimen-level
-    shufflings drawn from ``seed``, and the training-mean model), the paper's claims with verdicts, and the
-    predictive OVL of our predictions and of the paper's published ones. ``combined_forces`` (condition labels) are
-    the forces the "combined" condition concatenates; default 1N, 2N, 3N. ``models``: the families to fit
-    (roughsense.model.families; every one by default), each under the same folds and controls; the claims and the
-    signed-rank tests stay about the paper's PLS.
+def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = DEFAULT_MAX_COMPONENTS,
+                  conditions: Sequence[str] = paper.PAPER_CONDITIONS, cv_schemes: Sequence[str] = CV_SCHEMES,
+                  n_jobs: int = 1, progress: Callable | None = None,
+                  n_permutations: int = _controls.DEFAULT_PERMUTATIONS, seed: int = 0,
+                  combined_forces: Sequence[str] | None = None, models: Sequence[str] = MODEL_FAMILIES) -> StudyAnalysis:
+    """The paper's whole analysis of a validated study, with every model's controls and the claims' verdicts.
 
     Parameters
     ----------
-    study : Study
-        A study with ratings (:func:`read_study`).
-    features : pandas.DataFrame, optional
-        The images' spectra, if already computed; default computed here.
-    max_components : int
-        The largest PLS component count cross-validated.
-    conditions : sequence of str
-        Force conditions to analyse ("1N", ..., "combined").
-    cv_schemes : sequence of str
-        "loo" (the paper's) and/or "loso" (leave one specimen out: surfaces the model never saw).
-    n_jobs : int
-        Threads computing the features.
-    progress : callable, optional
-        Wraps the feature loop, e.g. a progress bar.
-    n_permutations : int
-        Shufflings of the permutation control.
-    seed : int
-        Seeds the shufflings.
-    combined_forces : sequence of str, optional
-        The conditions "combined" concatenates (default 1N, 2N, 3N).
-    models : sequence of str
-        Model families to fit: "pls", "peak-law".
+    study, features : Study, pandas.DataFrame
+        A study with ratings (:func:`read_study`); its spectra if already computed (e.g. cached), else made here.
+    max_components, conditions, cv_schemes
+        PLS components cross-validated; force conditions ("1N", ..., "combined"); "loo" (the paper's) and/or "loso"
+        (leave one specimen out: surfaces never seen). ``combined_forces``: what "combined" joins (1N, 2N, 3N).
+    n_permutations, seed, models
+        Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
+        folds and controls ("pls", "peak-law"; claims and signed-rank tests are the paper's PLS).
+    n_jobs, progress : int, callable
+        Threads computing the features; a wrapper of long loops (e.g. a progress bar).
 
     Returns
     -------
     StudyAnalysis
-        Per-specimen results (``results("loo")``, ``results("loso")``), ``controls``, ``claims`` with verdicts,
-        ``cv_table``, ``summary()`` and what ``roughsense study`` writes into its report.
+        ``results("loo"|"loso")``, ``controls``, ``claims``, ``cv_table``, ``summary()``: the report's content.
 
     Examples
     --------
@@ -444,8 +415,7 @@ def analyse_study(
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     _check_repetitions(features, study)
-    analysis = _empty_analysis(study, perceived, features, max_components, seed)
-    analysis.models = models
+    analysis = _empty_analysis(study, perceived, features, max_components, seed, models)
     analysis.paper_pads, analysis.paper_note = paper_comparability(
         study.specimen_names, study.pads, conditions, study.reference_specimen)
     jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
@@ -497,7 +467,7 @@ def _check_repetitions(features: pd.DataFrame, study: Study) -> None:
 
 
 def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFrame, max_components: int,
-                    seed: int) -> StudyAnalysis:
+                    seed: int, models: tuple[str, ...]) -> StudyAnalysis:
     """The analysis's record of the study (targets, shapes, mean spectra) before any model is fitted."""
     freq_columns = dataset.frequency_columns(features)
     mean_spectra = dataset.plain_names(
@@ -513,6 +483,7 @@ def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFram
         simulation=study.simulation,
         synthetic=study.synthetic,
         seed=int(seed),
+        models=models,
         wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
             "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
     )

@@ -643,29 +643,21 @@ def _check_positive(X: np.ndarray) -> None:
 def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
                 exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
                 surfaces=None) -> np.ndarray:
-    """Out-of-fold predictions (B, n) of the law for each target column of ``Y`` (n, B) (or ``Y`` of shape (n,)).
-
-    Leave-one-out without ``groups``; leave-one-group-out (e.g. leave-one-specimen-out) with them. Equal to refitting
-    :class:`PeakPowerLaw` on every training fold (to rounding): the features do not depend on the targets, so they are
-    computed once, and all folds and targets go through one batched IRLS. ``surfaces``: as :func:`peak_features`.
-    With folds that hold whole surfaces (leave-one-specimen-out with surfaces = specimens) it equals refits of the
-    estimator; with folds that split a surface (LOO), a held-out press shares its surface's peak read from all its
-    presses -- spectra only, never a rating -- which a refit on the training presses alone cannot reproduce.
+    """Out-of-fold predictions (B, n) of the law for each target column of ``Y``, equal to refitting
+    :class:`PeakPowerLaw` on every training fold (to rounding): the features are computed once and all folds and
+    targets go through one batched IRLS. Folds that split a surface (LOO with ``surfaces``) let a held-out press
+    share its surface's peak, read from all its presses' spectra (never a rating), which a refit cannot reproduce.
 
     Parameters
     ----------
-    X : array-like
-        (n, n_blocks x K) spectra.
-    Y : array-like
-        (n, B) or (n,) perceived roughness, positive.
-    groups : array-like, optional
-        (n,) labels: leave one group out; default leave-one-out.
+    X, Y : array-like
+        (n, n_blocks x K) spectra; (n, B) or (n,) perceived roughness, positive.
+    groups, surfaces : array-like, optional
+        (n,) labels: leave one group out (default leave-one-out); rows of one surface share where its peak is read.
     freq_per_mm : array-like
         (K,) the spectra's frequencies (at least 3).
     n_blocks, pad_ridge_period_mm, exclusion_per_mm, epsilon
         As :class:`PeakPowerLaw`.
-    surfaces : array-like, optional
-        (n,) labels: rows of one surface share where its peak is read.
 
     Returns
     -------
@@ -685,18 +677,8 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     """
     check_settings(epsilon=epsilon)
     freq_per_mm = check_grid(freq_per_mm)  # as PeakPowerLaw given a grid: at least 3 bins
-    X = np.asarray(X, dtype=np.float64)
-    Y = np.asarray(Y, dtype=np.float64)
-    n = X.shape[0] if X.ndim == 2 else -1
-    if X.ndim != 2 or Y.ndim not in (1, 2) or Y.shape[0] != n:
-        raise PeakLawInputError(
-            f"X (shape {X.shape}) must be rows x features and Y (shape {Y.shape}) one row per row of X")
-    targets = (Y[:, None] if Y.ndim == 1 else Y).T
-    if not np.all(np.isfinite(targets)) or np.any(targets <= 0):
-        raise PeakLawInputError("perceived roughness must be positive and finite (magnitude estimates); the law is fitted "
-                         "in logs")
-    if groups is not None and len(groups) != n:
-        raise PeakLawInputError(f"groups has {len(groups)} entries for {n} rows of X")
+    X, targets = _cv_inputs(X, Y, groups)
+    n = X.shape[0]
     features = peak_features(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
                              exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     fold_of = np.arange(n) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
@@ -714,6 +696,23 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
         clipped = np.clip(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, 2)
         predictions[:, rows] = np.exp(beta[fold, :, :1] + np.einsum("brf,bf->br", clipped, beta[fold, :, 1:]))
     return predictions
+
+
+def _cv_inputs(X, Y, groups) -> tuple[np.ndarray, np.ndarray]:
+    """X (n, features) and the targets (B, n), refused in one line unless shapes match and every target is positive."""
+    X = np.asarray(X, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    n = X.shape[0] if X.ndim == 2 else -1
+    if X.ndim != 2 or Y.ndim not in (1, 2) or Y.shape[0] != n:
+        raise PeakLawInputError(
+            f"X (shape {X.shape}) must be rows x features and Y (shape {Y.shape}) one row per row of X")
+    targets = (Y[:, None] if Y.ndim == 1 else Y).T
+    if not np.all(np.isfinite(targets)) or np.any(targets <= 0):
+        raise PeakLawInputError("perceived roughness must be positive and finite (magnitude estimates); the law is fitted "
+                                "in logs")
+    if groups is not None and len(groups) != n:
+        raise PeakLawInputError(f"groups has {len(groups)} entries for {n} rows of X")
+    return X, targets
 
 
 def fold_kept_ranges(features: np.ndarray, log_targets: np.ndarray, train: np.ndarray, beta: np.ndarray,

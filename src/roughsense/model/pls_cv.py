@@ -104,37 +104,25 @@ DEFAULT_MAX_COMPONENTS = 20
 
 def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
            cap: bool = False) -> PLSCVResult:
-    """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched.
-
-    ``cv="loo"`` is the paper's leave-one-out; an int k gives shuffled K-fold (seeded by ``random_state``);
-    ``groups=`` gives leave-one-group-out (e.g. leave-one-specimen-out; the default ``cv`` then means that).
-    The result equals refitting :class:`SIMPLS` on every training fold, to rounding.
-    ``cap=True`` treats ``max_components`` as an upper bound: if the data (or the smallest training fold)
-    support fewer components, the curve stops there instead of raising -- for a default, not a user's choice.
+    """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched: equal, to
+    rounding, to refitting :class:`SIMPLS` on every training fold.
 
     Parameters
     ----------
-    X : array-like
-        (n_samples, n_features) predictors.
-    y : array-like
-        (n_samples,) the response.
+    X, y : array-like
+        (n_samples, n_features) predictors and the (n_samples,) response.
     max_components : int
-        The largest component count cross-validated.
-    cv : "loo" or int
-        Leave-one-out, or shuffled K-fold with this many folds.
-    groups : array-like, optional
-        (n_samples,) labels: leave one group out (with the default ``cv``).
-    random_state : int, optional
-        Seeds the K-fold shuffle.
-    cap : bool
-        Stop at what the data support instead of raising.
+        The largest component count cross-validated. With ``cap=True`` an upper bound: where the data (or the
+        smallest training fold) support fewer, the curve stops there instead of raising (for a default).
+    cv, groups, random_state
+        ``"loo"`` (the paper's leave-one-out); an int k, shuffled K-fold seeded by ``random_state``; or ``groups``
+        (labels), leave one group out, e.g. one specimen (the default ``cv`` then means that).
 
     Returns
     -------
     PLSCVResult
-        ``rmse`` and ``rmse_se`` (max_components + 1,), ``predictions`` (n_samples, max_components + 1), index =
-        number of components (0: the training fold's mean); ``best_n_components`` (least RMSE) and
-        ``one_se_n_components`` (fewest within one standard error of it); ``folds`` and ``scheme``.
+        ``rmse``, ``rmse_se`` (A + 1,) and ``predictions`` (n, A + 1) indexed by component count (0: the fold's mean);
+        ``best_n_components`` (least RMSE), ``one_se_n_components`` (fewest within one SE), ``folds``, ``scheme``.
 
     Examples
     --------
@@ -165,6 +153,16 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
     with blas_threads_for(X):
         pred = _cv_predictions(X, y[:, None], fid, A)[0]
+    rmse, rmse_se, fold_mse = _error_curve(pred, y, fid)
+    best = int(np.argmin(rmse[1:])) + 1
+    one_se = int(np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])[0]) + 1
+    return PLSCVResult(rmse=rmse, rmse_se=rmse_se, predictions=pred, best_n_components=best,
+                       one_se_n_components=one_se, folds=fid, scheme=scheme, fold_mse=fold_mse)
+
+
+def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """RMSE per component count, its standard error across folds (delta method on the folds' MSEs), and the
+    folds' MSEs (F, A + 1)."""
     F = int(fid.max()) + 1
     m = np.bincount(fid, minlength=F)
     order = np.argsort(fid, kind="stable")
@@ -174,19 +172,7 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
     se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # fold_ids always gives at least 2 folds
     rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
-    best = int(np.argmin(rmse[1:])) + 1
-    within = np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])
-    one_se = int(within[0]) + 1
-    return PLSCVResult(
-        rmse=rmse,
-        rmse_se=rmse_se,
-        predictions=pred,
-        best_n_components=best,
-        one_se_n_components=one_se,
-        folds=fid,
-        scheme=scheme,
-        fold_mse=fold_mse,
-    )
+    return rmse, rmse_se, fold_mse
 
 
 # A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes.
@@ -217,27 +203,21 @@ class PLSCVBatch:
 
 def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
                 cap: bool = False) -> PLSCVBatch:
-    """:func:`pls_cv` for many targets at once (the columns of Y, n x B), e.g. a permutation test's.
-
-    Only X'y depends on the target, so every target shares one rotation of X and all targets' folds run
-    as one batch: for the small problems of a study this is several times faster than B calls of
-    :func:`pls_cv`, and it equals them (and refits) to rounding. ``cap=True`` lowers the component count
-    for all targets alike when some target's data support fewer.
+    """:func:`pls_cv` for many targets at once (the columns of Y), e.g. a permutation test's: only X'y depends on
+    the target, so all share one rotation of X and run as one batch, several times faster than B calls and equal
+    to them to rounding. ``cap=True`` lowers the component count for all targets alike.
 
     Parameters
     ----------
-    X : array-like
-        (n_samples, n_features) predictors.
-    Y : array-like
-        (n_samples, n_targets) one response per column.
+    X, Y : array-like
+        (n_samples, n_features) predictors; (n_samples, n_targets) one response per column.
     max_components, cv, groups, random_state, cap
         As :func:`pls_cv`.
 
     Returns
     -------
     PLSCVBatch
-        ``rmse`` (n_targets, max_components + 1), ``predictions`` (n_targets, n_samples, max_components + 1),
-        ``best_n_components`` (n_targets,), ``folds`` and ``scheme``.
+        ``rmse`` (B, A + 1), ``predictions`` (B, n, A + 1), ``best_n_components`` (B,), ``folds``, ``scheme``.
 
     Examples
     --------
@@ -255,17 +235,7 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     """
     if groups is not None and cv == "loo":
         cv = None
-    try:
-        X = validate_data(SIMPLS(), X, ensure_min_samples=3, dtype=np.float64, reset=True)
-    except ValueError as exc:
-        raise PLSInputError(str(exc)) from None
-    Y = np.asarray(Y, dtype=np.float64)
-    if Y.ndim != 2 or Y.shape[0] != X.shape[0] or Y.shape[1] < 1:
-        raise PLSInputError(f"Y must be n_samples x n_targets with n_samples={X.shape[0]}, got shape {Y.shape}")
-    if not np.all(np.isfinite(Y)):
-        raise PLSInputError("Y contains NaN or infinity")
-    for column in Y.T:
-        check_target(column)
+    X, Y = _validated_targets(X, Y)
     A = _component_limit(max_components)
     n = X.shape[0]
     fid, scheme = fold_ids(n, cv, groups, random_state)
@@ -283,6 +253,22 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
         return pls_cv_many(X, Y, exc.supported, cv, groups, random_state, cap=True)
     rmse = np.sqrt(((pred - Y.T[:, :, None]) ** 2).mean(axis=1))
     return PLSCVBatch(rmse=rmse, predictions=pred, folds=fid, scheme=scheme)
+
+
+def _validated_targets(X, Y) -> tuple[np.ndarray, np.ndarray]:
+    """X as :class:`SIMPLS` takes it, and Y (n x B) with every column a target :func:`pls_cv` would take."""
+    try:
+        X = validate_data(SIMPLS(), X, ensure_min_samples=3, dtype=np.float64, reset=True)
+    except ValueError as exc:
+        raise PLSInputError(str(exc)) from None
+    Y = np.asarray(Y, dtype=np.float64)
+    if Y.ndim != 2 or Y.shape[0] != X.shape[0] or Y.shape[1] < 1:
+        raise PLSInputError(f"Y must be n_samples x n_targets with n_samples={X.shape[0]}, got shape {Y.shape}")
+    if not np.all(np.isfinite(Y)):
+        raise PLSInputError("Y contains NaN or infinity")
+    for column in Y.T:
+        check_target(column)
+    return X, Y
 
 
 def nested_group_predictions(X, Y, groups, outer_predictions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
