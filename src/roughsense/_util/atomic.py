@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import IO
 
 from ..errors import ConfigError, OutputExistsError, RoughsenseError
+from .files import foreign_reason
 
 
 def _umask() -> int:
@@ -113,7 +114,8 @@ def _remove_dead_temporaries(parent: Path, name: str) -> None:
     """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
     for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
         pid = path.name[len(name) + 2:].split(".", 1)[0]
-        if pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid)):
+        if (pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid))
+                and foreign_reason(path, folder=False) is None):  # another user's file of that name is left alone
             with contextlib.suppress(OSError):
                 path.unlink()
 
@@ -176,9 +178,15 @@ def _pid_alive(pid: int) -> bool:
 
 
 def _swap_target(target: str | os.PathLike[str]) -> Path:
-    """The real folder to replace: absolute, a symlinked folder replaced where it really lives."""
+    """The real folder to replace: absolute, a symlinked folder replaced where it really lives -- if the link is
+    the user's own: another user's link could point the swap at a folder of the victim's."""
     path = Path(os.path.abspath(target))
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+    if not path.is_symlink():
+        return path
+    if os.lstat(path).st_uid != os.geteuid():
+        raise OutputExistsError("is a symbolic link made by another user; delete it or choose another output "
+                                "folder (roughsense follows only your own links)", path=path)
+    return Path(os.path.realpath(path))
 
 
 def leftovers(target: str | os.PathLike[str]) -> list[Path]:
@@ -197,12 +205,20 @@ def clean_leftovers(target: str | os.PathLike[str]) -> None:
     """Finish what a killed run left beside ``target``.
 
     A retired folder when ``target`` is missing is the previous content, caught between the two renames of a
-    swap without ``renameat2``: it is put back. Everything else of roughsense's own is deleted.
+    swap without ``renameat2``: it is put back. Everything else of roughsense's own is deleted. A leftover's name
+    can be planted by anyone who can write the parent folder (a link to a private folder would be put back as the
+    output), so one that is not a real folder of this user's is refused, never renamed, followed or deleted.
     """
     import shutil
 
     target = _swap_target(target)
-    for path in leftovers(target):
+    found = leftovers(target)
+    for path in found:
+        if (reason := foreign_reason(path, folder=True)) is not None:
+            raise OutputExistsError(f"{path.name} beside it looks like a leftover of a roughsense run but {reason}, "
+                                    f"so it was not made by you; delete {path} (or choose another output folder)",
+                                    path=target)
+    for path in found:
         if RETIRED_TAG in path.name and not target.exists() and not target.is_symlink():
             try:
                 os.rename(path, target)

@@ -1,0 +1,103 @@
+"""Issue 36, the fourth hardening pass: no other user's planted file, no FIFO, no signal and no second output path
+can lose data, hang a run or change a number. Each test names the item it covers."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from roughsense._util import atomic
+from roughsense.errors import OutputExistsError
+
+AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
+needs_root = pytest.mark.skipif(not AS_ROOT, reason="acting as another user needs root")
+NOBODY = 65534
+
+
+def dead_pid() -> int:
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def as_nobody(action) -> str:
+    """Run ``action()`` in a forked child as user nobody; its error, or "ok"."""
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child reports through the pipe
+        os.close(read)
+        try:
+            os.setgid(NOBODY)
+            os.setuid(NOBODY)
+            action()
+            text = "ok"
+        except BaseException as exc:
+            text = f"{type(exc).__name__}: {exc}"
+        os.write(write, text.encode())
+        os._exit(0)
+    os.close(write)
+    os.waitpid(pid, 0)
+    with os.fdopen(read, "rb") as handle:
+        return handle.read().decode()
+
+
+@pytest.fixture()
+def shared():
+    """A folder every user may write, as /tmp is (pytest's tmp_path is root's alone)."""
+    folder = Path(tempfile.mkdtemp(prefix="roughsense-shared-", dir="/tmp"))
+    os.chmod(folder, 0o1777)
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- 1. planted retired folder
+
+
+@needs_root
+@pytest.mark.parametrize("kind", ["link", "folder"])
+def test_a_retired_folder_planted_by_another_user_is_refused_not_put_back(shared, tmp_path, kind):
+    """36.1: a link ``.rep3.roughsense-retired-<dead PID>-abc`` to a private folder became the report folder."""
+    private = tmp_path / "private"
+    private.mkdir(mode=0o700)
+    (private / "results.csv").write_text("mine")
+    planted = shared / f".rep3{atomic.RETIRED_TAG}{dead_pid()}-abc"
+    plant = (lambda: os.symlink(private, planted)) if kind == "link" else (lambda: os.mkdir(planted))
+    assert as_nobody(plant) == "ok"
+    with pytest.raises(OutputExistsError) as info, atomic.staged_folder(shared / "rep3") as staging:
+        (staging / "results.csv").write_text("report")
+    message = str(info.value)
+    reason = "is a symbolic link, not a folder" if kind == "link" else "belongs to another user"
+    assert reason in message and f"delete {planted}" in message
+    assert not (shared / "rep3").exists() and os.path.lexists(planted)
+    assert (private / "results.csv").read_text() == "mine" and (private.stat().st_mode & 0o777) == 0o700
+
+
+def test_a_leftover_that_is_not_a_real_folder_is_never_followed(tmp_path):
+    """36.1 (the rule): a leftover's name on a link, even one's own, is refused: lstat decides, not the link's target."""
+    private = tmp_path / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    parent = tmp_path / "shared"
+    parent.mkdir()
+    planted = parent / f".out{atomic.PARTIAL_TAG}{dead_pid()}-abcd"
+    planted.symlink_to(private)
+    with pytest.raises(OutputExistsError, match="is a symbolic link, not a folder"):
+        atomic.clean_leftovers(parent / "out")
+    assert (private / "a.csv").read_text() == "mine" and planted.is_symlink()
+
+
+@needs_root
+def test_an_output_link_made_by_another_user_is_not_followed(shared, tmp_path):
+    """36.1 (the rule): ``--out S/rep3`` where another user made rep3 a link to the victim's folder."""
+    private = tmp_path / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    assert as_nobody(lambda: os.symlink(private, shared / "rep3")) == "ok"
+    with pytest.raises(OutputExistsError, match="symbolic link made by another user"):
+        atomic.FolderSwap(shared / "rep3")
+    assert (private / "a.csv").read_text() == "mine"
