@@ -101,3 +101,55 @@ def test_an_output_link_made_by_another_user_is_not_followed(shared, tmp_path):
     with pytest.raises(OutputExistsError, match="symbolic link made by another user"):
         atomic.FolderSwap(shared / "rep3")
     assert (private / "a.csv").read_text() == "mine"
+
+
+# --------------------------------------------------------------------------- 2, 3. every written path against every read one
+
+
+def grating_png(path: Path, wavelength_mm: float = 3.0) -> Path:
+    import cv2
+    import numpy as np
+
+    x_mm = np.arange(1920) / 34.9
+    line = 0.5 + 0.35 * np.tanh(3 * np.sin(2 * np.pi * x_mm / wavelength_mm))
+    assert cv2.imwrite(str(path), np.tile(np.round(255 * line).astype(np.uint8), (1080, 1)))
+    return path
+
+
+def error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("plot_is", ["the image", "--out"])
+def test_features_plot_never_replaces_an_input_or_another_output(run_cli, tmp_path, plot_is):
+    """36.2: ``features in.png -o x.csv --force --plot in.png`` replaced the image with the plot."""
+    image = grating_png(tmp_path / "in.png")
+    before = image.read_bytes()
+    plot = {"the image": image, "--out": tmp_path / "x.png"}[plot_is]
+    out = tmp_path / ("x.png" if plot_is == "--out" else "x.csv")
+    code, _, err = run_cli("features", image, "-o", out, "--force", "--plot", plot)
+    assert code == 2 and "--plot" in error_line(err) and "choose another path" in err
+    assert image.read_bytes() == before and not out.exists()
+
+
+def test_ratings_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3: ``ratings --specimens FILE -o FILE --force`` replaced the specimens table with the summary."""
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,3\n")
+    ratings = tmp_path / "ratings.csv"
+    ratings.write_text("participant,session,specimen,rating\nP01,1,R2,0.5\nP02,1,R2,0.7\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("ratings", ratings, "--specimens", specimens, "-o", specimens, "--force")
+    assert code == 2 and "an input of this run" in error_line(err) and specimens.read_bytes() == before
+
+
+def test_protocol_sheet_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3 (the rule): protocol's --sheet is checked against --specimens too, not only --out."""
+    specimens = tmp_path / "specimens.md"
+    specimens.write_text("specimen,shape,wavelength_mm\nS1,sinusoidal,1\nS2,sinusoidal,2\nS3,sinusoidal,3\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("protocol", "--seed", 0, "--specimens", specimens, "--reference", "S2",
+                           "--out", tmp_path / "s.csv", "--sheet", specimens, "--force")
+    assert code == 2 and "--sheet" in error_line(err) and specimens.read_bytes() == before

@@ -32,11 +32,11 @@ def _default_file_mode() -> int:
 
 
 def check_can_write(path: str | os.PathLike[str], *, force: bool = False,
-                    inputs: Iterable[str | os.PathLike[str]] = ()) -> Path:
+                    inputs: Iterable[str | os.PathLike[str]] = (), option: str = "--out") -> Path:
     """Refuse to replace an existing file unless ``force``, and one of the run's ``inputs`` even with it
     (:func:`refuse_inputs`): user data is never overwritten silently."""
     target = Path(path)
-    refuse_inputs(target, inputs)
+    refuse_inputs(target, inputs, option=option)
     if target.exists() and not force:
         raise OutputExistsError("already exists; pass --force to replace it", path=target)
     if target.exists() and target.is_dir():
@@ -66,6 +66,20 @@ def refuse_inputs(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLi
             what = "inside the input folder" if inside and target != source else "an input of this run"
             raise ConfigError(f"{option} {path} is {what} {item}; choose another path (--force does not change this: "
                               "the run would overwrite what it reads)")
+
+
+def check_outputs(outputs: dict[str, str | os.PathLike[str] | None], *, force: bool = False,
+                  inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
+    """Check every file a run writes (``{option: path}``; None: not asked for) before any work: none is an input
+    (whatever ``force`` says), no two are the same file, and none exists unless ``force``."""
+    inputs = list(inputs)
+    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    for i, (option, path) in enumerate(given):
+        for other, earlier in given[:i]:
+            if _resolved(path) == _resolved(earlier) or _same_file(path, earlier):
+                raise ConfigError(f"{option} {path} is also {other}: the run would write one over the other; "
+                                  "choose another path")
+        check_can_write(path, force=force, inputs=inputs, option=option)
 
 
 def _same_file(a: Path, b: Path) -> bool:
