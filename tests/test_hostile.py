@@ -153,3 +153,55 @@ def test_protocol_sheet_never_replaces_its_specimens_table(run_cli, tmp_path):
     code, _, err = run_cli("protocol", "--seed", 0, "--specimens", specimens, "--reference", "S2",
                            "--out", tmp_path / "s.csv", "--sheet", specimens, "--force")
     assert code == 2 and "--sheet" in error_line(err) and specimens.read_bytes() == before
+
+
+# --------------------------------------------------------------------------- 4. the cache is trusted only when it is ours
+
+
+def _poison(root: Path, key: str) -> None:
+    """Write a well-formed, correctly checksummed entry under ``key``, as anyone who can write ``root`` can."""
+    import hashlib
+
+    (root / "features").mkdir(parents=True, exist_ok=True)
+    body = b"image,f\na.png,999\n"
+    (root / "features" / f"{key}.csv").write_bytes(body + b"#sha256=" + hashlib.sha256(body).hexdigest().encode()
+                                                   + b"\n")
+
+
+def _cached(monkeypatch, root: Path):
+    import pandas as pd
+
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(root))
+    monkeypatch.setattr(cache, "_BYPASS_SAID", set())
+    with pytest.warns(Warning) as caught:
+        first = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+        second = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+    return first, second, [str(w.message) for w in caught]
+
+
+@needs_root
+def test_a_cache_made_by_another_user_is_bypassed_with_one_warning(shared, monkeypatch):
+    """36.4: another user created the shared cache folder and planted an entry: study reported its numbers."""
+    root = shared / "cache"
+    assert as_nobody(lambda: (root.mkdir(mode=0o755), _poison(root, "k" * 24))) == "ok"
+    (frame, cached), (again, cached_again), said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached and again["f"].tolist() == [1.0] and not cached_again
+    assert len(said) == 1 and "belongs to another user" in said[0] and str(root) in said[0]
+
+
+def test_a_cache_others_can_write_is_bypassed_and_a_new_one_is_private(tmp_path, monkeypatch):
+    """36.4 (the rule): a group- or world-writable cache is not read; a cache roughsense creates is 0700."""
+    root = tmp_path / "cache"
+    root.mkdir()
+    os.chmod(root, 0o777)
+    _poison(root, "k" * 24)
+    (frame, cached), _, said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached
+    assert len(said) == 1 and "can be written by other users" in said[0]
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "fresh"))
+    assert cache.usable_cache_dir() == tmp_path / "fresh"
+    assert (tmp_path / "fresh").stat().st_mode & 0o777 == 0o700
