@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import IO
 
 from ..errors import ConfigError, OutputExistsError, RoughsenseError
+from . import interrupt
 from .files import foreign_reason
 
 
@@ -115,6 +116,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
             yield handle
             handle.flush()
             os.fsync(handle.fileno())
+        interrupt.check()  # a run asked to stop commits nothing more
         os.replace(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(OSError):
@@ -342,6 +344,7 @@ class FolderSwap:
         import shutil
 
         try:
+            interrupt.check()  # a run asked to stop commits nothing more (abort() removes the staging folder)
             _carry_over(self.target, self.path, self.owned)
             if not self.target.exists():
                 os.rename(self.path, self.target)
@@ -356,6 +359,9 @@ class FolderSwap:
                 os.rename(self.target, retired)
                 os.rename(self.path, self.target)
                 os.rename(retired, self.path)
+        except interrupt.Interrupted:
+            self.abort()
+            raise
         except OSError as exc:
             self.abort()
             raise RoughsenseError(f"cannot replace the folder: {exc.strerror or exc}", path=self.target) from None

@@ -12,6 +12,7 @@ from typing import Annotated, TypeVar
 
 import typer
 
+from .._util import interrupt
 from .._util.workers import usable_cores
 from ..errors import ConfigError
 
@@ -196,6 +197,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
         done = 0
         try:
             for item in items:
+                interrupt.check()  # a safe point: each item
                 yield item
                 done += 1
         finally:
@@ -215,6 +217,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
     with Progress(*columns, transient=True, console=_console()) as bar:
         task = bar.add_task(description, total=total)
         for item in items:
+            interrupt.check()  # a safe point: each item
             yield item
             bar.advance(task)
 
@@ -222,6 +225,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
 @contextmanager
 def stage(description: str) -> Iterator[None]:
     """A step with no count (writing a report): a spinner with the elapsed time, or one line."""
+    interrupt.check()  # a safe point: before each stage
     if not _interactive():
         line = _LogLine(description, None)
         try:
