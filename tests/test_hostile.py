@@ -34,8 +34,8 @@ def as_nobody(action) -> str:
         try:
             os.setgid(NOBODY)
             os.setuid(NOBODY)
-            action()
-            text = "ok"
+            result = action()
+            text = "ok" if result is None or isinstance(result, tuple) else str(result)
         except BaseException as exc:
             text = f"{type(exc).__name__}: {exc}"
         os.write(write, text.encode())
@@ -263,3 +263,75 @@ def test_a_signal_mid_run_commits_nothing_after_it_and_says_interrupted_once(run
     code, out, err = run_cli("features", image, "-o", tmp_path / "x.csv")
     assert code == 128 + number and err == "roughsense: interrupted\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
+
+
+# --------------------------------------------------------------------------- 6. only regular files are read
+
+
+ROUGHSENSE = str(Path(sys.executable).with_name("roughsense"))
+LEGACY_MODEL = Path(__file__).parent / "data" / "legacy_models" / "model_2N.json"
+HANG_GUARD_S = 300  # not a timing check: on e1630a3 these runs never end, and the suite must
+
+
+@pytest.mark.parametrize("command", ["predict", "features", "predict-model"])
+def test_a_fifo_given_as_an_image_or_a_model_is_refused_at_once(tmp_path, command):
+    """36.6: a FIFO as an image hung predict and features (one SIGTERM did not end it)."""
+    fifo = tmp_path / ("m.json" if command == "predict-model" else "in.png")
+    os.mkfifo(fifo)
+    image = fifo if command != "predict-model" else grating_png(tmp_path / "in.png")
+    args = {"predict": ["predict", LEGACY_MODEL, image], "features": ["features", image, "-o", tmp_path / "x.csv"],
+            "predict-model": ["predict", fifo, image]}[command]
+    done = subprocess.run([ROUGHSENSE, *map(str, args)], capture_output=True, text=True, timeout=HANG_GUARD_S,
+                          env={**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")})
+    assert done.returncode == 2
+    assert error_line(done.stderr) == f"roughsense: error: {fifo}: is a FIFO (named pipe), not a regular " + (
+        "model file; give the model file itself" if command == "predict-model" else
+        "image file; give the image file itself")
+
+
+def test_check_names_a_fifo_in_the_manifest(run_cli, tmp_path):
+    """36.6: a FIFO in a manifest was reported as "not found"."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    first = sorted((root / "images").iterdir())[0]
+    first.unlink()
+    os.mkfifo(first)
+    code, out, err = run_cli("check", root)
+    assert code == 2 and f"image file is a FIFO (named pipe), not a regular image file; give the image file itself: " \
+        f"images/{first.name}" in out + err
+
+
+def test_a_link_to_a_device_is_named_as_a_device(run_cli, tmp_path):
+    """Also seen: a symlink to /dev/zero was "image file is empty"."""
+    link = tmp_path / "zero.png"
+    link.symlink_to("/dev/zero")
+    code, _, err = run_cli("features", link, "-o", tmp_path / "x.csv")
+    assert code == 2 and error_line(err).endswith(f"{link}: is a device, not a regular image file; give the image "
+                                                  "file itself")
+
+
+@needs_root
+def test_check_refuses_an_image_the_user_cannot_read(shared):
+    """Also seen: `check` said "study OK" for an image the user cannot read (chmod 000)."""
+    import contextlib
+    import io
+
+    from roughsense.cli import main
+
+    from .test_dataset import make_study
+
+    root = make_study(shared / "study", pads=("smooth",), repetitions=1)
+    for path in [root, *root.rglob("*")]:
+        os.chmod(path, 0o755 if path.is_dir() else 0o644)
+    first = sorted((root / "images").iterdir())[0]
+    os.chmod(first, 0)
+
+    def check_as_nobody() -> str:
+        text = io.StringIO()
+        with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
+            code = main(["check", str(root)])
+        return f"{code}\n{text.getvalue()}"
+
+    said = as_nobody(check_as_nobody)
+    assert said.startswith("2\n") and f"image file cannot be read (permission denied): images/{first.name}" in said

@@ -22,6 +22,7 @@ from pathlib import Path
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
+from .._util.files import open_regular
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.numbers import toml_spelling_problem
@@ -257,10 +258,10 @@ def _label(key: str, value) -> object:
 def read_sweep(path: str | os.PathLike[str]) -> Sweep:
     """Read and check a sweep file; every problem is one line naming the file and the key."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise _error(path, "sweep file not found")
     try:
-        with path.open("rb") as handle:
+        with os.fdopen(open_regular(path, what="sweep file"), "rb") as handle:  # a FIFO: refused, no wait
             if os.fstat(handle.fileno()).st_size > MAX_SWEEP_BYTES:
                 raise _error(path, f"is {os.fstat(handle.fileno()).st_size} bytes, above the limit of "
                                    f"{MAX_SWEEP_BYTES} for a sweep file")

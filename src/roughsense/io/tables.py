@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._util.files import read_regular
 from ..errors import InputError, RoughsenseWarning
 from .numbers import BOUNDS, NumberError, parse_number
 from .problems import Problems, flag, report, same_but_case
@@ -64,9 +65,9 @@ def missing_columns(missing: Sequence[str], found: Sequence[object], path: Path 
 def read_text(path: Path, *, max_bytes: int | None = None) -> str:
     """The file as UTF-8 text (a BOM is dropped); anything else is one InputError naming the line."""
     try:
-        if max_bytes is not None and path.stat().st_size > max_bytes:
+        raw = read_regular(path, limit=None if max_bytes is None else max_bytes + 1)  # a FIFO: refused, no wait
+        if max_bytes is not None and len(raw) > max_bytes:
             raise InputError(f"is larger than {max_bytes // 1_000_000} MB; refusing to read it", path=path)
-        raw = path.read_bytes()
     except IsADirectoryError:
         raise InputError("is a folder, expected a file", path=path) from None
     except OSError as exc:

@@ -46,7 +46,8 @@ import numpy as np
 
 from .._util import atomic
 from .._util.checks import POSITIVE_INT, Real, short_repr
-from ..errors import ModelFileError
+from .._util.files import read_regular
+from ..errors import InputError, ModelFileError
 from ..sensor.settings import MAX_N_FREQS
 from . import peak_law_file
 from .applicability import SpectrumDomain
@@ -269,8 +270,9 @@ def load_model(path: str | os.PathLike[str]) -> AnyModel:
     """
     path = Path(path)
     try:
-        with path.open("rb") as handle:
-            raw = handle.read(MAX_MODEL_BYTES + 1)  # never more: a huge file is refused, not read whole
+        raw = read_regular(path, limit=MAX_MODEL_BYTES + 1, what="model file")  # never more; a FIFO: no wait
+    except InputError as exc:
+        raise ModelFileError(exc.message, path=path) from None
     except FileNotFoundError:
         raise ModelFileError("model file not found", path=path) from None
     except IsADirectoryError:
