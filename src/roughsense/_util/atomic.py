@@ -19,6 +19,7 @@ from typing import IO
 from ..errors import ConfigError, OutputExistsError, RoughsenseError
 from . import interrupt
 from .files import foreign_reason
+from .text import spreadsheet_safe
 
 
 def _umask() -> int:
@@ -148,8 +149,12 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     return Path(path)
 
 
-def write_csv(path: str | os.PathLike[str], frame, **to_csv_kwargs) -> Path:
-    """Write a pandas DataFrame as CSV atomically (no index unless asked)."""
+def write_csv(path: str | os.PathLike[str], frame, *, for_people: bool = True, **to_csv_kwargs) -> Path:
+    """Write a pandas DataFrame as CSV atomically (no index unless asked). A CSV for people is opened in a
+    spreadsheet, so its text cells are made formula-safe (``text.spreadsheet_safe``); a study folder's own tables
+    (``for_people=False``) are data, read back as written."""
+    if for_people:
+        frame = spreadsheet_safe(frame)
     to_csv_kwargs.setdefault("index", False)
     to_csv_kwargs.setdefault("lineterminator", "\n")
     with atomic_open(path, "w") as handle:
