@@ -121,7 +121,8 @@ FigureFormat = Annotated[str, typer.Option(
     "shows a PNG of each figure and links its PDF).")]
 Dpi = Annotated[int, typer.Option(
     "--dpi", parser=number_option("--dpi", whole=True, low=30, high=1200),
-    help="Resolution of the figures' raster parts in dots per inch (30 to 1200).")]
+    help="Resolution of the figures' raster parts in dots per inch (30 to 1200; a figure is held within 24 Mpx, "
+         "drawn at the resolution that fits).")]
 
 
 def parse_name_list(text: str) -> list[str]:
