@@ -617,3 +617,52 @@ def test_the_dpi_help_states_the_budget_in_force(run_cli):
 
     code, out, _ = run_cli("study", "--help")
     assert code == 0 and f"within {MAX_FIGURE_PIXELS / 1e6:g} Mpx" in " ".join(out.split())
+
+
+# --------------------------------------------------------------------------- 11. a large sweep shows its estimate
+
+
+def _big_sweep(tmp_path, seeds: int) -> Path:
+    path = tmp_path / "sweep.toml"
+    path.write_text(f"""
+[sweep]
+seeds = {list(range(seeds))}
+repetitions = 2
+specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
+image_size_px = [480, 160]
+max_components = 4
+[axes]
+pad = ["smooth"]
+""")
+    return path
+
+
+def test_a_sweep_beyond_the_confirmation_size_shows_its_estimate_and_needs_yes(run_cli, tmp_path, monkeypatch):
+    """36.11: explore started a grid of 10,100 cells (about 6 hours) with no estimate, cap or confirmation."""
+    from roughsense.explore import sweep as sweep_module
+
+    path = _big_sweep(tmp_path, sweep_module.CONFIRM_CELLS + 1)
+    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--workers", 1)
+    frames = (sweep_module.CONFIRM_CELLS + 1) * 5 * 3 * 2  # cells x specimens x the default 3 forces x repetitions
+    hours = frames * sweep_module.CELL_SECONDS_PER_FRAME / 3600
+    assert code == 2 and error_line(err) == (
+        f"roughsense: error: {path}: {sweep_module.CONFIRM_CELLS + 1} cells, about {hours:.1f} core-hours "
+        f"({hours:.1f} h on 1 worker): a sweep of more than {sweep_module.CONFIRM_CELLS} cells runs only with --yes")
+    assert not (tmp_path / "out").exists()
+    ran = []
+    monkeypatch.setattr("roughsense.explore.runner.run_sweep", lambda *a, **k: ran.append(a) or 1 / 0)
+    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--workers", 1, "--yes")
+    assert ran and f"roughsense: {sweep_module.CONFIRM_CELLS + 1} cells, about {hours:.1f} core-hours" in err
+
+
+def test_a_sweep_within_the_confirmation_size_needs_no_yes(tmp_path):
+    from roughsense.explore.sweep import CONFIRM_CELLS, check_size_confirmed, read_sweep
+
+    assert check_size_confirmed(read_sweep(_big_sweep(tmp_path, CONFIRM_CELLS)), yes=False, workers=2) is None
+
+
+def test_the_explore_docs_state_the_confirmation_size_in_force():
+    from roughsense.explore.sweep import CELL_SECONDS_PER_FRAME, CONFIRM_CELLS
+
+    text = (Path(__file__).parents[1] / "docs" / "explore.md").read_text()
+    assert f"more than {CONFIRM_CELLS:,} cells" in text and CELL_SECONDS_PER_FRAME == 6.7 / 420
