@@ -666,3 +666,48 @@ def test_the_explore_docs_state_the_confirmation_size_in_force():
 
     text = (Path(__file__).parents[1] / "docs" / "explore.md").read_text()
     assert f"more than {CONFIRM_CELLS:,} cells" in text and CELL_SECONDS_PER_FRAME == 6.7 / 420
+
+
+# --------------------------------------------------------------------------- 13, 15. explore: Ctrl-C and a killed run's scratch
+
+
+def test_ctrl_c_during_explore_is_one_interrupted_line_and_no_dask_traceback(tmp_path):
+    """36.13: Ctrl-C (SIGINT to the whole process group, as a terminal sends it) printed a 30-line Dask traceback
+    and no "interrupted" line. The window is forced: the signal is sent once a cell has been written."""
+    import signal
+    import time
+
+    sweep = _big_sweep(tmp_path, 60)
+    out = tmp_path / "out"
+    run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--workers", "1"],
+                           stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           env={**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")})
+    try:
+        deadline = time.monotonic() + HANG_GUARD_S  # a guard against a hang, not a timing check
+        while not any((out / "results").glob("*.parquet")) and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        os.killpg(run.pid, signal.SIGINT)
+        _, err = run.communicate(timeout=HANG_GUARD_S)
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert run.returncode == 130, err
+    assert "Traceback" not in err and "distributed" not in err
+    assert [line for line in err.splitlines() if "interrupted" in line] == ["roughsense: interrupted"]
+    assert not list(out.glob(".dask-scratch.*"))
+
+
+def test_a_killed_sweeps_scratch_folder_is_removed_by_the_next_run(tmp_path):
+    """36.15: after kill -9 and a resumed explore, ``.dask-scratch.*.tmp/`` stayed in the finished folder."""
+    from roughsense.explore import runner
+
+    out = tmp_path / "out"
+    dead = out / f".dask-scratch.{dead_pid()}.abcd1234.tmp"
+    legacy = out / ".dask-scratch.abcd1234.tmp"  # named before the PID was in it
+    live = out / f".dask-scratch.{os.getppid()}.efgh5678.tmp"
+    for folder in (dead, legacy, live):
+        (folder / "worker-x").mkdir(parents=True)
+    fresh = runner._scratch(out)
+    assert fresh.name.startswith(f".dask-scratch.{os.getpid()}.") and atomic.is_temporary(fresh)
+    assert sorted(p.name for p in out.iterdir()) == sorted([live.name, fresh.name])

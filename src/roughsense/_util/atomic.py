@@ -131,7 +131,7 @@ def _remove_dead_temporaries(parent: Path, name: str) -> None:
     """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
     for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
         pid = path.name[len(name) + 2:].split(".", 1)[0]
-        if (pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid))
+        if (pid.isdigit() and _TEMP_FILE.match(path.name) and not pid_alive(int(pid))
                 and foreign_reason(path, folder=False) is None):  # another user's file of that name is left alone
             with contextlib.suppress(OSError):
                 path.unlink()
@@ -186,7 +186,8 @@ def is_temporary(path: str | os.PathLike[str]) -> bool:
             or (name.startswith(".") and name.endswith((LOCK_TAG, LOCK_TAG + FLOCK_SUFFIX))))
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process of that PID runs (another user's counts: it cannot be signalled, but it is there)."""
     if pid == os.getpid():
         return True
     try:
@@ -217,7 +218,7 @@ def leftovers(target: str | os.PathLike[str]) -> list[Path]:
     for tag in (PARTIAL_TAG, RETIRED_TAG):
         for path in target.parent.glob(f".{glob.escape(target.name)}{tag}*"):
             pid = path.name[len(target.name) + 1 + len(tag):].split("-", 1)[0]
-            if pid.isdigit() and not _pid_alive(int(pid)):
+            if pid.isdigit() and not pid_alive(int(pid)):
                 found.append(path)
     return sorted(found)
 

@@ -11,7 +11,10 @@ Only the CLI installs the handler (:func:`install`); a library caller keeps Pyth
 """
 from __future__ import annotations
 
+import contextlib
 import signal
+import threading
+from collections.abc import Iterator
 
 _received: list[int] = []  # the signals recorded since install(), first first
 
@@ -63,3 +66,18 @@ def check() -> None:
 def exit_code(default: int = 130) -> int:
     """The shell's code for a run ended by the recorded signal (130 for SIGINT, 143 for SIGTERM)."""
     return 128 + _received[0] if _received else default
+
+
+@contextlib.contextmanager
+def children_ignore_sigint() -> Iterator[None]:
+    """While worker processes are started (a Dask cluster): Ctrl-C reaches the whole process group, and each worker
+    would die printing its own traceback. A child started while SIGINT is ignored keeps it ignored (across exec
+    too), so the stop is this process's alone: it closes them. A Ctrl-C in that moment is not seen; SIGTERM is."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is not _record:
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, _record)
