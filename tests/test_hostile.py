@@ -711,3 +711,74 @@ def test_a_killed_sweeps_scratch_folder_is_removed_by_the_next_run(tmp_path):
     fresh = runner._scratch(out)
     assert fresh.name.startswith(f".dask-scratch.{os.getpid()}.") and atomic.is_temporary(fresh)
     assert sorted(p.name for p in out.iterdir()) == sorted([live.name, fresh.name])
+
+
+# --------------------------------------------------------------------------- Also seen
+
+
+def test_a_jpeg_exif_orientation_does_not_rotate_the_pixels(tmp_path):
+    """Also seen: a JPEG with EXIF orientation 6 was rotated while the same pixels in a PNG (eXIf chunk) were not."""
+    import numpy as np
+    from PIL import Image
+
+    from roughsense.io.images import read_image
+
+    rng = np.random.default_rng(0)
+    pixels = np.repeat(np.repeat(rng.integers(0, 256, (12, 20), dtype=np.uint8), 8, axis=0), 8, axis=1)  # 96 x 160
+    exif = Image.Exif()
+    exif[0x0112] = 6  # rotate 90 degrees clockwise to display
+    Image.fromarray(pixels).save(tmp_path / "a.jpg", quality=100, exif=exif)
+    Image.fromarray(pixels).save(tmp_path / "a.png", exif=exif)
+    jpeg, png = read_image(tmp_path / "a.jpg"), read_image(tmp_path / "a.png")
+    assert jpeg.shape == png.shape == pixels.shape
+    np.testing.assert_array_equal(png, pixels)
+    assert np.abs(jpeg.astype(int) - pixels).mean() < 2  # the same picture, to JPEG's loss
+
+
+def test_same_surface_refuses_one_image_given_twice(run_cli, tmp_path):
+    """Also seen: ``--same-surface`` with one image twice counted 2 trials (a narrower surface interval)."""
+    image = grating_png(tmp_path / "a.png")
+    (tmp_path / "link.png").symlink_to(image)
+    code, _, err = run_cli("predict", LEGACY_MODEL, image, tmp_path / "link.png", "--same-surface")
+    assert code == 2 and error_line(err) == (f"roughsense: error: --same-surface: {tmp_path / 'link.png'} is the same "
+                                             f"file as {image}; give each press once")
+
+
+@pytest.mark.parametrize("name", ["a\x1b[31mred", "line\nbreak", "x" * 201])
+def test_a_sweep_name_is_one_printable_line_of_bounded_length(tmp_path, name):
+    """Also seen: a sweep name with control characters went raw into the page's <title>; 100,000 characters were
+    accepted."""
+    import json
+
+    from roughsense.errors import ConfigError
+    from roughsense.explore.sweep import MAX_NAME_CHARS, read_sweep
+
+    path = _big_sweep(tmp_path, 1)
+    text = path.read_text().replace("[sweep]\n", f"[sweep]\nname = {json.dumps(name)}\n")
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=f"at most {MAX_NAME_CHARS} printable characters"):
+        read_sweep(path)
+
+
+def test_two_decimal_commas_are_two_problems_not_four_or_a_pandas_error(run_cli, tmp_path):
+    """Also seen: a decimal-comma row was reported twice, the second time as a raw pandas "C error"; and "run
+    `roughsense check` again" omitted the folder."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    lines = (root / "manifest.csv").read_text().splitlines()
+    lines[1] = lines[1].replace(".", ",", 1)  # force 1,0116...: one field too many
+    lines[3] = lines[3].replace(".", ",", 1) + ",5"  # images/x,png and a trailing value: two too many
+    (root / "manifest.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli("check", root)
+    listed = out.splitlines()
+    assert code == 2 and len(listed) == 2, out
+    assert listed[0].startswith(f"{root / 'manifest.csv'}, row 2: 6 fields but the header has 5")
+    assert listed[1].startswith(f"{root / 'manifest.csv'}, row 4: 7 fields but the header has 5")
+    assert error_line(err).endswith(f"2 problems (listed above); fix them and run `roughsense check {root}` again")
+
+
+def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_path):
+    """Also seen: ``study --data missing`` suggested running check on the missing folder."""
+    code, _, err = run_cli("study", "--data", tmp_path / "missing", "--out", tmp_path / "rep")
+    assert code == 2 and error_line(err) == f"roughsense: error: {tmp_path / 'missing'}: study folder not found"

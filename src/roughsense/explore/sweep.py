@@ -52,6 +52,8 @@ MAX_SWEEP_BYTES = 1_000_000
 #: Most cells (designs x seeds) in one sweep: at seconds to a minute each, 100,000 cells are days of a cluster;
 #: counted from the axes before any cell is built (a 1000 x 1000 grid is refused at once).
 MAX_CELLS = 100_000
+#: Longest sweep name: it titles the report page.
+MAX_NAME_CHARS = 200
 #: A sweep of more cells than this runs only with ``--yes``, after its estimate is shown: hours of work are asked for.
 CONFIRM_CELLS = 1000
 #: Core-seconds a cell costs per frame it renders, for that estimate: a paper-sized fingerprint-pad cell, 420 frames,
@@ -298,7 +300,10 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         raise _error(path, "[axes]: two designs of the grid make the same cell; list each design once")
     name = settings.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
-        raise _error(path, f"[sweep] name: expected a text, got {name!r}")
+        raise _error(path, f"[sweep] name: expected a text, got {short_repr(name)}")
+    if len(name) > MAX_NAME_CHARS or not name.isprintable():  # the report's title and heading
+        raise _error(path, f"[sweep] name: must be one line of at most {MAX_NAME_CHARS} printable characters, got "
+                           f"{short_repr(name)}")
     varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
     if MODEL_KEY in axes_in:
         varying[MODEL_KEY] = list(models)

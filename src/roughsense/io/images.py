@@ -235,11 +235,15 @@ def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
 
 def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,
            max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
-    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`."""
+    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`.
+
+    The pixels as the sensor stored them: an EXIF orientation is ignored (OpenCV applies a JPEG's, not a PNG's), so
+    the same frame gives the same rows, and the same spectrum, in every format.
+    """
     check_pixels(data, max_pixels, path)
     cv2 = _opencv()
     try:
-        image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+        image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_IGNORE_ORIENTATION)
     except cv2.error:
         image = None
     if image is None:
