@@ -10,6 +10,7 @@ between them.
 """
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
@@ -50,16 +51,25 @@ def open_regular(path: str | os.PathLike[str], *, what: str = "file") -> int:
     the descriptor (``fstat``), then blocking mode is restored for the read.
     """
     flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NOCTTY", 0)
-    fd = os.open(path, flags)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        if exc.errno not in (errno.ENXIO, errno.EOPNOTSUPP):  # a socket cannot be opened at all: name it as one
+            raise
+        raise _not_regular(path, os.stat(path).st_mode, what) from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            raise InputError(f"is {kind_of(mode)}, not a regular {what}; give the {what} itself", path=Path(path))
+            raise _not_regular(path, mode, what)
         os.set_blocking(fd, True)
     except BaseException:
         os.close(fd)
         raise
     return fd
+
+
+def _not_regular(path, mode: int, what: str) -> InputError:
+    return InputError(f"is {kind_of(mode)}, not a regular {what}; give the {what} itself", path=Path(path))
 
 
 def read_regular(path: str | os.PathLike[str], *, limit: int | None = None, what: str = "file") -> bytes:

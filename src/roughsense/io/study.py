@@ -131,7 +131,7 @@ def read_config(path: str | os.PathLike[str]) -> dict:
     Values are checked by the readers that use them (:func:`sensor_from_config`, :func:`parse_forces`).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a folder there is named by read_text, not "not found"
         raise InputError("file not found (every study folder needs study.toml)", path=path)
     text = read_text(path, max_bytes=MAX_CONFIG_BYTES)
     try:

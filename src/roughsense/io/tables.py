@@ -253,7 +253,7 @@ def read_table(
     it can be checked. A semicolon-separated file is read as comma-separated, with a warning (see ``_from_semicolons``).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a folder there is named by read_text, not "not found"
         raise InputError("file not found", path=path)
     # Numeric columns are read as text too, so an error quotes the cell as written ('inf', not np.float64(inf)).
     dtypes = dict.fromkeys({*text, *numeric, *positive, *integer, "image", "specimen", "pad", "participant", "shape"}, str)
