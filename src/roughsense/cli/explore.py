@@ -39,8 +39,8 @@ def register(app: typer.Typer) -> None:
         and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
         """
         from .._util.lock import output_lock
-        from ..explore.runner import check_options, run_sweep
         from .._util.workers import usable_cores
+        from ..explore.runner import check_options, run_sweep
         from ..explore.sweep import check_size_confirmed, read_sweep
         from ..explore.write_report import write_explore_report
         from ..report.html import FigureStyle

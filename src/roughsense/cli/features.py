@@ -65,7 +65,8 @@ def features(
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
     n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
     jobs: Jobs = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv, its grid file and the --plot file if they exist (never an input).")] = False,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Replace FEATURES.csv, its grid file and the --plot file if they exist (never an input).")] = False,
     max_pixels: MaxPixels = None,
     plot: Annotated[Path | None, typer.Option(
         "--plot", show_default=False, help="Also draw the one IMAGE's contact line and spectrum, its peak marked, "

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
+from .._util.files import open_regular
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
-from .._util.files import open_regular
 from ..errors import ConfigError
 from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.numbers import toml_spelling_problem
