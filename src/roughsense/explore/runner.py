@@ -12,6 +12,7 @@ within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is o
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -303,10 +304,19 @@ def _stream(client, todo: list[Cell], task):
         yield cells.pop(future.key), future
 
 
+def _silence_dask() -> None:
+    """Run in each local worker process (and in this one) as the cluster shuts down."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+
+
 def _close(client) -> None:
     """Close the client and its local cluster; a cluster that will not close cleanly (the results are written by
     then) is a warning, never a traceback."""
     cluster = getattr(client, "cluster", None)
+    if cluster is not None:  # our own workers: what they log while being stopped (a heartbeat to a closing
+        with contextlib.suppress(Exception):  # scheduler) is noise, after the results are written or a stop asked
+            client.run(_silence_dask, on_error="ignore")
+            _silence_dask()
     try:
         client.close(timeout=CLOSE_TIMEOUT_S)
         if cluster is not None:
