@@ -787,3 +787,18 @@ def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_pat
     """Also seen: ``study --data missing`` suggested running check on the missing folder."""
     code, _, err = run_cli("study", "--data", tmp_path / "missing", "--out", tmp_path / "rep")
     assert code == 2 and error_line(err) == f"roughsense: error: {tmp_path / 'missing'}: study folder not found"
+
+
+def test_a_link_in_place_of_a_sweeps_results_folder_is_refused(tmp_path):
+    """36.1 (the rule, explore): results/ as a link would send every cell's file into the folder it points to."""
+    from roughsense.explore.store import ResultStore
+    from roughsense.explore.sweep import read_sweep
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results").symlink_to(elsewhere)
+    with pytest.raises(OutputExistsError, match="results in it is not a folder roughsense made"):
+        ResultStore(out, read_sweep(_big_sweep(tmp_path, 1)), force=True)
+    assert list(elsewhere.iterdir()) == []
