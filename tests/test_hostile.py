@@ -802,3 +802,55 @@ def test_a_link_in_place_of_a_sweeps_results_folder_is_refused(tmp_path):
     with pytest.raises(OutputExistsError, match="results in it is not a folder roughsense made"):
         ResultStore(out, read_sweep(_big_sweep(tmp_path, 1)), force=True)
     assert list(elsewhere.iterdir()) == []
+
+
+def test_ctrl_c_at_an_operators_prompt_stops_at_once(signals):
+    """36.5 (the rule, where a run waits on a person): a prompt is no safe point that ever comes, so a signal there
+    stops the run at once, as Python's own Ctrl-C did, rather than after the operator answers."""
+    import io
+    import signal
+    import threading
+    import time
+
+    from roughsense.rig.scale import ManualForce
+
+    read, write = os.pipe()
+    stdin = os.fdopen(read, "r")
+    done = threading.Event()
+
+    def press_ctrl_c() -> None:
+        time.sleep(0.2)  # whether it lands before or during the wait, the outcome is the same
+        os.kill(os.getpid(), signal.SIGINT)
+        if not done.wait(HANG_GUARD_S):  # on a regression: an answer ends the wait, and the test fails on its value
+            os.write(write, b"2\n")
+
+    helper = threading.Thread(target=press_ctrl_c, daemon=True)
+    helper.start()
+    try:
+        with pytest.raises(signals.Interrupted):
+            ManualForce(stdin=stdin, prompt_out=io.StringIO()).read_force(2.0, low_n=1.5, high_n=2.5)
+    finally:
+        done.set()
+        helper.join()
+        stdin.close()
+        os.close(write)
+
+
+@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_ends_a_live_display_as_its_normal_end_and_sigterm_stops_the_run(signals, signum):
+    """36.5: live scoring ends with Ctrl-C (its summary is the result); a SIGTERM there still stops the run."""
+    import io
+    import signal
+
+    from rich.console import Console
+
+    from roughsense.rig.live import render_live
+
+    def frames():
+        for i in range(10**9):
+            if i == 3:
+                os.kill(os.getpid(), getattr(signal, signum))
+            yield float(i), 1.0 + i
+    summary = render_live(frames(), console=Console(file=io.StringIO()))
+    assert summary.updates == 3 and summary.last_score == 3.0
+    assert signals.requested() == (None if signum == "SIGINT" else signal.SIGTERM)

@@ -17,6 +17,7 @@ import threading
 from collections.abc import Iterator
 
 _received: list[int] = []  # the signals recorded since install(), first first
+_immediate: list[bool] = []  # non-empty while the main thread waits on a person or a device (see immediate())
 
 
 class Interrupted(KeyboardInterrupt):
@@ -28,10 +29,9 @@ class Interrupted(KeyboardInterrupt):
 
 
 def _record(signum: int, frame) -> None:
-    if _received:
-        _received.append(signum)
-        raise KeyboardInterrupt  # asked twice: the user wants it to stop now
     _received.append(signum)
+    if len(_received) > 1 or _immediate:  # asked twice, or waiting where nothing is being committed: stop now
+        raise Interrupted(_received[0])
 
 
 def install() -> None:
@@ -81,3 +81,25 @@ def children_ignore_sigint() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, _record)
+
+
+@contextlib.contextmanager
+def immediate() -> Iterator[None]:
+    """A wait on a person or a device (an operator's answer, a scale, a camera's next frame), where nothing is being
+    committed: a signal stops it at once, as Python's own Ctrl-C would, instead of at the next safe point."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    check()
+    _immediate.append(True)
+    try:
+        yield
+    finally:
+        _immediate.pop()
+
+
+def forget_sigint() -> None:
+    """Ctrl-C was the expected way to end what just ended (a live display): not a stop request any more. A SIGTERM
+    stays recorded."""
+    if _received and _received[0] == signal.SIGINT:
+        _received.clear()
