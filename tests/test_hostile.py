@@ -854,3 +854,13 @@ def test_ctrl_c_ends_a_live_display_as_its_normal_end_and_sigterm_stops_the_run(
     summary = render_live(frames(), console=Console(file=io.StringIO()))
     assert summary.updates == 3 and summary.last_score == 3.0
     assert signals.requested() == (None if signum == "SIGINT" else signal.SIGTERM)
+
+
+def test_a_fifo_as_a_video_source_is_refused_at_once(tmp_path):
+    """36.6 (the rule, the rig): OpenCV would block opening a FIFO given as a video file."""
+    from roughsense.errors import InputError
+    from roughsense.rig.camera import open_source
+
+    os.mkfifo(tmp_path / "run.avi")
+    with pytest.raises(InputError, match="is a FIFO \\(named pipe\\), not a regular video file"):
+        open_source(tmp_path / "run.avi")
