@@ -238,7 +238,7 @@ def clean_leftovers(target: str | os.PathLike[str]) -> None:
     for path in found:
         if (reason := foreign_reason(path, folder=True)) is not None:
             raise OutputExistsError(f"{path.name} beside it looks like a leftover of a roughsense run but {reason}, "
-                                    f"so it was not made by you; delete {path} (or choose another output folder)",
+                                    f"so roughsense did not make it; delete {path} (or choose another output folder)",
                                     path=target)
     for path in found:
         if RETIRED_TAG in path.name and not target.exists() and not target.is_symlink():
