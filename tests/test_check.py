@@ -172,7 +172,7 @@ def test_check_lists_every_problem_exits_2_and_writes_nothing(tmp_path, run_cli)
         f"{root / 'ratings.csv'}, row 5, column 'rating': not a number: 'lots'",
     ]
     assert err.splitlines() == [f"roughsense: error: {root}: 5 problems (listed above); fix them and run "
-                                "`roughsense check` again"]
+                                f"`roughsense check {root}` again"]
     assert tree(tmp_path) == before
 
 

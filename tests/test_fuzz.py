@@ -844,3 +844,188 @@ def test_every_seed_reader_bounds_a_seed_alike(seed, zeros):
         spec = None
     assert (spec == seed) if valid else spec is None, (text, spec)
     assert SEED.accepts(seed) == (0 <= seed <= MAX_SEED)
+
+
+# --------------------------------------------------------------------------- issue 36: the fourth hardening pass's rules
+
+
+@settings(FUZZ, max_examples=max(100, EXAMPLES))
+@given(header=st.integers(1, 4), rows=st.lists(st.lists(st.sampled_from(["1", "", "x"]), min_size=0, max_size=6).map(
+    lambda r: ["1", *r]), min_size=1, max_size=5))
+def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
+    """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
+    the rows after it are still read: no pandas "C error"."""
+    from roughsense.io.problems import Problems
+    from roughsense.io.tables import read_table
+
+    path = tmp_path_factory.mktemp("widths36") / "t.csv"
+    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
+    problems = Problems()
+    read_table(path, [f"c{i}" for i in range(header)], numeric=["c0"], problems=problems)
+    messages = [one.message for one in problems.items]
+    assert not any("readable CSV" in m for m in messages), messages
+    wrong = [i + 2 for i, r in enumerate(rows) if len(r) != header]
+    width_rows = [one.row for one in problems.items if "fields but the header has" in one.message]
+    assert width_rows == wrong
+    assert len({one.row for one in problems.items if one.row in wrong}) == len(wrong)  # one problem per such row
+    assert all(one.column is None for one in problems.items if one.row in wrong)
+
+
+PLANTS = ("own folder", "file", "link to folder", "link to nothing", "fifo")
+
+
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(plant=st.sampled_from(PLANTS), tag=st.sampled_from(("partial", "retired")), target_exists=st.booleans())
+def test_a_leftover_is_used_only_when_it_is_the_users_own_folder(tmp_path_factory, plant, tag, target_exists):
+    """36.1: whatever sits under a leftover's name, only a real folder of the user's is put back or deleted; anything
+    else is refused by name, and what a link points to is never touched."""
+    from roughsense._util import atomic
+    from roughsense.errors import OutputExistsError
+
+    root = tmp_path_factory.mktemp("plant")
+    private = root / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    out = root / "out"
+    if target_exists:
+        out.mkdir()
+        (out / "a.csv").write_text("current")
+    child = os.fork()
+    if child == 0:  # pragma: no cover - a PID that is surely dead once waited for
+        os._exit(0)
+    os.waitpid(child, 0)
+    name = root / f".out{atomic.PARTIAL_TAG if tag == 'partial' else atomic.RETIRED_TAG}{child}-abcd"
+    if plant == "own folder":
+        name.mkdir()
+        (name / "a.csv").write_text("leftover")
+    elif plant == "file":
+        name.write_text("x")
+    elif plant == "fifo":
+        os.mkfifo(name)
+    else:
+        name.symlink_to(private if plant == "link to folder" else root / "nothing")
+    try:
+        atomic.clean_leftovers(out)
+        refused = None
+    except OutputExistsError as exc:
+        refused = str(exc)
+    assert (refused is None) == (plant == "own folder"), (plant, refused)
+    if refused is not None:
+        assert f"delete {name}" in refused and os.path.lexists(name)
+    else:
+        assert not os.path.lexists(name)
+        expected = b"current" if target_exists else (b"leftover" if tag == "retired" else None)
+        assert (out / "a.csv").read_bytes() == expected if expected else not out.exists()
+    assert (private / "a.csv").read_text() == "mine" and sorted(os.listdir(private)) == ["a.csv"]
+
+
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(kind=st.sampled_from(("regular", "empty", "folder", "fifo", "link to fifo", "device", "socket")),
+       reader=st.sampled_from(("image", "table", "model", "sweep")))
+def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, reader):
+    """36.6: images, tables, model and sweep files are read only as regular files; a FIFO, a device or a socket is
+    one error naming its type, at once (a FIFO without a writer would block an ordinary open)."""
+    import socket
+
+    from roughsense.errors import RoughsenseError
+    from roughsense.explore.sweep import read_sweep
+    from roughsense.io.images import read_image
+    from roughsense.io.tables import read_table
+    from roughsense.model.modelfile import load_model
+
+    root = tmp_path_factory.mktemp("kinds")
+    path = root / "thing"
+    keep = None
+    if kind in ("regular", "empty"):
+        path.write_bytes(b"" if kind == "empty" else b"c0\n1\n")
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "link to fifo":
+        os.mkfifo(root / "pipe")
+        path.symlink_to(root / "pipe")
+    elif kind == "device":
+        path.symlink_to("/dev/null")
+    else:
+        keep = socket.socket(socket.AF_UNIX)
+        keep.bind(str(path))
+    read = {"image": read_image, "table": lambda p: read_table(p, []), "model": load_model, "sweep": read_sweep}[reader]
+    try:
+        read(path)
+    except RoughsenseError as exc:
+        if kind not in ("regular", "empty"):
+            words = {"folder": "a folder", "fifo": "FIFO", "link to fifo": "FIFO", "device": "a device",
+                     "socket": "a socket"}[kind]
+            assert words in str(exc), str(exc)
+    finally:
+        if keep is not None:
+            keep.close()
+
+
+@settings(FUZZ, max_examples=max(60, EXAMPLES))
+@given(values=st.lists(st.one_of(st.text(max_size=12), st.sampled_from(["=1+1", "-2", "+x", "@a", "\t=", "-", "'=x"])),
+                       min_size=1, max_size=8))
+def test_no_text_cell_a_spreadsheet_would_run_survives_spreadsheet_safe(values):
+    """36.12: after spreadsheet_safe, a text cell starts with = + - @ TAB or CR only if it is a number (or a lone
+    sign); every other cell is unchanged, and a second pass changes nothing more."""
+    import pandas as pd
+
+    from roughsense._util.text import spreadsheet_safe
+
+    frame = pd.DataFrame({"image": values})
+    once = spreadsheet_safe(frame)["image"].tolist()
+    for before, after in zip(values, once):
+        risky = len(before) > 1 and before.startswith(("=", "+", "-", "@", "\t", "\r"))
+        try:
+            float(before)
+            number = True
+        except ValueError:
+            number = False
+        assert after == (f"'{before}" if risky and not number else before)
+    assert spreadsheet_safe(pd.DataFrame({"image": once}))["image"].tolist() == once
+
+
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(width_in=st.floats(0.5, 40.0), height_in=st.floats(0.5, 40.0), dpi=st.integers(30, 1200))
+def test_every_accepted_dpi_stays_within_a_figures_pixel_budget(width_in, height_in, dpi):
+    """36.10: for every figure size and every --dpi accepted, a figure is rendered within MAX_FIGURE_PIXELS, and at
+    the dpi asked whenever that fits."""
+    import warnings
+
+    import matplotlib.pyplot as plt
+
+    from roughsense.report.figures import MAX_FIGURE_PIXELS, figure_dpi
+
+    fig = plt.figure(figsize=(width_in, height_in))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        used = figure_dpi(fig, dpi)
+    plt.close(fig)
+    assert width_in * height_in * used**2 <= MAX_FIGURE_PIXELS * (1 + 1e-9)
+    assert used == dpi or width_in * height_in * dpi**2 > MAX_FIGURE_PIXELS
+
+
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(spelling=st.sampled_from(("same", "dot", "link", "hard link", "parent dots")),
+       which=st.sampled_from(("--out", "--plot")))
+def test_an_output_spelled_as_any_input_is_refused_whatever_force_says(tmp_path_factory, spelling, which):
+    """36.2 (the rule): an output is refused when it names an input by any spelling (./x, a/../x, a link, a hard
+    link), --force or not."""
+    from roughsense._util.atomic import check_outputs
+    from roughsense.errors import ConfigError
+
+    root = tmp_path_factory.mktemp("spell")
+    (root / "sub").mkdir()
+    image = root / "in.png"
+    image.write_bytes(b"x")
+    other = {"same": image, "dot": root / "." / "in.png", "parent dots": root / "sub" / ".." / "in.png",
+             "link": root / "link.png", "hard link": root / "hard.png"}[spelling]
+    if spelling == "link":
+        other.symlink_to(image)
+    elif spelling == "hard link":
+        os.link(image, other)
+    outputs = {"--out": root / "x.csv", "--plot": None, which: other}
+    with pytest.raises(ConfigError, match=f"{which} .* (an input of this run|is also)"):
+        check_outputs(outputs, force=True, inputs=[image])
+    assert image.read_bytes() == b"x"

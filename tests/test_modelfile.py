@@ -301,8 +301,8 @@ def test_a_law_whose_predictions_would_overflow_is_refused(saved_law):
     path, _, _ = saved_law
 
     def huge(document):
-        document["model"].update(intercept=900.0, coefficients=[500.0, 500.0], feature_max=[1.0, 1.0],
-                                 feature_min=[-1.0, -1.0])
+        document["model"].update(intercept=900.0, coefficients=[500.0, 500.0], feature_max=[-0.1, 1.0],
+                                 feature_min=[-2.0, -1.0])  # a log peak frequency on the grid, a huge law
 
     rewrite(path, huge)
     with pytest.raises(ModelFileError, match=r"model\.intercept and model\.coefficients give log roughness"):

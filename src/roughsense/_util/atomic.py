@@ -17,6 +17,9 @@ from pathlib import Path
 from typing import IO
 
 from ..errors import ConfigError, OutputExistsError, RoughsenseError
+from . import interrupt
+from .files import foreign_reason
+from .text import spreadsheet_safe
 
 
 def _umask() -> int:
@@ -31,11 +34,11 @@ def _default_file_mode() -> int:
 
 
 def check_can_write(path: str | os.PathLike[str], *, force: bool = False,
-                    inputs: Iterable[str | os.PathLike[str]] = ()) -> Path:
+                    inputs: Iterable[str | os.PathLike[str]] = (), option: str = "--out") -> Path:
     """Refuse to replace an existing file unless ``force``, and one of the run's ``inputs`` even with it
     (:func:`refuse_inputs`): user data is never overwritten silently."""
     target = Path(path)
-    refuse_inputs(target, inputs)
+    refuse_inputs(target, inputs, option=option)
     if target.exists() and not force:
         raise OutputExistsError("already exists; pass --force to replace it", path=target)
     if target.exists() and target.is_dir():
@@ -65,6 +68,20 @@ def refuse_inputs(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLi
             what = "inside the input folder" if inside and target != source else "an input of this run"
             raise ConfigError(f"{option} {path} is {what} {item}; choose another path (--force does not change this: "
                               "the run would overwrite what it reads)")
+
+
+def check_outputs(outputs: dict[str, str | os.PathLike[str] | None], *, force: bool = False,
+                  inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
+    """Check every file a run writes (``{option: path}``; None: not asked for) before any work: none is an input
+    (whatever ``force`` says), no two are the same file, and none exists unless ``force``."""
+    inputs = list(inputs)
+    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    for i, (option, path) in enumerate(given):
+        for other, earlier in given[:i]:
+            if _resolved(path) == _resolved(earlier) or _same_file(path, earlier):
+                raise ConfigError(f"{option} {path} is also {other}: the run would write one over the other; "
+                                  "choose another path")
+        check_can_write(path, force=force, inputs=inputs, option=option)
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -100,6 +117,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
             yield handle
             handle.flush()
             os.fsync(handle.fileno())
+        interrupt.check()  # a run asked to stop commits nothing more
         os.replace(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(OSError):
@@ -113,7 +131,8 @@ def _remove_dead_temporaries(parent: Path, name: str) -> None:
     """Temporary files of ``name`` left by killed processes (``.NAME.PID.XXXXXXXX.tmp``) go before a new write."""
     for path in parent.glob(f".{glob.escape(name)}.*.tmp"):
         pid = path.name[len(name) + 2:].split(".", 1)[0]
-        if pid.isdigit() and _TEMP_FILE.match(path.name) and not _pid_alive(int(pid)):
+        if (pid.isdigit() and _TEMP_FILE.match(path.name) and not pid_alive(int(pid))
+                and foreign_reason(path, folder=False) is None):  # another user's file of that name is left alone
             with contextlib.suppress(OSError):
                 path.unlink()
 
@@ -130,8 +149,12 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     return Path(path)
 
 
-def write_csv(path: str | os.PathLike[str], frame, **to_csv_kwargs) -> Path:
-    """Write a pandas DataFrame as CSV atomically (no index unless asked)."""
+def write_csv(path: str | os.PathLike[str], frame, *, for_people: bool = True, **to_csv_kwargs) -> Path:
+    """Write a pandas DataFrame as CSV atomically (no index unless asked). A CSV for people is opened in a
+    spreadsheet, so its text cells are made formula-safe (``text.spreadsheet_safe``); a study folder's own tables
+    (``for_people=False``) are data, read back as written."""
+    if for_people:
+        frame = spreadsheet_safe(frame)
     to_csv_kwargs.setdefault("index", False)
     to_csv_kwargs.setdefault("lineterminator", "\n")
     with atomic_open(path, "w") as handle:
@@ -163,7 +186,8 @@ def is_temporary(path: str | os.PathLike[str]) -> bool:
             or (name.startswith(".") and name.endswith((LOCK_TAG, LOCK_TAG + FLOCK_SUFFIX))))
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process of that PID runs (another user's counts: it cannot be signalled, but it is there)."""
     if pid == os.getpid():
         return True
     try:
@@ -176,9 +200,15 @@ def _pid_alive(pid: int) -> bool:
 
 
 def _swap_target(target: str | os.PathLike[str]) -> Path:
-    """The real folder to replace: absolute, a symlinked folder replaced where it really lives."""
+    """The real folder to replace: absolute, a symlinked folder replaced where it really lives -- if the link is
+    the user's own: another user's link could point the swap at a folder of the victim's."""
     path = Path(os.path.abspath(target))
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+    if not path.is_symlink():
+        return path
+    if os.lstat(path).st_uid != os.geteuid():
+        raise OutputExistsError("is a symbolic link made by another user; delete it or choose another output "
+                                "folder (roughsense follows only your own links)", path=path)
+    return Path(os.path.realpath(path))
 
 
 def leftovers(target: str | os.PathLike[str]) -> list[Path]:
@@ -188,7 +218,7 @@ def leftovers(target: str | os.PathLike[str]) -> list[Path]:
     for tag in (PARTIAL_TAG, RETIRED_TAG):
         for path in target.parent.glob(f".{glob.escape(target.name)}{tag}*"):
             pid = path.name[len(target.name) + 1 + len(tag):].split("-", 1)[0]
-            if pid.isdigit() and not _pid_alive(int(pid)):
+            if pid.isdigit() and not pid_alive(int(pid)):
                 found.append(path)
     return sorted(found)
 
@@ -197,12 +227,20 @@ def clean_leftovers(target: str | os.PathLike[str]) -> None:
     """Finish what a killed run left beside ``target``.
 
     A retired folder when ``target`` is missing is the previous content, caught between the two renames of a
-    swap without ``renameat2``: it is put back. Everything else of roughsense's own is deleted.
+    swap without ``renameat2``: it is put back. Everything else of roughsense's own is deleted. A leftover's name
+    can be planted by anyone who can write the parent folder (a link to a private folder would be put back as the
+    output), so one that is not a real folder of this user's is refused, never renamed, followed or deleted.
     """
     import shutil
 
     target = _swap_target(target)
-    for path in leftovers(target):
+    found = leftovers(target)
+    for path in found:
+        if (reason := foreign_reason(path, folder=True)) is not None:
+            raise OutputExistsError(f"{path.name} beside it looks like a leftover of a roughsense run but {reason}, "
+                                    f"so roughsense did not make it; delete {path} (or choose another output folder)",
+                                    path=target)
+    for path in found:
         if RETIRED_TAG in path.name and not target.exists() and not target.is_symlink():
             try:
                 os.rename(path, target)
@@ -312,6 +350,7 @@ class FolderSwap:
         import shutil
 
         try:
+            interrupt.check()  # a run asked to stop commits nothing more (abort() removes the staging folder)
             _carry_over(self.target, self.path, self.owned)
             if not self.target.exists():
                 os.rename(self.path, self.target)
@@ -326,6 +365,9 @@ class FolderSwap:
                 os.rename(self.target, retired)
                 os.rename(self.path, self.target)
                 os.rename(retired, self.path)
+        except interrupt.Interrupted:
+            self.abort()
+            raise
         except OSError as exc:
             self.abort()
             raise RoughsenseError(f"cannot replace the folder: {exc.strerror or exc}", path=self.target) from None

@@ -10,17 +10,22 @@ that fails it is recomputed.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
 import os
 import shutil
+import stat
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
 
+from ..errors import RoughsenseError, RoughsenseWarning
 from . import atomic
+from .files import foreign_reason, kind_of, read_regular
 
 
 def cache_dir() -> Path:
@@ -29,6 +34,42 @@ def cache_dir() -> Path:
         return Path(explicit)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "roughsense"
+
+
+_BYPASS_SAID: set[str] = set()  # cache folders this process has said it bypasses (once each)
+
+
+def usable_cache_dir() -> Path | None:
+    """The cache folder if it can be trusted, else None (said once per folder, as a warning).
+
+    A cache is read back as results, so anyone who can write it can choose the numbers a run reports: it is
+    created 0700 and used only while it is a real folder of this user's that no one else can write.
+    """
+    root = cache_dir()
+    try:
+        root.parent.mkdir(parents=True, exist_ok=True)
+        with contextlib.suppress(FileExistsError):
+            root.mkdir(mode=0o700)
+        info = os.lstat(root)
+    except OSError as exc:
+        return _bypass(root, f"cannot be made ({exc.strerror or exc})")
+    if not stat.S_ISDIR(info.st_mode):
+        return _bypass(root, f"is {kind_of(info.st_mode)}, not a folder")
+    if info.st_uid != os.geteuid():
+        return _bypass(root, f"belongs to another user (uid {info.st_uid}), who could choose its results")
+    if info.st_mode & 0o022:
+        return _bypass(root, f"can be written by other users (mode {stat.S_IMODE(info.st_mode):o}), who could choose "
+                             "its results; chmod go-w it to use it")
+    return root
+
+
+def _bypass(root: Path, reason: str) -> None:
+    if str(root) not in _BYPASS_SAID:
+        _BYPASS_SAID.add(str(root))
+        warnings.warn(RoughsenseWarning(f"the cache folder {root} {reason}: not using it, so everything is "
+                                        "computed afresh (set ROUGHSENSE_CACHE_DIR to a folder of your own)"),
+                      stacklevel=3)
+    return None
 
 
 #: Bumped whenever what an entry holds changes: older entries are then simply not found.
@@ -78,15 +119,18 @@ def cached_frame(key: str, compute: Callable[[], pd.DataFrame], *, kind: str = "
     a full disk, damaged, edited) is recomputed and replaced, never trusted: a bad cache must not produce an
     error that blames the user's correct files.
     """
-    path = cache_dir() / kind / f"{key}.csv"
-    if path.is_file():
+    root = usable_cache_dir()
+    if root is None:
+        return compute(), False
+    path = root / kind / f"{key}.csv"
+    if foreign_reason(path.parent, folder=True) is None and foreign_reason(path, folder=False) is None:
         try:
-            body = _verified_body(path.read_bytes())
+            body = _verified_body(read_regular(path))
             if body is not None:
                 frame = pd.read_csv(io.BytesIO(body), dtype={"image": str, "specimen": str, "pad": str, "condition": str},
                                     keep_default_na=False, na_values=[""])
                 return frame, True
-        except (OSError, ValueError, pd.errors.ParserError):
+        except (OSError, ValueError, pd.errors.ParserError, RoughsenseError):
             pass  # a damaged cache entry is simply recomputed
     frame = compute()
     try:
@@ -110,13 +154,22 @@ def cached_folder(stem: str, version: str, build: Callable[[Path], object], *,
     the next call removes), never a half-written one that later runs would trust. Complete entries of other
     versions (``marker`` inside) are roughsense's own and never read again, so they are removed.
     """
-    root = folder_entry(stem, version)
-    if is_complete(root):
+    cache = usable_cache_dir()
+    if cache is None:  # an untrusted cache: built afresh in a private folder of this run's, removed at exit
+        import atexit
+        import tempfile
+
+        root = Path(tempfile.mkdtemp(prefix=f"roughsense-{stem}-")) / stem
+        atexit.register(shutil.rmtree, root.parent, ignore_errors=True)
+        build(root)
         return root
-    for stale in cache_dir().glob(f"{stem}-*"):
-        if stale != root and (stale / marker).is_file():
+    root = folder_entry(stem, version)
+    if foreign_reason(root, folder=True) is None and is_complete(root):
+        return root
+    for stale in cache.glob(f"{stem}-*"):
+        if stale != root and foreign_reason(stale, folder=True) is None and (stale / marker).is_file():
             shutil.rmtree(stale, ignore_errors=True)
-    for partial in cache_dir().glob(f".{stem}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
+    for partial in cache.glob(f".{stem}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
         atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
     build(root)
     return root

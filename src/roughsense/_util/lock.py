@@ -18,6 +18,7 @@ import contextlib
 import json
 import os
 import socket
+import stat
 import time
 import warnings
 from collections.abc import Iterator
@@ -29,6 +30,7 @@ import filelock
 
 from ..errors import RoughsenseError, RoughsenseWarning
 from .atomic import FLOCK_SUFFIX, LOCK_TAG
+from .files import kind_of
 
 _READ_WAIT_S = 1.0  # a holder that has just taken the lock writes its record within milliseconds
 _RETRY_S = 0.2  # a lock file removed by a run letting go as we took it: filelock tries again on the new one
@@ -73,12 +75,29 @@ def _parse(text: bytes) -> Holder | None:
 
 
 def _read(path: Path) -> bytes:
-    """The record's bytes (at most 4 kB); empty if there is none."""
+    """The record's bytes (at most 4 kB); empty if there is none. Only a regular file is read (opened without
+    blocking or following a link): a FIFO planted under the record's name would otherwise hang the run."""
+    _refuse_planted(path)
     try:
-        with open(path, "rb") as handle:
-            return handle.read(4096)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
         return b""
+    with os.fdopen(fd, "rb") as handle:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped in after the lstat
+            _refuse_planted(path, os.fstat(fd).st_mode)
+        return handle.read(4096)
+
+
+def _refuse_planted(path: Path, mode: int | None = None) -> None:
+    """A lock file that is not a regular file (a link, a FIFO) was not made by roughsense: refused, naming it."""
+    if mode is None:
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            return
+    if not stat.S_ISREG(mode):
+        raise RoughsenseError(f"the lock file {path} is {kind_of(mode)}, not a file a roughsense run made; delete "
+                              "it if no run is writing this folder", path=path.parent)
 
 
 class OutputLock:
@@ -101,6 +120,7 @@ class OutputLock:
     def acquire(self) -> None:
         if _HELD.get(self.path) == os.getpid():
             return  # this process already holds it (the CLI around the library): nothing to take
+        _refuse_planted(_flock_path(self.path))  # filelock would follow a link, or fail with the OS's bare words
         lock = filelock.FileLock(_flock_path(self.path), timeout=_RETRY_S, mode=_SHARED_MODE)
         try:
             with warnings.catch_warnings():
@@ -120,6 +140,7 @@ class OutputLock:
             self._take()
         except BaseException:
             lock.release()
+            _remove_if_free(_flock_path(self.path))
             raise
         self._lock = lock
         _HELD[self.path] = os.getpid()

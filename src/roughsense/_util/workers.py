@@ -22,6 +22,8 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
+from . import interrupt
+
 if TYPE_CHECKING:  # imported where a pool is made: counting cores (the CLI's --jobs) stays light
     from concurrent.futures import ProcessPoolExecutor
 
@@ -59,6 +61,7 @@ def _watch_parent(parent_pid: int) -> None:
 
 def die_with_parent(parent_pid: int) -> None:
     """Pool initializer: end this worker as soon as ``parent_pid`` is no longer its parent."""
+    interrupt.reset_in_worker()
     armed = _arm_parent_death_signal()
     if os.getppid() != parent_pid:  # the parent died before the signal was armed (or we were re-parented)
         os._exit(1)

@@ -16,6 +16,7 @@ import warnings
 
 import typer
 
+from .._util import interrupt
 from ..errors import RoughsenseError, one_line
 from ._common import close_line
 
@@ -147,14 +148,15 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _show_warning
     try:
         code = _command().main(args=args, prog_name="roughsense", standalone_mode=False)
+        interrupt.check()  # stopped after its last safe point: still a run that was stopped, not a success
         return code if isinstance(code, int) and not isinstance(code, bool) else 0
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else _fail(str(code)))
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # interrupt.Interrupted at a safe point, or a second Ctrl-C
         close_line()
         print("roughsense: interrupted", file=sys.stderr)
-        return 130
+        return interrupt.exit_code()
     except typer.TyperException as exc:  # click's usage errors, and Abort (an end of input at a prompt)
         return _usage_error(exc, args)
     except RoughsenseError as exc:
@@ -182,10 +184,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run() -> None:
-    """Console-script entry point. ``kill`` (SIGTERM) stops a run as Ctrl-C does: its lock and half-built output
-    go with it. A run started in the background (``&``, nohup, a script) ignores Ctrl-C's SIGINT, so SIGTERM is
-    the signal that reaches it."""
-    import signal
-
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    """Console-script entry point. ``kill`` (SIGTERM) stops a run as Ctrl-C does, at its next safe point
+    (``_util/interrupt.py``): nothing is committed after it, its lock and half-built output go, one line says
+    "interrupted" and the exit code is 143 (130 for Ctrl-C). A run started in the background (``&``, nohup, a
+    script) ignores Ctrl-C's SIGINT, so SIGTERM is the signal that reaches it."""
+    interrupt.install()
     sys.exit(main())

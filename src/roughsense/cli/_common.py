@@ -12,6 +12,7 @@ from typing import Annotated, TypeVar
 
 import typer
 
+from .._util import interrupt
 from .._util.workers import usable_cores
 from ..errors import ConfigError
 
@@ -120,7 +121,8 @@ FigureFormat = Annotated[str, typer.Option(
     "shows a PNG of each figure and links its PDF).")]
 Dpi = Annotated[int, typer.Option(
     "--dpi", parser=number_option("--dpi", whole=True, low=30, high=1200),
-    help="Resolution of the figures' raster parts in dots per inch (30 to 1200).")]
+    help="Resolution of the figures' raster parts in dots per inch (30 to 1200; a figure is held within 24 Mpx, "
+         "drawn at the resolution that fits).")]
 
 
 def parse_name_list(text: str) -> list[str]:
@@ -196,6 +198,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
         done = 0
         try:
             for item in items:
+                interrupt.check()  # a safe point: each item
                 yield item
                 done += 1
         finally:
@@ -215,6 +218,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
     with Progress(*columns, transient=True, console=_console()) as bar:
         task = bar.add_task(description, total=total)
         for item in items:
+            interrupt.check()  # a safe point: each item
             yield item
             bar.advance(task)
 
@@ -222,6 +226,7 @@ def progress(items: Iterable[T], *, total: int | None = None, description: str =
 @contextmanager
 def stage(description: str) -> Iterator[None]:
     """A step with no count (writing a report): a spinner with the elapsed time, or one line."""
+    interrupt.check()  # a safe point: before each stage
     if not _interactive():
         line = _LogLine(description, None)
         try:

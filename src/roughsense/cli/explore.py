@@ -28,6 +28,8 @@ def register(app: typer.Typer) -> None:
                                    "replaced) or other files (kept)."),
         figure_format: FigureFormat = "png",
         dpi: Dpi = DEFAULT_DPI,
+        yes: bool = typer.Option(False, "--yes", help="Run a sweep of more than 1000 cells (its estimate is shown; "
+                                 "without --yes it is refused)."),
     ) -> None:
         """Run every cell (grid point x seed) of a sweep of the digital twin, then write the sweep's report.
 
@@ -37,14 +39,18 @@ def register(app: typer.Typer) -> None:
         and skipped. The report (index.html) ranks the designs and answers the paper's open questions.
         """
         from .._util.lock import output_lock
+        from .._util.workers import usable_cores
         from ..explore.runner import check_options, run_sweep
-        from ..explore.sweep import read_sweep
+        from ..explore.sweep import check_size_confirmed, read_sweep
         from ..explore.write_report import write_explore_report
         from ..report.html import FigureStyle
 
         style = FigureStyle(check_figure_format(figure_format), dpi)
         check_options(workers, scheduler)  # bounds and an empty address: before the sweep is even read
         sweep = read_sweep(sweep_file)
+        estimate = check_size_confirmed(sweep, yes=yes, workers=workers or usable_cores())
+        if estimate is not None:
+            typer.echo(f"roughsense: {estimate}", err=True)
         with output_lock(out, command="explore"):  # two sweeps into one --out would mix their cells
             outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
             index = write_explore_report(sweep, out, style=style)

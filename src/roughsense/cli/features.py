@@ -65,7 +65,8 @@ def features(
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
     n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
     jobs: Jobs = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace FEATURES.csv if it exists.")] = False,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Replace FEATURES.csv, its grid file and the --plot file if they exist (never an input).")] = False,
     max_pixels: MaxPixels = None,
     plot: Annotated[Path | None, typer.Option(
         "--plot", show_default=False, help="Also draw the one IMAGE's contact line and spectrum, its peak marked, "
@@ -79,7 +80,7 @@ def features(
     """
     import json
 
-    from .._util.atomic import check_can_write, write_csv, write_text
+    from .._util.atomic import check_outputs, write_csv, write_text
     from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
@@ -90,9 +91,9 @@ def features(
         raise ConfigError("no images given; pass IMAGE... or --study DIR")
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
-    _check_plot(plot, images, force)
-    check_can_write(out, force=force, inputs=run_inputs(images or [], study=study))
-    check_can_write(definition_path(out), force=force, inputs=run_inputs(images or [], study=study))
+    _check_plot(plot, images)
+    check_outputs({"--out": out, "--out's grid file": definition_path(out), "--plot": plot}, force=force,
+                  inputs=run_inputs(images or [], study=study))
     f_min, f_max = _band(band)
     loaded = read_study(resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)) if study is not None else None
     if loaded is not None:
@@ -115,17 +116,14 @@ def features(
         _plot(plot, spectrum, paths[0], table[names].to_numpy(float)[0])
 
 
-def _check_plot(plot: Path | None, images, force: bool) -> None:
+def _check_plot(plot: Path | None, images) -> None:
     """--plot draws one image, into a file named by its format; checked before any work."""
-    from .._util.atomic import check_can_write
-
     if plot is None:
         return
     if not images or len(images) != 1:
         raise ConfigError("--plot draws one image: give exactly one IMAGE (not several, not --study)")
     if plot.suffix.lower().lstrip(".") not in ("png", "svg", "pdf"):
         raise ConfigError(f"--plot: {plot.name!r} must end in .png, .svg or .pdf (the format it is written in)")
-    check_can_write(plot, force=force)
 
 
 def _plot(plot: Path, spectrum, image: Path, amplitude) -> None:

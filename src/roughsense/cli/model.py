@@ -2,6 +2,7 @@
 roughness from images, with a flag on every prediction the model extrapolates."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -252,6 +253,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
         _predict_live(load_model(model), source, max_frames, override)
         return
     _check_image_sources(given, specimens, study)
+    if same_surface:
+        _refuse_repeats([*positional, *(p for paths in by_condition.values() for p in paths)])
     if out is not None:
         check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
@@ -265,6 +268,21 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
     _warn_failed_controls(loaded.training)
+
+
+def _refuse_repeats(images) -> None:
+    """--same-surface averages presses: one file given twice (by any path) would count as two presses and narrow
+    the surface's interval."""
+    seen: dict[tuple[int, int], str] = {}
+    for image in images:
+        try:
+            info = os.stat(image)
+        except OSError:
+            continue  # reading it names the problem
+        key = (info.st_dev, info.st_ino)
+        if key in seen:
+            raise ConfigError(f"--same-surface: {image} is the same file as {seen[key]}; give each press once")
+        seen[key] = str(image)
 
 
 def _check_image_sources(given: list[str], specimens, study) -> None:

@@ -86,7 +86,7 @@ def ratings(
     from ..io.names import check_name
     from ..io.ratings import read_ratings
 
-    check_can_write(out, force=force, inputs=[ratings_file])
+    check_can_write(out, force=force, inputs=[ratings_file, *_specimens_file(specimens)])
     check_name(reference, what="--reference")
     names = _specimen_names(specimens) if specimens is not None else None
     frame = read_ratings(ratings_file, specimens=names, reference=reference)
@@ -128,7 +128,7 @@ def protocol(
     """
     import numpy as np
 
-    from .._util.atomic import check_can_write, write_csv, write_text
+    from .._util.atomic import check_outputs, write_csv, write_text
     from ..analysis.ratings import make_schedule
     from ..io.names import check_name
     from ..report.ratings_sheet import render_sheet
@@ -136,8 +136,8 @@ def protocol(
     _check_panel(participants, sessions, 1)  # the counts alone, before anything is read or drawn
     check_seed(seed)
     check_name(reference, what="--reference")
-    fmt = _sheet_format(sheet, out, force)
-    check_can_write(out, force=force, inputs=[specimens] if specimens is not None and Path(specimens).is_file() else [])
+    fmt = _sheet_format(sheet)
+    check_outputs({"--out": out, "--sheet": sheet}, force=force, inputs=_specimens_file(specimens))
     names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
     _check_panel(participants, sessions, len({n for n in names if n != reference}))
     schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
@@ -165,18 +165,18 @@ def _check_panel(participants: int, sessions: int, specimens: int) -> None:
         raise ConfigError(problem)
 
 
-def _sheet_format(sheet: Path | None, out: Path, force: bool) -> str | None:
-    """'html' or 'markdown' from the sheet's suffix (None without a sheet); refused before anything is written."""
-    from .._util.atomic import check_can_write
+def _specimens_file(specimens: str | None) -> list[Path]:
+    """--specimens as an input of the run when it names a file (it may be a comma list)."""
+    return [Path(specimens)] if specimens is not None and Path(specimens).is_file() else []
 
+
+def _sheet_format(sheet: Path | None) -> str | None:
+    """'html' or 'markdown' from the sheet's suffix (None without a sheet); refused before anything is written."""
     if sheet is None:
         return None
     fmt = {".html": "html", ".htm": "html", ".md": "markdown", ".markdown": "markdown"}.get(sheet.suffix.lower())
     if fmt is None:
         raise ConfigError(f"--sheet must end in .html or .md, got {sheet.name!r}")
-    if sheet.resolve() == out.resolve():
-        raise ConfigError("--sheet and --out must be different files")
-    check_can_write(sheet, force=force)
     return fmt
 
 

@@ -157,7 +157,7 @@ def _read_folder(root, *, builtin: bool):
     try:
         return read_study(root, require_ratings=True)
     except RoughsenseError as exc:
-        if not builtin:
+        if not builtin and Path(root).is_dir():  # a missing folder has nothing for check to list
             exc.message = f"{exc.message}; run `roughsense check {shlex.quote(str(root))}` to list every problem"
         raise
 

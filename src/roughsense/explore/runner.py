@@ -12,6 +12,7 @@ within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is o
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -26,7 +27,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._util import interrupt
+from .._util.atomic import pid_alive
 from .._util.checks import short_repr
+from .._util.files import foreign_reason
 from .._util.workers import usable_cores
 from ..errors import ConfigError, RoughsenseWarning
 from .cell import run_cell
@@ -45,6 +49,8 @@ MAX_WORKERS_PER_CORE = 4
 #: Cells in flight at least (and two per worker thread): enough to keep every worker busy, never the whole sweep.
 MIN_WINDOW = 16
 CLOSE_TIMEOUT_S = 10
+#: How often a wait for the next cell looks for a stop request (Ctrl-C, SIGTERM): cells take seconds each.
+INTERRUPT_POLL_S = 0.1
 
 
 @dataclass
@@ -187,8 +193,9 @@ def connect(workers: int | None = None, scheduler: str | None = None, *, scratch
                               f"({error_line(exc)})") from None
     check_workers(workers)
     n = default_workers() if workers is None else int(workers)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR, local_directory=None if scratch is None else str(scratch))
+    with interrupt.children_ignore_sigint():  # Ctrl-C stops this process, which closes the workers quietly
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, local_directory=None if scratch is None else str(scratch))
     return Client(cluster, set_as_default=False)
 
 
@@ -238,9 +245,13 @@ def _temporary_directory(scratch: Path | None):
 
 def _scratch(out: Path) -> Path:
     """A folder under ``out`` for the local workers' spill and lock files, named as roughsense's temporary files
-    are (``.dask-scratch.XXXXXXXX.tmp``), removed when the run ends."""
+    are (``.dask-scratch.PID.XXXXXXXX.tmp``), removed when the run ends; a killed run's is removed by the next."""
     out.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=".dask-scratch.", suffix=".tmp", dir=out))
+    for old in out.glob(".dask-scratch.*.tmp"):
+        pid = old.name.split(".")[2]
+        if not (pid.isdigit() and pid_alive(int(pid))) and foreign_reason(old, folder=True) is None:
+            shutil.rmtree(old, ignore_errors=True)  # a killed run's (or one from before the PID was in the name)
+    return Path(tempfile.mkdtemp(prefix=f".dask-scratch.{os.getpid()}.", suffix=".tmp", dir=out))
 
 
 def _compute(client, store: ResultStore, todo: list[Cell], outcome: SweepOutcome, progress, task) -> None:
@@ -286,14 +297,26 @@ def _stream(client, todo: list[Cell], task):
         top_up(max(MIN_WINDOW, 2 * threads))
         if not cells:
             return
+        while not finished.has_ready():  # waiting for a cell is a safe point: a stop request is seen within a poll
+            interrupt.check()
+            time.sleep(INTERRUPT_POLL_S)
         future = next(finished)
         yield cells.pop(future.key), future
+
+
+def _silence_dask() -> None:
+    """Run in each local worker process (and in this one) as the cluster shuts down."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 def _close(client) -> None:
     """Close the client and its local cluster; a cluster that will not close cleanly (the results are written by
     then) is a warning, never a traceback."""
     cluster = getattr(client, "cluster", None)
+    if cluster is not None:  # our own workers: what they log while being stopped (a heartbeat to a closing
+        with contextlib.suppress(Exception):  # scheduler) is noise, after the results are written or a stop asked
+            client.run(_silence_dask, on_error="ignore")
+            _silence_dask()
     try:
         client.close(timeout=CLOSE_TIMEOUT_S)
         if cluster is not None:

@@ -70,6 +70,10 @@ class ResultStore:
         self.force = force
         if self.root.exists() and not self.root.is_dir():
             raise OutputExistsError("exists and is not a folder", path=self.root)
+        for sub in (RESULTS_DIR, SPECIMENS_DIR):  # written into cell by cell: a link there would send them elsewhere
+            if os.path.islink(self.root / sub) or (os.path.lexists(self.root / sub) and not (self.root / sub).is_dir()):
+                raise OutputExistsError(f"{sub} in it is not a folder roughsense made (a link or a file); delete "
+                                        f"{self.root / sub} or choose another folder", path=self.root)
         self._check_owner(force)
 
     @classmethod

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
+from .._util.files import open_regular
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
@@ -51,6 +52,13 @@ MAX_SWEEP_BYTES = 1_000_000
 #: Most cells (designs x seeds) in one sweep: at seconds to a minute each, 100,000 cells are days of a cluster;
 #: counted from the axes before any cell is built (a 1000 x 1000 grid is refused at once).
 MAX_CELLS = 100_000
+#: Longest sweep name: it titles the report page.
+MAX_NAME_CHARS = 200
+#: A sweep of more cells than this runs only with ``--yes``, after its estimate is shown: hours of work are asked for.
+CONFIRM_CELLS = 1000
+#: Core-seconds a cell costs per frame it renders, for that estimate: a paper-sized fingerprint-pad cell, 420 frames,
+#: took 6.7 s on one core (BENCHMARKS.md, bench_explore); a smooth-pad cell about 60 % of that.
+CELL_SECONDS_PER_FRAME = 6.7 / 420
 #: Most frames one cell renders (specimens x forces x repetitions; the paper's pad: 14 x 3 x 10 = 420): 50 times the
 #: paper, tens of minutes and about 100 MB of spectra per cell.
 MAX_CELL_FRAMES = 20_000
@@ -257,10 +265,10 @@ def _label(key: str, value) -> object:
 def read_sweep(path: str | os.PathLike[str]) -> Sweep:
     """Read and check a sweep file; every problem is one line naming the file and the key."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise _error(path, "sweep file not found")
     try:
-        with path.open("rb") as handle:
+        with os.fdopen(open_regular(path, what="sweep file"), "rb") as handle:  # a FIFO: refused, no wait
             if os.fstat(handle.fileno()).st_size > MAX_SWEEP_BYTES:
                 raise _error(path, f"is {os.fstat(handle.fileno()).st_size} bytes, above the limit of "
                                    f"{MAX_SWEEP_BYTES} for a sweep file")
@@ -292,7 +300,10 @@ def build_sweep(source: dict, path: Path) -> Sweep:
         raise _error(path, "[axes]: two designs of the grid make the same cell; list each design once")
     name = settings.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
-        raise _error(path, f"[sweep] name: expected a text, got {name!r}")
+        raise _error(path, f"[sweep] name: expected a text, got {short_repr(name)}")
+    if len(name) > MAX_NAME_CHARS or not name.isprintable():  # the report's title and heading
+        raise _error(path, f"[sweep] name: must be one line of at most {MAX_NAME_CHARS} printable characters, got "
+                           f"{short_repr(name)}")
     varying = {k: [_label(k, v) for v in vals] for k, vals in axes.items()}
     if MODEL_KEY in axes_in:
         varying[MODEL_KEY] = list(models)
@@ -485,3 +496,22 @@ def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (PAPER_MODEL
             digest = hashlib.sha256(json.dumps(hashed, sort_keys=True).encode()).hexdigest()[:16]
             cells.append(Cell(id=digest, **content, models=models))
     return cells
+
+
+def estimated_core_hours(sweep: Sweep) -> float:
+    """About how many core-hours the sweep's cells take (frames x :data:`CELL_SECONDS_PER_FRAME`), before any runs."""
+    frames = sum(len(c.specimens) * len(c.forces_n) * c.repetitions for c in sweep.cells)
+    return frames * CELL_SECONDS_PER_FRAME / 3600
+
+
+def check_size_confirmed(sweep: Sweep, *, yes: bool, workers: int) -> str | None:
+    """Refuse a sweep above :data:`CONFIRM_CELLS` cells without ``yes`` (one line with its estimate); with it, the
+    estimate to show. None for a sweep within the limit."""
+    if len(sweep.cells) <= CONFIRM_CELLS:
+        return None
+    hours = estimated_core_hours(sweep)
+    estimate = (f"{len(sweep.cells)} cells, about {hours:.1f} core-hours ({hours / max(workers, 1):.1f} h on "
+                f"{workers} worker{'s' if workers != 1 else ''})")
+    if not yes:
+        raise ConfigError(f"{estimate}: a sweep of more than {CONFIRM_CELLS} cells runs only with --yes", path=sweep.path)
+    return estimate

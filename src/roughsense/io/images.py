@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util.files import open_regular
 from ..errors import InputError
 
 #: MATLAB ``rgb2gray`` weights: the first row of the inverse NTSC (YIQ -> RGB) matrix, unrounded
@@ -87,12 +88,13 @@ def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
     """The file's bytes, with the usual failures turned into one InputError naming the file."""
     path = Path(path)
     try:
-        size = os.stat(path).st_size
-        if size > max_file_bytes(max_pixels):
-            raise InputError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel limit of "
-                             f"{max_pixels / 1e6:.3g} Mpx can take; raise [sensor] max_pixels if it is genuine",
-                             path=path)
-        data = np.fromfile(path, dtype=np.uint8)
+        with os.fdopen(open_regular(path, what="image file"), "rb") as handle:  # a FIFO or a device: refused, no wait
+            size = os.fstat(handle.fileno()).st_size
+            if size > max_file_bytes(max_pixels):
+                raise InputError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel limit "
+                                 f"of {max_pixels / 1e6:.3g} Mpx can take; raise [sensor] max_pixels if it is "
+                                 "genuine", path=path)
+            data = np.fromfile(handle, dtype=np.uint8)
     except FileNotFoundError:
         raise InputError("image file not found", path=path) from None
     except IsADirectoryError:
@@ -233,11 +235,15 @@ def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
 
 def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,
            max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
-    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`."""
+    """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`.
+
+    The pixels as the sensor stored them: an EXIF orientation is ignored (OpenCV applies a JPEG's, not a PNG's), so
+    the same frame gives the same rows, and the same spectrum, in every format.
+    """
     check_pixels(data, max_pixels, path)
     cv2 = _opencv()
     try:
-        image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+        image = cv2.imdecode(data, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_IGNORE_ORIENTATION)
     except cv2.error:
         image = None
     if image is None:

@@ -23,6 +23,7 @@ class Problems:
         self.limit = limit
         self.items: list[InputError] = []
         self.total = 0
+        self._whole_rows: set[tuple[str, int]] = set()  # rows wrong as a whole (a field count): their cells mean nothing
 
     def __len__(self) -> int:
         return self.total
@@ -32,6 +33,13 @@ class Problems:
         return len(self.items) >= self.limit
 
     def add(self, error: InputError) -> None:
+        """Keep ``error``; a cell's problem in a row already wrong as a whole is the same problem, not another."""
+        if error.row is not None:
+            where = (str(error.path), error.row)
+            if error.column is None:
+                self._whole_rows.add(where)
+            elif where in self._whole_rows:
+                return
         self.total += 1
         if not self.full:
             self.items.append(error)

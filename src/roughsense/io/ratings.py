@@ -196,7 +196,7 @@ def read_ratings(
     path = Path(path)
     if path.suffix.lower() not in (".md", ".markdown"):
         return read_ratings_table(path, reference=reference, specimens=specimens)
-    if not path.is_file():
+    if not path.exists():  # anything else that is not a regular file is named by the reader
         raise InputError("file not found", path=path)
     frame = drop_unrated(_read_markdown_sheet(path))
     if frame.empty:

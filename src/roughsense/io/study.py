@@ -25,6 +25,7 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 import pandas as pd
 
 from .._util.checks import short_repr
+from .._util.files import open_regular
 from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
@@ -130,7 +131,7 @@ def read_config(path: str | os.PathLike[str]) -> dict:
     Values are checked by the readers that use them (:func:`sensor_from_config`, :func:`parse_forces`).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a folder there is named by read_text, not "not found"
         raise InputError("file not found (every study folder needs study.toml)", path=path)
     text = read_text(path, max_bytes=MAX_CONFIG_BYTES)
     try:
@@ -410,9 +411,16 @@ def _image_file_problem(root: Path, relative: object) -> str | None:
     if not isinstance(relative, str):
         return None  # a blank cell (only when collecting): reported as empty already
     try:
-        return None if (root / relative).is_file() else "image file not found"
+        os.close(open_regular(root / relative, what="image file"))  # readable, and a file: not a FIFO, not /dev/zero
+    except FileNotFoundError:
+        return "image file not found"
+    except PermissionError:
+        return "image file cannot be read (permission denied)"
+    except InputError as exc:
+        return f"image file {exc.message}"
     except OSError as exc:
         return f"image file cannot be looked up ({exc.strerror or type(exc).__name__})"
+    return None
 
 
 def _warn_pad_case(config: Mapping, manifest: pd.DataFrame, toml_path: Path) -> None:

@@ -5,6 +5,7 @@ A folder with five mistakes should take one run to fix, not five. Images are loo
 from __future__ import annotations
 
 import os
+import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +36,7 @@ class CheckResult:
     def failure(self) -> str:
         """The one error line after the listed problems."""
         return (f"{counted(len(self.problems), 'problem')} (listed above); fix them and run "
-                "`roughsense check` again")
+                f"`roughsense check {shlex.quote(str(self.root))}` again")
 
 
 def check_study(root: str | os.PathLike[str], *, limit: int = MAX_LISTED) -> CheckResult:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._util.files import read_regular
 from ..errors import InputError, RoughsenseWarning
 from .numbers import BOUNDS, NumberError, parse_number
 from .problems import Problems, flag, report, same_but_case
@@ -64,9 +65,9 @@ def missing_columns(missing: Sequence[str], found: Sequence[object], path: Path 
 def read_text(path: Path, *, max_bytes: int | None = None) -> str:
     """The file as UTF-8 text (a BOM is dropped); anything else is one InputError naming the line."""
     try:
-        if max_bytes is not None and path.stat().st_size > max_bytes:
+        raw = read_regular(path, limit=None if max_bytes is None else max_bytes + 1)  # a FIFO: refused, no wait
+        if max_bytes is not None and len(raw) > max_bytes:
             raise InputError(f"is larger than {max_bytes // 1_000_000} MB; refusing to read it", path=path)
-        raw = path.read_bytes()
     except IsADirectoryError:
         raise InputError("is a folder, expected a file", path=path) from None
     except OSError as exc:
@@ -194,19 +195,22 @@ def _row_width_problem(row: list[str], width: int, raw_width: int) -> str | None
             "or a trailing delimiter? every row needs the header's number of fields")
 
 
-def _check_shape(path: Path, text: str, problems: Problems | None = None) -> None:
+def _check_shape(path: Path, text: str, problems: Problems | None = None) -> str:
     """Refuse duplicate or too many columns, and each data row whose field count is not the header's, by its line.
 
     pandas would take the first column as the index and shift every value one column left (or, with
     ``index_col=False``, drop the extras with only a warning, and fill a short row with blanks). Blank lines are
-    left to :func:`_parse_csv`; malformed files to pandas.
+    left to :func:`_parse_csv`; malformed files to pandas. Returns the text to parse: when collecting, a reported
+    row is cut to the header's width, so pandas does not stop at it ("C error") and ``check`` lists the rest
+    (the row's cells are not reported again: :class:`Problems` keeps one problem per row that is wrong as a whole).
     """
+    lines = text.split("\n")
     try:
         with io.StringIO(text, newline="") as handle:
             reader = csv.reader(handle, skipinitialspace=True)
             header = _header_of(path, reader)
             if header is None:
-                return
+                return text
             raw_width = len(header)
             while header and not header[-1]:
                 header.pop()  # the header's own trailing delimiter names no column
@@ -215,9 +219,18 @@ def _check_shape(path: Path, text: str, problems: Problems | None = None) -> Non
                 problem = _row_width_problem(row, len(header), raw_width) if row else None
                 if problem is not None:
                     report(problems, InputError(problem, path=path, row=start))
+                    if reader.line_num == start:  # one physical line: cut to the header's width
+                        lines[start - 1] = _csv_row((row + [""] * raw_width)[:raw_width])
                 start = reader.line_num + 1
     except csv.Error:
-        return
+        return text
+    return "\n".join(lines)
+
+
+def _csv_row(row: list[str]) -> str:
+    with io.StringIO() as handle:
+        csv.writer(handle, lineterminator="").writerow(row)
+        return handle.getvalue()
 
 
 def read_table(
@@ -240,7 +253,7 @@ def read_table(
     it can be checked. A semicolon-separated file is read as comma-separated, with a warning (see ``_from_semicolons``).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a folder there is named by read_text, not "not found"
         raise InputError("file not found", path=path)
     # Numeric columns are read as text too, so an error quotes the cell as written ('inf', not np.float64(inf)).
     dtypes = dict.fromkeys({*text, *numeric, *positive, *integer, "image", "specimen", "pad", "participant", "shape"}, str)
@@ -267,7 +280,7 @@ def _parse_csv(path: Path, dtypes: dict, problems: Problems | None = None) -> pd
     content = read_text(path, max_bytes=MAX_CSV_BYTES)
     if _semicolon_header(content):
         content = _from_semicolons(path, content)
-    _check_shape(path, content, problems)
+    content = _check_shape(path, content, problems)
     try:
         # index_col=False: a trailing delimiter on data rows must not turn the first column into the index.
         # skip_blank_lines=False keeps DataFrame row i on file line i + 2, so every error names the right line.

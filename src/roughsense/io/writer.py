@@ -216,7 +216,7 @@ class StudyWriter:
         missing = [c for c in required if c not in table.columns]
         if missing:
             raise ValueError(f"{name} lacks {missing}")
-        return atomic.write_csv(self.root / name, table)
+        return atomic.write_csv(self.root / name, table, for_people=False)  # the folder's data, read back as written
 
     def append_manifest_row(self, row: Mapping[str, object]) -> Path:
         """Append one row by rewriting the file atomically: a crash never leaves half a row.
@@ -253,7 +253,7 @@ class StudyWriter:
         pathlib.Path
             The file written.
         """
-        return atomic.write_csv(self.root / RATINGS_CSV, ratings)
+        return atomic.write_csv(self.root / RATINGS_CSV, ratings, for_people=False)
 
     def image_path(self, name: str) -> Path:
         """Where :meth:`write_image` puts an image.

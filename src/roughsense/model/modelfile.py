@@ -46,10 +46,12 @@ import numpy as np
 
 from .._util import atomic
 from .._util.checks import POSITIVE_INT, Real, short_repr
-from ..errors import ModelFileError
+from .._util.files import read_regular
+from ..errors import InputError, ModelFileError
+from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
 from . import peak_law_file
-from .applicability import SpectrumDomain
+from .applicability import DOMAIN_LEVEL, SpectrumDomain
 from .families import PLS
 from .peak_law import PeakPowerLaw
 from .peak_law_file import LoadedPeakLaw
@@ -94,10 +96,7 @@ class LoadedModel:
     def floor(self) -> float:
         """The least roughness the model predicts: half the smoothest it was trained on (a positive ratio)."""
         stored = self.training.get("target_range") if isinstance(self.training, dict) else None
-        if isinstance(stored, list) and len(stored) == 2 and all(Real(0.0, MAX_Y_MEAN, low_open=True).accepts(v)
-                                                                  for v in stored) and stored[0] <= stored[1]:
-            return 0.5 * float(stored[0])
-        return MIN_ROUGHNESS
+        return MIN_ROUGHNESS if stored is None else 0.5 * float(stored[0])  # checked on loading
 
     @property
     def conditions(self) -> list[str]:
@@ -269,8 +268,9 @@ def load_model(path: str | os.PathLike[str]) -> AnyModel:
     """
     path = Path(path)
     try:
-        with path.open("rb") as handle:
-            raw = handle.read(MAX_MODEL_BYTES + 1)  # never more: a huge file is refused, not read whole
+        raw = read_regular(path, limit=MAX_MODEL_BYTES + 1, what="model file")  # never more; a FIFO: no wait
+    except InputError as exc:
+        raise ModelFileError(exc.message, path=path) from None
     except FileNotFoundError:
         raise ModelFileError("model file not found", path=path) from None
     except IsADirectoryError:
@@ -316,12 +316,25 @@ def model_from_document(document, *, path: Path | None = None) -> AnyModel:
         fail("\"model\" must be an object")
     if not isinstance(training, dict):
         fail("\"training\" must be an object")
+    _check_target_range(training.get("target_range", None), path)
     if model.get("kind") == peak_law_file.KIND:
         n_features = peak_law_file.check_fields(model, path)
         features = _check_feature_definition(document["features"], n_features, path)
         return peak_law_file.loaded_law(model, features, training=training,
                                         roughsense_version=document["roughsense_version"], path=path)
     return _pls_from_document(document, path)
+
+
+def _check_target_range(stored, path: Path | None) -> None:
+    """``training.target_range``, when there: the smallest and largest rating trained on, each a rating within its
+    bounds. PLS's floor is half the smallest, so a forged 5e-324 would make every prediction 0."""
+    rating = BOUNDS["rating"]
+    if stored is None:
+        return
+    if not (isinstance(stored, list) and len(stored) == 2 and all(rating.accepts(v) for v in stored)
+            and stored[0] <= stored[1]):
+        raise ModelFileError(f"training.target_range must be [smallest, largest] of the ratings trained on, each "
+                             f"from {rating.low:g} to {rating.high:g}, got {short_repr(stored)}", path=path)
 
 
 def _pls_from_document(document: dict, path: Path | None) -> LoadedModel:
@@ -372,10 +385,13 @@ def _domain(section, x_mean: np.ndarray, A: int, p: int, features: dict, path: P
     rotations = _array(section["rotations"], (A, p), "model.applicability.rotations", path)
     loadings = _array(section["loadings"], (A, p), "model.applicability.loadings", path)
     score_var = _array(section["score_var"], (A,), "model.applicability.score_var", path)
-    for name in ("t2_limit", "q_limit", "level"):
+    for name in ("t2_limit", "q_limit"):
         if not Real(0.0, MAX_COEFFICIENT, low_open=True).accepts(section[name]):
             raise ModelFileError(f"model.applicability.{name} must be a positive number, got "
                                  f"{short_repr(section[name])}", path=path)
+    if not (Real().accepts(section["level"]) and section["level"] == DOMAIN_LEVEL):  # the level its limits are at
+        raise ModelFileError(f"model.applicability.level must be {DOMAIN_LEVEL} (the percentile roughsense's T2 and Q "
+                             f"limits are drawn at), got {short_repr(section['level'])}", path=path)
     if np.any(score_var <= 0) or max(np.abs(rotations).max(), np.abs(loadings).max()) > MAX_COEFFICIENT:
         raise ModelFileError("model.applicability holds a non-positive score variance or a value beyond "
                              f"{MAX_COEFFICIENT:g}", path=path)

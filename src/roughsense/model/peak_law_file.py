@@ -33,6 +33,7 @@ from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
 from .peak_law import (
     FEATURE_NAMES,
+    LOG_MARGIN,
     PeakPowerLaw,
     PeakReadout,
     check_grid,
@@ -50,6 +51,9 @@ _BOUNDED = Real(-LIMIT, LIMIT)
 #: |log roughness| the law may reach anywhere in its feature box: predictions between 1e-6 and 1e6, the bound of a
 #: rating (``io.numbers.BOUNDS``) and of a PLS file's values; a re-signed law predicting 9e303 is refused.
 _MAX_LOG_ROUGHNESS = math.log(1e6)
+#: A clarity limit: the least clear trained peak (a log height above the band's median, so >= 0) less LOG_MARGIN; a
+#: peak e^50 times its band's median is beyond any 8- or 16-bit image, so a limit above 50 would refuse everything.
+CLARITY_LIMIT = Real(-LOG_MARGIN, 50.0)
 _SCALARS: dict[str, Constraint] = {
     "exclusion_per_mm": Real(0.0, 10.0, low_open=True),
     "epsilon": Real(0.0, 100.0, low_open=True),
@@ -179,6 +183,8 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
     if np.any(pairs["feature_min"] > pairs["feature_max"]):
         raise ModelFileError("model.feature_min exceeds model.feature_max: the training range is empty", path=path)
     freq = _grid(features["spectrum"], path)
+    _check_log_frequencies([pairs["feature_min"][0], pairs["feature_max"][0]], freq,
+                           "model.feature_min[0] and model.feature_max[0]", path)
     try:
         search_bins(freq, period, scalars["exclusion_per_mm"])
     except ValueError as exc:
@@ -186,7 +192,7 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
     step = float(freq[1] - freq[0]) if freq.size > 1 else 0.0  # predictions reach the domain's widened edges
     low, high = domain_margins(step, pairs["feature_min"], pairs["feature_max"])
     _check_finite_predictions(scalars["intercept"], {**pairs, "feature_min": low, "feature_max": high}, path)
-    clarity = _checked(section, "clarity_limit", _BOUNDED, path) if "clarity_limit" in section else None
+    clarity = _checked(section, "clarity_limit", CLARITY_LIMIT, path) if "clarity_limit" in section else None
     return LoadedPeakLaw(
         path=path, freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,
         exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"], intercept_=scalars["intercept"],
@@ -227,6 +233,17 @@ def _grid(spectrum: dict, path: Path | None) -> np.ndarray:
         raise ModelFileError("features.spectrum.freq_per_mm must be evenly spaced and increasing", path=path) from None
 
 
+def _check_log_frequencies(values, freq: np.ndarray, where: str, path: Path | None) -> None:
+    """A peak is read on the grid (to within half a bin), so a stored log peak frequency outside the grid's range
+    is no fitted value; refused here, before the domain's margins divide by exp() of it and overflow."""
+    step = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
+    low = math.log(max(float(freq[0]) - step, 0.5 * float(freq[0])))
+    high = math.log(float(freq[-1]) + step)
+    if not all(low <= float(v) <= high for v in values):
+        raise ModelFileError(f"{where} (log peak frequency) must lie within the grid's {low:.4g} to {high:.4g}, got "
+                             f"{shown([float(v) for v in values])}", path=path)
+
+
 def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) -> None:
     """The law's exponent at the corners of its feature box (its extremes, as it is linear) stays in range."""
     corners = np.column_stack([pairs["feature_min"], pairs["feature_max"]]) * pairs["coefficients"][:, None]
@@ -255,11 +272,12 @@ def peak_domain(section, features: dict, path: Path | None):
     if period is not None and not _PAD_PERIOD.accepts(period):
         raise ModelFileError(f"{where}.pad_ridge_period_mm must be {_PAD_PERIOD.describe()} or null", path=path)
     for name in ("clarity_limit", "exclusion_per_mm"):
-        constraint = _BOUNDED if name == "clarity_limit" else _SCALARS["exclusion_per_mm"]
+        constraint = CLARITY_LIMIT if name == "clarity_limit" else _SCALARS["exclusion_per_mm"]
         if not constraint.accepts(section[name]):
             raise ModelFileError(f"{where}.{name} must be {constraint.describe()}, got {shown(section[name])}",
                                  path=path)
     freq = _grid(features["spectrum"], path)
+    _check_log_frequencies(span, freq, f"{where}.log_frequency_range", path)
     try:
         search_bins(freq, period, section["exclusion_per_mm"])
     except ValueError as exc:

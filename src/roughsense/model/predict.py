@@ -155,17 +155,19 @@ class Scores:
 def model_interval(loaded: AnyModel):
     """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
     trial's). A malformed entry is refused in one line naming the field, never silently dropped."""
-    from .._util.checks import Real
+    from .._util.checks import Real, short_repr
     from ..errors import ModelFileError
-    from .interval import PredictionInterval
+    from .interval import INTERVAL_LEVEL, PredictionInterval
 
     stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
     if stored is None:
         return None
     widths = dict.fromkeys(("trial_log_halfwidth", "surface_log_halfwidth"), math.inf)
     widths["alone_log_halfwidth"] = math.nan
-    if not isinstance(stored, dict) or not Real(0.5, 0.999).accepts(stored.get("level")):
-        raise ModelFileError("training.interval must hold a level between 0.5 and 0.999", path=loaded.path)
+    level = stored.get("level") if isinstance(stored, dict) else None
+    if not (Real().accepts(level) and level == INTERVAL_LEVEL):  # every output labels it pi90, "90 % interval"
+        raise ModelFileError(f"training.interval.level must be {INTERVAL_LEVEL} (the level roughsense writes and "
+                             f"labels pi90), got {short_repr(level)}", path=loaded.path)
     for name in widths:
         value = stored.get(name)
         if value is None:  # null: too few residuals for the level; absent (alone): written before it existed

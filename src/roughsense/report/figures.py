@@ -30,10 +30,32 @@ MIME_TYPES = {"png": "image/png", "svg": "image/svg+xml", "pdf": "application/pd
 plt.rcParams["svg.hashsalt"] = "roughsense"  # SVG element ids from a fixed salt, not a random one
 
 
+#: Most pixels one figure is rendered with (a 6000 x 4000 print). ``--dpi 1200`` on the report's widest figures
+#: would be 200 Mpx each (3.5 GB and two minutes for a study); a figure beyond the budget is drawn at the dpi that fits.
+MAX_FIGURE_PIXELS = 24_000_000
+
+
+def figure_dpi(figure, dpi: int) -> float:
+    """``dpi``, or less for a figure that would exceed :data:`MAX_FIGURE_PIXELS` (said once, as a warning)."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+
+    width_in, height_in = figure.get_size_inches()
+    fits = float(np.sqrt(MAX_FIGURE_PIXELS / max(width_in * height_in, 1e-9)))
+    if dpi <= fits:
+        return dpi
+    warnings.warn(RoughsenseWarning(f"--dpi {dpi}: a figure above {MAX_FIGURE_PIXELS / 1e6:g} Mpx is drawn at the "
+                                    "resolution that fits that budget"), stacklevel=3)
+    return fits
+
+
 def figure_bytes(figure, figure_format: str = "png", *, dpi: int = DEFAULT_DPI, close: bool = True) -> bytes:
-    """Render a figure as PNG, SVG or PDF bytes (no timestamps: reruns give the same bytes), closing it unless told."""
+    """Render a figure as PNG, SVG or PDF bytes (no timestamps: reruns give the same bytes), closing it unless told;
+    within :data:`MAX_FIGURE_PIXELS`, so memory and time are bounded for every ``dpi`` accepted."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format=figure_format, dpi=dpi, bbox_inches="tight", metadata=_NO_STAMP[figure_format])
+    figure.savefig(buffer, format=figure_format, dpi=figure_dpi(figure, dpi), bbox_inches="tight",
+                   metadata=_NO_STAMP[figure_format])
     if close:
         plt.close(figure)
     return buffer.getvalue()

@@ -23,6 +23,7 @@ import pandas as pd
 
 from .. import __version__, paper
 from .._util import atomic
+from .._util.text import spreadsheet_safe
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
@@ -87,7 +88,8 @@ def open_report_dir(out_dir: str | os.PathLike[str], force: bool) -> atomic.Fold
 
 
 def _csv_bytes(frame: pd.DataFrame) -> bytes:
-    return frame.to_csv(index=False, lineterminator="\n", float_format="%.6g").encode("utf-8")
+    """A report table as CSV, its text cells formula-safe: it is opened in a spreadsheet."""
+    return spreadsheet_safe(frame).to_csv(index=False, lineterminator="\n", float_format="%.6g").encode("utf-8")
 
 
 def plain_words(analysis) -> list[str]:

@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .._util.files import open_regular
 from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..io.images import DEFAULT_MAX_PIXELS, header_size
 
@@ -98,6 +99,8 @@ class FrameSource:
         if not self.is_device and "%" not in str(target) and not Path(target).exists():
             raise InputError("video source not found (expected a camera index, a video file or an image pattern)",
                              path=self.name)
+        if not self.is_device and "%" not in str(target):
+            os.close(open_regular(target, what="video file"))  # a FIFO would hang OpenCV's open
         if not self.is_device:
             _check_image_header(str(target), self.max_pixels, self.name)  # before OpenCV decodes a frame of it
         with _decoder_messages() as messages:

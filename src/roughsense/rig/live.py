@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._util import interrupt
 from ..errors import InputError, RoughsenseError
 from .camera import FrameSource, open_source
 
@@ -120,7 +121,8 @@ def render_live(
         return table
 
     try:
-        with Live(view(), console=console, refresh_per_second=refresh_per_second, transient=False) as live:
+        with interrupt.immediate(), Live(view(), console=console, refresh_per_second=refresh_per_second,
+                                         transient=False) as live:
             for stamp, score, *flag in scores:
                 count += 1
                 flagged = bool(flag and flag[0])
@@ -134,6 +136,6 @@ def render_live(
                     recent.pop(0)
                 live.update(view())
     except KeyboardInterrupt:
-        pass
+        interrupt.forget_sigint()  # Ctrl-C is how the display ends; a SIGTERM still ends the run as stopped
     span = (last_t - first) if count > 1 else 0.0
     return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0, extrapolated)

@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import IO, Protocol
 
+from .._util import interrupt
 from .._util.checks import short_repr
 from ..errors import ConfigError, InputError
 from ..io.numbers import NumberError, parse_number, spelling_hint
@@ -158,7 +159,8 @@ class _OperatorInput:
 
     def ask(self, prompt: str) -> str:
         print(prompt, end="", file=self.out, flush=True)
-        line = self.stdin.readline()
+        with interrupt.immediate():  # Ctrl-C at a prompt stops at once
+            line = self.stdin.readline()
         if not line:
             print(file=self.out, flush=True)  # end the prompt line so the error stands on its own
             raise InputError("input ended before the operator answered (stdin closed)", path="<stdin>")
@@ -246,6 +248,7 @@ class SerialScale(_OperatorInput):
             self._port.reset_input_buffer()
             deadline = time.monotonic() + self.timeout_s
             while time.monotonic() < deadline:
+                interrupt.check()  # a safe point: each read lasts at most 0.25 s
                 chunk = self._port.read(min(max(1, self._port.in_waiting), MAX_LINE_BYTES))
                 for raw in lines.feed(chunk):
                     reading = parse_scale_line(raw)

@@ -161,12 +161,19 @@ def _auto_band(pixels: np.ndarray, height_px: int) -> int:
     """Top row of the ``height_px``-row window with the most horizontal texture.
 
     Texture of a row = mean squared difference of gray levels AUTO_STRIDE_COLS px apart along it;
-    the best window maximises the sum over its rows (a box filter), the first one on ties.
+    the best window maximises the sum over its rows (a box filter), the first one on ties. Only finite
+    differences count: one NaN pixel anywhere would otherwise make its row's texture NaN, and ``argmax`` would
+    pick the first window holding it (a crop that does hold one is refused later, by ``extract_line``).
     """
     total_rows = pixels.shape[0]
     cols = AUTO_STRIDE_COLS if pixels.shape[1] >= 8 * AUTO_STRIDE_COLS else 1
     gray = to_gray(pixels[::AUTO_STRIDE_ROWS, ::cols])
-    energy = np.mean(np.square(np.diff(gray, axis=1)), axis=1)
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf is a NaN here, dropped just below
+        steps = np.diff(gray, axis=1)
+    finite = np.isfinite(steps)
+    counts = finite.sum(axis=1)
+    energy = np.divide(np.square(np.where(finite, steps, 0.0)).sum(axis=1), counts,
+                       out=np.zeros(len(counts)), where=counts > 0)
     energy = np.repeat(energy, AUTO_STRIDE_ROWS)[:total_rows]
     window_sum = np.convolve(energy, np.ones(height_px), mode="valid")
     return int(np.argmax(window_sum))
