@@ -136,15 +136,21 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
 
 
 def which_model_line(unseen) -> str:
-    """Which model to use for what, in one sentence: the families that pass their controls for unseen surfaces in
-    every pad x condition score new surfaces (`roughsense fit`'s default); PLS reproduces the paper."""
+    """Which model to use for what, in one sentence: the report's own verdict (``report.answer.recommended_model``),
+    so the console and the report never disagree; PLS reproduces the paper."""
     from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+    from ..report.answer import NO_MODEL, recommended_model
 
     passing = unseen.groupby("model", sort=False)["passes"].agg(lambda v: int(sum(bool(x) for x in v)))
     cells = unseen.groupby("model", sort=False).size()
     tally = ", ".join(f"{model} passes in {passing[model]} of {cells[model]}" for model in cells.index)
-    return (f"Which model to use: {DEFAULT_MODEL} (roughsense fit's default) to score surfaces never trained on; "
-            f"{PAPER_MODEL} to reproduce the paper. Controls for unseen surfaces per pad x condition: {tally}.")
+    model = recommended_model(unseen)
+    controls = f"Controls for unseen surfaces per pad x condition: {tally}."
+    if model is None:
+        return f"Which model to use: none. {NO_MODEL} {PAPER_MODEL} reproduces the paper. {controls}"
+    default = " (roughsense fit's default)" if model == DEFAULT_MODEL else f" (roughsense fit --model {model})"
+    return (f"Which model to use: {model}{default} to score surfaces never trained on, where it passes its controls; "
+            f"{PAPER_MODEL} to reproduce the paper. {controls}")
 
 
 def _read_folder(root, *, builtin: bool):
