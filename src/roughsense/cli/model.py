@@ -255,16 +255,55 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if out is not None:
         check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
+    reference = None
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
-    trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
+    trials, table, read = _trials(loaded, positional, by_condition, study, specimens or [])
+    if read is not None:
+        override, reference = _study_scale(loaded, read, override, table)
     surfaces = table["specimen"].astype(str).to_numpy() if "specimen" in table else (
         ["surface"] * len(trials) if same_surface else None)
-    scores = _score_into(table, loaded, trials, jobs, override, surfaces)
+    scores = _score_into(table, loaded, trials, jobs, override, surfaces, reference)
     warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
+    _echo_scale(scores.scale)
     _warn_failed_controls(loaded.training)
+
+
+def _study_scale(loaded, study, override, table):
+    """Images of a study are read at its own study.toml scale (said in one line), unless --px-per-mm says
+    otherwise; its reference specimen's trials are marked for the scale check."""
+    from ..model.predict import SensorOverride
+
+    model_px = float(loaded.features["spectrum"]["px_per_mm"])
+    if override is None or override.px_per_mm is None:
+        stated = float(study.sensor.px_per_mm)
+        typer.echo(f"images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was "
+                   f"fitted at {model_px:g} px/mm)", err=True)
+        override = SensorOverride(None if override is None else override.roi, stated)
+    specimens = study.specimens.set_index("specimen")
+    name = study.reference_specimen
+    reference = None
+    if name in specimens.index and "specimen" in table:
+        period = float(specimens.loc[name, "wavelength_mm"])
+        reference = (name, period, (table["specimen"].astype(str) == name).to_numpy())
+    return override, reference
+
+
+def _echo_scale(check) -> None:
+    """The scale check's one line: a warning when the images' scale is off (every row is flagged), else a note."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+
+    if check is None:
+        return
+    if check.off:
+        warnings.warn(RoughsenseWarning(f"{check.summary()}: every prediction is flagged 'scale'; measure the scale "
+                                        "with roughsense calibrate, or pass the images' --px-per-mm"), stacklevel=2)
+    else:
+        typer.echo(check.summary(), err=True)
 
 
 def _check_image_sources(given: list[str], specimens, study) -> None:
@@ -277,7 +316,7 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
 
 
-def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, surfaces=None):
+def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, surfaces=None, reference=None):
     """Score the trials and add their images, pad, condition, model, roughness, interval and flags to ``table``.
 
     Roughness is a ratio to the reference specimen, rounded to 3 significant digits (the panel's own precision is
@@ -290,7 +329,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
     from ..model.predict import model_condition, model_pad, score_trials
 
     images = [image for trial in trials for image in trial]
-    scores = score_trials(loaded, images, n_jobs=jobs, progress=progress, override=override, surfaces=surfaces)
+    scores = score_trials(loaded, images, n_jobs=jobs, progress=progress, override=override, surfaces=surfaces,
+                          reference=reference)
     if len(loaded.conditions) == 1:
         table["image"] = [str(t[0]) for t in trials]
     else:
@@ -314,7 +354,23 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
             table["surface_pi90_high"] = _three_digits(scores.surface_high)
     table["extrapolates"] = ["true" if flag else "false" for flag in scores.flagged]
     table["outside"] = scores.reasons
+    _surface_flags(table, scores, surfaces)
     return scores
+
+
+def _surface_flags(table, scores, surfaces) -> None:
+    """``read_as`` says what ``extrapolates`` judges: a press read alone, or a press read with its surface; grouped,
+    ``surface_extrapolates`` is true when any press of the surface is flagged, and ``outside`` of a press that is
+    not says so (its surface's reason is in its other presses' rows)."""
+    table["read_as"] = "press alone" if surfaces is None else "press with its surface"
+    if surfaces is None:
+        return
+    import pandas as pd
+
+    flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
+    table["surface_extrapolates"] = ["true" if flag else "false" for flag in flagged]
+    quiet = flagged & ~scores.flagged
+    table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
 
 
 def roughness_column(loaded) -> str:
@@ -365,7 +421,7 @@ def _echo_extrapolation(loaded, scores) -> None:
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm")
+_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as")
 
 
 def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None:
@@ -460,7 +516,8 @@ def _split_image_flags(tokens: list[str]) -> tuple[list[Path], dict[str, list[Pa
 
 
 def _trials(loaded, positional, by_condition, study, specimens):
-    """The model's trials (tuples of images in its condition order) and the table's leading columns."""
+    """The model's trials (tuples of images in its condition order), the table's leading columns and the study read
+    (None without --study)."""
     import pandas as pd
 
     from ..model.predict import groups_from_flags, groups_from_images, groups_from_study
@@ -468,10 +525,11 @@ def _trials(loaded, positional, by_condition, study, specimens):
     if study is not None:
         from ..io.study import read_study
 
-        groups, meta = groups_from_study(loaded, read_study(study), specimens)
-        return groups, meta
+        read = read_study(study)
+        groups, meta = groups_from_study(loaded, read, specimens)
+        return groups, meta, read
     groups = groups_from_flags(loaded, by_condition) if by_condition else groups_from_images(loaded, positional)
-    return groups, pd.DataFrame(index=range(len(groups)))
+    return groups, pd.DataFrame(index=range(len(groups))), None
 
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:

@@ -118,14 +118,48 @@ def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progr
     ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
     (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
     """
+    return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
+
+
+def image_readings(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None):
+    """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
+    scale checks read the lines, at no second decoding)."""
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
     spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
-    if progress is None:
-        spectra = spectrum.transform(images)
-    else:
-        spectra = np.vstack(list(progress(spectrum.iter_transform(images), total=len(images), description="spectra")))
-    return spectra_to_features(loaded, spectra)
+    stream = spectrum.iter_transform_lines(images)
+    if progress is not None:
+        stream = progress(stream, total=len(images), description="spectra")
+    pairs = list(stream)
+    spectra = np.vstack([p[0] for p in pairs]) if pairs else np.empty((0, spectrum.freq_per_mm_.size))
+    return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
+
+
+def model_ridge_period_mm(loaded: AnyModel) -> float | None:
+    """The ridge period (mm) of the model's pad, or None for a smooth pad (or a file that does not say)."""
+    training = loaded.training if isinstance(loaded.training, dict) else {}
+    stated = training.get("pad_ridge_period_mm", getattr(loaded, "pad_ridge_period_mm", None))
+    domain = getattr(loaded, "domain", None)
+    if stated is None and domain is not None and domain.peak is not None:
+        stated = domain.peak.pad_ridge_period_mm
+    return float(stated) if isinstance(stated, (int, float)) and stated > 0 else None
+
+
+def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None) -> list[str]:
+    """Per trial, why its structure lies outside the spectrum's band ('' where it lies inside): the one band test
+    (``sensor/band.py``) every family's predictions pass, a trial read from the median period of its images."""
+    from ..sensor.band import band_reasons, dominant_period_mm
+
+    freq = spectrum.freq_per_mm_
+    ridge = model_ridge_period_mm(loaded)
+    periods = np.array([dominant_period_mm(line, spectrum.px_per_mm, float(freq[0]), ridge_period_mm=ridge)
+                        for line in lines])
+    k = len(loaded.conditions)
+    trial_periods = np.array([np.nanmedian(periods[i:i + k]) if np.isfinite(periods[i:i + k]).any() else np.nan
+                              for i in range(0, len(periods), k)])
+    line_mm = len(lines[0]) / float(spectrum.px_per_mm) if lines else 1.0
+    return band_reasons(trial_periods, line_mm, float(freq[0]), float(freq[-1]), surfaces)
 
 
 def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
@@ -137,7 +171,8 @@ def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 @dataclass(frozen=True)
 class Scores:
     """Per trial: roughness, its interval (NaN without one) and what lies outside the model's domain ('' if
-    nothing); per surface (when trials were grouped into surfaces): the mean roughness and its interval."""
+    nothing); per surface (when trials were grouped into surfaces): the mean roughness and its interval; the
+    images' scale checked against known structure in them (None when nothing was checked)."""
 
     roughness: np.ndarray
     low: np.ndarray
@@ -146,6 +181,7 @@ class Scores:
     surface_roughness: np.ndarray | None = None
     surface_low: np.ndarray | None = None
     surface_high: np.ndarray | None = None
+    scale: object | None = None
 
     @property
     def flagged(self) -> np.ndarray:
@@ -180,24 +216,51 @@ def model_interval(loaded: AnyModel):
 
 
 def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                 override: SensorOverride | None = None, surfaces=None) -> Scores:
-    """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``)."""
-    X = image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
+                 override: SensorOverride | None = None, surfaces=None, reference=None) -> Scores:
+    """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
+
+    A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
+    (which would name a period the surface does not have). The scale is checked on the pad's ridges and on the
+    trials ``reference`` marks (``(name, period_mm, per-trial booleans)``, the study's reference specimen); beyond
+    its tolerance every trial is flagged ``scale: ...``.
+    """
+    X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     roughness = loaded.predict(X, surfaces=surfaces)
-    reasons = loaded.applicability(X, surfaces=surfaces)
+    band = trial_band_reasons(loaded, spectrum, lines, surfaces)
+    reasons = [b or f for b, f in zip(band, loaded.applicability(X, surfaces=surfaces))]
+    scale = images_scale_check(loaded, spectrum, lines, reference)
+    if scale.off:
+        reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]
     interval = model_interval(loaded)
     nan = np.full(roughness.shape, np.nan)
     # a press read alone is read less surely (the peak law): it has its own calibration
     low, high = interval.trial_bounds(roughness, read_alone=surfaces is None) if interval is not None else (nan, nan)
     if surfaces is None:
-        return Scores(roughness, low, high, reasons)
+        return Scores(roughness, low, high, reasons, scale=scale)
     import pandas as pd
 
     labels = pd.Series(np.asarray(surfaces))
     surface = pd.Series(roughness).groupby(labels).transform("mean").to_numpy()
     known = interval is not None and math.isfinite(interval.surface_log_halfwidth)
     s_low, s_high = interval.surface_bounds(surface) if known else (nan, nan)
-    return Scores(roughness, low, high, reasons, surface, s_low, s_high)
+    return Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale)
+
+
+def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
+    """The images' scale against the pad's ridges (every image) and the reference specimen's period (its trials'
+    images), at the scale the spectrum read them (``model/scale_check.py``)."""
+    from .scale_check import check_study_lines
+
+    groups = []
+    ridge = model_ridge_period_mm(loaded)
+    if ridge is not None:
+        groups.append((f"the pad's {ridge:g} mm ridges", ridge, lines))
+    if reference is not None:
+        name, period_mm, trials = reference
+        k = len(loaded.conditions)
+        chosen = [line for i, line in enumerate(lines) if trials[i // k]]
+        groups.append((f"the reference specimen {name} ({period_mm:g} mm)", float(period_mm), chosen))
+    return check_study_lines(groups, float(spectrum.px_per_mm))
 
 
 def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None

@@ -236,6 +236,10 @@ class _Plan:
         return cls(px, roi, int(rows), freqs, window, max_pixels)
 
     def spectrum(self, image, index: int | None = None) -> np.ndarray:
+        return self.spectrum_and_line(image, index)[0]
+
+    def spectrum_and_line(self, image, index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The normalised spectrum and the gray line it was taken from (the band and scale checks read the line)."""
         is_file = isinstance(image, (str, os.PathLike))
         name = image if is_file else None
         where = "" if is_file or index is None else f"image {index} of the batch: "
@@ -260,7 +264,7 @@ class _Plan:
             )
         line = extract_line(pixels, box, self.rows, name=name, where=where)
         amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
-        return _normalise(amplitude, self.freq_per_mm, name, where)
+        return _normalise(amplitude, self.freq_per_mm, name, where), line
 
     def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
         """Decode a PNG only down to the last row the line uses (same result, about half the decoding).
@@ -465,18 +469,26 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         iterator of numpy.ndarray
             One (n_freqs,) spectrum per image.
         """
+        return self._iter(images, _Plan.spectrum)
+
+    def iter_transform_lines(self, images: Iterable) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """As :meth:`iter_transform`, each spectrum with the gray line it was taken from: what the band and scale
+        checks (``sensor/band.py``, ``sensor/period.py``) read, at no second decoding."""
+        return self._iter(images, _Plan.spectrum_and_line)
+
+    def _iter(self, images: Iterable, one) -> Iterator:
         plan = self._plan()
         jobs = self._jobs()
         numbered = enumerate(images)
         if jobs == 1:
             for index, image in numbered:
-                yield plan.spectrum(image, index)
+                yield one(plan, image, index)
             return
         pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="roughsense-decode")
         pending: deque = deque()
         try:
             for index, image in numbered:
-                pending.append(pool.submit(plan.spectrum, image, index))
+                pending.append(pool.submit(one, plan, image, index))
                 if len(pending) >= 2 * jobs:
                     yield pending.popleft().result()
             while pending:

@@ -1,0 +1,92 @@
+"""Every run checks its scale: px/mm measured from structure of known period in the images it reads.
+
+The structure is what the study already holds: a fingerprint pad's own ridges (``[pads.NAME] ridge_period_mm``) in
+each of its presses, and the reference specimen (R3, 3 mm; its ``wavelength_mm`` in specimens.csv) pressed in every
+study. Each press's period is measured below the DFT's bin (``sensor/period.py``), within +-15 % of where the
+stated scale puts it, and the median over the presses is compared with the stated px/mm.
+
+Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %,
+so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. One press reads
+its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD), so the limit is never tighter than
+three standard errors of the median's presses, and fewer than :data:`MIN_PRESSES` presses do not make a check.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sensor.period import ScaleMeasurement, check_scale
+
+#: Relative difference between measured and stated px/mm beyond which a run corrects or flags (module docstring).
+SCALE_TOLERANCE = 0.015
+#: Presses showing the known structure below which the scale is said to be unchecked.
+MIN_PRESSES = 3
+
+
+@dataclass(frozen=True)
+class ScaleCheck:
+    """The stated scale against the one measured from known structure (``sources``: what was measured, in words)."""
+
+    stated_px_per_mm: float
+    sources: tuple[str, ...]
+    measurement: ScaleMeasurement | None
+
+    @property
+    def checked(self) -> bool:
+        return self.measurement is not None and self.measurement.n_measured >= MIN_PRESSES
+
+    @property
+    def measured_px_per_mm(self) -> float:
+        return self.measurement.px_per_mm if self.measurement is not None else math.nan
+
+    @property
+    def deviation(self) -> float:
+        """Measured / stated - 1 (NaN when unchecked)."""
+        return self.measured_px_per_mm / self.stated_px_per_mm - 1 if self.checked else math.nan
+
+    @property
+    def limit(self) -> float:
+        """The tolerance this check can hold: :data:`SCALE_TOLERANCE`, or three standard errors if wider."""
+        if not self.checked:
+            return math.nan
+        error = self.measurement.standard_error
+        return max(SCALE_TOLERANCE, 3 * error) if math.isfinite(error) else SCALE_TOLERANCE
+
+    @property
+    def off(self) -> bool:
+        """True when the measured scale differs from the stated one by more than :attr:`limit`."""
+        return self.checked and abs(self.deviation) > self.limit
+
+    def summary(self) -> str:
+        """One line: what was measured, from what, against what (or why the scale could not be checked)."""
+        if not self.checked:
+            seen = 0 if self.measurement is None else self.measurement.n_measured
+            what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or the reference specimen"
+            return (f"scale not checked: {seen} press(es) show {what} (at least {MIN_PRESSES} needed); "
+                    f"{self.stated_px_per_mm:g} px/mm taken as stated")
+        m = self.measurement
+        return (f"scale: measured {m.px_per_mm:.4g} px/mm (+-{100 * m.standard_error:.2g} %, {m.n_measured} presses, "
+                f"from {' and '.join(self.sources)}) against the stated {self.stated_px_per_mm:g} px/mm "
+                f"({100 * self.deviation:+.1f} %; tolerance +-{100 * self.limit:.2g} %)")
+
+
+    def reason(self) -> str:
+        """What a row flagged for its scale says (the ``outside`` column's words)."""
+        return (f"scale: the images measure {self.measured_px_per_mm:.4g} px/mm, read at {self.stated_px_per_mm:g} "
+                f"px/mm ({100 * self.deviation:+.1f} %)")
+
+
+def check_study_lines(groups: list[tuple[str, float, list]], stated_px_per_mm: float) -> ScaleCheck:
+    """The scale check over ``groups`` of (source in words, period in mm, gray lines): every line's own px/mm,
+    pooled into one median."""
+    sources, values = [], []
+    for source, period_mm, lines in groups:
+        if not lines:
+            continue
+        sources.append(source)
+        values.append(check_scale(lines, period_mm, stated_px_per_mm).px_per_mm_each)
+    if not values:
+        return ScaleCheck(float(stated_px_per_mm), (), None)
+    return ScaleCheck(float(stated_px_per_mm), tuple(sources), ScaleMeasurement(math.nan, np.concatenate(values)))
