@@ -352,25 +352,25 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
         if np.isfinite(scores.surface_low).all():
             table["surface_pi90_low"] = _three_digits(scores.surface_low)
             table["surface_pi90_high"] = _three_digits(scores.surface_high)
+    _surface_flags(table, scores, surfaces)
     table["extrapolates"] = ["true" if flag else "false" for flag in scores.flagged]
     table["outside"] = scores.reasons
-    _surface_flags(table, scores, surfaces)
+    if "surface_extrapolates" in table:
+        quiet = (table["surface_extrapolates"] == "true").to_numpy() & ~scores.flagged
+        table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
     return scores
 
 
 def _surface_flags(table, scores, surfaces) -> None:
-    """``read_as`` says what ``extrapolates`` judges: a press read alone, or a press read with its surface; grouped,
-    ``surface_extrapolates`` is true when any press of the surface is flagged, and ``outside`` of a press that is
-    not says so (its surface's reason is in its other presses' rows)."""
-    table["read_as"] = "press alone" if surfaces is None else "press with its surface"
-    if surfaces is None:
-        return
-    import pandas as pd
+    """``read_as`` says how ``extrapolates`` judged each row: ``press`` (read alone) or ``surface`` (a press read
+    with the other presses of its surface); grouped, ``surface_extrapolates`` is true when any press of the surface
+    is flagged, and a press that is not says so in ``outside`` (its surface's reason is in the other rows)."""
+    if surfaces is not None:
+        import pandas as pd
 
-    flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
-    table["surface_extrapolates"] = ["true" if flag else "false" for flag in flagged]
-    quiet = flagged & ~scores.flagged
-    table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
+        flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
+        table["surface_extrapolates"] = ["true" if flag else "false" for flag in flagged]
+    table["read_as"] = "press" if surfaces is None else "surface"
 
 
 def roughness_column(loaded) -> str:

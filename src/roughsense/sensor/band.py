@@ -3,10 +3,9 @@
 The spectrum is read on f_min..f_max (the paper's 0.1-1.0 mm^-1: periods of 1-10 mm). A surface finer or coarser
 than that has no peak of its own in the band, and whatever the band then holds (harmonics, the pad's ridges,
 shading) would be read as a surface it is not. So the whole line is looked at, not the band: its strongest
-structure (:func:`roughsense.sensor.period.strongest_peak`, from 1/``COARSEST_FACTOR`` of f_min to Nyquist, a
-fingerprint pad's own ridge frequency left out as the peak law leaves it out) must lie inside the band by at least
-the line's resolution (the Hann main lobe's half-width, 2 / line length): a peak cut by the band's edge is no
-clear in-band peak. The reason names the period measured on the whole line, never one read inside the band.
+structure (the strongest peak from f_min / ``COARSEST_FACTOR`` to Nyquist, a fingerprint pad's own ridge frequency
+left out as the peak law leaves it out) must lie inside the band by at least 1 / line length (half the Hann main
+lobe): a peak whose lobe the band's edge cuts at its middle is no clear in-band peak. The reason names the period measured on the whole line, never one read inside the band.
 """
 from __future__ import annotations
 
@@ -43,7 +42,7 @@ def dominant_period_mm(line, px_per_mm: float, f_min_per_mm: float, *, ridge_per
 
 def band_reason(period_mm: float, line_mm: float, f_min_per_mm: float, f_max_per_mm: float) -> str:
     """Why a press's strongest structure, of ``period_mm``, is no clear peak of the band ('' if it is one)."""
-    lobe = 2.0 / line_mm  # the Hann main lobe's half-width (mm^-1) on a line of this length
+    lobe = 1.0 / line_mm  # half the Hann main lobe's half-width (mm^-1) on a line of this length
     finest, coarsest = 1.0 / f_max_per_mm, 1.0 / f_min_per_mm
     if not np.isfinite(period_mm):
         return "no structure along the line (flat gray level)"

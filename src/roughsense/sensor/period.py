@@ -113,7 +113,8 @@ def calibrate_scale(lines: Sequence, period_mm: float, *, px_per_mm_range: tuple
     Each line's scale is found first on a log grid over ``px_per_mm_range``, scoring the amplitude where the target
     would peak at that scale (plus, on a pad with ridges of ``ridge_period_mm``, where the ridges would peak: their
     relief can outshine a grating, and only the right scale puts both in place); the target's peak there is then
-    refined as :func:`check_scale` refines it.
+    refined as :func:`check_scale` refines it. A press whose scale lands beyond :data:`CHECK_WINDOW` of the
+    presses' median (it read a harmonic or other structure) is read again within that window of the median.
     """
     low, high = (float(v) for v in px_per_mm_range)
     if not 0 < low < high:
@@ -128,4 +129,9 @@ def calibrate_scale(lines: Sequence, period_mm: float, *, px_per_mm_range: tuple
             score = score + np.interp(1.0 / (ridge_period_mm * scales), freq, relative)
         guess = float(scales[int(np.argmax(score))])
         each.append(check_scale([line], period_mm, guess, window=0.05).px_per_mm_each[0])
-    return ScaleMeasurement(float(period_mm), np.asarray(each, dtype=np.float64))
+    each = np.asarray(each, dtype=np.float64)
+    consensus = float(np.nanmedian(each)) if np.isfinite(each).any() else float("nan")
+    strays = np.flatnonzero(~(np.abs(each / consensus - 1) <= CHECK_WINDOW))  # a press that read another structure
+    if strays.size and np.isfinite(consensus):
+        each[strays] = check_scale([lines[i] for i in strays], period_mm, consensus).px_per_mm_each
+    return ScaleMeasurement(float(period_mm), each)
