@@ -57,6 +57,8 @@ def refine_peak(tapered: np.ndarray, coarse_cycles_per_px: float) -> float:
 def strongest_peak(line, low_cycles_per_px: float, high_cycles_per_px: float) -> tuple[float, float]:
     """(refined frequency in cycles per px, its amplitude) of the strongest local maximum in [low, high]; NaN for
     both where the range holds no local maximum (a monotone slope): an edge is never taken for a peak."""
+    if np.ptp(np.asarray(line, dtype=np.float64)) == 0:  # a flat line: only rounding would peak
+        return float("nan"), float("nan")
     freq, amplitude = amplitude_scan(line)
     inside = np.flatnonzero((freq >= low_cycles_per_px) & (freq <= high_cycles_per_px))
     inside = inside[(inside > 0) & (inside < freq.size - 1)]

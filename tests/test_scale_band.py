@@ -1,0 +1,179 @@
+"""The sensor's scale and band: periods measured below the DFT's bin on lines of known period, the band test's verdicts,
+``roughsense calibrate`` writing study.toml, and predict flagging a wrong scale or a surface outside the band."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from roughsense.model.scale_check import SCALE_TOLERANCE, check_study_lines
+from roughsense.sensor.band import band_reason, band_reasons, dominant_period_mm
+from roughsense.sensor.period import calibrate_scale, check_scale, strongest_peak
+
+LINE_PX = 1900
+
+
+def square_line(period_mm: float, px_per_mm: float, *, ridge_mm: float | None = None, phase: float = 0.3,
+                noise: float = 0.0, seed: int = 0) -> np.ndarray:
+    """A line across a grating of ``period_mm`` (lands bright, grooves dark), optionally with a pad's ridges."""
+    x_mm = np.arange(LINE_PX) / px_per_mm
+    line = 0.4 + 0.3 * (np.sin(2 * np.pi * x_mm / period_mm + phase) > 0)
+    if ridge_mm is not None:
+        line = line + 0.25 * np.cos(2 * np.pi * x_mm / ridge_mm + 1.1)
+    return line + noise * np.random.default_rng(seed).standard_normal(LINE_PX)
+
+
+@given(period_px=st.floats(8.0, 300.0), phase=st.floats(0.0, 6.28))
+def test_a_sinusoid_reads_its_own_period_below_the_bin(period_px, phase):
+    """The refined peak of a pure sinusoid is its frequency to 1e-4 of it (a DFT bin is 1/1900 cycles per px,
+    0.5-16 % of these frequencies)."""
+    line = np.sin(2 * np.pi * np.arange(LINE_PX) / period_px + phase)
+    f = 1.0 / period_px
+    found, _ = strongest_peak(line, 0.8 * f, 1.2 * f)
+    assert found == pytest.approx(f, rel=1e-4 if period_px < 120 else 1e-3)
+
+
+@pytest.mark.parametrize("px_per_mm", [20.0, 34.9, 47.3, 60.0])
+@pytest.mark.parametrize("period_mm", [2.0, 3.0, 5.0])
+@pytest.mark.parametrize("ridge_mm", [None, 1.0])
+def test_calibrate_recovers_the_scale_of_a_grating_with_or_without_ridges(px_per_mm, period_mm, ridge_mm):
+    """From an unknown scale (searched over 10-120 px/mm), a square grating's period gives px/mm within 0.1 %,
+    also where a pad's ridges outshine it; check_scale, told a scale 8 % off, finds the same."""
+    lines = [square_line(period_mm, px_per_mm, ridge_mm=ridge_mm, phase=p, noise=0.05, seed=i)
+             for i, p in enumerate((0.1, 1.7, 2.9))]
+    measured = calibrate_scale(lines, period_mm, px_per_mm_range=(10, 120), ridge_period_mm=ridge_mm)
+    assert measured.n_measured == 3 and measured.px_per_mm == pytest.approx(px_per_mm, rel=1e-3)
+    checked = check_scale(lines, period_mm, 1.08 * px_per_mm)
+    assert checked.px_per_mm == pytest.approx(px_per_mm, rel=1e-3)
+    if ridge_mm is not None:
+        ridges = check_scale(lines, ridge_mm, 0.93 * px_per_mm)
+        assert ridges.px_per_mm == pytest.approx(px_per_mm, rel=1e-3)
+
+
+def test_a_flat_line_has_no_peak_and_the_check_says_it_is_unchecked():
+    flat = np.full(LINE_PX, 0.5)
+    assert np.isnan(strongest_peak(flat, 0.01, 0.05)[0])
+    check = check_study_lines([("the pad's 1 mm ridges", 1.0, [flat] * 5)], 34.9)
+    assert not check.checked and not check.off and "scale not checked: 0 press(es)" in check.summary()
+
+
+@pytest.mark.parametrize("off", [0.95, 0.97, 1.0, 1.03, 1.10])
+def test_the_scale_check_flags_beyond_its_tolerance(off):
+    """Images at 34.9 px/mm read as if at 34.9 * off: the check measures 34.9 and says off exactly when the stated
+    scale is more than the tolerance away."""
+    lines = [square_line(1.0, 34.9, phase=p, noise=0.05, seed=i) for i, p in enumerate(np.linspace(0, 3, 6))]
+    check = check_study_lines([("the pad's 1 mm ridges", 1.0, lines)], 34.9 * off)
+    assert check.checked and check.measured_px_per_mm == pytest.approx(34.9, rel=1e-3)
+    assert check.off == (abs(1 / off - 1) > SCALE_TOLERANCE)
+    if check.off:
+        assert check.reason().startswith("scale: the images measure 34.9")
+
+
+@pytest.mark.parametrize(("period_mm", "verdict"), [
+    (0.3, "finer than the sensor resolves: period 0.30 mm, below the band's 1 mm"),
+    (0.5, "finer than the sensor resolves: period 0.50 mm, below the band's 1 mm"),
+    (0.8, "finer than the sensor resolves: period 0.80 mm, below the band's 1 mm"),
+    (2.0, ""), (3.0, ""), (5.0, ""),
+    (10.0, "coarser than the sensor resolves: period 10"),
+    (14.0, "coarser than the sensor resolves: period 14 mm, above the band's 10 mm"),
+])
+@pytest.mark.parametrize("ridge_mm", [None, 1.0])
+def test_the_band_test_names_the_period_of_the_whole_line(period_mm, verdict, ridge_mm):
+    """The period named is the one the line holds (not one read inside the band); the pad's ridges are left out."""
+    line = square_line(period_mm, 34.9, ridge_mm=ridge_mm)
+    found = dominant_period_mm(line, 34.9, 0.1, ridge_period_mm=ridge_mm)
+    assert found == pytest.approx(period_mm, rel=0.03)
+    reason = band_reason(found, LINE_PX / 34.9, 0.1, 1.0)
+    assert reason.startswith(verdict) and bool(reason) == bool(verdict)
+
+
+def test_a_surface_and_its_presses_never_disagree_unexplained():
+    periods = [0.5, 0.51, 3.0, 3.0, 3.0, 0.49, 3.02]
+    surfaces = ["fine", "fine", "fine", "R3", "R3", "R3", "R3"]
+    alone = band_reasons(periods, 54.4, 0.1, 1.0)
+    assert [bool(r) for r in alone] == [True, True, False, False, False, True, False]
+    grouped = band_reasons(periods, 54.4, 0.1, 1.0, surfaces)
+    assert all(r.startswith("surface (median of 3 presses) finer than the sensor resolves") for r in grouped[:3])
+    assert grouped[5].startswith("this press alone (its surface lies in the band): finer")
+    assert grouped[3] == grouped[4] == grouped[6] == ""
+
+
+def test_calibrate_writes_the_measured_scale_into_study_toml(run_cli, tmp_path):
+    """The tiny study's R3 presses are drawn at 20 px/mm: calibrate measures it from a stated 17, keeps the file's
+    other lines, refuses to replace the user's value without --force, and --dry-run writes nothing."""
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=2)
+    toml = root / "study.toml"
+    text = toml.read_text().replace("px_per_mm = 20.0", "px_per_mm = 17.0  # my guess")
+    toml.write_text("# my rig\n" + text)
+    code, out, err = run_cli("calibrate", root, "--dry-run")
+    assert code == 0, err
+    assert "px/mm measured from 6 of 6 presses of R3 (3 mm) on the fingerprint pad" in out
+    assert float(out.split()[0]) == pytest.approx(20.0, rel=2e-3) and "17.0" in toml.read_text()
+    code, _, err = run_cli("calibrate", root)
+    assert code == 2 and "px_per_mm is already 17.0 (yours); pass --force" in err and len(err.splitlines()) == 1
+    code, out, err = run_cli("calibrate", root, "--force")
+    assert code == 0, err
+    import tomllib
+
+    written = tomllib.loads(toml.read_text())
+    assert written["sensor"]["px_per_mm"] == pytest.approx(20.0, rel=2e-3) and toml.read_text().startswith("# my rig")
+    assert written["sensor"]["roi"] == [0, 16, 600, 32] and "(was 17)" in out
+    code, _, err = run_cli("calibrate", root, "--specimen", "X9")
+    assert code == 2 and "--specimen 'X9' is not in specimens.csv" in err
+
+
+def test_predict_flags_every_row_when_the_study_scale_is_wrong(run_cli, tmp_path):
+    """A study whose study.toml states 10 % too many px/mm: predict --study reads it at that scale (and says so),
+    the reference specimen measures the true one, and every row is flagged 'scale' with one warning line."""
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=3)
+    model = tmp_path / "m.json"
+    assert run_cli("fit", "--study", root, "--pad", "fingerprint", "--condition", "2N", "--out", model)[0] == 0
+    pred = tmp_path / "p.csv"
+    code, _, err = run_cli("predict", model, "--study", root, "--out", pred)
+    assert code == 0 and "against the stated 20 px/mm (+0.0 %" in err, err
+    right = pd.read_csv(pred)
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 20.0", "px_per_mm = 22.0"))
+    code, _, err = run_cli("predict", model, "--study", root, "--out", pred, "--force")
+    assert code == 0, err
+    assert "images read at 22 px/mm, the scale in" in err
+    warned = [line for line in err.splitlines() if "warning: scale: measured" in line]
+    assert len(warned) == 1 and "against the stated 22 px/mm (-9.1 %" in warned[0]
+    wrong = pd.read_csv(pred)
+    assert set(wrong["px_per_mm"]) == {22.0} and wrong["extrapolates"].all()
+    assert all(re.search(r"scale: the images measure 20(\.0\d)? px/mm, read at 22 px/mm", r) for r in wrong["outside"])
+    assert not right["extrapolates"].any()
+
+
+def test_fit_and_predict_warnings_reach_stderr_at_the_default_jobs(tmp_path):
+    """Decoding in threads never changes the process's warning filters: at the default --jobs (every core) the
+    controls line of fit and predict and predict's --roi auto field-of-view warning reach stderr."""
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=2)
+    model = tmp_path / "m.json"
+
+    def run(*args):
+        done = subprocess.run([sys.executable, "-m", "roughsense.cli", *map(str, args)], capture_output=True, text=True,
+                              timeout=600)
+        assert done.returncode == 0, done.stderr
+        return done.stderr
+
+    err = run("fit", "--study", root, "--pad", "fingerprint", "--condition", "2N", "--model", "pls", "--out", model)
+    failure = json.loads(model.read_text())["training"]["unseen"]["failure"]
+    assert failure and f"roughsense: warning: {failure}" in err.splitlines()
+    images = sorted((root / "images").glob("fingerprint_*_2N_*.png"))
+    err = run("predict", model, "--roi", "auto", "--px-per-mm", "30", *images)
+    assert f"roughsense: warning: {failure}" in err.splitlines()
+    assert any("warning: --roi auto reads" in line for line in err.splitlines()), err
