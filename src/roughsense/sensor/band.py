@@ -5,7 +5,8 @@ than that has no peak of its own in the band, and whatever the band then holds (
 shading) would be read as a surface it is not. So the whole line is looked at, not the band: its strongest
 structure (the strongest peak from f_min / ``COARSEST_FACTOR`` to Nyquist, a fingerprint pad's own ridge frequency
 left out as the peak law leaves it out) must lie inside the band by at least 1 / line length (half the Hann main
-lobe): a peak whose lobe the band's edge cuts at its middle is no clear in-band peak. The reason names the period measured on the whole line, never one read inside the band.
+lobe): a peak whose lobe the band's edge cuts at its middle is no clear in-band peak. The reason names the period
+measured on the whole line, never one read inside the band.
 """
 from __future__ import annotations
 
