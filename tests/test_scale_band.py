@@ -177,3 +177,24 @@ def test_fit_and_predict_warnings_reach_stderr_at_the_default_jobs(tmp_path):
     err = run("predict", model, "--roi", "auto", "--px-per-mm", "30", *images)
     assert f"roughsense: warning: {failure}" in err.splitlines()
     assert any("warning: --roi auto reads" in line for line in err.splitlines()), err
+
+
+@pytest.mark.parametrize(("line", "problem"), [
+    ("px_per_mmm = 8.725", "[sensor] unknown key 'px_per_mmm' looks like a misspelt 'px_per_mm', which is not set"),
+    ("PX_per_mm = 8.725", "[sensor] unknown key 'PX_per_mm' looks like a misspelt 'px_per_mm'"),
+    ("", "[sensor] states no px_per_mm: the paper's 34.9 px/mm is assumed"),
+    ('px_per_mm = "8.7"', "[sensor] px_per_mm must be a positive number, got '8.7'"),
+    ("px_per_mm = 0.5", "[sensor] px_per_mm 0.5 cannot resolve the band: its Nyquist frequency 0.25 mm^-1"),
+    ("px_per_mm = 300.0", "[sensor] px_per_mm 300 makes the line 2 mm long (600 px), shorter than 1/f_min = 10 mm"),
+])
+def test_check_reports_a_missing_misspelt_or_implausible_scale(run_cli, tmp_path, line, problem):
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=1)
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 20.0", line))
+    code, out, err = run_cli("check", root)
+    assert code == 2 and problem in out, out
+    if "misspelt" in problem:  # study refuses it too: never the default in its place
+        code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report", "--permutations", "0")
+        assert code == 2 and "looks like a misspelt 'px_per_mm'" in err and len(err.splitlines()) == 1

@@ -206,6 +206,21 @@ def extract_line(pixels: np.ndarray, box: tuple[int, int, int, int], rows: int, 
     return line
 
 
+def scale_misfit(px_per_mm: float, roi: Roi, *, f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
+                 f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm) -> str | None:
+    """Why a camera scale cannot measure the band with this crop (None if it can): f_max at or above the Nyquist
+    frequency, or a line (the crop's width; at most the centre crop's for 'auto') shorter than 1/f_min. What
+    ``roughsense check`` calls an implausible scale; ``_Plan`` refuses the first and every image the second."""
+    if not px_per_mm / 2 > f_max_per_mm:
+        return (f"px_per_mm {px_per_mm:g} cannot resolve the band: its Nyquist frequency {px_per_mm / 2:g} mm^-1 is not "
+                f"above f_max {f_max_per_mm:g} mm^-1 (it must be above {2 * f_max_per_mm:g} px/mm)")
+    width_px = CENTER_CROP_PX[0] if isinstance(roi, str) else roi[2]
+    if width_px / px_per_mm < 1 / f_min_per_mm:
+        return (f"px_per_mm {px_per_mm:g} makes the line {width_px / px_per_mm:.3g} mm long ({width_px} px), shorter "
+                f"than 1/f_min = {1 / f_min_per_mm:g} mm: the band's coarse end cannot be measured")
+    return None
+
+
 @dataclass(frozen=True)
 class _Plan:
     """Validated settings, shared read-only by the worker threads."""
