@@ -67,3 +67,20 @@ def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None 
         print(f"roughsense: note: {BUILTIN!r} names the built-in simulated study; for the folder here, "
               f"write ./{BUILTIN}", file=sys.stderr)
     return builtin_study(seed, jobs)
+
+
+def checked_scale(study, *, pad: str | None = None):
+    """The study with its scale checked (``model/scale_check.py``): read at the measured px/mm where its stated one is
+    off beyond the tolerance (a warning line says so), else as stated (a note line says what was measured, or that
+    nothing could be). Returns the study to use and that line, for the report or the model file."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..model.scale_check import check_study_scale, corrected
+
+    check = check_study_scale(study, pad=pad)
+    if check.off:
+        warnings.warn(RoughsenseWarning(check.correction()), stacklevel=2)
+        return corrected(study, check), check.correction()
+    print(f"roughsense: {check.summary()}", file=sys.stderr)
+    return study, check.summary()

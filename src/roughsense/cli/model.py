@@ -10,7 +10,7 @@ import typer
 from .._util.text import counted
 from ..errors import ConfigError
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
-from ._studies import STUDY_METAVAR, resolve_study
+from ._studies import STUDY_METAVAR, checked_scale, resolve_study
 
 ORDER = 20
 
@@ -76,12 +76,12 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     check_seed(seed)
     check_can_write(out, force=force, inputs=run_inputs(study=study))
     study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
-    loaded = read_study(study, require_ratings=True)
+    loaded, scale = checked_scale(read_study(study, require_ratings=True), pad=pad)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
                           model=family, roi=None if override is None else override.roi)
-    save_model(out, trained.model, feature_definition=trained.feature_definition, training=trained.training,
-               force=force, domain=trained.domain)
+    save_model(out, trained.model, feature_definition=trained.feature_definition,
+               training={**trained.training, "scale_check": scale}, force=force, domain=trained.domain)
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
                f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
     if override is not None:

@@ -11,7 +11,7 @@ from .._util.text import counted
 from ..paper import COMBINED
 from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
 from ._defaults import MAX_PERMUTATIONS
-from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
+from ._studies import STUDY_METAVAR, builtin_study, checked_scale, is_builtin, resolve_study
 
 ORDER = 5
 DEFAULT_SEED = 0
@@ -98,7 +98,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
-    study = _read_folder(root, builtin=builtin)
+    study, scale = checked_scale(_read_folder(root, builtin=builtin))
     definition = dataset.spectrum_for(study).feature_definition()
     features, was_cached = cache.cached_frame(
         cache.features_key(study, definition),
@@ -119,6 +119,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         "images": f"{len(study.manifest)} ({', '.join(study.pads)} {'pad' if len(study.pads) == 1 else 'pads'}; "
                   f"{counted(len(study.specimens), 'specimen')})",
         "features": "from cache" if was_cached else "extracted",
+        "scale": scale,
     }
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
