@@ -61,7 +61,7 @@ def test_a_flat_line_has_no_peak_and_the_check_says_it_is_unchecked():
     flat = np.full(LINE_PX, 0.5)
     assert np.isnan(strongest_peak(flat, 0.01, 0.05)[0])
     check = check_study_lines([("the pad's 1 mm ridges", 1.0, [flat] * 5)], 34.9)
-    assert not check.checked and not check.off and "scale not checked: 0 press(es)" in check.summary()
+    assert not check.checked and not check.off and "scale not checked: 0 mount(s)" in check.summary()
 
 
 @pytest.mark.parametrize("off", [0.95, 0.97, 1.0, 1.03, 1.10])
@@ -74,6 +74,23 @@ def test_the_scale_check_flags_beyond_its_tolerance(off):
     assert check.off == (abs(1 / off - 1) > SCALE_TOLERANCE)
     if check.off:
         assert check.reason().startswith("scale: the images measure 34.9")
+
+
+def test_presses_of_one_mount_are_one_measurement_of_its_magnification():
+    """Four mounts magnified 0.98, 1.0, 1.01, 1.03 (three presses each): the standard error is over the mounts
+    (SD / 2), not over the twelve presses, and the median is the presses'."""
+    magnification = [0.98, 1.0, 1.01, 1.03]
+    lines, mounts = [], []
+    for mount, m in enumerate(magnification):
+        for press in range(3):
+            lines.append(square_line(1.0, 34.9 * m, phase=press, noise=0.02, seed=10 * mount + press))
+            mounts.append(mount)
+    check = check_study_lines([("the pad's 1 mm ridges", 1.0, lines, mounts)], 34.9)
+    measurement = check.measurement
+    assert measurement.n_measured == 12 and measurement.n_mounts == 4
+    assert measurement.standard_error == pytest.approx(np.std(magnification, ddof=1) / 2 / np.median(magnification),
+                                                       rel=0.02)
+    assert check.limit == pytest.approx(max(SCALE_TOLERANCE, 3 * measurement.standard_error))
 
 
 @pytest.mark.parametrize(("period_mm", "verdict"), [

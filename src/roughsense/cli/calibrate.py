@@ -54,7 +54,8 @@ def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False,
         raise ConfigError(f"no press of {what} shows a peak of its period within --range {scale_range}")
     spread = 100 * (m.measured.std(ddof=1) / m.px_per_mm if m.n_measured > 1 else float("nan"))
     text = (f"{m.px_per_mm:.4f} px/mm measured from {m.n_measured} of {m.px_per_mm_each.size} presses of {what}: "
-            f"+-{100 * m.standard_error:.2g} % (standard error), {spread:.2g} % SD from press to press, "
+            f"+-{100 * m.standard_error:.2g} % (standard error over {m.n_mounts} mounts), {spread:.2g} % SD from press "
+            "to press, "
             f"range {m.measured.min():.4g}-{m.measured.max():.4g}")
     typer.echo(text)
     if dry_run:
@@ -67,8 +68,8 @@ def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False,
     typer.echo(f"wrote [sensor] px_per_mm = {round(m.px_per_mm, 4):g}{was} to {toml_path}")
 
 
-def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tuple[str, float, list, float | None]]:
-    """(what, period in mm, image paths, the pad's ridge period or None) per pad."""
+def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tuple]:
+    """(what, period in mm, image paths, the pad's ridge period or None, each image's mount) per pad."""
     import numpy as np
 
     manifest = study.manifest
@@ -93,7 +94,8 @@ def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tupl
     for what, period, rows, ridge in groups:
         keep = max(1, round(limit * len(rows) / total))
         chosen = rows.iloc[np.unique(np.linspace(0, len(rows) - 1, min(keep, len(rows))).round().astype(int))]
-        out.append((what, period, [study.root / image for image in chosen["image"]], ridge))
+        mounts = [f"{s}/{p}/{r}" for s, p, r in zip(chosen["specimen"], chosen["pad"], chosen["repetition"])]
+        out.append((what, period, [study.root / image for image in chosen["image"]], ridge, mounts))
     return out
 
 
@@ -105,13 +107,14 @@ def _measure(study, targets, scale_range):
     from ..sensor.spectrum import SpatialSpectrum
 
     reader = SpatialSpectrum(roi=study.sensor.roi, max_pixels=study.sensor.max_pixels)
-    values = []
-    for _, period, images, ridge in targets:
+    values, mounts = [], []
+    for _, period, images, ridge, mount in targets:
         lines = [reader.line(image)[0] for image in images]
         values.append(calibrate_scale(lines, period, px_per_mm_range=scale_range, ridge_period_mm=ridge)
                       .px_per_mm_each)
+        mounts.extend(mount)
     what = " and ".join(t[0] for t in targets)
-    return ScaleMeasurement(targets[0][1], np.concatenate(values)), what
+    return ScaleMeasurement(targets[0][1], np.concatenate(values), np.asarray(mounts, dtype=object)), what
 
 
 def register(app: typer.Typer) -> None:

@@ -252,14 +252,16 @@ def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
     from .scale_check import check_study_lines
 
     groups = []
+    k = len(loaded.conditions)
+    mounts = [i // k for i in range(len(lines))]  # a trial's images are one mount of the surface
     ridge = model_ridge_period_mm(loaded)
     if ridge is not None:
-        groups.append((f"the pad's {ridge:g} mm ridges", ridge, lines))
+        groups.append((f"the pad's {ridge:g} mm ridges", ridge, lines, mounts))
     if reference is not None:
         name, period_mm, trials = reference
-        k = len(loaded.conditions)
-        chosen = [line for i, line in enumerate(lines) if trials[i // k]]
-        groups.append((f"the reference specimen {name} ({period_mm:g} mm)", float(period_mm), chosen))
+        chosen = [i for i in range(len(lines)) if trials[i // k]]
+        groups.append((f"the reference specimen {name} ({period_mm:g} mm)", float(period_mm),
+                       [lines[i] for i in chosen], [mounts[i] for i in chosen]))
     return check_study_lines(groups, float(spectrum.px_per_mm))
 
 

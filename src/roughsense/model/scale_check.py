@@ -6,9 +6,10 @@ study. Each press's period is measured below the DFT's bin (``sensor/period.py``
 stated scale puts it, and the median over the presses is compared with the stated px/mm.
 
 Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %,
-so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. One press reads
-its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD), so the limit is never tighter than
-three standard errors of the median's presses, and fewer than :data:`MIN_PRESSES` presses do not make a check.
+so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the
+target reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount
+share it), so the limit is never tighter than three standard errors over the mounts, and fewer than
+:data:`MIN_MOUNTS` mounts do not make a check.
 """
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ from ..sensor.period import ScaleMeasurement, check_scale
 
 #: Relative difference between measured and stated px/mm beyond which a run corrects or flags (module docstring).
 SCALE_TOLERANCE = 0.015
-#: Presses showing the known structure below which the scale is said to be unchecked.
-MIN_PRESSES = 3
+#: Mounts showing the known structure below which the scale is said to be unchecked.
+MIN_MOUNTS = 3
 
 
 @dataclass(frozen=True)
@@ -35,7 +36,7 @@ class ScaleCheck:
 
     @property
     def checked(self) -> bool:
-        return self.measurement is not None and self.measurement.n_measured >= MIN_PRESSES
+        return self.measurement is not None and self.measurement.n_mounts >= MIN_MOUNTS
 
     @property
     def measured_px_per_mm(self) -> float:
@@ -62,12 +63,13 @@ class ScaleCheck:
     def summary(self) -> str:
         """One line: what was measured, from what, against what (or why the scale could not be checked)."""
         if not self.checked:
-            seen = 0 if self.measurement is None else self.measurement.n_measured
+            seen = 0 if self.measurement is None else self.measurement.n_mounts
             what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or the reference specimen"
-            return (f"scale not checked: {seen} press(es) show {what} (at least {MIN_PRESSES} needed); "
+            return (f"scale not checked: {seen} mount(s) show {what} (at least {MIN_MOUNTS} needed); "
                     f"{self.stated_px_per_mm:g} px/mm taken as stated")
         m = self.measurement
-        return (f"scale: measured {m.px_per_mm:.4g} px/mm (+-{100 * m.standard_error:.2g} %, {m.n_measured} presses, "
+        return (f"scale: measured {m.px_per_mm:.4g} px/mm (+-{100 * m.standard_error:.2g} %, {m.n_measured} presses "
+                f"in {m.n_mounts} mounts, "
                 f"from {' and '.join(self.sources)}) against the stated {self.stated_px_per_mm:g} px/mm "
                 f"({100 * self.deviation:+.1f} %; tolerance +-{100 * self.limit:.2g} %)")
 
@@ -83,22 +85,25 @@ class ScaleCheck:
                 f"px/mm ({100 * self.deviation:+.1f} %)")
 
 
-def check_study_lines(groups: list[tuple[str, float, list]], stated_px_per_mm: float) -> ScaleCheck:
-    """The scale check over ``groups`` of (source in words, period in mm, gray lines): every line's own px/mm,
-    pooled into one median."""
-    sources, values = [], []
-    for source, period_mm, lines in groups:
+def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleCheck:
+    """The scale check over ``groups`` of (source in words, period in mm, gray lines[, their mount labels]): every
+    line's own px/mm, pooled into one median; a line without a label is a mount of its own."""
+    sources, values, mounts = [], [], []
+    for number, (source, period_mm, lines, *labels) in enumerate(groups):
         if not lines:
             continue
         sources.append(source)
         values.append(check_scale(lines, period_mm, stated_px_per_mm).px_per_mm_each)
+        own = labels[0] if labels and labels[0] is not None else [f"line {i}" for i in range(len(lines))]
+        mounts.extend(f"{number}: {label}" for label in own)
     if not values:
         return ScaleCheck(float(stated_px_per_mm), (), None)
-    return ScaleCheck(float(stated_px_per_mm), tuple(sources), ScaleMeasurement(math.nan, np.concatenate(values)))
+    measurement = ScaleMeasurement(math.nan, np.concatenate(values), np.asarray(mounts, dtype=object))
+    return ScaleCheck(float(stated_px_per_mm), tuple(sources), measurement)
 
 
-#: Presses per known structure a study's check reads (evenly spread over the manifest): a line's period is read to
-#: about the bench's magnification jitter, so a dozen give the median to under 1 %, at a few % of the features' time.
+#: Presses per known structure a study's check reads (spread over its mounts): a mount's period is read to about the
+#: bench's magnification jitter, so a dozen mounts give the median to under 1 %, at a few % of the features' time.
 STUDY_PRESSES = 12
 
 
@@ -110,21 +115,24 @@ def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRE
                              max_pixels=study.sensor.max_pixels)
     manifest = study.manifest
 
-    def lines(rows) -> list:
-        picked = rows.iloc[np.unique(np.linspace(0, len(rows) - 1, min(presses, len(rows))).round().astype(int))] \
-            if len(rows) else rows
-        return [reader.line(study.root / image)[0] for image in picked["image"]]
+    def read(source: str, period: float, rows) -> tuple:
+        """Presses spread over the mounts first (one per mount, then a second ...), up to ``presses``."""
+        rows = rows.assign(mount=[f"{s}/{p}/{r}" for s, p, r in zip(rows["specimen"], rows["pad"], rows["repetition"])])
+        order = rows.groupby("mount", sort=False).cumcount().sort_values(kind="stable").index
+        picked = rows.loc[order[:presses]]
+        return (source, period, [reader.line(study.root / image)[0] for image in picked["image"]],
+                list(picked["mount"]))
 
     groups = []
     for name, ridge in study.pad_ridge_period_mm.items():
         if pad is None or name == pad:
-            groups.append((f"the {name} pad's {ridge:g} mm ridges", ridge, lines(manifest[manifest["pad"] == name])))
+            groups.append(read(f"the {name} pad's {ridge:g} mm ridges", ridge, manifest[manifest["pad"] == name]))
     specimens = study.specimens.set_index("specimen")
     reference = study.reference_specimen
     if reference in specimens.index:
         period = float(specimens.loc[reference, "wavelength_mm"])
         rows = manifest[(manifest["specimen"] == reference) & ((manifest["pad"] == pad) if pad else True)]
-        groups.append((f"the reference specimen {reference} ({period:g} mm)", period, lines(rows)))
+        groups.append(read(f"the reference specimen {reference} ({period:g} mm)", period, rows))
     return check_study_lines(groups, float(study.sensor.px_per_mm))
 
 

@@ -72,10 +72,15 @@ def strongest_peak(line, low_cycles_per_px: float, high_cycles_per_px: float) ->
 @dataclass(frozen=True)
 class ScaleMeasurement:
     """px/mm measured from a target of known period on several lines: each line's value (NaN where the line shows
-    no peak of the target), their median and how precisely it is known."""
+    no peak of the target), their median and how precisely it is known.
+
+    ``mounts`` labels the lines taken in one mount of the target: their magnification is one, so they are one
+    measurement for the precision (a bench's mount-to-mount magnification varies; presses of one mount do not).
+    """
 
     period_mm: float
     px_per_mm_each: np.ndarray
+    mounts: np.ndarray | None = None
 
     @property
     def measured(self) -> np.ndarray:
@@ -86,16 +91,30 @@ class ScaleMeasurement:
         return int(self.measured.size)
 
     @property
+    def mount_values(self) -> np.ndarray:
+        """The median of each mount's measured lines (each line its own mount without ``mounts``)."""
+        if self.mounts is None:
+            return self.measured
+        ok = np.isfinite(self.px_per_mm_each)
+        labels = np.asarray(self.mounts)[ok]
+        return np.array([np.median(self.px_per_mm_each[ok][labels == m]) for m in dict.fromkeys(labels.tolist())])
+
+    @property
+    def n_mounts(self) -> int:
+        return int(self.mount_values.size)
+
+    @property
     def px_per_mm(self) -> float:
         """The median over the lines that show the target (NaN if none does)."""
         return float(np.median(self.measured)) if self.n_measured else float("nan")
 
     @property
     def standard_error(self) -> float:
-        """Relative standard error (SD / sqrt(n) / median) over the lines that show the target; NaN below two."""
-        if self.n_measured < 2:
+        """Relative standard error (SD / sqrt(n) / median) over the mounts that show the target; NaN below two."""
+        values = self.mount_values
+        if values.size < 2:
             return float("nan")
-        return float(np.std(self.measured, ddof=1) / np.sqrt(self.n_measured) / self.px_per_mm)
+        return float(np.std(values, ddof=1) / np.sqrt(values.size) / self.px_per_mm)
 
 
 def check_scale(lines: Sequence, period_mm: float, px_per_mm: float, *, window: float = CHECK_WINDOW
