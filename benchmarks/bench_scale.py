@@ -101,7 +101,8 @@ def calibrate_goal(work: Path) -> None:
         table = pd.DataFrame(rows)
         for pad, group in table.groupby("pad"):
             error = group["error"].abs()
-            print(f"  {px:5.1f} px/mm{' (no magnification jitter)' if steady else ''}, {pad:11s}: within 0.5 % {np.mean(error <= 0.005):4.0%} of 14 gratings; "
+            label = f"{px:5.1f} px/mm{' (no magnification jitter)' if steady else ''}, {pad:11s}"
+            print(f"  {label}: within 0.5 % {np.mean(error <= 0.005):4.0%} of 14 gratings; "
                   f"|error| median {100 * error.median():.2f} %, max {100 * error.max():.2f} % "
                   f"({group.loc[error.idxmax(), 'specimen']}); presses read {group['n'].sum()} of {3 * len(group)}")
 
@@ -159,7 +160,7 @@ def false_flags_goal(work: Path, models: dict, builtin: Path) -> None:
     from roughsense.analysis import dataset
     from roughsense.io.study import read_study
     from roughsense.model.peak_law import held_out_flags
-    from roughsense.sensor.band import band_reason, dominant_period_mm
+    from roughsense.sensor.band import band_reading, band_reason
     from roughsense.sensor.spectrum import SpatialSpectrum
 
     print("\n4. false flags: share of presses flagged per specimen (goal < 20 % each)")
@@ -180,9 +181,8 @@ def false_flags_goal(work: Path, models: dict, builtin: Path) -> None:
         freq = dataset.column_frequencies(dataset.frequency_columns(features))
         ridge = study.pad_ridge_period_mm.get(pad)
         law = held_out_flags(X, y, specimens, freq_per_mm=freq, pad_ridge_period_mm=ridge, surfaces=specimens)
-        band = np.array([bool(band_reason(dominant_period_mm(reader.line(study.root / image)[0], 34.9, 0.1,
-                                                             ridge_period_mm=ridge), 1900 / 34.9, 0.1, 1.0))
-                         for image in meta["image"]])
+        band = np.array([bool(band_reason(band_reading(reader.line(study.root / image)[0], 34.9, 0.1, 1.0,
+                                                       ridge_period_mm=ridge), 0.1, 1.0)) for image in meta["image"]])
         share = pd.Series(law | band).groupby(specimens).mean()
         print(f"  built-in held out, {pad:11s} 2N peak law: worst {share.max():4.0%} ({share.idxmax()}); band test alone "
               f"flags {band.mean():4.0%}; specimens >= 20 %: {', '.join(share[share >= 0.2].index) or 'none'}")

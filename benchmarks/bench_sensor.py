@@ -29,7 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from roughsense.sensor.band import dominant_period_mm
+from roughsense.sensor.band import band_reading
 from roughsense.sensor.period import check_scale
 from roughsense.sensor.spectrum import SpatialSpectrum, _Plan
 
@@ -93,7 +93,7 @@ def checks_against_features(frames, paths) -> None:
     lines = [plan.spectrum_and_line(f)[1] for f in frames]
 
     def checks(line) -> None:
-        dominant_period_mm(line, PX_PER_MM, 0.1, ridge_period_mm=1.0)
+        band_reading(line, PX_PER_MM, 0.1, 1.0, ridge_period_mm=1.0)
         check_scale([line], 1.0, PX_PER_MM)
 
     checks(lines[0])  # imports

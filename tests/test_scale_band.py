@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from roughsense.model.scale_check import SCALE_TOLERANCE, check_study_lines
-from roughsense.sensor.band import band_reason, band_reasons, dominant_period_mm
+from roughsense.sensor.band import DOMINANCE, BandReading, band_reading, band_reason, band_reasons
 from roughsense.sensor.period import calibrate_scale, check_scale, strongest_peak
 
 LINE_PX = 1900
@@ -94,29 +94,32 @@ def test_presses_of_one_mount_are_one_measurement_of_its_magnification():
 
 
 @pytest.mark.parametrize(("period_mm", "verdict"), [
-    (0.3, "finer than the sensor resolves: period 0.30 mm, below the band's 1 mm"),
-    (0.5, "finer than the sensor resolves: period 0.50 mm, below the band's 1 mm"),
-    (0.8, "finer than the sensor resolves: period 0.80 mm, below the band's 1 mm"),
+    (0.3, "finer than the sensor resolves: period 0.30 mm, below the band's 1 mm (1/f_max)"),
+    (0.5, "finer than the sensor resolves: period 0.50 mm, below the band's 1 mm (1/f_max)"),
+    (0.8, "finer than the sensor resolves: period 0.80 mm, below the band's 1 mm (1/f_max)"),
     (2.0, ""), (3.0, ""), (5.0, ""),
     (10.0, "coarser than the sensor resolves: period 10"),
-    (14.0, "coarser than the sensor resolves: period 14 mm, above the band's 10 mm"),
+    (14.0, "coarser than the sensor resolves: period 14 mm, above the band's 10 mm (1/f_min)"),
 ])
 @pytest.mark.parametrize("ridge_mm", [None, 1.0])
 def test_the_band_test_names_the_period_of_the_whole_line(period_mm, verdict, ridge_mm):
-    """The period named is the one the line holds (not one read inside the band); the pad's ridges are left out."""
+    """A square grating's fundamental is 3x its 3rd harmonic: outside the band it dominates whatever the band holds,
+    inside it is the band's own peak. The period named is the line's (the pad's ridges left out)."""
     line = square_line(period_mm, 34.9, ridge_mm=ridge_mm)
-    found = dominant_period_mm(line, 34.9, 0.1, ridge_period_mm=ridge_mm)
-    assert found == pytest.approx(period_mm, rel=0.03)
-    reason = band_reason(found, LINE_PX / 34.9, 0.1, 1.0)
+    reading = band_reading(line, 34.9, 0.1, 1.0, ridge_period_mm=ridge_mm)
+    reason = band_reason(reading, 0.1, 1.0)
     assert reason.startswith(verdict) and bool(reason) == bool(verdict)
+    if verdict:
+        assert reading.period_mm == pytest.approx(period_mm, rel=0.03) and reading.dominance >= DOMINANCE
 
 
 def test_a_surface_and_its_presses_never_disagree_unexplained():
-    periods = [0.5, 0.51, 3.0, 3.0, 3.0, 0.49, 3.02]
+    fine, inside = BandReading(0.5, 20.0), BandReading(0.5, 0.3)
+    readings = [fine, fine, inside, inside, inside, fine, inside]
     surfaces = ["fine", "fine", "fine", "R3", "R3", "R3", "R3"]
-    alone = band_reasons(periods, 54.4, 0.1, 1.0)
+    alone = band_reasons(readings, 0.1, 1.0)
     assert [bool(r) for r in alone] == [True, True, False, False, False, True, False]
-    grouped = band_reasons(periods, 54.4, 0.1, 1.0, surfaces)
+    grouped = band_reasons(readings, 0.1, 1.0, surfaces)
     assert all(r.startswith("surface (median of 3 presses) finer than the sensor resolves") for r in grouped[:3])
     assert grouped[5].startswith("this press alone (its surface lies in the band): finer")
     assert grouped[3] == grouped[4] == grouped[6] == ""
@@ -215,3 +218,25 @@ def test_check_reports_a_missing_misspelt_or_implausible_scale(run_cli, tmp_path
     if "misspelt" in problem:  # study refuses it too: never the default in its place
         code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report", "--permutations", "0")
         assert code == 2 and "looks like a misspelt 'px_per_mm'" in err and len(err.splitlines()) == 1
+
+
+def test_fit_reads_a_wrongly_stated_study_at_its_measured_scale_and_says_so(run_cli, tmp_path):
+    """study.toml states 22 px/mm for images at 20: fit measures 20 on the reference specimen, fits at it (the model
+    file's feature definition), records the check and prints one warning; at the right scale, one note."""
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=3)
+    right, wrong = tmp_path / "right.json", tmp_path / "wrong.json"
+    code, _, err = run_cli("fit", "--study", root, "--pad", "fingerprint", "--condition", "2N", "--out", right)
+    assert code == 0 and "roughsense: scale: measured 20 px/mm" in err and "warning: scale" not in err, err
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 20.0", "px_per_mm = 22.0"))
+    code, _, err = run_cli("fit", "--study", root, "--pad", "fingerprint", "--condition", "2N", "--out", wrong)
+    assert code == 0, err
+    [line] = [line for line in err.splitlines() if "scale" in line]
+    assert line.startswith("roughsense: warning: scale: measured 20") and "spectra read at the measured 20" in line
+    fitted = json.loads(wrong.read_text())
+    assert fitted["features"]["spectrum"]["px_per_mm"] == pytest.approx(20.0, rel=1e-3)
+    assert fitted["training"]["scale_check"] == line.removeprefix("roughsense: warning: ")
+    same = json.loads(right.read_text())["model"]  # the law fitted at the true scale, to the measurement's precision
+    np.testing.assert_allclose(same["coefficients"], fitted["model"]["coefficients"], rtol=2e-2, atol=2e-3)

@@ -10,7 +10,7 @@ import typer
 from .._util.text import counted
 from ..errors import ConfigError
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
-from ._studies import STUDY_METAVAR, checked_scale, resolve_study
+from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
 ORDER = 20
 
@@ -90,6 +90,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     _echo_cv(trained)
     _echo_unseen(trained.unseen)
     typer.echo(f"wrote {out}")
+    echo_scale(scale)
     _warn_failed_controls(trained.training)
 
 

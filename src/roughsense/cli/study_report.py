@@ -11,7 +11,7 @@ from .._util.text import counted
 from ..paper import COMBINED
 from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
 from ._defaults import MAX_PERMUTATIONS
-from ._studies import STUDY_METAVAR, builtin_study, checked_scale, is_builtin, resolve_study
+from ._studies import STUDY_METAVAR, builtin_study, checked_scale, echo_scale, is_builtin, resolve_study
 
 ORDER = 5
 DEFAULT_SEED = 0
@@ -133,6 +133,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
                        f"{group['ovl'].mean():.3f}, "
                        f"{counted(analysis.condition_fit(pad, condition, 'loo').best_n_components, 'component')} "
                        "(pls, LOO)")
+    echo_scale(scale)
     return out / "index.html", root, builtin, summary
 
 

@@ -148,18 +148,16 @@ def model_ridge_period_mm(loaded: AnyModel) -> float | None:
 
 def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None) -> list[str]:
     """Per trial, why its structure lies outside the spectrum's band ('' where it lies inside): the one band test
-    (``sensor/band.py``) every family's predictions pass, a trial read from the median period of its images."""
-    from ..sensor.band import band_reasons, dominant_period_mm
+    (``sensor/band.py``) every family's predictions pass, a trial read from the medians of its images."""
+    from ..sensor.band import band_reading, band_reasons, median_reading
 
     freq = spectrum.freq_per_mm_
+    f_min, f_max = float(freq[0]), float(freq[-1])
     ridge = model_ridge_period_mm(loaded)
-    periods = np.array([dominant_period_mm(line, spectrum.px_per_mm, float(freq[0]), ridge_period_mm=ridge)
-                        for line in lines])
+    readings = [band_reading(line, float(spectrum.px_per_mm), f_min, f_max, ridge_period_mm=ridge) for line in lines]
     k = len(loaded.conditions)
-    trial_periods = np.array([np.nanmedian(periods[i:i + k]) if np.isfinite(periods[i:i + k]).any() else np.nan
-                              for i in range(0, len(periods), k)])
-    line_mm = len(lines[0]) / float(spectrum.px_per_mm) if lines else 1.0
-    return band_reasons(trial_periods, line_mm, float(freq[0]), float(freq[-1]), surfaces)
+    trials = [median_reading(readings[i:i + k]) for i in range(0, len(readings), k)]
+    return band_reasons(trials, f_min, f_max, surfaces)
 
 
 def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,

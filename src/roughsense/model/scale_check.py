@@ -22,6 +22,8 @@ from ..sensor.period import ScaleMeasurement, check_scale
 
 #: Relative difference between measured and stated px/mm beyond which a run corrects or flags (module docstring).
 SCALE_TOLERANCE = 0.015
+#: What a corrected run's line says (the CLI shows such a line as a warning).
+CORRECTED = "spectra read at the measured"
 #: Mounts showing the known structure below which the scale is said to be unchecked.
 MIN_MOUNTS = 3
 
@@ -76,8 +78,8 @@ class ScaleCheck:
 
     def correction(self) -> str:
         """The one line a run that corrects its scale prints (and its report keeps)."""
-        return (f"{self.summary()}: spectra read at the measured {self.measured_px_per_mm:.4g} px/mm in place of "
-                "study.toml's; run `roughsense calibrate` to measure and write it")
+        return (f"{self.summary()}: {CORRECTED} {self.measured_px_per_mm:.4g} px/mm in place of study.toml's; "
+                "run `roughsense calibrate` to measure and write it")
 
     def reason(self) -> str:
         """What a row flagged for its scale says (the ``outside`` column's words)."""
