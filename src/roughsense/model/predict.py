@@ -274,8 +274,10 @@ def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
     spectrum = model_spectrum(loaded, override=override)
 
     def score_frame(frame: np.ndarray) -> tuple[float, bool]:
-        X = spectrum.transform([frame])
-        return float(loaded.predict(X)[0]), bool(loaded.extrapolates(X)[0])
+        [(row, line)] = list(spectrum.iter_transform_lines([frame]))
+        X = row[None, :]
+        outside = bool(trial_band_reasons(loaded, spectrum, [line])[0]) or bool(loaded.extrapolates(X)[0])
+        return float(loaded.predict(X)[0]), outside
 
     return score_frame
 
