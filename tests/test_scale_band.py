@@ -90,7 +90,9 @@ def test_presses_of_one_mount_are_one_measurement_of_its_magnification():
     assert measurement.n_measured == 12 and measurement.n_mounts == 4
     assert measurement.standard_error == pytest.approx(np.std(magnification, ddof=1) / 2 / np.median(magnification),
                                                        rel=0.02)
-    assert check.limit == pytest.approx(max(SCALE_TOLERANCE, 3 * measurement.standard_error))
+    from scipy.stats import t
+
+    assert check.limit == pytest.approx(max(SCALE_TOLERANCE, t.ppf(0.995, 3) * measurement.standard_error))
 
 
 @pytest.mark.parametrize(("period_mm", "verdict"), [
@@ -153,7 +155,7 @@ def test_calibrate_writes_the_measured_scale_into_study_toml(run_cli, tmp_path):
 
 def test_predict_flags_every_row_when_the_study_scale_is_wrong(run_cli, tmp_path):
     """A study whose study.toml states 10 % too many px/mm: predict --study reads it at that scale (and says so),
-    the reference specimen measures the true one, and every row is flagged 'scale' with one warning line."""
+    its gratings of stated period measure the true one, and every row is flagged 'scale' with one warning line."""
     from tests.test_dataset import make_study
 
     root = make_study(tmp_path / "tiny", repetitions=3)
@@ -221,7 +223,7 @@ def test_check_reports_a_missing_misspelt_or_implausible_scale(run_cli, tmp_path
 
 
 def test_fit_reads_a_wrongly_stated_study_at_its_measured_scale_and_says_so(run_cli, tmp_path):
-    """study.toml states 22 px/mm for images at 20: fit measures 20 on the reference specimen, fits at it (the model
+    """study.toml states 22 px/mm for images at 20: fit measures 20 on the gratings of stated period, fits at it (the model
     file's feature definition), records the check and prints one warning; at the right scale, one note."""
     from tests.test_dataset import make_study
 

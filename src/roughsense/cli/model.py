@@ -274,7 +274,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
 
 def _study_scale(loaded, study, override, table):
     """Images of a study are read at its own study.toml scale (said in one line), unless --px-per-mm says
-    otherwise; its reference specimen's trials are marked for the scale check."""
+    otherwise; the trials of specimens of stated period are marked for the scale check."""
+    import numpy as np
+
     from ..model.predict import SensorOverride
 
     model_px = float(loaded.features["spectrum"]["px_per_mm"])
@@ -283,12 +285,13 @@ def _study_scale(loaded, study, override, table):
         typer.echo(f"images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was "
                    f"fitted at {model_px:g} px/mm)", err=True)
         override = SensorOverride(None if override is None else override.roi, stated)
-    specimens = study.specimens.set_index("specimen")
-    name = study.reference_specimen
     reference = None
-    if name in specimens.index and "specimen" in table:
-        period = float(specimens.loc[name, "wavelength_mm"])
-        reference = (name, period, (table["specimen"].astype(str) == name).to_numpy())
+    if "specimen" in table:
+        from ..model.scale_check import stated_periods
+
+        periods = stated_periods(study)
+        reference = ("the specimens' periods in specimens.csv",
+                     np.array([periods.get(s, np.nan) for s in table["specimen"].astype(str)]))
     return override, reference
 
 

@@ -219,7 +219,8 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 
     A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
     (which would name a period the surface does not have). The scale is checked on the pad's ridges and on the
-    trials ``reference`` marks (``(name, period_mm, per-trial booleans)``, the study's reference specimen); beyond
+    trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where none)``: a study's
+    specimens of stated period); beyond
     its tolerance every trial is flagged ``scale: ...``.
     """
     X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
@@ -245,8 +246,8 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 
 
 def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
-    """The images' scale against the pad's ridges (every image) and the reference specimen's period (its trials'
-    images), at the scale the spectrum read them (``model/scale_check.py``)."""
+    """The images' scale against the pad's ridges (every image) and the stated periods of ``reference``'s trials,
+    at the scale the spectrum read them (``model/scale_check.py``)."""
     from .scale_check import check_study_lines
 
     groups = []
@@ -256,10 +257,10 @@ def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
     if ridge is not None:
         groups.append((f"the pad's {ridge:g} mm ridges", ridge, lines, mounts))
     if reference is not None:
-        name, period_mm, trials = reference
-        chosen = [i for i in range(len(lines)) if trials[i // k]]
-        groups.append((f"the reference specimen {name} ({period_mm:g} mm)", float(period_mm),
-                       [lines[i] for i in chosen], [mounts[i] for i in chosen]))
+        what, periods = reference
+        for period_mm in dict.fromkeys(p for p in periods if np.isfinite(p)):
+            chosen = [i for i in range(len(lines)) if periods[i // k] == period_mm]
+            groups.append((what, float(period_mm), [lines[i] for i in chosen], [mounts[i] for i in chosen]))
     return check_study_lines(groups, float(spectrum.px_per_mm))
 
 

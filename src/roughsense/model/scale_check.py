@@ -1,15 +1,16 @@
 """Every run checks its scale: px/mm measured from structure of known period in the images it reads.
 
 The structure is what the study already holds: a fingerprint pad's own ridges (``[pads.NAME] ridge_period_mm``) in
-each of its presses, and the reference specimen (R3, 3 mm; its ``wavelength_mm`` in specimens.csv) pressed in every
-study. Each press's period is measured below the DFT's bin (``sensor/period.py``), within +-15 % of where the
+each of its presses, and its gratings of stated period (``wavelength_mm`` in specimens.csv: the reference R3 in every
+study, and the others). Each press's period is measured below the DFT's bin (``sensor/period.py``), within +-15 % of where the
 stated scale puts it, and the median over the presses is compared with the stated px/mm.
 
 Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %,
 so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the
 target reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount
-share it), so the limit is never tighter than three standard errors over the mounts, and fewer than
-:data:`MIN_MOUNTS` mounts do not make a check.
+share it), so the limit is never tighter than the 99 % t-interval over the mounts, and fewer than
+:data:`MIN_MOUNTS` mounts do not make a check. The study's specimens of stated period pool with the ridges: each
+of their mounts is one more reading of the scale.
 """
 from __future__ import annotations
 
@@ -51,11 +52,16 @@ class ScaleCheck:
 
     @property
     def limit(self) -> float:
-        """The tolerance this check can hold: :data:`SCALE_TOLERANCE`, or three standard errors if wider."""
+        """The tolerance this check can hold: :data:`SCALE_TOLERANCE`, or the 99 % t-interval's half-width over the
+        mounts if wider (three mounts of one magnification each say little about the bench's spread)."""
         if not self.checked:
             return math.nan
+        from scipy.stats import t
+
         error = self.measurement.standard_error
-        return max(SCALE_TOLERANCE, 3 * error) if math.isfinite(error) else SCALE_TOLERANCE
+        if not math.isfinite(error):
+            return SCALE_TOLERANCE
+        return max(SCALE_TOLERANCE, float(t.ppf(0.995, self.measurement.n_mounts - 1)) * error)
 
     @property
     def off(self) -> bool:
@@ -66,7 +72,7 @@ class ScaleCheck:
         """One line: what was measured, from what, against what (or why the scale could not be checked)."""
         if not self.checked:
             seen = 0 if self.measurement is None else self.measurement.n_mounts
-            what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or the reference specimen"
+            what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or a specimen of stated period"
             return (f"scale not checked: {seen} mount(s) show {what} (at least {MIN_MOUNTS} needed); "
                     f"{self.stated_px_per_mm:g} px/mm taken as stated")
         m = self.measurement
@@ -100,17 +106,29 @@ def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleChec
         mounts.extend(f"{number}: {label}" for label in own)
     if not values:
         return ScaleCheck(float(stated_px_per_mm), (), None)
+    sources = list(dict.fromkeys(sources))
     measurement = ScaleMeasurement(math.nan, np.concatenate(values), np.asarray(mounts, dtype=object))
     return ScaleCheck(float(stated_px_per_mm), tuple(sources), measurement)
 
 
-#: Presses per known structure a study's check reads (spread over its mounts): a mount's period is read to about the
-#: bench's magnification jitter, so a dozen mounts give the median to under 1 %, at a few % of the features' time.
-STUDY_PRESSES = 12
+#: Presses per known structure (a pad's ridges; each specimen) a study's check reads, spread over its mounts: a
+#: mount's period is read to about the bench's magnification jitter, and the mounts of every specimen pool.
+STUDY_PRESSES = 6
+#: Specimen shapes whose wavelength_mm is a period the image repeats (a random surface's is a correlation length).
+PERIODIC_SHAPES = ("rectangular", "circular", "sinusoidal")
+
+
+def stated_periods(study) -> dict[str, float]:
+    """Each periodic specimen's period (specimens.csv's wavelength_mm) that the band resolves (1-10 mm for the paper's
+    band), by name: structure of known period in every study, the reference specimen's first."""
+    table = study.specimens.set_index("specimen")
+    ordered = [study.reference_specimen, *[s for s in table.index if s != study.reference_specimen]]
+    return {s: float(table.loc[s, "wavelength_mm"]) for s in ordered if s in table.index
+            and str(table.loc[s, "shape"]).lower() in PERIODIC_SHAPES and 1.0 <= table.loc[s, "wavelength_mm"] <= 10.0}
 
 
 def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRESSES) -> ScaleCheck:
-    """The study's stated scale against its pads' ridges (``pad``'s only, if given) and its reference specimen."""
+    """The study's stated scale against its pads' ridges (``pad``'s only, if given) and its specimens' stated periods."""
     from ..sensor.spectrum import SpatialSpectrum
 
     reader = SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi,
@@ -129,12 +147,11 @@ def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRE
     for name, ridge in study.pad_ridge_period_mm.items():
         if pad is None or name == pad:
             groups.append(read(f"the {name} pad's {ridge:g} mm ridges", ridge, manifest[manifest["pad"] == name]))
-    specimens = study.specimens.set_index("specimen")
-    reference = study.reference_specimen
-    if reference in specimens.index:
-        period = float(specimens.loc[reference, "wavelength_mm"])
-        rows = manifest[(manifest["specimen"] == reference) & ((manifest["pad"] == pad) if pad else True)]
-        groups.append(read(f"the reference specimen {reference} ({period:g} mm)", period, rows))
+    mine = manifest[manifest["pad"] == pad] if pad else manifest
+    for specimen, period in stated_periods(study).items():
+        rows = mine[mine["specimen"] == specimen]
+        if len(rows):
+            groups.append(read("the specimens' periods in specimens.csv", period, rows))
     return check_study_lines(groups, float(study.sensor.px_per_mm))
 
 
