@@ -110,7 +110,13 @@ def calibrate_goal(work: Path) -> None:
 def scale_goal(work: Path, models: dict) -> None:
     print("\n2. a wrong scale: another session (seed 41), predict --study with the default model (peak law, combined)")
     right = simulate(work / "session41", seed=41)
-    baseline = {pad: roughness(predict(models[pad, "combined"], "--study", right)[0]) for pad in PADS}
+    baseline = {}
+    for pad in PADS:
+        table, err = predict(models[pad, "combined"], "--study", right)
+        baseline[pad] = roughness(table)
+        said = next((line for line in err.splitlines() if "scale" in line and "read at" not in line), "")
+        print(f"  right scale       {pad:11s}: flagged 'scale' {table['outside'].str.contains('scale: ').mean():4.0%}; "
+              f"{said.removeprefix('roughsense: ')[:120]}")
     cases = [(f"study.toml x{1 + d:g}", simulate(work / f"session41-stated-{d:+g}", seed=41,
                                                 stated_px_per_mm=34.9 * (1 + d))) for d in (-0.10, -0.05, 0.05, 0.10)]
     cases.append(("images x1.1", simulate(work / "session41-magnified", seed=41, px_per_mm=34.9 * 1.1,
@@ -128,7 +134,9 @@ def scale_goal(work: Path, models: dict) -> None:
             if lines:
                 print(f"      {lines[0].removeprefix('roughsense: warning: ')[:150]}")
     rmse = {}
-    for label, study in (("right scale", right), ("images x1.1, corrected", cases[-1][1])):
+    stated_right = simulate(work / "session41-magnified-stated", seed=41, px_per_mm=34.9 * 1.1)
+    for label, study in (("right scale", right), ("images x1.1, corrected", cases[-1][1]),
+                         ("images x1.1, stated right", stated_right)):
         out = fit(study, "fingerprint", "combined", work / f"fit-{label.split()[0]}-{len(label)}.json")
         training = json.loads(out.read_text())["training"]
         rmse[label] = training["unseen"]["rmse"]

@@ -97,24 +97,21 @@ def band_reason(reading: BandReading, f_min_per_mm: float, f_max_per_mm: float) 
 def band_reasons(readings, f_min_per_mm: float, f_max_per_mm: float, surfaces=None) -> list[str]:
     """Per press, why its structure is no clear peak of the band ('' where it is one).
 
-    With ``surfaces``, a surface is read from the medians of its presses' periods and dominances: where that lies
-    outside the band, every press of the surface says so (and that it is the surface's verdict); a press outside in
-    a surface inside keeps its own reason, said to be its own, so a press and its surface never disagree unexplained.
+    With ``surfaces``, a surface is read from the medians of its presses' periods and dominances, and each press
+    takes its surface's verdict (as the peak law reads a grouped press at its surface's period): outside the band,
+    every press says so and that it is the surface's verdict; inside, none is flagged for the band, so a press and
+    its surface never disagree.
     """
     readings = list(readings)
-    own = [band_reason(r, f_min_per_mm, f_max_per_mm) for r in readings]
     if surfaces is None:
-        return own
+        return [band_reason(r, f_min_per_mm, f_max_per_mm) for r in readings]
     labels = np.asarray(surfaces)
-    out = list(own)
+    out = [""] * len(readings)
     for label in dict.fromkeys(labels.tolist()):
         rows = np.flatnonzero(labels == label)
         surface = band_reason(median_reading([readings[i] for i in rows]), f_min_per_mm, f_max_per_mm)
         for i in rows:
-            if surface:
-                out[i] = f"surface (median of {len(rows)} presses) {surface}"
-            elif own[i]:
-                out[i] = f"this press alone (its surface lies in the band): {own[i]}"
+            out[i] = f"surface (median of {len(rows)} presses) {surface}" if surface else ""
     return out
 
 

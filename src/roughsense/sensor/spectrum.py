@@ -488,7 +488,18 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     def iter_transform_lines(self, images: Iterable) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """As :meth:`iter_transform`, each spectrum with the gray line it was taken from: what the band and scale
-        checks (``sensor/band.py``, ``sensor/period.py``) read, at no second decoding."""
+        checks (``sensor/band.py``, ``sensor/period.py``) read, at no second decoding.
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+
+        Returns
+        -------
+        iterator of tuple
+            (spectrum (n_freqs,), gray line (w,)) per image, in order.
+        """
         return self._iter(images, _Plan.spectrum_and_line)
 
     def _iter(self, images: Iterable, one) -> Iterator:
