@@ -102,10 +102,10 @@ def _check_scale(out: Path, pad: str) -> None:
     try:
         check = check_study_scale(read_study(out), pad=pad)
     except RoughsenseError as exc:  # a folder not yet readable as a study (a specimen without its wavelength)
-        typer.echo(f"scale not checked: {exc}", err=True)
+        typer.echo(f"roughsense: scale not checked: {exc}", err=True)
         return
     if check.off:
         warnings.warn(RoughsenseWarning(f"{check.summary()}; measure it with `roughsense calibrate {out}`"),
                       stacklevel=2)
     else:
-        typer.echo(check.summary(), err=True)
+        typer.echo(f"roughsense: {check.summary()}", err=True)

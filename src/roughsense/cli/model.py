@@ -282,7 +282,7 @@ def _study_scale(loaded, study, override, table):
     model_px = float(loaded.features["spectrum"]["px_per_mm"])
     if override is None or override.px_per_mm is None:
         stated = float(study.sensor.px_per_mm)
-        typer.echo(f"images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was "
+        typer.echo(f"roughsense: images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was "
                    f"fitted at {model_px:g} px/mm)", err=True)
         override = SensorOverride(None if override is None else override.roi, stated)
     reference = None
@@ -307,7 +307,7 @@ def _echo_scale(check) -> None:
         warnings.warn(RoughsenseWarning(f"{check.summary()}: every prediction is flagged 'scale'; measure the scale "
                                         "with roughsense calibrate, or pass the images' --px-per-mm"), stacklevel=2)
     else:
-        typer.echo(check.summary(), err=True)
+        typer.echo(f"roughsense: {check.summary()}", err=True)
 
 
 def _check_image_sources(given: list[str], specimens, study) -> None:

@@ -131,8 +131,14 @@ def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRE
     """The study's stated scale against its pads' ridges (``pad``'s only, if given) and its specimens' stated periods."""
     from ..sensor.spectrum import SpatialSpectrum
 
+    from ..errors import ConfigError
+
     reader = SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi,
                              max_pixels=study.sensor.max_pixels)
+    try:
+        reader.fit()
+    except ConfigError:  # a scale the band cannot be read at: the analysis refuses it, naming study.toml
+        return ScaleCheck(float(study.sensor.px_per_mm), (), None)
     manifest = study.manifest
 
     def read(source: str, period: float, rows) -> tuple:
