@@ -129,9 +129,8 @@ def stated_periods(study) -> dict[str, float]:
 
 def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRESSES) -> ScaleCheck:
     """The study's stated scale against its pads' ridges (``pad``'s only, if given) and its specimens' stated periods."""
-    from ..sensor.spectrum import SpatialSpectrum
-
     from ..errors import ConfigError
+    from ..sensor.spectrum import SpatialSpectrum
 
     reader = SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi,
                              max_pixels=study.sensor.max_pixels)
