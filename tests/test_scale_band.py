@@ -241,3 +241,13 @@ def test_fit_reads_a_wrongly_stated_study_at_its_measured_scale_and_says_so(run_
     assert fitted["training"]["scale_check"] == line.removeprefix("roughsense: warning: ")
     same = json.loads(right.read_text())["model"]  # the law fitted at the true scale, to the measurement's precision
     np.testing.assert_allclose(same["coefficients"], fitted["model"]["coefficients"], rtol=2e-2, atol=2e-3)
+
+
+def test_a_weaker_outside_structure_is_named_only_where_a_family_flags_the_press():
+    """Dominance 1.2: no band flag of its own (below 1.5), but the cause named where a family already flags it."""
+    from roughsense.sensor.band import NAMING_DOMINANCE
+
+    reading = BandReading(0.31, 1.2)
+    assert band_reason(reading, 0.1, 1.0) == ""
+    named = band_reason(reading, 0.1, 1.0, dominance=NAMING_DOMINANCE)
+    assert named.startswith("finer than the sensor resolves: period 0.31 mm, below the band's 1 mm (1/f_max)")

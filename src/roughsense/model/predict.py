@@ -146,10 +146,11 @@ def model_ridge_period_mm(loaded: AnyModel) -> float | None:
     return float(stated) if isinstance(stated, (int, float)) and stated > 0 else None
 
 
-def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None) -> list[str]:
+def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None, *, dominance: float | None = None
+                       ) -> list[str]:
     """Per trial, why its structure lies outside the spectrum's band ('' where it lies inside): the one band test
     (``sensor/band.py``) every family's predictions pass, a trial read from the medians of its images."""
-    from ..sensor.band import band_reading, band_reasons, median_reading
+    from ..sensor.band import DOMINANCE, band_reading, band_reasons, median_reading
 
     freq = spectrum.freq_per_mm_
     f_min, f_max = float(freq[0]), float(freq[-1])
@@ -157,7 +158,7 @@ def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None) -
     readings = [band_reading(line, float(spectrum.px_per_mm), f_min, f_max, ridge_period_mm=ridge) for line in lines]
     k = len(loaded.conditions)
     trials = [median_reading(readings[i:i + k]) for i in range(0, len(readings), k)]
-    return band_reasons(trials, f_min, f_max, surfaces)
+    return band_reasons(trials, f_min, f_max, surfaces, dominance=DOMINANCE if dominance is None else dominance)
 
 
 def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
@@ -218,15 +219,19 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
 
     A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
-    (which would name a period the surface does not have). The scale is checked on the pad's ridges and on the
+    (which would name a period the surface does not have); so does a trial the family flags whose outside structure
+    is at least as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the pad's ridges and on the
     trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where none)``: a study's
     specimens of stated period); beyond
     its tolerance every trial is flagged ``scale: ...``.
     """
     X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     roughness = loaded.predict(X, surfaces=surfaces)
+    from ..sensor.band import NAMING_DOMINANCE
+
     band = trial_band_reasons(loaded, spectrum, lines, surfaces)
-    reasons = [b or f for b, f in zip(band, loaded.applicability(X, surfaces=surfaces))]
+    named = trial_band_reasons(loaded, spectrum, lines, surfaces, dominance=NAMING_DOMINANCE)
+    reasons = [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
     scale = images_scale_check(loaded, spectrum, lines, reference)
     if scale.off:
         reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]

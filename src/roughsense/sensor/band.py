@@ -35,6 +35,9 @@ RIDGE_EXCLUSION_PER_MM = 0.1
 RIDGE_HARMONICS = (1, 3, 5, 7)
 #: How many times stronger than the band's own strongest peak the outside peak must be for the press to lie outside.
 DOMINANCE = 1.5
+#: Where a family already flags a press, an outside structure at least as strong as the band's own peak is named as
+#: the cause in place of the family's reading of the band (which would name a period the surface does not have).
+NAMING_DOMINANCE = 1.0
 
 
 @dataclass(frozen=True)
@@ -78,10 +81,12 @@ def band_reading(line, px_per_mm: float, f_min_per_mm: float, f_max_per_mm: floa
     return BandReading(_peak_period(freq_px, amplitude, outer, px_per_mm), float(dominance))
 
 
-def band_reason(reading: BandReading, f_min_per_mm: float, f_max_per_mm: float) -> str:
-    """Why a press's structure is no clear peak of the band ('' where it is one)."""
+def band_reason(reading: BandReading, f_min_per_mm: float, f_max_per_mm: float, *,
+                dominance: float = DOMINANCE) -> str:
+    """Why a press's structure is no clear peak of the band ('' where it is one): its outside structure is
+    ``dominance`` times the band's own peak or more (a lower bar names the cause of a flag a family already raised)."""
     period_mm = reading.period_mm
-    if not (np.isfinite(period_mm) and reading.dominance >= DOMINANCE):
+    if not (np.isfinite(period_mm) and reading.dominance >= dominance):
         return ""
     finest, coarsest = 1.0 / f_max_per_mm, 1.0 / f_min_per_mm
     strength = f"{reading.dominance:.3g}x the band's own strongest peak"
@@ -94,7 +99,8 @@ def band_reason(reading: BandReading, f_min_per_mm: float, f_max_per_mm: float) 
     return f"coarser than the sensor resolves: period {period_mm:.3g} mm, {where}; {strength}"
 
 
-def band_reasons(readings, f_min_per_mm: float, f_max_per_mm: float, surfaces=None) -> list[str]:
+def band_reasons(readings, f_min_per_mm: float, f_max_per_mm: float, surfaces=None, *,
+                 dominance: float = DOMINANCE) -> list[str]:
     """Per press, why its structure is no clear peak of the band ('' where it is one).
 
     With ``surfaces``, a surface is read from the medians of its presses' periods and dominances, and each press
@@ -104,12 +110,13 @@ def band_reasons(readings, f_min_per_mm: float, f_max_per_mm: float, surfaces=No
     """
     readings = list(readings)
     if surfaces is None:
-        return [band_reason(r, f_min_per_mm, f_max_per_mm) for r in readings]
+        return [band_reason(r, f_min_per_mm, f_max_per_mm, dominance=dominance) for r in readings]
     labels = np.asarray(surfaces)
     out = [""] * len(readings)
     for label in dict.fromkeys(labels.tolist()):
         rows = np.flatnonzero(labels == label)
-        surface = band_reason(median_reading([readings[i] for i in rows]), f_min_per_mm, f_max_per_mm)
+        surface = band_reason(median_reading([readings[i] for i in rows]), f_min_per_mm, f_max_per_mm,
+                              dominance=dominance)
         for i in rows:
             out[i] = f"surface (median of {len(rows)} presses) {surface}" if surface else ""
     return out
