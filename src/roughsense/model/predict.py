@@ -220,10 +220,9 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 
     A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
     (which would name a period the surface does not have); so does a trial the family flags whose outside structure
-    is at least as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the pad's ridges and on the
-    trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where none)``: a study's
-    specimens of stated period); beyond
-    its tolerance every trial is flagged ``scale: ...``.
+    is at least as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the
+    pad's ridges and on the trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where
+    none)``: a study's specimens of stated period); beyond its tolerance every trial is flagged ``scale: ...``.
     """
     X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     roughness = loaded.predict(X, surfaces=surfaces)
