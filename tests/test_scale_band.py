@@ -251,3 +251,21 @@ def test_a_weaker_outside_structure_is_named_only_where_a_family_flags_the_press
     assert band_reason(reading, 0.1, 1.0) == ""
     named = band_reason(reading, 0.1, 1.0, dominance=NAMING_DOMINANCE)
     assert named.startswith("finer than the sensor resolves: period 0.31 mm, below the band's 1 mm (1/f_max)")
+
+
+@pytest.mark.parametrize(("passes", "model"), [((False, False, False, False), None), ((False, True, False, False), "pls"),
+                                               ((True, False, False, True), "peak-law")])
+def test_console_and_report_give_one_verdict_on_which_model_to_use(passes, model):
+    """The console's "Which model to use" line and the report's first screen state the same family, or both none."""
+    from roughsense.cli.study_report import which_model_line
+    from roughsense.report.answer import NO_MODEL, _use_line, recommended_model
+
+    unseen = pd.DataFrame({"model": ["peak-law", "pls", "peak-law", "pls"], "pad": ["smooth", "smooth", "fp", "fp"],
+                           "condition": "combined", "rmse": 0.2, "null_rmse": 0.3, "pi90_coverage_trials": np.nan,
+                           "passes": list(passes)})
+    assert recommended_model(unseen) == model
+    console, report = which_model_line(unseen), _use_line(unseen, unseen["passes"])
+    if model is None:
+        assert report == NO_MODEL and console.startswith(f"Which model to use: none. {NO_MODEL}")
+    else:
+        assert console.startswith(f"Which model to use: {model} (") and f"({model}, " in report

@@ -182,7 +182,7 @@ def unseen_lines(analysis) -> list[str]:
     rows = unseen[unseen["condition"] == condition]
     best = rows.loc[rows["rmse"].idxmin()]
     lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "
-             f"best {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
+             f"lowest {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
              f"{best['null_rmse']:.2f}."]
     for pad, group in rows.groupby("pad", sort=False):
         parts = []
