@@ -269,3 +269,9 @@ def test_console_and_report_give_one_verdict_on_which_model_to_use(passes, model
         assert report == NO_MODEL and console.startswith(f"Which model to use: none. {NO_MODEL}")
     else:
         assert console.startswith(f"Which model to use: {model} (") and f"({model}, " in report
+
+
+def test_one_mount_read_from_two_structures_is_one_mount():
+    lines = [square_line(3.0, 34.9 * m, ridge_mm=1.0, phase=i, seed=i) for i, m in enumerate((0.99, 1.0, 1.01))]
+    check = check_study_lines([("ridges", 1.0, lines, ["a", "b", "c"]), ("R3", 3.0, lines, ["a", "b", "c"])], 34.9)
+    assert check.measurement.n_measured == 6 and check.measurement.n_mounts == 3

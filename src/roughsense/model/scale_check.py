@@ -102,8 +102,9 @@ def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleChec
             continue
         sources.append(source)
         values.append(check_scale(lines, period_mm, stated_px_per_mm).px_per_mm_each)
-        own = labels[0] if labels and labels[0] is not None else [f"line {i}" for i in range(len(lines))]
-        mounts.extend(f"{number}: {label}" for label in own)
+        # a mount read from two structures (a pad's ridges and its grating) is one magnification: labels are shared
+        own = labels[0] if labels and labels[0] is not None else [f"{number}: line {i}" for i in range(len(lines))]
+        mounts.extend(str(label) for label in own)
     if not values:
         return ScaleCheck(float(stated_px_per_mm), (), None)
     sources = list(dict.fromkeys(sources))
