@@ -207,18 +207,20 @@ def test_fit_and_predict_warnings_reach_stderr_at_the_default_jobs(tmp_path):
     ('px_per_mm = "8.7"', "[sensor] px_per_mm must be a positive number, got '8.7'"),
     ("px_per_mm = 0.5", "[sensor] px_per_mm 0.5 cannot resolve the band: its Nyquist frequency 0.25 mm^-1"),
     ("px_per_mm = 300.0", "[sensor] px_per_mm 300 makes the line 2 mm long (600 px), shorter than 1/f_min = 10 mm"),
+    ("[sensors]", "unknown table 'sensors' looks like a misspelt [sensor], which is not there"),
 ])
 def test_check_reports_a_missing_misspelt_or_implausible_scale(run_cli, tmp_path, line, problem):
     from tests.test_dataset import make_study
 
     root = make_study(tmp_path / "tiny", repetitions=1)
     toml = root / "study.toml"
-    toml.write_text(toml.read_text().replace("px_per_mm = 20.0", line))
+    old = "[sensor]" if line == "[sensors]" else "px_per_mm = 20.0"
+    toml.write_text(toml.read_text().replace(old, line))
     code, out, err = run_cli("check", root)
     assert code == 2 and problem in out, out
     if "misspelt" in problem:  # study refuses it too: never the default in its place
         code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report", "--permutations", "0")
-        assert code == 2 and "looks like a misspelt 'px_per_mm'" in err and len(err.splitlines()) == 1
+        assert code == 2 and "looks like a misspelt" in err and len(err.splitlines()) == 1
 
 
 def test_fit_reads_a_wrongly_stated_study_at_its_measured_scale_and_says_so(run_cli, tmp_path):

@@ -145,6 +145,10 @@ def read_config(path: str | os.PathLike[str]) -> dict:
     for table, value in config.items():
         if table not in CONFIG_KEYS:
             kind = "table" if isinstance(value, dict) else "key"
+            shadowed = shadowed_key(table, CONFIG_KEYS, set(config))
+            if shadowed is not None:  # [sensors] would leave [sensor] and its scale at their defaults, unseen
+                raise InputError(f"unknown {kind} {table!r} looks like a misspelt [{shadowed}], which is not there: its "
+                                 f"defaults would be used; write [{shadowed}]", path=path)
             warnings.warn(f"{path}: unknown {kind} {table!r} ignored (known tables: {', '.join(CONFIG_KEYS)})",
                           RoughsenseWarning, stacklevel=2)
             continue
