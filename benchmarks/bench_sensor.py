@@ -6,7 +6,8 @@ decode like camera frames, not like flat test patterns), then reports medians ov
 * plain decoding, ``cv2.imread`` of every file, on 1 thread and on a pool of 2 threads;
 * ``SpatialSpectrum(n_jobs=1)`` and ``(n_jobs=2)`` over the same paths (decode + crop + spectrum);
 * the work after decoding alone (crop, gray, line, DFT, normalise) on frames already in memory;
-* peak traced memory of the streaming transform for N/4 and N images (it should not grow).
+* peak traced memory of the streaming transform for N/4 and N images (it should not grow);
+* the band test and the scale check predict runs on each image's line, against features' cost per image.
 
 The machine is shared, so besides wall-clock rates it prints CPU seconds per image (all threads) and
 the rate that CPU cost allows when every core is free (cores / CPU per image): a projection, labelled so.
@@ -28,6 +29,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from roughsense.sensor.band import band_reading
+from roughsense.sensor.period import check_scale
 from roughsense.sensor.spectrum import SpatialSpectrum, _Plan
 
 PX_PER_MM = 34.9
@@ -79,6 +82,24 @@ def peak_traced_mb(paths, jobs: int) -> float:
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     return peak / 2**20
+
+
+def checks_against_features(frames, paths) -> None:
+    """What predict adds per image on the line it already has: the band test (the line's strongest period) and the
+    scale check on a pad's 1 mm ridges, against ``features``' own cost per image (a file read, decoded as far as
+    the line, and its spectrum: thread CPU of SpatialSpectrum's per-image work)."""
+    plan = _Plan.build(PX_PER_MM, "center", 1, 0.1, 1.0, 45, "hann")
+    features_s = statistics.median(thread_timed(lambda p=p: plan.spectrum(p)) for p in paths for _ in range(3))
+    lines = [plan.spectrum_and_line(f)[1] for f in frames]
+
+    def checks(line) -> None:
+        band_reading(line, PX_PER_MM, 0.1, 1.0, ridge_period_mm=1.0)
+        check_scale([line], 1.0, PX_PER_MM)
+
+    checks(lines[0])  # imports
+    check_s = statistics.median(thread_timed(lambda line=line: checks(line)) for line in lines for _ in range(3))
+    print(f"  band test + scale check on the line: {check_s * 1e3:7.3f} ms/image = {100 * check_s / features_s:5.2f} % "
+          f"of features ({features_s * 1e3:.2f} ms/image: read, decode to the line, spectrum)")
 
 
 def main() -> None:
@@ -135,6 +156,7 @@ def main() -> None:
             work_s = statistics.median(thread_timed(lambda f=f: plan.spectrum(f)) for f in frames for _ in range(3))
             print(f"  work after decoding, roi={roi:6s}: {work_s * 1e3:7.3f} ms/image = {100 * work_s / decode_s:5.1f} % "
                   f"of decoding ({decode_s * 1e3:.2f} ms/image)")
+        checks_against_features(frames, paths[:20])
         del frames
 
         quarter = paths[: len(paths) // 4]

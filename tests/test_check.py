@@ -45,7 +45,7 @@ def excel(rows) -> bytes:
 def make_study(root: Path, *, write=plain) -> Path:
     (root / "images").mkdir(parents=True)
     (root / "study.toml").write_text('[study]\nname = "tiny"\nreference_specimen = "R3"\n\n'
-                                     "[protocol]\nforces_n = [1.0, 2.0]\n")
+                                     "[sensor]\npx_per_mm = 34.9\n\n[protocol]\nforces_n = [1.0, 2.0]\n")
     for name, rows in tables().items():
         (root / name).write_bytes(write(rows))
         if name == "manifest.csv":

@@ -79,7 +79,7 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image", "pad", "condition", "model", "roughness_rel_R3", "pi90_low", "pi90_high",
-                                   "extrapolates", "outside"] and len(table) == len(images)
+                                   "read_as", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -108,7 +108,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "roughness_rel_R3",
-                                   "pi90_low", "pi90_high", "extrapolates", "outside"] and len(table) == 2
+                                   "pi90_low", "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
@@ -127,8 +127,10 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "roughness_rel_R3", "pi90_low", "pi90_high", "surface_roughness_rel_R3",
-                                     "extrapolates", "outside"]
+                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high",
+                                     "surface_roughness_rel_R3", "surface_extrapolates", "read_as", "extrapolates",
+                                     "outside"]
+    assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
     assert len(grouped) == len(meta) == 18
     expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
     for f in ("1N", "2N", "3N"):
@@ -415,7 +417,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     assert list(table["extrapolates"]) == [False, True]
     said = " ".join(stdout.split())  # wrapped to the terminal
     assert "1 of 2 predictions lies outside what the model was trained on; the `outside` column says how" in said
-    assert table["outside"][1].startswith("period 9.")
+    assert "period 9." in table["outside"][1]  # the band's edge (a 30 mm line) or the trained range: a real period
     X, y, meta = data("1N")
     law = PeakPowerLaw(freq_per_mm=grid_per_mm()).fit(X, y, surfaces=meta["specimen"])
     spectra = SpatialSpectrum(px_per_mm=20.0, roi=(0, 16, 600, 32)).fit().transform(images)
@@ -611,7 +613,7 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     assert code == 0, err
     lines = stdout.splitlines()
     assert max(len(line) for line in lines) <= 80, stdout
-    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in lines[0]
+    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:2])
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err
     table = pd.read_csv(tmp_path / "p.csv")  # every value the terminal shows, row by row

@@ -174,6 +174,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     what = f"pad {pad!r} at {condition}"
     _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)  # either family: copies of one image teach nothing
     training["target_range"] = [float(np.min(y)), float(np.max(y))]
+    training["pad_ridge_period_mm"] = study.pad_ridge_period_mm.get(pad)  # predict's band and scale checks read it
     specimens = meta["specimen"].astype(str).to_numpy()
     law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                        pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))

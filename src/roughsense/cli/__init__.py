@@ -34,6 +34,9 @@ app = typer.Typer(
 
 _state = {"debug": bool(os.environ.get("ROUGHSENSE_DEBUG"))}
 _python_showwarning = warnings.showwarning
+#: Modules whose warnings a run ignores: Pillow's header reads (io/images.py, in decode threads) warn about sizes and
+#: metadata that roughsense checks and reports in its own words.
+PILLOW_WARNINGS = r"PIL(\.|$)"
 
 
 def _show_version(value: bool) -> None:
@@ -147,7 +150,9 @@ def main(argv: list[str] | None = None) -> int:
         _state["debug"] = True
     warnings.showwarning = _show_warning
     try:
-        code = _command().main(args=args, prog_name="roughsense", standalone_mode=False)
+        with warnings.catch_warnings():  # the main thread, around the whole run: workers never touch the filters
+            warnings.filterwarnings("ignore", module=PILLOW_WARNINGS)
+            code = _command().main(args=args, prog_name="roughsense", standalone_mode=False)
         interrupt.check()  # stopped after its last safe point: still a run that was stopped, not a success
         return code if isinstance(code, int) and not isinstance(code, bool) else 0
     except SystemExit as exc:

@@ -67,3 +67,26 @@ def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None 
         print(f"roughsense: note: {BUILTIN!r} names the built-in simulated study; for the folder here, "
               f"write ./{BUILTIN}", file=sys.stderr)
     return builtin_study(seed, jobs)
+
+
+def checked_scale(study, *, pad: str | None = None):
+    """The study with its scale checked (``model/scale_check.py``): read at the measured px/mm where its stated one is
+    off beyond the tolerance, else as stated. Returns the study to use and the check's line (for the report or the
+    model file; :func:`echo_scale` prints it once the run has succeeded, so a failing run's error stands alone)."""
+    from ..model.scale_check import check_study_scale, corrected
+
+    check = check_study_scale(study, pad=pad)
+    return (corrected(study, check), check.correction()) if check.off else (study, check.summary())
+
+
+def echo_scale(line: str) -> None:
+    """A scale check's line on stderr: a warning where the scale was corrected, else a note."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..model.scale_check import CORRECTED
+
+    if CORRECTED in line:
+        warnings.warn(RoughsenseWarning(line), stacklevel=2)
+    else:
+        print(f"roughsense: {line}", file=sys.stderr)

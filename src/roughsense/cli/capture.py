@@ -86,3 +86,26 @@ def _run(out: Path, source: str, force_input: str, *, timeout_s: float, discard:
     if result.specimen_incomplete:
         typer.echo(f"note: fill in shape and wavelength_mm for {specimen} in {out / 'specimens.csv'} before the analysis "
                    "(or rerun with --shape and --wavelength-mm)")
+    _check_scale(out, pad)
+
+
+def _check_scale(out: Path, pad: str) -> None:
+    """The folder's stated scale against the pad's ridges and the reference specimen captured so far: one line (a
+    warning when it is off: the stated px/mm is the user's, so it is measured with calibrate, never replaced here).
+    The rig knows nothing of the sensor: the command composes them."""
+    import warnings
+
+    from ..errors import RoughsenseError, RoughsenseWarning
+    from ..io.study import read_study
+    from ..model.scale_check import check_study_scale
+
+    try:
+        check = check_study_scale(read_study(out), pad=pad)
+    except RoughsenseError as exc:  # a folder not yet readable as a study (a specimen without its wavelength)
+        typer.echo(f"roughsense: scale not checked: {exc}", err=True)
+        return
+    if check.off:
+        warnings.warn(RoughsenseWarning(f"{check.summary()}; measure it with `roughsense calibrate {out}`"),
+                      stacklevel=2)
+    else:
+        typer.echo(f"roughsense: {check.summary()}", err=True)

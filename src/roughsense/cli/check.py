@@ -22,11 +22,24 @@ def check(folder: Folder) -> None:
     from ..io.study_check import check_study
 
     result = check_study(folder)
+    _check_scale(result)
     if not result.ok:
         for line in result.problems.lines():
             typer.echo(line)
         raise InputError(result.failure(), path=folder)
     typer.echo(result.summary())
+
+
+def _check_scale(result) -> None:
+    """An implausible scale is a problem: one the sensor's band cannot be measured at (``sensor.scale_misfit``)."""
+    from ..errors import InputError
+    from ..io.study import STUDY_TOML
+    from ..sensor.spectrum import scale_misfit
+
+    sensor = result.sensor
+    problem = None if sensor is None else scale_misfit(sensor.px_per_mm, sensor.roi)
+    if problem is not None:
+        result.problems.add(InputError(f"[sensor] {problem}", path=result.root / STUDY_TOML))
 
 
 def register(app: typer.Typer) -> None:

@@ -11,7 +11,7 @@ import typer
 from .._util.text import counted
 from ..errors import ConfigError
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
-from ._studies import STUDY_METAVAR, resolve_study
+from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
 ORDER = 20
 
@@ -77,12 +77,12 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     check_seed(seed)
     check_can_write(out, force=force, inputs=run_inputs(study=study))
     study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
-    loaded = read_study(study, require_ratings=True)
+    loaded, scale = checked_scale(read_study(study, require_ratings=True), pad=pad)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
                           model=family, roi=None if override is None else override.roi)
-    save_model(out, trained.model, feature_definition=trained.feature_definition, training=trained.training,
-               force=force, domain=trained.domain)
+    save_model(out, trained.model, feature_definition=trained.feature_definition,
+               training={**trained.training, "scale_check": scale}, force=force, domain=trained.domain)
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
                f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
     if override is not None:
@@ -91,6 +91,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     _echo_cv(trained)
     _echo_unseen(trained.unseen)
     typer.echo(f"wrote {out}")
+    echo_scale(scale)
     _warn_failed_controls(trained.training)
 
 
@@ -258,15 +259,19 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     if out is not None:
         check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
+    reference = None
     if study is not None:
         study = resolve_study(study, seed=seed, jobs=None if jobs < 1 else jobs)
-    trials, table = _trials(loaded, positional, by_condition, study, specimens or [])
+    trials, table, read = _trials(loaded, positional, by_condition, study, specimens or [])
+    if read is not None:
+        override, reference = _study_scale(loaded, read, override, table)
     surfaces = table["specimen"].astype(str).to_numpy() if "specimen" in table else (
         ["surface"] * len(trials) if same_surface else None)
-    scores = _score_into(table, loaded, trials, jobs, override, surfaces)
+    scores = _score_into(table, loaded, trials, jobs, override, surfaces, reference)
     warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
+    _echo_scale(scores.scale)
     _warn_failed_controls(loaded.training)
 
 
@@ -285,6 +290,44 @@ def _refuse_repeats(images) -> None:
         seen[key] = str(image)
 
 
+def _study_scale(loaded, study, override, table):
+    """Images of a study are read at its own study.toml scale (said in one line), unless --px-per-mm says
+    otherwise; the trials of specimens of stated period are marked for the scale check."""
+    import numpy as np
+
+    from ..model.predict import SensorOverride
+
+    model_px = float(loaded.features["spectrum"]["px_per_mm"])
+    if override is None or override.px_per_mm is None:
+        stated = float(study.sensor.px_per_mm)
+        typer.echo(f"roughsense: images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was "
+                   f"fitted at {model_px:g} px/mm)", err=True)
+        override = SensorOverride(None if override is None else override.roi, stated)
+    reference = None
+    if "specimen" in table:
+        from ..model.scale_check import stated_periods
+
+        periods = stated_periods(study)
+        reference = ("the specimens' periods in specimens.csv",
+                     np.array([periods.get(s, np.nan) for s in table["specimen"].astype(str)]))
+    return override, reference
+
+
+def _echo_scale(check) -> None:
+    """The scale check's one line: a warning when the images' scale is off (every row is flagged), else a note."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+
+    if check is None:
+        return
+    if check.off:
+        warnings.warn(RoughsenseWarning(f"{check.summary()}: every prediction is flagged 'scale'; measure the scale "
+                                        "with roughsense calibrate, or pass the images' --px-per-mm"), stacklevel=2)
+    else:
+        typer.echo(f"roughsense: {check.summary()}", err=True)
+
+
 def _check_image_sources(given: list[str], specimens, study) -> None:
     if not given:
         raise ConfigError("no images given: pass IMAGE..., --images-1n ... (one flag per force) or --study DIR "
@@ -295,7 +338,7 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
 
 
-def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, surfaces=None):
+def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, surfaces=None, reference=None):
     """Score the trials and add their images, pad, condition, model, roughness, interval and flags to ``table``.
 
     Roughness is a ratio to the reference specimen, rounded to 3 significant digits (the panel's own precision is
@@ -308,7 +351,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
     from ..model.predict import model_condition, model_pad, score_trials
 
     images = [image for trial in trials for image in trial]
-    scores = score_trials(loaded, images, n_jobs=jobs, progress=progress, override=override, surfaces=surfaces)
+    scores = score_trials(loaded, images, n_jobs=jobs, progress=progress, override=override, surfaces=surfaces,
+                          reference=reference)
     if len(loaded.conditions) == 1:
         table["image"] = [str(t[0]) for t in trials]
     else:
@@ -330,9 +374,25 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
         if np.isfinite(scores.surface_low).all():
             table["surface_pi90_low"] = _three_digits(scores.surface_low)
             table["surface_pi90_high"] = _three_digits(scores.surface_high)
+    _surface_flags(table, scores, surfaces)
     table["extrapolates"] = ["true" if flag else "false" for flag in scores.flagged]
     table["outside"] = scores.reasons
+    if "surface_extrapolates" in table:
+        quiet = (table["surface_extrapolates"] == "true").to_numpy() & ~scores.flagged
+        table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
     return scores
+
+
+def _surface_flags(table, scores, surfaces) -> None:
+    """``read_as`` says how ``extrapolates`` judged each row: ``press`` (read alone) or ``surface`` (a press read
+    with the other presses of its surface); grouped, ``surface_extrapolates`` is true when any press of the surface
+    is flagged, and a press that is not says so in ``outside`` (its surface's reason is in the other rows)."""
+    if surfaces is not None:
+        import pandas as pd
+
+        flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
+        table["surface_extrapolates"] = ["true" if flag else "false" for flag in flagged]
+    table["read_as"] = "press" if surfaces is None else "surface"
 
 
 def roughness_column(loaded) -> str:
@@ -383,7 +443,7 @@ def _echo_extrapolation(loaded, scores) -> None:
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm")
+_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as")
 
 
 def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None:
@@ -478,7 +538,8 @@ def _split_image_flags(tokens: list[str]) -> tuple[list[Path], dict[str, list[Pa
 
 
 def _trials(loaded, positional, by_condition, study, specimens):
-    """The model's trials (tuples of images in its condition order) and the table's leading columns."""
+    """The model's trials (tuples of images in its condition order), the table's leading columns and the study read
+    (None without --study)."""
     import pandas as pd
 
     from ..model.predict import groups_from_flags, groups_from_images, groups_from_study
@@ -486,10 +547,11 @@ def _trials(loaded, positional, by_condition, study, specimens):
     if study is not None:
         from ..io.study import read_study
 
-        groups, meta = groups_from_study(loaded, read_study(study), specimens)
-        return groups, meta
+        read = read_study(study)
+        groups, meta = groups_from_study(loaded, read, specimens)
+        return groups, meta, read
     groups = groups_from_flags(loaded, by_condition) if by_condition else groups_from_images(loaded, positional)
-    return groups, pd.DataFrame(index=range(len(groups)))
+    return groups, pd.DataFrame(index=range(len(groups))), None
 
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:

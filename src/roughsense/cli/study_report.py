@@ -11,7 +11,7 @@ from .._util.text import counted
 from ..paper import COMBINED
 from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
 from ._defaults import MAX_PERMUTATIONS
-from ._studies import STUDY_METAVAR, builtin_study, is_builtin, resolve_study
+from ._studies import STUDY_METAVAR, builtin_study, checked_scale, echo_scale, is_builtin, resolve_study
 
 ORDER = 5
 DEFAULT_SEED = 0
@@ -98,7 +98,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
 
     builtin = data is None or is_builtin(data)
     root = builtin_study(seed, jobs) if data is None else resolve_study(data, seed=seed, jobs=jobs)
-    study = _read_folder(root, builtin=builtin)
+    study, scale = checked_scale(_read_folder(root, builtin=builtin))
     definition = dataset.spectrum_for(study).feature_definition()
     features, was_cached = cache.cached_frame(
         cache.features_key(study, definition),
@@ -119,6 +119,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
         "images": f"{len(study.manifest)} ({', '.join(study.pads)} {'pad' if len(study.pads) == 1 else 'pads'}; "
                   f"{counted(len(study.specimens), 'specimen')})",
         "features": "from cache" if was_cached else "extracted",
+        "scale": scale,
     }
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
@@ -132,19 +133,26 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
                        f"{group['ovl'].mean():.3f}, "
                        f"{counted(analysis.condition_fit(pad, condition, 'loo').best_n_components, 'component')} "
                        "(pls, LOO)")
+    echo_scale(scale)
     return out / "index.html", root, builtin, summary
 
 
 def which_model_line(unseen) -> str:
-    """Which model to use for what, in one sentence: the families that pass their controls for unseen surfaces in
-    every pad x condition score new surfaces (`roughsense fit`'s default); PLS reproduces the paper."""
+    """Which model to use for what, in one sentence: the report's own verdict (``report.answer.recommended_model``),
+    so the console and the report never disagree; PLS reproduces the paper."""
     from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+    from ..report.answer import NO_MODEL, recommended_model
 
     passing = unseen.groupby("model", sort=False)["passes"].agg(lambda v: int(sum(bool(x) for x in v)))
     cells = unseen.groupby("model", sort=False).size()
     tally = ", ".join(f"{model} passes in {passing[model]} of {cells[model]}" for model in cells.index)
-    return (f"Which model to use: {DEFAULT_MODEL} (roughsense fit's default) to score surfaces never trained on; "
-            f"{PAPER_MODEL} to reproduce the paper. Controls for unseen surfaces per pad x condition: {tally}.")
+    model = recommended_model(unseen)
+    controls = f"Controls for unseen surfaces per pad x condition: {tally}."
+    if model is None:
+        return f"Which model to use: none. {NO_MODEL} {PAPER_MODEL} reproduces the paper. {controls}"
+    default = " (roughsense fit's default)" if model == DEFAULT_MODEL else f" (roughsense fit --model {model})"
+    return (f"Which model to use: {model}{default} to score surfaces never trained on, where it passes its controls; "
+            f"{PAPER_MODEL} to reproduce the paper. {controls}")
 
 
 def _read_folder(root, *, builtin: bool):
@@ -174,7 +182,7 @@ def unseen_lines(analysis) -> list[str]:
     rows = unseen[unseen["condition"] == condition]
     best = rows.loc[rows["rmse"].idxmin()]
     lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "
-             f"best {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
+             f"lowest {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
              f"{best['null_rmse']:.2f}."]
     for pad, group in rows.groupby("pad", sort=False):
         parts = []

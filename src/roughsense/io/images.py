@@ -11,7 +11,6 @@ import contextlib
 import io
 import os
 import threading
-import warnings
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
@@ -114,11 +113,18 @@ def header_size(data: np.ndarray) -> tuple[int, int] | None:
     Pillow's ``Image.open`` reads the header and decodes nothing, so a file claiming billions of pixels costs
     nothing to inspect. Its own bomb guard refuses above 179 Mpx without giving the size, where ours is a setting
     (:func:`check_pixels`) and names it: only for such a file is Pillow's limit lifted, one read at a time, so
-    another Pillow user in the process is left unguarded for no ordinary image. Pillow's warnings (its bomb
-    warning above 89 Mpx, odd metadata) are not the user's business here and stay off stderr.
+    another Pillow user in the process is left unguarded for no ordinary image. A PNG's size is read from its IHDR
+    chunk without Pillow. Pillow's warnings (its bomb warning above 89 Mpx, odd metadata) are left to the process's
+    warning filters: this runs in decode threads,
+    which never touch those filters (``catch_warnings`` is not thread-safe: two at once can leave a filter
+    behind for the rest of the process). The command line ignores Pillow's warnings once, in its main thread
+    (``roughsense.cli.main``).
     """
     from PIL import Image
 
+    head = bytes(data[:24])
+    if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR":  # the size is in the first chunk: no Pillow, no warning
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
     stream = io.BytesIO(data.data)
     try:
         return _pillow_size(stream)
@@ -131,19 +137,15 @@ def header_size(data: np.ndarray) -> tuple[int, int] | None:
                 Image.MAX_IMAGE_PIXELS = saved
     except Exception:  # not a format Pillow opens, or a damaged header
         pass
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return _tiff_size(stream)
+    return _tiff_size(stream)
 
 
 def _pillow_size(stream: io.BytesIO) -> tuple[int, int]:
     from PIL import Image
 
     stream.seek(0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with Image.open(stream) as image:
-            return image.size
+    with Image.open(stream) as image:
+        return image.size
 
 
 def _tiff_size(stream: io.BytesIO) -> tuple[int, int] | None:

@@ -115,3 +115,38 @@ def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     if x + w > width_px or y + h > height_px:
         return f"ROI {x},{y},{w},{h} reaches outside it"
     return None
+
+
+def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = False) -> float | None:
+    """Set ``[sensor] px_per_mm`` in a study.toml, keeping every other line, comment and layout (tomlkit), written
+    atomically; ``note`` becomes the value's comment (what was measured, and how precisely).
+
+    A scale already stated and different is the user's: replaced only with ``force``. Returns the value replaced
+    (None where there was none).
+    """
+    from pathlib import Path
+
+    import tomlkit
+
+    from .._util.atomic import write_text
+    from ..errors import InputError
+
+    path = Path(toml_path)
+    try:
+        document = tomlkit.parse(path.read_text(encoding="utf-8")) if path.exists() else tomlkit.document()
+    except (OSError, UnicodeDecodeError, tomlkit.exceptions.ParseError) as exc:
+        raise InputError(f"cannot read it to write px_per_mm ({exc})", path=path) from None
+    sensor = document.get("sensor")
+    if sensor is None:
+        sensor = tomlkit.table()
+        document["sensor"] = sensor
+    old = sensor.get("px_per_mm")
+    previous = float(old) if is_number(old) else None
+    if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
+        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); pass --force to replace it with "
+                          f"the measured {px_per_mm:.5g}")
+    item = tomlkit.item(float(round(px_per_mm, 4)))
+    item.comment(note)
+    sensor["px_per_mm"] = item
+    write_text(path, tomlkit.dumps(document))
+    return previous

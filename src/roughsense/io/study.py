@@ -146,6 +146,10 @@ def read_config(path: str | os.PathLike[str]) -> dict:
     for table, value in config.items():
         if table not in CONFIG_KEYS:
             kind = "table" if isinstance(value, dict) else "key"
+            shadowed = shadowed_key(table, CONFIG_KEYS, set(config))
+            if shadowed is not None:  # [sensors] would leave [sensor] and its scale at their defaults, unseen
+                raise InputError(f"unknown {kind} {table!r} looks like a misspelt [{shadowed}], which is not there: its "
+                                 f"defaults would be used; write [{shadowed}]", path=path)
             warnings.warn(f"{path}: unknown {kind} {table!r} ignored (known tables: {', '.join(CONFIG_KEYS)})",
                           RoughsenseWarning, stacklevel=2)
             continue
@@ -155,15 +159,44 @@ def read_config(path: str | os.PathLike[str]) -> dict:
         known = CONFIG_KEYS[table]
         for key in value:
             if known is not None and key not in known:
+                shadowed = shadowed_key(key, known, set(value))
+                if shadowed is not None:  # px_per_mmm = 8.7 would leave px_per_mm at its default, unseen
+                    raise InputError(f"[{table}] unknown key {key!r} looks like a misspelt {shadowed!r}, which is "
+                                     f"not set: its default would be used; write {shadowed} = ...", path=path)
                 warnings.warn(f"{path}: unknown key {key!r} in [{table}] ignored (known: {', '.join(sorted(known))})",
                               RoughsenseWarning, stacklevel=2)
     return config
 
 
-def sensor_from_config(config: Mapping, path: Path) -> SensorSettings:
+def shadowed_key(key: str, known, present) -> str | None:
+    """The known key an unknown ``key`` is most likely a misspelling of (one not set beside it), else None: a match
+    of 85 % by difflib's ratio or of the same letters without case and '_', '-' or spaces."""
+    import difflib
+
+    def plain(text: str) -> str:
+        return "".join(ch for ch in text.lower() if ch.isalnum())
+
+    missing = [k for k in known if k not in present]
+    same = [k for k in missing if plain(k) == plain(key)]
+    close = difflib.get_close_matches(key, missing, n=1, cutoff=0.85)
+    return (same or close or [None])[0]
+
+
+#: What a study.toml without a scale is told: every spectrum depends on it, so it is never assumed unsaid.
+NO_SCALE = ("[sensor] states no px_per_mm: the paper's 34.9 px/mm is assumed, and every spectrum depends on it; "
+            "measure this camera's with `roughsense calibrate DIR` (it writes px_per_mm here)")
+
+
+def sensor_from_config(config: Mapping, path: Path, *, strict: bool = False) -> SensorSettings:
+    """The ``[sensor]`` table as :class:`SensorSettings`. A missing px_per_mm is a problem with ``strict``
+    (``roughsense check``), else one warning line naming the default taken."""
     sensor = config.get("sensor", {})
     if not isinstance(sensor, Mapping):
         raise InputError(f"sensor must be a table, got {type(sensor).__name__}", path=path)
+    if "px_per_mm" not in sensor:
+        if strict:
+            raise InputError(NO_SCALE, path=path)
+        warnings.warn(f"{path}: {NO_SCALE}", RoughsenseWarning, stacklevel=2)
     try:
         return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", DEFAULT_ROI),
                               max_pixels=sensor.get("max_pixels", DEFAULT_MAX_PIXELS))
@@ -354,7 +387,7 @@ def _read_settings(root: Path, problems: Problems | None) -> dict:
     config = attempt(problems, read_config, toml_path) or {}
     attempt(problems, check_simulation_complete, root, config)
     ridges = attempt(problems, pad_ridge_periods, config, toml_path)  # before any CSV is read
-    sensor = attempt(problems, sensor_from_config, config, toml_path)
+    sensor = attempt(problems, sensor_from_config, config, toml_path, strict=problems is not None)
     forces_n = attempt(problems, parse_forces, config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)),
                        path=toml_path)
     study_cfg = config.get("study", {})

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .._util.text import counted
 from .problems import MAX_LISTED, Problems
+from .sensor_settings import SensorSettings
 from .study import load_study
 
 
@@ -23,6 +24,7 @@ class CheckResult:
     n_images: int
     n_specimens: int
     n_ratings: int | None  # None: no ratings.csv
+    sensor: SensorSettings | None = None  # None: [sensor] has a problem of its own
 
     @property
     def ok(self) -> bool:
@@ -49,4 +51,5 @@ def check_study(root: str | os.PathLike[str], *, limit: int = MAX_LISTED) -> Che
         n_images=0 if study.manifest is None else len(study.manifest),
         n_specimens=0 if study.specimens is None else len(study.specimens),
         n_ratings=None if study.ratings is None else len(study.ratings),
+        sensor=study.sensor,
     )

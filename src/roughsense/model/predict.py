@@ -118,14 +118,47 @@ def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progr
     ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
     (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
     """
+    return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
+
+
+def image_readings(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None):
+    """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
+    scale checks read the lines, at no second decoding)."""
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
     spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
-    if progress is None:
-        spectra = spectrum.transform(images)
-    else:
-        spectra = np.vstack(list(progress(spectrum.iter_transform(images), total=len(images), description="spectra")))
-    return spectra_to_features(loaded, spectra)
+    stream = spectrum.iter_transform_lines(images)
+    if progress is not None:
+        stream = progress(stream, total=len(images), description="spectra")
+    pairs = list(stream)
+    spectra = np.vstack([p[0] for p in pairs]) if pairs else np.empty((0, spectrum.freq_per_mm_.size))
+    return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
+
+
+def model_ridge_period_mm(loaded: AnyModel) -> float | None:
+    """The ridge period (mm) of the model's pad, or None for a smooth pad (or a file that does not say)."""
+    training = loaded.training if isinstance(loaded.training, dict) else {}
+    stated = training.get("pad_ridge_period_mm", getattr(loaded, "pad_ridge_period_mm", None))
+    domain = getattr(loaded, "domain", None)
+    if stated is None and domain is not None and domain.peak is not None:
+        stated = domain.peak.pad_ridge_period_mm
+    return float(stated) if isinstance(stated, (int, float)) and stated > 0 else None
+
+
+def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None, *, dominance: float | None = None
+                       ) -> list[str]:
+    """Per trial, why its structure lies outside the spectrum's band ('' where it lies inside): the one band test
+    (``sensor/band.py``) every family's predictions pass, a trial read from the medians of its images."""
+    from ..sensor.band import DOMINANCE, band_reading, band_reasons, median_reading
+
+    freq = spectrum.freq_per_mm_
+    f_min, f_max = float(freq[0]), float(freq[-1])
+    ridge = model_ridge_period_mm(loaded)
+    readings = [band_reading(line, float(spectrum.px_per_mm), f_min, f_max, ridge_period_mm=ridge) for line in lines]
+    k = len(loaded.conditions)
+    trials = [median_reading(readings[i:i + k]) for i in range(0, len(readings), k)]
+    return band_reasons(trials, f_min, f_max, surfaces, dominance=DOMINANCE if dominance is None else dominance)
 
 
 def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
@@ -137,7 +170,8 @@ def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 @dataclass(frozen=True)
 class Scores:
     """Per trial: roughness, its interval (NaN without one) and what lies outside the model's domain ('' if
-    nothing); per surface (when trials were grouped into surfaces): the mean roughness and its interval."""
+    nothing); per surface (when trials were grouped into surfaces): the mean roughness and its interval; the
+    images' scale checked against known structure in them (None when nothing was checked)."""
 
     roughness: np.ndarray
     low: np.ndarray
@@ -146,6 +180,7 @@ class Scores:
     surface_roughness: np.ndarray | None = None
     surface_low: np.ndarray | None = None
     surface_high: np.ndarray | None = None
+    scale: object | None = None
 
     @property
     def flagged(self) -> np.ndarray:
@@ -182,24 +217,57 @@ def model_interval(loaded: AnyModel):
 
 
 def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                 override: SensorOverride | None = None, surfaces=None) -> Scores:
-    """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``)."""
-    X = image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
+                 override: SensorOverride | None = None, surfaces=None, reference=None) -> Scores:
+    """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
+
+    A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
+    (which would name a period the surface does not have); so does a trial the family flags whose outside structure
+    is at least as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the
+    pad's ridges and on the trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where
+    none)``: a study's specimens of stated period); beyond its tolerance every trial is flagged ``scale: ...``.
+    """
+    X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     roughness = loaded.predict(X, surfaces=surfaces)
-    reasons = loaded.applicability(X, surfaces=surfaces)
+    from ..sensor.band import NAMING_DOMINANCE
+
+    band = trial_band_reasons(loaded, spectrum, lines, surfaces)
+    named = trial_band_reasons(loaded, spectrum, lines, surfaces, dominance=NAMING_DOMINANCE)
+    reasons = [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
+    scale = images_scale_check(loaded, spectrum, lines, reference)
+    if scale.off:
+        reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]
     interval = model_interval(loaded)
     nan = np.full(roughness.shape, np.nan)
     # a press read alone is read less surely (the peak law): it has its own calibration
     low, high = interval.trial_bounds(roughness, read_alone=surfaces is None) if interval is not None else (nan, nan)
     if surfaces is None:
-        return Scores(roughness, low, high, reasons)
+        return Scores(roughness, low, high, reasons, scale=scale)
     import pandas as pd
 
     labels = pd.Series(np.asarray(surfaces))
     surface = pd.Series(roughness).groupby(labels).transform("mean").to_numpy()
     known = interval is not None and math.isfinite(interval.surface_log_halfwidth)
     s_low, s_high = interval.surface_bounds(surface) if known else (nan, nan)
-    return Scores(roughness, low, high, reasons, surface, s_low, s_high)
+    return Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale)
+
+
+def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
+    """The images' scale against the pad's ridges (every image) and the stated periods of ``reference``'s trials,
+    at the scale the spectrum read them (``model/scale_check.py``)."""
+    from .scale_check import check_study_lines
+
+    groups = []
+    k = len(loaded.conditions)
+    mounts = [i // k for i in range(len(lines))]  # a trial's images are one mount of the surface
+    ridge = model_ridge_period_mm(loaded)
+    if ridge is not None:
+        groups.append((f"the pad's {ridge:g} mm ridges", ridge, lines, mounts))
+    if reference is not None:
+        what, periods = reference
+        for period_mm in dict.fromkeys(p for p in periods if np.isfinite(p)):
+            chosen = [i for i in range(len(lines)) if periods[i // k] == period_mm]
+            groups.append((what, float(period_mm), [lines[i] for i in chosen], [mounts[i] for i in chosen]))
+    return check_study_lines(groups, float(spectrum.px_per_mm))
 
 
 def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
@@ -213,8 +281,10 @@ def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
     spectrum = model_spectrum(loaded, override=override)
 
     def score_frame(frame: np.ndarray) -> tuple[float, bool]:
-        X = spectrum.transform([frame])
-        return float(loaded.predict(X)[0]), bool(loaded.extrapolates(X)[0])
+        [(row, line)] = list(spectrum.iter_transform_lines([frame]))
+        X = row[None, :]
+        outside = bool(trial_band_reasons(loaded, spectrum, [line])[0]) or bool(loaded.extrapolates(X)[0])
+        return float(loaded.predict(X)[0]), outside
 
     return score_frame
 

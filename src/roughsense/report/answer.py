@@ -30,14 +30,27 @@ def _condition(unseen: pd.DataFrame) -> str:
     return COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
 
 
+#: What the report and the console say when no family passes its controls for surfaces never seen.
+NO_MODEL = ("No model here passes its controls for surfaces never seen: this study supports no roughness score for a "
+            "new surface.")
+
+
+def recommended_model(unseen: pd.DataFrame) -> str | None:
+    """The family to use for surfaces never seen: fit's default if it passes its controls in some pad x condition,
+    else the first that does, else None. The one verdict the report's first screen and the console both state."""
+    passes = unseen["passes"].fillna(False).astype(bool)
+    passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
+    if not passing:
+        return None
+    return DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
+
+
 def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
     condition = _condition(unseen)
-    passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
-    if not passing:
-        return ("No model here passes its controls for surfaces never seen: this study supports no roughness score "
-                "for a new surface.")
-    model = DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
+    model = recommended_model(unseen)
+    if model is None:
+        return NO_MODEL
     rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition) & passes]
     if rows.empty:  # it passes only in other conditions: quote those
         rows = unseen[(unseen["model"] == model) & passes].drop_duplicates("pad")

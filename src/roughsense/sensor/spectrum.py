@@ -213,6 +213,21 @@ def extract_line(pixels: np.ndarray, box: tuple[int, int, int, int], rows: int, 
     return line
 
 
+def scale_misfit(px_per_mm: float, roi: Roi, *, f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
+                 f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm) -> str | None:
+    """Why a camera scale cannot measure the band with this crop (None if it can): f_max at or above the Nyquist
+    frequency, or a line (the crop's width; at most the centre crop's for 'auto') shorter than 1/f_min. What
+    ``roughsense check`` calls an implausible scale; ``_Plan`` refuses the first and every image the second."""
+    if not px_per_mm / 2 > f_max_per_mm:
+        return (f"px_per_mm {px_per_mm:g} cannot resolve the band: its Nyquist frequency {px_per_mm / 2:g} mm^-1 is not "
+                f"above f_max {f_max_per_mm:g} mm^-1 (it must be above {2 * f_max_per_mm:g} px/mm)")
+    width_px = CENTER_CROP_PX[0] if isinstance(roi, str) else roi[2]
+    if width_px / px_per_mm < 1 / f_min_per_mm:
+        return (f"px_per_mm {px_per_mm:g} makes the line {width_px / px_per_mm:.3g} mm long ({width_px} px), shorter "
+                f"than 1/f_min = {1 / f_min_per_mm:g} mm: the band's coarse end cannot be measured")
+    return None
+
+
 @dataclass(frozen=True)
 class _Plan:
     """Validated settings, shared read-only by the worker threads."""
@@ -243,6 +258,10 @@ class _Plan:
         return cls(px, roi, int(rows), freqs, window, max_pixels)
 
     def spectrum(self, image, index: int | None = None) -> np.ndarray:
+        return self.spectrum_and_line(image, index)[0]
+
+    def spectrum_and_line(self, image, index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The normalised spectrum and the gray line it was taken from (the band and scale checks read the line)."""
         is_file = isinstance(image, (str, os.PathLike))
         name = image if is_file else None
         where = "" if is_file or index is None else f"image {index} of the batch: "
@@ -267,7 +286,7 @@ class _Plan:
             )
         line = extract_line(pixels, box, self.rows, name=name, where=where)
         amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
-        return _normalise(amplitude, self.freq_per_mm, name, where)
+        return _normalise(amplitude, self.freq_per_mm, name, where), line
 
     def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
         """Decode a PNG only down to the last row the line uses (same result, about half the decoding).
@@ -472,18 +491,37 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         iterator of numpy.ndarray
             One (n_freqs,) spectrum per image.
         """
+        return self._iter(images, _Plan.spectrum)
+
+    def iter_transform_lines(self, images: Iterable) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """As :meth:`iter_transform`, each spectrum with the gray line it was taken from: what the band and scale
+        checks (``sensor/band.py``, ``sensor/period.py``) read, at no second decoding.
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+
+        Returns
+        -------
+        iterator of tuple
+            (spectrum (n_freqs,), gray line (w,)) per image, in order.
+        """
+        return self._iter(images, _Plan.spectrum_and_line)
+
+    def _iter(self, images: Iterable, one) -> Iterator:
         plan = self._plan()
         jobs = self._jobs()
         numbered = enumerate(images)
         if jobs == 1:
             for index, image in numbered:
-                yield plan.spectrum(image, index)
+                yield one(plan, image, index)
             return
         pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="roughsense-decode")
         pending: deque = deque()
         try:
             for index, image in numbered:
-                pending.append(pool.submit(plan.spectrum, image, index))
+                pending.append(pool.submit(one, plan, image, index))
                 if len(pending) >= 2 * jobs:
                     yield pending.popleft().result()
             while pending:

@@ -1,0 +1,170 @@
+"""Every run checks its scale: px/mm measured from structure of known period in the images it reads.
+
+The structure is what the study already holds: a fingerprint pad's own ridges (``[pads.NAME] ridge_period_mm``) in
+each of its presses, and its gratings of stated period (``wavelength_mm`` in specimens.csv: the reference R3 in every
+study, and the others). Each press's period is measured below the DFT's bin (``sensor/period.py``), within +-15 % of where the
+stated scale puts it, and the median over the presses is compared with the stated px/mm.
+
+Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %,
+so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the
+target reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount
+share it), so the limit is never tighter than the 99 % t-interval over the mounts, and fewer than
+:data:`MIN_MOUNTS` mounts do not make a check. The study's specimens of stated period pool with the ridges: each
+of their mounts is one more reading of the scale.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sensor.period import ScaleMeasurement, check_scale
+
+#: Relative difference between measured and stated px/mm beyond which a run corrects or flags (module docstring).
+SCALE_TOLERANCE = 0.015
+#: What a corrected run's line says (the CLI shows such a line as a warning).
+CORRECTED = "spectra read at the measured"
+#: Mounts showing the known structure below which the scale is said to be unchecked.
+MIN_MOUNTS = 3
+
+
+@dataclass(frozen=True)
+class ScaleCheck:
+    """The stated scale against the one measured from known structure (``sources``: what was measured, in words)."""
+
+    stated_px_per_mm: float
+    sources: tuple[str, ...]
+    measurement: ScaleMeasurement | None
+
+    @property
+    def checked(self) -> bool:
+        return self.measurement is not None and self.measurement.n_mounts >= MIN_MOUNTS
+
+    @property
+    def measured_px_per_mm(self) -> float:
+        return self.measurement.px_per_mm if self.measurement is not None else math.nan
+
+    @property
+    def deviation(self) -> float:
+        """Measured / stated - 1 (NaN when unchecked)."""
+        return self.measured_px_per_mm / self.stated_px_per_mm - 1 if self.checked else math.nan
+
+    @property
+    def limit(self) -> float:
+        """The tolerance this check can hold: :data:`SCALE_TOLERANCE`, or the 99 % t-interval's half-width over the
+        mounts if wider (three mounts of one magnification each say little about the bench's spread)."""
+        if not self.checked:
+            return math.nan
+        from scipy.stats import t
+
+        error = self.measurement.standard_error
+        if not math.isfinite(error):
+            return SCALE_TOLERANCE
+        return max(SCALE_TOLERANCE, float(t.ppf(0.995, self.measurement.n_mounts - 1)) * error)
+
+    @property
+    def off(self) -> bool:
+        """True when the measured scale differs from the stated one by more than :attr:`limit`."""
+        return self.checked and abs(self.deviation) > self.limit
+
+    def summary(self) -> str:
+        """One line: what was measured, from what, against what (or why the scale could not be checked)."""
+        if not self.checked:
+            seen = 0 if self.measurement is None else self.measurement.n_mounts
+            what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or a specimen of stated period"
+            return (f"scale not checked: {seen} mount(s) show {what} (at least {MIN_MOUNTS} needed); "
+                    f"{self.stated_px_per_mm:g} px/mm taken as stated")
+        m = self.measurement
+        return (f"scale: measured {m.px_per_mm:.4g} px/mm (+-{100 * m.standard_error:.2g} %, {m.n_measured} presses "
+                f"in {m.n_mounts} mounts, "
+                f"from {' and '.join(self.sources)}) against the stated {self.stated_px_per_mm:g} px/mm "
+                f"({100 * self.deviation:+.1f} %; tolerance +-{100 * self.limit:.2g} %)")
+
+
+    def correction(self) -> str:
+        """The one line a run that corrects its scale prints (and its report keeps)."""
+        return (f"{self.summary()}: {CORRECTED} {self.measured_px_per_mm:.4g} px/mm in place of study.toml's; "
+                "run `roughsense calibrate` to measure and write it")
+
+    def reason(self) -> str:
+        """What a row flagged for its scale says (the ``outside`` column's words)."""
+        return (f"scale: the images measure {self.measured_px_per_mm:.4g} px/mm, read at {self.stated_px_per_mm:g} "
+                f"px/mm ({100 * self.deviation:+.1f} %)")
+
+
+def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleCheck:
+    """The scale check over ``groups`` of (source in words, period in mm, gray lines[, their mount labels]): every
+    line's own px/mm, pooled into one median; a line without a label is a mount of its own."""
+    sources, values, mounts = [], [], []
+    for number, (source, period_mm, lines, *labels) in enumerate(groups):
+        if not lines:
+            continue
+        sources.append(source)
+        values.append(check_scale(lines, period_mm, stated_px_per_mm).px_per_mm_each)
+        # a mount read from two structures (a pad's ridges and its grating) is one magnification: labels are shared
+        own = labels[0] if labels and labels[0] is not None else [f"{number}: line {i}" for i in range(len(lines))]
+        mounts.extend(str(label) for label in own)
+    if not values:
+        return ScaleCheck(float(stated_px_per_mm), (), None)
+    sources = list(dict.fromkeys(sources))
+    measurement = ScaleMeasurement(math.nan, np.concatenate(values), np.asarray(mounts, dtype=object))
+    return ScaleCheck(float(stated_px_per_mm), tuple(sources), measurement)
+
+
+#: Presses per known structure (a pad's ridges; each specimen) a study's check reads, spread over its mounts: a
+#: mount's period is read to about the bench's magnification jitter, and the mounts of every specimen pool.
+STUDY_PRESSES = 6
+#: Specimen shapes whose wavelength_mm is a period the image repeats (a random surface's is a correlation length).
+PERIODIC_SHAPES = ("rectangular", "circular", "sinusoidal")
+
+
+def stated_periods(study) -> dict[str, float]:
+    """Each periodic specimen's period (specimens.csv's wavelength_mm) that the band resolves (1-10 mm for the paper's
+    band), by name: structure of known period in every study, the reference specimen's first."""
+    table = study.specimens.set_index("specimen")
+    ordered = [study.reference_specimen, *[s for s in table.index if s != study.reference_specimen]]
+    return {s: float(table.loc[s, "wavelength_mm"]) for s in ordered if s in table.index
+            and str(table.loc[s, "shape"]).lower() in PERIODIC_SHAPES and 1.0 <= table.loc[s, "wavelength_mm"] <= 10.0}
+
+
+def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRESSES) -> ScaleCheck:
+    """The study's stated scale against its pads' ridges (``pad``'s only, if given) and its specimens' stated periods."""
+    from ..errors import ConfigError
+    from ..sensor.spectrum import SpatialSpectrum
+
+    reader = SpatialSpectrum(px_per_mm=study.sensor.px_per_mm, roi=study.sensor.roi,
+                             max_pixels=study.sensor.max_pixels)
+    try:
+        reader.fit()
+    except ConfigError:  # a scale the band cannot be read at: the analysis refuses it, naming study.toml
+        return ScaleCheck(float(study.sensor.px_per_mm), (), None)
+    manifest = study.manifest
+
+    def read(source: str, period: float, rows) -> tuple:
+        """Presses spread over the mounts first (one per mount, then a second ...), up to ``presses``."""
+        rows = rows.assign(mount=[f"{s}/{p}/{r}" for s, p, r in zip(rows["specimen"], rows["pad"], rows["repetition"])])
+        order = rows.groupby("mount", sort=False).cumcount().sort_values(kind="stable").index
+        picked = rows.loc[order[:presses]]
+        return (source, period, [reader.line(study.root / image)[0] for image in picked["image"]],
+                list(picked["mount"]))
+
+    groups = []
+    for name, ridge in study.pad_ridge_period_mm.items():
+        if pad is None or name == pad:
+            groups.append(read(f"the {name} pad's {ridge:g} mm ridges", ridge, manifest[manifest["pad"] == name]))
+    mine = manifest[manifest["pad"] == pad] if pad else manifest
+    for specimen, period in stated_periods(study).items():
+        rows = mine[mine["specimen"] == specimen]
+        if len(rows):
+            groups.append(read("the specimens' periods in specimens.csv", period, rows))
+    return check_study_lines(groups, float(study.sensor.px_per_mm))
+
+
+def corrected(study, check: ScaleCheck):
+    """The study read at the measured scale where the check found the stated one off, else the study as it is."""
+    from dataclasses import replace
+
+    if not check.off:
+        return study
+    return replace(study, sensor=replace(study.sensor, px_per_mm=round(check.measured_px_per_mm, 4)))
