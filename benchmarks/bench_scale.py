@@ -95,7 +95,7 @@ def calibrate_goal(work: Path) -> None:
         for (pad, specimen), group in study.manifest.groupby(["pad", "specimen"]):
             period = float(study.specimens.set_index("specimen").loc[specimen, "wavelength_mm"])
             lines = [reader.line(study.root / image)[0] for image in group["image"]]
-            m = calibrate_scale(lines, period, px_per_mm_range=(10, 120),
+            m = calibrate_scale(lines, period,  # the CLI's default search: every resolvable scale
                                 ridge_period_mm=study.pad_ridge_period_mm.get(pad))
             rows.append({"pad": pad, "specimen": specimen, "error": m.px_per_mm / px - 1, "n": m.n_measured})
         table = pd.DataFrame(rows)

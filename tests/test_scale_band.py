@@ -43,12 +43,13 @@ def test_a_sinusoid_reads_its_own_period_below_the_bin(period_px, phase):
 @pytest.mark.parametrize("px_per_mm", [20.0, 34.9, 47.3, 60.0])
 @pytest.mark.parametrize("period_mm", [2.0, 3.0, 5.0])
 @pytest.mark.parametrize("ridge_mm", [None, 1.0])
-def test_calibrate_recovers_the_scale_of_a_grating_with_or_without_ridges(px_per_mm, period_mm, ridge_mm):
-    """From an unknown scale (searched over 10-120 px/mm), a square grating's period gives px/mm within 0.1 %,
-    also where a pad's ridges outshine it; check_scale, told a scale 8 % off, finds the same."""
+@pytest.mark.parametrize("searched", [None, (10, 120)])
+def test_calibrate_recovers_the_scale_of_a_grating_with_or_without_ridges(px_per_mm, period_mm, ridge_mm, searched):
+    """From an unknown scale (searched over every resolvable scale, or 10-120 px/mm), a square grating's period
+    gives px/mm within 0.1 %, also where a pad's ridges outshine it; check_scale, told a scale 8 % off, finds the same."""
     lines = [square_line(period_mm, px_per_mm, ridge_mm=ridge_mm, phase=p, noise=0.05, seed=i)
              for i, p in enumerate((0.1, 1.7, 2.9))]
-    measured = calibrate_scale(lines, period_mm, px_per_mm_range=(10, 120), ridge_period_mm=ridge_mm)
+    measured = calibrate_scale(lines, period_mm, px_per_mm_range=searched, ridge_period_mm=ridge_mm)
     assert measured.n_measured == 3 and measured.px_per_mm == pytest.approx(px_per_mm, rel=1e-3)
     checked = check_scale(lines, period_mm, 1.08 * px_per_mm)
     assert checked.px_per_mm == pytest.approx(px_per_mm, rel=1e-3)
@@ -277,3 +278,27 @@ def test_one_mount_read_from_two_structures_is_one_mount():
     lines = [square_line(3.0, 34.9 * m, ridge_mm=1.0, phase=i, seed=i) for i, m in enumerate((0.99, 1.0, 1.01))]
     check = check_study_lines([("ridges", 1.0, lines, ["a", "b", "c"]), ("R3", 3.0, lines, ["a", "b", "c"])], 34.9)
     assert check.measurement.n_measured == 6 and check.measurement.n_mounts == 3
+
+
+def test_the_default_search_spans_every_scale_the_target_resolves():
+    """3 px per period (past Nyquist's 2) up to 5 periods on the line: a 480 px line and a 3 mm target search
+    1-32 px/mm, so a downscaled camera at 8.7 px/mm (the example study's) is inside, unlike a fixed 10-120."""
+    from roughsense.sensor.period import resolvable_scales
+
+    assert resolvable_scales(480, 3.0) == pytest.approx((1.0, 32.0))
+    lines = [square_line(3.0, 8.725, ridge_mm=1.0, phase=p, noise=0.05, seed=i)[:480] for i, p in enumerate((0.3, 2.2))]
+    assert calibrate_scale(lines, 3.0, ridge_period_mm=1.0).px_per_mm == pytest.approx(8.725, rel=2e-3)
+
+
+def test_calibrate_from_one_mount_states_no_precision_and_writes_nothing(run_cli, tmp_path):
+    """One mount of R3 gives a value but no standard error: it is printed as unknown (never 'nan %') and study.toml
+    is left as it was."""
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "one", repetitions=1)
+    before = (root / "study.toml").read_bytes()
+    code, out, err = run_cli("calibrate", root, "--dry-run")
+    assert code == 0 and "precision unknown from 1 mount" in out and "nan" not in out, err
+    code, _, err = run_cli("calibrate", root, "--force")
+    assert code == 2 and "1 mount(s) of the target cannot say how precise" in err and len(err.splitlines()) == 1
+    assert (root / "study.toml").read_bytes() == before

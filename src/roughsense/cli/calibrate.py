@@ -10,6 +10,9 @@ from ..errors import ConfigError
 from ._common import number_option
 
 ORDER = 5
+#: The fewest mounts of a target whose measurement is written: a standard error needs two (the scale check that
+#: every run makes wants three, model.scale_check.MIN_MOUNTS).
+MIN_MOUNTS = 2
 
 Folder = Annotated[str, typer.Argument(metavar="DIR", help="The study folder: its manifest lists the presses, its "
                                                            "study.toml receives px_per_mm.")]
@@ -21,14 +24,16 @@ Ridges = Annotated[bool, typer.Option(
     "--ridges", help="The target: the ridges of every pad with [pads.NAME] ridge_period_mm (every press of it).")]
 Limit = Annotated[int, typer.Option("--limit", parser=number_option("--limit", whole=True, low=1),
                                     help="At most this many presses, evenly spread over the manifest.")]
-ScaleRange = Annotated[str, typer.Option(
-    "--range", help="LOW,HIGH: the px/mm searched (a new rig's scale is not known yet).")]
+ScaleRange = Annotated[str | None, typer.Option(
+    "--range", show_default=False,
+    help="LOW,HIGH: the px/mm searched (a new rig's scale is not known yet). Default: every scale at which the "
+         "target shows at least 3 px per period and 5 periods on the line.")]
 DryRun = Annotated[bool, typer.Option("--dry-run", help="Measure and print; write nothing.")]
 Force = Annotated[bool, typer.Option("--force", help="Replace a px_per_mm study.toml already states.")]
 
 
 def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False, limit: Limit = 30,
-              scale_range: ScaleRange = "10,120", dry_run: DryRun = False, force: Force = False) -> None:
+              scale_range: ScaleRange = None, dry_run: DryRun = False, force: Force = False) -> None:
     """Measure the camera's scale (px/mm) from presses of a target of known period and write it into study.toml.
 
     Each press's line is read where the study's [sensor] roi says; the target's period in pixels is found first
@@ -41,31 +46,39 @@ def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False,
     from ..io.study import STUDY_TOML, read_study
     from ._common import parse_float_list
 
-    low_high = parse_float_list(scale_range, name="range")
-    if len(low_high) != 2 or not 0 < low_high[0] < low_high[1]:
+    low_high = None if scale_range is None else tuple(parse_float_list(scale_range, name="range"))
+    if low_high is not None and (len(low_high) != 2 or not 0 < low_high[0] < low_high[1]):
         raise ConfigError(f"--range must be LOW,HIGH px/mm with 0 < LOW < HIGH, got {scale_range!r}")
     if ridges and specimen is not None:
         raise ConfigError("give one target: --specimen NAME or --ridges, not both")
     study = read_study(Path(folder))
     targets = _targets(study, specimen, ridges, limit)
-    measurement, what = _measure(study, targets, tuple(low_high))
-    m = measurement
+    m, what = _measure(study, targets, low_high)
     if m.n_measured == 0:
-        raise ConfigError(f"no press of {what} shows a peak of its period within --range {scale_range}")
-    spread = 100 * (m.measured.std(ddof=1) / m.px_per_mm if m.n_measured > 1 else float("nan"))
-    text = (f"{m.px_per_mm:.4f} px/mm measured from {m.n_measured} of {m.px_per_mm_each.size} presses of {what}: "
-            f"+-{100 * m.standard_error:.2g} % (standard error over {m.n_mounts} mounts), {spread:.2g} % SD from press "
-            "to press, "
-            f"range {m.measured.min():.4g}-{m.measured.max():.4g}")
-    typer.echo(text)
+        searched = "the scales searched" if scale_range is None else f"--range {scale_range}"
+        raise ConfigError(f"no press of {what} shows a peak of its period within {searched}")
+    typer.echo(f"{m.px_per_mm:.4f} px/mm measured from {m.n_measured} of {m.px_per_mm_each.size} presses of {what}: "
+               f"{_precision(m)}, range {m.measured.min():.4g}-{m.measured.max():.4g}")
     if dry_run:
         return
+    if m.n_mounts < MIN_MOUNTS:
+        raise ConfigError(f"{m.n_mounts} mount(s) of the target cannot say how precise the scale is: nothing written; "
+                          f"press it in at least {MIN_MOUNTS} mounts (or look with --dry-run)")
     toml_path = study.root / STUDY_TOML
     note = (f"roughsense calibrate: {m.n_measured} presses of {what}, +-{100 * m.standard_error:.2g} % (standard "
             "error)")
     previous = write_px_per_mm(toml_path, m.px_per_mm, note=note, force=force)
     was = "" if previous is None else f" (was {previous:g})"
     typer.echo(f"wrote [sensor] px_per_mm = {round(m.px_per_mm, 4):g}{was} to {toml_path}")
+
+
+def _precision(m) -> str:
+    """How precisely the scale is known, in words: over mounts (their magnification differs), never a NaN."""
+    if m.n_mounts < 2:
+        return f"precision unknown from {m.n_mounts} mount (at least {MIN_MOUNTS} are needed)"
+    spread = 100 * m.measured.std(ddof=1) / m.px_per_mm
+    return (f"+-{100 * m.standard_error:.2g} % (standard error over {m.n_mounts} mounts), {spread:.2g} % SD from "
+            "press to press")
 
 
 def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tuple]:

@@ -22,6 +22,10 @@ ZOOM = 8
 #: How far (relative) a known period is searched either side of where the stated scale puts it: beyond the
 #: scale errors a moved camera makes (a few %), short of the next structure (a grating's 2nd harmonic is x2).
 CHECK_WINDOW = 0.15
+#: The finest period read for calibration, in px: 2 is the Nyquist limit, 3 keeps the peak clear of it.
+MIN_PX_PER_PERIOD = 3.0
+#: The fewest periods on the line for calibration: a coarser target is lost among the illumination's slow variation.
+MIN_PERIODS_PER_LINE = 5.0
 
 
 def _tapered(line) -> np.ndarray:
@@ -127,7 +131,14 @@ def check_scale(lines: Sequence, period_mm: float, px_per_mm: float, *, window: 
     return ScaleMeasurement(float(period_mm), np.asarray(each, dtype=np.float64))
 
 
-def calibrate_scale(lines: Sequence, period_mm: float, *, px_per_mm_range: tuple[float, float],
+def resolvable_scales(line_px: int, period_mm: float) -> tuple[float, float]:
+    """The px/mm at which a target of ``period_mm`` can be read on a line of ``line_px``: from
+    :data:`MIN_PX_PER_PERIOD` px per period (finer aliases) to :data:`MIN_PERIODS_PER_LINE` periods on the line
+    (coarser is lost among the illumination's own slow variation). A new rig's scale is searched over all of it."""
+    return MIN_PX_PER_PERIOD / period_mm, line_px / (MIN_PERIODS_PER_LINE * period_mm)
+
+
+def calibrate_scale(lines: Sequence, period_mm: float, *, px_per_mm_range: tuple[float, float] | None = None,
                     ridge_period_mm: float | None = None) -> ScaleMeasurement:
     """px/mm measured from a target of ``period_mm`` on each line, the scale not yet known (a new rig).
 
@@ -137,6 +148,8 @@ def calibrate_scale(lines: Sequence, period_mm: float, *, px_per_mm_range: tuple
     refined as :func:`check_scale` refines it. A press whose scale lands beyond :data:`CHECK_WINDOW` of the
     presses' median (it read a harmonic or other structure) is read again within that window of the median.
     """
+    if px_per_mm_range is None:
+        px_per_mm_range = resolvable_scales(min(np.asarray(line).size for line in lines), period_mm)
     low, high = (float(v) for v in px_per_mm_range)
     if not 0 < low < high:
         raise InputError(f"the scale range must satisfy 0 < low < high px/mm, got {low:g}, {high:g}")
