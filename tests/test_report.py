@@ -305,13 +305,13 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     """The section a user needs comes before the paper's LOO tables, with the analysis's numbers in it."""
     html = (report_dir / "index.html").read_text()
     body = html.split("</nav>", 1)[1]
-    start = body.index('<h2 id="unseen">Surfaces never seen (leave-one-specimen-out)</h2>')
+    start = body.index('<h2 id="unseen">Surfaces held out of training (a grating, a period, a shape)</h2>')
     assert start < body.index('id="glance"') < body.index('id="results-loo"')
     assert start < body.index("Perceived and predicted roughness, smooth pad, LOO (mean ± SD)")
     section = body[start: body.index('id="glance"')]
     assert 'data-name="unseen_surfaces.png"' in section
     assert "user data" in section and "digital twin" not in section  # a real study: no twin caveat
-    rows = _rows(html, "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition")
+    rows = _rows(html, "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition")
     assert len(rows) == 2 * 2 * 4
     controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
     loso = pd.read_csv(report_dir / "results_loso.csv")
@@ -450,3 +450,33 @@ def test_the_first_screen_answers(report_dir, simulated_report_dir):
             assert height > 900
     finally:
         driver.quit()
+
+
+def test_the_held_out_table_shows_every_scheme_with_the_csvs_numbers(report_dir):
+    """Issue 35: the report says what each scheme held out, and its cells are held_out.csv's numbers."""
+    from roughsense.analysis.held_out import SCHEME_WORDS
+
+    html = (report_dir / "index.html").read_text()
+    held = pd.read_csv(report_dir / "held_out.csv")
+    rows = _rows(html, "Held out of training: a grating, a period, a shape")
+    assert len(rows) == len(held) == 2 * 2 * 4 * 3  # models x pads x conditions x schemes
+    for row, (_, expected) in zip(rows, held.iterrows()):
+        assert row["Held out"][0] == f"{SCHEME_WORDS[expected.scheme]} ({expected.n_folds} folds)"
+        assert row["Mean RMSE"][0] == f"{expected.rmse:.3f}" and row["Bias"][0] == f"{expected.bias:+.3f}"
+        assert f"rectangular {expected.log_bias_rectangular:+.2f}" in row["Log bias by shape"][0]
+        assert row["Controls"][0].startswith("passes") == bool(expected.passes)
+    assert "never seen" not in html.split("</nav>", 1)[0]  # the first screen says what was held out
+
+
+def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
+    """Issue 35: the first screen's count leaves out a pass whose mean per-specimen RMSE is above the training mean's."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_lines
+
+    unseen = pd.DataFrame({"model": ["pls", "pls"], "pad": ["smooth", "fingerprint"], "condition": ["combined"] * 2,
+                           "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
+                           "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
+    analysis = SimpleNamespace(unseen_summary=lambda: unseen, held_out=pd.DataFrame(), simulation=None, synthetic=None)
+    text = " ".join(answer_lines(analysis))
+    assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text

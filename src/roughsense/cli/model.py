@@ -35,7 +35,7 @@ Rule = Annotated[str | None, typer.Option(
          "of it).")]
 ModelName = Annotated[str, typer.Option(
     "--model", help="Model family: peak-law (the default: a power law of where the spectrum peaks and how high, "
-                    "the family that passes its controls for surfaces never seen in training) or pls (the paper's "
+                    "the family that passes its controls for surfaces left out of training) or pls (the paper's "
                     "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
@@ -109,7 +109,7 @@ def _echo_unseen(unseen) -> None:
     width = f"{span(interval.trial_log_halfwidth, 'per trial')}, {span(interval.surface_log_halfwidth, 'per surface')}"
     if math.isfinite(interval.alone_log_halfwidth):
         width += f", {span(interval.alone_log_halfwidth, 'per press read alone')}"
-    typer.echo(f"surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
+    typer.echo(f"a grating left out of training (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
                f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
                f"90 % prediction interval {width}")
 

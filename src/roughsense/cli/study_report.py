@@ -169,11 +169,12 @@ def unseen_lines(analysis) -> list[str]:
 
     unseen = analysis.unseen_summary()
     if unseen.empty:
-        return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
+        return ["Held-out surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
     condition = COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
     rows = unseen[unseen["condition"] == condition]
     best = rows.loc[rows["rmse"].idxmin()]
-    lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "
+    lines = [f"Held-out surfaces (a grating left out of training: nested leave-one-specimen-out, {condition}; "
+             "mean per-specimen RMSE, lower is better): "
              f"best {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
              f"{best['null_rmse']:.2f}."]
     for pad, group in rows.groupby("pad", sort=False):

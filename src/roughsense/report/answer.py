@@ -1,14 +1,16 @@
 """The report's first screen: the answer to the question users ask, in a few lines, before anything else.
 
-Which model to use for a surface never trained on, how wrong it is there against the training mean, how often its
-90 % interval held the panel's value, where it passes its controls, and how far to trust it (whose images these
-are). Every number comes from the analysis's "surfaces never seen" summary (analysis/unseen.py), the same table
-the report shows below, so the first screen and the table cannot disagree.
+Which model to use for a new surface, how wrong it is with a grating, a period and a shape left out of training
+against the training mean, how often its 90 % interval held the panel's value, where it passes its controls, and
+how far to trust it (whose images these are). Every number comes from the analysis's held-out summaries
+(analysis/unseen.py, analysis/held_out.py), the same tables the report shows below, so the first screen and the
+tables cannot disagree.
 """
 from __future__ import annotations
 
 import pandas as pd
 
+from ..analysis.held_out import SCHEME_WORDS
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..paper import COMBINED
 from .tables import model_title
@@ -22,7 +24,7 @@ def answer_lines(analysis) -> list[str]:
                 "model predicts a surface it never saw. The leave-one-out results below describe specimens seen in "
                 "training."]
     passes = unseen["passes"].fillna(False).astype(bool)
-    lines = [_use_line(unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
+    lines = [_use_line(analysis, unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
     return [line for line in lines if line]
 
 
@@ -30,12 +32,12 @@ def _condition(unseen: pd.DataFrame) -> str:
     return COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
 
 
-def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
+def _use_line(analysis, unseen: pd.DataFrame, passes: pd.Series) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
     condition = _condition(unseen)
     passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
     if not passing:
-        return ("No model here passes its controls for surfaces never seen: this study supports no roughness score "
+        return ("No model here passes its controls for surfaces left out of training: this study supports no roughness score "
                 "for a new surface.")
     model = DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
     rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition) & passes]
@@ -47,18 +49,41 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
             if pd.notna(r.pi90_coverage_trials) else "")
         for r in rows.itertuples())
     default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
-    return (f"To score a surface the model never saw, use the {model_title(model)} ({model}{default}) on the pads and "
-            f"conditions where it passes its controls (next line). Its error on surfaces held out of training "
-            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}.")
+    return (f"To score a new surface, use the {model_title(model)} ({model}{default}) on the pads and "
+            f"conditions where it passes its controls (next line). Its error with a grating left out of training "
+            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}.{_stricter(analysis, model)}")
+
+
+def _stricter(analysis, model: str) -> str:
+    """The same model's error with a whole period, and a whole shape, left out (analysis/held_out.py)."""
+    held = getattr(analysis, "held_out", None)
+    if held is None or held.empty:
+        return ""
+    condition = _condition(held)
+    parts = []
+    for scheme in ("period", "shape"):
+        rows = held[(held["model"] == model) & (held["condition"] == condition) & (held["scheme"] == scheme)]
+        if not rows.empty:
+            parts.append(f"{SCHEME_WORDS[scheme]}: " + ", ".join(
+                f"{r.pad} {r.rmse:.2f} vs {r.null_rmse:.2f}, bias {r.bias:+.2f}" for r in rows.itertuples()))
+    text = "; ".join(parts)
+    return f" {text[:1].upper()}{text[1:]}." if parts else ""
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
-    """Where each model passes its controls (training mean and shuffled targets), pad x condition."""
+    """Where each model passes its controls (training mean and shuffled targets), pad x condition. A pass whose mean
+    per-specimen RMSE is not below the training mean's rests on the pooled RMSE alone and is counted apart."""
     parts = []
     for model, rows in unseen.groupby("model", sort=False):
         ok = passes[rows.index]
+        pooled_only = ok & ~(rows["rmse"] < rows["null_rmse"])
         where = ", ".join(f"{r.pad} {r.condition}" for r in rows[~ok].itertuples())
-        parts.append(f"{model_title(model)} passes in {int(ok.sum())} of {len(rows)}" + (f" (not {where})" if where else ""))
+        part = f"{model_title(model)} passes in {int((ok & ~pooled_only).sum())} of {len(rows)}" + (
+            f" (not {where})" if where else "")
+        if pooled_only.any():
+            part += (", and in " + ", ".join(f"{r.pad} {r.condition}" for r in rows[pooled_only].itertuples())
+                     + " on pooled RMSE only (its mean per-specimen RMSE is not below the training mean's)")
+        parts.append(part)
     shuffled = " and better than specimen-shuffled targets" if unseen["n_permutations"].max() > 0 else \
         " (no shuffled targets: --permutations 0)"
     return (f"Which model passes its controls for new surfaces (below the training mean{shuffled}, nested "

@@ -5,7 +5,7 @@ Everything is rendered in memory, written into a folder beside ``--out`` and swa
 report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
 URIs so it opens offline and can be mailed as one file.
 
-The page leads with the question a user asks (how well does each model predict a surface it never saw?), then
+The page leads with the question a user asks (how well does each model predict a surface left out of training?), then
 the paper's own protocol (LOO) and tables, which keep showing the paper's PLS as the paper did; every other model
 family gets its own, labelled tables beside them.
 """
@@ -24,6 +24,7 @@ import pandas as pd
 from .. import __version__, paper
 from .._util import atomic
 from ..analysis.claims import VERDICT_RULE, VERDICTS
+from ..analysis.held_out import SCHEME_WORDS
 from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
@@ -44,7 +45,7 @@ def template_environment() -> jinja2.Environment:
 
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
-                 "components.csv")
+                 "components.csv", "held_out.csv")
 _REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)"
                             r"\.(png|svg|pdf)$")
 
@@ -109,7 +110,8 @@ def plain_words(analysis) -> list[str]:
             "and OVL close to the paper's confirm the tuning, not the method.")
         lines.append(
             "Findings (about the digital twin, not about real skin or a real rig): whether the spectra predict roughness "
-            "for a specimen the model never saw (LOSO), whether models beat specimen-shuffled targets and the training "
+            "for a grating left out of training (LOSO; a period and a shape left out beside it), whether models beat "
+            "specimen-shuffled targets and the training "
             "mean (Controls), and which of the paper's claims hold under those checks (Claims).")
     else:
         lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
@@ -145,10 +147,10 @@ def failing_models(analysis) -> list[str]:
 
 
 def unseen_words(analysis) -> list[str]:
-    """What the "surfaces never seen" section can and cannot claim: whose images and ratings these are."""
+    """What the "held out of training" section can and cannot claim: whose images and ratings these are."""
     if not any(f.cv == "loso" for f in analysis.fits):
         return ["Leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any model "
-                "predicts a surface it never saw; the LOO results below describe specimens seen in training."]
+                "predicts a grating left out of training; the LOO results below describe specimens seen in training."]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
              "clearly below the training mean's and it beats specimen-shuffled targets."]
@@ -189,6 +191,7 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         headline=tables.headline_table(analysis, paper_pads),
         unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
         unseen_words=unseen_words(analysis),
+        held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
                                                     else analysis.models[0])),
         unseen_figure=unseen_figure,
@@ -228,6 +231,8 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     files["controls.csv"] = _csv_bytes(analysis.controls)
     files["claims.csv"] = _csv_bytes(analysis.claims)
     files["paper_predictive.csv"] = _csv_bytes(analysis.paper_predictive)
+    if not analysis.held_out.empty:
+        files["held_out.csv"] = _csv_bytes(analysis.held_out)
     return files
 
 
@@ -258,7 +263,7 @@ def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, 
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
     return _figure(analysis, files, "unseen_surfaces",
                    figures.unseen_figure(results["loso"], analysis.perceived, condition),
-                   f"Surfaces never seen: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
+                   f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
                    f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.", style)
 
 
