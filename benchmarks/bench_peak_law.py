@@ -56,8 +56,9 @@ SHAPE_FLAG_GOAL = 0.8
 SHAPE_RMSE_GOAL = 0.20
 SHAPE_BIAS_GOAL = 0.1
 SHAPE_UNFLAGGED_BIAS = 0.15
-#: Empirical coverage of the 90 % interval on held-out specimens (trials), combined condition, seeds 0-2.
+#: The 90 % surface interval (jackknife+, fully nested): coverage of held-out specimens and its median width factor.
 COVERAGE_GOAL = (0.85, 0.95)
+WIDTH_GOAL = 1.6
 N_PERMUTATIONS = 199
 MAX_COMPONENTS = 20
 
@@ -133,7 +134,9 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     from roughsense.analysis.held_out import judged as scheme_scores
     from roughsense.analysis.held_out import scheme_folds
     from roughsense.model.interval import held_out_coverage
+    from roughsense.model.jackknife_plus import nested_check
     from roughsense.model.peak_law import held_out_flags, peak_law_cv
+    from roughsense.model.peak_law_folds import law_pair_log_predictions, specimen_codes
 
     X, meta = dataset.condition_matrix(features, pad, condition)
     y = dataset.targets(meta, perceived)
@@ -145,6 +148,12 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
     wavelengths = dict(zip(study.specimens["specimen"], study.specimens["wavelength_mm"].astype(float)))
     null = judge(null_loso(y, specimens), y, meta, perceived, study.reference_specimen)
+    codes, names = specimen_codes(specimens)
+    check = nested_check(law_pair_log_predictions(X, y, specimens, **settings),
+                         np.log(pd.Series(y).groupby(codes).first().to_numpy()), names)
+    jackknife = {"jk_coverage": float(check["covered"].mean()),
+                 "jk_factor": float(np.exp(check["log_halfwidth"].median())),
+                 "jk_misses": " ".join(check.loc[~check["covered"], "specimen"])}
     rows = []
     for scheme in ("specimen", "period", "shape"):
         folds = scheme_folds(scheme, specimens, shapes, wavelengths)
@@ -152,18 +161,22 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
         flags = pd.Series(held_out_flags(X, y, folds, **settings), index=specimens)
         contenders = (("peak-law", law), ("pls", pls_loso(X, both, specimens))) if scheme == "specimen" else \
             (("peak-law", law),)
+        parts = [("all", np.ones(len(y), bool))] if scheme != "shape" else [(f, folds == f) for f in pd.unique(folds)]
         for model, predictions in contenders:
-            scores = judge(predictions[0], y, meta, perceived, study.reference_specimen)
-            extra = scheme_scores(predictions[0], y, specimens, folds, shapes, study.reference_specimen)
             trials, surfaces = held_out_coverage(predictions[0], y, specimens)
             is_law = model == "peak-law"
-            rows.append({"seed": seed, "pad": pad, "condition": condition, "scheme": scheme, "model": model, **scores,
-                         "null_rmse": extra["null_rmse"] if scheme != "specimen" else null["rmse"],
-                         "bias": extra["bias"], **{k: v for k, v in extra.items() if k.startswith("log_bias_")},
-                         "p": permutation_p(predictions[0], predictions[1:], y, Y),
-                         "coverage_trials": trials, "coverage_specimens": surfaces,
-                         "flagged_share": float(flags.mean()) if is_law else float("nan"),
-                         "flagged_max": float(flags.groupby(level=0).mean().max()) if is_law else float("nan")})
+            for held, rows_in in parts:  # a shape left out: each direction on its own row
+                extra = scheme_scores(predictions[0], y, specimens, folds, shapes, study.reference_specimen, rows_in)
+                rows.append({"seed": seed, "pad": pad, "condition": condition, "scheme": scheme, "held_out": held,
+                             "model": model, "rmse": extra["rmse"], "rho": extra["spearman_rho"],
+                             "null_rmse": extra["null_rmse"] if scheme != "specimen" else null["rmse"],
+                             "bias": extra["bias"], "log_bias_rectangular": extra.get("log_bias_rectangular", np.nan),
+                             "log_bias_circular": extra.get("log_bias_circular", np.nan),
+                             "p": permutation_p(predictions[0], predictions[1:], y, Y),
+                             "coverage_trials": trials, "coverage_specimens": surfaces,
+                             "flagged_share": float(flags[rows_in].mean()) if is_law else float("nan"),
+                             "flagged_max": float(flags.groupby(level=0).mean().max()) if is_law else float("nan"),
+                             **(jackknife if is_law and scheme == "specimen" else {})})
     return rows
 
 
@@ -186,8 +199,10 @@ def print_table(frame: pd.DataFrame) -> None:
           "share of held-out presses flagged")
     print(f"{'seed':>4} {'pad':>11} {'cond':>8} {'scheme':>8} | {'law':>6} {'null':>6} {'bias':>6} {'rect':>6} "
           f"{'circ':>6} {'p':>6} {'rho':>5} {'cover':>5} {'flag':>5} | {'PLS':>6} {'p':>6} {'rho':>5}")
-    for (seed, pad, condition, scheme), group in frame.groupby(["seed", "pad", "condition", "scheme"], sort=False):
+    for (seed, pad, condition, scheme, held), group in frame.groupby(["seed", "pad", "condition", "scheme", "held_out"],
+                                                                       sort=False):
         law = group[group.model == "peak-law"].iloc[0]
+        scheme = scheme if held == "all" else f"{held[:4]}."
         pls = group[group.model == "pls"]
         tail = f"{pls.rmse.iloc[0]:6.3f} {pls.p.iloc[0]:6.3f} {pls.rho.iloc[0]:5.2f}" if len(pls) else ""
         print(f"{seed:>4} {pad:>11} {condition:>8} {scheme:>8} | {law.rmse:6.3f} {law.null_rmse:6.3f} {law.bias:+6.3f} "
@@ -231,6 +246,10 @@ def print_goals(frame: pd.DataFrame) -> None:
         ok = flagged | (losho.bias.abs() <= SHAPE_UNFLAGGED_BIAS)
         print(f"{_verdict(ok)} {label}: a shape left out: never an unflagged |bias| > {SHAPE_UNFLAGGED_BIAS}" + _misses(
             losho, ok, lambda r: f"bias {r.bias:+.3f} flagged {r.flagged_share:.0%}"))
+        ok = loso.jk_coverage.between(*COVERAGE_GOAL) & (loso.jk_factor <= WIDTH_GOAL)
+        print(f"{_verdict(ok)} {label}: 90 % surface interval (jackknife+, nested): coverage {COVERAGE_GOAL[0]:.0%}-"
+              f"{COVERAGE_GOAL[1]:.0%}, median width <= x/÷ {WIDTH_GOAL}" + _misses(
+                  loso, ok, lambda r: f"{r.jk_coverage:.3f} x/÷ {r.jk_factor:.2f} (misses {r.jk_misses})"))
     loso = law[law.scheme == "specimen"]
     seeds_ok = (loso.rho >= RHO_GOAL).groupby([loso.pad, loso.condition]).sum()
     print(f"{_verdict(seeds_ok >= RHO_SEEDS)} LOSO rho >= {RHO_GOAL} on at least {RHO_SEEDS} of the seeds, per pad x "

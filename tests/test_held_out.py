@@ -108,3 +108,25 @@ def test_the_study_reports_every_scheme_and_its_period_rows_are_the_law_refitted
     per = pd.DataFrame({"s": specimens, "e": (direct - y) ** 2}).groupby("s")["e"].mean()
     assert law.rmse == pytest.approx(float(np.sqrt(per).mean()))
     assert law.n_folds == len(set(periods)) and law.n_permutations == 19
+
+
+def test_the_study_quotes_the_nested_jackknife_plus_and_its_misses(analysis):
+    """The summary's coverage and misses are the nested check's; the unsure table marks each miss with its factor."""
+    from roughsense.analysis.unseen import unsure_specimens
+
+    result, _, _ = analysis
+    unseen = result.unseen_summary()
+    law = unseen[unseen.model == "peak-law"].iloc[0]
+    fit = result.condition_fit(law.pad, law.condition, "loso", "peak-law")
+    check = fit.interval_check
+    assert law.jackknife_plus_coverage == pytest.approx(check["covered"].mean())
+    missed = check[~check["covered"]]
+    assert [part.split(" ")[0] for part in law.jackknife_plus_misses.split("; ") if part] == list(missed["specimen"])
+    assert np.isnan(unseen[unseen.model == "pls"]["jackknife_plus_coverage"]).all()  # PLS has no leave-two-out fits
+    unsure = unsure_specimens(result, "peak-law", per_pad=14)
+    for row in unsure[unsure.pad == law.pad].itertuples():
+        mine = check.set_index("specimen").loc[row.specimen]
+        assert row.covered == mine["covered"] and row.pi90_low == pytest.approx(mine["pi90_low"])
+        if not row.covered:  # outside by exp(miss_log): the perceived value over the bound it passed
+            bound = row.pi90_low if row.perceived < row.pi90_low else row.pi90_high
+            assert row.missed_by == pytest.approx(max(bound / row.perceived, row.perceived / bound))

@@ -9,7 +9,8 @@ Two stricter schemes say how far that carries:
   is new; a model that cannot tell shapes apart shows it as a bias of one sign per shape.
 
 Each row gives, per model x pad x condition x scheme, the mean per-specimen RMSE beside the training mean's under
-the same folds, the mean bias (rating units) and the mean log bias of each shape, Spearman's rho over the rated
+the same folds, the mean bias (rating units) and the mean log bias of each shape (a shape left out: one row per
+held-out shape, its specimens only), Spearman's rho over the rated
 specimens, the permutation p (the peak law only: its batched CV refits every shuffled target at no cost; PLS's
 nested search would double the study's controls) and the share of presses the applicability flag fell on. The
 ``specimen`` rows are the study's own LOSO fits and controls, repeated here so the three schemes stand side by side.
@@ -32,7 +33,7 @@ from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targ
 SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
                 "shape": "a shape left out (fitted on the other)"}
 SCHEMES = tuple(SCHEME_WORDS)
-HELD_OUT_COLUMNS = ["model", "pad", "condition", "scheme", "n_folds", "rmse", "null_rmse", "bias", "spearman_rho",
+HELD_OUT_COLUMNS = ["model", "pad", "condition", "scheme", "held_out", "n_folds", "rmse", "null_rmse", "bias", "spearman_rho",
                     "permutation_p", "n_permutations", "passes", "flagged_share"]
 
 
@@ -67,10 +68,13 @@ def pls_scheme_predictions(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, 
 
 
 def judged(prediction: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray, shapes: dict,
-           reference: str) -> dict:
-    """RMSE (mean per specimen) beside the training mean's, bias, log bias per shape and rho of one scheme."""
+           reference: str, rows=None) -> dict:
+    """RMSE (mean per specimen) beside the training mean's, bias, log bias per shape and rho of one scheme, over
+    ``rows`` (a boolean mask; default every row)."""
     frame = pd.DataFrame({"specimen": specimens, "prediction": prediction, "target": y,
                           "null": fold_mean_predictions(y, folds)})
+    if rows is not None:
+        frame = frame[np.asarray(rows, dtype=bool)]
     frame["error2"] = (frame["prediction"] - frame["target"]) ** 2
     frame["null2"] = (frame["null"] - frame["target"]) ** 2
     per = frame.groupby("specimen", sort=False).mean()
@@ -101,13 +105,18 @@ def held_out_analysis(analysis, jobs) -> pd.DataFrame:
             if scored is None:
                 continue
             prediction, p, n_perm, flags = scored
-            row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
-                   "n_folds": int(pd.Series(folds).nunique()),
-                   **judged(prediction, y, specimens, folds, analysis.shapes, analysis.reference_specimen),
-                   "permutation_p": p, "n_permutations": n_perm,
-                   "flagged_share": float(np.mean(flags)) if flags is not None else float("nan")}
-            row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
-            rows.append(row)
+            # A shape left out is two experiments (each shape predicted from the other): a row each, so one
+            # direction's bias cannot cancel the other's.
+            parts = [("all", None)] if scheme != "shape" else [(str(f), folds == f) for f in pd.unique(folds)]
+            for held, mask in parts:
+                chosen = np.ones(len(y), bool) if mask is None else mask
+                row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
+                       "held_out": held, "n_folds": int(pd.Series(folds).nunique()),
+                       **judged(prediction, y, specimens, folds, analysis.shapes, analysis.reference_specimen, chosen),
+                       "permutation_p": p, "n_permutations": n_perm,
+                       "flagged_share": float(np.mean(flags[chosen])) if flags is not None else float("nan")}
+                row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
+                rows.append(row)
     return held_out_table(rows)
 
 

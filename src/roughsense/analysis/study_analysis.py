@@ -23,8 +23,10 @@ from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.applicability import held_out_flags as pls_flags
 from ..model.families import MODEL_FAMILIES, PEAK_LAW, PLS, check_model_name
+from ..model.jackknife_plus import nested_check
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.peak_law import held_out_flags as peak_law_flags
+from ..model.peak_law_folds import law_pair_log_predictions, specimen_codes
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
@@ -64,6 +66,9 @@ class ConditionFit:
     model: str = PLS
     #: LOSO only: whether each trial lay outside the applicability domain of the model fitted without its specimen.
     held_out_flags: np.ndarray | None = None
+    #: LOSO only: each specimen's jackknife+ surface interval from models that never saw it (model/jackknife_plus.py's
+    #: ``nested_check``); None for a family without cheap leave-two-out fits (PLS).
+    interval_check: pd.DataFrame | None = None
 
 
 @dataclass
@@ -303,6 +308,17 @@ def held_out_flags(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: n
     return pls_flags(X, y, specimens, counts, readout)
 
 
+def interval_check(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict
+                   ) -> pd.DataFrame | None:
+    """The fully nested jackknife+ check of a LOSO fit's surface intervals (the peak law's leave-two-out fits are one
+    batch; PLS would need a nested component search per pair, and has none)."""
+    if fit.model != PEAK_LAW:
+        return None
+    codes, names = specimen_codes(specimens)
+    log_targets = np.log(pd.Series(y).groupby(codes).first().to_numpy())
+    return nested_check(law_pair_log_predictions(X, y, specimens, **law), log_targets, names)
+
+
 def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
     """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
 
@@ -514,6 +530,7 @@ def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, 
         for fit in _model_fits(analysis, X, y, meta, pad, condition, cv, law):
             if cv == "loso":
                 fit.held_out_flags = held_out_flags(fit, X, y, specimens, law)
+                fit.interval_check = interval_check(fit, X, y, specimens, law)
             analysis.fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
     return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))

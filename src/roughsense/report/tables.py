@@ -380,7 +380,7 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                      _cell(permutation_p_text(r["permutation_p"], r["n_permutations"])),
                      _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]),
                                         mean_rmse=r["rmse"], null_mean_rmse=r["null_rmse"])),
-                     _cell(rho), _cell(_coverage_text(r)), _cell(_flag_text(r))])
+                     _cell(rho), _cell(_coverage_text(r)), _cell(_jackknife_text(r)), _cell(_flag_text(r))])
     return {
         "title": "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition",
         "caption": ("Every specimen is predicted by a model fitted without any of its images (PLS: its component count "
@@ -393,13 +393,25 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                     "mean prediction against its perceived roughness (the reference, 1 by definition, left out). "
                     "90 % interval coverage: the share of held-out trials (and of specimens, by their mean prediction) "
                     "whose perceived roughness lies in the interval built from the other specimens' residuals (goal "
-                    "85-95 %). Flagged: the share of held-out trials the model's applicability check would have "
+                    "85-95 %; those residuals' models saw the specimen). Surface interval, jackknife+: the fully nested "
+                    "check (every model behind a specimen's interval fitted without it), its median width as a factor "
+                    "(prediction x/÷ it) and the specimens it misses, by what factor. Flagged: the share of held-out "
+                    "trials the model's applicability check would have "
                     f"flagged, and its worst specimen. {FLAG} marks a model that fails its controls."),
         "columns": ["Model", "Pad", "Condition", "Mean RMSE", "Training mean RMSE", "Pooled RMSE",
                     "Training mean, pooled", "Permutation p", "Controls", "Spearman ρ",
-                    "90 % interval coverage (trials / specimens)", "Flagged when held out (worst specimen)"],
+                    "90 % interval coverage (trials / specimens)", "Surface interval, jackknife+ (nested)",
+                    "Flagged when held out (worst specimen)"],
         "rows": rows,
     }
+
+
+def _jackknife_text(row) -> str:
+    if pd.isna(row.get("jackknife_plus_coverage", np.nan)):
+        return "—"
+    misses = row["jackknife_plus_misses"]
+    return (f"{row['jackknife_plus_coverage']:.0%}, x/÷ {row['jackknife_plus_median_factor']:.2f}"
+            + (f"; misses {misses}" if isinstance(misses, str) and misses else ""))
 
 
 def _coverage_text(row) -> str:
@@ -529,7 +541,8 @@ def paper_predictive_table(paper_predictive: pd.DataFrame) -> dict:
 def unsure_table(unsure: pd.DataFrame) -> dict:
     """analysis.unseen.unsure_specimens() as a table: the held-out surfaces the default model is least sure of."""
     rows = [[_cell(r.pad), _cell(r.specimen), _cell(f"{r.perceived:.2f}"), _cell(f"{r.prediction:.2f}"),
-             _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"), _cell("yes" if r.covered else "no"),
+             _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"),
+             _cell("yes" if r.covered else f"no: x{r.missed_by:.2f} {'below' if r.perceived < r.pi90_low else 'above'}"),
              _cell(f"{r.flagged_share:.0%}")] for r in unsure.itertuples()]
     model = str(unsure["model"].iloc[0]) if len(unsure) else ""
     condition = str(unsure["condition"].iloc[0]) if len(unsure) else ""
@@ -537,8 +550,10 @@ def unsure_table(unsure: pd.DataFrame) -> dict:
         "title": f"Surfaces it is unsure of: {model_title(model)}, {condition}, each specimen held out",
         "caption": ("Per pad, the held-out specimens whose presses the model's applicability check flagged, then those "
                     "its 90 % interval missed, then the widest intervals. Prediction: the mean of the specimen's "
-                    "held-out predictions; interval: from the other specimens' residuals only; flagged: the share of "
-                    "its presses the model fitted without it would have marked as outside what it was trained on."),
+                    "held-out predictions; interval: the jackknife+ over the other specimens (models that never saw "
+                    "it; PLS: from the other specimens' residuals); covered: if not, by what factor it lies outside; "
+                    "flagged: the share of its presses the model fitted without it would have marked as outside what it was "
+                    "trained on."),
         "columns": ["Pad", "Specimen", "Perceived", "Predicted", "90 % interval", "Covered", "Flagged presses"],
         "rows": rows,
     }
@@ -553,7 +568,8 @@ def held_out_table(held_out: pd.DataFrame, words: dict[str, str]) -> dict:
         if not r.n_permutations:
             passes += " (training mean only)"
         rows.append([_cell(model_title(r.model)), _cell(r.pad), _cell(r.condition),
-                     _cell(f"{words.get(r.scheme, r.scheme)} ({r.n_folds} folds)"), _cell(_num(r.rmse, 3)),
+                     _cell(f"{words.get(r.scheme, r.scheme)}" + (f": {r.held_out}" if r.held_out != "all" else
+                                                                  f" ({r.n_folds} folds)")), _cell(_num(r.rmse, 3)),
                      _cell(_num(r.null_rmse, 3)), _cell(f"{r.bias:+.3f}"),
                      _cell("; ".join(f"{c.removeprefix('log_bias_')} {getattr(r, c):+.2f}" for c in shape_columns
                                      if pd.notna(getattr(r, c)))),
