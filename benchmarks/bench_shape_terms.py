@@ -25,6 +25,7 @@ import platform
 
 import numpy as np
 import pandas as pd
+
 from bench_peak_law import CONDITIONS, law_settings, study_of
 
 TERM_SETS = ("period", "law", "period+harmonic", "law+harmonic")

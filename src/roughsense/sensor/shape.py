@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+
 def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
     """Each row's log height of the spectral lobe nearest its own frequency: the highest of the three bins around it,
     refined by a parabola through its neighbours (an end bin is read as it is). A line's Hann-windowed lobe spans
