@@ -77,4 +77,5 @@ def test_leave_two_out_fits_equal_refits_of_the_law():
         for u in (t, s, 1):
             mine = specimens == f"S{u}"
             expected = law.predict(X[mine], surfaces=specimens[mine]).mean()
-            assert pairs[t, s, u] == pytest.approx(np.log(expected), abs=1e-6), (t, s, u)
+            # both stop the IRLS at a 1e-8 relative change of the coefficients: they agree to ~1e-6 in logs
+            assert pairs[t, s, u] == pytest.approx(np.log(expected), abs=1e-5), (t, s, u)

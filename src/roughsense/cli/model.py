@@ -152,8 +152,9 @@ def _echo_cv(trained) -> None:
     law = trained.model
     typer.echo(law_table(result).to_string(index=False, float_format=number))
     typer.echo(f"peak law: CV RMSE {result.rmse[1]:.5f} (training mean {result.rmse[0]:.5f}); "
-               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1) "
-               f"{law.coef_[1]:+.4f} log(peak amplitude)")
+               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1)"
+               + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else
+                  " (the contact's shape not read on every training surface: no shape term)"))
     low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
     typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
                "a surface outside that range is flagged as extrapolating when predicted")

@@ -42,9 +42,15 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
+from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 
-FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude")
+#: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
+#: the third (:func:`law_terms`); the peak amplitude did not earn a term under LOSO and bounds the domain only
+#: (docs/peak_law.md, benchmarks/bench_shape_terms.py).
+FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude", "log_second_harmonic_ratio")
+#: The features' columns: where the peak is, how high, and the contact's shape (sensor/shape.py).
+FREQUENCY, AMPLITUDE, HARMONIC = 0, 1, 2
 #: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
 #: a 54 mm line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands.
 DEFAULT_EXCLUSION_PER_MM = 0.1
@@ -133,7 +139,8 @@ def _check_spectra(spectra: np.ndarray) -> None:
 
 def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
                   exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, surfaces=None) -> np.ndarray:
-    """(n, 2) log peak frequency (mm^-1) and log peak amplitude of each row's spectrum.
+    """(n, 3) log peak frequency (mm^-1), log peak amplitude and log second-harmonic ratio (NaN where it cannot be
+    read, sensor/shape.py) of each row's spectrum.
 
     A row holds ``n_blocks`` spectra side by side (a combined-force trial); they are averaged first, so the peak is
     read from the trial's mean spectrum (the grating's peak stays where it is at every force; noise averages out).
@@ -199,7 +206,10 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
     step = freq[1] - freq[0] if k_bins > 1 else 0.0
     frequency = freq[peak] + offset * step
     clarity = _parabola_at(surface_log, peak, offset) - np.median(surface_log[:, allowed], axis=1)
-    return PeakReadout(np.column_stack([np.log(frequency), amplitude]), clarity, agreement)
+    # The shape belongs to the surface, like where its peak is: read on the surface's mean spectrum.
+    harmonic = harmonic_ratio(surface_log, freq, frequency, pad_ridge_period_mm, exclusion_per_mm) if k_bins > 1 \
+        else np.full(n, np.nan)
+    return PeakReadout(np.column_stack([np.log(frequency), amplitude, harmonic]), clarity, agreement)
 
 
 def surface_codes(surfaces, n: int) -> np.ndarray:
@@ -302,6 +312,42 @@ def huber_irls(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *,
         active = active[~done]
     p1 = design.shape[1]
     return beta.reshape(n_folds, n_targets, p1), scale.reshape(n_folds, n_targets)
+
+
+def law_terms(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
+    """(F, p) the features each training mask's law regresses on: the peak frequency always, the second-harmonic
+    ratio where every training row shows it (a fingerprint pad hides it for a 2 mm grating) and rows are grouped
+    into surfaces (``grouped``: a shape is a surface's, read on its presses' mean; one press's ratio is noise that a
+    free term would use to fit misread presses), the amplitude never."""
+    terms = np.zeros((train.shape[0], features.shape[1]), dtype=bool)
+    terms[:, FREQUENCY] = True
+    if grouped and features.shape[1] > HARMONIC:
+        terms[:, HARMONIC] = ~np.any(train & ~np.isfinite(features[:, HARMONIC])[None, :], axis=1)
+    return terms
+
+
+def fit_terms(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *, epsilon: float = HUBER_EPSILON,
+              grouped: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`huber_irls` on each mask's :func:`law_terms`: coefficients (F, B, p + 1), 0 for a feature that is no
+    term, and scales (F, B). Masks sharing terms are one batch."""
+    terms = law_terms(features, train, grouped)
+    n_folds, n_targets = train.shape[0], targets.shape[0]
+    beta = np.zeros((n_folds, n_targets, features.shape[1] + 1))
+    scale = np.empty((n_folds, n_targets))
+    for pattern in np.unique(terms, axis=0):
+        folds = np.all(terms == pattern, axis=1)
+        # A row outside a mask may lack a term's value: zero-filled, it carries weight 0 there.
+        part, part_scale = huber_irls(np.nan_to_num(features[:, pattern]), targets, train[folds], epsilon=epsilon)
+        beta[np.ix_(folds, np.arange(n_targets), np.r_[0, 1 + np.flatnonzero(pattern)])] = part
+        scale[folds] = part_scale
+    return beta, scale
+
+
+def held_features(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Features held to the domain [low, high] (broadcast); one that cannot be read (NaN) is put at the middle of
+    its range (0 where the range is unbounded: a feature that is no term)."""
+    middle = np.where(np.isfinite(low) & np.isfinite(high), 0.5 * (low + high), 0.0)
+    return np.clip(np.where(np.isnan(features), middle, features), low, high)
 
 
 def _masked_median(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -467,14 +513,15 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         self.freq_per_mm_ = self._grid(X.shape[1])
         readout = self._readout(X, surfaces)
         features = readout.features
-        beta, scale = huber_irls(features, np.log(y)[None, :], np.ones((1, len(y)), dtype=bool),
-                                 epsilon=float(self.epsilon))
+        beta, scale = fit_terms(features, np.log(y)[None, :], np.ones((1, len(y)), dtype=bool),
+                                epsilon=float(self.epsilon), grouped=surfaces is not None)
         self.intercept_ = float(beta[0, 0, 0])
         self.coef_ = beta[0, 0, 1:].copy()
         self.scale_ = float(scale[0, 0])
         kept = kept_rows(features, np.log(y), beta[0, 0], self.scale_, float(self.epsilon), surfaces)
-        self.feature_min_ = features[kept].min(axis=0)
-        self.feature_max_ = features[kept].max(axis=0)
+        low, high = kept_range(features, kept[None, None],
+                               law_terms(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
+        self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
         self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
         return self
 
@@ -541,7 +588,7 @@ def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: 
     the kept rows is the range the law was actually fitted on. With ``surfaces``, a surface most of whose presses
     are down-weighted keeps them all: its *rating* is what the law misses, and its features are real.
     """
-    residual = log_y - beta[0] - features @ beta[1:]
+    residual = log_y - beta[0] - np.nan_to_num(features) @ beta[1:]  # a NaN feature is no term: coefficient 0
     return _kept(np.abs(residual)[None, None], np.array([[scale]]), epsilon, np.ones((1, len(log_y)), bool),
                  surfaces)[0, 0]
 
@@ -568,11 +615,11 @@ def predict_law(features: np.ndarray, intercept: float, coef: np.ndarray, low: n
                 ) -> np.ndarray:
     """exp(intercept + clip(features) . coef): the law's prediction, features held to [low, high] (the law's
     domain, :func:`domain_margins`)."""
-    return np.exp(intercept + np.clip(features, low, high) @ np.asarray(coef, dtype=np.float64))
+    return np.exp(intercept + held_features(features, low, high) @ np.asarray(coef, dtype=np.float64))
 
 
 def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """(n, 2) booleans: which of a row's two features lies outside the range (rounding aside)."""
+    """(n, p) booleans: which of a row's features lies outside the range (rounding aside; NaN is not outside)."""
     return (features < low - _RANGE_TOL) | (features > high + _RANGE_TOL)
 
 
@@ -600,19 +647,33 @@ def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, sh
     range the message quotes (the trained one, without the margins), default [low, high].
     """
     outside = outside_each(features, low, high)
+    # The law reads the contact's shape where its range is bounded; a row whose shape cannot be read is then unsure.
+    unread = np.isnan(features) & np.isfinite(low) & np.isfinite(high)
     low, high = (low, high) if shown is None else shown
     reasons = []
-    for row, (period_out, strength_out) in zip(features, outside):
+    for row, out, blind in zip(features, outside, unread):
         parts = []
-        if period_out:
+        if out[FREQUENCY]:
             parts.append(f"period {np.exp(-row[0]):.2f} mm outside the trained {np.exp(-high[0]):.2f}-"
                          f"{np.exp(-low[0]):.2f} mm")
-        if strength_out:
+        if out[AMPLITUDE]:
             side = "weaker" if row[1] < low[1] else "stronger"
             parts.append(f"peak strength {np.exp(row[1]):.3g} {side} than any trained ({np.exp(low[1]):.3g}-"
                          f"{np.exp(high[1]):.3g})")
+        if len(row) > HARMONIC and (out[HARMONIC] or blind[HARMONIC]):
+            parts.append(_shape_words(row[HARMONIC], low[HARMONIC], high[HARMONIC]))
         reasons.append("; ".join(parts))
     return reasons
+
+
+def _shape_words(ratio: float, low: float, high: float) -> str:
+    """The contact's shape against the trained ones, as the pulse train's duty cycle (sensor/shape.py)."""
+    trained = f"trained surfaces {duty_cycle(high):.2f}-{duty_cycle(low):.2f} of the period in contact"
+    if np.isnan(ratio):
+        return f"contact pattern not readable (its second harmonic lies on the pad's ridges or past the band); {trained}"
+    kind = "narrower ridges" if ratio > high else "wider lands"
+    return (f"contact pattern unlike any trained surface: {kind} (about {duty_cycle(ratio):.2f} of the period in "
+            f"contact; {trained})")
 
 
 def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clarity_limit: float | None,
@@ -687,13 +748,13 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
         raise PeakLawConfigError("cross-validation needs at least 2 folds")
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
-    beta, scale = huber_irls(features, log_targets, ~held_out, epsilon=epsilon)
+    beta, scale = fit_terms(features, log_targets, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = domain_margins(_step(freq_per_mm),
                                *fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces))
     predictions = np.empty_like(targets)
     for fold in range(n_folds):
         rows = held_out[fold]
-        clipped = np.clip(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, 2)
+        clipped = held_features(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, p)
         predictions[:, rows] = np.exp(beta[fold, :, :1] + np.einsum("brf,bf->br", clipped, beta[fold, :, 1:]))
     return predictions
 
@@ -718,10 +779,21 @@ def _cv_inputs(X, Y, groups) -> tuple[np.ndarray, np.ndarray]:
 def fold_kept_ranges(features: np.ndarray, log_targets: np.ndarray, train: np.ndarray, beta: np.ndarray,
                      scale: np.ndarray, epsilon: float, surfaces=None) -> tuple[np.ndarray, np.ndarray]:
     """(F, B, 2) low and high of the kept training rows of every fold and target (:func:`kept_rows`, batched)."""
-    fitted = beta[:, :, :1] + np.einsum("nf,kbf->kbn", features, beta[:, :, 1:])  # (F, B, n)
+    fitted = beta[:, :, :1] + np.einsum("nf,kbf->kbn", np.nan_to_num(features), beta[:, :, 1:])  # (F, B, n)
     kept = _kept(np.abs(log_targets[None] - fitted), scale, epsilon, train, surfaces)
-    low = np.stack([np.where(kept, features[:, j], np.inf).min(axis=2) for j in range(2)], axis=-1)
-    high = np.stack([np.where(kept, features[:, j], -np.inf).max(axis=2) for j in range(2)], axis=-1)
+    return kept_range(features, kept, law_terms(features, train, surfaces is not None))
+
+
+def kept_range(features: np.ndarray, kept: np.ndarray, terms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, B, p) low and high of each feature over the kept rows (F, B, n). The second-harmonic ratio bounds the
+    domain only where it is a term (``terms`` (F, p)); elsewhere its range is unbounded, so nothing is flagged for it."""
+    columns = range(features.shape[1])
+    low = np.stack([np.where(kept, features[:, j], np.inf).min(axis=2) for j in columns], axis=-1)
+    high = np.stack([np.where(kept, features[:, j], -np.inf).max(axis=2) for j in columns], axis=-1)
+    if features.shape[1] > HARMONIC:
+        unused = ~terms[:, None, HARMONIC]
+        low[..., HARMONIC] = np.where(unused, -np.inf, low[..., HARMONIC])
+        high[..., HARMONIC] = np.where(unused, np.inf, high[..., HARMONIC])
     return low, high
 
 
@@ -736,9 +808,9 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
                            exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     fold_of = np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     held_out = fold_of[None, :] == np.arange(int(fold_of.max()) + 1)[:, None]
-    beta, scale = huber_irls(readout.features, log_y, ~held_out, epsilon=epsilon)
+    beta, scale = fit_terms(readout.features, log_y, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = fold_kept_ranges(readout.features, log_y, ~held_out, beta, scale, epsilon, surfaces)
-    fitted = beta[:, 0, 0][None, :] + readout.features @ beta[:, 0, 1:].T  # (n, F)
+    fitted = beta[:, 0, 0][None, :] + np.nan_to_num(readout.features) @ beta[:, 0, 1:].T  # (n, F)
     step = float(freq_per_mm[1] - freq_per_mm[0])
     flags = np.zeros(X.shape[0], dtype=bool)
     for fold, rows in enumerate(held_out):

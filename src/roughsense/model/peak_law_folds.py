@@ -16,8 +16,9 @@ from .peak_law import (
     HUBER_EPSILON,
     check_grid,
     domain_margins,
+    fit_terms,
     fold_kept_ranges,
-    huber_irls,
+    held_features,
     peak_features,
 )
 
@@ -31,10 +32,10 @@ def law_fold_predictions(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int 
     features = peak_features(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
                              exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     log_y = np.log(np.asarray(y, dtype=np.float64))[None, :]
-    beta, scale = huber_irls(features, log_y, train, epsilon=epsilon)
+    beta, scale = fit_terms(features, log_y, train, epsilon=epsilon, grouped=surfaces is not None)
     low, high = domain_margins(float(freq_per_mm[1] - freq_per_mm[0]),
                                *fold_kept_ranges(features, log_y, train, beta, scale, epsilon, surfaces))
-    clipped = np.clip(features[None], low[:, 0, None, :], high[:, 0, None, :])  # (F, n, p)
+    clipped = held_features(features[None], low[:, 0, None, :], high[:, 0, None, :])  # (F, n, p)
     return np.exp(beta[:, 0, :1] + np.einsum("fnk,fk->fn", clipped, beta[:, 0, 1:]))
 
 
