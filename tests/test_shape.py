@@ -35,3 +35,35 @@ def test_a_square_wave_has_almost_no_second_harmonic_and_a_ridge_hides_it():
     assert np.isnan(harmonic_ratio(np.log(two_mm)[None], freq, np.array([0.5]), pad_ridge_period_mm=1.0)[0])
     assert harmonic_ratio(np.log(two_mm)[None], freq, np.array([0.5]))[0] == pytest.approx(
         np.log(np.cos(0.2 * np.pi)), abs=0.08)  # the band's last bin: read as it is
+
+
+def _gratings(duty: float, periods, presses: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    rows, names = [], []
+    for period in periods:
+        for _ in range(presses):
+            image = _pulse_image(period, duty) + rng.normal(0, 0.02, size=(1080, 1920))
+            rows.append(spatial_spectrum(image, px_per_mm=PX_PER_MM))
+            names.append(f"{duty}-{period}")
+    return np.array(rows), np.array(names)
+
+
+def test_a_shape_the_law_never_learnt_is_flagged_in_words():
+    """Fitted on square gratings only (lands half the period), the law flags narrow-contact gratings of the same
+    periods as an unlearnt contact pattern, and PLS's domain, which keeps the law's readout, does too."""
+    from roughsense.model.applicability import fit_domain
+    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.pls import SIMPLS
+
+    rng = np.random.default_rng(0)
+    periods = (2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
+    X, surfaces = _gratings(0.5, periods, 2, rng)
+    y = np.repeat(np.array(periods) / 3.0, 2)
+    freq = frequency_grid()
+    law = PeakPowerLaw(freq_per_mm=freq).fit(X, y, surfaces=surfaces)
+    assert law.coef_[2] != 0 and law.coef_[1] == 0  # the shape is a term, the amplitude is not
+    narrow, narrow_names = _gratings(0.15, (3.0, 4.0), 2, rng)
+    reasons = law.applicability(narrow, surfaces=narrow_names)
+    assert all("contact pattern unlike any trained surface: narrower ridges" in r for r in reasons), reasons
+    assert not any(law.applicability(X, surfaces=surfaces))  # the trained shape is inside
+    domain = fit_domain(SIMPLS(n_components=2).fit(X, y), X, y, surfaces, PeakPowerLaw(freq_per_mm=freq))
+    assert all("narrower ridges" in r for r in domain.reasons(narrow, narrow_names))

@@ -262,10 +262,16 @@ def peak_domain(section, features: dict, path: Path | None):
     from .applicability import PeakDomain
 
     where = "model.applicability.peak"
-    if not isinstance(section, dict) or set(section) != {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm",
-                                                         "exclusion_per_mm"}:
+    fields = {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"}
+    if not isinstance(section, dict) or set(section) - {"harmonic_range"} != fields:
         raise ModelFileError(f"{where} must have exactly the fields log_frequency_range, clarity_limit, "
-                             "pad_ridge_period_mm, exclusion_per_mm", path=path)
+                             "pad_ridge_period_mm, exclusion_per_mm (and harmonic_range)", path=path)
+    harmonic = section.get("harmonic_range", [None, None])
+    if not isinstance(harmonic, list) or len(harmonic) != 2 or not all(v is None or _BOUNDED.accepts(v)
+                                                                       for v in harmonic):
+        raise ModelFileError(f"{where}.harmonic_range must be two numbers or nulls, got {shown(harmonic)}", path=path)
+    harmonic = (-np.inf if harmonic[0] is None else float(harmonic[0]),
+                np.inf if harmonic[1] is None else float(harmonic[1]))
     span = section["log_frequency_range"]
     if not isinstance(span, list) or len(span) != 2 or not all(_BOUNDED.accepts(v) for v in span) or span[0] > span[1]:
         raise ModelFileError(f"{where}.log_frequency_range must be two increasing numbers, got {shown(span)}",
@@ -284,4 +290,4 @@ def peak_domain(section, features: dict, path: Path | None):
     except ValueError as exc:
         raise ModelFileError(f"{where}: {exc}", path=path) from None
     return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
-                      None if period is None else float(period), float(section["exclusion_per_mm"]))
+                      None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic)
