@@ -346,7 +346,8 @@ def fit_terms(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *, e
 def held_features(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """Features held to the domain [low, high] (broadcast); one that cannot be read (NaN) is put at the middle of
     its range (0 where the range is unbounded: a feature that is no term)."""
-    middle = np.where(np.isfinite(low) & np.isfinite(high), 0.5 * (low + high), 0.0)
+    bounded = np.isfinite(low) & np.isfinite(high)
+    middle = 0.5 * (np.where(bounded, low, 0.0) + np.where(bounded, high, 0.0))
     return np.clip(np.where(np.isnan(features), middle, features), low, high)
 
 
