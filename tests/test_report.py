@@ -482,3 +482,25 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
     analysis = SimpleNamespace(unseen_summary=lambda: unseen, held_out=pd.DataFrame(), simulation=None, synthetic=None)
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
+
+
+def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only_pass():
+    """Issue 35: the answer is a small table per model and held-out scheme; a LOSO pass whose mean per-specimen RMSE
+    is not below the training mean's reads "pooled RMSE only"; the jackknife+ interval is quoted where it exists."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_table
+
+    held = pd.DataFrame({"model": ["pls", "peak-law", "peak-law"], "pad": ["smooth"] * 3,
+                         "condition": ["combined"] * 3, "scheme": ["specimen", "specimen", "period"],
+                         "held_out": ["all"] * 3, "rmse": [0.357, 0.16, 0.19], "null_rmse": [0.333, 0.33, 0.35],
+                         "passes": [True, True, True], "n_permutations": [199, 199, 199]})
+    unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
+                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
+                           "jackknife_plus_median_factor": [float("nan"), 1.72]})
+    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen))
+    assert table["rows"] == [
+        ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
+        ["peak law", "a grating left out of training",
+         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72"],
+        ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"]]

@@ -51,23 +51,48 @@ def _use_line(analysis, unseen: pd.DataFrame, passes: pd.Series) -> str:
     default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
     return (f"To score a new surface, use the {model_title(model)} ({model}{default}) on the pads and "
             f"conditions where it passes its controls (next line). Its error with a grating left out of training "
-            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}.{_stricter(analysis, model)}")
+            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}. The table says how it does with "
+            "a period or a shape left out.")
 
 
-def _stricter(analysis, model: str) -> str:
-    """The same model's error with a whole period, and a whole shape, left out (analysis/held_out.py)."""
+def answer_table(analysis) -> dict | None:
+    """The first screen's table: per model and held-out scheme (combined condition), each pad's mean per-specimen
+    RMSE beside the training mean's and its verdict, and the nested jackknife+ surface interval where there is one.
+
+    A verdict rests on the mean per-specimen RMSE *and* the controls: a model whose controls pass on the pooled RMSE
+    while its mean per-specimen RMSE is not below the training mean's reads "pooled RMSE only", never "passes".
+    """
     held = getattr(analysis, "held_out", None)
     if held is None or held.empty:
-        return ""
+        return None
     condition = _condition(held)
-    parts = []
-    for scheme in ("period", "shape"):
-        rows = held[(held["model"] == model) & (held["condition"] == condition) & (held["scheme"] == scheme)]
-        if not rows.empty:
-            parts.append(f"{SCHEME_WORDS[scheme]}: " + ", ".join(
-                f"{r.pad} {r.rmse:.2f} vs {r.null_rmse:.2f}, bias {r.bias:+.2f}" for r in rows.itertuples()))
-    text = "; ".join(parts)
-    return f" {text[:1].upper()}{text[1:]}." if parts else ""
+    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    pads = list(dict.fromkeys(held["pad"]))
+    rows = []
+    for (model, scheme, part), group in held[held["condition"] == condition].groupby(
+            ["model", "scheme", "held_out"], sort=False):
+        words = SCHEME_WORDS[scheme] + ("" if part == "all" else f": {part}")
+        cells = [model_title(model), words]
+        for pad in pads:
+            r = group[group["pad"] == pad]
+            cells.append(_verdict_cell(r.iloc[0], unseen, model, pad, condition, scheme) if len(r) else "—")
+        rows.append(cells)
+    return {"columns": ["Model", "Held out", *[f"{pad} pad: RMSE vs training mean" for pad in pads]],
+            "rows": rows, "condition": condition}
+
+
+def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: str, scheme: str) -> str:
+    below = row["rmse"] < row["null_rmse"]
+    verdict = "fails" if not row["passes"] else "passes" if row["n_permutations"] else \
+        "below the mean, not permutation-tested"
+    if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
+        control = unseen.loc[(model, pad, condition)]
+        verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
+        coverage = control.get("jackknife_plus_coverage")
+        if pd.notna(coverage):
+            verdict += (f"; 90 % surface interval held {coverage:.0%}, x/÷ "
+                        f"{control['jackknife_plus_median_factor']:.2f}")
+    return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:

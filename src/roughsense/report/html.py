@@ -31,7 +31,7 @@ from ..io.names import check_name
 from ..model.families import DEFAULT_MODEL, PLS
 from ..paper import COMBINED
 from . import figures, tables
-from .answer import answer_lines
+from .answer import answer_lines, answer_table
 
 
 def template_environment() -> jinja2.Environment:
@@ -210,6 +210,7 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         findings=plain_words(analysis),
         failing=failing_models(analysis),
         answer=answer_lines(analysis),
+        answer_table=answer_table(analysis),
         sections=_sections(analysis, results, cv_schemes),
         figures=figure_list,
         max_components=analysis.max_components,
