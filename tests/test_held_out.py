@@ -130,3 +130,27 @@ def test_the_study_quotes_the_nested_jackknife_plus_and_its_misses(analysis):
         if not row.covered:  # outside by exp(miss_log): the perceived value over the bound it passed
             bound = row.pi90_low if row.perceived < row.pi90_low else row.pi90_high
             assert row.missed_by == pytest.approx(max(bound / row.perceived, row.perceived / bound))
+
+
+def test_presses_per_surface_reach_the_loso_error_with_every_press_and_predict_says_when_too_few(analysis):
+    """Read from all its presses, a held-out surface's error is LOSO's own; predict's line names the presses needed."""
+    from roughsense.analysis.presses import presses_needed
+    from roughsense.cli.model import few_presses_line
+
+    result, _, _ = analysis
+    presses = result.presses
+    assert set(presses["model"]) == {"peak-law"} and list(presses["n_presses"].unique()) == [1, 3]  # 3 repetitions
+    unseen = result.unseen_summary().set_index(["model", "pad", "condition"])
+    for row in presses[presses["n_presses"] == 3].itertuples():  # every press: the study's LOSO surface means
+        fit = result.condition_fit(row.pad, row.condition, "loso", "peak-law")
+        means = fit.predictions.groupby("specimen")["prediction"].mean()
+        perceived = result.perceived.set_index("specimen")["gmean"]
+        assert row.rmse == pytest.approx(float(np.abs(means - perceived[means.index]).mean()), rel=1e-6)
+        assert row.null_rmse == pytest.approx(unseen.loc[("peak-law", row.pad, row.condition), "null_rmse"])
+    curve = pd.DataFrame({"n_presses": [1, 3, 5], "rmse": [0.35, 0.30, 0.20], "null_rmse": [0.33] * 3})
+    assert presses_needed(curve) == 3
+    training = {"presses": {"needed": 3, "null_rmse": 0.33, "rmse_by_presses": {"1": 0.35, "3": 0.30}}}
+    line = few_presses_line(training, None, 4)
+    assert line.startswith("fewer presses than this model's pad needs: a surface read from 1 press here")
+    assert "needed 3 to beat the training mean (held-out error 0.35 vs the training mean's 0.33)" in line
+    assert few_presses_line(training, ["a"] * 3 + ["b"] * 3, 6) == ""

@@ -33,6 +33,7 @@ from . import dataset
 from .claims import evaluate_claims
 from .held_out import held_out_analysis
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
+from .presses import presses_analysis
 from .spread import paper_predictive, predictive_ovl
 from .unseen import unseen_summary
 
@@ -101,6 +102,8 @@ class StudyAnalysis:
     models: tuple[str, ...] = (PLS,)
     #: Every LOSO fit again with a period, and a shape, held out (analysis/held_out.py; HELD_OUT_COLUMNS).
     held_out: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: A held-out surface's error against the presses it is read from (analysis/presses.py; PRESS_COLUMNS).
+    presses: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PLS) -> ConditionFit:
         """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""
@@ -444,6 +447,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
     analysis.controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
     analysis.held_out = held_out_analysis(analysis, control_jobs)
+    analysis.presses = presses_analysis(analysis, control_jobs)
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)

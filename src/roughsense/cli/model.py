@@ -265,6 +265,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
+    _warn_few_presses(loaded.training, surfaces, len(trials))
     _warn_failed_controls(loaded.training)
 
 
@@ -363,6 +364,34 @@ def _echo_extrapolation(loaded, scores) -> None:
     if model_interval(loaded) is None:
         echo("no prediction interval: the model file has none it can use (written before intervals, or from "
                    "too few specimens); refit it with roughsense fit")
+
+
+def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
+    """One line when a surface is read from fewer presses than the model's pad needed, held out of training, to
+    beat the training mean (the model file's ``training.presses``); '' otherwise."""
+    import numpy as np
+    import pandas as pd
+
+    presses = training.get("presses") if isinstance(training, dict) else None
+    needed = presses.get("needed") if isinstance(presses, dict) else None
+    if not isinstance(needed, int) or needed <= 1:
+        return ""
+    counts = pd.Series(np.asarray(surfaces)).value_counts() if surfaces is not None else pd.Series([1] * n_trials)
+    fewest = int(counts.min()) if len(counts) else 0
+    if fewest >= needed:
+        return ""
+    errors = presses.get("rmse_by_presses", {})
+    error = f" (held-out error {errors[str(fewest)]:.2f} vs the training mean's {presses['null_rmse']:.2f})" \
+        if str(fewest) in errors and isinstance(presses.get("null_rmse"), float) else ""
+    return (f"fewer presses than this model's pad needs: a surface read from {counted(fewest, 'press', 'presses')} here; held "
+            f"out of training it needed {needed} to beat the training mean{error}; press each surface {needed} times "
+            "(--same-surface or --study groups them)")
+
+
+def _warn_few_presses(training: dict, surfaces, n_trials: int) -> None:
+    line = few_presses_line(training, surfaces, n_trials)
+    if line:
+        typer.echo(line)
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.

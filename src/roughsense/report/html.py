@@ -32,6 +32,7 @@ from ..model.families import DEFAULT_MODEL, PLS
 from ..paper import COMBINED
 from . import figures, tables
 from .answer import answer_lines, answer_table
+from .presses import presses_figure, presses_table
 
 
 def template_environment() -> jinja2.Environment:
@@ -45,8 +46,8 @@ def template_environment() -> jinja2.Environment:
 
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
-                 "components.csv", "held_out.csv")
-_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)"
+                 "components.csv", "held_out.csv", "presses.csv")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces|presses_per_surface)"
                             r"\.(png|svg|pdf)$")
 
 
@@ -192,6 +193,8 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
         unseen_words=unseen_words(analysis),
         held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
+        presses=presses_table(analysis.presses),
+        presses_figure=_presses_figure(analysis, files, style),
         unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
                                                     else analysis.models[0])),
         unseen_figure=unseen_figure,
@@ -234,6 +237,8 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     files["paper_predictive.csv"] = _csv_bytes(analysis.paper_predictive)
     if not analysis.held_out.empty:
         files["held_out.csv"] = _csv_bytes(analysis.held_out)
+    if not analysis.presses.empty:
+        files["presses.csv"] = _csv_bytes(analysis.presses)
     return files
 
 
@@ -266,6 +271,14 @@ def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, 
                    figures.unseen_figure(results["loso"], analysis.perceived, condition),
                    f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
                    f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.", style)
+
+
+def _presses_figure(analysis, files: dict[str, bytes], style: FigureStyle) -> dict | None:
+    if analysis.presses.empty:
+        return None
+    return _figure(analysis, files, "presses_per_surface", presses_figure(analysis.presses),
+                   "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
+                   "presses, per pad and condition; dashed: the training mean's.", style)
 
 
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
