@@ -51,6 +51,10 @@ from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside 
 FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude", "log_second_harmonic_ratio")
 #: The features' columns: where the peak is, how high, and the contact's shape (sensor/shape.py).
 FREQUENCY, AMPLITUDE, HARMONIC = 0, 1, 2
+#: Least spread (log units) of the training surfaces' second-harmonic ratios for the ratio to be a term: two shapes.
+#: A square grating's ratio lies near -4 and a semi-cylinder's near -1 on the twin; within one shape they spread
+#: by under 0.6 (seeds 0-2), so 1 separates "one shape" from "several".
+SHAPE_SPREAD = 1.0
 #: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
 #: a 54 mm line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands.
 DEFAULT_EXCLUSION_PER_MM = 0.1
@@ -314,15 +318,27 @@ def huber_irls(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *,
     return beta.reshape(n_folds, n_targets, p1), scale.reshape(n_folds, n_targets)
 
 
+def shape_read(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
+    """(F,) whether each training mask reads the contact's shape: every training row shows its second harmonic (a
+    fingerprint pad hides it for a 2 mm grating) and rows are grouped into surfaces (``grouped``: a shape is a
+    surface's, read on its presses' mean; one press's ratio is noise). Where it does, the shape bounds the domain."""
+    if not grouped or features.shape[1] <= HARMONIC:
+        return np.zeros(train.shape[0], dtype=bool)
+    return ~np.any(train & ~np.isfinite(features[:, HARMONIC])[None, :], axis=1)
+
+
 def law_terms(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
-    """(F, p) the features each training mask's law regresses on: the peak frequency always, the second-harmonic
-    ratio where every training row shows it (a fingerprint pad hides it for a 2 mm grating) and rows are grouped
-    into surfaces (``grouped``: a shape is a surface's, read on its presses' mean; one press's ratio is noise that a
-    free term would use to fit misread presses), the amplitude never."""
+    """(F, p) the features each training mask's law regresses on: the peak frequency always; the second-harmonic
+    ratio where the shape is read (:func:`shape_read`) and the training surfaces differ in it by at least
+    :data:`SHAPE_SPREAD` (one shape alone teaches no slope: its ratios differ by noise, which a free term would
+    carry, magnified, to any other shape); the amplitude never."""
     terms = np.zeros((train.shape[0], features.shape[1]), dtype=bool)
     terms[:, FREQUENCY] = True
-    if grouped and features.shape[1] > HARMONIC:
-        terms[:, HARMONIC] = ~np.any(train & ~np.isfinite(features[:, HARMONIC])[None, :], axis=1)
+    read = shape_read(features, train, grouped)
+    if read.any():
+        ratio = np.where(np.isfinite(features[:, HARMONIC]), features[:, HARMONIC], 0.0)[None, :]
+        spread = np.where(train, ratio, -np.inf).max(axis=1) - np.where(train, ratio, np.inf).min(axis=1)
+        terms[:, HARMONIC] = read & (spread >= SHAPE_SPREAD)
     return terms
 
 
@@ -521,7 +537,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         self.scale_ = float(scale[0, 0])
         kept = kept_rows(features, np.log(y), beta[0, 0], self.scale_, float(self.epsilon), surfaces)
         low, high = kept_range(features, kept[None, None],
-                               law_terms(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
+                               shape_read(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
         self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
         self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
         return self
@@ -782,17 +798,18 @@ def fold_kept_ranges(features: np.ndarray, log_targets: np.ndarray, train: np.nd
     """(F, B, 2) low and high of the kept training rows of every fold and target (:func:`kept_rows`, batched)."""
     fitted = beta[:, :, :1] + np.einsum("nf,kbf->kbn", np.nan_to_num(features), beta[:, :, 1:])  # (F, B, n)
     kept = _kept(np.abs(log_targets[None] - fitted), scale, epsilon, train, surfaces)
-    return kept_range(features, kept, law_terms(features, train, surfaces is not None))
+    return kept_range(features, kept, shape_read(features, train, surfaces is not None))
 
 
-def kept_range(features: np.ndarray, kept: np.ndarray, terms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def kept_range(features: np.ndarray, kept: np.ndarray, read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(F, B, p) low and high of each feature over the kept rows (F, B, n). The second-harmonic ratio bounds the
-    domain only where it is a term (``terms`` (F, p)); elsewhere its range is unbounded, so nothing is flagged for it."""
+    domain only where the shape is read (``read`` (F,), :func:`shape_read`); elsewhere its range is unbounded, so
+    nothing is flagged for it."""
     columns = range(features.shape[1])
     low = np.stack([np.where(kept, features[:, j], np.inf).min(axis=2) for j in columns], axis=-1)
     high = np.stack([np.where(kept, features[:, j], -np.inf).max(axis=2) for j in columns], axis=-1)
     if features.shape[1] > HARMONIC:
-        unused = ~terms[:, None, HARMONIC]
+        unused = ~read[:, None]
         low[..., HARMONIC] = np.where(unused, -np.inf, low[..., HARMONIC])
         high[..., HARMONIC] = np.where(unused, np.inf, high[..., HARMONIC])
     return low, high
