@@ -368,7 +368,7 @@ def _echo_extrapolation(loaded, scores) -> None:
 
 def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
     """One line when a surface is read from fewer presses than the model's pad needed, held out of training, to
-    beat the training mean (the model file's ``training.presses``); '' otherwise."""
+    beat the training mean clearly (``analysis.presses.presses_needed``, the model file's ``training.presses``)."""
     import numpy as np
     import pandas as pd
 
@@ -384,7 +384,7 @@ def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
     error = f" (held-out error {errors[str(fewest)]:.2f} vs the training mean's {presses['null_rmse']:.2f})" \
         if str(fewest) in errors and isinstance(presses.get("null_rmse"), float) else ""
     return (f"fewer presses than this model's pad needs: a surface read from {counted(fewest, 'press', 'presses')} here; held "
-            f"out of training it needed {needed} to beat the training mean{error}; press each surface {needed} times "
+            f"out of training it needed {needed} to beat the training mean clearly{error}; press each surface {needed} times "
             "(--same-surface or --study groups them)")
 
 

@@ -23,8 +23,9 @@ def presses_table(presses: pd.DataFrame) -> dict:
         "title": "Presses per surface: the peak law's error on a grating left out of training",
         "caption": ("Each held-out specimen scored as the mean of k of its presses (k drawn at random, 20 draws, "
                     "seeded), by the law fitted without it on every press of the others; mean over specimens of the "
-                    "RMSE over draws, beside the training mean's. Presses needed: the fewest whose error is below the "
-                    "training mean's; roughsense predict says when a surface has fewer."),
+                    "RMSE over draws, beside the training mean's. Presses needed: the fewest that gain at least half of "
+                    "what the most presses gain over the training mean; roughsense predict says when a surface has "
+                    "fewer."),
         "columns": ["Pad", "Condition", *[f"{k} press{'es' if k > 1 else ''}" for k in counts], "Training mean",
                     "Presses needed"],
         "rows": rows,
