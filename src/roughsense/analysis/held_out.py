@@ -140,6 +140,10 @@ def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law:
             n_perm = int(shuffled.shape[1])
         return every[0], p, n_perm, law_flags(X, y, folds, **law)
     if fit.model == PLS:
+        largest = int(pd.Series(folds).value_counts().max())
+        if min(analysis.max_components, len(y) - largest - 1, X.shape[1]) < 1 or pd.Series(specimens[folds != folds[0]]
+                                                                                          ).nunique() < 2:
+            return None  # too few trials or specimens to fit PLS and choose its components without a fold
         return pls_scheme_predictions(X, y, specimens, folds, analysis.max_components), float("nan"), 0, None
     return None
 

@@ -394,9 +394,9 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
 
 def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = DEFAULT_MAX_COMPONENTS,
                   conditions: Sequence[str] = paper.PAPER_CONDITIONS, cv_schemes: Sequence[str] = CV_SCHEMES,
-                  n_jobs: int = 1, progress: Callable | None = None,
-                  n_permutations: int = _controls.DEFAULT_PERMUTATIONS, seed: int = 0,
-                  combined_forces: Sequence[str] | None = None, models: Sequence[str] = MODEL_FAMILIES) -> StudyAnalysis:
+                  n_jobs: int = 1, progress: Callable | None = None, n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
+                  seed: int = 0, combined_forces: Sequence[str] | None = None,
+                  models: Sequence[str] = MODEL_FAMILIES, stricter: bool = True) -> StudyAnalysis:
     """The paper's whole analysis of a validated study, with every model's controls and the claims' verdicts.
 
     Parameters
@@ -405,7 +405,8 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
         A study with ratings (:func:`read_study`); its spectra if already computed (e.g. cached), else made here.
     max_components, conditions, cv_schemes
         PLS components cross-validated; force conditions ("1N", ..., "combined"); "loo" (the paper's) and/or "loso"
-        (leave one specimen out: surfaces never seen). ``combined_forces``: what "combined" joins (1N, 2N, 3N).
+        (leave one specimen out). ``combined_forces``: what "combined" joins (1N, 2N, 3N). ``stricter``: also a
+        period and a shape left out, and presses per surface (``held_out``, ``presses``; a sweep cell skips them).
     n_permutations, seed, models
         Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
         folds and controls ("pls", "peak-law"; claims and signed-rank tests are the paper's PLS).
@@ -415,7 +416,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     Returns
     -------
     StudyAnalysis
-        ``results("loo"|"loso")``, ``controls``, ``claims``, ``cv_table``, ``summary()``: the report's content.
+        ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``, ``presses``: the report's content.
 
     Examples
     --------
@@ -446,12 +447,16 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
     analysis.controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
-    analysis.held_out = held_out_analysis(analysis, control_jobs)
-    analysis.presses = presses_analysis(analysis, control_jobs)
+    analysis.held_out, analysis.presses = _stricter(analysis, control_jobs) if stricter else (pd.DataFrame(),) * 2
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)
     return analysis
+
+
+def _stricter(analysis: StudyAnalysis, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
+    return held_out_analysis(analysis, control_jobs), presses_analysis(analysis, control_jobs)
 
 
 def _check_models(models: Sequence[str]) -> tuple[str, ...]:
