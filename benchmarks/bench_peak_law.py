@@ -20,7 +20,8 @@ folds) against a peer loop of scikit-learn ``HuberRegressor`` refits (epsilon 1.
 features, one per fold and target, and against a loop of ``PeakPowerLaw`` refits (the same arithmetic unbatched; it
 also checks that both agree). The batch is timed before and after the peers; the ratios use the slower median.
 
-Run: .venv/bin/python benchmarks/bench_peak_law.py [--seeds 0 1 2 3 4 5] [--repeats 5] [--peer-targets 200] [--speed-only | --accuracy-only]
+Run: .venv/bin/python benchmarks/bench_peak_law.py [--seeds 0 1 2 3 4 5] [--repeats 5] [--peer-targets 200]
+     [--speed-only | --accuracy-only]
 (ROUGHSENSE_CACHE_DIR selects the cache; each seed's study is simulated there on first use, ~20 s.)
 """
 from __future__ import annotations
