@@ -468,6 +468,12 @@ def test_the_held_out_table_shows_every_scheme_with_the_csvs_numbers(report_dir)
             assert f"rectangular {expected.log_bias_rectangular:+.2f}" in row["Log bias by shape"][0]
         assert row["Controls"][0].startswith("passes") == bool(expected.passes)
     assert "never seen" not in html.split("</nav>", 1)[0]  # the first screen says what was held out
+    presses = pd.read_csv(report_dir / "presses.csv")
+    rows = _rows(html, "Presses per surface: the peak law's error on a grating left out of training")
+    assert len(rows) == 2 * 4 and set(presses["model"]) == {"peak-law"}  # pads x conditions, the law's
+    first = presses[(presses.pad == rows[0]["Pad"][0]) & (presses.condition == rows[0]["Condition"][0])]
+    assert rows[0]["1 press"][0] == f"{first.set_index('n_presses').loc[1, 'rmse']:.3f}"
+    assert (report_dir / "presses_per_surface.png").is_file()
 
 
 def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():

@@ -51,18 +51,23 @@ def scheme_folds(scheme: str, specimens: np.ndarray, shapes: dict, wavelengths: 
 
 
 def pls_scheme_predictions(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray,
-                           max_components: int) -> np.ndarray:
+                           max_components: int) -> np.ndarray | None:
     """PLS's out-of-fold predictions under ``folds``, each fold's component count chosen by leave-one-specimen-out
-    within its training data only (a shape held out leaves one training shape: its specimens are the inner folds)."""
+    within its training data only (a shape held out leaves one training shape: its specimens are the inner folds).
+    None where a fold leaves too few trials or specimens to choose a count without it."""
     largest = int(pd.Series(folds).value_counts().max())
     usable = int(min(max_components, len(y) - largest - 1, X.shape[1]))
+    inner_usable = {}
+    for fold in pd.unique(folds):
+        rest = pd.Series(specimens[folds != fold])
+        inner_usable[fold] = int(min(usable, len(rest) - rest.value_counts().max() - 1, X.shape[1]))
+        if rest.nunique() < 3 or inner_usable[fold] < 1:
+            return None
     outer = pls_cv_many(X, y[:, None], max_components=usable, groups=folds, cap=True).predictions[0]
     predictions = np.empty(len(y))
-    for fold in pd.unique(folds):
+    for fold, inner_max in inner_usable.items():
         held = folds == fold
-        rest = specimens[~held]
-        inner_usable = int(min(usable, len(rest) - pd.Series(rest).value_counts().max() - 1, X.shape[1]))
-        inner = pls_cv_many(X[~held], y[~held, None], max_components=max(inner_usable, 0), groups=rest, cap=True)
+        inner = pls_cv_many(X[~held], y[~held, None], max_components=inner_max, groups=specimens[~held], cap=True)
         predictions[held] = outer[held, int(inner.best_n_components[0])]
     return predictions
 
@@ -140,11 +145,8 @@ def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law:
             n_perm = int(shuffled.shape[1])
         return every[0], p, n_perm, law_flags(X, y, folds, **law)
     if fit.model == PLS:
-        largest = int(pd.Series(folds).value_counts().max())
-        if min(analysis.max_components, len(y) - largest - 1, X.shape[1]) < 1 or pd.Series(specimens[folds != folds[0]]
-                                                                                          ).nunique() < 2:
-            return None  # too few trials or specimens to fit PLS and choose its components without a fold
-        return pls_scheme_predictions(X, y, specimens, folds, analysis.max_components), float("nan"), 0, None
+        prediction = pls_scheme_predictions(X, y, specimens, folds, analysis.max_components)
+        return None if prediction is None else (prediction, float("nan"), 0, None)
     return None
 
 

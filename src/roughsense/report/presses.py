@@ -15,10 +15,9 @@ def presses_table(presses: pd.DataFrame) -> dict:
     for (pad, condition), group in presses.groupby(["pad", "condition"], sort=False):
         by_count = group.set_index("n_presses")["rmse"]
         needed = presses_needed(group)
-        rows.append([{"ours": str(pad)}, {"ours": str(condition)},
-                     *[{"ours": f"{by_count[k]:.3f}" if k in by_count else "—"} for k in counts],
-                     {"ours": f"{group['null_rmse'].iloc[0]:.3f}"},
-                     {"ours": "none of these" if needed is None else str(needed)}])
+        cells = [str(pad), str(condition), *[f"{by_count[k]:.3f}" if k in by_count else "—" for k in counts],
+                 f"{group['null_rmse'].iloc[0]:.3f}", "none of these" if needed is None else str(needed)]
+        rows.append([{"ours": cell, "paper": None} for cell in cells])
     return {
         "title": "Presses per surface: the peak law's error on a grating left out of training",
         "caption": ("Each held-out specimen scored as the mean of k of its presses (k drawn at random, 20 draws, "
