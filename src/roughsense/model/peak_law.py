@@ -1,4 +1,4 @@
-"""Peak power law: perceived roughness as a power law of where the contact spectrum peaks and how high.
+"""Peak power law: perceived roughness as a power law of where the contact spectrum peaks, and of the contact's shape.
 
 Why a second model. PLS is linear in the 45 amplitudes, and each grating puts its fundamental into bins that no other
 training grating excites, so for a surface it never saw it has nothing to go on (under leave-one-specimen-out the
@@ -6,18 +6,20 @@ paper's PLS sits at the training mean's error). Roughness that people perceive b
 spacing of the contact pattern, and the spacing *moves* the spectrum's peak: a law in where the peak is (and how
 strongly the contact concentrates there) extrapolates to a period between, or just beside, the trained ones.
 
-The law, in logs, with 3 parameters::
+The law, in logs, with 2 or 3 parameters::
 
-    log(roughness) = b0 + b1 * log(peak frequency, mm^-1) + b2 * log(peak amplitude)
+    log(roughness) = b0 + b1 * log(peak frequency, mm^-1) [+ b3 * log(A(2 f0) / A(f0))]
 
 - *Peak frequency*: the highest local maximum of the spectrum (averaged over a trial's forces), refined below the
   grid spacing by a parabola through the log amplitudes of the peak bin and its two neighbours (exact for a Gaussian
   lobe, which a Hann-windowed line's main lobe nearly is). The band's two end bins are never peaks (no neighbour on
   one side), and a fingerprint pad's own ridge frequency, 1 / ``pad_ridge_period_mm``, is excluded with
   ``exclusion_per_mm`` on either side: its relief is a pattern of the pad, not of the surface.
-- *Peak amplitude*: the log amplitude at the refined peak (the spectrum is normalised to unit area, so this says how
-  much of the contact's variation sits in that one spacing: a narrow contact on round crests spreads it over
-  harmonics, a square grating concentrates it).
+- *Peak amplitude*: the log amplitude at the refined peak. It earned no term under leave-one-specimen-out (its
+  coefficient is 0) and bounds the domain only.
+- *Shape*: the second harmonic's log ratio to the fundamental (sensor/shape.py: a square grating's is far below 0, a
+  narrow contact's near 0), read on the surface's mean spectrum. A term only where every training surface shows it
+  and they span more than one shape (:func:`law_terms`); it bounds the domain wherever it is read.
 - *Fit*: Huber's M-estimator (epsilon 1.345, scale by the median absolute residual, iteratively reweighted least
   squares), because an image whose peak was misread (a fingerprint pad's lobe or a low-frequency shading hump) is an
   outlier that least squares would follow.
@@ -25,9 +27,10 @@ The law, in logs, with 3 parameters::
   each keeps its own peak amplitude there (:func:`peak_features`).
 - *Prediction*: features are clipped to the range of the training rows the fit kept (a power law is not carried
   past its data), and :meth:`PeakPowerLaw.applicability` says, in a user's words, what lies outside what the law
-  was fitted on (period, peak strength, a spectrum with no clear peak, presses that disagree).
+  was fitted on (period, peak strength, contact pattern, a spectrum with no clear peak, presses that disagree).
 
-Nothing is chosen from the targets: the features, their number and epsilon are fixed, so cross-validating the fit is
+Nothing is chosen from the targets: the features, the rule for the terms (spectra only) and epsilon are fixed, so
+cross-validating the fit is
 all the nesting there is (docs/peak_law.md says how they were chosen, and on which data). Every fold of a
 cross-validation, and every shuffled target of the permutation control, is fitted in one batched IRLS
 (:func:`peak_law_cv`), the same arithmetic as a refit of :class:`PeakPowerLaw` on that fold.
@@ -400,14 +403,15 @@ def _weighted_lstsq(design: np.ndarray, targets: np.ndarray, weights: np.ndarray
 class PeakPowerLaw(RegressorMixin, BaseEstimator):
     """scikit-learn regressor: spectra (n, n_blocks x K) -> perceived roughness, by a power law of the spectrum's peak.
 
-    roughness = exp(intercept + coef . (log peak frequency, log peak amplitude)), fitted by Huber regression in logs.
+    roughness = exp(intercept + coef . (log peak frequency, log peak amplitude, log second-harmonic ratio)), fitted by
+    Huber regression in logs on its terms (:func:`law_terms`; a feature that is no term has coefficient 0).
 
     ``freq_per_mm``: the spectra's grid (K frequencies; default K evenly spaced over 0.1-1.0 mm^-1);
     ``n_blocks``: spectra per row (3 for a combined-force trial); ``pad_ridge_period_mm``: the pad's ridge period
     (a fingerprint pad's), whose frequency is left out of the peak search; ``epsilon``: Huber's constant.
     ``fit``, ``predict`` and ``applicability`` take ``surfaces`` (one label per row; rows of one surface share
     where its peak is, read on their mean spectrum).
-    Fitted: ``coef_`` (2,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
+    Fitted: ``coef_`` (3,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
     ``feature_max_`` (the range of the rows the Huber fit kept, weight >= 0.5, used to clip and to flag),
     ``freq_per_mm_``.
 
@@ -477,7 +481,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                        epsilon=self.epsilon)
 
     def features(self, X, surfaces=None) -> np.ndarray:
-        """The law's two inputs for each row (log peak frequency, log peak amplitude).
+        """The peak readout of each row (log peak frequency, log peak amplitude, log second-harmonic ratio).
 
         Parameters
         ----------
@@ -489,7 +493,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         Returns
         -------
         numpy.ndarray
-            (n_samples, 2) log peak frequency (mm^-1) and log peak amplitude.
+            (n_samples, 3) as :data:`FEATURE_NAMES` (the ratio NaN where it cannot be read).
         """
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
