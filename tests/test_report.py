@@ -488,6 +488,9 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
     analysis = SimpleNamespace(unseen_summary=lambda: unseen, held_out=pd.DataFrame(), simulation=None, synthetic=None)
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
+    from roughsense.cli.study_report import which_model_line
+
+    assert "pls passes in 1 of 2 (and in 1 on pooled RMSE only)" in which_model_line(unseen)  # the terminal, too
 
 
 def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only_pass():

@@ -140,11 +140,15 @@ def which_model_line(unseen) -> str:
     every pad x condition score new surfaces (`roughsense fit`'s default); PLS reproduces the paper."""
     from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 
-    passing = unseen.groupby("model", sort=False)["passes"].agg(lambda v: int(sum(bool(x) for x in v)))
-    cells = unseen.groupby("model", sort=False).size()
-    tally = ", ".join(f"{model} passes in {passing[model]} of {cells[model]}" for model in cells.index)
-    return (f"Which model to use: {DEFAULT_MODEL} (roughsense fit's default) to score surfaces never trained on; "
-            f"{PAPER_MODEL} to reproduce the paper. Controls for unseen surfaces per pad x condition: {tally}.")
+    passes = unseen["passes"].fillna(False).astype(bool)
+    below = unseen["rmse"] < unseen["null_rmse"]  # a pass on pooled RMSE alone is not counted as one
+    parts = []
+    for model, rows in unseen.groupby("model", sort=False):
+        pooled_only = int((passes[rows.index] & ~below[rows.index]).sum())
+        parts.append(f"{model} passes in {int((passes[rows.index] & below[rows.index]).sum())} of {len(rows)}"
+                     + (f" (and in {pooled_only} on pooled RMSE only)" if pooled_only else ""))
+    return (f"Which model to use: {DEFAULT_MODEL} (roughsense fit's default) to score new surfaces; {PAPER_MODEL} to "
+            f"reproduce the paper. Controls with a grating left out, per pad x condition: {', '.join(parts)}.")
 
 
 def _read_folder(root, *, builtin: bool):
