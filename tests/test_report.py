@@ -500,16 +500,21 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
 
     from roughsense.report.answer import answer_table
 
-    held = pd.DataFrame({"model": ["pls", "peak-law", "peak-law"], "pad": ["smooth"] * 3,
-                         "condition": ["combined"] * 3, "scheme": ["specimen", "specimen", "period"],
-                         "held_out": ["all"] * 3, "rmse": [0.357, 0.16, 0.19], "null_rmse": [0.333, 0.33, 0.35],
-                         "passes": [True, True, True], "n_permutations": [199, 199, 199]})
+    held = pd.DataFrame({"model": ["pls", "peak-law", "peak-law", "peak-law"], "pad": ["smooth"] * 4,
+                         "condition": ["combined"] * 4, "scheme": ["specimen", "specimen", "period", "shape"],
+                         "held_out": ["all", "all", "all", "circular"], "rmse": [0.357, 0.16, 0.19, 0.33],
+                         "null_rmse": [0.333, 0.33, 0.35, 0.42], "passes": [True] * 4, "n_permutations": [199] * 4,
+                         "bias": [0.0, 0.0, 0.01, -0.33], "flagged_share": [0.0, 0.0, 0.29, 1.0]})
+    presses = pd.DataFrame({"model": "peak-law", "pad": "smooth", "condition": "combined", "n_presses": [1, 3, 10],
+                            "rmse": [0.30, 0.20, 0.16], "null_rmse": 0.33})
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
                            "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
                            "jackknife_plus_median_factor": [float("nan"), 1.72]})
-    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen))
+    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen, presses=presses))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
         ["peak law", "a grating left out of training",
-         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72"],
-        ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"]]
+         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72; needs 3 press(es) per surface"],
+        ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"],
+        ["peak law", "a shape left out (fitted on the other): circular",
+         "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"]]

@@ -67,6 +67,8 @@ def answer_table(analysis) -> dict | None:
         return None
     condition = _condition(held)
     unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    presses = getattr(analysis, "presses", pd.DataFrame())
+    unseen["presses_needed"] = [_presses_needed(presses, *key) for key in unseen.index]
     pads = list(dict.fromkeys(held["pad"]))
     rows = []
     for (model, scheme, part), group in held[held["condition"] == condition].groupby(
@@ -85,6 +87,9 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
     below = row["rmse"] < row["null_rmse"]
     verdict = "fails" if not row["passes"] else "passes" if row["n_permutations"] else \
         "below the mean, not permutation-tested"
+    if scheme == "shape":  # one direction: its bias, and how much of it the applicability check flags
+        verdict += f", bias {row['bias']:+.2f}" + (f", {row['flagged_share']:.0%} of presses flagged"
+                                                   if pd.notna(row.get("flagged_share")) else "")
     if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
         control = unseen.loc[(model, pad, condition)]
         verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
@@ -92,7 +97,20 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
         if pd.notna(coverage):
             verdict += (f"; 90 % surface interval held {coverage:.0%}, x/÷ "
                         f"{control['jackknife_plus_median_factor']:.2f}")
+        if pd.notna(control.get("presses_needed")):
+            verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
     return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
+
+
+def _presses_needed(presses: pd.DataFrame, model: str, pad: str, condition: str) -> float:
+    """The presses a surface needs (analysis/presses.py), NaN where the study has no such curve."""
+    from ..analysis.presses import presses_needed
+
+    if presses is None or presses.empty:
+        return float("nan")
+    mine = presses[(presses["model"] == model) & (presses["pad"] == pad) & (presses["condition"] == condition)]
+    needed = presses_needed(mine) if len(mine) else None
+    return float("nan") if needed is None else float(needed)
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
