@@ -119,7 +119,8 @@ class PredictionInterval:
         return {"level": self.level, "trial_log_halfwidth": finite(self.trial_log_halfwidth),
                 "surface_log_halfwidth": finite(self.surface_log_halfwidth),
                 "alone_log_halfwidth": finite(self.alone_log_halfwidth), "n_trials": self.n_trials,
-                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out"}
+                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out",
+                "method": "jackknife: no coverage guarantee (the study checks the jackknife+ over specimens)"}
 
 
 def held_out_coverage(predictions, targets, surfaces, *, floor=None, level: float = INTERVAL_LEVEL
