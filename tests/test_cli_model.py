@@ -666,7 +666,7 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
         training = json.loads(out.read_text())["training"]
         unseen = training["unseen"]
         assert unseen["cv"] == "loso (nested)" and unseen["n_permutations"] == 199
-        assert "surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE" in stdout
+        assert "a grating left out of training (nested leave-one-specimen-out): per-specimen RMSE" in stdout
         warned = [line for line in err.splitlines() if "FAILS its controls" in line]
         assert bool(warned) == (not unseen["passes_controls"]) == bool(unseen["failure"])
         assert len(warned) <= 1 and (not warned or warned[0].endswith(unseen["failure"]))

@@ -63,7 +63,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
 def _check_unseen_lines(stdout: str, out) -> None:
     """The terminal summary opens with surfaces never seen: a headline, then one line per pad, from the report's data."""
     lines = stdout.splitlines()
-    first = next(i for i, line in enumerate(lines) if line.startswith("Unseen surfaces"))
+    first = next(i for i, line in enumerate(lines) if line.startswith("Held-out surfaces"))
     assert "leave-one-specimen-out, combined" in lines[first]
     assert lines[first + 1].startswith("  smooth pad: pls ") and "/ peak-law " in lines[first + 1]
     assert first + 1 < next(i for i, line in enumerate(lines) if "(pls, LOO)" in line)  # before the paper's LOO lines

@@ -160,13 +160,23 @@ def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
     from .test_study_analysis import FREQS
 
     """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
-    from roughsense.model.peak_law import HUBER_EPSILON, domain_margins, huber_irls, kept_rows, predict_law
+    from roughsense.model.peak_law import (
+        HUBER_EPSILON,
+        domain_margins,
+        fit_terms,
+        kept_range,
+        kept_rows,
+        predict_law,
+        shape_read,
+    )
 
     eps = HUBER_EPSILON if epsilon is None else epsilon
-    beta, scale = huber_irls(features[train], np.log(y[train])[None], np.ones((1, int(train.sum())), bool), epsilon=eps)
+    every = np.ones((1, int(train.sum())), bool)
+    beta, scale = fit_terms(features[train], np.log(y[train])[None], every, epsilon=eps, grouped=surfaces is not None)
     kept = kept_rows(features[train], np.log(y[train]), beta[0, 0], float(scale[0, 0]), eps,
                      None if surfaces is None else np.asarray(surfaces)[train])
-    low, high = features[train][kept].min(axis=0), features[train][kept].max(axis=0)
+    low, high = (r[0, 0] for r in kept_range(features[train], kept[None, None],
+                                             shape_read(features[train], every, surfaces is not None)))
     step = float(np.diff(FREQS)[0])  # the law is applied within its domain: the kept range and its margins
     return predict_law(features[test], beta[0, 0, 0], beta[0, 0, 1:], *domain_margins(step, low, high))
 

@@ -228,14 +228,34 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     from roughsense.model.peak_law import domain_margins
 
     low, high = domain_margins(float(np.diff(law.freq_per_mm_)[0]), law.feature_min_, law.feature_max_)
-    edge = np.exp(law.intercept_ + np.clip(law.features(new[1:]), low, high) @ law.coef_)
+    outside = law.features(new[1:])
+    outside[:, 2] = 0.0  # fitted on single presses: the harmonic ratio is no term (coefficient 0), read or not
+    edge = np.exp(law.intercept_ + np.clip(outside, low, high) @ law.coef_)
     np.testing.assert_allclose(loaded.predict(new[1:]), edge, rtol=1e-12)
     assert law.features(new[1:])[0, 0] < law.feature_min_[0]  # its peak lies below the lowest trained frequency
     document = json.loads(path.read_text())
     assert document["version"] == 1 and document["model"]["kind"] == "peak-power-law"
-    assert document["model"]["feature_names"] == ["log_peak_frequency_per_mm", "log_peak_amplitude"]
+    assert document["model"]["feature_names"] == ["log_peak_frequency_per_mm", "log_peak_amplitude",
+                                                   "log_second_harmonic_ratio"]
     with pytest.raises(ModelFileError, match="expects 45 features"):
         loaded.predict(np.ones((1, 44)))
+
+
+def test_a_two_feature_law_file_loads_as_a_law_without_the_shape_term(saved_law):
+    """A file written before the harmonic ratio existed (two features) still loads and predicts as it did."""
+    path, law, X = saved_law
+
+    def two_features(document):
+        model = document["model"]
+        for name in ("coefficients", "feature_min", "feature_max", "feature_names"):
+            model[name] = model[name][:2]
+
+    assert law.coef_[2] == 0
+    rewrite(path, two_features)
+    loaded = mf.load_model(path)
+    assert loaded.coef_[2] == 0 and np.isinf(loaded.feature_min_[2]) and np.isinf(loaded.feature_max_[2])
+    np.testing.assert_allclose(loaded.predict(X), law.predict(X), rtol=1e-12)
+    assert not loaded.extrapolates(X).any()
 
 
 def test_a_pls_file_flags_exactly_the_values_it_held_to_the_trained_range(saved):
@@ -276,11 +296,13 @@ def test_a_law_missing_a_field_is_refused_naming_it(saved_law, field):
         ("pad_ridge_period_mm", 0, r"model\.pad_ridge_period_mm must be a number of mm"),
         ("pad_ridge_period_mm", "1.0", r"model\.pad_ridge_period_mm must be"),
         ("pad_ridge_period_mm", 1000.0, r"model\.pad_ridge_period_mm must be"),
-        ("coefficients", [1.0, 1e308], r"model\.coefficients\[1\] must be"),
-        ("coefficients", [1.0, 2.0, 3.0], r"model\.coefficients must be a list of 2 numbers"),
-        ("coefficients", [True, 1.0], r"model\.coefficients\[0\] must be"),
-        ("feature_min", [0.0], r"model\.feature_min must be a list of 2"),
-        ("feature_max", [-1.0, -1.0], r"feature_min exceeds model\.feature_max"),
+        ("coefficients", [1.0, 1e308, 0.0], r"model\.coefficients\[1\] must be"),
+        ("coefficients", [1.0, 2.0, 3.0, 4.0], r"model\.coefficients must be a list of 3 numbers"),
+        ("coefficients", [True, 1.0, 0.0], r"model\.coefficients\[0\] must be"),
+        ("coefficients", [1.0, 0.0, 0.5], r"must be numbers for every feature with a coefficient"),
+        ("feature_min", [0.0], r"model\.feature_min must be a list of 3"),
+        ("feature_min", [None, 0.0, None], r"model\.feature_min\[0\] must be"),
+        ("feature_max", [-1.0, -1.0, None], r"feature_min exceeds model\.feature_max"),
         ("feature_names", ["a", "b"], r"model\.feature_names must be"),
         ("n_blocks", 3, r"model\.n_blocks is 3, but the feature definition has 1 force condition"),
         ("n_blocks", 1.0, r"model\.n_blocks must be a whole number"),
@@ -301,8 +323,8 @@ def test_a_law_whose_predictions_would_overflow_is_refused(saved_law):
     path, _, _ = saved_law
 
     def huge(document):
-        document["model"].update(intercept=900.0, coefficients=[500.0, 500.0], feature_max=[-0.1, 1.0],
-                                 feature_min=[-2.0, -1.0])  # a log peak frequency on the grid, a huge law
+        document["model"].update(intercept=900.0, coefficients=[500.0, 500.0, 0.0], feature_max=[-0.1, 1.0, None],
+                                 feature_min=[-2.0, -1.0, None])  # a log peak frequency on the grid, a huge law
 
     rewrite(path, huge)
     with pytest.raises(ModelFileError, match=r"model\.intercept and model\.coefficients give log roughness"):
@@ -326,7 +348,7 @@ def test_non_finite_law_fields_are_refused_by_the_field_checks(saved_law):
 
 def test_a_law_that_cannot_be_stored_is_not_written(tmp_path, saved_law):
     _, law, _ = saved_law
-    law.coef_ = np.array([5e3, 0.0])  # beyond what a file may hold: refused on saving, not on a user's load
+    law.coef_ = np.array([5e3, 0.0, 0.0])  # beyond what a file may hold: refused on saving, not on a user's load
     target = tmp_path / "big.json"
     with pytest.raises(ModelFileError, match=r"model\.coefficients\[0\]"):
         mf.save_model(target, law, feature_definition=mf.feature_definition_for(spectrum(), ["2N"]), training={})

@@ -106,14 +106,18 @@ def test_huge_epsilon_without_outliers_is_least_squares():
 
 
 def test_fit_equals_statsmodels_on_its_features():
-    """PeakPowerLaw.fit is Huber's regression of log rating on its two features, outliers and all."""
-    X, y, _ = specimen_spectra(seed=2)
+    """PeakPowerLaw.fit is Huber's regression of log rating on its terms (the peak frequency and, read on every
+    training surface, the second-harmonic ratio; the amplitude is no term), outliers and all."""
+    X, y, groups = specimen_spectra(seed=2)
     y = y.copy()
     y[[3, 17]] *= np.array([4.0, 0.2])  # two misjudged trials
-    model = PeakPowerLaw(freq_per_mm=GRID).fit(X, y)
-    params = rlm_params(model.features(X), np.log(y))
+    model = PeakPowerLaw(freq_per_mm=GRID).fit(X, y, surfaces=groups)
+    features = model.features(X, surfaces=groups)
+    assert np.all(np.isfinite(features[:, 2]))  # 2-5 mm on a smooth pad: every second harmonic is in the band
+    params = rlm_params(features[:, [0, 2]], np.log(y))
     # both stop iterating at ~1e-8 relative change, on different measures: they agree to ~5e-8
-    np.testing.assert_allclose(np.r_[model.intercept_, model.coef_], params, rtol=0, atol=2e-7)
+    np.testing.assert_allclose(np.r_[model.intercept_, model.coef_], np.r_[params[:2], 0.0, params[2]], rtol=0,
+                               atol=2e-7)
 
 
 # --------------------------------------------------------------------------- scikit-learn
@@ -191,7 +195,10 @@ def test_extrapolation_is_flagged_and_held_at_the_edge():
     outside = sensor().transform([line_image(1.3, 0.2)])
     assert model.extrapolates(outside)[0] and not model.extrapolates(X).any()
     low, high = domain_margins(GRID[1] - GRID[0], model.feature_min_, model.feature_max_)
-    held = np.clip(model.features(outside), low, high)
+    features = model.features(outside)
+    assert np.isnan(features[0, 2]) and model.coef_[2] == 0  # fitted on single presses: no shape term
+    features[:, 2] = 0.0  # no term: any value
+    held = np.clip(features, low, high)
     expected = np.exp(model.intercept_ + held @ model.coef_)
     np.testing.assert_allclose(model.predict(outside), expected, rtol=1e-12)
 

@@ -305,13 +305,13 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     """The section a user needs comes before the paper's LOO tables, with the analysis's numbers in it."""
     html = (report_dir / "index.html").read_text()
     body = html.split("</nav>", 1)[1]
-    start = body.index('<h2 id="unseen">Surfaces never seen (leave-one-specimen-out)</h2>')
+    start = body.index('<h2 id="unseen">Surfaces held out of training (a grating, a period, a shape)</h2>')
     assert start < body.index('id="glance"') < body.index('id="results-loo"')
     assert start < body.index("Perceived and predicted roughness, smooth pad, LOO (mean ± SD)")
     section = body[start: body.index('id="glance"')]
     assert 'data-name="unseen_surfaces.png"' in section
     assert "user data" in section and "digital twin" not in section  # a real study: no twin caveat
-    rows = _rows(html, "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition")
+    rows = _rows(html, "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition")
     assert len(rows) == 2 * 2 * 4
     controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
     loso = pd.read_csv(report_dir / "results_loso.csv")
@@ -450,3 +450,71 @@ def test_the_first_screen_answers(report_dir, simulated_report_dir):
             assert height > 900
     finally:
         driver.quit()
+
+
+def test_the_held_out_table_shows_every_scheme_with_the_csvs_numbers(report_dir):
+    """Issue 35: the report says what each scheme held out, and its cells are held_out.csv's numbers."""
+    from roughsense.analysis.held_out import SCHEME_WORDS
+
+    html = (report_dir / "index.html").read_text()
+    held = pd.read_csv(report_dir / "held_out.csv")
+    rows = _rows(html, "Held out of training: a grating, a period, a shape")
+    assert len(rows) == len(held) == 2 * 2 * 4 * 4  # models x pads x conditions x (grating, period, each shape)
+    for row, (_, expected) in zip(rows, held.iterrows()):
+        assert row["Held out"][0] == SCHEME_WORDS[expected.scheme] + (
+            f" ({expected.n_folds} folds)" if expected.held_out == "all" else f": {expected.held_out}")
+        assert row["Mean RMSE"][0] == f"{expected.rmse:.3f}" and row["Bias"][0] == f"{expected.bias:+.3f}"
+        if pd.notna(expected.log_bias_rectangular):
+            assert f"rectangular {expected.log_bias_rectangular:+.2f}" in row["Log bias by shape"][0]
+        assert row["Controls"][0].startswith("passes") == bool(expected.passes)
+    assert "never seen" not in html.split("</nav>", 1)[0]  # the first screen says what was held out
+    presses = pd.read_csv(report_dir / "presses.csv")
+    rows = _rows(html, "Presses per surface: the peak law's error on a grating left out of training")
+    assert len(rows) == 2 * 4 and set(presses["model"]) == {"peak-law"}  # pads x conditions, the law's
+    first = presses[(presses.pad == rows[0]["Pad"][0]) & (presses.condition == rows[0]["Condition"][0])]
+    assert rows[0]["1 press"][0] == f"{first.set_index('n_presses').loc[1, 'rmse']:.3f}"
+    assert (report_dir / "presses_per_surface.png").is_file()
+
+
+def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
+    """Issue 35: the first screen's count leaves out a pass whose mean per-specimen RMSE is above the training mean's."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_lines
+
+    unseen = pd.DataFrame({"model": ["pls", "pls"], "pad": ["smooth", "fingerprint"], "condition": ["combined"] * 2,
+                           "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
+                           "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
+    analysis = SimpleNamespace(unseen_summary=lambda: unseen, held_out=pd.DataFrame(), simulation=None, synthetic=None)
+    text = " ".join(answer_lines(analysis))
+    assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
+    from roughsense.cli.study_report import which_model_line
+
+    assert "pls passes in 1 of 2 (and in 1 on pooled RMSE only)" in which_model_line(unseen)  # the terminal, too
+
+
+def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only_pass():
+    """Issue 35: the answer is a small table per model and held-out scheme; a LOSO pass whose mean per-specimen RMSE
+    is not below the training mean's reads "pooled RMSE only"; the jackknife+ interval is quoted where it exists."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_table
+
+    held = pd.DataFrame({"model": ["pls", "peak-law", "peak-law", "peak-law"], "pad": ["smooth"] * 4,
+                         "condition": ["combined"] * 4, "scheme": ["specimen", "specimen", "period", "shape"],
+                         "held_out": ["all", "all", "all", "circular"], "rmse": [0.357, 0.16, 0.19, 0.33],
+                         "null_rmse": [0.333, 0.33, 0.35, 0.42], "passes": [True] * 4, "n_permutations": [199] * 4,
+                         "bias": [0.0, 0.0, 0.01, -0.33], "flagged_share": [0.0, 0.0, 0.29, 1.0]})
+    presses = pd.DataFrame({"model": "peak-law", "pad": "smooth", "condition": "combined", "n_presses": [1, 3, 10],
+                            "rmse": [0.30, 0.20, 0.16], "null_rmse": 0.33})
+    unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
+                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
+                           "jackknife_plus_median_factor": [float("nan"), 1.72]})
+    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen, presses=presses))
+    assert table["rows"] == [
+        ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
+        ["peak law", "a grating left out of training",
+         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72; needs 3 press(es) per surface"],
+        ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"],
+        ["peak law", "a shape left out (fitted on the other): circular",
+         "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"]]

@@ -119,7 +119,7 @@ def _section(title_start: str) -> str:
 def test_the_tutorial_lists_every_section_of_the_report_in_order(tutorial_run):
     page = (tutorial_run / "my-report" / "index.html").read_text()
     headings = [html.unescape(re.sub(r"<[^>]+>", "", h)).strip() for h in re.findall(r"<h2[^>]*>(.*?)</h2>", page, re.S)]
-    assert len(headings) >= 10 and headings[0].startswith("Surfaces never seen")
+    assert len(headings) >= 10 and headings[0].startswith("Surfaces held out of training")
     listed = re.findall(r"^- \*\*(.+?)\*\*", _section("6. Reading the report"), re.MULTILINE)
     assert listed == [h.split(" (")[0] for h in headings], (listed, headings)
 

@@ -23,13 +23,17 @@ from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.applicability import held_out_flags as pls_flags
 from ..model.families import MODEL_FAMILIES, PEAK_LAW, PLS, check_model_name
+from ..model.jackknife_plus import nested_check
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.peak_law import held_out_flags as peak_law_flags
+from ..model.peak_law_folds import law_pair_log_predictions, specimen_codes
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
+from .held_out import held_out_analysis
 from .metrics import compare_conditions, shape_summary, signed_rank, specimen_table
+from .presses import presses_analysis
 from .spread import paper_predictive, predictive_ovl
 from .unseen import unseen_summary
 
@@ -63,6 +67,9 @@ class ConditionFit:
     model: str = PLS
     #: LOSO only: whether each trial lay outside the applicability domain of the model fitted without its specimen.
     held_out_flags: np.ndarray | None = None
+    #: LOSO only: each specimen's jackknife+ surface interval from models that never saw it (model/jackknife_plus.py's
+    #: ``nested_check``); None for a family without cheap leave-two-out fits (PLS).
+    interval_check: pd.DataFrame | None = None
 
 
 @dataclass
@@ -93,6 +100,10 @@ class StudyAnalysis:
     wavelengths: dict[str, float] = field(default_factory=dict)
     #: The model families fitted, in the order of every table (the paper's PLS first).
     models: tuple[str, ...] = (PLS,)
+    #: Every LOSO fit again with a period, and a shape, held out (analysis/held_out.py; HELD_OUT_COLUMNS).
+    held_out: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: A held-out surface's error against the presses it is read from (analysis/presses.py; PRESS_COLUMNS).
+    presses: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PLS) -> ConditionFit:
         """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""
@@ -300,6 +311,17 @@ def held_out_flags(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: n
     return pls_flags(X, y, specimens, counts, readout)
 
 
+def interval_check(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict
+                   ) -> pd.DataFrame | None:
+    """The fully nested jackknife+ check of a LOSO fit's surface intervals (the peak law's leave-two-out fits are one
+    batch; PLS would need a nested component search per pair, and has none)."""
+    if fit.model != PEAK_LAW:
+        return None
+    codes, names = specimen_codes(specimens)
+    log_targets = np.log(pd.Series(y).groupby(codes).first().to_numpy())
+    return nested_check(law_pair_log_predictions(X, y, specimens, **law), log_targets, names)
+
+
 def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
     """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
 
@@ -372,9 +394,9 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
 
 def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = DEFAULT_MAX_COMPONENTS,
                   conditions: Sequence[str] = paper.PAPER_CONDITIONS, cv_schemes: Sequence[str] = CV_SCHEMES,
-                  n_jobs: int = 1, progress: Callable | None = None,
-                  n_permutations: int = _controls.DEFAULT_PERMUTATIONS, seed: int = 0,
-                  combined_forces: Sequence[str] | None = None, models: Sequence[str] = MODEL_FAMILIES) -> StudyAnalysis:
+                  n_jobs: int = 1, progress: Callable | None = None, n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
+                  seed: int = 0, combined_forces: Sequence[str] | None = None,
+                  models: Sequence[str] = MODEL_FAMILIES, stricter: bool = True) -> StudyAnalysis:
     """The paper's whole analysis of a validated study, with every model's controls and the claims' verdicts.
 
     Parameters
@@ -383,7 +405,8 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
         A study with ratings (:func:`read_study`); its spectra if already computed (e.g. cached), else made here.
     max_components, conditions, cv_schemes
         PLS components cross-validated; force conditions ("1N", ..., "combined"); "loo" (the paper's) and/or "loso"
-        (leave one specimen out: surfaces never seen). ``combined_forces``: what "combined" joins (1N, 2N, 3N).
+        (leave one specimen out). ``combined_forces``: what "combined" joins (1N, 2N, 3N). ``stricter``: also a
+        period and a shape left out, and presses per surface (``held_out``, ``presses``; a sweep cell skips them).
     n_permutations, seed, models
         Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
         folds and controls ("pls", "peak-law"; claims and signed-rank tests are the paper's PLS).
@@ -393,7 +416,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     Returns
     -------
     StudyAnalysis
-        ``results("loo"|"loso")``, ``controls``, ``claims``, ``cv_table``, ``summary()``: the report's content.
+        ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``, ``presses``: the report's content.
 
     Examples
     --------
@@ -424,10 +447,16 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
     analysis.controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
+    analysis.held_out, analysis.presses = _stricter(analysis, control_jobs) if stricter else (pd.DataFrame(),) * 2
     analysis.tests = _signed_rank_tests(analysis, conditions)
     analysis.paper_predictive = paper_predictive()
     analysis.claims = evaluate_claims(analysis)
     return analysis
+
+
+def _stricter(analysis: StudyAnalysis, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
+    return held_out_analysis(analysis, control_jobs), presses_analysis(analysis, control_jobs)
 
 
 def _check_models(models: Sequence[str]) -> tuple[str, ...]:
@@ -510,6 +539,7 @@ def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, 
         for fit in _model_fits(analysis, X, y, meta, pad, condition, cv, law):
             if cv == "loso":
                 fit.held_out_flags = held_out_flags(fit, X, y, specimens, law)
+                fit.interval_check = interval_check(fit, X, y, specimens, law)
             analysis.fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
     return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))

@@ -32,6 +32,7 @@ from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 from .assessment import UnseenAssessment, assess_unseen
 from .controls import fold_mean_predictions
+from .presses import presses_curve, presses_needed
 
 RULES = ("min", "1se")
 
@@ -195,6 +196,11 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         return trained
     training["unseen"] = unseen.record()
     training["interval"] = unseen.interval.to_dict()
+    if family == PEAK_LAW:  # how many presses a surface needs (analysis/presses.py); predict says when it has fewer
+        curve = presses_curve(X, y, specimens, settings, seed)
+        training["presses"] = {"needed": presses_needed(curve), "null_rmse": float(curve["null_rmse"].iloc[0]),
+                               "rmse_by_presses": {str(int(k)): float(v) for k, v in zip(curve["n_presses"],
+                                                                                        curve["rmse"])}}
     return dataclasses.replace(trained, unseen=unseen)
 
 

@@ -21,7 +21,8 @@ from .controls import fold_mean_predictions
 
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
-                  "pi90_coverage_specimens", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
+                  "pi90_coverage_specimens", "jackknife_plus_coverage", "jackknife_plus_median_factor",
+                  "jackknife_plus_misses", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
 
 
 def null_specimen_rmse(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.Series:
@@ -66,6 +67,21 @@ def _coverage(prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray)
     return {"pi90_coverage_trials": trials, "pi90_coverage_specimens": surfaces}
 
 
+def _jackknife_plus(fit) -> dict:
+    """Coverage of the nested jackknife+ surface intervals, their median width (a factor: prediction x/÷ it) and
+    the specimens they miss, with by how much (NaN and '' where the family has no such check)."""
+    check = getattr(fit, "interval_check", None)
+    if check is None or check.empty:
+        return {"jackknife_plus_coverage": float("nan"), "jackknife_plus_median_factor": float("nan"),
+                "jackknife_plus_misses": ""}
+    misses = "; ".join(f"{r.specimen} {r.perceived:.2f} {'below' if r.perceived < r.pi90_low else 'above'} "
+                       f"{r.pi90_low:.2f}-{r.pi90_high:.2f} (x{np.exp(r.miss_log):.2f} outside)"
+                       for r in check[~check["covered"]].itertuples())
+    return {"jackknife_plus_coverage": float(check["covered"].mean()),
+            "jackknife_plus_median_factor": float(np.exp(check["log_halfwidth"].median())),
+            "jackknife_plus_misses": misses}
+
+
 def _flag_shares(fit) -> dict:
     flags = fit.held_out_flags
     if flags is None:
@@ -96,20 +112,23 @@ def unseen_summary(analysis) -> pd.DataFrame:
             "null_rmse": float(null_specimen_rmse(fit.predictions, analysis.perceived).mean()),
             "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.cv_rmse[0]),
             **_control(analysis.controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
-            **_coverage(prediction, target, fit.predictions["specimen"].to_numpy()), **_flag_shares(fit),
+            **_coverage(prediction, target, fit.predictions["specimen"].to_numpy()), **_jackknife_plus(fit),
+            **_flag_shares(fit),
         })
     return pd.DataFrame(rows, columns=UNSEEN_COLUMNS)
 
 
 UNSURE_COLUMNS = ["model", "pad", "condition", "specimen", "perceived", "prediction", "pi90_low", "pi90_high",
-                  "covered", "flagged_share"]
+                  "covered", "missed_by", "flagged_share"]
 
 
 def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
     """The held-out specimens a model is least sure of, per pad (combined condition, or the last): those whose
     presses its applicability check flagged, then those its 90 % interval missed, then the widest intervals.
 
-    Each specimen's interval is built as in the coverage check: from the other specimens' LOSO residuals only.
+    Each specimen's interval is built as in the coverage check: the nested jackknife+ where the family has one
+    (model/jackknife_plus.py), else from the other specimens' LOSO residuals only. ``missed_by``: the factor by
+    which the perceived value lies outside its interval (NaN where covered).
     """
     from ..model.interval import held_out_floors, held_out_halfwidths, log_residuals
 
@@ -128,14 +147,21 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
         _, surface = log_residuals(prediction, target, specimens, floors)
         halfwidths = held_out_halfwidths(surface)
         flags = fit.held_out_flags if fit.held_out_flags is not None else np.zeros(len(specimens), dtype=bool)
+        check = fit.interval_check.set_index("specimen") if fit.interval_check is not None else None
         for i, name in enumerate(pd.unique(pd.Series(specimens))):
             mine = specimens == name
             mean = float(np.maximum(prediction[mine], floors[mine]).mean())
-            rows.append({"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
-                         "perceived": float(perceived[name]), "prediction": mean,
-                         "pi90_low": mean * np.exp(-halfwidths[i]), "pi90_high": mean * np.exp(halfwidths[i]),
-                         "covered": bool(abs(surface[i]) <= halfwidths[i]),
-                         "flagged_share": float(np.mean(flags[mine]))})
+            row = {"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
+                   "perceived": float(perceived[name]), "prediction": mean,
+                   "pi90_low": mean * np.exp(-halfwidths[i]), "pi90_high": mean * np.exp(halfwidths[i]),
+                   "covered": bool(abs(surface[i]) <= halfwidths[i]), "missed_by": np.exp(abs(surface[i]) - halfwidths[i]),
+                   "flagged_share": float(np.mean(flags[mine]))}
+            if check is not None:  # the jackknife+ interval, from models that never saw the specimen
+                mine_check = check.loc[str(name)]
+                row.update(pi90_low=float(mine_check["pi90_low"]), pi90_high=float(mine_check["pi90_high"]),
+                           covered=bool(mine_check["covered"]), missed_by=float(np.exp(mine_check["miss_log"])))
+            row["missed_by"] = float("nan") if row["covered"] else row["missed_by"]
+            rows.append(row)
     table = pd.DataFrame(rows, columns=UNSURE_COLUMNS)
     table["width"] = table["pi90_high"] - table["pi90_low"]
     table = table.sort_values(["pad", "flagged_share", "covered", "width"], ascending=[True, False, True, False],

@@ -36,7 +36,7 @@ Rule = Annotated[str | None, typer.Option(
          "of it).")]
 ModelName = Annotated[str, typer.Option(
     "--model", help="Model family: peak-law (the default: a power law of where the spectrum peaks and how high, "
-                    "the family that passes its controls for surfaces never seen in training) or pls (the paper's "
+                    "the family that passes its controls for surfaces left out of training) or pls (the paper's "
                     "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
@@ -111,7 +111,7 @@ def _echo_unseen(unseen) -> None:
     width = f"{span(interval.trial_log_halfwidth, 'per trial')}, {span(interval.surface_log_halfwidth, 'per surface')}"
     if math.isfinite(interval.alone_log_halfwidth):
         width += f", {span(interval.alone_log_halfwidth, 'per press read alone')}"
-    typer.echo(f"surfaces never seen (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
+    typer.echo(f"a grating left out of training (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
                f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
                f"90 % prediction interval {width}")
 
@@ -154,8 +154,9 @@ def _echo_cv(trained) -> None:
     law = trained.model
     typer.echo(law_table(result).to_string(index=False, float_format=number))
     typer.echo(f"peak law: CV RMSE {result.rmse[1]:.5f} (training mean {result.rmse[0]:.5f}); "
-               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1) "
-               f"{law.coef_[1]:+.4f} log(peak amplitude)")
+               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1)"
+               + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else
+                  " (the contact's shape not read on every training surface: no shape term)"))
     low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
     typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
                "a surface outside that range is flagged as extrapolating when predicted")
@@ -272,6 +273,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
     _echo_scale(scores.scale)
+    _warn_few_presses(loaded.training, surfaces, len(trials))
     _warn_failed_controls(loaded.training)
 
 
@@ -440,6 +442,34 @@ def _echo_extrapolation(loaded, scores) -> None:
     if model_interval(loaded) is None:
         echo("no prediction interval: the model file has none it can use (written before intervals, or from "
                    "too few specimens); refit it with roughsense fit")
+
+
+def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
+    """One line when a surface is read from fewer presses than the model's pad needed, held out of training, to
+    beat the training mean clearly (``analysis.presses.presses_needed``, the model file's ``training.presses``)."""
+    import numpy as np
+    import pandas as pd
+
+    presses = training.get("presses") if isinstance(training, dict) else None
+    needed = presses.get("needed") if isinstance(presses, dict) else None
+    if not isinstance(needed, int) or needed <= 1:
+        return ""
+    counts = pd.Series(np.asarray(surfaces)).value_counts() if surfaces is not None else pd.Series([1] * n_trials)
+    fewest = int(counts.min()) if len(counts) else 0
+    if fewest >= needed:
+        return ""
+    errors = presses.get("rmse_by_presses", {})
+    error = f" (held-out error {errors[str(fewest)]:.2f} vs the training mean's {presses['null_rmse']:.2f})" \
+        if str(fewest) in errors and isinstance(presses.get("null_rmse"), float) else ""
+    return (f"fewer presses than this model's pad needs: a surface read from {counted(fewest, 'press', 'presses')} here; held "
+            f"out of training it needed {needed} to beat the training mean clearly{error}; press each surface {needed} times "
+            "(--same-surface or --study groups them)")
+
+
+def _warn_few_presses(training: dict, surfaces, n_trials: int) -> None:
+    line = few_presses_line(training, surfaces, n_trials)
+    if line:
+        typer.echo(line)
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.

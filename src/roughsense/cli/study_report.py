@@ -143,16 +143,20 @@ def which_model_line(unseen) -> str:
     from ..model.families import DEFAULT_MODEL, PAPER_MODEL
     from ..report.answer import NO_MODEL, recommended_model
 
-    passing = unseen.groupby("model", sort=False)["passes"].agg(lambda v: int(sum(bool(x) for x in v)))
-    cells = unseen.groupby("model", sort=False).size()
-    tally = ", ".join(f"{model} passes in {passing[model]} of {cells[model]}" for model in cells.index)
+    passes = unseen["passes"].fillna(False).astype(bool)
+    below = unseen["rmse"] < unseen["null_rmse"]  # a pass on pooled RMSE alone is not counted as one
+    parts = []
+    for name, rows in unseen.groupby("model", sort=False):
+        pooled_only = int((passes[rows.index] & ~below[rows.index]).sum())
+        parts.append(f"{name} passes in {int((passes[rows.index] & below[rows.index]).sum())} of {len(rows)}"
+                     + (f" (and in {pooled_only} on pooled RMSE only)" if pooled_only else ""))
+    controls = f"Controls with a grating left out, per pad x condition: {', '.join(parts)}."
     model = recommended_model(unseen)
-    controls = f"Controls for unseen surfaces per pad x condition: {tally}."
     if model is None:
         return f"Which model to use: none. {NO_MODEL} {PAPER_MODEL} reproduces the paper. {controls}"
     default = " (roughsense fit's default)" if model == DEFAULT_MODEL else f" (roughsense fit --model {model})"
-    return (f"Which model to use: {model}{default} to score surfaces never trained on, where it passes its controls; "
-            f"{PAPER_MODEL} to reproduce the paper. {controls}")
+    return (f"Which model to use: {model}{default} to score surfaces left out of training, where it passes its "
+            f"controls; {PAPER_MODEL} to reproduce the paper. {controls}")
 
 
 def _read_folder(root, *, builtin: bool):
@@ -177,11 +181,12 @@ def unseen_lines(analysis) -> list[str]:
 
     unseen = analysis.unseen_summary()
     if unseen.empty:
-        return ["Unseen surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
+        return ["Held-out surfaces: not estimated (--no-loso); the LOO lines below describe specimens seen in training."]
     condition = COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
     rows = unseen[unseen["condition"] == condition]
     best = rows.loc[rows["rmse"].idxmin()]
-    lines = [f"Unseen surfaces (nested leave-one-specimen-out, {condition}; mean per-specimen RMSE, lower is better): "
+    lines = [f"Held-out surfaces (a grating left out of training: nested leave-one-specimen-out, {condition}; "
+             "mean per-specimen RMSE, lower is better): "
              f"lowest {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
              f"{best['null_rmse']:.2f}."]
     for pad, group in rows.groupby("pad", sort=False):

@@ -124,7 +124,8 @@ def analyse_cell(cell: Cell):
     labels, conditions = cell_conditions(cell)
     # No permutation controls: a sweep compares designs by their error; the controls are the study report's job.
     return analyse_study(study, features=features, max_components=cell.max_components, conditions=conditions,
-                         cv_schemes=cell.cv, combined_forces=labels, n_permutations=0, models=cell.models), study
+                         cv_schemes=cell.cv, combined_forces=labels, n_permutations=0, models=cell.models,
+                         stricter=False), study
 
 
 def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:

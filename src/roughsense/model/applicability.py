@@ -10,8 +10,8 @@ model that never saw its specimen, so a new surface like the trained ones is fla
 T^2 and Q alone miss what matters most here: a spectrum normalised to unit area with no grating in the band (a
 0.5 mm grating) is close to the mean of the trained spectra, and a peak at 0.125 mm^-1 (an 8 mm grating) is a small
 share of Q. So a PLS model also keeps the peak law's readout of its training surfaces (:class:`PeakDomain`): the
-trained periods and the least clear peak, and flags a spectrum whose period lies outside them or that shows no
-clear peak, in the same words as the law.
+trained periods, contact shapes and the least clear peak, and flags a spectrum whose period or shape lies outside
+them or that shows no clear peak, in the same words as the law.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .peak_law import DEFAULT_EXCLUSION_PER_MM, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
+from .peak_law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
 from .pls import SIMPLS
 
 #: Share of held-out training rows inside the limits (the cross-validated percentile).
@@ -35,25 +35,31 @@ class PeakDomain:
     clarity_limit: float
     pad_ridge_period_mm: float | None = None
     exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM
+    #: The trained surfaces' second-harmonic log ratios (the contact's shape, sensor/shape.py); unbounded where
+    #: the law could not read it on every training surface.
+    harmonic_range: tuple[float, float] = (-np.inf, np.inf)
 
     @classmethod
     def of(cls, law: PeakPowerLaw) -> PeakDomain:
         return cls(np.asarray(law.freq_per_mm_, float), (float(law.feature_min_[0]), float(law.feature_max_[0])),
-                   float(law.clarity_limit_), law.pad_ridge_period_mm, float(law.exclusion_per_mm))
+                   float(law.clarity_limit_), law.pad_ridge_period_mm, float(law.exclusion_per_mm),
+                   (float(law.feature_min_[HARMONIC]), float(law.feature_max_[HARMONIC])))
 
     def reasons(self, X, n_blocks: int, surfaces=None) -> list[str]:
         readout = peak_readout(X, self.freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
                                exclusion_per_mm=self.exclusion_per_mm, surfaces=surfaces)
-        unbounded = PeakReadout(np.column_stack([readout.features[:, 0], np.zeros(len(readout.clarity))]),
+        unbounded = PeakReadout(np.column_stack([readout.features[:, 0], np.zeros(len(readout.clarity)),
+                                                 readout.features[:, HARMONIC]]),
                                 readout.clarity, readout.agreement)  # PLS has no peak-strength range
-        low = np.array([self.log_frequency_range[0], -np.inf])
-        high = np.array([self.log_frequency_range[1], np.inf])
+        low = np.array([self.log_frequency_range[0], -np.inf, self.harmonic_range[0]])
+        high = np.array([self.log_frequency_range[1], np.inf, self.harmonic_range[1]])
         step = float(self.freq_per_mm[1] - self.freq_per_mm[0])
         return domain_reasons(unbounded, low, high, self.clarity_limit, step)
 
     def to_dict(self) -> dict:
         return {"log_frequency_range": list(self.log_frequency_range), "clarity_limit": self.clarity_limit,
-                "pad_ridge_period_mm": self.pad_ridge_period_mm, "exclusion_per_mm": self.exclusion_per_mm}
+                "pad_ridge_period_mm": self.pad_ridge_period_mm, "exclusion_per_mm": self.exclusion_per_mm,
+                "harmonic_range": [v if np.isfinite(v) else None for v in self.harmonic_range]}
 
 
 @dataclass(frozen=True)

@@ -1,17 +1,19 @@
-"""90 % prediction intervals from a model's own leave-one-specimen-out residuals (split-conformal, in logs).
+"""90 % prediction intervals from a model's own leave-one-specimen-out residuals (the plain jackknife, in logs).
 
 Perceived roughness is a positive ratio to the reference, and its errors grow with it, so residuals are taken in
 logs (log perceived - log predicted) and an interval is ``prediction x exp(-h) .. prediction x exp(+h)``: always
-positive, wider in absolute terms for rougher surfaces. ``h`` is the conformal quantile of the absolute residuals
-of out-of-fold predictions under leave-one-specimen-out: the ceil((n + 1) level)-th smallest of n, which covers a
-new exchangeable residual with probability at least ``level``. Two are kept:
+positive, wider in absolute terms for rougher surfaces. ``h`` is the ceil((n + 1) level)-th smallest absolute
+residual of the out-of-fold predictions under leave-one-specimen-out, put around the *full* model's prediction.
+That is the jackknife, not split-conformal: the residuals come from other models than the one deployed, so the
+split-conformal guarantee does not hold (model/jackknife_plus.py gives a surface interval that has one, and the
+study's nested check). Two are kept:
 
 - per trial (one press, or one combined trial): over every trial's residual;
 - per surface (the mean prediction of a surface's presses): over every specimen's, so n is the number of specimens.
 
 Trials of one specimen share its target, so their residuals are not independent: the per-trial quantile is honest
 about the spread of presses, and the per-surface one about the spread between surfaces; the study checks both on
-held-out specimens (analysis/unseen.py) rather than trusting the theorem.
+held-out specimens (analysis/unseen.py) rather than trusting a theorem.
 """
 from __future__ import annotations
 
@@ -117,7 +119,8 @@ class PredictionInterval:
         return {"level": self.level, "trial_log_halfwidth": finite(self.trial_log_halfwidth),
                 "surface_log_halfwidth": finite(self.surface_log_halfwidth),
                 "alone_log_halfwidth": finite(self.alone_log_halfwidth), "n_trials": self.n_trials,
-                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out"}
+                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out",
+                "method": "jackknife: no coverage guarantee (the study checks the jackknife+ over specimens)"}
 
 
 def held_out_coverage(predictions, targets, surfaces, *, floor=None, level: float = INTERVAL_LEVEL

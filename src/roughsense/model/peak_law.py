@@ -1,4 +1,4 @@
-"""Peak power law: perceived roughness as a power law of where the contact spectrum peaks and how high.
+"""Peak power law: perceived roughness as a power law of where the contact spectrum peaks, and of the contact's shape.
 
 Why a second model. PLS is linear in the 45 amplitudes, and each grating puts its fundamental into bins that no other
 training grating excites, so for a surface it never saw it has nothing to go on (under leave-one-specimen-out the
@@ -6,18 +6,20 @@ paper's PLS sits at the training mean's error). Roughness that people perceive b
 spacing of the contact pattern, and the spacing *moves* the spectrum's peak: a law in where the peak is (and how
 strongly the contact concentrates there) extrapolates to a period between, or just beside, the trained ones.
 
-The law, in logs, with 3 parameters::
+The law, in logs, with 2 or 3 parameters::
 
-    log(roughness) = b0 + b1 * log(peak frequency, mm^-1) + b2 * log(peak amplitude)
+    log(roughness) = b0 + b1 * log(peak frequency, mm^-1) [+ b3 * log(A(2 f0) / A(f0))]
 
 - *Peak frequency*: the highest local maximum of the spectrum (averaged over a trial's forces), refined below the
   grid spacing by a parabola through the log amplitudes of the peak bin and its two neighbours (exact for a Gaussian
   lobe, which a Hann-windowed line's main lobe nearly is). The band's two end bins are never peaks (no neighbour on
   one side), and a fingerprint pad's own ridge frequency, 1 / ``pad_ridge_period_mm``, is excluded with
   ``exclusion_per_mm`` on either side: its relief is a pattern of the pad, not of the surface.
-- *Peak amplitude*: the log amplitude at the refined peak (the spectrum is normalised to unit area, so this says how
-  much of the contact's variation sits in that one spacing: a narrow contact on round crests spreads it over
-  harmonics, a square grating concentrates it).
+- *Peak amplitude*: the log amplitude at the refined peak. It earned no term under leave-one-specimen-out (its
+  coefficient is 0) and bounds the domain only.
+- *Shape*: the second harmonic's log ratio to the fundamental (sensor/shape.py: a square grating's is far below 0, a
+  narrow contact's near 0), read on the surface's mean spectrum. A term only where every training surface shows it
+  and they span more than one shape (:func:`law_terms`); it bounds the domain wherever it is read.
 - *Fit*: Huber's M-estimator (epsilon 1.345, scale by the median absolute residual, iteratively reweighted least
   squares), because an image whose peak was misread (a fingerprint pad's lobe or a low-frequency shading hump) is an
   outlier that least squares would follow.
@@ -25,9 +27,10 @@ The law, in logs, with 3 parameters::
   each keeps its own peak amplitude there (:func:`peak_features`).
 - *Prediction*: features are clipped to the range of the training rows the fit kept (a power law is not carried
   past its data), and :meth:`PeakPowerLaw.applicability` says, in a user's words, what lies outside what the law
-  was fitted on (period, peak strength, a spectrum with no clear peak, presses that disagree).
+  was fitted on (period, peak strength, contact pattern, a spectrum with no clear peak, presses that disagree).
 
-Nothing is chosen from the targets: the features, their number and epsilon are fixed, so cross-validating the fit is
+Nothing is chosen from the targets: the features, the rule for the terms (spectra only) and epsilon are fixed, so
+cross-validating the fit is
 all the nesting there is (docs/peak_law.md says how they were chosen, and on which data). Every fold of a
 cross-validation, and every shuffled target of the permutation control, is fitted in one batched IRLS
 (:func:`peak_law_cv`), the same arithmetic as a refit of :class:`PeakPowerLaw` on that fold.
@@ -42,9 +45,19 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
+from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 
-FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude")
+#: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
+#: the third (:func:`law_terms`); the peak amplitude did not earn a term under LOSO and bounds the domain only
+#: (docs/peak_law.md, benchmarks/bench_shape_terms.py).
+FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude", "log_second_harmonic_ratio")
+#: The features' columns: where the peak is, how high, and the contact's shape (sensor/shape.py).
+FREQUENCY, AMPLITUDE, HARMONIC = 0, 1, 2
+#: Least spread (log units) of the training surfaces' second-harmonic ratios for the ratio to be a term: two shapes.
+#: A square grating's ratio lies near -4 and a semi-cylinder's near -1 on the twin; within one shape they spread
+#: by under 0.6 (seeds 0-2), so 1 separates "one shape" from "several".
+SHAPE_SPREAD = 1.0
 #: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
 #: a 54 mm line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands.
 DEFAULT_EXCLUSION_PER_MM = 0.1
@@ -133,7 +146,8 @@ def _check_spectra(spectra: np.ndarray) -> None:
 
 def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
                   exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, surfaces=None) -> np.ndarray:
-    """(n, 2) log peak frequency (mm^-1) and log peak amplitude of each row's spectrum.
+    """(n, 3) log peak frequency (mm^-1), log peak amplitude and log second-harmonic ratio (NaN where it cannot be
+    read, sensor/shape.py) of each row's spectrum.
 
     A row holds ``n_blocks`` spectra side by side (a combined-force trial); they are averaged first, so the peak is
     read from the trial's mean spectrum (the grating's peak stays where it is at every force; noise averages out).
@@ -199,7 +213,10 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
     step = freq[1] - freq[0] if k_bins > 1 else 0.0
     frequency = freq[peak] + offset * step
     clarity = _parabola_at(surface_log, peak, offset) - np.median(surface_log[:, allowed], axis=1)
-    return PeakReadout(np.column_stack([np.log(frequency), amplitude]), clarity, agreement)
+    # The shape belongs to the surface, like where its peak is: read on the surface's mean spectrum.
+    harmonic = harmonic_ratio(surface_log, freq, frequency, pad_ridge_period_mm, exclusion_per_mm) if k_bins > 1 \
+        else np.full(n, np.nan)
+    return PeakReadout(np.column_stack([np.log(frequency), amplitude, harmonic]), clarity, agreement)
 
 
 def surface_codes(surfaces, n: int) -> np.ndarray:
@@ -304,6 +321,55 @@ def huber_irls(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *,
     return beta.reshape(n_folds, n_targets, p1), scale.reshape(n_folds, n_targets)
 
 
+def shape_read(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
+    """(F,) whether each training mask reads the contact's shape: every training row shows its second harmonic (a
+    fingerprint pad hides it for a 2 mm grating) and rows are grouped into surfaces (``grouped``: a shape is a
+    surface's, read on its presses' mean; one press's ratio is noise). Where it does, the shape bounds the domain."""
+    if not grouped or features.shape[1] <= HARMONIC:
+        return np.zeros(train.shape[0], dtype=bool)
+    return ~np.any(train & ~np.isfinite(features[:, HARMONIC])[None, :], axis=1)
+
+
+def law_terms(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
+    """(F, p) the features each training mask's law regresses on: the peak frequency always; the second-harmonic
+    ratio where the shape is read (:func:`shape_read`) and the training surfaces differ in it by at least
+    :data:`SHAPE_SPREAD` (one shape alone teaches no slope: its ratios differ by noise, which a free term would
+    carry, magnified, to any other shape); the amplitude never."""
+    terms = np.zeros((train.shape[0], features.shape[1]), dtype=bool)
+    terms[:, FREQUENCY] = True
+    read = shape_read(features, train, grouped)
+    if read.any():
+        ratio = np.where(np.isfinite(features[:, HARMONIC]), features[:, HARMONIC], 0.0)[None, :]
+        spread = np.where(train, ratio, -np.inf).max(axis=1) - np.where(train, ratio, np.inf).min(axis=1)
+        terms[:, HARMONIC] = read & (spread >= SHAPE_SPREAD)
+    return terms
+
+
+def fit_terms(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *, epsilon: float = HUBER_EPSILON,
+              grouped: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`huber_irls` on each mask's :func:`law_terms`: coefficients (F, B, p + 1), 0 for a feature that is no
+    term, and scales (F, B). Masks sharing terms are one batch."""
+    terms = law_terms(features, train, grouped)
+    n_folds, n_targets = train.shape[0], targets.shape[0]
+    beta = np.zeros((n_folds, n_targets, features.shape[1] + 1))
+    scale = np.empty((n_folds, n_targets))
+    for pattern in np.unique(terms, axis=0):
+        folds = np.all(terms == pattern, axis=1)
+        # A row outside a mask may lack a term's value: zero-filled, it carries weight 0 there.
+        part, part_scale = huber_irls(np.nan_to_num(features[:, pattern]), targets, train[folds], epsilon=epsilon)
+        beta[np.ix_(folds, np.arange(n_targets), np.r_[0, 1 + np.flatnonzero(pattern)])] = part
+        scale[folds] = part_scale
+    return beta, scale
+
+
+def held_features(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Features held to the domain [low, high] (broadcast); one that cannot be read (NaN) is put at the middle of
+    its range (0 where the range is unbounded: a feature that is no term)."""
+    bounded = np.isfinite(low) & np.isfinite(high)
+    middle = 0.5 * (np.where(bounded, low, 0.0) + np.where(bounded, high, 0.0))
+    return np.clip(np.where(np.isnan(features), middle, features), low, high)
+
+
 def _masked_median(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Median of each row's entries where ``mask`` is true (rows grouped by their count, one partition per count)."""
     counts = mask.sum(axis=1)
@@ -337,14 +403,15 @@ def _weighted_lstsq(design: np.ndarray, targets: np.ndarray, weights: np.ndarray
 class PeakPowerLaw(RegressorMixin, BaseEstimator):
     """scikit-learn regressor: spectra (n, n_blocks x K) -> perceived roughness, by a power law of the spectrum's peak.
 
-    roughness = exp(intercept + coef . (log peak frequency, log peak amplitude)), fitted by Huber regression in logs.
+    roughness = exp(intercept + coef . (log peak frequency, log peak amplitude, log second-harmonic ratio)), fitted by
+    Huber regression in logs on its terms (:func:`law_terms`; a feature that is no term has coefficient 0).
 
     ``freq_per_mm``: the spectra's grid (K frequencies; default K evenly spaced over 0.1-1.0 mm^-1);
     ``n_blocks``: spectra per row (3 for a combined-force trial); ``pad_ridge_period_mm``: the pad's ridge period
     (a fingerprint pad's), whose frequency is left out of the peak search; ``epsilon``: Huber's constant.
     ``fit``, ``predict`` and ``applicability`` take ``surfaces`` (one label per row; rows of one surface share
     where its peak is, read on their mean spectrum).
-    Fitted: ``coef_`` (2,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
+    Fitted: ``coef_`` (3,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
     ``feature_max_`` (the range of the rows the Huber fit kept, weight >= 0.5, used to clip and to flag),
     ``freq_per_mm_``.
 
@@ -414,7 +481,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                        epsilon=self.epsilon)
 
     def features(self, X, surfaces=None) -> np.ndarray:
-        """The law's two inputs for each row (log peak frequency, log peak amplitude).
+        """The peak readout of each row (log peak frequency, log peak amplitude, log second-harmonic ratio).
 
         Parameters
         ----------
@@ -426,7 +493,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         Returns
         -------
         numpy.ndarray
-            (n_samples, 2) log peak frequency (mm^-1) and log peak amplitude.
+            (n_samples, 3) as :data:`FEATURE_NAMES` (the ratio NaN where it cannot be read).
         """
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
@@ -467,14 +534,15 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         self.freq_per_mm_ = self._grid(X.shape[1])
         readout = self._readout(X, surfaces)
         features = readout.features
-        beta, scale = huber_irls(features, np.log(y)[None, :], np.ones((1, len(y)), dtype=bool),
-                                 epsilon=float(self.epsilon))
+        beta, scale = fit_terms(features, np.log(y)[None, :], np.ones((1, len(y)), dtype=bool),
+                                epsilon=float(self.epsilon), grouped=surfaces is not None)
         self.intercept_ = float(beta[0, 0, 0])
         self.coef_ = beta[0, 0, 1:].copy()
         self.scale_ = float(scale[0, 0])
         kept = kept_rows(features, np.log(y), beta[0, 0], self.scale_, float(self.epsilon), surfaces)
-        self.feature_min_ = features[kept].min(axis=0)
-        self.feature_max_ = features[kept].max(axis=0)
+        low, high = kept_range(features, kept[None, None],
+                               shape_read(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
+        self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
         self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
         return self
 
@@ -541,7 +609,7 @@ def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: 
     the kept rows is the range the law was actually fitted on. With ``surfaces``, a surface most of whose presses
     are down-weighted keeps them all: its *rating* is what the law misses, and its features are real.
     """
-    residual = log_y - beta[0] - features @ beta[1:]
+    residual = log_y - beta[0] - np.nan_to_num(features) @ beta[1:]  # a NaN feature is no term: coefficient 0
     return _kept(np.abs(residual)[None, None], np.array([[scale]]), epsilon, np.ones((1, len(log_y)), bool),
                  surfaces)[0, 0]
 
@@ -568,11 +636,11 @@ def predict_law(features: np.ndarray, intercept: float, coef: np.ndarray, low: n
                 ) -> np.ndarray:
     """exp(intercept + clip(features) . coef): the law's prediction, features held to [low, high] (the law's
     domain, :func:`domain_margins`)."""
-    return np.exp(intercept + np.clip(features, low, high) @ np.asarray(coef, dtype=np.float64))
+    return np.exp(intercept + held_features(features, low, high) @ np.asarray(coef, dtype=np.float64))
 
 
 def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """(n, 2) booleans: which of a row's two features lies outside the range (rounding aside)."""
+    """(n, p) booleans: which of a row's features lies outside the range (rounding aside; NaN is not outside)."""
     return (features < low - _RANGE_TOL) | (features > high + _RANGE_TOL)
 
 
@@ -600,19 +668,33 @@ def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, sh
     range the message quotes (the trained one, without the margins), default [low, high].
     """
     outside = outside_each(features, low, high)
+    # The law reads the contact's shape where its range is bounded; a row whose shape cannot be read is then unsure.
+    unread = np.isnan(features) & np.isfinite(low) & np.isfinite(high)
     low, high = (low, high) if shown is None else shown
     reasons = []
-    for row, (period_out, strength_out) in zip(features, outside):
+    for row, out, blind in zip(features, outside, unread):
         parts = []
-        if period_out:
+        if out[FREQUENCY]:
             parts.append(f"period {np.exp(-row[0]):.2f} mm outside the trained {np.exp(-high[0]):.2f}-"
                          f"{np.exp(-low[0]):.2f} mm")
-        if strength_out:
+        if out[AMPLITUDE]:
             side = "weaker" if row[1] < low[1] else "stronger"
             parts.append(f"peak strength {np.exp(row[1]):.3g} {side} than any trained ({np.exp(low[1]):.3g}-"
                          f"{np.exp(high[1]):.3g})")
+        if len(row) > HARMONIC and (out[HARMONIC] or blind[HARMONIC]):
+            parts.append(_shape_words(row[HARMONIC], low[HARMONIC], high[HARMONIC]))
         reasons.append("; ".join(parts))
     return reasons
+
+
+def _shape_words(ratio: float, low: float, high: float) -> str:
+    """The contact's shape against the trained ones, as the pulse train's duty cycle (sensor/shape.py)."""
+    trained = f"trained surfaces {duty_cycle(high):.2f}-{duty_cycle(low):.2f} of the period in contact"
+    if np.isnan(ratio):
+        return f"contact pattern not readable (its second harmonic lies on the pad's ridges or past the band); {trained}"
+    kind = "narrower ridges" if ratio > high else "wider lands"
+    return (f"contact pattern unlike any trained surface: {kind} (about {duty_cycle(ratio):.2f} of the period in "
+            f"contact; {trained})")
 
 
 def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clarity_limit: float | None,
@@ -687,13 +769,13 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
         raise PeakLawConfigError("cross-validation needs at least 2 folds")
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
-    beta, scale = huber_irls(features, log_targets, ~held_out, epsilon=epsilon)
+    beta, scale = fit_terms(features, log_targets, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = domain_margins(_step(freq_per_mm),
                                *fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces))
     predictions = np.empty_like(targets)
     for fold in range(n_folds):
         rows = held_out[fold]
-        clipped = np.clip(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, 2)
+        clipped = held_features(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, p)
         predictions[:, rows] = np.exp(beta[fold, :, :1] + np.einsum("brf,bf->br", clipped, beta[fold, :, 1:]))
     return predictions
 
@@ -718,10 +800,22 @@ def _cv_inputs(X, Y, groups) -> tuple[np.ndarray, np.ndarray]:
 def fold_kept_ranges(features: np.ndarray, log_targets: np.ndarray, train: np.ndarray, beta: np.ndarray,
                      scale: np.ndarray, epsilon: float, surfaces=None) -> tuple[np.ndarray, np.ndarray]:
     """(F, B, 2) low and high of the kept training rows of every fold and target (:func:`kept_rows`, batched)."""
-    fitted = beta[:, :, :1] + np.einsum("nf,kbf->kbn", features, beta[:, :, 1:])  # (F, B, n)
+    fitted = beta[:, :, :1] + np.einsum("nf,kbf->kbn", np.nan_to_num(features), beta[:, :, 1:])  # (F, B, n)
     kept = _kept(np.abs(log_targets[None] - fitted), scale, epsilon, train, surfaces)
-    low = np.stack([np.where(kept, features[:, j], np.inf).min(axis=2) for j in range(2)], axis=-1)
-    high = np.stack([np.where(kept, features[:, j], -np.inf).max(axis=2) for j in range(2)], axis=-1)
+    return kept_range(features, kept, shape_read(features, train, surfaces is not None))
+
+
+def kept_range(features: np.ndarray, kept: np.ndarray, read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, B, p) low and high of each feature over the kept rows (F, B, n). The second-harmonic ratio bounds the
+    domain only where the shape is read (``read`` (F,), :func:`shape_read`); elsewhere its range is unbounded, so
+    nothing is flagged for it."""
+    columns = range(features.shape[1])
+    low = np.stack([np.where(kept, features[:, j], np.inf).min(axis=2) for j in columns], axis=-1)
+    high = np.stack([np.where(kept, features[:, j], -np.inf).max(axis=2) for j in columns], axis=-1)
+    if features.shape[1] > HARMONIC:
+        unused = ~read[:, None]
+        low[..., HARMONIC] = np.where(unused, -np.inf, low[..., HARMONIC])
+        high[..., HARMONIC] = np.where(unused, np.inf, high[..., HARMONIC])
     return low, high
 
 
@@ -736,9 +830,9 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
                            exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     fold_of = np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     held_out = fold_of[None, :] == np.arange(int(fold_of.max()) + 1)[:, None]
-    beta, scale = huber_irls(readout.features, log_y, ~held_out, epsilon=epsilon)
+    beta, scale = fit_terms(readout.features, log_y, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = fold_kept_ranges(readout.features, log_y, ~held_out, beta, scale, epsilon, surfaces)
-    fitted = beta[:, 0, 0][None, :] + readout.features @ beta[:, 0, 1:].T  # (n, F)
+    fitted = beta[:, 0, 0][None, :] + np.nan_to_num(readout.features) @ beta[:, 0, 1:].T  # (n, F)
     step = float(freq_per_mm[1] - freq_per_mm[0])
     flags = np.zeros(X.shape[0], dtype=bool)
     for fold, rows in enumerate(held_out):

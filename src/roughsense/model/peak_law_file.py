@@ -3,9 +3,13 @@
 The section beside the document's ``features`` (whose spectrum holds the frequency grid the peak is read on)::
 
     {"kind": "peak-power-law", "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
-     "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2], "scale": s,
-     "feature_min": [2], "feature_max": [2], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude"],
-     "clarity_limit": c}
+     "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2, b3], "scale": s,
+     "feature_min": [3], "feature_max": [3], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude",
+     "log_second_harmonic_ratio"], "clarity_limit": c}
+
+A coefficient of 0 is a feature that is no term of the law (the amplitude always; the harmonic ratio where a
+training surface did not show it), and such a harmonic ratio's range is null (unbounded). A file written before the
+harmonic ratio existed has two of each and loads as a law without it.
 
 ``feature_min``/``feature_max`` are the range of the rows the fit kept and ``clarity_limit`` the least clear peak it
 accepts (:func:`~roughsense.model.peak_law.domain_reasons`); a file written before ``clarity_limit`` existed loads
@@ -34,6 +38,7 @@ from .families import PEAK_LAW
 from .peak_law import (
     FEATURE_NAMES,
     LOG_MARGIN,
+    HARMONIC,
     PeakPowerLaw,
     PeakReadout,
     check_grid,
@@ -109,7 +114,7 @@ class LoadedPeakLaw:
                             exclusion_per_mm=self.exclusion_per_mm, surfaces=surfaces)
 
     def law_features(self, X, surfaces=None) -> np.ndarray:
-        """(n, 2) log peak frequency and log peak amplitude of each row, as the fitted law reads them."""
+        """(n, 3) the peak readout of each row (FEATURE_NAMES), as the fitted law reads it."""
         return self._readout(X, surfaces).features
 
     def predict(self, X, surfaces=None) -> np.ndarray:
@@ -144,8 +149,8 @@ def law_section(model: PeakPowerLaw) -> dict:
         "intercept": float(model.intercept_),
         "coefficients": [float(v) for v in model.coef_],
         "scale": float(model.scale_),
-        "feature_min": [float(v) for v in model.feature_min_],
-        "feature_max": [float(v) for v in model.feature_max_],
+        "feature_min": [float(v) if math.isfinite(v) else None for v in model.feature_min_],
+        "feature_max": [float(v) if math.isfinite(v) else None for v in model.feature_max_],
         "feature_names": list(FEATURE_NAMES),
         "clarity_limit": float(model.clarity_limit_),
     }
@@ -176,10 +181,10 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
         period = _checked(section, "pad_ridge_period_mm", _PAD_PERIOD, path,
                           must=f"a number of mm from {_PAD_PERIOD.low:g} to {_PAD_PERIOD.high:g}, or null")
     scalars = {name: _checked(section, name, constraint, path) for name, constraint in _SCALARS.items()}
-    pairs = {name: _pair(section, name, path) for name in _PAIRS}
-    if section["feature_names"] != list(FEATURE_NAMES):
-        raise ModelFileError(f"model.feature_names must be {list(FEATURE_NAMES)}, got {shown(section['feature_names'])}",
-                             path=path)
+    names = section["feature_names"]
+    if names not in (list(FEATURE_NAMES), list(FEATURE_NAMES[:2])):
+        raise ModelFileError(f"model.feature_names must be {list(FEATURE_NAMES)}, got {shown(names)}", path=path)
+    pairs = {name: _pair(section, name, path, len(names)) for name in _PAIRS}
     if np.any(pairs["feature_min"] > pairs["feature_max"]):
         raise ModelFileError("model.feature_min exceeds model.feature_max: the training range is empty", path=path)
     freq = _grid(features["spectrum"], path)
@@ -209,15 +214,24 @@ def _checked(section: dict, name: str, constraint: Constraint, path: Path | None
     return int(value) if constraint is POSITIVE_INT else float(value)
 
 
-def _pair(section: dict, name: str, path: Path | None) -> np.ndarray:
+def _pair(section: dict, name: str, path: Path | None, length: int) -> np.ndarray:
+    """One number per feature; the harmonic ratio's range may be null (unbounded: no term). A two-feature file
+    (before the harmonic ratio) gains it as no term."""
     values = section[name]
-    if not isinstance(values, list) or len(values) != len(FEATURE_NAMES):
-        raise ModelFileError(f"model.{name} must be a list of {len(FEATURE_NAMES)} numbers, got {shown(values)}",
-                             path=path)
+    if not isinstance(values, list) or len(values) != length:
+        raise ModelFileError(f"model.{name} must be a list of {length} numbers, got {shown(values)}", path=path)
+    unbounded = {"feature_min": -np.inf, "feature_max": np.inf}.get(name)
+    out = []
     for i, value in enumerate(values):
-        if not _BOUNDED.accepts(value):
+        if value is None and unbounded is not None and i == HARMONIC:
+            out.append(unbounded)
+        elif _BOUNDED.accepts(value):
+            out.append(float(value))
+        else:
             raise ModelFileError(f"model.{name}[{i}] must be {_BOUNDED.describe()}, got {shown(value)}", path=path)
-    return np.array(values, dtype=np.float64)
+    if length < len(FEATURE_NAMES):
+        out.append({"feature_min": -np.inf, "feature_max": np.inf}.get(name, 0.0))
+    return np.array(out, dtype=np.float64)
 
 
 def _grid(spectrum: dict, path: Path | None) -> np.ndarray:
@@ -246,7 +260,12 @@ def _check_log_frequencies(values, freq: np.ndarray, where: str, path: Path | No
 
 def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) -> None:
     """The law's exponent at the corners of its feature box (its extremes, as it is linear) stays in range."""
-    corners = np.column_stack([pairs["feature_min"], pairs["feature_max"]]) * pairs["coefficients"][:, None]
+    used = pairs["coefficients"] != 0  # a feature that is no term may have an unbounded range
+    if not np.all(np.isfinite(pairs["feature_min"][used]) & np.isfinite(pairs["feature_max"][used])):
+        raise ModelFileError("model.feature_min and model.feature_max must be numbers for every feature with a "
+                             "coefficient", path=path)
+    corners = np.column_stack([pairs["feature_min"][used], pairs["feature_max"][used]]) * \
+        pairs["coefficients"][used][:, None]
     highest = intercept + float(corners.max(axis=1).sum())
     lowest = intercept + float(corners.min(axis=1).sum())
     if not (math.isfinite(highest) and math.isfinite(lowest)) or max(abs(highest), abs(lowest)) > _MAX_LOG_ROUGHNESS:
@@ -260,10 +279,16 @@ def peak_domain(section, features: dict, path: Path | None):
     from .applicability import PeakDomain
 
     where = "model.applicability.peak"
-    if not isinstance(section, dict) or set(section) != {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm",
-                                                         "exclusion_per_mm"}:
+    fields = {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"}
+    if not isinstance(section, dict) or set(section) - {"harmonic_range"} != fields:
         raise ModelFileError(f"{where} must have exactly the fields log_frequency_range, clarity_limit, "
-                             "pad_ridge_period_mm, exclusion_per_mm", path=path)
+                             "pad_ridge_period_mm, exclusion_per_mm (and harmonic_range)", path=path)
+    harmonic = section.get("harmonic_range", [None, None])
+    if not isinstance(harmonic, list) or len(harmonic) != 2 or not all(v is None or _BOUNDED.accepts(v)
+                                                                       for v in harmonic):
+        raise ModelFileError(f"{where}.harmonic_range must be two numbers or nulls, got {shown(harmonic)}", path=path)
+    harmonic = (-np.inf if harmonic[0] is None else float(harmonic[0]),
+                np.inf if harmonic[1] is None else float(harmonic[1]))
     span = section["log_frequency_range"]
     if not isinstance(span, list) or len(span) != 2 or not all(_BOUNDED.accepts(v) for v in span) or span[0] > span[1]:
         raise ModelFileError(f"{where}.log_frequency_range must be two increasing numbers, got {shown(span)}",
@@ -283,4 +308,4 @@ def peak_domain(section, features: dict, path: Path | None):
     except ValueError as exc:
         raise ModelFileError(f"{where}: {exc}", path=path) from None
     return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
-                      None if period is None else float(period), float(section["exclusion_per_mm"]))
+                      None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic)

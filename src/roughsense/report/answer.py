@@ -1,14 +1,16 @@
 """The report's first screen: the answer to the question users ask, in a few lines, before anything else.
 
-Which model to use for a surface never trained on, how wrong it is there against the training mean, how often its
-90 % interval held the panel's value, where it passes its controls, and how far to trust it (whose images these
-are). Every number comes from the analysis's "surfaces never seen" summary (analysis/unseen.py), the same table
-the report shows below, so the first screen and the table cannot disagree.
+Which model to use for a new surface, how wrong it is with a grating, a period and a shape left out of training
+against the training mean, how often its 90 % interval held the panel's value, where it passes its controls, and
+how far to trust it (whose images these are). Every number comes from the analysis's held-out summaries
+(analysis/unseen.py, analysis/held_out.py), the same tables the report shows below, so the first screen and the
+tables cannot disagree.
 """
 from __future__ import annotations
 
 import pandas as pd
 
+from ..analysis.held_out import SCHEME_WORDS
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..paper import COMBINED
 from .tables import model_title
@@ -30,14 +32,15 @@ def _condition(unseen: pd.DataFrame) -> str:
     return COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
 
 
-#: What the report and the console say when no family passes its controls for surfaces never seen.
-NO_MODEL = ("No model here passes its controls for surfaces never seen: this study supports no roughness score for a "
-            "new surface.")
+#: What the report and the console say when no family passes its controls for surfaces left out of training.
+NO_MODEL = ("No model here passes its controls for surfaces left out of training: this study supports no roughness "
+            "score for a new surface.")
 
 
 def recommended_model(unseen: pd.DataFrame) -> str | None:
-    """The family to use for surfaces never seen: fit's default if it passes its controls in some pad x condition,
-    else the first that does, else None. The one verdict the report's first screen and the console both state."""
+    """The family to use for surfaces left out of training: fit's default if it passes its controls in some pad x
+    condition, else the first that does, else None. The one verdict the report's first screen and the console both
+    state."""
     passes = unseen["passes"].fillna(False).astype(bool)
     passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
     if not passing:
@@ -60,18 +63,84 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
             if pd.notna(r.pi90_coverage_trials) else "")
         for r in rows.itertuples())
     default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
-    return (f"To score a surface the model never saw, use the {model_title(model)} ({model}{default}) on the pads and "
-            f"conditions where it passes its controls (next line). Its error on surfaces held out of training "
-            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}.")
+    return (f"To score a new surface, use the {model_title(model)} ({model}{default}) on the pads and "
+            f"conditions where it passes its controls (next line). Its error with a grating left out of training "
+            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}. The table says how it does with "
+            "a period or a shape left out.")
+
+
+def answer_table(analysis) -> dict | None:
+    """The first screen's table: per model and held-out scheme (combined condition), each pad's mean per-specimen
+    RMSE beside the training mean's and its verdict, and the nested jackknife+ surface interval where there is one.
+
+    A verdict rests on the mean per-specimen RMSE *and* the controls: a model whose controls pass on the pooled RMSE
+    while its mean per-specimen RMSE is not below the training mean's reads "pooled RMSE only", never "passes".
+    """
+    held = getattr(analysis, "held_out", None)
+    if held is None or held.empty:
+        return None
+    condition = _condition(held)
+    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    presses = getattr(analysis, "presses", pd.DataFrame())
+    unseen["presses_needed"] = [_presses_needed(presses, *key) for key in unseen.index]
+    pads = list(dict.fromkeys(held["pad"]))
+    rows = []
+    for (model, scheme, part), group in held[held["condition"] == condition].groupby(
+            ["model", "scheme", "held_out"], sort=False):
+        words = SCHEME_WORDS[scheme] + ("" if part == "all" else f": {part}")
+        cells = [model_title(model), words]
+        for pad in pads:
+            r = group[group["pad"] == pad]
+            cells.append(_verdict_cell(r.iloc[0], unseen, model, pad, condition, scheme) if len(r) else "—")
+        rows.append(cells)
+    return {"columns": ["Model", "Held out", *[f"{pad} pad: RMSE vs training mean" for pad in pads]],
+            "rows": rows, "condition": condition}
+
+
+def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: str, scheme: str) -> str:
+    below = row["rmse"] < row["null_rmse"]
+    verdict = "fails" if not row["passes"] else "passes" if row["n_permutations"] else \
+        "below the mean, not permutation-tested"
+    if scheme == "shape":  # one direction: its bias, and how much of it the applicability check flags
+        verdict += f", bias {row['bias']:+.2f}" + (f", {row['flagged_share']:.0%} of presses flagged"
+                                                   if pd.notna(row.get("flagged_share")) else "")
+    if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
+        control = unseen.loc[(model, pad, condition)]
+        verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
+        coverage = control.get("jackknife_plus_coverage")
+        if pd.notna(coverage):
+            verdict += (f"; 90 % surface interval held {coverage:.0%}, x/÷ "
+                        f"{control['jackknife_plus_median_factor']:.2f}")
+        if pd.notna(control.get("presses_needed")):
+            verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
+    return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
+
+
+def _presses_needed(presses: pd.DataFrame, model: str, pad: str, condition: str) -> float:
+    """The presses a surface needs (analysis/presses.py), NaN where the study has no such curve."""
+    from ..analysis.presses import presses_needed
+
+    if presses is None or presses.empty:
+        return float("nan")
+    mine = presses[(presses["model"] == model) & (presses["pad"] == pad) & (presses["condition"] == condition)]
+    needed = presses_needed(mine) if len(mine) else None
+    return float("nan") if needed is None else float(needed)
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
-    """Where each model passes its controls (training mean and shuffled targets), pad x condition."""
+    """Where each model passes its controls (training mean and shuffled targets), pad x condition. A pass whose mean
+    per-specimen RMSE is not below the training mean's rests on the pooled RMSE alone and is counted apart."""
     parts = []
     for model, rows in unseen.groupby("model", sort=False):
         ok = passes[rows.index]
+        pooled_only = ok & ~(rows["rmse"] < rows["null_rmse"])
         where = ", ".join(f"{r.pad} {r.condition}" for r in rows[~ok].itertuples())
-        parts.append(f"{model_title(model)} passes in {int(ok.sum())} of {len(rows)}" + (f" (not {where})" if where else ""))
+        part = f"{model_title(model)} passes in {int((ok & ~pooled_only).sum())} of {len(rows)}" + (
+            f" (not {where})" if where else "")
+        if pooled_only.any():
+            part += (", and in " + ", ".join(f"{r.pad} {r.condition}" for r in rows[pooled_only].itertuples())
+                     + " on pooled RMSE only (its mean per-specimen RMSE is not below the training mean's)")
+        parts.append(part)
     shuffled = " and better than specimen-shuffled targets" if unseen["n_permutations"].max() > 0 else \
         " (no shuffled targets: --permutations 0)"
     return (f"Which model passes its controls for new surfaces (below the training mean{shuffled}, nested "

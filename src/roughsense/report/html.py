@@ -5,7 +5,7 @@ Everything is rendered in memory, written into a folder beside ``--out`` and swa
 report replaced with ``--force`` keeps no file of the earlier one. index.html embeds its figures as data
 URIs so it opens offline and can be mailed as one file.
 
-The page leads with the question a user asks (how well does each model predict a surface it never saw?), then
+The page leads with the question a user asks (how well does each model predict a surface left out of training?), then
 the paper's own protocol (LOO) and tables, which keep showing the paper's PLS as the paper did; every other model
 family gets its own, labelled tables beside them.
 """
@@ -25,13 +25,15 @@ from .. import __version__, paper
 from .._util import atomic
 from .._util.text import spreadsheet_safe
 from ..analysis.claims import VERDICT_RULE, VERDICTS
+from ..analysis.held_out import SCHEME_WORDS
 from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
 from ..model.families import DEFAULT_MODEL, PLS
 from ..paper import COMBINED
 from . import figures, tables
-from .answer import answer_lines
+from .answer import answer_lines, answer_table
+from .presses import presses_figure, presses_table
 
 
 def template_environment() -> jinja2.Environment:
@@ -45,8 +47,8 @@ def template_environment() -> jinja2.Environment:
 
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
-                 "components.csv")
-_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces)"
+                 "components.csv", "held_out.csv", "presses.csv")
+_REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces|presses_per_surface)"
                             r"\.(png|svg|pdf)$")
 
 
@@ -111,7 +113,8 @@ def plain_words(analysis) -> list[str]:
             "and OVL close to the paper's confirm the tuning, not the method.")
         lines.append(
             "Findings (about the digital twin, not about real skin or a real rig): whether the spectra predict roughness "
-            "for a specimen the model never saw (LOSO), whether models beat specimen-shuffled targets and the training "
+            "for a grating left out of training (LOSO; a period and a shape left out beside it), whether models beat "
+            "specimen-shuffled targets and the training "
             "mean (Controls), and which of the paper's claims hold under those checks (Claims).")
     else:
         lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
@@ -147,10 +150,10 @@ def failing_models(analysis) -> list[str]:
 
 
 def unseen_words(analysis) -> list[str]:
-    """What the "surfaces never seen" section can and cannot claim: whose images and ratings these are."""
+    """What the "held out of training" section can and cannot claim: whose images and ratings these are."""
     if not any(f.cv == "loso" for f in analysis.fits):
         return ["Leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any model "
-                "predicts a surface it never saw; the LOO results below describe specimens seen in training."]
+                "predicts a grating left out of training; the LOO results below describe specimens seen in training."]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
              "clearly below the training mean's and it beats specimen-shuffled targets."]
@@ -191,6 +194,9 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         headline=tables.headline_table(analysis, paper_pads),
         unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
         unseen_words=unseen_words(analysis),
+        held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
+        presses=presses_table(analysis.presses),
+        presses_figure=_presses_figure(analysis, files, style),
         unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
                                                     else analysis.models[0])),
         unseen_figure=unseen_figure,
@@ -209,6 +215,7 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         findings=plain_words(analysis),
         failing=failing_models(analysis),
         answer=answer_lines(analysis),
+        answer_table=answer_table(analysis),
         sections=_sections(analysis, results, cv_schemes),
         figures=figure_list,
         max_components=analysis.max_components,
@@ -230,6 +237,10 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     files["controls.csv"] = _csv_bytes(analysis.controls)
     files["claims.csv"] = _csv_bytes(analysis.claims)
     files["paper_predictive.csv"] = _csv_bytes(analysis.paper_predictive)
+    if not analysis.held_out.empty:
+        files["held_out.csv"] = _csv_bytes(analysis.held_out)
+    if not analysis.presses.empty:
+        files["presses.csv"] = _csv_bytes(analysis.presses)
     return files
 
 
@@ -260,8 +271,16 @@ def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, 
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
     return _figure(analysis, files, "unseen_surfaces",
                    figures.unseen_figure(results["loso"], analysis.perceived, condition),
-                   f"Surfaces never seen: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
+                   f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
                    f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.", style)
+
+
+def _presses_figure(analysis, files: dict[str, bytes], style: FigureStyle) -> dict | None:
+    if analysis.presses.empty:
+        return None
+    return _figure(analysis, files, "presses_per_surface", presses_figure(analysis.presses),
+                   "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
+                   "presses, per pad and condition; dashed: the training mean's.", style)
 
 
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],

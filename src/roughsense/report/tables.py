@@ -360,7 +360,7 @@ def headline_table(analysis, paper_pads=None) -> dict:
         "caption": ("Mean over specimens of the per-specimen RMSE (all specimens, the reference included), OVL and "
                     "predictive OVL (the reference excluded: it has no rating spread). LOO is the paper's protocol (the "
                     "other images of the held-out specimen stay in training, so it rewards recognising a specimen); "
-                    "leave-one-specimen-out (LOSO) predicts a specimen never seen in training (nested: the component "
+                    "leave-one-specimen-out (LOSO) predicts a grating left out of training (nested: the component "
                     "count is chosen without it too) and is the honest estimate of generalisation. Controls: whether the "
                     f"model's CV RMSE beats the training mean and specimen-shuffled targets (p < 0.05); {FLAG} marks a "
                     "model that does not. The paper's printed LOO means are beneath ours (PLS rows) where its design "
@@ -380,9 +380,9 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                      _cell(permutation_p_text(r["permutation_p"], r["n_permutations"])),
                      _cell(control_text(_control_row(controls, r["pad"], r["condition"], "loso", r["model"]),
                                         mean_rmse=r["rmse"], null_mean_rmse=r["null_rmse"])),
-                     _cell(rho), _cell(_coverage_text(r)), _cell(_flag_text(r))])
+                     _cell(rho), _cell(_coverage_text(r)), _cell(_jackknife_text(r)), _cell(_flag_text(r))])
     return {
-        "title": "Surfaces never seen: nested leave-one-specimen-out, per model, pad and condition",
+        "title": "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition",
         "caption": ("Every specimen is predicted by a model fitted without any of its images (PLS: its component count "
                     "chosen without it too). Mean RMSE: mean over specimens (the reference included) of the RMSE of the "
                     "specimen's predictions against its perceived roughness; training mean: the same for predicting the "
@@ -393,13 +393,25 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
                     "mean prediction against its perceived roughness (the reference, 1 by definition, left out). "
                     "90 % interval coverage: the share of held-out trials (and of specimens, by their mean prediction) "
                     "whose perceived roughness lies in the interval built from the other specimens' residuals (goal "
-                    "85-95 %). Flagged: the share of held-out trials the model's applicability check would have "
+                    "85-95 %; those residuals' models saw the specimen). Surface interval, jackknife+: the fully nested "
+                    "check (every model behind a specimen's interval fitted without it), its median width as a factor "
+                    "(prediction x/÷ it) and the specimens it misses, by what factor. Flagged: the share of held-out "
+                    "trials the model's applicability check would have "
                     f"flagged, and its worst specimen. {FLAG} marks a model that fails its controls."),
         "columns": ["Model", "Pad", "Condition", "Mean RMSE", "Training mean RMSE", "Pooled RMSE",
                     "Training mean, pooled", "Permutation p", "Controls", "Spearman ρ",
-                    "90 % interval coverage (trials / specimens)", "Flagged when held out (worst specimen)"],
+                    "90 % interval coverage (trials / specimens)", "Surface interval, jackknife+ (nested)",
+                    "Flagged when held out (worst specimen)"],
         "rows": rows,
     }
+
+
+def _jackknife_text(row) -> str:
+    if pd.isna(row.get("jackknife_plus_coverage", np.nan)):
+        return "—"
+    misses = row["jackknife_plus_misses"]
+    return (f"{row['jackknife_plus_coverage']:.0%}, x/÷ {row['jackknife_plus_median_factor']:.2f}"
+            + (f"; misses {misses}" if isinstance(misses, str) and misses else ""))
 
 
 def _coverage_text(row) -> str:
@@ -529,7 +541,8 @@ def paper_predictive_table(paper_predictive: pd.DataFrame) -> dict:
 def unsure_table(unsure: pd.DataFrame) -> dict:
     """analysis.unseen.unsure_specimens() as a table: the held-out surfaces the default model is least sure of."""
     rows = [[_cell(r.pad), _cell(r.specimen), _cell(f"{r.perceived:.2f}"), _cell(f"{r.prediction:.2f}"),
-             _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"), _cell("yes" if r.covered else "no"),
+             _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"),
+             _cell("yes" if r.covered else f"no: x{r.missed_by:.2f} {'below' if r.perceived < r.pi90_low else 'above'}"),
              _cell(f"{r.flagged_share:.0%}")] for r in unsure.itertuples()]
     model = str(unsure["model"].iloc[0]) if len(unsure) else ""
     condition = str(unsure["condition"].iloc[0]) if len(unsure) else ""
@@ -537,8 +550,44 @@ def unsure_table(unsure: pd.DataFrame) -> dict:
         "title": f"Surfaces it is unsure of: {model_title(model)}, {condition}, each specimen held out",
         "caption": ("Per pad, the held-out specimens whose presses the model's applicability check flagged, then those "
                     "its 90 % interval missed, then the widest intervals. Prediction: the mean of the specimen's "
-                    "held-out predictions; interval: from the other specimens' residuals only; flagged: the share of "
-                    "its presses the model fitted without it would have marked as outside what it was trained on."),
+                    "held-out predictions; interval: the jackknife+ over the other specimens (models that never saw "
+                    "it; PLS: from the other specimens' residuals); covered: if not, by what factor it lies outside; "
+                    "flagged: the share of its presses the model fitted without it would have marked as outside what it was "
+                    "trained on."),
         "columns": ["Pad", "Specimen", "Perceived", "Predicted", "90 % interval", "Covered", "Flagged presses"],
+        "rows": rows,
+    }
+
+
+def held_out_table(held_out: pd.DataFrame, words: dict[str, str]) -> dict:
+    """analysis.held_out as a table: each model under each held-out scheme (``words``: what each holds out)."""
+    shape_columns = [c for c in held_out.columns if c.startswith("log_bias_")]
+    rows = []
+    for r in held_out.itertuples():
+        passes = "passes" if r.passes else f"{FLAG} fails"
+        if not r.n_permutations:
+            passes += " (training mean only)"
+        rows.append([_cell(model_title(r.model)), _cell(r.pad), _cell(r.condition),
+                     _cell(f"{words.get(r.scheme, r.scheme)}" + (f": {r.held_out}" if r.held_out != "all" else
+                                                                  f" ({r.n_folds} folds)")), _cell(_num(r.rmse, 3)),
+                     _cell(_num(r.null_rmse, 3)), _cell(f"{r.bias:+.3f}"),
+                     _cell("; ".join(f"{c.removeprefix('log_bias_')} {getattr(r, c):+.2f}" for c in shape_columns
+                                     if pd.notna(getattr(r, c)))),
+                     _cell(_num(r.spearman_rho, 2)), _cell(permutation_p_text(r.permutation_p, r.n_permutations)),
+                     _cell(passes), _cell("—" if pd.isna(r.flagged_share) else f"{r.flagged_share:.0%}")])
+    return {
+        "title": "Held out of training: a grating, a period, a shape",
+        "caption": ("Each model cross-validated three ways. A grating left out: one specimen at a time (the table above); "
+                    "the other shape of its period stays in training. A period left out: both shapes of one period at a "
+                    "time, so its period is new. A shape left out: fitted on one shape, it predicts every grating of the "
+                    "other. Mean RMSE over specimens beside the training mean's under the same folds; bias: mean "
+                    "prediction less perceived (rating units); log bias per shape: mean log(predicted / perceived) of "
+                    "that shape's specimens (a model blind to shape shows one sign per shape); Spearman's rho over the "
+                    "rated specimens; permutation p from the controls' specimen shufflings (PLS: LOSO only, its nested "
+                    "search would double the controls); flagged: the share of held-out presses the applicability check "
+                    "marks. Every design choice of the models was made on this study's specimens, so none of these "
+                    "schemes is a fresh set of surfaces."),
+        "columns": ["Model", "Pad", "Condition", "Held out", "Mean RMSE", "Training mean RMSE", "Bias",
+                    "Log bias by shape", "Spearman ρ", "Permutation p", "Controls", "Flagged"],
         "rows": rows,
     }

@@ -1,0 +1,168 @@
+"""Stricter held-out schemes: a whole period, or a whole shape, left out of training, beside one grating left out.
+
+Leave-one-specimen-out (LOSO) keeps the other shape of the held-out period in training, so a model that reads only
+the period is rewarded for it: the rectangular 3 mm grating is predicted from a fit that saw the circular 3 mm one.
+Two stricter schemes say how far that carries:
+
+- **period**: both shapes of a period held out together (leave-one-period-out), so the period itself is new;
+- **shape**: the model fitted on one shape predicts every grating of the other (leave-one-shape-out), so the shape
+  is new; a model that cannot tell shapes apart shows it as a bias of one sign per shape.
+
+Each row gives, per model x pad x condition x scheme, the mean per-specimen RMSE beside the training mean's under
+the same folds, the mean bias (rating units) and the mean log bias of each shape (a shape left out: one row per
+held-out shape, its specimens only), Spearman's rho over the rated
+specimens, the permutation p (the peak law only: its batched CV refits every shuffled target at no cost; PLS's
+nested search would double the study's controls) and the share of presses the applicability flag fell on. The
+``specimen`` rows are the study's own LOSO fits and controls, repeated here so the three schemes stand side by side.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..model.families import PEAK_LAW, PLS
+from ..model.peak_law import held_out_flags as law_flags
+from ..model.peak_law import peak_law_cv
+from ..model.pls_cv import pls_cv_many
+from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets
+
+#: The schemes, strictest last, and what each holds out in a user's words.
+SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
+                "shape": "a shape left out (fitted on the other)"}
+SCHEMES = tuple(SCHEME_WORDS)
+HELD_OUT_COLUMNS = ["model", "pad", "condition", "scheme", "held_out", "n_folds", "rmse", "null_rmse", "bias", "spearman_rho",
+                    "permutation_p", "n_permutations", "passes", "flagged_share"]
+
+
+def scheme_folds(scheme: str, specimens: np.ndarray, shapes: dict, wavelengths: dict) -> np.ndarray | None:
+    """Each trial's fold label under ``scheme``; None where the study cannot form it (fewer than 2 folds, or a
+    specimen without a period or shape)."""
+    specimens = np.asarray(specimens).astype(str)
+    if scheme == "specimen":
+        return specimens
+    source = wavelengths if scheme == "period" else shapes
+    labels = pd.Series(specimens).map(lambda s: source.get(s, np.nan))
+    if labels.isna().any() or labels.nunique() < 2:
+        return None
+    return labels.astype(str).to_numpy()
+
+
+def pls_scheme_predictions(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray,
+                           max_components: int) -> np.ndarray | None:
+    """PLS's out-of-fold predictions under ``folds``, each fold's component count chosen by leave-one-specimen-out
+    within its training data only (a shape held out leaves one training shape: its specimens are the inner folds).
+    None where a fold leaves too few trials or specimens to choose a count without it."""
+    largest = int(pd.Series(folds).value_counts().max())
+    usable = int(min(max_components, len(y) - largest - 1, X.shape[1]))
+    inner_usable = {}
+    for fold in pd.unique(folds):
+        rest = pd.Series(specimens[folds != fold])
+        inner_usable[fold] = int(min(usable, len(rest) - rest.value_counts().max() - 1, X.shape[1]))
+        if rest.nunique() < 3 or inner_usable[fold] < 1:
+            return None
+    outer = pls_cv_many(X, y[:, None], max_components=usable, groups=folds, cap=True).predictions[0]
+    predictions = np.empty(len(y))
+    for fold, inner_max in inner_usable.items():
+        held = folds == fold
+        inner = pls_cv_many(X[~held], y[~held, None], max_components=inner_max, groups=specimens[~held], cap=True)
+        predictions[held] = outer[held, int(inner.best_n_components[0])]
+    return predictions
+
+
+def judged(prediction: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray, shapes: dict,
+           reference: str, rows=None) -> dict:
+    """RMSE (mean per specimen) beside the training mean's, bias, log bias per shape and rho of one scheme, over
+    ``rows`` (a boolean mask; default every row)."""
+    frame = pd.DataFrame({"specimen": specimens, "prediction": prediction, "target": y,
+                          "null": fold_mean_predictions(y, folds)})
+    if rows is not None:
+        frame = frame[np.asarray(rows, dtype=bool)]
+    frame["error2"] = (frame["prediction"] - frame["target"]) ** 2
+    frame["null2"] = (frame["null"] - frame["target"]) ** 2
+    per = frame.groupby("specimen", sort=False).mean()
+    per["shape"] = [shapes.get(s, "") for s in per.index]
+    log_bias = np.log(per["prediction"].clip(lower=1e-9)) - np.log(per["target"])
+    rated = per[per.index != reference]
+    with warnings.catch_warnings():  # a constant prediction: NaN says it
+        warnings.simplefilter("ignore")
+        rho = float(stats.spearmanr(rated["prediction"], rated["target"])[0]) if len(rated) >= 3 else float("nan")
+    row = {"rmse": float(np.sqrt(per["error2"]).mean()), "null_rmse": float(np.sqrt(per["null2"]).mean()),
+           "bias": float((per["prediction"] - per["target"]).mean()), "spearman_rho": rho}
+    for shape, values in log_bias.groupby(per["shape"], sort=False):
+        row[f"log_bias_{shape}"] = float(values.mean())
+    return row
+
+
+def held_out_analysis(analysis, jobs) -> pd.DataFrame:
+    """The held-out table of a study: every LOSO fit among the controls' ``jobs`` (fit, X, y, specimens,
+    shufflings, law) under every scheme, run after the controls so the LOSO rows quote their permutation p."""
+    rows = []
+    for fit, X, y, specimens, permutations, law in jobs:
+        if fit.cv != "loso":
+            continue
+        shuffled = permuted_targets(y, specimens, permutations) if len(permutations) else None
+        for scheme in SCHEMES:
+            folds = scheme_folds(scheme, specimens, analysis.shapes, analysis.wavelengths)
+            scored = _scheme_predictions(fit, scheme, folds, X, y, specimens, shuffled, law, analysis)
+            if scored is None:
+                continue
+            prediction, p, n_perm, flags = scored
+            # A shape left out is two experiments (each shape predicted from the other): a row each, so one
+            # direction's bias cannot cancel the other's.
+            parts = [("all", None)] if scheme != "shape" else [(str(f), folds == f) for f in pd.unique(folds)]
+            for held, mask in parts:
+                chosen = np.ones(len(y), bool) if mask is None else mask
+                row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
+                       "held_out": held, "n_folds": int(pd.Series(folds).nunique()),
+                       **judged(prediction, y, specimens, folds, analysis.shapes, analysis.reference_specimen, chosen),
+                       "permutation_p": p, "n_permutations": n_perm,
+                       "flagged_share": float(np.mean(flags[chosen])) if flags is not None else float("nan")}
+                row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
+                rows.append(row)
+    return held_out_table(rows)
+
+
+def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law: dict, analysis):
+    """(predictions, permutation p, shufflings, held-out flags) of one fit under one scheme; None where the scheme
+    cannot be formed or the family has none."""
+    if folds is None:
+        return None
+    if scheme == "specimen":  # the study's own LOSO fit and its control
+        control = _control(analysis.controls, fit)
+        p, n_perm = (float("nan"), 0) if control is None else (float(control["permutation_p"]),
+                                                              int(control["n_permutations"]))
+        return fit.predictions["prediction"].to_numpy(dtype=float), p, n_perm, fit.held_out_flags
+    if fit.model == PEAK_LAW:
+        targets = y[:, None] if shuffled is None else np.column_stack([y, shuffled])
+        every = peak_law_cv(X, targets, groups=folds, **law)
+        p, n_perm = float("nan"), 0
+        if shuffled is not None:
+            real = np.sqrt(np.mean((every[0] - y) ** 2))
+            p = permutation_p(real, np.sqrt(np.mean((every[1:] - shuffled.T) ** 2, axis=1)))
+            n_perm = int(shuffled.shape[1])
+        return every[0], p, n_perm, law_flags(X, y, folds, **law)
+    if fit.model == PLS:
+        prediction = pls_scheme_predictions(X, y, specimens, folds, analysis.max_components)
+        return None if prediction is None else (prediction, float("nan"), 0, None)
+    return None
+
+
+def _control(controls: pd.DataFrame, fit) -> pd.Series | None:
+    if controls is None or controls.empty:
+        return None
+    model = controls["model"] if "model" in controls else pd.Series(PLS, index=controls.index)
+    rows = controls[(controls["pad"] == fit.pad) & (controls["condition"] == fit.condition)
+                    & (controls["cv"] == "loso") & (model == fit.model)]
+    return None if rows.empty else rows.iloc[0]
+
+
+def held_out_table(rows: list[dict]) -> pd.DataFrame:
+    """The rows as one table: HELD_OUT_COLUMNS, then one ``log_bias_<shape>`` column per shape."""
+    frame = pd.DataFrame(rows)
+    if frame.empty:
+        return pd.DataFrame(columns=HELD_OUT_COLUMNS)
+    shape_columns = [c for c in frame.columns if c.startswith("log_bias_")]
+    return frame[HELD_OUT_COLUMNS + shape_columns]

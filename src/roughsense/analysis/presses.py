@@ -1,0 +1,101 @@
+"""Presses per surface: how a held-out surface's error falls with the number of presses it is read from.
+
+A surface is scored as the mean of its presses' predictions, and the law reads where its peak is, and its shape, on
+their mean spectrum; one fingerprint press can show no grating at all. So the study asks, per pad and condition:
+with the law fitted as the study fits it (every press of the other specimens, leave-one-specimen-out), how far is
+a held-out specimen's score from its perceived roughness when it is read from 1, 3, 5 or 10 of its presses? Each
+count draws :data:`DRAWS` random subsets of each specimen's presses (seeded from the study's seed); a specimen's
+RMSE is over its draws, and the curve is the mean over specimens beside the training mean's (which reads no press).
+``presses_needed`` is the fewest presses that gain at least half of what the most presses gain over the training
+mean. The peak law only: its
+leave-one-specimen-out fits are one batch (:func:`roughsense.model.peak_law.fit_terms`), PLS's nested search is not.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..model.families import PEAK_LAW
+from ..model.peak_law import domain_margins, fit_terms, fold_kept_ranges, held_features, peak_features
+from ..model.peak_law_folds import specimen_codes
+from .controls import fold_mean_predictions
+
+#: Presses per surface the study reports (more than a specimen has are left out).
+PRESS_COUNTS = (1, 3, 5, 10)
+#: Random subsets of a specimen's presses per count.
+DRAWS = 20
+PRESS_COLUMNS = ["model", "pad", "condition", "n_presses", "rmse", "null_rmse"]
+
+
+def loso_laws(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict):
+    """The law fitted without each specimen (as the study fits it): coefficients (S, p + 1) and domains (S, p)."""
+    codes, names = specimen_codes(specimens)
+    features = peak_features(X, **law)
+    held = codes[None, :] == np.arange(names.size)[:, None]
+    log_y = np.log(y)[None, :]
+    epsilon = law.get("epsilon", 1.345)
+    beta, scale = fit_terms(features, log_y, ~held, epsilon=epsilon, grouped=law.get("surfaces") is not None)
+    freq = law["freq_per_mm"]
+    low, high = domain_margins(float(freq[1] - freq[0]),
+                               *fold_kept_ranges(features, log_y, ~held, beta, scale, epsilon, law.get("surfaces")))
+    return beta[:, 0], low[:, 0], high[:, 0]
+
+
+def presses_curve(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict, seed: int,
+                  counts=PRESS_COUNTS, draws: int = DRAWS) -> pd.DataFrame:
+    """Mean per-specimen RMSE of a held-out surface read from k of its presses, per k (columns n_presses, rmse,
+    null_rmse)."""
+    specimens = np.asarray(specimens).astype(str)
+    codes, names = specimen_codes(specimens)
+    beta, low, high = loso_laws(X, y, specimens, law)
+    target = pd.Series(y).groupby(codes).first().to_numpy()
+    null = pd.Series(np.abs(fold_mean_predictions(y, specimens) - y)).groupby(codes).first().to_numpy()
+    rng = np.random.default_rng(seed)
+    smallest = int(np.bincount(codes).min())
+    rows = []
+    for k in (c for c in counts if c <= smallest):
+        picks = [np.concatenate([rng.choice(np.flatnonzero(codes == s), size=k, replace=False)
+                                 for s in range(names.size)]) for _ in range(draws)]
+        rows_of = np.concatenate(picks)
+        labels = np.repeat(np.arange(draws * names.size), k)  # one surface per specimen and draw
+        settings = {**law, "surfaces": labels}
+        features = peak_features(X[rows_of], **{key: v for key, v in settings.items() if key != "epsilon"})
+        owner = codes[rows_of]
+        held = held_features(features, low[owner], high[owner])
+        predicted = np.exp(beta[owner, 0] + np.einsum("nf,nf->n", held, beta[owner, 1:]))
+        surface = pd.Series(predicted).groupby(labels).mean().to_numpy().reshape(draws, names.size)
+        per_specimen = np.sqrt(np.mean((surface - target[None, :]) ** 2, axis=0))
+        rows.append({"n_presses": k, "rmse": float(per_specimen.mean()), "null_rmse": float(null.mean())})
+    return pd.DataFrame(rows, columns=["n_presses", "rmse", "null_rmse"])
+
+
+#: A count of presses is enough when it gains at least this share of what reading the most presses gains over the
+#: training mean: "below the mean" alone would accept one fingerprint press at 0.352 against a mean of 0.354.
+NEEDED_SHARE = 0.5
+
+
+def presses_needed(curve: pd.DataFrame) -> int | None:
+    """The fewest presses per surface that gain at least :data:`NEEDED_SHARE` of the most presses' gain over the
+    training mean (None: even the most presses do not beat it)."""
+    if curve.empty:
+        return None
+    null = float(curve["null_rmse"].iloc[0])
+    best = float(curve.loc[curve["n_presses"].idxmax(), "rmse"])
+    if not best < null:
+        return None
+    good = curve[curve["rmse"] <= null - NEEDED_SHARE * (null - best)]
+    return int(good["n_presses"].min())
+
+
+def presses_analysis(analysis, jobs) -> pd.DataFrame:
+    """The study's table (PRESS_COLUMNS) over the peak law's LOSO fits among the controls' jobs."""
+    frames = []
+    for fit, X, y, specimens, _, law in jobs:
+        if fit.cv != "loso" or fit.model != PEAK_LAW:
+            continue
+        curve = presses_curve(X, y, specimens, law, analysis.seed)
+        curve.insert(0, "model", fit.model)
+        curve.insert(1, "pad", fit.pad)
+        curve.insert(2, "condition", fit.condition)
+        frames.append(curve)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=PRESS_COLUMNS)
