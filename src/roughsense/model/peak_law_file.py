@@ -37,8 +37,8 @@ from ..io.numbers import BOUNDS
 from .families import PEAK_LAW
 from .peak_law import (
     FEATURE_NAMES,
-    LOG_MARGIN,
     HARMONIC,
+    LOG_MARGIN,
     PeakPowerLaw,
     PeakReadout,
     check_grid,
