@@ -146,3 +146,33 @@ def test_no_output_may_be_an_image_the_manifest_lists_outside_images(run_cli, tm
     assert code == 2 and image.read_bytes() == before
     line = error_line(err)
     assert line.startswith(f"roughsense: error: --out {out} is ") and f"{image}; choose another path" in line
+
+
+def test_a_stop_while_features_draws_its_plot_leaves_no_csv_behind(run_cli, tmp_path, monkeypatch):
+    """36.5's "never commits after it" for a run of several outputs: features wrote its CSV and grid file, then drew
+    --plot, so a SIGTERM (or a failure) while drawing left the CSV without the plot it was asked for."""
+    import signal
+
+    from roughsense._util import interrupt
+    from roughsense.report import figures
+
+    from .test_hostile import grating_png
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    interrupt.install()
+    real = figures.figure_bytes
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives while the figure is drawn
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(figures, "figure_bytes", signalled)
+    image = grating_png(tmp_path / "in.png")
+    try:
+        code, _, err = run_cli("features", image, "-o", tmp_path / "x.csv", "--plot", tmp_path / "plot.png")
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)
+        interrupt._received.clear()
+    assert code == 143 and err == "roughsense: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
