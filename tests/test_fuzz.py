@@ -687,21 +687,34 @@ class _StreamingPort:
 @given(chunks=st.lists(st.one_of(st.binary(max_size=300), st.sampled_from([b"\r\n", b"\r", b"\n", b"ST,+00204.0 g",
                                                                             b"US,+1 kg", b"+1e400 g"])), max_size=30))
 def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
-    import time
+    """On the reader's own clock (a fake one, a millisecond per look): no wall-clock bound, which a loaded
+    machine would break, yet a read that ignored its deadline would never end or read past it."""
+    import types
+    from unittest import mock
 
     from roughsense.errors import InputError
-    from roughsense.rig.scale import SerialScale
+    from roughsense.rig import scale as scale_module
 
-    scale = SerialScale.__new__(SerialScale)  # the reader without a real port
-    scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, _StreamingPort(chunks), OSError
-    started = time.monotonic()
-    try:
-        reading = scale.read_stable()
-    except InputError as exc:
-        assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
-    else:
-        assert np.isfinite(reading.force_n) and reading.stable
-    assert time.monotonic() - started < 1.0
+    clock = types.SimpleNamespace(now=0.0)
+
+    def monotonic() -> float:
+        clock.now += 0.001
+        return clock.now
+
+    port = _StreamingPort(chunks)
+    reads = []
+    port_read = port.read
+    port.read = lambda size=1: reads.append(size) or port_read(size)
+    scale = scale_module.SerialScale.__new__(scale_module.SerialScale)  # the reader without a real port
+    scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, port, OSError
+    with mock.patch.object(scale_module, "time", types.SimpleNamespace(monotonic=monotonic)):
+        try:
+            reading = scale.read_stable()
+        except InputError as exc:
+            assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
+        else:
+            assert np.isfinite(reading.force_n) and reading.stable
+    assert len(reads) <= 50  # one read per look at the clock, none after its 0.05 s
 
 
 # --------------------------------------------------------------------------- issue 28: the new rules as properties

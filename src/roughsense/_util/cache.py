@@ -60,7 +60,25 @@ def usable_cache_dir() -> Path | None:
     if info.st_mode & 0o022:
         return _bypass(root, f"can be written by other users (mode {stat.S_IMODE(info.st_mode):o}), who could choose "
                              "its results; chmod go-w it to use it")
+    if (above := _swappable_parent(root)) is not None:
+        return _bypass(root, f"lies in {above}, which other users can write without the sticky bit (or own): they "
+                             "could swap the cache folder for their own between two looks")
     return root
+
+
+def _swappable_parent(root: Path) -> Path | None:
+    """The first folder above ``root`` in which another user could rename ``root`` (or a folder holding it) away and
+    put their own in its place: owned by another user than this one or root, or writable by others and not
+    sticky (``/tmp`` is sticky: only an entry's owner may rename it)."""
+    folder = Path(os.path.realpath(root.parent))
+    for above in (folder, *folder.parents):
+        try:
+            info = os.stat(above)
+        except OSError:
+            return above
+        if info.st_uid not in (0, os.geteuid()) or (info.st_mode & 0o022 and not info.st_mode & stat.S_ISVTX):
+            return above
+    return None
 
 
 def _bypass(root: Path, reason: str) -> None:
@@ -125,7 +143,7 @@ def cached_frame(key: str, compute: Callable[[], pd.DataFrame], *, kind: str = "
     path = root / kind / f"{key}.csv"
     if foreign_reason(path.parent, folder=True) is None and foreign_reason(path, folder=False) is None:
         try:
-            body = _verified_body(read_regular(path))
+            body = _verified_body(read_regular(path, own=True))  # the owner again, on the descriptor
             if body is not None:
                 frame = pd.read_csv(io.BytesIO(body), dtype={"image": str, "specimen": str, "pad": str, "condition": str},
                                     keep_default_na=False, na_values=[""])

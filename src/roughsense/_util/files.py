@@ -44,11 +44,12 @@ def foreign_reason(path: str | os.PathLike[str], *, folder: bool) -> str | None:
     return None
 
 
-def open_regular(path: str | os.PathLike[str], *, what: str = "file") -> int:
+def open_regular(path: str | os.PathLike[str], *, what: str = "file", own: bool = False) -> int:
     """A read-only descriptor of ``path`` if it is a regular file, else :class:`InputError` naming its type.
 
     Opened with ``O_NONBLOCK``, so a FIFO returns at once instead of waiting for a writer; the type is checked on
-    the descriptor (``fstat``), then blocking mode is restored for the read.
+    the descriptor (``fstat``), then blocking mode is restored for the read. With ``own``, a file of another user's
+    is refused too, on the descriptor: what an earlier ``lstat`` saw may have been swapped since.
     """
     flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NOCTTY", 0)
     try:
@@ -58,9 +59,11 @@ def open_regular(path: str | os.PathLike[str], *, what: str = "file") -> int:
             raise
         raise _not_regular(path, os.stat(path).st_mode, what) from None
     try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise _not_regular(path, mode, what)
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise _not_regular(path, info.st_mode, what)
+        if own and info.st_uid != os.geteuid():
+            raise InputError(f"belongs to another user (uid {info.st_uid}), not a {what} of yours", path=Path(path))
         os.set_blocking(fd, True)
     except BaseException:
         os.close(fd)
@@ -72,7 +75,8 @@ def _not_regular(path, mode: int, what: str) -> InputError:
     return InputError(f"is {kind_of(mode)}, not a regular {what}; give the {what} itself", path=Path(path))
 
 
-def read_regular(path: str | os.PathLike[str], *, limit: int | None = None, what: str = "file") -> bytes:
+def read_regular(path: str | os.PathLike[str], *, limit: int | None = None, what: str = "file",
+                 own: bool = False) -> bytes:
     """The bytes of the regular file ``path`` (at most ``limit``), by :func:`open_regular`."""
-    with os.fdopen(open_regular(path, what=what), "rb") as handle:
+    with os.fdopen(open_regular(path, what=what, own=own), "rb") as handle:
         return handle.read() if limit is None else handle.read(limit)

@@ -80,7 +80,28 @@ def run_inputs(*files: os.PathLike[str] | str | Iterable, study: os.PathLike[str
         return paths
     root = Path(study)
     names = ("study.toml", "specimens.csv", "manifest.csv", "ratings.csv", "images")  # io.study's contract
-    return [*paths, *(root / name for name in names)]
+    return [*paths, *(root / name for name in names), *_manifest_images(root)]
+
+
+def _manifest_images(root: Path) -> list[Path]:
+    """The images the study's manifest lists: its paths are relative to the folder, so an image may lie anywhere in
+    it, not only in images/. Read leniently, as text: a manifest that does not read is reported with the study."""
+    import csv
+
+    from ..errors import RoughsenseError
+    from ..io.tables import MAX_CSV_BYTES, read_text
+
+    try:
+        lines = read_text(root / "manifest.csv", max_bytes=MAX_CSV_BYTES).splitlines()
+    except RoughsenseError:
+        return []
+    delimiter = ";" if lines and ";" in lines[0] and "," not in lines[0] else ","  # as io.tables reads it
+    rows = csv.reader(lines, delimiter=delimiter, skipinitialspace=True)
+    header = [cell.strip().lower() for cell in next(rows, [])]
+    if "image" not in header:
+        return []
+    column = header.index("image")
+    return [root / row[column].strip() for row in rows if len(row) > column and row[column].strip()]
 
 
 #: ``--jobs`` above this many per usable core only queues work (and simulate would fork that many processes at once).

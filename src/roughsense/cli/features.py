@@ -80,7 +80,7 @@ def features(
     """
     import json
 
-    from .._util.atomic import check_outputs, write_csv, write_text
+    from .._util.atomic import check_outputs, write_bytes, write_csv, write_text
     from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
@@ -109,11 +109,14 @@ def features(
         paths = list(images)
         table = _image_features(spectrum, paths)
     names = [str(c) for c in spectrum.get_feature_names_out()]
+    # the figure is drawn before anything is written: a failure or a stop while drawing leaves no CSV behind
+    drawn = _draw(plot, spectrum, paths[0], table[names].to_numpy(float)[0]) if plot is not None else None
     write_csv(out, table.rename(columns=dict(zip(names, unit_names(spectrum.freq_per_mm_)))))
     write_text(definition_path(out), json.dumps(spectrum.feature_definition(), indent=2) + "\n")
     typer.echo(f"wrote {len(paths)} x {len(names)} features to {out} (grid and settings: {definition_path(out)})")
-    if plot is not None:
-        _plot(plot, spectrum, paths[0], table[names].to_numpy(float)[0])
+    if drawn is not None:
+        write_bytes(plot, drawn)
+        typer.echo(f"drew its line and spectrum in {plot}")
 
 
 def _check_plot(plot: Path | None, images) -> None:
@@ -126,16 +129,14 @@ def _check_plot(plot: Path | None, images) -> None:
         raise ConfigError(f"--plot: {plot.name!r} must end in .png, .svg or .pdf (the format it is written in)")
 
 
-def _plot(plot: Path, spectrum, image: Path, amplitude) -> None:
-    """Draw the image's line and spectrum (report/figures.py) and write it atomically."""
-    from .._util.atomic import write_bytes
+def _draw(plot: Path, spectrum, image: Path, amplitude) -> bytes:
+    """The image's line and spectrum (report/figures.py), as the bytes of ``plot``'s format."""
     from ..report import figures
 
     line, box = spectrum.line(image)
     fig = figures.line_spectrum_figure(line, float(spectrum.px_per_mm), spectrum.freq_per_mm_, amplitude,
                                        f"{Path(image).name}: crop x={box[0]}, y={box[1]}, {box[2]} x {box[3]} px")
-    write_bytes(plot, figures.figure_bytes(fig, plot.suffix.lower().lstrip(".")))
-    typer.echo(f"drew its line and spectrum in {plot}")
+    return figures.figure_bytes(fig, plot.suffix.lower().lstrip("."))
 
 
 def definition_path(out: Path) -> Path:

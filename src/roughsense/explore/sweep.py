@@ -59,6 +59,9 @@ CONFIRM_CELLS = 1000
 #: Core-seconds a cell costs per frame it renders, for that estimate: a paper-sized fingerprint-pad cell, 420 frames,
 #: took 6.7 s on one core (BENCHMARKS.md, bench_explore); a smooth-pad cell about 60 % of that.
 CELL_SECONDS_PER_FRAME = 6.7 / 420
+#: ... and so does one of fewer cells whose estimate exceeds that of CONFIRM_CELLS paper-sized cells (420 frames each):
+#: a cell may render up to MAX_CELL_FRAMES, so 999 cells can be 50 times the hours of 1000.
+CONFIRM_CORE_HOURS = CONFIRM_CELLS * 420 * CELL_SECONDS_PER_FRAME / 3600
 #: Most frames one cell renders (specimens x forces x repetitions; the paper's pad: 14 x 3 x 10 = 420): 50 times the
 #: paper, tens of minutes and about 100 MB of spectra per cell.
 MAX_CELL_FRAMES = 20_000
@@ -505,13 +508,15 @@ def estimated_core_hours(sweep: Sweep) -> float:
 
 
 def check_size_confirmed(sweep: Sweep, *, yes: bool, workers: int) -> str | None:
-    """Refuse a sweep above :data:`CONFIRM_CELLS` cells without ``yes`` (one line with its estimate); with it, the
-    estimate to show. None for a sweep within the limit."""
-    if len(sweep.cells) <= CONFIRM_CELLS:
-        return None
+    """Refuse a sweep above :data:`CONFIRM_CELLS` cells or :data:`CONFIRM_CORE_HOURS` without ``yes`` (one line with
+    its estimate); with it, the estimate to show. None for a sweep within both limits."""
     hours = estimated_core_hours(sweep)
+    if len(sweep.cells) <= CONFIRM_CELLS and hours <= CONFIRM_CORE_HOURS:
+        return None
     estimate = (f"{len(sweep.cells)} cells, about {hours:.1f} core-hours ({hours / max(workers, 1):.1f} h on "
                 f"{workers} worker{'s' if workers != 1 else ''})")
     if not yes:
-        raise ConfigError(f"{estimate}: a sweep of more than {CONFIRM_CELLS} cells runs only with --yes", path=sweep.path)
+        limit = (f"more than {CONFIRM_CELLS} cells" if len(sweep.cells) > CONFIRM_CELLS else
+                 f"more than {CONFIRM_CORE_HOURS:.1f} core-hours (as long as {CONFIRM_CELLS} paper-sized cells)")
+        raise ConfigError(f"{estimate}: a sweep of {limit} runs only with --yes", path=sweep.path)
     return estimate

@@ -8,6 +8,7 @@ was taken. Real frames in a simulated folder would be labelled simulated in ever
 from __future__ import annotations
 
 import csv
+import io
 import os
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -17,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from .._util import atomic
+from .._util.files import open_regular, read_regular
 from ..errors import InputError, OutputExistsError
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
@@ -40,16 +42,16 @@ CAPTURE_TIME_COLUMN = "timestamp"  # the rig's manifest column: the moment each 
 
 def _has_simulation_table(path: Path) -> bool:
     try:
-        with path.open("rb") as handle:
+        with os.fdopen(open_regular(path), "rb") as handle:  # a FIFO there: no wait
             return isinstance(tomllib.load(handle).get("simulation"), dict)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
+    except (OSError, InputError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
         return False
 
 
 def captured_images(manifest: str | os.PathLike[str]) -> set[str]:
     """The images of the manifest rows the rig wrote (a capture time given): real frames, never the simulator's."""
     try:
-        with open(manifest, newline="", encoding="utf-8-sig") as handle:
+        with open(open_regular(manifest), newline="", encoding="utf-8-sig") as handle:  # a FIFO there: no wait
             first = handle.readline()
             delimiter = max(",;\t", key=first.count)  # as the rig wrote it, or re-saved by a European Excel
             header = [h.strip() for h in next(csv.reader([first], delimiter=delimiter), [])]
@@ -58,7 +60,7 @@ def captured_images(manifest: str | os.PathLike[str]) -> set[str]:
             at, image = header.index(CAPTURE_TIME_COLUMN), header.index("image")
             return {row[image].strip() for row in csv.reader(handle, delimiter=delimiter)
                     if len(row) > max(at, image) and row[at].strip()}
-    except (OSError, UnicodeDecodeError, csv.Error):
+    except (OSError, InputError, UnicodeDecodeError, csv.Error):
         return set()
 
 
@@ -234,7 +236,8 @@ class StudyWriter:
         path = self.root / MANIFEST_CSV
         new = pd.DataFrame([dict(row)])
         if path.exists():
-            old = pd.read_csv(path, dtype={"image": str, "specimen": str, "pad": str}, keep_default_na=False, na_values=[""],
+            old = pd.read_csv(io.BytesIO(read_regular(path)), dtype={"image": str, "specimen": str, "pad": str},
+                              keep_default_na=False, na_values=[""],  # a FIFO there: refused, no wait
                               index_col=False)  # a hand-edited file's trailing commas must not shift the columns
             old = old.drop(columns=[c for c in old.columns if str(c).startswith("Unnamed: ") and old[c].isna().all()])
             new = pd.concat([old, new], ignore_index=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import stat
 import sys
 import tempfile
 import warnings
@@ -21,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .._util.files import open_regular
+from .._util.files import kind_of, open_regular
 from ..errors import ConfigError, InputError, RoughsenseWarning
 from ..io.images import DEFAULT_MAX_PIXELS, header_size
 
@@ -101,6 +102,8 @@ class FrameSource:
                              path=self.name)
         if not self.is_device and "%" not in str(target):
             os.close(open_regular(target, what="video file"))  # a FIFO would hang OpenCV's open
+        elif not self.is_device:
+            _check_sequence(str(target))  # and a FIFO among a sequence's files its read of that frame
         if not self.is_device:
             _check_image_header(str(target), self.max_pixels, self.name)  # before OpenCV decodes a frame of it
         with _decoder_messages() as messages:
@@ -203,7 +206,7 @@ def _check_image_header(target: str, max_pixels: int, name: str) -> None:
     if path is None:
         return
     try:
-        with path.open("rb") as handle:
+        with os.fdopen(open_regular(path, what="image file"), "rb") as handle:  # never a FIFO swapped in since
             head = np.frombuffer(handle.read(_HEADER_BYTES), np.uint8)
     except OSError:
         return  # OpenCV names the problem
@@ -212,6 +215,31 @@ def _check_image_header(target: str, max_pixels: int, name: str) -> None:
         raise InputError(f"image is {size[0]} x {size[1]} px ({size[0] * size[1] / 1e6:.3g} Mpx), above the limit of "
                          f"{max_pixels / 1e6:.3g} Mpx; raise [sensor] max_pixels in study.toml if it is genuine",
                          path=name if path == Path(target) else path)
+
+
+#: Most files of an image sequence checked before OpenCV reads it (hours of frames at a camera's rate).
+MAX_SEQUENCE_FILES = 1_000_000
+
+
+def _check_sequence(pattern: str) -> None:
+    """Each file of the image sequence ``pattern`` is a regular file (else :class:`InputError` naming it).
+
+    OpenCV counts a sequence's files as they exist from index 0 (or 1) up, then opens each by name when its frame
+    is read: a FIFO among them would block that read for good. So every one is checked first, as OpenCV will find
+    them (following links); a file swapped in afterwards is OpenCV's to open.
+    """
+    for index in range(MAX_SEQUENCE_FILES):
+        name = _pattern_file(pattern, index)
+        if name is None:
+            return
+        try:
+            mode = os.stat(name).st_mode
+        except OSError:
+            if index == 0:
+                continue  # a sequence may start at 1
+            return
+        if not stat.S_ISREG(mode):
+            raise InputError(f"is {kind_of(mode)}, not a regular image file; give the image file itself", path=name)
 
 
 def _pattern_file(pattern: str, index: int) -> str | None:

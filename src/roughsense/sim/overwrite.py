@@ -4,6 +4,7 @@ Never a real study, a folder of other files, or a simulation the rig has capture
 """
 from __future__ import annotations
 
+import io
 import os
 import re
 import tomllib
@@ -13,7 +14,8 @@ from pathlib import Path
 import pandas as pd
 
 from .._util import atomic
-from ..errors import OutputExistsError
+from .._util.files import open_regular, read_regular
+from ..errors import InputError, OutputExistsError
 from ..io.study import COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, RATINGS_CSV, SPECIMENS_CSV, STUDY_TOML
 from ..io.writer import captured_images, refuse_captured
 
@@ -24,9 +26,9 @@ _IMAGE_NAME = re.compile(r"^[A-Za-z0-9.\-_]+_[0-9.e+\-]+N_r[0-9]+\.png$")  # pla
 def is_simulated_study(root: str | os.PathLike[str]) -> bool:
     """True if ``root`` holds a study.toml with a ``[simulation]`` table (the simulator wrote it)."""
     try:
-        with (Path(root) / STUDY_TOML).open("rb") as handle:
+        with os.fdopen(open_regular(Path(root) / STUDY_TOML), "rb") as handle:  # a FIFO there: no wait
             return isinstance(tomllib.load(handle).get("simulation"), dict)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
+    except (OSError, InputError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
         return False
 
 
@@ -72,9 +74,10 @@ def simulation_owned(root: Path) -> Callable[[Path], bool]:
     """
     listed: set[str] = set()
     try:
-        manifest = pd.read_csv(root / MANIFEST_CSV, usecols=["image"], dtype=str, keep_default_na=False)
+        manifest = pd.read_csv(io.BytesIO(read_regular(root / MANIFEST_CSV)), usecols=["image"], dtype=str,
+                               keep_default_na=False)  # a FIFO there: no wait
         listed = {str(Path(p)) for p in manifest["image"]}
-    except (OSError, ValueError, pd.errors.ParserError, UnicodeDecodeError):
+    except (OSError, InputError, ValueError, pd.errors.ParserError, UnicodeDecodeError):
         pass
     captured = {str(Path(p)) for p in captured_images(root / MANIFEST_CSV) if p}
 
