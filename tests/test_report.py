@@ -259,8 +259,11 @@ def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
         assert "roughsense report" in driver.title
         tables = driver.find_elements(By.TAG_NAME, "table")
         assert len(tables) >= 15
-        first_rows = tables[0].find_elements(By.CSS_SELECTOR, "tbody tr")
-        assert len(first_rows) == 2 * 2 * 4  # surfaces never seen: 2 models x 2 pads x 4 conditions
+        answer = driver.find_element(By.CSS_SELECTOR, "#answer table.answer-table")
+        assert tables[0] == answer and answer.is_displayed()  # the first screen's table comes first
+        unseen = driver.find_element(By.XPATH, "//h2[@id='unseen']/following::table[1]")
+        first_rows = unseen.find_elements(By.CSS_SELECTOR, "tbody tr")
+        assert len(first_rows) == 2 * 2 * 4  # a grating left out: 2 models x 2 pads x 4 conditions
         images = driver.find_elements(By.CSS_SELECTOR, "figure img")
         assert len(images) >= 6
         widths = [driver.execute_script("return arguments[0].naturalWidth", img) for img in images]
@@ -505,6 +508,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
                          "held_out": ["all", "all", "all", "circular"], "rmse": [0.357, 0.16, 0.19, 0.33],
                          "null_rmse": [0.333, 0.33, 0.35, 0.42], "passes": [True] * 4, "n_permutations": [199] * 4,
                          "bias": [0.0, 0.0, 0.01, -0.33], "flagged_share": [0.0, 0.0, 0.29, 1.0]})
+    held = pd.concat([held, held.iloc[[3]].assign(held_out="rectangular", bias=0.31, flagged_share=0.03)])
     presses = pd.DataFrame({"model": "peak-law", "pad": "smooth", "condition": "combined", "n_presses": [1, 3, 10],
                             "rmse": [0.30, 0.20, 0.16], "null_rmse": 0.33})
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
@@ -517,4 +521,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
          "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72; needs 3 press(es) per surface"],
         ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"],
         ["peak law", "a shape left out (fitted on the other): circular",
-         "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"]]
+         "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"],
+        ["peak law", "a shape left out (fitted on the other): rectangular",  # a large bias nobody is warned of
+         "0.33 vs 0.42, passes, bias +0.31, 3% of presses flagged: biased and mostly unflagged, not to be trusted on "
+         "the other shape"]]

@@ -97,13 +97,21 @@ def answer_table(analysis) -> dict | None:
             "rows": rows, "condition": condition}
 
 
+#: A shape left out is answered honestly when its bias stays within this (ratings) or the applicability check
+#: flags at least SHAPE_FLAGGED_ENOUGH of its presses; otherwise its "passes" needs a warning beside it.
+SHAPE_BIAS_LIMIT = 0.15
+SHAPE_FLAGGED_ENOUGH = 0.8
+
+
 def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: str, scheme: str) -> str:
     below = row["rmse"] < row["null_rmse"]
     verdict = "fails" if not row["passes"] else "passes" if row["n_permutations"] else \
         "below the mean, not permutation-tested"
     if scheme == "shape":  # one direction: its bias, and how much of it the applicability check flags
-        verdict += f", bias {row['bias']:+.2f}" + (f", {row['flagged_share']:.0%} of presses flagged"
-                                                   if pd.notna(row.get("flagged_share")) else "")
+        flagged = row.get("flagged_share")
+        verdict += f", bias {row['bias']:+.2f}" + (f", {flagged:.0%} of presses flagged" if pd.notna(flagged) else "")
+        if abs(row["bias"]) > SHAPE_BIAS_LIMIT and not (pd.notna(flagged) and flagged >= SHAPE_FLAGGED_ENOUGH):
+            verdict += ": biased and mostly unflagged, not to be trusted on the other shape"
     if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
         control = unseen.loc[(model, pad, condition)]
         verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
