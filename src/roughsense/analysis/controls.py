@@ -35,6 +35,9 @@ DEFAULT_PERMUTATIONS = 199
 #: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
 MAX_PERMUTATIONS = 10_000
+#: The peak law's shufflings run in chunks of about this many cells (folds x shufflings x presses) a working array:
+#: 16 MiB of float64 (a 140-press leave-one-out in 2 chunks), whatever the number of presses.
+LAW_CHUNK_CELLS = 1 << 21
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
@@ -112,8 +115,14 @@ def permuted_law_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: s
     """CV RMSE of the peak power law on each target column of Y, pooled over all trials (LOO or LOSO).
 
     ``law``: peak_law_cv's keywords for this pad and condition (grid, spectra per row, the pad's ridge period).
+    Shufflings go through in chunks of about :data:`LAW_CHUNK_CELLS` folds x shufflings x presses, so the memory
+    stays flat in the number of presses (leave-one-out has as many folds as presses); each shuffling's fit is its own.
     """
-    predictions = peak_law_cv(X, Y, groups=np.asarray(specimens) if cv == "loso" else None, **law)
+    groups = np.asarray(specimens) if cv == "loso" else None
+    n = Y.shape[0]
+    size = max(1, LAW_CHUNK_CELLS // (n * (n if groups is None else len(pd.unique(groups)))))
+    predictions = np.vstack([peak_law_cv(X, Y[:, start:start + size], groups=groups, **law)
+                             for start in range(0, Y.shape[1], size)])
     return _cv_rmse(predictions, Y.T)
 
 
