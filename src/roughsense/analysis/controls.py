@@ -178,6 +178,9 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
     product's rounding the same), and rows come back in job order: the table is identical for any ``n_jobs``.
     """
     jobs = list(jobs)
+    shufflings = {int(job[4].shape[0]) for job in jobs}
+    # The count a log shows when the stage starts: models, and each one's shufflings (the work is their product).
+    description = f"controls, {shufflings.pop()} shufflings per model" if len(shufflings) == 1 else "controls"
 
     def one(job: tuple) -> dict:
         return control_row(*job)
@@ -186,7 +189,7 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
         if n_jobs > 1 and len(jobs) > 1:
             with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
                 rows = pool.map(one, jobs)
-                rows = list(progress(rows, total=len(jobs), description="controls") if progress else rows)
+                rows = list(progress(rows, total=len(jobs), description=description) if progress else rows)
         else:
-            rows = [one(job) for job in (progress(jobs, total=len(jobs), description="controls") if progress else jobs)]
+            rows = [one(job) for job in (progress(jobs, total=len(jobs), description=description) if progress else jobs)]
     return controls_table(rows)
