@@ -31,7 +31,7 @@ def test_a_long_stage_is_one_line_with_its_duration(announce_at_once, capsys):
 def test_a_stage_is_announced_when_it_starts_with_its_count(capsys):
     """Off a terminal the start is written before the first item is done, so a log shows what is running."""
     seen = []
-    for i in _common.progress(_slow(2), total=2, description="controls, 199 shufflings per model"):
+    for _ in _common.progress(_slow(2), total=2, description="controls, 199 shufflings per model"):
         seen.append(capsys.readouterr().err)
     assert seen[0] == "roughsense: controls, 199 shufflings per model (2) ..."
     assert re.fullmatch(r" done in \d+\.\d s\n", capsys.readouterr().err)

@@ -687,21 +687,27 @@ class _StreamingPort:
 @given(chunks=st.lists(st.one_of(st.binary(max_size=300), st.sampled_from([b"\r\n", b"\r", b"\n", b"ST,+00204.0 g",
                                                                             b"US,+1 kg", b"+1e400 g"])), max_size=30))
 def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
-    import time
+    from types import SimpleNamespace
+    from unittest import mock
 
     from roughsense.errors import InputError
+    from roughsense.rig import scale as scale_module
     from roughsense.rig.scale import SerialScale
 
+    # The scale's clock, simulated: each look at it is 1 ms later, so "within its timeout" is counted in the
+    # reader's own steps (at most timeout / 1 ms of them), whatever the machine's load.
+    ticks = iter(range(10**9))
+    clock = SimpleNamespace(monotonic=lambda: next(ticks) * 1e-3)
     scale = SerialScale.__new__(SerialScale)  # the reader without a real port
     scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, _StreamingPort(chunks), OSError
-    started = time.monotonic()
-    try:
-        reading = scale.read_stable()
-    except InputError as exc:
-        assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
-    else:
-        assert np.isfinite(reading.force_n) and reading.stable
-    assert time.monotonic() - started < 1.0
+    with mock.patch.object(scale_module, "time", clock):
+        try:
+            reading = scale.read_stable()
+        except InputError as exc:
+            assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
+        else:
+            assert np.isfinite(reading.force_n) and reading.stable
+    assert next(ticks) <= 0.05 / 1e-3 + 2  # the deadline read, the loop's looks until it, nothing after
 
 
 # --------------------------------------------------------------------------- issue 28: the new rules as properties

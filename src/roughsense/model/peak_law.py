@@ -43,7 +43,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
-from .huber_batch import HUBER_EPSILON, huber_irls  # noqa: F401 (the law's fit; HUBER_EPSILON is its setting)
+from .huber_batch import HUBER_EPSILON, huber_irls
 
 FEATURE_NAMES = ("log_peak_frequency_per_mm", "log_peak_amplitude")
 #: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
