@@ -131,9 +131,8 @@ def _interactive() -> bool:
     return sys.stderr.isatty()
 
 
-#: Off a terminal a stage's line is written this long after it starts: at once, so a log shows what is running
-#: (with its count) before it ends; a positive value would keep stages quicker than it quiet.
-ANNOUNCE_AFTER_S = 0.0
+#: A step quicker than this shows nothing off a terminal: a short command (or a bad-input error) stays quiet.
+ANNOUNCE_AFTER_S = 2.0
 
 _lock = threading.RLock()
 _open: list[_LogLine] = []  # the stage whose log line is written without its end, if any
@@ -150,7 +149,7 @@ def close_line() -> None:
 class _LogLine:
     """One stage off a terminal: ``roughsense: simulating (840) ... done in 91.2 s``.
 
-    The start is written when the stage starts (or ANNOUNCE_AFTER_S later, from a timer, so a slow first item
+    The start is written once the stage has run ANNOUNCE_AFTER_S (from a timer, so a slow first item
     counts too) and completed when the stage ends, so a log shows what is running and how long it took.
     """
 
@@ -161,10 +160,7 @@ class _LogLine:
         self.announced = self.ended = False
         self.timer = threading.Timer(ANNOUNCE_AFTER_S, self._announce)
         self.timer.daemon = True
-        if ANNOUNCE_AFTER_S > 0:
-            self.timer.start()
-        else:
-            self._announce()
+        self.timer.start()
 
     def _announce(self) -> None:
         with _lock:
