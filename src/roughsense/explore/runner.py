@@ -9,7 +9,8 @@ computing, and shows progress, as soon as its first cells are in.
 A ``--scheduler`` is checked before any client is made: a scheduler file is read here (bounded, JSON with an
 ``address``), and the address must answer as a Dask scheduler does -- it speaks first, a short framed handshake --
 within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang. (distributed's
-``Client(address, timeout=...)`` is not a probe: against a port that accepts and stays silent it waited past a minute.)
+``Client(address, timeout=...)`` and ``distributed.comm.connect`` are not probes: their timeout leaves the handshake
+out (dask/distributed#7698), and against a port that accepts and stays silent both waited past a minute.)
 ``--scheduler slurm`` (``pbs``, ``sge``) starts the workers as batch jobs through dask-jobqueue, configured the Dask
 way (``jobqueue.slurm.*`` in ``~/.config/dask/jobqueue.yaml`` or ``DASK_JOBQUEUE__SLURM__...`` variables),
 ``--workers`` jobs of them; closing the client cancels them, whether the sweep ended, failed or was interrupted.
