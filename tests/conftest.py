@@ -27,3 +27,38 @@ def run_cli(capsys):
         return code, captured.out, captured.err
 
     return _run
+
+
+@pytest.fixture(scope="session")
+def shared_build(tmp_path_factory):
+    """``shared_build(name, build)``: the folder ``build(path)`` made, built once per test run and read-only after.
+
+    Under pytest-xdist each worker has its own session, so the folders live beside the workers' own temporary
+    folders (in the run's, not a previous run's) and a file lock lets the first worker build while the others wait.
+    """
+    from filelock import FileLock
+
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "shared-studies"
+    root.mkdir(exist_ok=True)
+
+    def get(name: str, build):
+        folder = root / name
+        with FileLock(str(root / f"{name}.lock")):
+            if not (root / f"{name}.built").is_file():
+                build(folder)
+                (root / f"{name}.built").touch()
+        return folder
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def simulated_tiny(shared_build):
+    """A small simulated study at the paper's scale (34.9 px/mm, 1920 x 170 frames; smooth pad, R2, R3, C4, two
+    repetitions, seed 7), shared by every module that reads one: copy it before changing anything in it."""
+    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=7, participants=3,
+                              sessions=2)
+    return shared_build("tiny-seed7", lambda folder: simulate_study(folder, with_image_size(config, 1920, 170), jobs=1))

@@ -8,16 +8,16 @@ import pandas as pd
 import pytest
 
 from roughsense.cli._studies import builtin_study_path
-from roughsense.sim.simulate import COMPLETE_MARKER, SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.simulate import COMPLETE_MARKER
 
 SEED = 7
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=SEED,
-                              participants=3, sessions=2)
-    return simulate_study(tmp_path_factory.mktemp("tiny") / "study", with_image_size(config, 1920, 170), jobs=1)
+def tiny(simulated_tiny):
+    """conftest's shared study, whose seed is SEED (copied before use: the cache below gets its own copy)."""
+    assert f"seed = {SEED}" in (simulated_tiny / "study.toml").read_text()
+    return simulated_tiny
 
 
 @pytest.fixture

@@ -474,13 +474,9 @@ SAMPLES = sorted((Path(roughsense.__file__).parent / "data" / "samples").glob("s
 
 
 @pytest.fixture(scope="module")
-def paper_scale_study(tmp_path_factory):
-    """A small simulated study read as ``builtin`` is: the paper's 34.9 px/mm and centred 1900x150 crop."""
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
-
-    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=7, participants=3,
-                              sessions=2)
-    return simulate_study(tmp_path_factory.mktemp("paper-scale") / "study", with_image_size(config, 1920, 170), jobs=1)
+def paper_scale_study(simulated_tiny):
+    """A small simulated study read as ``builtin`` is: the paper's 34.9 px/mm and centred 1900x150 crop (shared)."""
+    return simulated_tiny
 
 
 def test_every_shipped_sample_scores_with_roi_auto(run_cli, paper_scale_study, tmp_path):

@@ -28,6 +28,15 @@ def test_a_long_stage_is_one_line_with_its_duration(announce_at_once, capsys):
     assert re.fullmatch(r"roughsense: simulating \(4\) \.\.\. done in \d+\.\d s\n", err), err
 
 
+def test_a_running_stage_is_announced_before_it_ends_with_its_count(announce_at_once, capsys):
+    """The start line is written while the stage is still running (from a timer), not when it ends."""
+    seen = []
+    for _ in _common.progress(_slow(3, 0.2), total=3, description="controls, 199 shufflings per model"):
+        seen.append(capsys.readouterr().err)
+    assert seen[0] == "roughsense: controls, 199 shufflings per model (3) ..."
+    assert re.fullmatch(r" done in \d+\.\d s\n", capsys.readouterr().err)
+
+
 def test_a_quick_stage_prints_nothing(capsys):
     assert list(_common.progress(range(100), total=100, description="spectra")) == list(range(100))
     with _common.stage("writing the report"):

@@ -209,3 +209,22 @@ def test_peak_law_permutation_control_matches_refits(small, cv):
     assert row["null_rmse"] == table.loc[("pls", "smooth", "1N", cv), "null_rmse"]
     assert row["passes"] == (row["rmse"] < row["null_rmse"] and row["permutation_p"] < controls.ALPHA)
     assert list(analysis.controls.columns[-2:]) == ["seed", "model"]  # model appended last
+
+
+@pytest.mark.parametrize("cv", ["loo", "loso"])
+def test_peak_law_control_in_chunks_of_shufflings_equals_one_batch(small, cv, monkeypatch):
+    """Memory bounded by chunks of shufflings (one at a time here) changes no shuffling's RMSE beyond rounding."""
+    from .test_study_analysis import FREQS
+
+    analysis, study, features = small
+    rows, X, y = _regression_data(study, features, "smooth", "1N")
+    specimens = rows["specimen"].to_numpy()
+    law = {"freq_per_mm": FREQS, "n_blocks": 1, "pad_ridge_period_mm": None, "surfaces": specimens}
+    Y = controls.permuted_targets(y, specimens, controls.specimen_permutations(len(pd.unique(specimens)), 5, seed=3))
+    whole = controls.permuted_law_rmse(X, Y, specimens, cv, law)
+    monkeypatch.setattr(controls, "LAW_CHUNK_CELLS", 1)
+    one_by_one = controls.permuted_law_rmse(X, Y, specimens, cv, law)
+    for b in range(Y.shape[1]):  # and each equals the law cross-validated on that shuffling alone
+        alone = controls.permuted_law_rmse(X, Y[:, b:b + 1], specimens, cv, law)
+        assert one_by_one[b] == pytest.approx(alone[0], rel=1e-12)
+    np.testing.assert_allclose(one_by_one, whole, rtol=1e-12)

@@ -194,11 +194,11 @@ def test_bad_sweep_files_are_one_line_exit_2(tmp_path, run_cli, text, message):
     assert not (tmp_path / "out").exists()
 
 
-def test_unreachable_scheduler_is_one_line_exit_2_within_10_s(tmp_path, run_cli):
-    started = time.perf_counter()
+def test_unreachable_scheduler_is_one_line_exit_2(tmp_path, run_cli):
+    # How long the refusal takes is benchmarks/bench_refusals.py's to measure, not a test's.
     code, _, err = run_cli("explore", _sweep_file(tmp_path), "--out", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert code == 2 and "cannot reach the Dask scheduler" in err and len(err.strip().splitlines()) == 1
-    assert time.perf_counter() - started < 10
+    assert not (tmp_path / "out" / "results").exists()
 
 
 def test_a_folder_of_another_sweep_or_of_user_files_is_refused(tmp_path):
@@ -652,10 +652,8 @@ def test_a_sweep_with_every_cell_finished_starts_no_cluster(tmp_path, monkeypatc
         raise AssertionError("a cluster was started for a sweep with nothing left to run")
 
     monkeypatch.setattr(runner, "connect", no_cluster)
-    started = time.perf_counter()
     code, out, err = run_cli("explore", path, "--out", tmp_path / "out")
-    assert (code, err) == (0, "") and "0 cells computed, 1 already finished" in out
-    assert time.perf_counter() - started < 10  # the report only (about 1 s); a LocalCluster alone takes longer
+    assert (code, err) == (0, "") and "0 cells computed, 1 already finished" in out  # and no cluster (no_cluster)
 
 
 # --------------------------------------------------------------------------- cells verified, not trusted (issue 22)

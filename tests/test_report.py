@@ -525,3 +525,19 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
         ["peak law", "a shape left out (fitted on the other): rectangular",  # a large bias nobody is warned of
          "0.33 vs 0.42, passes, bias +0.31, 3% of presses flagged: biased and mostly unflagged, not to be trusted on "
          "the other shape"]]
+
+
+def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path):
+    """Two processes drawing the figures write byte for byte the report one process writes, every figure once."""
+    study, features = synthetic_study(repetitions=2, seed=6)
+    study.extra = {"simulation": {"seed": 42, "simulator": "roughsense.sim", "repetitions": 2}}
+    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    meta = {"source": "synthetic test study", "generated": "fixed"}
+    write_report(analysis, tmp_path / "one", meta=meta)
+    write_report(analysis, tmp_path / "two", meta=meta, n_jobs=2)
+    one = {p.name: p.read_bytes() for p in (tmp_path / "one").iterdir()}
+    two = {p.name: p.read_bytes() for p in (tmp_path / "two").iterdir()}
+    assert one == two
+    shown = re.findall(r'data-name="([^"]+)"', one["index.html"].decode())
+    assert sorted(shown) == sorted(name for name in one if name.endswith(".png"))  # none drawn that is not shown
+    assert len(shown) == len(set(shown))

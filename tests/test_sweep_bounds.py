@@ -10,7 +10,6 @@ import subprocess
 import sys
 import tempfile
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -89,13 +88,12 @@ def http_port():
 
 
 @pytest.mark.parametrize("listener", ["silent_port", "http_port"])
-def test_a_port_that_is_not_a_dask_scheduler_is_one_line_within_10_s(tmp_path, run_cli, request, listener):
+def test_a_port_that_is_not_a_dask_scheduler_is_one_line(tmp_path, run_cli, request, listener):
+    # The probe's time is measured by benchmarks/bench_refusals.py (a test asserts no wall-clock bound).
     port = request.getfixturevalue(listener)
-    started = time.perf_counter()
     result = run_cli("explore", _sweep_file(tmp_path), "--out", tmp_path / "out", "--scheduler",
                      f"tcp://127.0.0.1:{port}")
-    line = _one_error(result, "--scheduler", f"127.0.0.1:{port}", "cannot reach the Dask scheduler")
-    assert time.perf_counter() - started < 10, line
+    _one_error(result, "--scheduler", f"127.0.0.1:{port}", "cannot reach the Dask scheduler")
     assert not (tmp_path / "out" / "results").exists()
 
 
@@ -110,10 +108,9 @@ def test_a_scheduler_file_that_is_not_one_is_one_line_naming_it(tmp_path, run_cl
     path = tmp_path / name
     if content is not None:
         path.write_text(content)
-    started = time.perf_counter()
     _one_error(run_cli("explore", _sweep_file(tmp_path), "--out", tmp_path / "out", "--scheduler", path),
                str(path), "--scheduler", message)
-    assert time.perf_counter() - started < 10
+    assert not (tmp_path / "out" / "results").exists()
 
 
 @pytest.mark.parametrize("value, message", [
@@ -162,9 +159,8 @@ def test_workers_beyond_the_bound_are_refused_before_any_work(tmp_path, run_cli,
     (["--participants", "1000", "--sessions", "100"], "1300000 trials, above the limit of 1000000"),
 ])
 def test_protocol_sizes_are_bounded_before_any_work(tmp_path, run_cli, args, message):
-    started = time.perf_counter()
     _one_error(run_cli("protocol", "--out", tmp_path / "schedule.csv", "--seed", "1", *args), message)
-    assert time.perf_counter() - started < 5 and not (tmp_path / "schedule.csv").exists()
+    assert not (tmp_path / "schedule.csv").exists()
 
 
 def test_the_schedule_function_refuses_before_making_ids():
@@ -218,9 +214,7 @@ def test_sweep_counts_and_sizes_are_bounded_naming_the_file_and_key(tmp_path, ru
 
     monkeypatch.setattr(cell, "cell_rows", no_cell)
     path = _sweep_file(tmp_path, text)
-    started = time.perf_counter()
-    _one_error(run_cli("explore", path, "--out", tmp_path / "out"), str(path), key, message)
-    assert time.perf_counter() - started < 5  # the 1000 x 1000 grid too: counted, never built
+    _one_error(run_cli("explore", path, "--out", tmp_path / "out"), str(path), key, message)  # no cell ran (no_cell)
     assert not (tmp_path / "out").exists()
 
 
@@ -236,10 +230,8 @@ def test_the_bounds_themselves_are_accepted(tmp_path):
 
     text = TINY.replace("seeds = [0]", f"seeds = {list(range(MAX_CELLS // 2))}").replace(
         'pad = ["smooth"]', 'pad = ["smooth"]\nfield_length_mm = [55.0, 55.05]')  # 1922 and 1924 px: two frames
-    started = time.perf_counter()
     sweep = read_sweep(_sweep_file(tmp_path, text))
     assert len(sweep.cells) == MAX_CELLS == len({c.id for c in sweep.cells})
-    assert time.perf_counter() - started < 30
 
 
 # --------------------------------------------------------------------------- streaming and scratch space

@@ -1,10 +1,10 @@
-"""docs/tutorial.md cannot rot: every fenced ``sh`` block runs, in order, as one shell session would run them, twice.
+"""docs/tutorial.md cannot rot: every fenced ``sh`` block runs, in order, as one shell session would run them.
 
 It starts in a folder standing in for the clone, with HOME a fresh folder, and each block starts where the one
 before it left off (the tutorial's ``cd`` into its scratch folder carries over). ``roughsense`` on PATH is a shim for
 the interpreter running the tests, so the tutorial runs against this checkout's code, and everything it reads comes
-out of the package (``roughsense example``), as it would from a wheel. The second run proves every step re-runnable;
-the clone stand-in must stay empty; the report sections the tutorial lists and the numbers it quotes are the run's.
+out of the package (``roughsense example``), as it would from a wheel. Every step that writes says ``--force``, so it
+re-runs; the clone stand-in must stay empty; the report sections the tutorial lists and the numbers it quotes are the run's.
 """
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def _run_tutorial(start: Path, env: dict[str, str], state: Path) -> Path:
 
 @pytest.fixture(scope="module")
 def tutorial_run(tmp_path_factory) -> Path:
-    """The tutorial run twice from a stand-in clone; the scratch folder it worked in."""
+    """The tutorial run from a stand-in clone; the scratch folder it worked in."""
     tmp = tmp_path_factory.mktemp("tutorial")
     env = _environment(tmp)
     clone = tmp / "clone"
@@ -88,14 +88,22 @@ def tutorial_run(tmp_path_factory) -> Path:
     commands = blocks("sh")
     assert len(commands) >= 10
     first = _run_tutorial(clone, env, tmp / "pwd")
-    second = _run_tutorial(clone, env, tmp / "pwd")  # every step again, as it stands: nothing refuses its own output
-    assert first == second == tmp / "home" / SCRATCH
+    assert first == tmp / "home" / SCRATCH
     assert list(clone.iterdir()) == [], "the tutorial wrote into the folder it was started from (the clone)"
     return first
 
 
+def test_every_step_that_writes_can_run_again():
+    """Re-runnable, without running the whole tutorial a second time: every
+    roughsense command that writes a file or folder (``--out``, or ``example``'s folder) says ``--force``."""
+    commands = [line.split() for body in blocks("sh") for line in body.splitlines() if line.startswith("roughsense ")]
+    writing = [c for c in commands if "--out" in c or c[1] == "example"]
+    assert len(writing) >= 10
+    assert [" ".join(c) for c in writing if "--force" not in c] == []
+
+
 @pytest.mark.slow
-def test_every_sh_block_runs_twice_and_leaves_what_it_says(tutorial_run):
+def test_every_sh_block_runs_and_leaves_what_it_says(tutorial_run):
     work = tutorial_run
     assert len(pd.read_csv(work / "sample-features.csv")) == 5
     report = work / "my-report"

@@ -35,6 +35,9 @@ DEFAULT_PERMUTATIONS = 199
 #: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
 MAX_PERMUTATIONS = 10_000
+#: The peak law's shufflings run in chunks of about this many cells (folds x shufflings x presses) a working array:
+#: 16 MiB of float64 (a 140-press leave-one-out in 2 chunks), whatever the number of presses.
+LAW_CHUNK_CELLS = 1 << 21
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
@@ -112,8 +115,14 @@ def permuted_law_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: s
     """CV RMSE of the peak power law on each target column of Y, pooled over all trials (LOO or LOSO).
 
     ``law``: peak_law_cv's keywords for this pad and condition (grid, spectra per row, the pad's ridge period).
+    Shufflings go through in chunks of about :data:`LAW_CHUNK_CELLS` folds x shufflings x presses, so the memory
+    stays flat in the number of presses (leave-one-out has as many folds as presses); each shuffling's fit is its own.
     """
-    predictions = peak_law_cv(X, Y, groups=np.asarray(specimens) if cv == "loso" else None, **law)
+    groups = np.asarray(specimens) if cv == "loso" else None
+    n = Y.shape[0]
+    size = max(1, LAW_CHUNK_CELLS // (n * (n if groups is None else len(pd.unique(groups)))))
+    predictions = np.vstack([peak_law_cv(X, Y[:, start:start + size], groups=groups, **law)
+                             for start in range(0, Y.shape[1], size)])
     return _cv_rmse(predictions, Y.T)
 
 
@@ -169,6 +178,9 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
     product's rounding the same), and rows come back in job order: the table is identical for any ``n_jobs``.
     """
     jobs = list(jobs)
+    shufflings = {int(job[4].shape[0]) for job in jobs}
+    # The count a log shows when the stage starts: models, and each one's shufflings (the work is their product).
+    description = f"controls, {shufflings.pop()} shufflings per model" if len(shufflings) == 1 else "controls"
 
     def one(job: tuple) -> dict:
         return control_row(*job)
@@ -177,7 +189,7 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
         if n_jobs > 1 and len(jobs) > 1:
             with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
                 rows = pool.map(one, jobs)
-                rows = list(progress(rows, total=len(jobs), description="controls") if progress else rows)
+                rows = list(progress(rows, total=len(jobs), description=description) if progress else rows)
         else:
-            rows = [one(job) for job in (progress(jobs, total=len(jobs), description="controls") if progress else jobs)]
+            rows = [one(job) for job in (progress(jobs, total=len(jobs), description=description) if progress else jobs)]
     return controls_table(rows)

@@ -173,9 +173,11 @@ class StudyAnalysis:
     def simulated(self) -> bool:
         return self.simulation is not None
 
-    def summary(self, cv: str, column: str, model: str = PLS) -> pd.DataFrame:
-        """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition, of one model."""
-        results = self.results(cv)
+    def summary(self, cv: str, column: str, model: str = PLS, results: pd.DataFrame | None = None) -> pd.DataFrame:
+        """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition, of one model.
+
+        ``results``: ``self.results(cv)`` if the caller holds it already (a report summarises it a dozen times)."""
+        results = self.results(cv) if results is None else results
         results = results[results["model"] == model]
         frames = []
         for (pad, condition), table in results.groupby(["pad", "condition"], sort=False):

@@ -21,9 +21,12 @@ def register(app: typer.Typer) -> None:
             help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
         workers: int | None = typer.Option(None, "--workers", parser=_WORKERS,
-                                           help="Local worker processes (default: one per core; at most 4 per core)."),
+                                           help="Local worker processes (default: one per core; at most 4 per core); "
+                                           "with --scheduler slurm/pbs/sge, batch jobs (default 1)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
-                                             "of an existing Dask cluster, instead of a local one."),
+                                             "of an existing Dask cluster, or slurm, pbs or sge: workers as batch jobs "
+                                             "(dask-jobqueue, configured in Dask's jobqueue.yaml), instead of a local "
+                                             "cluster."),
         force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "
                                    "replaced) or other files (kept)."),
         figure_format: FigureFormat = "png",

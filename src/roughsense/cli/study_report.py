@@ -124,7 +124,7 @@ def _analyse(staging, *, data: str | None, out: Path, seed: int, max_components:
     if caught:
         meta["warnings"] = "; ".join(str(w.message) for w in caught)
     with stage("writing the report"):
-        write_report_files(analysis, staging, meta=meta, style=style)
+        write_report_files(analysis, staging, meta=meta, style=style, n_jobs=jobs)
     summary = list(unseen_lines(analysis))
     loo = analysis.results("loo")
     loo = loo[loo["model"] == "pls"]

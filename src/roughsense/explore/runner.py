@@ -8,7 +8,12 @@ computing, and shows progress, as soon as its first cells are in.
 
 A ``--scheduler`` is checked before any client is made: a scheduler file is read here (bounded, JSON with an
 ``address``), and the address must answer as a Dask scheduler does -- it speaks first, a short framed handshake --
-within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang.
+within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang. (distributed's
+``Client(address, timeout=...)`` and ``distributed.comm.connect`` are not probes: their timeout leaves the handshake
+out (dask/distributed#7698), and against a port that accepts and stays silent both waited past a minute.)
+``--scheduler slurm`` (``pbs``, ``sge``) starts the workers as batch jobs through dask-jobqueue, configured the Dask
+way (``jobqueue.slurm.*`` in ``~/.config/dask/jobqueue.yaml`` or ``DASK_JOBQUEUE__SLURM__...`` variables),
+``--workers`` jobs of them; closing the client cancels them, whether the sweep ended, failed or was interrupted.
 """
 from __future__ import annotations
 
@@ -44,6 +49,10 @@ PROBE_S = 4.0
 HANDSHAKE_MAX_BYTES = 1 << 16
 #: A scheduler file is a short JSON document (address, id, services, workers): more is not one.
 SCHEDULER_FILE_MAX_BYTES = 1_000_000
+#: ``--scheduler`` names of the batch systems whose jobs dask-jobqueue runs workers in, and its cluster class for each.
+JOB_QUEUES = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster"}
+#: Batch jobs at most (``--workers`` with a job queue): each is a job in someone's queue.
+MAX_JOBS = 1000
 #: Local worker processes per usable core at most: more only compete for the cores and memory (--workers).
 MAX_WORKERS_PER_CORE = 4
 #: Cells in flight at least (and two per worker thread): enough to keep every worker busy, never the whole sweep.
@@ -73,8 +82,19 @@ def max_workers() -> int:
     return MAX_WORKERS_PER_CORE * default_workers()
 
 
+def job_queue(scheduler: str | None) -> str | None:
+    """The batch system ``--scheduler`` names (``slurm``, ``pbs``, ``sge``), or None for an address or none."""
+    name = (scheduler or "").strip().lower()
+    return name if name in JOB_QUEUES else None
+
+
 def check_options(workers: int | None, scheduler: str | None) -> None:
     """``--workers`` and ``--scheduler`` as given, refused before any folder or cluster is made."""
+    if job_queue(scheduler):
+        if workers is not None and not 1 <= workers <= MAX_JOBS:
+            raise ConfigError(f"--workers (batch jobs with --scheduler {job_queue(scheduler)}) must be from 1 to "
+                              f"{MAX_JOBS}, got {short_repr(workers)}")
+        return
     if workers is not None and scheduler is not None:
         raise ConfigError("give --workers or --scheduler, not both (an existing cluster has its own workers)")
     if scheduler is not None and not scheduler.strip():
@@ -178,10 +198,13 @@ def _receive(sock: socket.socket, size: int, deadline: float) -> bytes | None:
 
 
 def connect(workers: int | None = None, scheduler: str | None = None, *, scratch: Path | None = None):
-    """A Dask client: on an existing scheduler (address or scheduler file), or on a new LocalCluster whose
-    workers keep their scratch files in ``scratch`` (never ``$TMPDIR``)."""
+    """A Dask client: on an existing scheduler (address or scheduler file), on workers in batch jobs
+    (``slurm``, ``pbs``, ``sge``), or on a new LocalCluster whose workers keep their scratch files in ``scratch``
+    (never ``$TMPDIR``)."""
     from distributed import Client, LocalCluster
 
+    if job_queue(scheduler):
+        return _job_queue_client(job_queue(scheduler), 1 if workers is None else int(workers))
     if scheduler is not None:
         address = scheduler_address(scheduler)
         try:
@@ -197,6 +220,31 @@ def connect(workers: int | None = None, scheduler: str | None = None, *, scratch
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR, local_directory=None if scratch is None else str(scratch))
     return Client(cluster, set_as_default=False)
+
+
+def _job_queue_client(kind: str, jobs: int):
+    """A client on a dask-jobqueue cluster of ``kind`` scaled to ``jobs`` batch jobs; its settings are Dask's
+    configuration (``jobqueue.<kind>``), so a site's jobqueue.yaml applies unchanged."""
+    from distributed import Client
+
+    from .cell import error_line
+
+    try:
+        import dask_jobqueue
+    except ImportError as exc:
+        raise ConfigError(f"--scheduler {kind} needs dask-jobqueue ({error_line(exc)})") from None
+    try:
+        cluster = getattr(dask_jobqueue, JOB_QUEUES[kind])()
+    except Exception as exc:  # a missing setting (cores, memory) or a batch system that is not there: one line
+        raise ConfigError(f"--scheduler {kind}: cannot start the cluster ({error_line(exc)}); set jobqueue.{kind}.cores "
+                          f"and .memory in ~/.config/dask/jobqueue.yaml or DASK_JOBQUEUE__{kind.upper()}__CORES and "
+                          f"__MEMORY") from None
+    try:
+        cluster.scale(jobs=jobs)
+        return Client(cluster, set_as_default=False)
+    except BaseException:
+        cluster.close()
+        raise
 
 
 def _failure(cell: Cell, error: str) -> dict:

@@ -47,6 +47,7 @@ from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_param
 from ..errors import ConfigError, InputError
 from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
+from .huber_batch import HUBER_EPSILON, huber_irls
 
 #: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
 #: the third (:func:`law_terms`); the peak amplitude did not earn a term under LOSO and bounds the domain only
@@ -61,12 +62,6 @@ SHAPE_SPREAD = 1.0
 #: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
 #: a 54 mm line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands.
 DEFAULT_EXCLUSION_PER_MM = 0.1
-#: Huber's tuning constant: 95 % efficiency at normal errors (the textbook value; not tuned here).
-HUBER_EPSILON = 1.345
-#: Median absolute deviation -> standard deviation at normal errors.
-_MAD_TO_SD = 1.0 / 0.6744897501960817
-_MAX_IRLS_ITERATIONS = 100
-_IRLS_TOL = 1e-8
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.
 _DEFAULT_BAND_PER_MM = (0.1, 1.0)
 #: A training row counts as kept by the Huber fit when its final weight is at least this (|residual| <= 2 epsilon
@@ -277,50 +272,6 @@ def _parabola_at(log_amp: np.ndarray, peak: np.ndarray, offset: np.ndarray) -> n
     return np.where(interior, value, centre)
 
 
-# --------------------------------------------------------------------------- batched Huber IRLS
-
-
-def huber_irls(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *,
-               epsilon: float = HUBER_EPSILON) -> tuple[np.ndarray, np.ndarray]:
-    """Huber regression of every target on the same features, for every training mask at once.
-
-    ``features`` (n, p); ``targets`` (B, n); ``train`` (F, n) booleans (one row per fold).
-    Returns coefficients (F, B, p + 1) (intercept first) and the final scale (F, B).
-    Iteratively reweighted least squares from the least-squares start; the scale is the median absolute residual of
-    the training rows over 0.6745, re-estimated each step (as statsmodels' RLM with HuberT and MAD scale). Each
-    (fold, target) problem stops on its own once its coefficients move less than the tolerance, so a batch gives
-    each problem exactly the iterations a fit of that problem alone would take. The stopping rule (coefficients
-    moving less than 1e-8 of their size) leaves the fit within ~1e-7 of its fixed point in log roughness; a tighter
-    one tripled the cost of the study's leave-one-out permutation control (28 000 fits per model), whose slow tail of
-    problems is all that a 1e-10 rule added.
-    """
-    n = features.shape[0]
-    design = np.column_stack([np.ones(n), features])
-    n_folds, n_targets = train.shape[0], targets.shape[0]
-    mask = np.broadcast_to(train[:, None, :], (n_folds, n_targets, n)).reshape(-1, n)
-    flat_targets = np.broadcast_to(targets[None], (n_folds, n_targets, n)).reshape(-1, n)
-    beta = _weighted_lstsq(design, flat_targets, mask.astype(np.float64))
-    scale = np.ones(mask.shape[0])
-    active = np.arange(mask.shape[0])
-    for _ in range(_MAX_IRLS_ITERATIONS):
-        if active.size == 0:
-            break
-        problem_mask, problem_targets = mask[active], flat_targets[active]
-        residual = problem_targets - beta[active] @ design.T
-        absolute = np.abs(residual)
-        step_scale = np.maximum(_masked_median(absolute, problem_mask) * _MAD_TO_SD, np.finfo(np.float64).tiny)
-        limit = epsilon * step_scale[:, None]
-        weights = problem_mask * (limit / np.maximum(absolute, limit))
-        updated = _weighted_lstsq(design, problem_targets, weights)
-        change = np.max(np.abs(updated - beta[active]), axis=1)
-        done = change <= _IRLS_TOL * (1.0 + np.max(np.abs(updated), axis=1))
-        beta[active] = updated
-        scale[active] = step_scale
-        active = active[~done]
-    p1 = design.shape[1]
-    return beta.reshape(n_folds, n_targets, p1), scale.reshape(n_folds, n_targets)
-
-
 def shape_read(features: np.ndarray, train: np.ndarray, grouped: bool = True) -> np.ndarray:
     """(F,) whether each training mask reads the contact's shape: every training row shows its second harmonic (a
     fingerprint pad hides it for a 2 mm grating) and rows are grouped into surfaces (``grouped``: a shape is a
@@ -368,33 +319,6 @@ def held_features(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np
     bounded = np.isfinite(low) & np.isfinite(high)
     middle = 0.5 * (np.where(bounded, low, 0.0) + np.where(bounded, high, 0.0))
     return np.clip(np.where(np.isnan(features), middle, features), low, high)
-
-
-def _masked_median(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Median of each row's entries where ``mask`` is true (rows grouped by their count, one partition per count)."""
-    counts = mask.sum(axis=1)
-    hidden = np.where(mask, values, np.inf)
-    medians = np.empty(values.shape[0])
-    for count in np.unique(counts):
-        rows = counts == count
-        low, high = (count - 1) // 2, count // 2
-        part = np.partition(hidden[rows], (low, high), axis=1)
-        medians[rows] = 0.5 * (part[:, low] + part[:, high])
-    return medians
-
-
-def _weighted_lstsq(design: np.ndarray, targets: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Solve the weighted normal equations of every problem (row of ``weights``): (problems, p + 1)."""
-    p1 = design.shape[1]
-    outer = (design[:, :, None] * design[:, None, :]).reshape(design.shape[0], p1 * p1)
-    gram = (weights @ outer).reshape(-1, p1, p1)
-    moment = (weights * targets) @ design
-    # A tiny ridge on the slopes keeps a degenerate problem (one distinct feature value) solvable; it is 1e-12 of the
-    # Gram matrix's own scale, far below rounding of any problem that is not degenerate.
-    ridge = 1e-12 * np.maximum(np.trace(gram, axis1=-2, axis2=-1), 1.0)
-    eye = np.eye(p1)
-    eye[0, 0] = 0.0
-    return np.linalg.solve(gram + ridge[:, None, None] * eye, moment[..., None])[..., 0]
 
 
 # --------------------------------------------------------------------------- the estimator

@@ -71,9 +71,11 @@ def page_preview(png: bytes, colours: int = PREVIEW_COLOURS) -> bytes:
     from PIL import Image
 
     image = Image.open(io.BytesIO(png)).convert("RGB")
-    palette = image.quantize(colors=colours, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    # Fast octree and zlib's default level: a plot's few colours need no median cut, and the pair took a fifth of
+    # the time of median cut with optimize=True for files as small (benchmarks/bench_study.py's report stage).
+    palette = image.quantize(colors=colours, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     buffer = io.BytesIO()
-    palette.save(buffer, format="PNG", optimize=True)
+    palette.save(buffer, format="PNG")
     return buffer.getvalue()
 
 

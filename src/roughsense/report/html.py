@@ -15,8 +15,10 @@ import base64
 import datetime as _dt
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import jinja2
 import pandas as pd
@@ -24,6 +26,7 @@ import pandas as pd
 from .. import __version__, paper
 from .._util import atomic
 from .._util.text import spreadsheet_safe
+from .._util.workers import process_pool
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
 from ..analysis.unseen import unsure_specimens
@@ -171,16 +174,21 @@ def unseen_words(analysis) -> list[str]:
     return lines
 
 
-def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = FigureStyle()) -> dict[str, bytes]:
-    """Every file of the report, by name, as bytes; ``style``: the figures' format and resolution."""
+def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = FigureStyle(),
+                  n_jobs: int = 1) -> dict[str, bytes]:
+    """Every file of the report, by name, as bytes; ``style``: the figures' format and resolution; ``n_jobs``:
+    processes drawing the figures (the same bytes for any number)."""
     meta = dict(meta or {})
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     cv_schemes = ["loo", "loso"] if has_loso else ["loo"]
     results = {cv: analysis.results(cv) for cv in cv_schemes}
     chosen = analysis.chosen_components()
     files = _data_files(analysis, results, chosen)
-    unseen_figure = _unseen_figure(analysis, results, files, style)
-    figure_list = _figures(analysis, results, chosen, cv_schemes, files, style)
+    unseen_job, presses_job = _unseen_figure(results, analysis.perceived), _presses_figure(analysis)
+    jobs = [job for job in (unseen_job, presses_job) if job] + _figures(analysis, results, chosen, cv_schemes)
+    figure_list = _render_figures(analysis, jobs, files, style, n_jobs)
+    unseen_figure = figure_list.pop(0) if unseen_job else None
+    presses_entry = figure_list.pop(0) if presses_job else None
     paper_pads = tuple(analysis.paper_pads)
     pls_chosen = chosen[chosen["model"] == PLS]
     template = template_environment().get_template("report.html.j2")
@@ -196,7 +204,7 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         unseen_words=unseen_words(analysis),
         held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         presses=presses_table(analysis.presses),
-        presses_figure=_presses_figure(analysis, files, style),
+        presses_figure=presses_entry,
         unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
                                                     else analysis.models[0])),
         unseen_figure=unseen_figure,
@@ -244,81 +252,104 @@ def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame
     return files
 
 
-def _figure(analysis, files: dict[str, bytes], stem: str, fig, caption: str, style: FigureStyle) -> dict:
-    """Render one figure into ``files`` (``style``'s format), stamped if the data are simulated; its page entry."""
-    name = f"{stem}.{style.figure_format}"
-    check_name(name, what="report file name")  # built from pad names: the study contract's name rule
-    if analysis.simulation is not None:
-        figures.mark_simulated(fig, f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})")
+class FigureJob(NamedTuple):
+    """One figure of the page, drawn where it is rendered (a worker process or here): ``draw(*args, **kwargs)``."""
+
+    stem: str
+    draw: Callable
+    args: tuple
+    kwargs: dict
+    caption: str
+
+
+def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> tuple[str, bytes, dict]:
+    """Draw and render one figure (``style``'s format), stamped if the data are simulated: its file and page entry."""
+    name = f"{job.stem}.{style.figure_format}"
+    fig = job.draw(*job.args, **job.kwargs)
+    caption = job.caption
+    if stamp is not None:
+        figures.mark_simulated(fig, stamp)
         caption = "Simulated data. " + caption
-    files[name] = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
+    data = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
     shown = "png" if style.figure_format == "pdf" else style.figure_format
-    page = files[name] if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)
+    page = data if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)
     if shown == "png":
         page = figures.page_preview(page)
     figures.plt.close(fig)
-    return {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
-            "data": base64.b64encode(page).decode("ascii")}
+    return name, data, {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
+                        "data": base64.b64encode(page).decode("ascii")}
 
 
-def _unseen_figure(analysis, results: dict[str, pd.DataFrame], files: dict[str, bytes],
-                   style: FigureStyle) -> dict | None:
+def _render_figures(analysis, jobs: list[FigureJob], files: dict[str, bytes], style: FigureStyle,
+                    n_jobs: int) -> list[dict]:
+    """Render every figure once, in ``n_jobs`` worker processes when there are more than one (matplotlib draws
+    one figure per process at a time); the page entries come back in the jobs' order, the bytes the same."""
+    for job in jobs:
+        check_name(f"{job.stem}.{style.figure_format}", what="report file name")  # built from pad names
+    stamp = None if analysis.simulation is None else f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})"
+    n_jobs = min(n_jobs, len(jobs))
+    if n_jobs > 1:
+        with process_pool(n_jobs) as pool:
+            rendered = list(pool.map(_render_figure, jobs, [stamp] * len(jobs), [style] * len(jobs)))
+    else:
+        rendered = [_render_figure(job, stamp, style) for job in jobs]
+    entries = []
+    for name, data, entry in rendered:
+        files[name] = data
+        entries.append(entry)
+    return entries
+
+
+def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame) -> FigureJob | None:
     """Predicted against perceived per specimen under LOSO, every model, the combined condition (or the last one)."""
     if "loso" not in results:
         return None
     conditions = list(dict.fromkeys(results["loso"]["condition"]))
     condition = COMBINED if COMBINED in conditions else conditions[-1]
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
-    return _figure(analysis, files, "unseen_surfaces",
-                   figures.unseen_figure(results["loso"], analysis.perceived, condition),
-                   f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over its "
-                   f"repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.", style)
+    return FigureJob("unseen_surfaces", figures.unseen_figure, (results["loso"], perceived, condition), {},
+                     f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over "
+                     f"its repetitions) against its perceived roughness, {condition} condition, {models}; grey: identity.")
 
 
-def _presses_figure(analysis, files: dict[str, bytes], style: FigureStyle) -> dict | None:
+def _presses_figure(analysis) -> FigureJob | None:
     if analysis.presses.empty:
         return None
-    return _figure(analysis, files, "presses_per_surface", presses_figure(analysis.presses),
-                   "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
-                   "presses, per pad and condition; dashed: the training mean's.", style)
+    return FigureJob("presses_per_surface", presses_figure, (analysis.presses,), {},
+                     "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
+                     "presses, per pad and condition; dashed: the training mean's.")
 
 
-def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
-             files: dict[str, bytes], style: FigureStyle) -> list[dict]:
-    """Draw every figure of the Figures section into ``files`` (``style``'s format) and return them for the page."""
+def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str]) -> list[FigureJob]:
+    """Every figure of the Figures section, to be drawn (:func:`_render_figures`)."""
     paper_pads = tuple(analysis.paper_pads)
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
     pls = {cv: frame[frame["model"] == PLS] for cv, frame in results.items()}
     cv_table = analysis.cv_table()
-    figure_list = []
-    for pad in analysis.pads:
-        figure_list.append(_figure(
-            analysis, files, f"spectra_{pad}",
-            figures.spectra_figure(analysis.mean_spectra, freq_columns, pad, analysis.shapes),
-            f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).", style))
+    jobs = [FigureJob(f"spectra_{pad}", figures.spectra_figure, (analysis.mean_spectra, freq_columns, pad,
+                                                                 analysis.shapes), {},
+                      f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).")
+            for pad in analysis.pads]
     if PLS in analysis.models:
-        figure_list.append(_figure(
-            analysis, files, "cv_curves",
-            figures.cv_curves_figure(cv_table[cv_table["model"] == PLS], chosen[chosen["model"] == PLS]),
-            "Cross-validated RMSE of PLS against the number of components, LOO (top) and LOSO (bottom); red circles "
+        jobs.append(FigureJob(
+            "cv_curves", figures.cv_curves_figure, (cv_table[cv_table["model"] == PLS], chosen[chosen["model"] == PLS]),
+            {}, "Cross-validated RMSE of PLS against the number of components, LOO (top) and LOSO (bottom); red circles "
             "mark the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the "
-            "training mean.", style))
-        for pad in analysis.pads:
-            figure_list.append(_figure(
-                analysis, files, f"ovl_sd_{pad}",
-                figures.ovl_sd_figure(pls["loo"], analysis.perceived, pad, analysis.shapes, paper=pad in paper_pads),
-                f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9).", style))
+            "training mean."))
+        jobs += [FigureJob(f"ovl_sd_{pad}", figures.ovl_sd_figure, (pls["loo"], analysis.perceived, pad, analysis.shapes),
+                           {"paper": pad in paper_pads},
+                           f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9).")
+                 for pad in analysis.pads]
     for model in analysis.models:
         for cv in cv_schemes:
             rows = results[cv][results[cv]["model"] == model]
             suffix = "" if model == PLS else f"_{model}"
-            figure_list.append(_figure(
-                analysis, files, f"predicted_vs_perceived_{cv}{suffix}",
-                figures.predicted_vs_perceived_figure(rows, analysis.perceived, cv,
-                                                      paper=paper_pads if model == PLS else False),
+            jobs.append(FigureJob(
+                f"predicted_vs_perceived_{cv}{suffix}", figures.predicted_vs_perceived_figure,
+                (rows, analysis.perceived, cv), {"paper": paper_pads if model == PLS else False},
                 f"Predicted (mean ± SD over repetitions) against perceived roughness, {model}, {cv.upper()}; "
-                "grey: identity.", style))
-    return figure_list
+                "grey: identity."))
+    return jobs
 
 
 def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str]) -> list[dict]:
@@ -329,33 +360,37 @@ def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str])
     specimens = figures._specimen_order(analysis.perceived["specimen"], analysis.shapes)
     paper_pads = tuple(analysis.paper_pads)
     sections = []
+    columns = ("ovl", "rmse", "ovl_predictive")
     for cv in cv_schemes:
         pads = []
+        summary = {(model, column): analysis.summary(cv, column, model, results[cv])  # every pad's rows at once
+                   for model in analysis.models for column in columns}
         for pad in analysis.pads:
             pad_tables = []
             for model in analysis.models:
                 rows = results[cv][results[cv]["model"] == model]
-                summaries = {column: analysis.summary(cv, column, model) for column in ("ovl", "rmse", "ovl_predictive")}
+                summaries = {column: summary[(model, column)] for column in columns}
                 flags = tables.control_flags(analysis.controls, pad, cv, model)
                 kwargs = {"paper_values": pad in paper_pads, "flags": flags, "model": model}
                 pad_tables.append(tables.prediction_table(rows, analysis.perceived, pad, specimens, cv, **kwargs))
                 pad_tables += [tables.metric_table(rows, summaries[column], pad, specimens, column, cv, **kwargs)
-                               for column in ("ovl", "rmse", "ovl_predictive")]
+                               for column in columns]
             pads.append({"pad": pad, "tables": pad_tables})
         sections.append({"cv": cv, "pads": pads})
     return sections
 
 
 def write_report(analysis, out_dir: str | os.PathLike[str], *, meta: dict | None = None, force: bool = False,
-                 style: FigureStyle = FigureStyle()) -> Path:
+                 style: FigureStyle = FigureStyle(), n_jobs: int = 1) -> Path:
     """Write the report folder whole: built beside ``out_dir`` and swapped in, so a failure leaves it as it was."""
     with atomic.staged_folder(open_report_dir(out_dir, force)) as folder:
-        write_report_files(analysis, folder, meta=meta, style=style)
+        write_report_files(analysis, folder, meta=meta, style=style, n_jobs=n_jobs)
     return Path(out_dir) / "index.html"
 
 
-def write_report_files(analysis, folder: Path, *, meta: dict | None = None, style: FigureStyle = FigureStyle()) -> None:
+def write_report_files(analysis, folder: Path, *, meta: dict | None = None, style: FigureStyle = FigureStyle(),
+                       n_jobs: int = 1) -> None:
     """The report's files into ``folder``, a staging folder whose swap the caller owns (the study command opens it
     before the analysis, so an unwritable ``--out`` fails before minutes of work)."""
-    for name, data in render_report(analysis, meta=meta, style=style).items():
+    for name, data in render_report(analysis, meta=meta, style=style, n_jobs=n_jobs).items():
         atomic.write_bytes(folder / name, data)

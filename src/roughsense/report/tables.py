@@ -94,6 +94,7 @@ def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, s
     paper_perceived = published.perceived_roughness().set_index("specimen")
     conditions = list(dict.fromkeys(results["condition"]))
     ours = results[results.pad == pad].set_index(["specimen", "condition"])
+    means, sds = ours["pred_mean"].to_dict(), ours["pred_sd"].to_dict()  # dict lookups: .loc per cell was slow
     human = perceived.set_index("specimen")
     rows = []
     for specimen in specimens:
@@ -104,7 +105,7 @@ def prediction_table(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, s
                          _pm(p["perceived_gmean"], p["perceived_sd"]) if p is not None and show_perceived else None))
         for condition in conditions:
             key = (specimen, condition)
-            value = _pm(ours.loc[key, "pred_mean"], ours.loc[key, "pred_sd"]) if key in ours.index else "—"
+            value = _pm(means[key], sds[key]) if key in means else "—"
             pm = _paper_value(paper, (pad, specimen, condition), "pred_mean") if cv == "loo" and paper_values else None
             ps = _paper_value(paper, (pad, specimen, condition), "pred_sd")
             row.append(_cell(value, _pm(pm, ps) if pm is not None else None))
@@ -138,13 +139,13 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
     paper = _paper_lookup()
     with_paper = paper_values and cv == "loo" and column in ("ovl", "rmse") and model == PLS
     conditions = list(dict.fromkeys(results["condition"]))
-    ours = results[results.pad == pad].set_index(["specimen", "condition"])
+    ours = results[results.pad == pad].set_index(["specimen", "condition"])[column].to_dict()
     rows = []
     for specimen in specimens:
         row = [_cell(specimen)]
         for condition in conditions:
             key = (specimen, condition)
-            value = _num(ours.loc[key, column]) if key in ours.index else "—"
+            value = _num(ours[key]) if key in ours else "—"
             pv = _paper_value(paper, (pad, specimen, condition), column) if with_paper else None
             row.append(_cell(value, _num(pv) if pv is not None else None))
         rows.append(row)
