@@ -523,8 +523,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
         ["peak law", "a shape left out (fitted on the other): circular",
          "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"],
         ["peak law", "a shape left out (fitted on the other): rectangular",  # a large bias nobody is warned of
-         "0.33 vs 0.42, passes, bias +0.31, 3% of presses flagged: biased and mostly unflagged, not to be trusted on "
-         "the other shape"]]
+         "0.33 vs 0.42, passes, bias +0.31, 3% of presses flagged: biased, mostly unflagged"]]
 
 
 def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path):

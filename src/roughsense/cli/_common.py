@@ -96,12 +96,15 @@ def _manifest_images(root: Path) -> list[Path]:
     except RoughsenseError:
         return []
     delimiter = ";" if lines and ";" in lines[0] and "," not in lines[0] else ","  # as io.tables reads it
-    rows = csv.reader(lines, delimiter=delimiter, skipinitialspace=True)
-    header = [cell.strip().lower() for cell in next(rows, [])]
+    try:  # a cell past csv's field limit (a forged path) is the study reader's to report, in its own words
+        rows = list(csv.reader(lines, delimiter=delimiter, skipinitialspace=True))
+    except csv.Error:
+        return []
+    header = [cell.strip().lower() for cell in (rows[0] if rows else [])]
     if "image" not in header:
         return []
     column = header.index("image")
-    return [root / row[column].strip() for row in rows if len(row) > column and row[column].strip()]
+    return [root / row[column].strip() for row in rows[1:] if len(row) > column and row[column].strip()]
 
 
 #: ``--jobs`` above this many per usable core only queues work (and simulate would fork that many processes at once).

@@ -110,8 +110,9 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
     if scheme == "shape":  # one direction: its bias, and how much of it the applicability check flags
         flagged = row.get("flagged_share")
         verdict += f", bias {row['bias']:+.2f}" + (f", {flagged:.0%} of presses flagged" if pd.notna(flagged) else "")
-        if abs(row["bias"]) > SHAPE_BIAS_LIMIT and not (pd.notna(flagged) and flagged >= SHAPE_FLAGGED_ENOUGH):
-            verdict += ": biased and mostly unflagged, not to be trusted on the other shape"
+        unwarned = abs(row["bias"]) > SHAPE_BIAS_LIMIT and not (pd.notna(flagged) and flagged >= SHAPE_FLAGGED_ENOUGH)
+        if unwarned and row["passes"]:  # a pass that would mislead: a failing row needs no second warning
+            verdict += ": biased, mostly unflagged"
     if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
         control = unseen.loc[(model, pad, condition)]
         verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
