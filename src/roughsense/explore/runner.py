@@ -7,10 +7,10 @@ submitted a window at a time (a few per worker thread), never as one graph: a sw
 computing, and shows progress, as soon as its first cells are in.
 
 A ``--scheduler`` is checked before any client is made: a scheduler file is read here (bounded, JSON with an
-``address``), and the address must answer as a Dask scheduler does -- it speaks first, a short framed handshake --
-within :data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang. (distributed's
-``Client(address, timeout=...)`` and ``distributed.comm.connect`` are not probes: their timeout leaves the handshake
-out (dask/distributed#7698), and against a port that accepts and stays silent both waited past a minute.)
+``address``), and the address must complete distributed's own connection (an asynchronous ``Client``) within
+:data:`PROBE_S`; an HTTP server or a silent socket never does, so it is one line, not a hang. The bound is asyncio's
+``wait_for`` around the whole connection: ``Client(timeout=...)`` alone leaves the handshake out of its timeout
+(dask/distributed#7698), and against a port that accepts and stays silent it waited past a minute.
 ``--scheduler slurm`` (``pbs``, ``sge``) starts the workers as batch jobs through dask-jobqueue, configured the Dask
 way (``jobqueue.slurm.*`` in ``~/.config/dask/jobqueue.yaml`` or ``DASK_JOBQUEUE__SLURM__...`` variables),
 ``--workers`` jobs of them; closing the client cancels them, whether the sweep ended, failed or was interrupted.
@@ -23,8 +23,6 @@ import logging
 import math
 import os
 import shutil
-import socket
-import struct
 import tempfile
 import time
 import warnings
@@ -43,10 +41,8 @@ from .store import ResultStore
 from .sweep import Cell, Sweep
 
 CONNECT_TIMEOUT_S = 5
-#: How long a scheduler address has to send its handshake: a Dask scheduler does at once, on connection.
+#: How long a scheduler address has to complete a client's connection: a Dask scheduler does in milliseconds.
 PROBE_S = 4.0
-#: A scheduler's handshake is a few hundred bytes; a first frame claiming more is not a Dask scheduler.
-HANDSHAKE_MAX_BYTES = 1 << 16
 #: A scheduler file is a short JSON document (address, id, services, workers): more is not one.
 SCHEDULER_FILE_MAX_BYTES = 1_000_000
 #: ``--scheduler`` names of the batch systems whose jobs dask-jobqueue runs workers in, and its cluster class for each.
@@ -123,7 +119,7 @@ def scheduler_address(value: str) -> str:
         text = _address_in_file(Path(text))
     host, port = _host_port(text, value)
     address = f"tcp://{host}:{port}"
-    _probe(host, port, address)
+    _probe(address)
     return address
 
 
@@ -160,41 +156,33 @@ def _host_port(text: str, value: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def _probe(host: str, port: int, address: str) -> None:
-    """Refuse, within :data:`PROBE_S`, an address where nothing listens or something other than Dask answers."""
-    deadline = time.monotonic() + PROBE_S
+def _probe(address: str) -> None:
+    """Refuse, within :data:`PROBE_S`, an address where nothing listens or something other than Dask answers: a
+    client connects there through distributed's public API, bounded as a whole, and closes again."""
+    import asyncio
 
-    def refuse(why: str) -> ConfigError:
-        return ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler ({why})")
+    from .cell import error_line
 
     try:
-        with socket.create_connection((host.strip("[]"), port), timeout=PROBE_S) as sock:
-            header = _receive(sock, struct.calcsize("Q"), deadline)
-            if header is None:
-                raise refuse(f"something listens there but sent no Dask handshake within {PROBE_S:g} s")
-            (size,) = struct.unpack("Q", header)
-            if not 0 < size <= HANDSHAKE_MAX_BYTES or _receive(sock, size, deadline) is None:
-                raise refuse("something listens there, but it is not a Dask scheduler")
-    except OSError as exc:
-        raise refuse(" ".join(str(exc).split()) or type(exc).__name__) from None
+        asyncio.run(_connect_and_close(address))
+    except TimeoutError:
+        raise ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler (no Dask "
+                          f"scheduler answered within {PROBE_S:g} s)") from None
+    except Exception as exc:  # refused, reset, not Dask's protocol: one line whatever distributed raises
+        raise ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler "
+                          f"({error_line(exc)})") from None
 
 
-def _receive(sock: socket.socket, size: int, deadline: float) -> bytes | None:
-    """Exactly ``size`` bytes before ``deadline``, or None (the peer closed, or stayed silent)."""
-    data = b""
-    while len(data) < size:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return None
-        sock.settimeout(left)
-        try:
-            chunk = sock.recv(size - len(data))
-        except TimeoutError:
-            return None
-        if not chunk:
-            return None
-        data += chunk
-    return data
+async def _connect_and_close(address: str) -> None:
+    import asyncio
+
+    from distributed import Client
+
+    client = Client(address, asynchronous=True, timeout=PROBE_S, set_as_default=False)
+    try:
+        await asyncio.wait_for(client.__aenter__(), PROBE_S)  # the handshake included, which timeout= leaves out
+    finally:
+        await client.close()
 
 
 def connect(workers: int | None = None, scheduler: str | None = None, *, scratch: Path | None = None):
