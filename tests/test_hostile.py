@@ -13,37 +13,17 @@ import pytest
 
 from roughsense._util import atomic
 from roughsense.errors import OutputExistsError
+from tests.as_user import as_nobody
+from tests.sweeps import small_sweep
 
 AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 needs_root = pytest.mark.skipif(not AS_ROOT, reason="acting as another user needs root")
-NOBODY = 65534
 
 
 def dead_pid() -> int:
     child = subprocess.Popen([sys.executable, "-c", "pass"])
     child.wait()
     return child.pid
-
-
-def as_nobody(action) -> str:
-    """Run ``action()`` in a forked child as user nobody; its error, or "ok"."""
-    read, write = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # pragma: no cover - the child reports through the pipe
-        os.close(read)
-        try:
-            os.setgid(NOBODY)
-            os.setuid(NOBODY)
-            result = action()
-            text = "ok" if result is None or isinstance(result, tuple) else str(result)
-        except BaseException as exc:
-            text = f"{type(exc).__name__}: {exc}"
-        os.write(write, text.encode())
-        os._exit(0)
-    os.close(write)
-    os.waitpid(pid, 0)
-    with os.fdopen(read, "rb") as handle:
-        return handle.read().decode()
 
 
 @pytest.fixture()
@@ -624,16 +604,7 @@ def test_the_dpi_help_states_the_budget_in_force(run_cli):
 
 def _big_sweep(tmp_path, seeds: int) -> Path:
     path = tmp_path / "sweep.toml"
-    path.write_text(f"""
-[sweep]
-seeds = {list(range(seeds))}
-repetitions = 2
-specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
-image_size_px = [480, 160]
-max_components = 4
-[axes]
-pad = ["smooth"]
-""")
+    path.write_text(small_sweep(range(seeds), max_components=4))
     return path
 
 

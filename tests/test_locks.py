@@ -25,21 +25,13 @@ from roughsense._util import atomic
 from roughsense._util import lock as lock_module
 from roughsense._util.lock import OutputBusyError, lock_path, output_lock
 
+from .sweeps import small_sweep
 from .test_input_contract import one_error
 from .videos import write_video
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 ENV = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
-SWEEP = """
-[sweep]
-seeds = [0, 1, 2, 3]
-repetitions = 2
-specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
-image_size_px = [480, 160]
-max_components = 3
-[axes]
-pad = ["smooth"]
-"""
+SWEEP = small_sweep(range(4))
 _HOLD = """
 import signal, sys, time
 from roughsense._util.lock import output_lock
@@ -130,7 +122,7 @@ def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
     """The race of issue 22: a second sweep (with --force) into the folder a first sweep is computing."""
     first_sweep, second_sweep = tmp_path / "first.toml", tmp_path / "second.toml"
     first_sweep.write_text(SWEEP)
-    second_sweep.write_text(SWEEP.replace("seeds = [0, 1, 2, 3]", "seeds = [7]"))
+    second_sweep.write_text(small_sweep([7]))
     out = tmp_path / "out"
     first = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(first_sweep), "--out", str(out),
                               "--workers", "1"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -277,25 +269,15 @@ def test_a_parent_folder_one_cannot_write_is_named_with_what_to_do(tmp_path, mon
 
 
 def _try_as_nobody(out: Path) -> str:
-    """In a forked child running as user nobody: what taking ``out``'s lock gives (the error, or "got it")."""
-    read, write = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # pragma: no cover - the child reports through the pipe
-        os.close(read)
-        try:
-            os.setgid(65534)
-            os.setuid(65534)
-            with warnings.catch_warnings(), output_lock(out, command="other"):
-                warnings.simplefilter("ignore")  # the take-over's warning: the parent checks the outcome
-                text = "got it"
-        except BaseException as exc:
-            text = f"{type(exc).__name__}: {exc}"
-        os.write(write, text.encode())
-        os._exit(0)
-    os.close(write)
-    os.waitpid(pid, 0)
-    with os.fdopen(read, "rb") as handle:
-        return handle.read().decode()
+    """As user nobody: what taking ``out``'s lock gives (the error, or "got it")."""
+    from tests.as_user import as_nobody
+
+    def take() -> str:
+        with warnings.catch_warnings(), output_lock(out, command="other"):
+            warnings.simplefilter("ignore")  # the take-over's warning: the parent checks the outcome
+            return "got it"
+
+    return as_nobody(take)
 
 
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="switching user needs root")

@@ -66,7 +66,7 @@ def test_a_sweep_of_few_but_long_cells_needs_yes_too(tmp_path):
 
 
 AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
-NOBODY = 65534
+from tests.as_user import NOBODY  # noqa: E402 (beside the tests that plant as another user)
 
 
 @pytest.mark.skipif(not AS_ROOT, reason="a file of another user's needs root to make")

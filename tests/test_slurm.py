@@ -13,18 +13,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from tests.sweeps import small_sweep
+
 pytestmark = pytest.mark.slurm
 
-SWEEP = """
-[sweep]
-seeds = [0, 1]
-repetitions = 2
-specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
-image_size_px = [480, 160]
-max_components = 3
-[axes]
-pad = ["smooth"]
-"""
+SWEEP = small_sweep(range(2))
 JOB_NAME = "roughsense-test"
 
 
@@ -79,7 +72,7 @@ def test_ctrl_c_cancels_the_batch_jobs(tmp_path):
     import time
 
     sweep = tmp_path / "sweep.toml"
-    sweep.write_text(SWEEP.replace("seeds = [0, 1]", f"seeds = {list(range(200))}"))
+    sweep.write_text(small_sweep(range(200)))
     env = {**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache"),
            "DASK_JOBQUEUE__SLURM__CORES": "1", "DASK_JOBQUEUE__SLURM__PROCESSES": "1",
            "DASK_JOBQUEUE__SLURM__MEMORY": "1GiB", "DASK_JOBQUEUE__SLURM__NAME": JOB_NAME,

@@ -1,0 +1,16 @@
+"""The small sweep file the explore, lock and SLURM tests run: five specimens, small frames, the smooth pad."""
+from __future__ import annotations
+
+
+def small_sweep(seeds=(0,), *, max_components: int = 3) -> str:
+    """A sweep.toml of ``seeds`` that a 2-core machine runs in seconds per cell."""
+    return f"""
+[sweep]
+seeds = {list(seeds)}
+repetitions = 2
+specimens = ["R2", "R3", "R4", "C3", "rect:1.5"]
+image_size_px = [480, 160]
+max_components = {max_components}
+[axes]
+pad = ["smooth"]
+"""
