@@ -78,8 +78,10 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "model", "roughness_rel_R3", "pi90_low", "pi90_high",
-                                   "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
+                                   "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
+    assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -107,8 +109,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "roughness_rel_R3",
-                                   "pi90_low", "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == 2
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "read_as", "extrapolates",
+                                   "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
@@ -561,7 +564,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
     assert code == 0, err
     native, scaled = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
     assert list(scaled.columns[4:7]) == ["roi", "px_per_mm", "roughness_rel_R3"]
-    assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0
+    assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0 and native["px_per_mm"][0] == 20.0
     loaded = load_model(model)
     line_at_40 = SpatialSpectrum(px_per_mm=40.0, roi=(0, 16, 1200, 32)).fit().transform([at_40])
     assert roughness(scaled)[0] == pytest.approx(loaded.predict(line_at_40)[0], rel=RTOL_3_DIGITS)
@@ -697,3 +700,4 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
         ratio = table["pi90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
+        assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface

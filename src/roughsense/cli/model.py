@@ -345,7 +345,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
 
     Roughness is a ratio to the reference specimen, rounded to 3 significant digits (the panel's own precision is
     coarser); the flag is written ``true``/``false`` (any CSV reader's booleans), and ``outside`` says what lies
-    outside the model's domain. An overridden ROI or scale is written in its own column (``roi``, ``px_per_mm``).
+    outside the model's domain. An overridden ROI is written in its own column (``roi``); the scale the images were
+    read at always is (``px_per_mm``: the model's, the study's or --px-per-mm).
     Returns the scores.
     """
     import numpy as np
@@ -365,8 +366,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
     table["model"] = loaded.family
     if override is not None and override.roi is not None:
         table["roi"] = _roi_text(override.roi)
-    if override is not None and override.px_per_mm is not None:
-        table["px_per_mm"] = override.px_per_mm
+    scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
+    table["px_per_mm"] = _scale_text(scale if scale is not None else loaded.features["spectrum"]["px_per_mm"])
     name = roughness_column(loaded)
     table[name] = _three_digits(scores.roughness)
     if np.isfinite(scores.low).all():
@@ -383,6 +384,12 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
         quiet = (table["surface_extrapolates"] == "true").to_numpy() & ~scores.flagged
         table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
     return scores
+
+
+def _scale_text(px_per_mm) -> str:
+    """The scale the images were read at, as written in study.toml or on the command line (34.9, not the CSV's
+    17-digit 34.899999999999999): every row says it, whether the images were read alone, as one surface or by study."""
+    return repr(float(px_per_mm))
 
 
 def _surface_flags(table, scores, surfaces) -> None:
