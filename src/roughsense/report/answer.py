@@ -21,8 +21,8 @@ def answer_lines(analysis) -> list[str]:
     unseen = analysis.unseen_summary()
     if unseen.empty:
         return ["Not answered: leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any "
-                "model predicts a surface it never saw. The leave-one-out results below describe specimens seen in "
-                "training."]
+                "model predicts a surface left out of training. The leave-one-out results below describe specimens "
+                "seen in training."]
     passes = unseen["passes"].fillna(False).astype(bool)
     lines = [_use_line(unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
     return [line for line in lines if line]
