@@ -701,3 +701,31 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
         assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface
+
+
+def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run_cli, study_dir, tmp_path):
+    """Live mode flagged a frame finer than the band as "outside the training range"; it now carries the reason
+    predict gives the same image read alone (model/predict.domain_reasons), to the display and the summary line."""
+    import cv2
+
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.predict import frame_scorer, score_trials
+
+    model = tmp_path / "law.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    fine = _grating_at(20.0, 0.5, 600, tmp_path / "fine_1N.png")  # 0.5 mm: finer than the band's 1 mm
+    loaded = load_model(model)
+    scores = score_trials(loaded, [fine])
+    [expected] = scores.reasons
+    assert expected.startswith("finer than the sensor resolves: period 0.50 mm")
+    frame = cv2.cvtColor(cv2.imread(str(fine)), cv2.COLOR_BGR2RGB)
+    score, reason = frame_scorer(loaded)(frame)
+    assert reason == expected and score == pytest.approx(float(scores.roughness[0]), rel=1e-9)
+    assert frame_scorer(loaded)(cv2.cvtColor(cv2.imread(str(_grating_at(20.0, 3.0, 600, tmp_path / "g.png"))),
+                                             cv2.COLOR_BGR2RGB))[1] == ""  # a 3 mm grating lies inside
+
+    _grating_at(20.0, 0.5, 600, tmp_path / "frame_0.png")
+    code, stdout, err = run_cli("predict", model, "--live", "--source", str(tmp_path / "frame_%d.png"),
+                                "--max-frames", "1")
+    assert code == 0, err
+    assert f"1 frame(s) extrapolated: outside what the model was trained on; the last: {expected}" in stdout

@@ -600,4 +600,5 @@ def _predict_live(loaded, source: str, max_frames: int | None, override=None) ->
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
     if summary.extrapolated:
-        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on")
+        why = f"; the last: {summary.reason}" if summary.reason else ""
+        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on{why}")
