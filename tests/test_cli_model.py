@@ -729,3 +729,20 @@ def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run
                                 "--max-frames", "1")
     assert code == 0, err
     assert f"1 frame(s) extrapolated: outside what the model was trained on; the last: {expected}" in stdout
+
+
+def test_the_domain_line_of_a_law_that_reads_the_shape_states_its_contact_patterns():
+    """A 3-feature law flags a press by its contact pattern too ("trained surfaces 0.23-0.49 of the period in
+    contact"); fit's line stating the domain said only the periods. A law that reads no shape says none."""
+    from types import SimpleNamespace
+
+    from roughsense.cli.model import _shape_range
+    from roughsense.sensor.shape import duty_cycle
+
+    shaped = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, -3.8]), feature_max_=np.array([-0.7, 3.0, -0.3]))
+    assert _shape_range(shaped) == (f" and contact patterns {duty_cycle(-0.3):.2f}-{duty_cycle(-3.8):.2f} of the "
+                                    "period in contact")
+    assert duty_cycle(-0.3) < duty_cycle(-3.8)  # a larger second harmonic: narrower contact
+    unread = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, np.nan]), feature_max_=np.array([-0.7, 3.0, np.nan]))
+    assert _shape_range(unread) == "" and _shape_range(SimpleNamespace(feature_min_=np.zeros(2),
+                                                                        feature_max_=np.ones(2))) == ""

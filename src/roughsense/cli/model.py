@@ -158,8 +158,23 @@ def _echo_cv(trained) -> None:
                + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else
                   " (the contact's shape not read on every training surface: no shape term)"))
     low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
-    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
-               "a surface outside that range is flagged as extrapolating when predicted")
+    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm)"
+               f"{_shape_range(law)}; a surface outside that range is flagged as extrapolating when predicted")
+
+
+def _shape_range(law) -> str:
+    """The contact patterns a law that reads the shape was trained on ('' where it reads none): they bound its
+    domain as the periods do, so the line that states the domain states them too."""
+    import numpy as np
+
+    from ..model.peak_law import HARMONIC
+    from ..sensor.shape import duty_cycle
+
+    if len(law.feature_min_) <= HARMONIC or not np.isfinite([law.feature_min_[HARMONIC],
+                                                              law.feature_max_[HARMONIC]]).all():
+        return ""
+    return (f" and contact patterns {duty_cycle(law.feature_max_[HARMONIC]):.2f}-"
+            f"{duty_cycle(law.feature_min_[HARMONIC]):.2f} of the period in contact")
 
 
 def parse_condition(text: str) -> str:
