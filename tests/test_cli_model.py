@@ -78,8 +78,10 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "model", "roughness_rel_R3", "pi90_low", "pi90_high",
-                                   "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
+                                   "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
+    assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -107,8 +109,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "roughness_rel_R3",
-                                   "pi90_low", "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == 2
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "read_as", "extrapolates",
+                                   "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
     refit = SIMPLS(expected.best_n_components).fit(X, y).predict(X[[0, 7]])
@@ -561,7 +564,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
     assert code == 0, err
     native, scaled = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
     assert list(scaled.columns[4:7]) == ["roi", "px_per_mm", "roughness_rel_R3"]
-    assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0
+    assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0 and native["px_per_mm"][0] == 20.0
     loaded = load_model(model)
     line_at_40 = SpatialSpectrum(px_per_mm=40.0, roi=(0, 16, 1200, 32)).fit().transform([at_40])
     assert roughness(scaled)[0] == pytest.approx(loaded.predict(line_at_40)[0], rel=RTOL_3_DIGITS)
@@ -697,3 +700,49 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
         ratio = table["pi90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
+        assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface
+
+
+def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run_cli, study_dir, tmp_path):
+    """Live mode flagged a frame finer than the band as "outside the training range"; it now carries the reason
+    predict gives the same image read alone (model/predict.domain_reasons), to the display and the summary line."""
+    import cv2
+
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.predict import frame_scorer, score_trials
+
+    model = tmp_path / "law.json"
+    assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    fine = _grating_at(20.0, 0.5, 600, tmp_path / "fine_1N.png")  # 0.5 mm: finer than the band's 1 mm
+    loaded = load_model(model)
+    scores = score_trials(loaded, [fine])
+    [expected] = scores.reasons
+    assert expected.startswith("finer than the sensor resolves: period 0.50 mm")
+    frame = cv2.cvtColor(cv2.imread(str(fine)), cv2.COLOR_BGR2RGB)
+    score, reason = frame_scorer(loaded)(frame)
+    assert reason == expected and score == pytest.approx(float(scores.roughness[0]), rel=1e-9)
+    assert frame_scorer(loaded)(cv2.cvtColor(cv2.imread(str(_grating_at(20.0, 3.0, 600, tmp_path / "g.png"))),
+                                             cv2.COLOR_BGR2RGB))[1] == ""  # a 3 mm grating lies inside
+
+    _grating_at(20.0, 0.5, 600, tmp_path / "frame_0.png")
+    code, stdout, err = run_cli("predict", model, "--live", "--source", str(tmp_path / "frame_%d.png"),
+                                "--max-frames", "1")
+    assert code == 0, err
+    assert f"1 frame(s) extrapolated: outside what the model was trained on; the last: {expected}" in stdout
+
+
+def test_the_domain_line_of_a_law_that_reads_the_shape_states_its_contact_patterns():
+    """A 3-feature law flags a press by its contact pattern too ("trained surfaces 0.23-0.49 of the period in
+    contact"); fit's line stating the domain said only the periods. A law that reads no shape says none."""
+    from types import SimpleNamespace
+
+    from roughsense.cli.model import _shape_range
+    from roughsense.sensor.shape import duty_cycle
+
+    shaped = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, -3.8]), feature_max_=np.array([-0.7, 3.0, -0.3]))
+    assert _shape_range(shaped) == (f" and contact patterns {duty_cycle(-0.3):.2f}-{duty_cycle(-3.8):.2f} of the "
+                                    "period in contact")
+    assert duty_cycle(-0.3) < duty_cycle(-3.8)  # a larger second harmonic: narrower contact
+    unread = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, np.nan]), feature_max_=np.array([-0.7, 3.0, np.nan]))
+    assert _shape_range(unread) == "" and _shape_range(SimpleNamespace(feature_min_=np.zeros(2),
+                                                                        feature_max_=np.ones(2))) == ""

@@ -525,6 +525,19 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
         ["peak law", "a shape left out (fitted on the other): rectangular",  # a large bias nobody is warned of
          "0.33 vs 0.42, passes, bias +0.31, 3% of presses flagged: biased, mostly unflagged"]]
 
+    # too few specimens: the jackknife+ has no finite width, and an infinite interval "held 100%" says nothing
+    unseen["jackknife_plus_coverage"] = [float("nan"), 1.0]
+    unseen["jackknife_plus_median_factor"] = [float("nan"), float("inf")]
+    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen, presses=presses))
+    assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
+                                   "press(es) per surface")
+    from roughsense.report.tables import _jackknife_text
+
+    row = {"jackknife_plus_coverage": 1.0, "jackknife_plus_median_factor": float("inf"), "jackknife_plus_misses": ""}
+    assert _jackknife_text(row) == "none (too few specimens)"
+    assert _jackknife_text({**row, "jackknife_plus_median_factor": 1.5, "jackknife_plus_misses": "R2 0.42 below"}) \
+        == "100%, x/÷ 1.50; misses R2 0.42 below"
+
 
 def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path):
     """Two processes drawing the figures write byte for byte the report one process writes, every figure once."""

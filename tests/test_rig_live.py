@@ -98,3 +98,13 @@ def test_render_live_flags_a_value_that_extrapolates():
     assert summary.extrapolated == 1 and "1.750" in text and "extrapolates" not in text
     summary, text = shown([(100.0, 1.5), (100.1, 1.75)])  # a scorer without a flag: nothing flagged
     assert summary.extrapolated == 0 and "extrapolates" not in text
+
+
+def test_render_live_shows_why_a_value_extrapolates():
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=200, force_terminal=False, color_system=None)
+    why = "finer than the sensor resolves: period 0.50 mm, below the band's 1 mm [1/f_max]"
+    summary = render_live(iter([(100.0, 1.5, why), (100.1, 1.75, "")]), console=console, label="roughness")
+    assert summary.extrapolated == 1 and summary.reason == why  # the last reason given, kept for the summary line
+    summary = render_live(iter([(100.0, 1.5, ""), (100.1, 1.75, why)]), console=console, label="roughness")
+    assert summary.extrapolated == 1 and f"1.750  extrapolates ({why})" in buffer.getvalue()  # markup escaped

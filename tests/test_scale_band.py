@@ -302,3 +302,25 @@ def test_calibrate_from_one_mount_states_no_precision_and_writes_nothing(run_cli
     code, _, err = run_cli("calibrate", root, "--force")
     assert code == 2 and "1 mount(s) of the target cannot say how precise" in err and len(err.splitlines()) == 1
     assert (root / "study.toml").read_bytes() == before
+
+
+def test_calibrate_without_the_reference_names_the_default_target_not_a_flag_never_given():
+    """A study whose specimens.csv lacks the reference (a simulated study of other gratings): the error said
+    "--specimen 'R3' is not in specimens.csv" though no --specimen was given; it now says what to pass."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from roughsense.cli.calibrate import _targets
+    from roughsense.errors import ConfigError
+
+    study = SimpleNamespace(manifest=pd.DataFrame(columns=["specimen", "pad", "repetition"]), reference_specimen="R3",
+                            specimens=pd.DataFrame({"specimen": ["rect_10"], "wavelength_mm": [10.0]}),
+                            pad_ridge_period_mm={})
+    with pytest.raises(ConfigError) as raised:
+        _targets(study, None, False, 30)
+    assert raised.value.message == ("the reference specimen 'R3' (calibrate's default target) is not in specimens.csv; "
+                                    "pass --specimen NAME (a specimen of known period) or --ridges")
+    with pytest.raises(ConfigError) as raised:
+        _targets(study, "X9", False, 30)
+    assert raised.value.message == "--specimen 'X9' is not in specimens.csv"

@@ -49,7 +49,7 @@ class UnseenAssessment:
             return ""
         verdict = ("Its predictions for new surfaces are no better than guessing" if len(problems) == 2 else
                    "Its predictions for new surfaces are not shown to be better than guessing")
-        return ("this model FAILS its controls for surfaces it never saw (nested leave-one-specimen-out): "
+        return ("this model FAILS its controls for a grating left out of training (nested leave-one-specimen-out): "
                 + "; ".join(problems) + f". {verdict}")
 
     def record(self) -> dict:

@@ -191,8 +191,9 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                                law=settings, max_components=max_components or DEFAULT_MAX_COMPONENTS, seed=seed)
     except InputError as exc:  # a design too small for leave-one-specimen-out: said, never silently skipped
         training["unseen"] = {"cv": "loso (nested)", "passes_controls": None,
-                              "failure": f"this model could not be judged for surfaces it never saw ({exc.message}); "
-                                         "its predictions for new surfaces are untested and carry no interval"}
+                              "failure": "this model could not be judged for a grating left out of training "
+                                         f"({exc.message}); its predictions for new surfaces are untested and carry no "
+                                         "interval"}
         return trained
     training["unseen"] = unseen.record()
     training["interval"] = unseen.interval.to_dict()

@@ -95,7 +95,9 @@ def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tupl
         name = specimen or study.reference_specimen
         specimens = study.specimens.set_index("specimen")
         if name not in specimens.index:
-            raise ConfigError(f"--specimen {name!r} is not in specimens.csv")
+            raise ConfigError(f"--specimen {name!r} is not in specimens.csv" if specimen else
+                              f"the reference specimen {name!r} (calibrate's default target) is not in specimens.csv; "
+                              "pass --specimen NAME (a specimen of known period) or --ridges")
         period = float(specimens.loc[name, "wavelength_mm"])
         rows = manifest[manifest["specimen"] == name]
         groups = [(f"{name} ({period:g} mm) on the {pad} pad", period, rows[rows["pad"] == pad],

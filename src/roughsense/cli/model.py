@@ -158,8 +158,23 @@ def _echo_cv(trained) -> None:
                + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else
                   " (the contact's shape not read on every training surface: no shape term)"))
     low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
-    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm); "
-               "a surface outside that range is flagged as extrapolating when predicted")
+    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm)"
+               f"{_shape_range(law)}; a surface outside that range is flagged as extrapolating when predicted")
+
+
+def _shape_range(law) -> str:
+    """The contact patterns a law that reads the shape was trained on ('' where it reads none): they bound its
+    domain as the periods do, so the line that states the domain states them too."""
+    import numpy as np
+
+    from ..model.peak_law import HARMONIC
+    from ..sensor.shape import duty_cycle
+
+    if len(law.feature_min_) <= HARMONIC or not np.isfinite([law.feature_min_[HARMONIC],
+                                                              law.feature_max_[HARMONIC]]).all():
+        return ""
+    return (f" and contact patterns {duty_cycle(law.feature_max_[HARMONIC]):.2f}-"
+            f"{duty_cycle(law.feature_min_[HARMONIC]):.2f} of the period in contact")
 
 
 def parse_condition(text: str) -> str:
@@ -345,7 +360,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
 
     Roughness is a ratio to the reference specimen, rounded to 3 significant digits (the panel's own precision is
     coarser); the flag is written ``true``/``false`` (any CSV reader's booleans), and ``outside`` says what lies
-    outside the model's domain. An overridden ROI or scale is written in its own column (``roi``, ``px_per_mm``).
+    outside the model's domain. An overridden ROI is written in its own column (``roi``); the scale the images were
+    read at always is (``px_per_mm``: the model's, the study's or --px-per-mm).
     Returns the scores.
     """
     import numpy as np
@@ -365,8 +381,8 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
     table["model"] = loaded.family
     if override is not None and override.roi is not None:
         table["roi"] = _roi_text(override.roi)
-    if override is not None and override.px_per_mm is not None:
-        table["px_per_mm"] = override.px_per_mm
+    scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
+    table["px_per_mm"] = _scale_text(scale if scale is not None else loaded.features["spectrum"]["px_per_mm"])
     name = roughness_column(loaded)
     table[name] = _three_digits(scores.roughness)
     if np.isfinite(scores.low).all():
@@ -383,6 +399,12 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
         quiet = (table["surface_extrapolates"] == "true").to_numpy() & ~scores.flagged
         table.loc[quiet, "outside"] = "this press lies inside; other presses of its surface do not (their rows say why)"
     return scores
+
+
+def _scale_text(px_per_mm) -> str:
+    """The scale the images were read at, as written in study.toml or on the command line (34.9, not the CSV's
+    17-digit 34.899999999999999): every row says it, whether the images were read alone, as one surface or by study."""
+    return repr(float(px_per_mm))
 
 
 def _surface_flags(table, scores, surfaces) -> None:
@@ -593,4 +615,5 @@ def _predict_live(loaded, source: str, max_frames: int | None, override=None) ->
     last = "none" if summary.last_score is None else f"{summary.last_score:.4f}"
     typer.echo(f"{summary.updates} update(s), {summary.updates_per_s:.1f}/s; last roughness {last}")
     if summary.extrapolated:
-        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on")
+        why = f"; the last: {summary.reason}" if summary.reason else ""
+        typer.echo(f"{summary.extrapolated} frame(s) extrapolated: outside what the model was trained on{why}")

@@ -216,6 +216,17 @@ def model_interval(loaded: AnyModel):
     return interval if math.isfinite(interval.trial_log_halfwidth) else None
 
 
+def domain_reasons(loaded: AnyModel, spectrum, lines: list, X: np.ndarray, surfaces=None) -> list[str]:
+    """Why each trial lies outside the model's domain ('' where it lies inside): the band's reason first, then the
+    family's own, named by the band when the structure outside it is at least as strong as the band's own peak.
+    Shared by predict's trials and live mode's frames, so a frame says what its image would say."""
+    from ..sensor.band import NAMING_DOMINANCE
+
+    band = trial_band_reasons(loaded, spectrum, lines, surfaces)
+    named = trial_band_reasons(loaded, spectrum, lines, surfaces, dominance=NAMING_DOMINANCE)
+    return [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
+
+
 def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                  override: SensorOverride | None = None, surfaces=None, reference=None) -> Scores:
     """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
@@ -228,11 +239,7 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     """
     X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
     roughness = loaded.predict(X, surfaces=surfaces)
-    from ..sensor.band import NAMING_DOMINANCE
-
-    band = trial_band_reasons(loaded, spectrum, lines, surfaces)
-    named = trial_band_reasons(loaded, spectrum, lines, surfaces, dominance=NAMING_DOMINANCE)
-    reasons = [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
+    reasons = domain_reasons(loaded, spectrum, lines, X, surfaces)
     scale = images_scale_check(loaded, spectrum, lines, reference)
     if scale.off:
         reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]
@@ -271,8 +278,9 @@ def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
 
 
 def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
-                 ) -> Callable[[np.ndarray], tuple[float, bool]]:
-    """Live mode's scorer: one camera frame (an array) -> (roughness, extrapolates), the spectrum built once."""
+                 ) -> Callable[[np.ndarray], tuple[float, str]]:
+    """Live mode's scorer: one camera frame (an array) -> (roughness, why it lies outside the model's domain, ''
+    where it lies inside: the reason predict gives the same image read alone), the spectrum built once."""
     if len(loaded.conditions) != 1:
         raise ConfigError(
             f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
@@ -280,11 +288,10 @@ def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
         )
     spectrum = model_spectrum(loaded, override=override)
 
-    def score_frame(frame: np.ndarray) -> tuple[float, bool]:
+    def score_frame(frame: np.ndarray) -> tuple[float, str]:
         [(row, line)] = list(spectrum.iter_transform_lines([frame]))
         X = row[None, :]
-        outside = bool(trial_band_reasons(loaded, spectrum, [line])[0]) or bool(loaded.extrapolates(X)[0])
-        return float(loaded.predict(X)[0]), outside
+        return float(loaded.predict(X)[0]), str(domain_reasons(loaded, spectrum, [line], X)[0])
 
     return score_frame
 

@@ -13,7 +13,7 @@ import pandas as pd
 from ..analysis.held_out import SCHEME_WORDS
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..paper import COMBINED
-from .tables import model_title
+from .tables import jackknife_phrase, model_title
 
 
 def answer_lines(analysis) -> list[str]:
@@ -21,8 +21,8 @@ def answer_lines(analysis) -> list[str]:
     unseen = analysis.unseen_summary()
     if unseen.empty:
         return ["Not answered: leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any "
-                "model predicts a surface it never saw. The leave-one-out results below describe specimens seen in "
-                "training."]
+                "model predicts a surface left out of training. The leave-one-out results below describe specimens "
+                "seen in training."]
     passes = unseen["passes"].fillna(False).astype(bool)
     lines = [_use_line(unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
     return [line for line in lines if line]
@@ -116,10 +116,11 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
     if scheme == "specimen" and (model, pad, condition) in unseen.index:  # the controls' own verdict on LOSO
         control = unseen.loc[(model, pad, condition)]
         verdict = "passes" if control["passes"] and below else ("pooled RMSE only" if control["passes"] else "fails")
-        coverage = control.get("jackknife_plus_coverage")
-        if pd.notna(coverage):
-            verdict += (f"; 90 % surface interval held {coverage:.0%}, x/÷ "
-                        f"{control['jackknife_plus_median_factor']:.2f}")
+        held = jackknife_phrase(control.get("jackknife_plus_coverage", float("nan")),
+                                control.get("jackknife_plus_median_factor", float("nan")))
+        if held:
+            verdict += f"; 90 % surface interval held {held}" if held[0].isdigit() else \
+                "; no 90 % surface interval (too few specimens)"
         if pd.notna(control.get("presses_needed")):
             verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
     return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"

@@ -407,12 +407,20 @@ def unseen_table(unseen: pd.DataFrame, controls: pd.DataFrame) -> dict:
     }
 
 
+def jackknife_phrase(coverage: float, factor: float) -> str:
+    """The jackknife+ surface interval's coverage and median width; too few specimens give it no finite width, and
+    an interval of any width covers everything, so that is said instead of '100%, x/÷ inf' ('' without a check)."""
+    if pd.isna(coverage):
+        return ""
+    if not np.isfinite(factor):
+        return "none (too few specimens)"
+    return f"{coverage:.0%}, x/÷ {factor:.2f}"
+
+
 def _jackknife_text(row) -> str:
-    if pd.isna(row.get("jackknife_plus_coverage", np.nan)):
-        return "—"
-    misses = row["jackknife_plus_misses"]
-    return (f"{row['jackknife_plus_coverage']:.0%}, x/÷ {row['jackknife_plus_median_factor']:.2f}"
-            + (f"; misses {misses}" if isinstance(misses, str) and misses else ""))
+    text = jackknife_phrase(row.get("jackknife_plus_coverage", np.nan), row.get("jackknife_plus_median_factor", np.nan))
+    misses = row["jackknife_plus_misses"] if text else ""
+    return (text or "—") + (f"; misses {misses}" if isinstance(misses, str) and misses else "")
 
 
 def _coverage_text(row) -> str:

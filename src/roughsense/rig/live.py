@@ -21,18 +21,19 @@ from .camera import FrameSource, open_source
 
 def live_scores(
     source: FrameSource | str | int,
-    score_frame: Callable[[np.ndarray], float | tuple[float, bool]],
+    score_frame: Callable[[np.ndarray], float | tuple[float, bool | str]],
     *,
     max_frames: int | None = None,
     min_interval_s: float = 0.0,
-) -> Iterator[tuple[float, float] | tuple[float, float, bool]]:
+) -> Iterator[tuple[float, float] | tuple[float, float, bool | str]]:
     """Yield ``(timestamp_s, score)`` per scored frame; ``timestamp_s`` is Unix time at the frame's arrival.
 
     ``score_frame`` gets an (H, W, 3) uint8 RGB frame and returns the score, or ``(score, extrapolates)``; the
-    latter yields ``(timestamp_s, score, extrapolates)``. Frames arriving sooner than ``min_interval_s``
-    after the last scored one are dropped undecoded. A :class:`RoughsenseError` from ``score_frame`` (for
-    example a frame smaller than the model's ROI) stops the loop as an InputError naming the source and
-    the frame. The loop ends at the end of a file, after ``max_frames`` scores, or when the consumer stops.
+    latter yields ``(timestamp_s, score, extrapolates)`` (a text ``extrapolates``, the reason, passes as it is).
+    Frames arriving sooner than ``min_interval_s`` after the last scored one are dropped undecoded. A
+    :class:`RoughsenseError` from ``score_frame`` (for example a frame smaller than the model's ROI) stops the loop
+    as an InputError naming the source and the frame. The loop ends at the end of a file, after ``max_frames``
+    scores, or when the consumer stops.
     """
     if max_frames is not None and max_frames < 1:
         raise ValueError("max_frames must be at least 1")
@@ -66,7 +67,7 @@ def _scored_frames(frames: FrameSource, own: bool, score_frame, *, max_frames: i
             last = now
             scored += 1
             if isinstance(result, tuple):
-                yield stamp, float(result[0]), bool(result[1])
+                yield stamp, float(result[0]), result[1] if isinstance(result[1], str) else bool(result[1])
             else:
                 yield stamp, float(result)
     finally:
@@ -80,10 +81,11 @@ class LiveSummary:
     last_score: float | None
     updates_per_s: float
     extrapolated: int = 0  # frames whose model said they lie outside its training range
+    reason: str = ""  # why the last such frame did, when the scorer said (e.g. finer than the sensor resolves)
 
 
 def render_live(
-    scores: Iterable[tuple[float, float] | tuple[float, float, bool]],
+    scores: Iterable[tuple[float, float] | tuple[float, float, bool | str]],
     *,
     console=None,
     label: str = "perceived roughness",
@@ -91,19 +93,20 @@ def render_live(
 ) -> LiveSummary:
     """Show the latest score, its recent range and the update rate on the terminal until ``scores`` ends.
 
-    A score that extrapolates (a third element that is true) is flagged beside the value, so nobody reads a number
-    held at the edge of the model's training range as a measurement. Ctrl-C ends the display cleanly and returns
-    the summary so far.
+    A score that extrapolates (a third element that is true; a non-empty text says why) is flagged beside the value,
+    so nobody reads a number held at the edge of the model's training range as a measurement. Ctrl-C ends the
+    display cleanly and returns the summary so far.
     """
     from rich.console import Console
     from rich.live import Live
+    from rich.markup import escape
     from rich.table import Table
 
     console = console or Console(stderr=True)
     recent: list[float] = []
     times: list[float] = []
     count = extrapolated = 0
-    flagged = False
+    flagged, why, last_why = False, "", ""
     first = last_t = None
 
     def view() -> Table:
@@ -114,7 +117,7 @@ def render_live(
             table.add_row(label, "waiting for the first frame...")
             return table
         rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
-        flag = "  [bold yellow]extrapolates[/] (outside the training range)" if flagged else ""
+        flag = f"  [bold yellow]extrapolates[/] ({escape(why or 'outside the training range')})" if flagged else ""
         table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]{flag}")
         table.add_row("last 2 s", f"{min(recent):.3f} .. {max(recent):.3f}")
         table.add_row("updates", f"{count} ({rate:.1f}/s)")
@@ -126,7 +129,9 @@ def render_live(
             for stamp, score, *flag in scores:
                 count += 1
                 flagged = bool(flag and flag[0])
+                why = flag[0] if flagged and isinstance(flag[0], str) else ""
                 extrapolated += flagged
+                last_why = why or last_why
                 first = stamp if first is None else first
                 last_t = stamp
                 recent.append(score)
@@ -138,4 +143,5 @@ def render_live(
     except KeyboardInterrupt:
         interrupt.forget_sigint()  # Ctrl-C is how the display ends; a SIGTERM still ends the run as stopped
     span = (last_t - first) if count > 1 else 0.0
-    return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0, extrapolated)
+    return LiveSummary(count, recent[-1] if recent else None, (count - 1) / span if span > 0 else 0.0, extrapolated,
+                       last_why)
