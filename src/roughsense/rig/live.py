@@ -132,8 +132,7 @@ def render_live(
                 why = flag[0] if flagged and isinstance(flag[0], str) else ""
                 extrapolated += flagged
                 last_why = why or last_why
-                first = stamp if first is None else first
-                last_t = stamp
+                first, last_t = (stamp if first is None else first), stamp
                 recent.append(score)
                 times.append(stamp)
                 while times and times[-1] - times[0] > 2.0:
