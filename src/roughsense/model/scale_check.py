@@ -140,14 +140,19 @@ def check_study_scale(study, *, pad: str | None = None, presses: int = STUDY_PRE
     except ConfigError:  # a scale the band cannot be read at: the analysis refuses it, naming study.toml
         return ScaleCheck(float(study.sensor.px_per_mm), (), None)
     manifest = study.manifest
+    lines: dict[str, np.ndarray] = {}  # a press of R3 on a ridged pad is read for both structures: decoded once
+
+    def line(image: str) -> np.ndarray:
+        if image not in lines:
+            lines[image] = reader.line(study.root / image)[0]
+        return lines[image]
 
     def read(source: str, period: float, rows) -> tuple:
         """Presses spread over the mounts first (one per mount, then a second ...), up to ``presses``."""
         rows = rows.assign(mount=[f"{s}/{p}/{r}" for s, p, r in zip(rows["specimen"], rows["pad"], rows["repetition"])])
         order = rows.groupby("mount", sort=False).cumcount().sort_values(kind="stable").index
         picked = rows.loc[order[:presses]]
-        return (source, period, [reader.line(study.root / image)[0] for image in picked["image"]],
-                list(picked["mount"]))
+        return source, period, [line(image) for image in picked["image"]], list(picked["mount"])
 
     groups = []
     for name, ridge in study.pad_ridge_period_mm.items():
