@@ -76,10 +76,17 @@ def silent_port():
     server.close()
 
 
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    """Answers like any web server, but keeps its request log off the stderr the test reads."""
+
+    def log_message(self, format, *args):
+        pass
+
+
 @pytest.fixture
 def http_port():
     """An HTTP server on 127.0.0.1 in a thread (it answers requests, and says nothing until asked)."""
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _QuietHandler)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     yield server.server_address[1]
