@@ -129,7 +129,7 @@ def plain_words(analysis) -> list[str]:
             lines.append(f"{len(failing)} of {len(analysis.controls)} models fail their controls (no better than "
                          "specimen-shuffled targets and/or the training mean; listed below). A LOO model that fails is "
                          "recognising specimens rather than reading roughness; a LOSO model that fails does not "
-                         "generalise to unseen specimens. Their RMSE and OVL are no evidence for the method.")
+                         "predict a grating left out of training. Their RMSE and OVL are no evidence for the method.")
         else:
             lines.append("Every model beats both its controls (specimen-shuffled targets and the training mean).")
     if not analysis.claims.empty:
