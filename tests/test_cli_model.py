@@ -17,7 +17,7 @@ from roughsense._util.text import counted
 from roughsense.analysis import dataset
 from roughsense.errors import InputError
 from roughsense.io.study import read_study
-from tests.test_dataset import make_study
+from tests.test_dataset import SPECIMENS, make_study
 
 
 @pytest.fixture(scope="module")
@@ -684,21 +684,39 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
 
 
 def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_cli, study_dir, data, tmp_path):
-    """Issue 27: bare images are read one by one, which the peak law does less surely than a surface's presses
-    together; the model file keeps both calibrations and predict uses the one that matches how it read."""
+    """Issue 27, then 35: bare images are read one by one, which the peak law does less surely than a surface's
+    presses together. The file keeps the jackknife+ over specimens (a press read alone is a surface of one press),
+    unbounded from this study's 6 specimens, so predict gives no interval and says why in one line; a file written
+    before the jackknife+ falls back to the plain jackknife calibrated for reading alone, saying so once."""
     import math
+
+    from roughsense.model.modelfile import _digest
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
-    interval = json.loads(model.read_text())["training"]["interval"]
+    document = json.loads(model.read_text())
+    assert sorted(document["training"]["jackknife_plus"]["specimens"]) == sorted(SPECIMENS)
     _, _, meta = data("1N")
     images = [study_dir / name for name in meta["image"][:3]]
+    code, stdout, err = run_cli("predict", model, *images, "--out", tmp_path / "p.csv")
+    assert code == 0 and "pi90_low" not in pd.read_csv(tmp_path / "p.csv")
+    assert "the jackknife+ over specimens needs at least 9 training specimens" in " ".join(stdout.split())
+    del document["training"]["jackknife_plus"]  # as written before it existed, checksum and all
+    document["sha256"] = _digest(document)
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(document))
+    interval = document["training"]["interval"]
     for extra, width in (((), interval["alone_log_halfwidth"]), (("--same-surface",), interval["trial_log_halfwidth"])):
-        code, _, err = run_cli("predict", model, *images, *extra, "--out", tmp_path / "p.csv", "--force")
+        code, _, err = run_cli("predict", old, *images, *extra, "--out", tmp_path / "p.csv", "--force")
         assert code == 0, err
+        assert [line for line in err.splitlines() if "keeps no leave-one-specimen-out" in line] == [
+            "roughsense: warning: this model file keeps no leave-one-specimen-out fold models (written before they were "
+            "kept): its intervals are the plain jackknife (no coverage guarantee); refit it with roughsense fit for "
+            "the jackknife+ over specimens"]
         table = pd.read_csv(tmp_path / "p.csv")
         ratio = table["pi90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
+        assert set(table["pi90_method"]) == {"jackknife (no coverage guarantee)"}
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
         assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface
 

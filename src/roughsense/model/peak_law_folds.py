@@ -23,20 +23,35 @@ from .peak_law import (
 )
 
 
-def law_fold_predictions(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int = 1,
-                         pad_ridge_period_mm: float | None = None,
-                         exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
-                         surfaces=None) -> np.ndarray:
-    """(F, n) predictions of every row by the law fitted on each training mask of ``train`` (F, n)."""
+def law_fold_models(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int = 1,
+                    pad_ridge_period_mm: float | None = None, exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM,
+                    epsilon: float = HUBER_EPSILON, surfaces=None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                           np.ndarray]:
+    """The law fitted on each training mask of ``train`` (F, n): coefficients (F, p + 1), the kept training range
+    (F, p) low and high before :func:`domain_margins` (what a model file stores), and every row's features (n, p)."""
     freq_per_mm = check_grid(freq_per_mm)
     features = peak_features(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
                              exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
     log_y = np.log(np.asarray(y, dtype=np.float64))[None, :]
     beta, scale = fit_terms(features, log_y, train, epsilon=epsilon, grouped=surfaces is not None)
-    low, high = domain_margins(float(freq_per_mm[1] - freq_per_mm[0]),
-                               *fold_kept_ranges(features, log_y, train, beta, scale, epsilon, surfaces))
-    clipped = held_features(features[None], low[:, 0, None, :], high[:, 0, None, :])  # (F, n, p)
-    return np.exp(beta[:, 0, :1] + np.einsum("fnk,fk->fn", clipped, beta[:, 0, 1:]))
+    low, high = fold_kept_ranges(features, log_y, train, beta, scale, epsilon, surfaces)
+    return beta[:, 0], low[:, 0], high[:, 0], features
+
+
+def fold_log_predictions(features: np.ndarray, beta: np.ndarray, low: np.ndarray, high: np.ndarray,
+                         freq_step_per_mm: float) -> np.ndarray:
+    """(F, n) log predictions of rows with ``features`` (n, p) by F fold laws (:func:`law_fold_models`), each
+    feature held to its fold's domain exactly as a fitted :class:`peak_law.PeakPowerLaw` holds it."""
+    low, high = domain_margins(float(freq_step_per_mm), low, high)
+    clipped = held_features(np.asarray(features)[None], low[:, None, :], high[:, None, :])  # (F, n, p)
+    return beta[:, :1] + np.einsum("fnk,fk->fn", clipped, beta[:, 1:])
+
+
+def law_fold_predictions(X, y, train: np.ndarray, *, freq_per_mm, **law) -> np.ndarray:
+    """(F, n) predictions of every row by the law fitted on each training mask of ``train`` (F, n)."""
+    freq_per_mm = check_grid(freq_per_mm)
+    beta, low, high, features = law_fold_models(X, y, train, freq_per_mm=freq_per_mm, **law)
+    return np.exp(fold_log_predictions(features, beta, low, high, float(freq_per_mm[1] - freq_per_mm[0])))
 
 
 def specimen_codes(specimens) -> tuple[np.ndarray, np.ndarray]:
