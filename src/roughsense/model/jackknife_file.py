@@ -247,6 +247,10 @@ def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nu
     rows = value if len(shape) == 2 else [value]
     if not (isinstance(value, list) and all(isinstance(r, list) and all(number(v) for v in r) for r in rows)):
         raise ModelFileError(f"training.{KEY}.{field} must be an array of numbers", path=path)
+    width = shape[-1]
+    if len(rows) != (shape[0] if len(shape) == 2 else 1) or any(len(r) != width for r in rows):
+        found = (len(rows), *sorted({len(r) for r in rows})) if len(shape) == 2 else (len(value),)
+        raise ModelFileError(f"training.{KEY}.{field} has shape {found}, expected {shape}", path=path)
     array = np.array([[np.nan if v is None else v for v in r] for r in rows], dtype=np.float64)
     array = array if len(shape) == 2 else array[0]
     if array.shape != shape:
