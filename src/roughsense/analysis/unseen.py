@@ -69,8 +69,9 @@ def _coverage(fit, prediction: np.ndarray, target: np.ndarray, specimens: np.nda
     fully nested check (the peak law), by the jackknife+ a press read alone gets, from models that never saw it."""
     trials, surfaces = held_out_coverage(prediction, target, specimens)
     check = getattr(fit, "interval_check", None)
-    if check is not None and "press_covered" in check:
-        trials = float(np.average(check["press_covered"], weights=check["press_readings"]))
+    if check is not None and "press_covered" in check:  # an unbounded interval (too few specimens) covers nothing
+        bounded = np.isfinite(check["press_log_halfwidth"]).all()
+        trials = float(np.average(check["press_covered"], weights=check["press_readings"])) if bounded else np.nan
     return {"pi90_coverage_trials": trials, "pi90_coverage_specimens": surfaces}
 
 
