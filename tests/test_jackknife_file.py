@@ -248,3 +248,63 @@ def test_the_nested_press_check_equals_leave_two_out_refits():
     assert check.loc[t, "readings"] == 3
     assert check.loc[t, "covered"] == pytest.approx(np.mean((low <= target) & (target <= high)))
     assert check.loc[t, "log_halfwidth"] == pytest.approx(np.median(0.5 * (high - low)), abs=1e-5)
+
+
+def test_fit_stores_and_predict_applies_the_jackknife_plus_end_to_end(run_cli, fingerprint_1n, tmp_path):
+    """roughsense fit on 14 specimens keeps the fold models; predict's surface interval (10 presses) and a press read
+    alone (1 press) are the stored jackknife+ applied to the spectra, and the CSV names which presses' residuals."""
+    import pandas as pd
+
+    from roughsense.analysis import dataset
+    from roughsense.io.study import read_study
+
+    model = tmp_path / "law.json"
+    code, stdout, err = run_cli("fit", "--study", fingerprint_1n, "--pad", "fingerprint", "--condition", "1N",
+                                "--out", model)
+    assert code == 0, err
+    assert "per surface and per press read alone the jackknife+ over specimens (14), from surfaces read from 1, 3, " \
+           "5, 10 presses" in " ".join(stdout.split())
+    jackknife = deployed_jackknife(load_model(model))
+    assert jackknife.counts == (1, 3, 5, 10) and len(jackknife.specimens) == 14
+    code, _, err = run_cli("predict", model, "--study", fingerprint_1n, "--specimen", "R3", "--specimen", "C4",
+                           "--out", tmp_path / "surfaces.csv")
+    assert code == 0, err
+    table = pd.read_csv(tmp_path / "surfaces.csv")
+    study = read_study(fingerprint_1n)
+    X, meta = dataset.condition_matrix(dataset.study_features(study), "fingerprint", "1N")
+    for name in ("R3", "C4"):
+        rows = table[table["specimen"] == name]
+        mine = X[(meta["specimen"] == name).to_numpy()]
+        low, high, method = jackknife.intervals(mine, [name] * len(mine))
+        np.testing.assert_allclose(rows["surface_pi90_low"], low, rtol=5e-3)  # 3 significant digits
+        np.testing.assert_allclose(rows["surface_pi90_high"], high, rtol=5e-3)
+        assert set(rows["surface_pi90_method"]) == {"jackknife+ over specimens (14), residuals of 10-press surfaces"}
+        assert set(rows["pi90_method"]) == {"jackknife (no coverage guarantee)"}  # a press read with its surface
+    image = fingerprint_1n / meta["image"].iloc[0]
+    code, _, err = run_cli("predict", model, image, "--out", tmp_path / "alone.csv")
+    assert code == 0, err
+    alone = pd.read_csv(tmp_path / "alone.csv")
+    low, high, _ = jackknife.intervals(X[:1])
+    np.testing.assert_allclose([alone["pi90_low"][0], alone["pi90_high"][0]], [low[0], high[0]], rtol=5e-3)
+    assert alone["pi90_method"][0] == "jackknife+ over specimens (14), residuals of 1-press surfaces"
+    assert "keeps no leave-one-specimen-out" not in err
+
+
+def test_a_pls_model_file_round_trip_gives_the_same_intervals(tmp_path):
+    f, X, y, specimens = gratings(seed=6)
+    pls = rs.SIMPLS(n_components=2).fit(X, y)
+    jackknife = pls_jackknife(X, y, specimens, dict.fromkeys(specimens, 2), seed=0)
+    features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
+    path = save_model(tmp_path / "pls.json", pls, feature_definition=features,
+                      training={"study": "gratings", "target_range": [float(y.min()), float(y.max())],
+                                KEY: jackknife.to_dict()})
+    loaded = deployed_jackknife(load_model(path))
+    surfaces = new_surface(f, 3.7, 5)
+    for before, after in zip(jackknife.intervals(surfaces, ["a"] * 5), loaded.intervals(surfaces, ["a"] * 5)):
+        np.testing.assert_array_equal(before, after)
+    document = json.loads(path.read_text())
+    document["training"][KEY]["folds"]["floors"][3] = 0.0  # a floor of 0 would let a fold predict log(0)
+    document["sha256"] = _digest(document)
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r"training.jackknife_plus.folds.floors must be positive"):
+        deployed_jackknife(load_model(path))
