@@ -40,7 +40,8 @@ ModelName = Annotated[str, typer.Option(
                     "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
-    help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
+    help="Seed for the K-fold shuffle (LOO and LOSO use no randomness), the presses drawn for the interval's "
+         "residuals of 1-, 3- and 5-press surfaces, and --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Crop where the line is read: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band "
