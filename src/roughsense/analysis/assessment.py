@@ -17,6 +17,7 @@ import pandas as pd
 
 from ..model.families import PLS
 from ..model.interval import PredictionInterval
+from ..model.jackknife_file import KEY as JACKKNIFE_KEY
 from ..model.jackknife_file import DeployedJackknife, law_jackknife, pls_jackknife
 from . import controls as _controls
 from .study_analysis import family_fit
@@ -55,6 +56,14 @@ class UnseenAssessment:
                    "Its predictions for new surfaces are not shown to be better than guessing")
         return ("this model FAILS its controls for a grating left out of training (nested leave-one-specimen-out): "
                 + "; ".join(problems) + f". {verdict}")
+
+    def interval_record(self) -> dict:
+        """The model file's interval entries: the plain jackknife's half-widths (``interval``) and the jackknife+'s
+        fold models and residuals by presses (``jackknife_plus``), when there are folds to keep."""
+        record = {"interval": self.interval.to_dict()}
+        if self.jackknife is not None:
+            record[JACKKNIFE_KEY] = self.jackknife.to_dict()
+        return record
 
     def record(self) -> dict:
         """The model file's ``unseen`` entry (JSON values; a number the design cannot give is null)."""

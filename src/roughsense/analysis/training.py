@@ -24,7 +24,6 @@ from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.applicability import SpectrumDomain, fit_domain
 from ..model.families import DEFAULT_MODEL, PEAK_LAW, PLS, check_model_name
-from ..model.jackknife_file import KEY as JACKKNIFE_KEY
 from ..model.modelfile import feature_definition_for
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.pls import SIMPLS
@@ -197,9 +196,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                                          "interval"}
         return trained
     training["unseen"] = unseen.record()
-    training["interval"] = unseen.interval.to_dict()
-    if unseen.jackknife is not None:
-        training[JACKKNIFE_KEY] = unseen.jackknife.to_dict()
+    training.update(unseen.interval_record())
     if family == PEAK_LAW:  # how many presses a surface needs (analysis/presses.py); predict says when it has fewer
         curve = presses_curve(X, y, specimens, settings, seed)
         training["presses"] = {"needed": presses_needed(curve), "null_rmse": float(curve["null_rmse"].iloc[0]),

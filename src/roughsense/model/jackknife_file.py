@@ -15,7 +15,7 @@ the width at small k depend on the draw (``fit --seed``).
 
 The guarantee (Barber et al. 2021, Theorem 1): coverage of at least 1 - 2 alpha for a new surface exchangeable with
 the training specimens; in practice close to 1 - alpha. With 14 specimens at 90 % the bounds are the extremes over
-the 14 folds: the worst held-out specimen sets the width (docs/intervals.md).
+the 14 folds: the worst held-out specimen sets the width (docs/peak_law.md).
 """
 from __future__ import annotations
 
