@@ -79,7 +79,7 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
-                                   "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+                                   "pi90_high", "pi90_method", "read_as", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
     assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
     assert set(table["model"]) == {"pls"}
@@ -110,7 +110,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
-                                   "roughness_rel_R3", "pi90_low", "pi90_high", "read_as", "extrapolates",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "read_as", "extrapolates",
                                    "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
@@ -130,7 +130,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high",
+                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
                                      "surface_roughness_rel_R3", "surface_extrapolates", "read_as", "extrapolates",
                                      "outside"]
     assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
@@ -686,8 +686,9 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
 def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_cli, study_dir, data, tmp_path):
     """Issue 27, then 35: bare images are read one by one, which the peak law does less surely than a surface's
     presses together. The file keeps the jackknife+ over specimens (a press read alone is a surface of one press),
-    unbounded from this study's 6 specimens, so predict gives no interval and says why in one line; a file written
-    before the jackknife+ falls back to the plain jackknife calibrated for reading alone, saying so once."""
+    unbounded from this study's 6 specimens; then, and for a file written before the jackknife+, predict falls back
+    to the plain jackknife calibrated for reading alone, saying so and why once."""
+    import itertools
     import math
 
     from roughsense.model.modelfile import _digest
@@ -698,21 +699,21 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
     assert sorted(document["training"]["jackknife_plus"]["specimens"]) == sorted(SPECIMENS)
     _, _, meta = data("1N")
     images = [study_dir / name for name in meta["image"][:3]]
-    code, stdout, err = run_cli("predict", model, *images, "--out", tmp_path / "p.csv")
-    assert code == 0 and "pi90_low" not in pd.read_csv(tmp_path / "p.csv")
-    assert "the jackknife+ over specimens needs at least 9 training specimens" in " ".join(stdout.split())
     del document["training"]["jackknife_plus"]  # as written before it existed, checksum and all
     document["sha256"] = _digest(document)
     old = tmp_path / "old.json"
     old.write_text(json.dumps(document))
     interval = document["training"]["interval"]
-    for extra, width in (((), interval["alone_log_halfwidth"]), (("--same-surface",), interval["trial_log_halfwidth"])):
-        code, _, err = run_cli("predict", old, *images, *extra, "--out", tmp_path / "p.csv", "--force")
+    said = {model: "roughsense: warning: the jackknife+ over specimens (6) needs at least 9 training specimens for a "
+                   "90 % interval: these intervals are the plain jackknife (no coverage guarantee), where it has one",
+            old: "roughsense: warning: this model file keeps no leave-one-specimen-out fold models (written before they "
+                 "were kept): its intervals are the plain jackknife (no coverage guarantee); refit it with roughsense "
+                 "fit for the jackknife+ over specimens"}
+    for path, (extra, width) in itertools.product((model, old), (((), interval["alone_log_halfwidth"]),
+                                                               (("--same-surface",), interval["trial_log_halfwidth"]))):
+        code, _, err = run_cli("predict", path, *images, *extra, "--out", tmp_path / "p.csv", "--force")
         assert code == 0, err
-        assert [line for line in err.splitlines() if "keeps no leave-one-specimen-out" in line] == [
-            "roughsense: warning: this model file keeps no leave-one-specimen-out fold models (written before they were "
-            "kept): its intervals are the plain jackknife (no coverage guarantee); refit it with roughsense fit for "
-            "the jackknife+ over specimens"]
+        assert [line for line in err.splitlines() if "plain jackknife" in line] == [said[path]]
         table = pd.read_csv(tmp_path / "p.csv")
         ratio = table["pi90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each

@@ -465,8 +465,6 @@ def _echo_extrapolation(loaded, scores) -> None:
     import shutil
     import textwrap
 
-    import numpy as np
-
     from ..model.predict import model_interval
 
     def echo(text: str) -> None:
@@ -487,9 +485,6 @@ def _echo_extrapolation(loaded, scores) -> None:
     if model_interval(loaded) is None:
         echo("no prediction interval: the model file has none it can use (written before intervals, or from "
                    "too few specimens); refit it with roughsense fit")
-    elif not np.isfinite(scores.low).all() or (scores.surface_low is not None and not np.isfinite(scores.surface_low).all()):
-        echo("no 90 % interval for a surface or a press read alone: the jackknife+ over specimens needs at least 9 "
-             "training specimens for one")
 
 
 def few_presses_line(training: dict, surfaces, n_trials: int) -> str:

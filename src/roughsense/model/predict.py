@@ -270,7 +270,7 @@ def trial_intervals(loaded: AnyModel, X: np.ndarray, roughness: np.ndarray, surf
     from .jackknife_file import deployed_jackknife
 
     jackknife = deployed_jackknife(loaded) if surfaces is None else None
-    if jackknife is not None:
+    if jackknife is not None and jackknife.bounded:
         return jackknife.intervals(X)
     interval = model_interval(loaded)
     if interval is None:
@@ -286,7 +286,7 @@ def surface_intervals(loaded: AnyModel, X: np.ndarray, surface: np.ndarray, surf
     from .jackknife_file import deployed_jackknife
 
     jackknife = deployed_jackknife(loaded)
-    if jackknife is not None:
+    if jackknife is not None and jackknife.bounded:
         return jackknife.intervals(X, surfaces)
     interval = model_interval(loaded)
     if interval is None or not math.isfinite(interval.surface_log_halfwidth):
@@ -297,11 +297,16 @@ def surface_intervals(loaded: AnyModel, X: np.ndarray, surface: np.ndarray, surf
 
 
 def plain_fallback_line(loaded: AnyModel) -> str:
-    """One line when a file has intervals but no jackknife+ (written before it was kept): said, never failed."""
+    """One line when a file's intervals fall back to the plain jackknife: written before the jackknife+ was kept,
+    or from too few specimens for it (9 at 90 %). Said, never failed."""
     from .jackknife_file import deployed_jackknife
 
-    if model_interval(loaded) is None or deployed_jackknife(loaded) is not None:
+    jackknife = deployed_jackknife(loaded)
+    if model_interval(loaded) is None or (jackknife is not None and jackknife.bounded):
         return ""
+    if jackknife is not None:
+        return (f"the {jackknife.name} needs at least 9 training specimens for a 90 % interval: these intervals are "
+                f"the plain {PLAIN_METHOD}, where it has one")
     return ("this model file keeps no leave-one-specimen-out fold models (written before they were kept): its "
             f"intervals are the plain {PLAIN_METHOD}; refit it with roughsense fit for the jackknife+ over specimens")
 
