@@ -7,6 +7,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import roughsense as rs
 from roughsense.errors import ModelFileError
@@ -308,3 +310,23 @@ def test_a_pls_model_file_round_trip_gives_the_same_intervals(tmp_path):
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r"training.jackknife_plus.folds.floors must be positive"):
         deployed_jackknife(load_model(path))
+
+
+@settings(max_examples=8, deadline=None)
+@given(factor=st.floats(0.2, 5.0), order_seed=st.integers(0, 2**16))
+def test_the_interval_scales_with_the_ratings_and_ignores_the_row_order(factor, order_seed):
+    """Ratings are ratios to a reference: rescaling every rating rescales the law's predictions and the interval by
+    the same factor (the law is fitted in logs, its residuals unchanged); the order of the training presses (and so
+    the order of first appearance of the specimens) changes nothing (all presses read together: no draw)."""
+    f, X, y, specimens = gratings(n_specimens=10, presses=3, seed=8)
+    surface = new_surface(f, 3.4, 3)
+    base = law_jackknife(X, y, specimens, {"freq_per_mm": f, "surfaces": specimens}, seed=0)
+    low, high, _ = base.intervals(surface, ["s"] * 3)
+    scaled = law_jackknife(X, y * factor, specimens, {"freq_per_mm": f, "surfaces": specimens}, seed=0)
+    low_scaled, high_scaled, _ = scaled.intervals(surface, ["s"] * 3)
+    np.testing.assert_allclose([low_scaled[0], high_scaled[0]], [factor * low[0], factor * high[0]], rtol=1e-5)
+    order = np.random.default_rng(order_seed).permutation(len(y))
+    shuffled = law_jackknife(X[order], y[order], specimens[order],
+                             {"freq_per_mm": f, "surfaces": specimens[order]}, seed=0)
+    low_shuffled, high_shuffled, _ = shuffled.intervals(surface, ["s"] * 3)
+    np.testing.assert_allclose([low_shuffled[0], high_shuffled[0]], [low[0], high[0]], rtol=1e-5)
