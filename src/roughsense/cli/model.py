@@ -115,7 +115,7 @@ def _echo_unseen(unseen) -> None:
     jackknife = unseen.jackknife
     if jackknife is not None:  # what predict gives a surface (and a press read alone)
         surface = (f"the {jackknife.name}, from surfaces read from {', '.join(map(str, jackknife.counts))} presses"
-                   if jackknife.bounded else f"none (the {jackknife.name} needs at least 9 specimens)")
+                   if jackknife.bounded else f"none (the {jackknife.name} needs at least {jackknife.fewest_specimens} specimens)")
         width = (f"{span(interval.trial_log_halfwidth, 'per press of a surface')} (jackknife); per surface and per "
                  f"press read alone {surface}")
     typer.echo(f"a grating left out of training (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "

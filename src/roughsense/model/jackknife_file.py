@@ -149,9 +149,13 @@ class DeployedJackknife:
 
     @property
     def bounded(self) -> bool:
-        """Whether the specimens are enough for a finite interval at the level (9 at 90 %)."""
-        low_rank, high_rank = ranks(len(self.specimens), self.level)
-        return low_rank >= 1 and high_rank <= len(self.specimens)
+        """Whether the specimens are enough for a finite interval at the level (:attr:`fewest_specimens`)."""
+        return len(self.specimens) >= self.fewest_specimens
+
+    @property
+    def fewest_specimens(self) -> int:
+        """The fewest specimens whose jackknife+ is finite at the level: 9 at 90 % (:func:`ranks`)."""
+        return next(n for n in range(1, 10_000) if ranks(n, self.level)[0] >= 1 and ranks(n, self.level)[1] <= n)
 
     def to_dict(self) -> dict:
         """The model file's ``training.jackknife_plus`` entry."""

@@ -305,7 +305,8 @@ def plain_fallback_line(loaded: AnyModel) -> str:
     if model_interval(loaded) is None or (jackknife is not None and jackknife.bounded):
         return ""
     if jackknife is not None:
-        return (f"the {jackknife.name} needs at least 9 training specimens for a 90 % interval: these intervals are "
+        return (f"the {jackknife.name} needs at least {jackknife.fewest_specimens} training specimens for a 90 % "
+                "interval: these intervals are "
                 f"the plain {PLAIN_METHOD}, where it has one")
     return ("this model file keeps no leave-one-specimen-out fold models (written before they were kept): its "
             f"intervals are the plain {PLAIN_METHOD}; refit it with roughsense fit for the jackknife+ over specimens")
