@@ -20,8 +20,11 @@ folds) against a peer loop of scikit-learn ``HuberRegressor`` refits (epsilon 1.
 features, one per fold and target, and against a loop of ``PeakPowerLaw`` refits (the same arithmetic unbatched; it
 also checks that both agree). The batch is timed before and after the peers; the ratios use the slower median.
 
+``--intervals-only``: the 90 % jackknife+ alone, fully nested, per surface and read from 1, 3, 5 presses, with the
+specimens it misses and the folds that set its bounds (what ``fit`` stores and ``predict`` applies).
+
 Run: .venv/bin/python benchmarks/bench_peak_law.py [--seeds 0 1 2 3 4 5] [--repeats 5] [--peer-targets 200]
-     [--speed-only | --accuracy-only]
+     [--speed-only | --accuracy-only | --intervals-only] [--csv out.csv]
 (ROUGHSENSE_CACHE_DIR selects the cache; each seed's study is simulated there on first use, ~20 s.)
 """
 from __future__ import annotations
@@ -195,6 +198,91 @@ def accuracy_table(seeds) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: Presses per surface the interval check reads (10: a specimen's every press, the surface check).
+INTERVAL_PRESSES = (1, 3, 5)
+
+
+def bound_setters(pairs: np.ndarray, log_targets: np.ndarray, names) -> tuple[str, str, float]:
+    """Which specimen's fold sets the nested jackknife+ bounds most often (upper, lower), and the share of held-out
+    specimens whose upper bound it sets: the width is the extremes over 13 folds, so one specimen can own it."""
+    upper, lower = [], []
+    for t in range(len(names)):
+        others = np.array([s for s in range(len(names)) if s != t])
+        residuals = np.abs(log_targets[others] - pairs[t, others, others])
+        centres = pairs[t, others, t]
+        upper.append(names[others[np.argmax(centres + residuals)]])
+        lower.append(names[others[np.argmin(centres - residuals)]])
+    top_upper = pd.Series(upper).value_counts()
+    top_lower = pd.Series(lower).value_counts()
+    return (f"{top_upper.index[0]} ({top_upper.iloc[0]}/{len(names)})", f"{top_lower.index[0]} "
+            f"({top_lower.iloc[0]}/{len(names)})", float(top_upper.iloc[0] / len(names)))
+
+
+def interval_rows(study, features, perceived, pad: str, condition: str, seed: int) -> dict:
+    """The 90 % jackknife+ (the default model) fully nested: a surface's (every press) and one read from 1, 3, 5
+    presses (model/peak_law_folds.py's check, as fit stores and predict applies them), with the specimens it misses
+    and the folds that set its bounds."""
+    from roughsense.analysis import dataset
+    from roughsense.model.jackknife_plus import nested_check
+    from roughsense.model.peak_law_folds import (
+        law_nested_press_check,
+        law_pair_log_predictions,
+        law_pair_models,
+        specimen_codes,
+    )
+
+    X, meta = dataset.condition_matrix(features, pad, condition)
+    y = dataset.targets(meta, perceived)
+    specimens = meta["specimen"].astype(str).to_numpy()
+    settings = law_settings(study, features, pad, condition, specimens)
+    codes, names = specimen_codes(specimens)
+    log_targets = np.log(pd.Series(y).groupby(codes).first().to_numpy())
+    models = law_pair_models(X, y, specimens, **settings)
+    pairs = law_pair_log_predictions(X, y, specimens, models=models, **settings)
+    check = nested_check(pairs, log_targets, names)
+    upper, lower, upper_share = bound_setters(pairs, log_targets, names)
+    row = {"seed": seed, "pad": pad, "condition": condition, "coverage": float(check["covered"].mean()),
+           "factor": float(np.exp(check["log_halfwidth"].median())), "upper_set_by": upper, "lower_set_by": lower,
+           "upper_share": upper_share, "misses": " ".join(
+               f"{r.specimen} x{np.exp(r.miss_log):.2f}" for r in check[~check["covered"]].itertuples())}
+    for count in INTERVAL_PRESSES:
+        press = law_nested_press_check(X, y, specimens, count, seed, models=models, **settings)
+        row[f"coverage_{count}"] = float(np.average(press["covered"], weights=press["readings"]))
+        row[f"factor_{count}"] = float(np.exp(press["log_halfwidth"].median()))
+    return row
+
+
+def interval_table(seeds) -> pd.DataFrame:
+    rows = []
+    for seed in seeds:
+        study, features, perceived = study_of(seed)
+        rows.extend(interval_rows(study, features, perceived, pad, condition, seed)
+                    for pad in study.pads for condition in CONDITIONS)
+    return pd.DataFrame(rows)
+
+
+def print_intervals(frame: pd.DataFrame) -> None:
+    """Per seed, pad and condition: coverage and median width (x/÷) of the nested 90 % jackknife+, per surface and
+    read from 1, 3, 5 presses; then the goal per seed group, and what sets the width."""
+    print("\n90 % jackknife+ over specimens, fully nested (leave-two-out). cover / x/÷ width: a surface (every press), "
+          "and one read from 1, 3, 5 presses; the folds setting the upper and lower bound most often")
+    for r in frame.itertuples():
+        print(f"{r.seed:>4} {r.pad:>11} {r.condition:>8} | {r.coverage:.3f} {r.factor:5.2f} | "
+              + " ".join(f"{getattr(r, f'coverage_{k}'):.3f} {getattr(r, f'factor_{k}'):5.2f}"
+                         for k in INTERVAL_PRESSES)
+              + f" | up {r.upper_set_by}, low {r.lower_set_by} | misses {r.misses or '-'}")
+    for label, seeds in (("seeds 0-2 (looked at)", REPORTED_SEEDS), ("seeds 3-5 (held out)", HELD_OUT_SEEDS)):
+        part = frame[frame.seed.isin(seeds)]
+        if part.empty:
+            continue
+        ok = part.coverage.between(*COVERAGE_GOAL) & (part.factor <= WIDTH_GOAL)
+        print(f"{_verdict(ok)} {label}: coverage {part.coverage.min():.3f}-{part.coverage.max():.3f} (goal "
+              f"{COVERAGE_GOAL[0]}-{COVERAGE_GOAL[1]}), median width x/÷ {part.factor.min():.2f}-{part.factor.max():.2f} "
+              f"(goal <= {WIDTH_GOAL}; {int((part.factor <= WIDTH_GOAL).sum())} of {len(part)} cells within); "
+              f"1 press: coverage {part.coverage_1.min():.3f}-{part.coverage_1.max():.3f}, width "
+              f"{part.factor_1.min():.2f}-{part.factor_1.max():.2f}")
+
+
 def print_table(frame: pd.DataFrame) -> None:
     print("\nMean per-specimen RMSE (null = training mean, same folds), bias (rating units), mean log bias per shape "
           "(rect / circ), permutation p (199), Spearman rho (13 rated), coverage of the 90 % interval (trials), "
@@ -327,9 +415,17 @@ def main() -> None:
     parser.add_argument("--csv", help="write the accuracy table here too")
     parser.add_argument("--speed-only", action="store_true", help="skip the accuracy table (speed comparison only)")
     parser.add_argument("--accuracy-only", action="store_true", help="skip the speed comparison")
+    parser.add_argument("--intervals-only", action="store_true",
+                        help="only the nested 90 %% jackknife+ (per surface and from 1, 3, 5 presses)")
     args = parser.parse_args()
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
+    if args.intervals_only:
+        frame = interval_table(args.seeds)
+        print_intervals(frame)
+        if args.csv:
+            frame.to_csv(args.csv, index=False)
+        return
     if not args.speed_only:
         frame = accuracy_table(args.seeds)
         print_table(frame)

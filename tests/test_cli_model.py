@@ -17,7 +17,7 @@ from roughsense._util.text import counted
 from roughsense.analysis import dataset
 from roughsense.errors import InputError
 from roughsense.io.study import read_study
-from tests.test_dataset import make_study
+from tests.test_dataset import SPECIMENS, make_study
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +79,7 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
-                                   "pi90_high", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+                                   "pi90_high", "pi90_method", "read_as", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
     assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
     assert set(table["model"]) == {"pls"}
@@ -110,7 +110,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
-                                   "roughness_rel_R3", "pi90_low", "pi90_high", "read_as", "extrapolates",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "read_as", "extrapolates",
                                    "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
@@ -130,7 +130,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high",
+                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
                                      "surface_roughness_rel_R3", "surface_extrapolates", "read_as", "extrapolates",
                                      "outside"]
     assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
@@ -684,21 +684,40 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
 
 
 def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_cli, study_dir, data, tmp_path):
-    """Issue 27: bare images are read one by one, which the peak law does less surely than a surface's presses
-    together; the model file keeps both calibrations and predict uses the one that matches how it read."""
+    """Issue 27, then 35: bare images are read one by one, which the peak law does less surely than a surface's
+    presses together. The file keeps the jackknife+ over specimens (a press read alone is a surface of one press),
+    unbounded from this study's 6 specimens; then, and for a file written before the jackknife+, predict falls back
+    to the plain jackknife calibrated for reading alone, saying so and why once."""
+    import itertools
     import math
+
+    from roughsense.model.modelfile import _digest
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
-    interval = json.loads(model.read_text())["training"]["interval"]
+    document = json.loads(model.read_text())
+    assert sorted(document["training"]["jackknife_plus"]["specimens"]) == sorted(SPECIMENS)
     _, _, meta = data("1N")
     images = [study_dir / name for name in meta["image"][:3]]
-    for extra, width in (((), interval["alone_log_halfwidth"]), (("--same-surface",), interval["trial_log_halfwidth"])):
-        code, _, err = run_cli("predict", model, *images, *extra, "--out", tmp_path / "p.csv", "--force")
+    del document["training"]["jackknife_plus"]  # as written before it existed, checksum and all
+    document["sha256"] = _digest(document)
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(document))
+    interval = document["training"]["interval"]
+    said = {model: "roughsense: warning: the jackknife+ over specimens (6) needs at least 9 training specimens for a "
+                   "90 % interval: these intervals are the plain jackknife (no coverage guarantee), where it has one",
+            old: "roughsense: warning: this model file keeps no leave-one-specimen-out fold models (written before they "
+                 "were kept): its intervals are the plain jackknife (no coverage guarantee); refit it with roughsense "
+                 "fit for the jackknife+ over specimens"}
+    for path, (extra, width) in itertools.product((model, old), (((), interval["alone_log_halfwidth"]),
+                                                               (("--same-surface",), interval["trial_log_halfwidth"]))):
+        code, _, err = run_cli("predict", path, *images, *extra, "--out", tmp_path / "p.csv", "--force")
         assert code == 0, err
+        assert [line for line in err.splitlines() if "plain jackknife" in line] == [said[path]]
         table = pd.read_csv(tmp_path / "p.csv")
         ratio = table["pi90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
+        assert set(table["pi90_method"]) == {"jackknife (no coverage guarantee)"}
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
         assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface
 

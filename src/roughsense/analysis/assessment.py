@@ -4,7 +4,8 @@
 judged the way the study judges it (analysis/unseen.py): nested leave-one-specimen-out against the training mean
 and against specimen-shuffled targets, with the same functions, folds and shufflings. A model that fails them is
 still written (a user may want it), but the file records the failure and ``fit`` and ``predict`` say it in one line.
-The 90 % prediction interval comes from the same out-of-fold predictions (model/interval.py).
+The 90 % prediction intervals come from the same leave-one-specimen-out fits: per press the plain jackknife
+(model/interval.py), per surface the jackknife+ (model/jackknife_file.py), whose fold models the file keeps.
 """
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ import pandas as pd
 
 from ..model.families import PLS
 from ..model.interval import PredictionInterval
+from ..model.jackknife_file import KEY as JACKKNIFE_KEY
+from ..model.jackknife_file import DeployedJackknife, law_jackknife, pls_jackknife
 from . import controls as _controls
 from .study_analysis import family_fit
 from .unseen import null_specimen_rmse
@@ -34,6 +37,8 @@ class UnseenAssessment:
     n_permutations: int
     passes: bool
     interval: PredictionInterval
+    #: The fold models and residuals by presses a model file keeps for the jackknife+ (model/jackknife_file.py).
+    jackknife: DeployedJackknife | None = None
 
     @property
     def failure(self) -> str:
@@ -51,6 +56,14 @@ class UnseenAssessment:
                    "Its predictions for new surfaces are not shown to be better than guessing")
         return ("this model FAILS its controls for a grating left out of training (nested leave-one-specimen-out): "
                 + "; ".join(problems) + f". {verdict}")
+
+    def interval_record(self) -> dict:
+        """The model file's interval entries: the plain jackknife's half-widths (``interval``) and the jackknife+'s
+        fold models and residuals by presses (``jackknife_plus``), when there are folds to keep."""
+        record = {"interval": self.interval.to_dict()}
+        if self.jackknife is not None:
+            record[JACKKNIFE_KEY] = self.jackknife.to_dict()
+        return record
 
     def record(self) -> dict:
         """The model file's ``unseen`` entry (JSON values; a number the design cannot give is null)."""
@@ -77,9 +90,11 @@ def assess_unseen(family: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame,
         alone = family_fit(family, X, y, meta, perceived, pad, condition, "loso", law={**law, "surfaces": None},
                            max_components=max_components).predictions["prediction"].to_numpy(dtype=float)
     interval = PredictionInterval.from_cv(predictions, y, specimens, alone_predictions=alone)
+    jackknife = pls_jackknife(X, y, specimens, fit.nested_n_components, seed) if family == PLS else \
+        law_jackknife(X, y, specimens, law, seed) if law is not None else None
     return UnseenAssessment(
         rmse=float(fit.table["rmse"].mean()),
         null_rmse=float(null_specimen_rmse(fit.predictions, perceived).mean()),
         pooled_rmse=float(row["rmse"]), null_pooled_rmse=float(row["null_rmse"]),
         permutation_p=float(row["permutation_p"]), n_permutations=int(row["n_permutations"]),
-        passes=bool(row["passes"]), interval=interval)
+        passes=bool(row["passes"]), interval=interval, jackknife=jackknife)

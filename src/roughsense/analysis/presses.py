@@ -16,12 +16,11 @@ import numpy as np
 import pandas as pd
 
 from ..model.families import PEAK_LAW
-from ..model.peak_law import domain_margins, fit_terms, fold_kept_ranges, held_features, peak_features
-from ..model.peak_law_folds import specimen_codes
+from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
+from ..model.peak_law import domain_margins, held_features, peak_features
+from ..model.peak_law_folds import law_fold_models, specimen_codes
 from .controls import fold_mean_predictions
 
-#: Presses per surface the study reports (more than a specimen has are left out).
-PRESS_COUNTS = (1, 3, 5, 10)
 #: Random subsets of a specimen's presses per count.
 DRAWS = 20
 PRESS_COLUMNS = ["model", "pad", "condition", "n_presses", "rmse", "null_rmse"]
@@ -30,15 +29,11 @@ PRESS_COLUMNS = ["model", "pad", "condition", "n_presses", "rmse", "null_rmse"]
 def loso_laws(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict):
     """The law fitted without each specimen (as the study fits it): coefficients (S, p + 1) and domains (S, p)."""
     codes, names = specimen_codes(specimens)
-    features = peak_features(X, **law)
     held = codes[None, :] == np.arange(names.size)[:, None]
-    log_y = np.log(y)[None, :]
-    epsilon = law.get("epsilon", 1.345)
-    beta, scale = fit_terms(features, log_y, ~held, epsilon=epsilon, grouped=law.get("surfaces") is not None)
+    beta, low, high, _ = law_fold_models(X, y, ~held, **law)
     freq = law["freq_per_mm"]
-    low, high = domain_margins(float(freq[1] - freq[0]),
-                               *fold_kept_ranges(features, log_y, ~held, beta, scale, epsilon, law.get("surfaces")))
-    return beta[:, 0], low[:, 0], high[:, 0]
+    low, high = domain_margins(float(freq[1] - freq[0]), low, high)
+    return beta, low, high
 
 
 def presses_curve(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict, seed: int,

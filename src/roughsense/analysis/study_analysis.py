@@ -26,7 +26,7 @@ from ..model.families import MODEL_FAMILIES, PEAK_LAW, PLS, check_model_name
 from ..model.jackknife_plus import nested_check
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.peak_law import held_out_flags as peak_law_flags
-from ..model.peak_law_folds import law_pair_log_predictions, specimen_codes
+from ..model.peak_law_folds import law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
 from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, nested_group_predictions, pls_cv
 from . import controls as _controls
 from . import dataset
@@ -313,15 +313,20 @@ def held_out_flags(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: n
     return pls_flags(X, y, specimens, counts, readout)
 
 
-def interval_check(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict
+def interval_check(fit: ConditionFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict, seed: int = 0
                    ) -> pd.DataFrame | None:
-    """The fully nested jackknife+ check of a LOSO fit's surface intervals (the peak law's leave-two-out fits are one
-    batch; PLS would need a nested component search per pair, and has none)."""
+    """The fully nested jackknife+ check of a LOSO fit's intervals: of each surface (all its presses) and of each
+    press read alone (``press_covered``, ``press_log_halfwidth``), as predict gives them (the peak law's
+    leave-two-out fits are one batch; PLS would need a nested component search per pair, and has none)."""
     if fit.model != PEAK_LAW:
         return None
     codes, names = specimen_codes(specimens)
     log_targets = np.log(pd.Series(y).groupby(codes).first().to_numpy())
-    return nested_check(law_pair_log_predictions(X, y, specimens, **law), log_targets, names)
+    models = law_pair_models(X, y, specimens, **law)
+    check = nested_check(law_pair_log_predictions(X, y, specimens, models=models, **law), log_targets, names)
+    presses = law_nested_press_check(X, y, specimens, 1, seed, models=models, **law)
+    return check.assign(press_readings=presses["readings"].to_numpy(), press_covered=presses["covered"].to_numpy(),
+                        press_log_halfwidth=presses["log_halfwidth"].to_numpy())
 
 
 def _signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
@@ -541,7 +546,7 @@ def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, 
         for fit in _model_fits(analysis, X, y, meta, pad, condition, cv, law):
             if cv == "loso":
                 fit.held_out_flags = held_out_flags(fit, X, y, specimens, law)
-                fit.interval_check = interval_check(fit, X, y, specimens, law)
+                fit.interval_check = interval_check(fit, X, y, specimens, law, analysis.seed)
             analysis.fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
     return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))

@@ -196,7 +196,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                                          "interval"}
         return trained
     training["unseen"] = unseen.record()
-    training["interval"] = unseen.interval.to_dict()
+    training.update(unseen.interval_record())
     if family == PEAK_LAW:  # how many presses a surface needs (analysis/presses.py); predict says when it has fewer
         curve = presses_curve(X, y, specimens, settings, seed)
         training["presses"] = {"needed": presses_needed(curve), "null_rmse": float(curve["null_rmse"].iloc[0]),

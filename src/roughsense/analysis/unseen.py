@@ -4,7 +4,9 @@ This is the question a user of the sensor asks (what will it say about a new sur
 terminal summary lead with it. Every number comes from the LOSO fits and controls already computed; the only new
 ones are the training mean's per-specimen RMSE (so the model and the null are compared on the same metric) and
 Spearman's rho between each specimen's mean prediction and its perceived roughness; the empirical coverage of the 90 %
-prediction interval on held-out specimens (model/interval.py: each specimen's interval from the others' residuals);
+prediction interval on held-out specimens (of a press read alone: the peak law's nested jackknife+,
+model/peak_law_folds.py; PLS's plain jackknife from the others' residuals, model/interval.py; of a surface: the
+plain jackknife and the nested jackknife+);
 and how often the applicability flag fell on a held-out specimen's trials (overall, and its worst specimen).
 """
 from __future__ import annotations
@@ -62,8 +64,14 @@ def _control(controls: pd.DataFrame, fit) -> dict:
             "passes": bool(row["passes"])}
 
 
-def _coverage(prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray) -> dict:
+def _coverage(fit, prediction: np.ndarray, target: np.ndarray, specimens: np.ndarray) -> dict:
+    """Coverage of held-out presses and specimens by the plain jackknife; of presses, where the family has the
+    fully nested check (the peak law), by the jackknife+ a press read alone gets, from models that never saw it."""
     trials, surfaces = held_out_coverage(prediction, target, specimens)
+    check = getattr(fit, "interval_check", None)
+    if check is not None and "press_covered" in check:  # an unbounded interval (too few specimens) covers nothing
+        bounded = np.isfinite(check["press_log_halfwidth"]).all()
+        trials = float(np.average(check["press_covered"], weights=check["press_readings"])) if bounded else np.nan
     return {"pi90_coverage_trials": trials, "pi90_coverage_specimens": surfaces}
 
 
@@ -112,7 +120,7 @@ def unseen_summary(analysis) -> pd.DataFrame:
             "null_rmse": float(null_specimen_rmse(fit.predictions, analysis.perceived).mean()),
             "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.cv_rmse[0]),
             **_control(analysis.controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
-            **_coverage(prediction, target, fit.predictions["specimen"].to_numpy()), **_jackknife_plus(fit),
+            **_coverage(fit, prediction, target, fit.predictions["specimen"].to_numpy()), **_jackknife_plus(fit),
             **_flag_shares(fit),
         })
     return pd.DataFrame(rows, columns=UNSEEN_COLUMNS)

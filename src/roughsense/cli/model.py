@@ -40,7 +40,8 @@ ModelName = Annotated[str, typer.Option(
                     "PLS1 on the spectrum, to reproduce the paper).")]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
-    help="Seed for the K-fold shuffle (LOO and LOSO use no randomness) and of --study builtin.")]
+    help="Seed for the K-fold shuffle (LOO and LOSO use no randomness), the presses drawn for the interval's "
+         "residuals of 1-, 3- and 5-press surfaces, and --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
     help="Crop where the line is read: 'center' (1900x150 px centred, as in the paper), 'auto' (the 150-row band "
@@ -111,6 +112,12 @@ def _echo_unseen(unseen) -> None:
     width = f"{span(interval.trial_log_halfwidth, 'per trial')}, {span(interval.surface_log_halfwidth, 'per surface')}"
     if math.isfinite(interval.alone_log_halfwidth):
         width += f", {span(interval.alone_log_halfwidth, 'per press read alone')}"
+    jackknife = unseen.jackknife
+    if jackknife is not None:  # what predict gives a surface (and a press read alone)
+        surface = (f"the {jackknife.name}, from surfaces read from {', '.join(map(str, jackknife.counts))} presses"
+                   if jackknife.bounded else f"none (the {jackknife.name} needs at least {jackknife.fewest_specimens} specimens)")
+        width = (f"{span(interval.trial_log_halfwidth, 'per press of a surface')} (jackknife); per surface and per "
+                 f"press read alone {surface}")
     typer.echo(f"a grating left out of training (nested leave-one-specimen-out): per-specimen RMSE {unseen.rmse:.3f} vs the "
                f"training mean's {unseen.null_rmse:.3f}; permutation p {_p_text(unseen.permutation_p, unseen.n_permutations)}; "
                f"90 % prediction interval {width}")
@@ -287,9 +294,21 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     warn_field_of_view(loaded, override, [image for trial in trials for image in trial])  # after: an error wins
     _show_or_write(table, out, from_study=study is not None)
     _echo_extrapolation(loaded, scores)
+    _warn_plain_interval(loaded)
     _echo_scale(scores.scale)
     _warn_few_presses(loaded.training, surfaces, len(trials))
     _warn_failed_controls(loaded.training)
+
+
+def _warn_plain_interval(loaded) -> None:
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..model.predict import plain_fallback_line
+
+    line = plain_fallback_line(loaded)
+    if line:
+        warnings.warn(RoughsenseWarning(line), stacklevel=2)
 
 
 def _refuse_repeats(images) -> None:
@@ -387,11 +406,13 @@ def _score_into(table, loaded, trials: list[tuple], jobs: int, override=None, su
     table[name] = _three_digits(scores.roughness)
     if np.isfinite(scores.low).all():
         table["pi90_low"], table["pi90_high"] = _three_digits(scores.low), _three_digits(scores.high)
+        table["pi90_method"] = scores.method
     if scores.surface_roughness is not None:
         table[f"surface_{name}"] = _three_digits(scores.surface_roughness)
         if np.isfinite(scores.surface_low).all():
             table["surface_pi90_low"] = _three_digits(scores.surface_low)
             table["surface_pi90_high"] = _three_digits(scores.surface_high)
+            table["surface_pi90_method"] = scores.surface_method
     _surface_flags(table, scores, surfaces)
     table["extrapolates"] = ["true" if flag else "false" for flag in scores.flagged]
     table["outside"] = scores.reasons
@@ -495,7 +516,7 @@ def _warn_few_presses(training: dict, surfaces, n_trials: int) -> None:
 
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as")
+_CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as", "pi90_method")
 
 
 def _show_or_write(table, out: Path | None, *, from_study: bool = False) -> None:
@@ -529,8 +550,8 @@ def _terminal_table(table, *, from_study: bool) -> str:
         key = "specimen" if "specimen" in table else None
         for name, rows in (table.groupby(key, sort=False) if key else [("surface", table)]):
             first = rows.iloc[0]
-            interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']})"
-                        if "surface_pi90_low" in rows else "")
+            interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']}, "
+                        f"{first['surface_pi90_method']})" if "surface_pi90_low" in rows else "")
             label = f"surface {name}" if key else "the surface (every image: --same-surface)"
             lines.append(f"{label}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
     reasons = table["outside"][table["outside"].astype(bool)]

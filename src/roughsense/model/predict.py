@@ -4,7 +4,9 @@ The model file carries its feature definition, so the spectra are recomputed exa
 a combined-force model takes each trial's images in the order of its conditions (1 N, 2 N, 3 N).
 Every model also says, per prediction, what lies outside what it was trained on (its applicability domain: a peak
 law's period, peak strength or an unclear peak; PLS's spectrum shape, or a value held to the trained roughness), and
-a model file with an interval gives each prediction its 90 % prediction interval (model/interval.py).
+a model file with an interval gives each prediction its 90 % prediction interval: a surface's (and a press read alone)
+the jackknife+ over specimens (model/jackknife_file.py), a press read with its surface's others the plain jackknife
+(model/interval.py).
 :func:`score_images` trusts that order; the ``groups_from_*`` functions build it from what a user gives
 (a manifest, one flag per force) and refuse what contradicts a slot.
 """
@@ -181,6 +183,9 @@ class Scores:
     surface_low: np.ndarray | None = None
     surface_high: np.ndarray | None = None
     scale: object | None = None
+    #: Per trial, how its interval (``method``) and its surface's (``surface_method``) were built (None: none).
+    method: list[str] | None = None
+    surface_method: list[str] | None = None
 
     @property
     def flagged(self) -> np.ndarray:
@@ -243,19 +248,68 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
     scale = images_scale_check(loaded, spectrum, lines, reference)
     if scale.off:
         reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]
-    interval = model_interval(loaded)
-    nan = np.full(roughness.shape, np.nan)
-    # a press read alone is read less surely (the peak law): it has its own calibration
-    low, high = interval.trial_bounds(roughness, read_alone=surfaces is None) if interval is not None else (nan, nan)
+    low, high, method = trial_intervals(loaded, X, roughness, surfaces)
     if surfaces is None:
-        return Scores(roughness, low, high, reasons, scale=scale)
+        return Scores(roughness, low, high, reasons, scale=scale, method=method)
     import pandas as pd
 
-    labels = pd.Series(np.asarray(surfaces))
-    surface = pd.Series(roughness).groupby(labels).transform("mean").to_numpy()
-    known = interval is not None and math.isfinite(interval.surface_log_halfwidth)
-    s_low, s_high = interval.surface_bounds(surface) if known else (nan, nan)
-    return Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale)
+    surface = pd.Series(roughness).groupby(pd.Series(np.asarray(surfaces))).transform("mean").to_numpy()
+    s_low, s_high, s_method = surface_intervals(loaded, X, surface, surfaces)
+    return Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale, method=method,
+                  surface_method=s_method)
+
+
+#: How predict names the plain jackknife's interval (model/interval.py), beside the jackknife+'s.
+PLAIN_METHOD = "jackknife (no coverage guarantee)"
+
+
+def trial_intervals(loaded: AnyModel, X: np.ndarray, roughness: np.ndarray, surfaces=None):
+    """Each trial's 90 % bounds and method: a press read alone is a surface of one press, so it gets the
+    jackknife+ of one-press surfaces where the file keeps one; a press read with its surface's others gets the plain
+    jackknife (the peak law reads it less surely alone: its own calibration). NaN and None without an interval."""
+    from .jackknife_file import deployed_jackknife
+
+    jackknife = deployed_jackknife(loaded) if surfaces is None else None
+    if jackknife is not None and jackknife.bounded:
+        return jackknife.intervals(X)
+    interval = model_interval(loaded)
+    if interval is None:
+        nan = np.full(roughness.shape, np.nan)
+        return nan, nan, None
+    low, high = interval.trial_bounds(roughness, read_alone=surfaces is None)
+    return low, high, [PLAIN_METHOD] * roughness.size
+
+
+def surface_intervals(loaded: AnyModel, X: np.ndarray, surface: np.ndarray, surfaces):
+    """Each trial's surface's 90 % bounds and method: the jackknife+ with the residuals of surfaces read from as
+    many presses as this one (model/jackknife_file.py), else (an older file) the plain jackknife."""
+    from .jackknife_file import deployed_jackknife
+
+    jackknife = deployed_jackknife(loaded)
+    if jackknife is not None and jackknife.bounded:
+        return jackknife.intervals(X, surfaces)
+    interval = model_interval(loaded)
+    if interval is None or not math.isfinite(interval.surface_log_halfwidth):
+        nan = np.full(surface.shape, np.nan)
+        return nan, nan, None
+    low, high = interval.surface_bounds(surface)
+    return low, high, [PLAIN_METHOD] * surface.size
+
+
+def plain_fallback_line(loaded: AnyModel) -> str:
+    """One line when a file's intervals fall back to the plain jackknife: written before the jackknife+ was kept,
+    or from too few specimens for it (9 at 90 %). Said, never failed."""
+    from .jackknife_file import deployed_jackknife
+
+    jackknife = deployed_jackknife(loaded)
+    if model_interval(loaded) is None or (jackknife is not None and jackknife.bounded):
+        return ""
+    if jackknife is not None:
+        return (f"the {jackknife.name} needs at least {jackknife.fewest_specimens} training specimens for a 90 % "
+                "interval: these intervals are "
+                f"the plain {PLAIN_METHOD}, where it has one")
+    return ("this model file keeps no leave-one-specimen-out fold models (written before they were kept): its "
+            f"intervals are the plain {PLAIN_METHOD}; refit it with roughsense fit for the jackknife+ over specimens")
 
 
 def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
