@@ -39,11 +39,15 @@ def deviations(alone: np.ndarray, clarity_alone: np.ndarray, surface: np.ndarray
 def robust_spread(deviation: np.ndarray, train: np.ndarray) -> np.ndarray:
     """(F, 4) robust SD of the deviations (n, 4) over each mask's training rows (F, n); 0 where none is readable (a
     shape no press shows), so that column keeps the surface margins."""
-    absolute = np.where(train[:, :, None], np.abs(deviation)[None], np.nan)  # (F, n, 4)
-    absolute[~np.isfinite(absolute)] = np.nan
-    readable = np.isfinite(absolute).any(axis=1)
-    median = np.nanmedian(np.where(readable[:, None, :], absolute, 0.0), axis=1)
-    return np.where(readable, median / _MAD_PER_SD, 0.0)
+    absolute = np.where(train[:, :, None], np.abs(deviation)[None], np.inf)  # (F, n, 4); inf: not counted
+    absolute[np.isnan(absolute)] = np.inf
+    ordered = np.sort(absolute, axis=1)  # the counted values first (np.nanmedian is ten times slower here)
+    count = np.isfinite(absolute).sum(axis=1)  # (F, 4)
+    low = np.take_along_axis(ordered, np.maximum(count - 1, 0)[:, None, :] // 2, axis=1)[:, 0]
+    high = np.take_along_axis(ordered, (count // 2)[:, None, :], axis=1)[:, 0]
+    with np.errstate(invalid="ignore"):
+        median = 0.5 * (low + high)
+    return np.where(count > 0, median / _MAD_PER_SD, 0.0)
 
 
 def widening(spread, presses) -> np.ndarray:
