@@ -17,7 +17,7 @@ bias of each shape. The term sets are judged on seeds 0-2 (``--seeds 0 1 2``) an
 
 ``--flags``: the domain's flags press by press instead (model/press_spread.py). Per seed, pad and condition, the
 law fitted on all 14 specimens (surfaces given), each training press then read *alone*: the share flagged with the
-training presses' scatter (``press_spread_``) and without it (surface margins only), by reason; and a shape left
+training presses' scatter (``press_scatter_``) and without it (surface margins only), by reason; and a shape left
 out (the law fitted on one shape), the share of the other shape's presses flagged, read alone and read together.
 
 Run: .venv/bin/python benchmarks/bench_shape_terms.py [--seeds 0 1 2] [--csv out.csv] [--flags]
@@ -130,7 +130,7 @@ def flag_table(seeds) -> pd.DataFrame:
                 base = {"seed": seed, "pad": pad, "condition": condition}
                 law = PeakPowerLaw(**settings).fit(X, y, surfaces=specimens)
                 with_spread = law.applicability(X)
-                law.press_spread_ = None  # the surface margins alone, as before the presses' scatter was kept
+                law.press_scatter_ = None  # the surface margins alone, as before the presses' scatter was kept
                 rows.append({**base, "test": "training alone", "flagged": np.mean([bool(r) for r in with_spread]),
                              "flagged_surface_margins": np.mean([bool(r) for r in law.applicability(X)]),
                              **_reason_kinds(with_spread)})

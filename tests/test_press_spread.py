@@ -15,7 +15,7 @@ from scipy.stats import median_abs_deviation
 import roughsense as rs
 from roughsense.errors import ModelFileError
 from roughsense.model import modelfile as mf
-from roughsense.model.press_spread import PRESS_Z, robust_spread, widening
+from roughsense.model.press_spread import PRESS_Z, PressScatter, robust_spread, trained_presses
 
 PERIODS_MM = (2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0)
 JITTER_SD = 0.03  # log units of period per press (a mount magnifying by 3 %)
@@ -43,7 +43,11 @@ def test_the_robust_spread_is_scipys_normal_scaled_mad_about_zero_and_ignores_mi
     assert abs(spread[0, 0] - 0.02) < 0.004  # the misreads move the MAD by a little, the SD by ten times
     np.testing.assert_allclose(spread[1, 1], median_abs_deviation(deviation[:2000, 1], center=lambda x, axis: 0.0,
                                                                   scale="normal"), rtol=1e-12)
-    np.testing.assert_allclose(widening(spread[0], [1, 4]), PRESS_Z * np.vstack([spread[0], spread[0] / 2]))
+    # a surface of k presses scatters beyond a trained one of K by sqrt(1/k - 1/K) of a press; none where k >= K
+    scatter = PressScatter(spread[0], trained_presses(np.repeat(np.arange(5), [4, 4, 5, 4, 3]), np.ones((1, 20), bool))[0])
+    assert scatter.trained_presses == 4
+    np.testing.assert_allclose(scatter.excess([1, 2, 4, 9]), PRESS_Z * spread[0] * np.sqrt(
+        [[0.75], [0.25], [0.0], [0.0]]))
 
 
 def test_a_press_read_alone_is_flagged_by_its_scatter_not_by_the_surface_range():
@@ -54,11 +58,12 @@ def test_a_press_read_alone_is_flagged_by_its_scatter_not_by_the_surface_range()
     X, surfaces, freq = _presses(PERIODS_MM, 10, rng)
     y = (np.repeat(PERIODS_MM, 10) / 3.0) ** 0.9
     law = rs.PeakPowerLaw(freq_per_mm=freq).fit(X, y, surfaces=surfaces)
-    assert abs(law.press_spread_[0] - JITTER_SD) < 0.01  # the mounts' jitter, measured on the training presses
+    assert abs(law.press_scatter_.spread[0] - JITTER_SD) < 0.01  # the mounts' jitter, seen by the training presses
+    assert law.press_scatter_.trained_presses == 10
     flagged = law.extrapolates(X).mean()
     odd, _, _ = _presses((8.0,), 3, rng)
     assert law.extrapolates(odd).all()
-    law.press_spread_ = None  # the surface margins alone
+    law.press_scatter_ = None  # the surface margins alone
     assert law.extrapolates(X).mean() >= 0.02 > 0.01 >= flagged
     assert not law.extrapolates(X, surfaces=surfaces).any()  # read together, no training surface is outside
 
@@ -84,12 +89,15 @@ def test_the_scatter_is_kept_in_the_model_file_and_the_loaded_law_flags_alike(tm
     features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
     mf.save_model(path, law, feature_definition=features, training={"study": "gratings"})
     loaded = mf.load_model(path)
-    np.testing.assert_array_equal(loaded.press_spread_, law.press_spread_)
+    np.testing.assert_array_equal(loaded.press_scatter_.spread, law.press_scatter_.spread)
+    assert loaded.press_scatter_.trained_presses == 10
     assert loaded.applicability(X) == law.applicability(X)
-    assert json.loads(path.read_text())["model"]["press_spread"] == [float(v) for v in law.press_spread_]
+    assert json.loads(path.read_text())["model"]["press_scatter"] == law.press_scatter_.to_dict()
 
 
-@pytest.mark.parametrize("bad", [[0.1, 0.2, 0.3], [0.1, -0.2, 0.3, 0.4], "wide"])
+@pytest.mark.parametrize("bad", [{"spread": [0.1, 0.2, 0.3], "trained_presses": 4},
+                                 {"spread": [0.1, -0.2, 0.3, 0.4], "trained_presses": 4},
+                                 {"spread": [0.1, 0.2, 0.3, 0.4], "trained_presses": 0}, "wide"])
 def test_a_model_file_with_a_malformed_scatter_is_refused_in_one_line(tmp_path, bad):
     rng = np.random.default_rng(4)
     X, surfaces, freq = _presses(PERIODS_MM, 4, rng)
@@ -98,8 +106,8 @@ def test_a_model_file_with_a_malformed_scatter_is_refused_in_one_line(tmp_path, 
     features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
     mf.save_model(path, law, feature_definition=features, training={"study": "gratings"})
     document = json.loads(path.read_text())
-    document["model"]["press_spread"] = bad
+    document["model"]["press_scatter"] = bad
     document["sha256"] = mf._digest(document)  # re-signed: the field check, not the checksum, must refuse it
     path.write_text(json.dumps(document))
-    with pytest.raises(ModelFileError, match="press_spread must be 4 numbers"):
+    with pytest.raises(ModelFileError, match="press_scatter must be"):
         mf.load_model(path)

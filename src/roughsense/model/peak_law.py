@@ -48,7 +48,7 @@ from ..errors import ConfigError, InputError
 from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 from .huber_batch import HUBER_EPSILON, huber_irls
-from .press_spread import N_SPREAD, deviations, robust_spread, widening
+from .press_spread import PressScatter, deviations, robust_spread, trained_presses
 
 #: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
 #: the third (:func:`law_terms`); the peak amplitude did not earn a term under LOSO and bounds the domain only
@@ -352,8 +352,9 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
     where its peak is, read on their mean spectrum).
     Fitted: ``coef_`` (3,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
     ``feature_max_`` (the range of the rows the Huber fit kept, weight >= 0.5, used to clip and to flag),
-    ``press_spread_`` (4,: the training presses' robust scatter about their surfaces, which widens the flag for a
-    surface read from few presses, model/press_spread.py; 0 without ``surfaces``), ``freq_per_mm_``.
+    ``press_scatter_`` (the training presses' robust scatter about their surfaces, which widens the flag for a
+    surface read from fewer presses than the trained ones, model/press_spread.py; None without ``surfaces``),
+    ``freq_per_mm_``.
 
     Parameters
     ----------
@@ -487,8 +488,10 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                                shape_read(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
         self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
         self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
-        self.press_spread_ = np.zeros(N_SPREAD) if surfaces is None else robust_spread(
-            press_deviations(X, readout, **self._reading()), np.ones((1, len(y)), dtype=bool))[0]
+        everything = np.ones((1, len(y)), dtype=bool)
+        self.press_scatter_ = None if surfaces is None else PressScatter(
+            robust_spread(press_deviations(X, readout, **self._reading()), everything)[0],
+            float(trained_presses(surface_codes(surfaces, len(y)), everything)[0]))
         return self
 
     def predict(self, X, surfaces=None) -> np.ndarray:
@@ -542,7 +545,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              _step(self.freq_per_mm_), self.press_spread_)
+                              _step(self.freq_per_mm_), self.press_scatter_)
 
 
 def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: float, epsilon: float,
@@ -589,20 +592,24 @@ def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.
     return (features < low - _RANGE_TOL) | (features > high + _RANGE_TOL)
 
 
-def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray, extra=None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """The law's domain: the kept training range (``low``, ``high``: (..., 2)) widened by what a feature may lie
     beyond it and still count as inside. The law is applied unclipped inside and held at the domain's edge outside,
     so a prediction is held exactly when it is flagged.
 
     The period is read to about half a grid bin, so two gratings of one period can read 1-2 % apart: half a bin
     either side of the trained frequencies. The peak strength varies from press to press by more than that:
-    :data:`LOG_MARGIN` either side.
+    :data:`LOG_MARGIN` either side. ``extra`` (n, p): a surface of few presses' excess scatter
+    (model/press_spread.py), added in quadrature: (n, p) margins, for the flags only.
     """
     step = float(freq_step_per_mm)
     low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
     below, above = np.full(low.shape, LOG_MARGIN), np.full(high.shape, LOG_MARGIN)
     below[..., 0] = np.log1p(0.5 * step / np.exp(low[..., 0]))
     above[..., 0] = np.log1p(0.5 * step / np.exp(high[..., 0]))
+    if extra is not None:
+        below, above = np.hypot(below, extra), np.hypot(above, extra)
     return low - below, high + above
 
 
@@ -646,20 +653,19 @@ def _shape_words(ratio: float, low: float, high: float) -> str:
 
 
 def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clarity_limit: float | None,
-                   freq_step_per_mm: float, press_spread=None) -> list[str]:
+                   freq_step_per_mm: float, scatter: PressScatter | None = None) -> list[str]:
     """Per row, every way it lies outside the law's domain ('' where none): period and peak strength outside the
     kept training range (:func:`domain_margins`), a spectrum with no clear peak, presses that disagree on where the
     peak is. ``clarity_limit`` None: a model file written before the clarity was kept (not checked).
-    ``press_spread`` (4,): the training presses' scatter about their surfaces (model/press_spread.py); a row read
-    from few presses is flagged only beyond it. None: the surface margins alone (a file written before it)."""
-    low_m, high_m = domain_margins(freq_step_per_mm, low, high)
-    slack, tolerated = np.zeros(len(readout.clarity)), None
-    if press_spread is not None and readout.presses is not None:
-        extra = widening(press_spread, readout.presses)  # (n, 4)
-        low_m, high_m = np.minimum(low_m, low - extra[:, :3]), np.maximum(high_m, high + extra[:, :3])
-        slack = np.maximum(extra[:, 3] - LOG_MARGIN, 0.0)
+    ``scatter``: the training presses' scatter about their surfaces (model/press_spread.py); a row read from fewer
+    presses than the trained surfaces is flagged only beyond it too. None: the surface margins alone."""
+    slack, tolerated, extra = np.zeros(len(readout.clarity)), None, None
+    if scatter is not None and readout.presses is not None:
+        extra = scatter.excess(readout.presses)  # (n, 4)
+        slack = np.hypot(LOG_MARGIN, extra[:, 3]) - LOG_MARGIN
         if readout.overshoot is not None:
             tolerated = (readout.overshoot > 0) & (readout.overshoot <= extra[:, FREQUENCY])
+    low_m, high_m = domain_margins(freq_step_per_mm, low, high, None if extra is None else extra[:, :3])
     reasons = range_reasons(readout.features, low_m, high_m, shown=(low, high), tolerated=tolerated)
     for i, clarity in enumerate(readout.clarity):
         parts = [reasons[i]] if reasons[i] else []
@@ -789,8 +795,11 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
     readout = peak_readout(X, **reading, surfaces=surfaces)
     fold_of = np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     held_out = fold_of[None, :] == np.arange(int(fold_of.max()) + 1)[:, None]
-    spread = robust_spread(press_deviations(X, readout, **reading), ~held_out) if surfaces is not None \
-        else np.zeros((held_out.shape[0], N_SPREAD))
+    scatter = [None] * held_out.shape[0]
+    if surfaces is not None:
+        counts = trained_presses(surface_codes(surfaces, X.shape[0]), ~held_out)
+        spread = robust_spread(press_deviations(X, readout, **reading), ~held_out)
+        scatter = [PressScatter(spread[f], float(counts[f])) for f in range(held_out.shape[0])]
     beta, scale = fit_terms(readout.features, log_y, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = fold_kept_ranges(readout.features, log_y, ~held_out, beta, scale, epsilon, surfaces)
     fitted = beta[:, 0, 0][None, :] + np.nan_to_num(readout.features) @ beta[:, 0, 1:].T  # (n, F)
@@ -803,5 +812,5 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
         limit = float(readout.clarity[kept].min()) - LOG_MARGIN
         part = PeakReadout(readout.features[rows], readout.clarity[rows], readout.agreement[rows],
                            readout.presses[rows], readout.overshoot[rows])
-        flags[rows] = [bool(r) for r in domain_reasons(part, low[fold, 0], high[fold, 0], limit, step, spread[fold])]
+        flags[rows] = [bool(r) for r in domain_reasons(part, low[fold, 0], high[fold, 0], limit, step, scatter[fold])]
     return flags

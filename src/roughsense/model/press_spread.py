@@ -10,14 +10,17 @@ The scatter is measured on the training presses: each press read alone against i
 SD (median absolute deviation about the surface's reading / 0.6745) ignores the presses that read another peak
 altogether (a shading hump, a ridge sideband): those are what reading a surface's presses together exists to
 override, and a press read alone that shows them *should* be flagged. On the twin a surface of k presses scatters
-as 1/sqrt(k) (3-press subsets: about 0.55 of one press's robust SD, seeds 0-2), so a row whose surface has k
-presses is flagged only beyond ``PRESS_Z * spread / sqrt(k)`` of the range, or the surface margins
-(:func:`~roughsense.model.peak_law.domain_margins`), whichever is wider. Only the flag widens: a prediction is still
-held at the surface domain, since a press's scatter is noise about a trained surface, not a new one. A shape that
-cannot be read only because the period's scatter put its second harmonic past the band's end (a 2 mm press read
-a little short) is not flagged as unreadable either.
+as 1/sqrt(k) (3-press subsets: 0.4-0.65 of one press's robust SD, seeds 0-2). The trained range already holds the
+scatter of surfaces of the trained presses' count K (the median over training surfaces), so a surface of k presses
+scatters beyond it by ``PRESS_Z * spread * sqrt(1/k - 1/K)`` (nothing where k >= K), added in quadrature to the
+surface margins (:func:`~roughsense.model.peak_law.domain_margins`): a row is flagged only beyond both. Only the flag
+widens: a prediction is still held at the surface domain, since a press's scatter is noise about a trained
+surface, not a new one. A shape that cannot be read only because the period's scatter put its second harmonic past
+the band's end (a 2 mm press read a little short) is not flagged as unreadable either.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -50,9 +53,28 @@ def robust_spread(deviation: np.ndarray, train: np.ndarray) -> np.ndarray:
     return np.where(count > 0, median / _MAD_PER_SD, 0.0)
 
 
-def widening(spread, presses) -> np.ndarray:
-    """(..., n, 4) how far each row may lie beyond the trained range: ``PRESS_Z * spread / sqrt(presses)`` for
-    ``spread`` (..., 4) and each row's count of presses in its surface ``presses`` (n,)."""
-    spread = np.asarray(spread, dtype=np.float64)
-    presses = np.maximum(np.asarray(presses, dtype=np.float64), 1.0)
-    return PRESS_Z * spread[..., None, :] / np.sqrt(presses)[:, None]
+@dataclass(frozen=True)
+class PressScatter:
+    """The training presses' robust scatter about their surfaces (``spread``: log frequency, log amplitude, harmonic
+    ratio, clarity) and the presses per trained surface (``trained_presses``, the median)."""
+
+    spread: np.ndarray
+    trained_presses: float
+
+    def excess(self, presses) -> np.ndarray:
+        """(n, 4) how much further a surface of ``presses`` (n,) presses scatters than a trained one, in
+        :data:`PRESS_Z` robust SDs: ``PRESS_Z * spread * sqrt(1/k - 1/K)``, 0 where k >= K."""
+        presses = np.maximum(np.asarray(presses, dtype=np.float64), 1.0)
+        share = np.sqrt(np.maximum(1.0 / presses - 1.0 / max(float(self.trained_presses), 1.0), 0.0))
+        return PRESS_Z * np.asarray(self.spread, dtype=np.float64)[None, :] * share[:, None]
+
+    def to_dict(self) -> dict:
+        return {"spread": [float(v) for v in self.spread], "trained_presses": float(self.trained_presses)}
+
+
+def trained_presses(codes: np.ndarray, train: np.ndarray) -> np.ndarray:
+    """(F,) the median count of presses per training surface of each mask (F, n); ``codes`` (n,) surface codes."""
+    members = np.zeros((codes.size, int(codes.max()) + 1 if codes.size else 0))
+    members[np.arange(codes.size), codes] = 1.0
+    counts = train.astype(float) @ members  # (F, S)
+    return np.array([np.median(row[row > 0]) if np.any(row > 0) else 1.0 for row in counts])
