@@ -596,7 +596,8 @@ def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray, e
                    ) -> tuple[np.ndarray, np.ndarray]:
     """The law's domain: the kept training range (``low``, ``high``: (..., 2)) widened by what a feature may lie
     beyond it and still count as inside. The law is applied unclipped inside and held at the domain's edge outside,
-    so a prediction is held exactly when it is flagged.
+    so a prediction is held exactly when it is flagged (for a surface read from fewer presses than the trained ones,
+    only beyond its presses' scatter, ``extra``, is it flagged).
 
     The period is read to about half a grid bin, so two gratings of one period can read 1-2 % apart: half a bin
     either side of the trained frequencies. The peak strength varies from press to press by more than that:
