@@ -15,7 +15,12 @@ the pad's ridges: unreadable), else it is reported as not formed. Reported: mean
 bias of each shape. The term sets are judged on seeds 0-2 (``--seeds 0 1 2``) and the choice is then reported on
 3-5, which redraw the twin's noise on the same 14 surfaces (not new surfaces).
 
-Run: .venv/bin/python benchmarks/bench_shape_terms.py [--seeds 0 1 2] [--csv out.csv]
+``--flags``: the domain's flags press by press instead (model/press_spread.py). Per seed, pad and condition, the
+law fitted on all 14 specimens (surfaces given), each training press then read *alone*: the share flagged with the
+training presses' scatter (``press_scatter_``) and without it (surface margins only), by reason; and a shape left
+out (the law fitted on one shape), the share of the other shape's presses flagged, read alone and read together.
+
+Run: .venv/bin/python benchmarks/bench_shape_terms.py [--seeds 0 1 2] [--csv out.csv] [--flags]
 """
 from __future__ import annotations
 
@@ -97,14 +102,69 @@ def ablation(seeds) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _reason_kinds(reasons) -> dict:
+    """Share of rows flagged for each kind of reason (a row may have several)."""
+    kinds = {"period": "period ", "strength": "peak strength", "shape": "contact pattern", "clarity": "no clear peak",
+             "agreement": "presses peak"}
+    parts = [[part.split(" (")[0] for part in r.split("; ")] for r in reasons]
+    return {kind: float(np.mean([any(p.startswith(word) or (kind != "period" and word in p) for p in row)
+                                 for row in parts])) for kind, word in kinds.items()}
+
+
+def flag_table(seeds) -> pd.DataFrame:
+    """Training presses read alone (with and without the presses' scatter), and a shape left out (alone, together)."""
+    from roughsense.analysis import dataset
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    rows = []
+    for seed in seeds:
+        study, features, perceived = study_of(seed)
+        shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
+        for pad in study.pads:
+            for condition in CONDITIONS:
+                X, meta = dataset.condition_matrix(features, pad, condition)
+                y = dataset.targets(meta, perceived)
+                specimens = meta["specimen"].astype(str).to_numpy()
+                settings = law_settings(study, features, pad, condition)
+                settings.pop("surfaces")
+                base = {"seed": seed, "pad": pad, "condition": condition}
+                law = PeakPowerLaw(**settings).fit(X, y, surfaces=specimens)
+                with_spread = law.applicability(X)
+                law.press_scatter_ = None  # the surface margins alone, as before the presses' scatter was kept
+                rows.append({**base, "test": "training alone", "flagged": np.mean([bool(r) for r in with_spread]),
+                             "flagged_surface_margins": np.mean([bool(r) for r in law.applicability(X)]),
+                             **_reason_kinds(with_spread)})
+                shape_of = np.array([shapes[s] for s in specimens])
+                for trained in ("rectangular", "circular"):
+                    train = shape_of == trained
+                    one = PeakPowerLaw(**settings).fit(X[train], y[train], surfaces=specimens[train])
+                    alone = one.applicability(X[~train])
+                    together = one.applicability(X[~train], surfaces=specimens[~train])
+                    rows.append({**base, "test": f"{trained} trained, other shape",
+                                 "flagged": np.mean([bool(r) for r in alone]),
+                                 "flagged_together": np.mean([bool(r) for r in together]), **_reason_kinds(alone)})
+    return pd.DataFrame(rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--csv", help="write the table here too")
+    parser.add_argument("--flags", action="store_true", help="the domain's flags press by press instead")
     args = parser.parse_args()
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
-    frame = ablation(args.seeds)
     pd.set_option("display.width", 200)
+    if args.flags:
+        frame = flag_table(args.seeds)
+        print("\nShare of presses flagged, read alone (flagged), by reason; surface margins only; other shape together")
+        print(frame.round(3).to_string(index=False))
+        print("\nWorst cell per pad and test:")
+        print(frame.groupby(["pad", "test"])[["flagged", "flagged_surface_margins", "flagged_together", "shape"]]
+              .agg(["min", "max"]).round(3).to_string())
+        if args.csv:
+            frame.to_csv(args.csv, index=False)
+        return
+    frame = ablation(args.seeds)
     for scheme in ("loso", "lopo"):
         part = frame[frame.scheme == scheme]
         print(f"\n{scheme.upper()}: mean per-specimen RMSE (NaN: the harmonic ratio is not readable on every surface)")

@@ -21,6 +21,7 @@ import numpy as np
 
 from .peak_law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
 from .pls import SIMPLS
+from .press_spread import PressScatter
 
 #: Share of held-out training rows inside the limits (the cross-validated percentile).
 DOMAIN_LEVEL = 0.95
@@ -38,28 +39,33 @@ class PeakDomain:
     #: The trained surfaces' second-harmonic log ratios (the contact's shape, sensor/shape.py); unbounded where
     #: the law could not read it on every training surface.
     harmonic_range: tuple[float, float] = (-np.inf, np.inf)
+    #: The training presses' scatter about their surfaces (model/press_spread.py); None: surface margins alone.
+    press_scatter: PressScatter | None = None
 
     @classmethod
     def of(cls, law: PeakPowerLaw) -> PeakDomain:
         return cls(np.asarray(law.freq_per_mm_, float), (float(law.feature_min_[0]), float(law.feature_max_[0])),
                    float(law.clarity_limit_), law.pad_ridge_period_mm, float(law.exclusion_per_mm),
-                   (float(law.feature_min_[HARMONIC]), float(law.feature_max_[HARMONIC])))
+                   (float(law.feature_min_[HARMONIC]), float(law.feature_max_[HARMONIC])),
+                   law.press_scatter_)
 
     def reasons(self, X, n_blocks: int, surfaces=None) -> list[str]:
         readout = peak_readout(X, self.freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
                                exclusion_per_mm=self.exclusion_per_mm, surfaces=surfaces)
         unbounded = PeakReadout(np.column_stack([readout.features[:, 0], np.zeros(len(readout.clarity)),
                                                  readout.features[:, HARMONIC]]),
-                                readout.clarity, readout.agreement)  # PLS has no peak-strength range
+                                readout.clarity, readout.agreement, readout.presses,
+                                readout.overshoot)  # no peak-strength range
         low = np.array([self.log_frequency_range[0], -np.inf, self.harmonic_range[0]])
         high = np.array([self.log_frequency_range[1], np.inf, self.harmonic_range[1]])
         step = float(self.freq_per_mm[1] - self.freq_per_mm[0])
-        return domain_reasons(unbounded, low, high, self.clarity_limit, step)
+        return domain_reasons(unbounded, low, high, self.clarity_limit, step, self.press_scatter)
 
     def to_dict(self) -> dict:
         return {"log_frequency_range": list(self.log_frequency_range), "clarity_limit": self.clarity_limit,
                 "pad_ridge_period_mm": self.pad_ridge_period_mm, "exclusion_per_mm": self.exclusion_per_mm,
-                "harmonic_range": [v if np.isfinite(v) else None for v in self.harmonic_range]}
+                "harmonic_range": [v if np.isfinite(v) else None for v in self.harmonic_range],
+                **({} if self.press_scatter is None else {"press_scatter": self.press_scatter.to_dict()})}
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,7 @@ from ..errors import ConfigError, InputError
 from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 from .huber_batch import HUBER_EPSILON, huber_irls
+from .press_spread import PressScatter, deviations, robust_spread, trained_presses
 
 #: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
 #: the third (:func:`law_terms`); the peak amplitude did not earn a term under LOSO and bounds the domain only
@@ -164,11 +165,15 @@ class PeakReadout:
     ``clarity``: log height of the surface's peak above the median of its search band (a grating stands out by
     several log units; a spectrum with no grating in the band, by about one). ``agreement``: the share of the
     surface's presses whose own peak lies within :data:`AGREEMENT_BINS` bins of the surface's (1 for one press).
+    ``presses``: how many presses the row's surface was read from (model/press_spread.py widens its flag margins).
+    ``overshoot``: log of how far the second harmonic lies past the band's readable end (<= 0 inside it).
     """
 
     features: np.ndarray
     clarity: np.ndarray
     agreement: np.ndarray
+    presses: np.ndarray | None = None
+    overshoot: np.ndarray | None = None
 
 
 def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
@@ -192,7 +197,7 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
     if surfaces is None:
         peak, offset, surface_log = own_peak, own_offset, log_amp
         amplitude = _vertex_height(log_amp, peak, offset)
-        agreement = np.ones(n)
+        agreement, presses = np.ones(n), np.ones(n)
     else:
         codes = surface_codes(surfaces, n)
         sums = np.zeros((int(codes.max()) + 1 if n else 0, k_bins))
@@ -204,6 +209,7 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
         amplitude = _parabola_at(log_amp, peak, offset)
         near = np.abs(own_peak + own_offset - surface_top[codes]) <= AGREEMENT_BINS
         agreement = (np.bincount(codes, weights=near) / np.bincount(codes))[codes]
+        presses = np.bincount(codes)[codes].astype(np.float64)
         surface_log = surface_log[codes]
     step = freq[1] - freq[0] if k_bins > 1 else 0.0
     frequency = freq[peak] + offset * step
@@ -211,7 +217,16 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
     # The shape belongs to the surface, like where its peak is: read on the surface's mean spectrum.
     harmonic = harmonic_ratio(surface_log, freq, frequency, pad_ridge_period_mm, exclusion_per_mm) if k_bins > 1 \
         else np.full(n, np.nan)
-    return PeakReadout(np.column_stack([np.log(frequency), amplitude, harmonic]), clarity, agreement)
+    overshoot = np.log(2 * frequency / (freq[-1] + step)) if k_bins > 1 else np.zeros(n)
+    return PeakReadout(np.column_stack([np.log(frequency), amplitude, harmonic]), clarity, agreement, presses,
+                       overshoot)
+
+
+def press_deviations(spectra, surface: PeakReadout, **reading) -> np.ndarray:
+    """(n, 4) each press read alone less its surface's reading ``surface`` (the three features, the clarity):
+    the scatter model/press_spread.py sets the flag margins from. ``reading``: :func:`peak_readout`'s settings."""
+    alone = peak_readout(spectra, **reading)
+    return deviations(alone.features, alone.clarity, surface.features, surface.clarity)
 
 
 def surface_codes(surfaces, n: int) -> np.ndarray:
@@ -337,6 +352,8 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
     where its peak is, read on their mean spectrum).
     Fitted: ``coef_`` (3,), ``intercept_``, ``scale_`` (robust residual SD, log units), ``feature_min_`` and
     ``feature_max_`` (the range of the rows the Huber fit kept, weight >= 0.5, used to clip and to flag),
+    ``press_scatter_`` (the training presses' robust scatter about their surfaces, which widens the flag for a
+    surface read from fewer presses than the trained ones, model/press_spread.py; None without ``surfaces``),
     ``freq_per_mm_``.
 
     Parameters
@@ -427,9 +444,12 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
     def _features(self, X: np.ndarray, surfaces=None) -> np.ndarray:
         return self._readout(X, surfaces).features
 
+    def _reading(self) -> dict:
+        return {"freq_per_mm": self.freq_per_mm_, "n_blocks": int(self.n_blocks),
+                "pad_ridge_period_mm": self.pad_ridge_period_mm, "exclusion_per_mm": float(self.exclusion_per_mm)}
+
     def _readout(self, X: np.ndarray, surfaces=None) -> PeakReadout:
-        return peak_readout(X, self.freq_per_mm_, n_blocks=int(self.n_blocks), surfaces=surfaces,
-                            pad_ridge_period_mm=self.pad_ridge_period_mm, exclusion_per_mm=float(self.exclusion_per_mm))
+        return peak_readout(X, **self._reading(), surfaces=surfaces)
 
     def fit(self, X, y, surfaces=None):
         """Fit the law by Huber's M-estimator and record the range of the rows it kept.
@@ -468,6 +488,10 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
                                shape_read(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
         self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
         self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
+        everything = np.ones((1, len(y)), dtype=bool)
+        self.press_scatter_ = None if surfaces is None else PressScatter(
+            robust_spread(press_deviations(X, readout, **self._reading()), everything)[0],
+            float(trained_presses(surface_codes(surfaces, len(y)), everything)[0]))
         return self
 
     def predict(self, X, surfaces=None) -> np.ndarray:
@@ -521,7 +545,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              _step(self.freq_per_mm_))
+                              _step(self.freq_per_mm_), self.press_scatter_)
 
 
 def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: float, epsilon: float,
@@ -568,24 +592,30 @@ def outside_each(features: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.
     return (features < low - _RANGE_TOL) | (features > high + _RANGE_TOL)
 
 
-def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def domain_margins(freq_step_per_mm: float, low: np.ndarray, high: np.ndarray, extra=None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """The law's domain: the kept training range (``low``, ``high``: (..., 2)) widened by what a feature may lie
     beyond it and still count as inside. The law is applied unclipped inside and held at the domain's edge outside,
-    so a prediction is held exactly when it is flagged.
+    so a prediction is held exactly when it is flagged (for a surface read from fewer presses than the trained ones,
+    only beyond its presses' scatter, ``extra``, is it flagged).
 
     The period is read to about half a grid bin, so two gratings of one period can read 1-2 % apart: half a bin
     either side of the trained frequencies. The peak strength varies from press to press by more than that:
-    :data:`LOG_MARGIN` either side.
+    :data:`LOG_MARGIN` either side. ``extra`` (n, p): a surface of few presses' excess scatter
+    (model/press_spread.py), added in quadrature: (n, p) margins, for the flags only.
     """
     step = float(freq_step_per_mm)
     low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
     below, above = np.full(low.shape, LOG_MARGIN), np.full(high.shape, LOG_MARGIN)
     below[..., 0] = np.log1p(0.5 * step / np.exp(low[..., 0]))
     above[..., 0] = np.log1p(0.5 * step / np.exp(high[..., 0]))
+    if extra is not None:
+        below, above = np.hypot(below, extra), np.hypot(above, extra)
     return low - below, high + above
 
 
-def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, shown=None) -> list[str]:
+def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, shown=None, tolerated=None
+                  ) -> list[str]:
     """Per row, what lies outside the range [low, high] (margins included), in a user's words ('' where nothing).
 
     The frequency is said as a period (what a user designs), the amplitude as the peak's strength; ``shown``: the
@@ -594,6 +624,8 @@ def range_reasons(features: np.ndarray, low: np.ndarray, high: np.ndarray, *, sh
     outside = outside_each(features, low, high)
     # The law reads the contact's shape where its range is bounded; a row whose shape cannot be read is then unsure.
     unread = np.isnan(features) & np.isfinite(low) & np.isfinite(high)
+    if tolerated is not None:  # a shape unread only because the period's scatter put its harmonic past the band
+        unread[:, HARMONIC:] &= ~np.asarray(tolerated, dtype=bool)[:, None]
     low, high = (low, high) if shown is None else shown
     reasons = []
     for row, out, blind in zip(features, outside, unread):
@@ -622,16 +654,25 @@ def _shape_words(ratio: float, low: float, high: float) -> str:
 
 
 def domain_reasons(readout: PeakReadout, low: np.ndarray, high: np.ndarray, clarity_limit: float | None,
-                   freq_step_per_mm: float) -> list[str]:
+                   freq_step_per_mm: float, scatter: PressScatter | None = None) -> list[str]:
     """Per row, every way it lies outside the law's domain ('' where none): period and peak strength outside the
     kept training range (:func:`domain_margins`), a spectrum with no clear peak, presses that disagree on where the
-    peak is. ``clarity_limit`` None: a model file written before the clarity was kept (not checked)."""
-    reasons = range_reasons(readout.features, *domain_margins(freq_step_per_mm, low, high), shown=(low, high))
+    peak is. ``clarity_limit`` None: a model file written before the clarity was kept (not checked).
+    ``scatter``: the training presses' scatter about their surfaces (model/press_spread.py); a row read from fewer
+    presses than the trained surfaces is flagged only beyond it too. None: the surface margins alone."""
+    slack, tolerated, extra = np.zeros(len(readout.clarity)), None, None
+    if scatter is not None and readout.presses is not None:
+        extra = scatter.excess(readout.presses)  # (n, 4)
+        slack = np.hypot(LOG_MARGIN, extra[:, 3]) - LOG_MARGIN
+        if readout.overshoot is not None:
+            tolerated = (readout.overshoot > 0) & (readout.overshoot <= extra[:, FREQUENCY])
+    low_m, high_m = domain_margins(freq_step_per_mm, low, high, None if extra is None else extra[:, :3])
+    reasons = range_reasons(readout.features, low_m, high_m, shown=(low, high), tolerated=tolerated)
     for i, clarity in enumerate(readout.clarity):
         parts = [reasons[i]] if reasons[i] else []
-        if clarity_limit is not None and clarity < clarity_limit:
+        if clarity_limit is not None and clarity < clarity_limit - slack[i]:
             parts.append(f"spectrum shape: no clear peak (it stands {clarity:.2f} log units above the band's median, "
-                         f"every trained surface at least {clarity_limit:.2f})")
+                         f"every trained surface at least {clarity_limit - slack[i]:.2f})")
         if readout.agreement[i] < MIN_AGREEMENT:
             parts.append(f"only {readout.agreement[i]:.0%} of the surface's presses peak at its period")
         reasons[i] = "; ".join(parts)
@@ -750,10 +791,16 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
     the flag a user would have seen for a surface the law never saw. Equal to refitting on every fold."""
     X = np.asarray(X, dtype=np.float64)
     log_y = np.log(np.asarray(y, dtype=np.float64))[None, :]
-    readout = peak_readout(X, freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,
-                           exclusion_per_mm=exclusion_per_mm, surfaces=surfaces)
+    reading = {"freq_per_mm": freq_per_mm, "n_blocks": n_blocks, "pad_ridge_period_mm": pad_ridge_period_mm,
+               "exclusion_per_mm": exclusion_per_mm}
+    readout = peak_readout(X, **reading, surfaces=surfaces)
     fold_of = np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     held_out = fold_of[None, :] == np.arange(int(fold_of.max()) + 1)[:, None]
+    scatter = [None] * held_out.shape[0]
+    if surfaces is not None:
+        counts = trained_presses(surface_codes(surfaces, X.shape[0]), ~held_out)
+        spread = robust_spread(press_deviations(X, readout, **reading), ~held_out)
+        scatter = [PressScatter(spread[f], float(counts[f])) for f in range(held_out.shape[0])]
     beta, scale = fit_terms(readout.features, log_y, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = fold_kept_ranges(readout.features, log_y, ~held_out, beta, scale, epsilon, surfaces)
     fitted = beta[:, 0, 0][None, :] + np.nan_to_num(readout.features) @ beta[:, 0, 1:].T  # (n, F)
@@ -764,6 +811,7 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
         kept = _kept(np.abs(log_y[0] - fitted[:, fold])[None, None], scale[fold:fold + 1], epsilon, train[None],
                      surfaces)[0, 0]
         limit = float(readout.clarity[kept].min()) - LOG_MARGIN
-        part = PeakReadout(readout.features[rows], readout.clarity[rows], readout.agreement[rows])
-        flags[rows] = [bool(r) for r in domain_reasons(part, low[fold, 0], high[fold, 0], limit, step)]
+        part = PeakReadout(readout.features[rows], readout.clarity[rows], readout.agreement[rows],
+                           readout.presses[rows], readout.overshoot[rows])
+        flags[rows] = [bool(r) for r in domain_reasons(part, low[fold, 0], high[fold, 0], limit, step, scatter[fold])]
     return flags

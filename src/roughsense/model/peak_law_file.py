@@ -5,7 +5,7 @@ The section beside the document's ``features`` (whose spectrum holds the frequen
     {"kind": "peak-power-law", "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
      "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2, b3], "scale": s,
      "feature_min": [3], "feature_max": [3], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude",
-     "log_second_harmonic_ratio"], "clarity_limit": c}
+     "log_second_harmonic_ratio"], "clarity_limit": c, "press_scatter": {"spread": [4], "trained_presses": k}}
 
 A coefficient of 0 is a feature that is no term of the law (the amplitude always; the harmonic ratio where a
 training surface did not show it), and such a harmonic ratio's range is null (unbounded). A file written before the
@@ -13,7 +13,10 @@ harmonic ratio existed has two of each and loads as a law without it.
 
 ``feature_min``/``feature_max`` are the range of the rows the fit kept and ``clarity_limit`` the least clear peak it
 accepts (:func:`~roughsense.model.peak_law.domain_reasons`); a file written before ``clarity_limit`` existed loads
-without it, and its predictions are then not checked for a clear peak.
+without it, and its predictions are then not checked for a clear peak. ``press_scatter`` is the training presses'
+scatter about their surfaces (log frequency, log amplitude, harmonic ratio, clarity) and the presses per trained
+surface (model/press_spread.py), which widen the flag for a surface read from fewer presses; a file without it
+flags on the surface margins alone.
 
 Why each field is bounded. The checksum of a model file is unkeyed, so anyone can edit a number and re-sign it: the
 field checks are what refuse a file that would predict nonsense. The bounds are loose enough for any law fitted on
@@ -48,6 +51,7 @@ from .peak_law import (
     predict_law,
     search_bins,
 )
+from .press_spread import N_SPREAD, PressScatter
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -70,7 +74,9 @@ _PAD_PERIOD = Real(BOUNDS["ridge_period_mm"].low, BOUNDS["ridge_period_mm"].high
 _PAIRS = ("coefficients", "feature_min", "feature_max")
 FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_PAIRS, "feature_names")
 #: Fields a file may lack (written before they existed).
-OPTIONAL_FIELDS = ("clarity_limit",)
+OPTIONAL_FIELDS = ("clarity_limit", "press_scatter")
+#: One number of the training presses' scatter (log units, >= 0).
+_SPREAD = Real(0.0, LIMIT)
 
 
 @dataclass(frozen=True)
@@ -93,6 +99,7 @@ class LoadedPeakLaw:
     features: dict
     training: dict
     roughsense_version: str
+    press_scatter_: PressScatter | None = None
 
     @property
     def n_features(self) -> int:
@@ -127,7 +134,7 @@ class LoadedPeakLaw:
         """Per row, what lies outside what the law was fitted on ('' where nothing does)."""
         step = float(self.freq_per_mm[1] - self.freq_per_mm[0]) if self.freq_per_mm.size > 1 else 0.0
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              step)
+                              step, self.press_scatter_)
 
     def extrapolates(self, X, surfaces=None) -> np.ndarray:
         """True where a row lies outside the law's domain (:meth:`applicability` says how)."""
@@ -153,6 +160,7 @@ def law_section(model: PeakPowerLaw) -> dict:
         "feature_max": [float(v) if math.isfinite(v) else None for v in model.feature_max_],
         "feature_names": list(FEATURE_NAMES),
         "clarity_limit": float(model.clarity_limit_),
+        **({} if model.press_scatter_ is None else {"press_scatter": model.press_scatter_.to_dict()}),
     }
 
 
@@ -203,8 +211,24 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
         exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"], intercept_=scalars["intercept"],
         coef_=pairs["coefficients"], scale_=scalars["scale"], feature_min_=pairs["feature_min"],
         feature_max_=pairs["feature_max"], clarity_limit_=clarity, features=features, training=training,
-        roughsense_version=roughsense_version,
+        roughsense_version=roughsense_version, press_scatter_=press_scatter(section, "model", path),
     )
+
+
+def press_scatter(section: dict, where: str, path: Path | None) -> PressScatter | None:
+    """The section's ``press_scatter`` ({"spread": 4 numbers >= 0, "trained_presses": a count >= 1}), or None where
+    the file predates it (or the law was fitted without surfaces)."""
+    if "press_scatter" not in section:
+        return None
+    value = section["press_scatter"]
+    spread = value.get("spread") if isinstance(value, dict) else None
+    count = value.get("trained_presses") if isinstance(value, dict) else None
+    if not isinstance(value, dict) or set(value) != {"spread", "trained_presses"} or not isinstance(spread, list) \
+            or len(spread) != N_SPREAD or not all(_SPREAD.accepts(v) for v in spread) \
+            or not Real(1.0, 1e6).accepts(count):
+        raise ModelFileError(f"{where}.press_scatter must be {{\"spread\": {N_SPREAD} numbers from 0 to {LIMIT:g}, "
+                             f"\"trained_presses\": a count >= 1}}, got {shown(value)}", path=path)
+    return PressScatter(np.array(spread, dtype=np.float64), float(count))
 
 
 def _checked(section: dict, name: str, constraint: Constraint, path: Path | None, *, must: str | None = None):
@@ -280,9 +304,9 @@ def peak_domain(section, features: dict, path: Path | None):
 
     where = "model.applicability.peak"
     fields = {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"}
-    if not isinstance(section, dict) or set(section) - {"harmonic_range"} != fields:
+    if not isinstance(section, dict) or set(section) - {"harmonic_range", "press_scatter"} != fields:
         raise ModelFileError(f"{where} must have exactly the fields log_frequency_range, clarity_limit, "
-                             "pad_ridge_period_mm, exclusion_per_mm (and harmonic_range)", path=path)
+                             "pad_ridge_period_mm, exclusion_per_mm (and harmonic_range, press_scatter)", path=path)
     harmonic = section.get("harmonic_range", [None, None])
     if not isinstance(harmonic, list) or len(harmonic) != 2 or not all(v is None or _BOUNDED.accepts(v)
                                                                        for v in harmonic):
@@ -308,4 +332,5 @@ def peak_domain(section, features: dict, path: Path | None):
     except ValueError as exc:
         raise ModelFileError(f"{where}: {exc}", path=path) from None
     return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
-                      None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic)
+                      None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic,
+                      press_scatter(section, where, path))
