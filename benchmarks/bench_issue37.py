@@ -45,7 +45,8 @@ def study(out: Path, permutations: int, *, src: Path | None = None, data: Path |
     process.returncode = os.waitstatus_to_exitcode(status)
     if process.returncode:
         raise SystemExit(f"study failed ({process.returncode}): {err}")
-    return {"wall": wall, "rss": usage.ru_maxrss / 1024, **{name: float(s) for name, s in STAGE.findall(err)}}
+    return {"wall": wall, "rss": usage.ru_maxrss / 1024, "cpu": usage.ru_utime + usage.ru_stime,
+            **{name: float(s) for name, s in STAGE.findall(err)}}
 
 
 def median(runs: list[dict], key: str) -> float:
@@ -71,12 +72,13 @@ def ratio(args, scratch: Path) -> None:
               f"{median(off, 'writing the report'):4.1f} s ({median(off, 'writing the report') / median(off, 'wall'):.0%} "
               f"of the study); 199: {median(on, 'wall'):5.1f} s, {median(on, 'rss'):4.0f} MiB, controls "
               f"{median(on, 'controls'):4.1f} s -> 199 / 0 = {median(on, 'wall') / median(off, 'wall'):.2f} "
-              f"(runs 0: {walls(off)}; 199: {walls(on)})")
+              f"(runs 0: {walls(off)}; 199: {walls(on)}); CPU 0: {median(off, 'cpu'):.1f} s, 199: "
+              f"{median(on, 'cpu'):.1f} s -> {median(on, 'cpu') / median(off, 'cpu'):.2f}")
 
 
 def growth(args, scratch: Path) -> None:
     specimens = "R2,R2.5,R3,R3.5,R4,R4.5,R5,C2,C2.5,C3,C3.5,C4,C4.5,C5"
-    results = {}
+    results, extra_cpu = {}, {}
     for repetitions in (10, 20):
         folder = scratch / f"smooth-{repetitions}"
         subprocess.run([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(folder), "--seed", "0",
@@ -87,9 +89,11 @@ def growth(args, scratch: Path) -> None:
         off = study(scratch / f"g{repetitions}-0", 0, data=folder)
         on = results[repetitions]
         print(f"{repetitions} repetitions ({14 * 3 * repetitions} images): 199 shufflings {median(on, 'wall'):5.1f} s, "
-              f"controls {median(on, 'controls'):5.1f} s, peak {median(on, 'rss'):4.0f} MiB; "
-              f"--permutations 0 {off['wall']:5.1f} s, {off['rss']:4.0f} MiB")
-    print(f"controls at 20 / at 10 = {median(results[20], 'controls') / median(results[10], 'controls'):.2f}")
+              f"controls {median(on, 'controls'):5.1f} s, peak {median(on, 'rss'):4.0f} MiB, CPU {median(on, 'cpu'):.1f} s; "
+              f"--permutations 0 {off['wall']:5.1f} s, {off['rss']:4.0f} MiB, CPU {off['cpu']:.1f} s")
+        extra_cpu[repetitions] = median(on, "cpu") - off["cpu"]
+    print(f"controls at 20 / at 10 = {median(results[20], 'controls') / median(results[10], 'controls'):.2f}; "
+          f"CPU the shufflings add, at 20 / at 10 = {extra_cpu[20] / extra_cpu[10]:.2f}")
 
 
 def main() -> None:
