@@ -70,9 +70,10 @@ def distinct_masks(rows: np.ndarray, masks: np.ndarray) -> tuple[np.ndarray, np.
     flat = np.ascontiguousarray(rows)
     _, row_class = np.unique(flat.view(np.dtype((np.void, flat.dtype.itemsize * flat.shape[1]))).ravel(),
                              return_inverse=True)
-    members = np.zeros((flat.shape[0], int(row_class.max(initial=-1)) + 1), dtype=np.intp)
-    members[np.arange(flat.shape[0]), row_class.ravel()] = 1
-    _, first, same_as = np.unique(masks.astype(np.intp) @ members, axis=0, return_index=True, return_inverse=True)
+    by_class = np.argsort(row_class.ravel(), kind="stable")
+    starts = np.flatnonzero(np.diff(row_class.ravel()[by_class], prepend=-1))
+    taken = np.add.reduceat(masks[:, by_class].astype(np.intp), starts, axis=1)  # (F, classes), O(F n)
+    _, first, same_as = np.unique(taken, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)  # keep the masks' own order: the first mask's problem is solved first
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
