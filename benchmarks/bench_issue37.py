@@ -85,9 +85,10 @@ def growth(args, scratch: Path) -> None:
     results, extra_cpu = {}, {}
     for repetitions in (10, 20):
         folder = scratch / f"smooth-{repetitions}"
-        subprocess.run([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(folder), "--seed", "0",
-                        "--pads", "smooth", "--specimens", specimens, "--repetitions", str(repetitions)],
-                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        if not (folder / "ratings.csv").is_file():  # a --scratch of an earlier run keeps its simulated studies
+            subprocess.run([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(folder), "--seed", "0",
+                            "--pads", "smooth", "--specimens", specimens, "--repetitions", str(repetitions)],
+                           check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         study(scratch / "warm", 0, data=folder)  # features into the cache
         results[repetitions] = [study(scratch / f"g{repetitions}", 199, data=folder) for _ in range(args.repeats)]
         off = study(scratch / f"g{repetitions}-0", 0, data=folder)
@@ -161,13 +162,14 @@ def main() -> None:
     parser.add_argument("--growth", action="store_true", help="Only the growth at 10 and 20 repetitions.")
     parser.add_argument("--chunks", action="store_true", help="Only the controls' chunk sizes (CPU, peak RSS).")
     parser.add_argument("--chunk-run", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--scratch", type=Path, default=None, help="Reuse this folder (e.g. its simulated studies).")
     args = parser.parse_args()
     if args.chunk_run:
         chunk_run(Path(args.chunk_run[0]), int(args.chunk_run[1]), int(args.chunk_run[2]))
         return
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
-    scratch = Path(tempfile.mkdtemp(prefix="roughsense-bench-issue37-"))
+    scratch = args.scratch or Path(tempfile.mkdtemp(prefix="roughsense-bench-issue37-"))
     (growth if args.growth else chunks if args.chunks else ratio)(args, scratch)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
 
