@@ -38,7 +38,7 @@ MAX_PERMUTATIONS = 10_000
 #: The peak law's shufflings run in chunks of about this many cells (folds x shufflings x presses) a working array:
 #: 4 MiB of float64 (a 140-press leave-one-out in 8 chunks), whatever the number of presses. Its IRLS solves one problem
 #: per specimen (huber_batch), so what is left at this size is the kept ranges' arrays: 2^21 cells held the two control
-#: threads ~65 MiB higher at the same CPU, 2^17 cost more CPU (benchmarks/bench_issue37.py).
+#: threads ~40 MiB higher at the same CPU, 2^17 cost 13 % more CPU (benchmarks/bench_issue37.py --chunks).
 LAW_CHUNK_CELLS = 1 << 19
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",

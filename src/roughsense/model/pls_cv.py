@@ -176,8 +176,9 @@ def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.n
 
 
 # A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes. The steps are memory-bound
-# (every reorthogonalisation reads the whole basis): 8 MiB, within the shared cache, cost ~20 % less CPU than 64 MiB and
-# held a permutation control's peak ~100 MiB lower; 2 MiB cost more (numpy's per-call overhead; bench_issue37.py).
+# (every reorthogonalisation reads the whole basis): 8 MiB, within the shared cache, cost 13 % less CPU than 64 MiB and
+# held the study's two control threads 250 MiB lower; 2 MiB cost 23 % more (numpy's per-call overhead; bench_issue37.py
+# --chunks).
 _BATCH_BYTES = 8 * 2**20
 
 
