@@ -324,7 +324,8 @@ def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[i
     fid = np.repeat(np.arange(first.size), [r.size for r in pair_rows])
     own = np.argmax(held[:, rows], axis=0)
     run = np.where(own == first[fid], second[fid], first[fid])  # the inner run an entry is held out for
-    entries = [np.flatnonzero(run == j) for j in range(S)]  # in sample order: pairs (j, k) by k, rows sorted
+    entries = [np.flatnonzero(run == j) for j in range(S)]
+    entries = [e[np.argsort(rows[e], kind="stable")] for e in entries]  # each run's entries in X's row order
     chunk = max(1, _BATCH_BYTES // ((U + 3) * first.size * min(X.shape) * 8))
     chosen = np.empty((Y.shape[1], S), dtype=int)
     try:
