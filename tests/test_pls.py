@@ -269,6 +269,27 @@ def test_nested_choice_is_each_groups_own_inner_cv_from_one_leave_two_out_batch(
             np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
 
 
+def test_chunks_of_one_target_share_one_rotation_and_equal_one_batch(monkeypatch):
+    """Targets cut into chunks (8 MiB of Lanczos vectors; here one target each) reuse X's one rotation and give what one
+    batch gives, to rounding; docs/pls.md quotes the chunk size the code uses."""
+    from pathlib import Path
+
+    from roughsense.model import pls_cv as engine
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "pls.md").read_text(encoding="utf-8")
+    assert f"({engine._BATCH_BYTES >> 20} MiB of Lanczos vectors)" in docs
+    X, y, groups = spectra(n_specimens=5, repetitions=3, p=10, seed=4)
+    Y = np.column_stack([y, y[::-1], np.sqrt(y)])
+    whole = engine.pls_cv_many(X, Y, max_components=4, groups=groups)
+    rotations = []
+    original = engine._rotation
+    monkeypatch.setattr(engine, "_rotation", lambda X: rotations.append(1) or original(X))
+    monkeypatch.setattr(engine, "_BATCH_BYTES", 1)
+    chunked = engine.pls_cv_many(X, Y, max_components=4, groups=groups)
+    assert len(rotations) == 1  # three chunks, one SVD
+    np.testing.assert_allclose(chunked.predictions, whole.predictions, rtol=1e-10, atol=1e-12)
+
+
 def test_result_layout_and_one_se_rule():
     X, y, groups = spectra(n_specimens=8, repetitions=4, p=30, seed=7)
     result = pls_cv(X, y, max_components=10, groups=groups)
