@@ -8,10 +8,14 @@
   scratch folder, features cached by an untimed first run); the controls stage's time and the peak RSS with 199
   shufflings (goals: time at 20 <= 2.2x time at 10; RSS at 20 <= 500 MB).
 
+- Chunks (``--chunks``): the controls alone (``run_controls``, 2 threads, the built-in study's 32 jobs) in fresh
+  processes for chunk sizes of the law's shufflings (``controls.LAW_CHUNK_CELLS``) and of PLS's targets
+  (``pls_cv._BATCH_BYTES``): CPU and peak RSS above the process's own before the controls.
+
 Stage times are the CLI's own stage lines (``roughsense: controls, ... done in 12.3 s``; a stage under 2 s prints
 none). Peak RSS is ``wait4``'s of the study process.
 
-Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src] [--growth]
+Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src] [--growth | --chunks]
 (ROUGHSENSE_CACHE_DIR selects the cache; the built-in study is simulated there on first use.)
 """
 from __future__ import annotations
@@ -45,7 +49,8 @@ def study(out: Path, permutations: int, *, src: Path | None = None, data: Path |
     process.returncode = os.waitstatus_to_exitcode(status)
     if process.returncode:
         raise SystemExit(f"study failed ({process.returncode}): {err}")
-    return {"wall": wall, "rss": usage.ru_maxrss / 1024, **{name: float(s) for name, s in STAGE.findall(err)}}
+    return {"wall": wall, "rss": usage.ru_maxrss / 1024, "cpu": usage.ru_utime + usage.ru_stime,
+            **{name: float(s) for name, s in STAGE.findall(err)}}
 
 
 def median(runs: list[dict], key: str) -> float:
@@ -71,25 +76,83 @@ def ratio(args, scratch: Path) -> None:
               f"{median(off, 'writing the report'):4.1f} s ({median(off, 'writing the report') / median(off, 'wall'):.0%} "
               f"of the study); 199: {median(on, 'wall'):5.1f} s, {median(on, 'rss'):4.0f} MiB, controls "
               f"{median(on, 'controls'):4.1f} s -> 199 / 0 = {median(on, 'wall') / median(off, 'wall'):.2f} "
-              f"(runs 0: {walls(off)}; 199: {walls(on)})")
+              f"(runs 0: {walls(off)}; 199: {walls(on)}); CPU 0: {median(off, 'cpu'):.1f} s, 199: "
+              f"{median(on, 'cpu'):.1f} s -> {median(on, 'cpu') / median(off, 'cpu'):.2f}")
 
 
 def growth(args, scratch: Path) -> None:
     specimens = "R2,R2.5,R3,R3.5,R4,R4.5,R5,C2,C2.5,C3,C3.5,C4,C4.5,C5"
-    results = {}
+    results, extra_cpu = {}, {}
     for repetitions in (10, 20):
         folder = scratch / f"smooth-{repetitions}"
-        subprocess.run([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(folder), "--seed", "0",
-                        "--pads", "smooth", "--specimens", specimens, "--repetitions", str(repetitions)],
-                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        if not (folder / "ratings.csv").is_file():  # a --scratch of an earlier run keeps its simulated studies
+            subprocess.run([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(folder), "--seed", "0",
+                            "--pads", "smooth", "--specimens", specimens, "--repetitions", str(repetitions)],
+                           check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         study(scratch / "warm", 0, data=folder)  # features into the cache
         results[repetitions] = [study(scratch / f"g{repetitions}", 199, data=folder) for _ in range(args.repeats)]
         off = study(scratch / f"g{repetitions}-0", 0, data=folder)
         on = results[repetitions]
         print(f"{repetitions} repetitions ({14 * 3 * repetitions} images): 199 shufflings {median(on, 'wall'):5.1f} s, "
-              f"controls {median(on, 'controls'):5.1f} s, peak {median(on, 'rss'):4.0f} MiB; "
-              f"--permutations 0 {off['wall']:5.1f} s, {off['rss']:4.0f} MiB")
-    print(f"controls at 20 / at 10 = {median(results[20], 'controls') / median(results[10], 'controls'):.2f}")
+              f"controls {median(on, 'controls'):5.1f} s, peak {median(on, 'rss'):4.0f} MiB, CPU {median(on, 'cpu'):.1f} s; "
+              f"--permutations 0 {off['wall']:5.1f} s, {off['rss']:4.0f} MiB, CPU {off['cpu']:.1f} s")
+        extra_cpu[repetitions] = median(on, "cpu") - off["cpu"]
+    print(f"controls at 20 / at 10 = {median(results[20], 'controls') / median(results[10], 'controls'):.2f}; "
+          f"CPU the shufflings add, at 20 / at 10 = {extra_cpu[20] / extra_cpu[10]:.2f}")
+
+
+def control_jobs(path: Path) -> None:
+    """The built-in study's 32 control jobs, as analyse_study hands them to run_controls, pickled (bench scratch)."""
+    import pickle
+
+    from roughsense._util import cache
+    from roughsense._util.cache import cache_dir
+    from roughsense.analysis import controls, dataset, study_analysis
+    from roughsense.io.study import read_study
+
+    root = next(p for p in sorted(cache_dir().glob("simulated-study-seed0-*")) if (p / "manifest.csv").is_file())
+    study = read_study(root, require_ratings=True)
+    definition = dataset.spectrum_for(study).feature_definition()
+    features, _ = cache.cached_frame(cache.features_key(study, definition),
+                                     lambda: dataset.study_features(study, n_jobs=2))
+    captured = []
+    study_analysis._controls.run_controls = lambda jobs, **_: captured.extend(jobs) or controls.controls_table([])
+    study_analysis.analyse_study(study, features=features, stricter=False)
+    path.write_bytes(pickle.dumps(captured))
+
+
+def chunk_run(path: Path, law_cells: int, pls_bytes: int) -> None:
+    """One fresh process: run_controls (2 threads) on the pickled jobs with these chunk sizes; CPU and peak RSS."""
+    import pickle
+    import resource
+
+    from roughsense.analysis import controls
+    from roughsense.model import pls_cv
+
+    jobs = pickle.loads(path.read_bytes())
+    controls.LAW_CHUNK_CELLS, pls_cv._BATCH_BYTES = law_cells, pls_bytes
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    started = time.process_time()
+    controls.run_controls(jobs, n_jobs=2)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"{time.process_time() - started:.2f} {peak - before:.0f}")
+
+
+def chunks(args, scratch: Path) -> None:
+    """CPU and the controls' own peak RSS (above the jobs' process) for chunk sizes of both families, alternated."""
+    jobs = scratch / "jobs.pickle"
+    control_jobs(jobs)
+    settings = [(1 << 21, 8 << 20), (1 << 19, 8 << 20), (1 << 17, 8 << 20), (1 << 19, 64 << 20), (1 << 19, 2 << 20)]
+    runs = {setting: [] for setting in settings}
+    for _ in range(args.repeats):
+        for law_cells, pls_bytes in settings:
+            out = subprocess.run([sys.executable, __file__, "--chunk-run", str(jobs), str(law_cells), str(pls_bytes)],
+                                 check=True, capture_output=True, text=True).stdout.split()
+            runs[(law_cells, pls_bytes)].append((float(out[0]), float(out[1])))
+    for (law_cells, pls_bytes), some in runs.items():
+        print(f"law chunk 2^{law_cells.bit_length() - 1} cells, PLS chunk {pls_bytes >> 20} MiB: CPU "
+              f"{statistics.median(c for c, _ in some):5.1f} s, controls' peak +{statistics.median(m for _, m in some):4.0f} "
+              f"MiB (runs: {', '.join(f'{c:.1f} s' for c, _ in some)})")
 
 
 def main() -> None:
@@ -97,11 +160,17 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--peer-src", type=Path, default=None)
     parser.add_argument("--growth", action="store_true", help="Only the growth at 10 and 20 repetitions.")
+    parser.add_argument("--chunks", action="store_true", help="Only the controls' chunk sizes (CPU, peak RSS).")
+    parser.add_argument("--chunk-run", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--scratch", type=Path, default=None, help="Reuse this folder (e.g. its simulated studies).")
     args = parser.parse_args()
+    if args.chunk_run:
+        chunk_run(Path(args.chunk_run[0]), int(args.chunk_run[1]), int(args.chunk_run[2]))
+        return
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
-    scratch = Path(tempfile.mkdtemp(prefix="roughsense-bench-issue37-"))
-    (growth if args.growth else ratio)(args, scratch)
+    scratch = args.scratch or Path(tempfile.mkdtemp(prefix="roughsense-bench-issue37-"))
+    (growth if args.growth else chunks if args.chunks else ratio)(args, scratch)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
 
 

@@ -114,6 +114,32 @@ def test_huber_irls_in_chunks_of_one_cell_equals_statsmodels_on_each_problem(mon
                 np.testing.assert_allclose(chunked[fold, b], rlm_params(features[rows], targets[b, rows]), atol=2e-7)
 
 
+def test_huber_irls_solves_interchangeable_masks_once_and_each_equals_statsmodels(monkeypatch):
+    """Presses of one specimen share its features and (shuffled) target: leave-one-out's masks of one specimen pose
+    one problem, solved once, and every fold's fit is still statsmodels' RLM on that fold's own training rows."""
+    from roughsense.model import huber_batch
+
+    base, y = contaminated(5, n=12)
+    features, targets = np.repeat(base, 4, axis=0), np.vstack([np.repeat(y, 4), np.repeat(y[::-1], 4)])
+    train = ~np.eye(48, dtype=bool)  # leave-one-out over 48 presses of 12 specimens
+    solved = []
+    original = huber_batch._irls_chunk
+    monkeypatch.setattr(huber_batch, "_irls_chunk", lambda d, t, m, e: solved.append(m.shape[0]) or original(d, t, m, e))
+    beta, scale = huber_irls(features, targets, train)
+    assert sum(solved) == 12 * 2  # 12 specimens x 2 targets, not 48 x 2
+    assert beta.shape == (48, 2, 3) and scale.shape == (48, 2)
+    for fold in range(48):
+        for b in range(2):
+            rows = train[fold]
+            np.testing.assert_allclose(beta[fold, b], rlm_params(features[rows], targets[b, rows]), atol=2e-7)
+    # A press whose target differs from its specimen's in one column is not interchangeable with the others.
+    targets[1, 0] += 1.0
+    solved.clear()
+    beta, _ = huber_irls(features, targets, train)
+    assert sum(solved) == (11 + 2) * 2  # its specimen's two masks: without press 0, without one of the 3 others
+    np.testing.assert_allclose(beta[0, 1], rlm_params(features[1:], targets[1, 1:]), atol=2e-7)
+
+
 def test_huge_epsilon_without_outliers_is_least_squares():
     rng = np.random.default_rng(3)
     features = rng.normal(size=(25, 2))

@@ -5,6 +5,7 @@ import contextlib
 import io
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -239,6 +240,54 @@ def test_equals_ikpls_fast_cross_validation():
     for group, y_pred in by_fold.items():
         rows = groups == group
         assert rel_err(ours.predictions[rows, 1:], np.asarray(y_pred)[:, :, 0].T) < 1e-6
+
+
+@pytest.mark.parametrize("drop", [None, 4])  # equal groups (the batched blocks); one group a press short (the loops)
+def test_nested_choice_is_each_groups_own_inner_cv_from_one_leave_two_out_batch(monkeypatch, drop):
+    """Nested LOSO chooses each held-out group's count by a LOSO over the other groups: refitted here group by group,
+    while the batch fits each pair of groups left out once (group j's inner fold k is group k's inner fold j)."""
+    from roughsense.model import pls_cv as engine
+
+    X, y, groups = spectra(n_specimens=6, repetitions=3, p=12, noise=0.05, seed=3)
+    if drop is not None:
+        X, y, groups = np.delete(X, drop, axis=0), np.delete(y, drop), np.delete(groups, drop)
+    names, codes = np.unique(groups, return_inverse=True)
+    rng = np.random.default_rng(1)
+    Y = np.column_stack([y] + [rng.permutation(np.unique(y))[codes] for _ in range(3)])  # shuffled per specimen
+    outer = engine.pls_cv_many(X, Y, max_components=3, groups=groups).predictions
+    overlapping = []
+    original = engine._cv_predictions
+    monkeypatch.setattr(engine, "_cv_predictions", lambda *a: overlapping.append(a[4] is not None) or original(*a))
+    nested, chosen = engine.nested_group_predictions(X, Y, groups, outer)
+    assert overlapping and all(overlapping)  # one leave-two-groups-out batch, no per-group runs
+    for j, name in enumerate(pd.unique(groups)):
+        held = groups == name
+        for b in range(Y.shape[1]):
+            inner = refit_predictions(X[~held], Y[~held, b], groups[~held], 3)
+            rmse = np.sqrt(((inner - Y[~held, b][:, None]) ** 2).mean(axis=0))
+            assert chosen[b, j] == 1 + int(np.argmin(rmse[1:]))
+            np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
+
+
+def test_chunks_of_one_target_share_one_rotation_and_equal_one_batch(monkeypatch):
+    """Targets cut into chunks (8 MiB of Lanczos vectors; here one target each) reuse X's one rotation and give what one
+    batch gives, to rounding; docs/pls.md quotes the chunk size the code uses."""
+    from pathlib import Path
+
+    from roughsense.model import pls_cv as engine
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "pls.md").read_text(encoding="utf-8")
+    assert f"({engine._BATCH_BYTES >> 20} MiB of Lanczos vectors)" in docs
+    X, y, groups = spectra(n_specimens=5, repetitions=3, p=10, seed=4)
+    Y = np.column_stack([y, y[::-1], np.sqrt(y)])
+    whole = engine.pls_cv_many(X, Y, max_components=4, groups=groups)
+    rotations = []
+    original = engine._rotation
+    monkeypatch.setattr(engine, "_rotation", lambda X: rotations.append(1) or original(X))
+    monkeypatch.setattr(engine, "_BATCH_BYTES", 1)
+    chunked = engine.pls_cv_many(X, Y, max_components=4, groups=groups)
+    assert len(rotations) == 1  # three chunks, one SVD
+    np.testing.assert_allclose(chunked.predictions, whole.predictions, rtol=1e-10, atol=1e-12)
 
 
 def test_result_layout_and_one_se_rule():

@@ -36,8 +36,10 @@ DEFAULT_PERMUTATIONS = 199
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
 MAX_PERMUTATIONS = 10_000
 #: The peak law's shufflings run in chunks of about this many cells (folds x shufflings x presses) a working array:
-#: 16 MiB of float64 (a 140-press leave-one-out in 2 chunks), whatever the number of presses.
-LAW_CHUNK_CELLS = 1 << 21
+#: 4 MiB of float64 (a 140-press leave-one-out in 8 chunks), whatever the number of presses. Its IRLS solves one problem
+#: per specimen (huber_batch), so what is left at this size is the kept ranges' arrays: 2^21 cells held the two control
+#: threads ~40 MiB higher at the same CPU, 2^17 cost 13 % more CPU (benchmarks/bench_issue37.py --chunks).
+LAW_CHUNK_CELLS = 1 << 19
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN

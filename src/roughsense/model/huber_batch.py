@@ -8,6 +8,12 @@ number of cells they stay in cache-sized arrays whatever the study's size. Each 
 test, so a chunk, like a batch, gives every problem exactly the iterations a fit of that problem alone takes, and the
 chunking changes nothing but the rounding of BLAS products (~1e-13; tests/test_peak_law.py checks a batch against
 each problem fitted on its own).
+
+Many of those problems are one problem. Rows with the same features and the same target in every target column are
+interchangeable (the law reads a specimen's peak on all its presses, and a shuffling gives all of them one value), so
+two masks taking as many rows from each such class pose the same regression: leave-one-out's folds of one specimen's
+presses do. Each distinct problem is solved once, which makes leave-one-out cost as many fits as there are specimens,
+not presses: linear in the presses, not quadratic.
 """
 from __future__ import annotations
 
@@ -41,17 +47,37 @@ def huber_irls(features: np.ndarray, targets: np.ndarray, train: np.ndarray, *,
     """
     n = features.shape[0]
     design = np.column_stack([np.ones(n), features])
-    n_folds, n_targets = train.shape[0], targets.shape[0]
-    n_problems = n_folds * n_targets
+    n_targets = targets.shape[0]
+    # Each distinct mask is solved once, and its fit given to every mask that poses the same problem.
+    distinct, same_as = distinct_masks(np.column_stack([design, targets.T]), train)
+    masks = train[distinct]
+    n_problems = distinct.size * n_targets
     beta = np.empty((n_problems, design.shape[1]))
     scale = np.empty(n_problems)
     size = max(1, CHUNK_CELLS // max(n, 1))
     for start in range(0, n_problems, size):
         problems = np.arange(start, min(start + size, n_problems))
         folds, columns = np.divmod(problems, n_targets)
-        beta[problems], scale[problems] = _irls_chunk(design, targets[columns], train[folds], epsilon)
+        beta[problems], scale[problems] = _irls_chunk(design, targets[columns], masks[folds], epsilon)
     p1 = design.shape[1]
-    return beta.reshape(n_folds, n_targets, p1), scale.reshape(n_folds, n_targets)
+    return beta.reshape(-1, n_targets, p1)[same_as], scale.reshape(-1, n_targets)[same_as]
+
+
+def distinct_masks(rows: np.ndarray, masks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The masks (F, n) that pose distinct problems on ``rows`` (n, k): indices of one of each (the first), and for
+    every mask the index into those of the one posing its problem. Rows are interchangeable when their bytes are
+    equal; two masks pose one problem when they take as many rows of every interchangeable class."""
+    flat = np.ascontiguousarray(rows)
+    _, row_class = np.unique(flat.view(np.dtype((np.void, flat.dtype.itemsize * flat.shape[1]))).ravel(),
+                             return_inverse=True)
+    by_class = np.argsort(row_class.ravel(), kind="stable")
+    starts = np.flatnonzero(np.diff(row_class.ravel()[by_class], prepend=-1))
+    taken = np.add.reduceat(masks[:, by_class].astype(np.intp), starts, axis=1)  # (F, classes), O(F n)
+    _, first, same_as = np.unique(taken, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # keep the masks' own order: the first mask's problem is solved first
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return first[order], rank[same_as.ravel()]
 
 
 def _irls_chunk(design: np.ndarray, targets: np.ndarray, mask: np.ndarray,

@@ -175,8 +175,11 @@ def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.n
     return rmse, rmse_se, fold_mse
 
 
-# A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes.
-_BATCH_BYTES = 64 * 2**20
+# A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes. The steps are memory-bound
+# (every reorthogonalisation reads the whole basis): 8 MiB, within the shared cache, cost 13 % less CPU than 64 MiB and
+# held the study's two control threads 250 MiB lower; 2 MiB cost 23 % more (numpy's per-call overhead; bench_issue37.py
+# --chunks).
+_BATCH_BYTES = 8 * 2**20
 
 
 @dataclass(frozen=True)
@@ -245,8 +248,9 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     pred = np.empty((Y.shape[1], n, A + 1))
     try:
         with blas_threads_for(X):
+            rotation = _rotation(X)
             for start in range(0, Y.shape[1], chunk):
-                pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A)
+                pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A, None, rotation)
     except PLSConfigError as exc:
         if not cap or exc.supported is None or exc.supported < 1 or exc.supported >= A:
             raise
@@ -286,23 +290,71 @@ def nested_group_predictions(X, Y, groups, outer_predictions: np.ndarray) -> tup
     groups = np.asarray(groups)
     A = outer_predictions.shape[2] - 1
     _, first = np.unique(groups, return_index=True)
-    names = groups[np.sort(first)]
+    held = groups[None, :] == groups[np.sort(first)][:, None]  # (S, n), groups in order of first appearance
+    usable = [int(min(A, len(rest) - int(np.unique(rest, return_counts=True)[1].max()) - 1, X.shape[1]))
+              for rest in (groups[~h] for h in held)]  # capped by A and by the smallest inner training fold
+    chosen = _pair_choices(X, Y, held, usable)
+    if chosen is None:
+        chosen = np.column_stack([pls_cv_many(X[~h], Y[~h], max_components=u, groups=groups[~h], cap=True)
+                                  .best_n_components for h, u in zip(held, usable)])
     predictions = np.empty(outer_predictions.shape[:2])
-    chosen = np.empty((Y.shape[1], names.size), dtype=int)
-    for j, name in enumerate(names):
-        held = groups == name
-        rest = groups[~held]
-        largest_inner_fold = int(np.unique(rest, return_counts=True)[1].max())
-        usable = int(min(A, len(rest) - largest_inner_fold - 1, X.shape[1]))
-        inner = pls_cv_many(X[~held], Y[~held], max_components=usable, groups=rest, cap=True)
-        k = inner.best_n_components
-        chosen[:, j] = k
-        predictions[:, held] = np.take_along_axis(outer_predictions[:, held, :], k[:, None, None], axis=2)[:, :, 0]
+    for j, h in enumerate(held):
+        predictions[:, h] = np.take_along_axis(outer_predictions[:, h, :], chosen[:, j, None, None], axis=2)[:, :, 0]
     return predictions, chosen
 
 
-def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np.ndarray:
+def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[int]) -> np.ndarray | None:
+    """Every group's inner choice (B, S) from one leave-two-groups-out batch: group j's inner fold k trains on every
+    group but j and k, the very model of group k's inner fold j, so the S(S-1) inner models are S(S-1)/2, fitted once
+    in the whole data's rotation, each predicting both groups it leaves out (equal to the per-group runs to rounding).
+
+    None where the per-group runs would not all take the same count: fewer than 3 groups, unequal limits, or a limit
+    that some inner run's own data (its rank) or some pair's Krylov space does not support (each run lowers its own).
+    """
+    S, U = held.shape[0], usable[0]
+    if S < 3 or U < 1 or any(u != U for u in usable):
+        return None
+    for h in held:  # the rank each per-group run's own SVD would check
+        rest = X[~h] - X[~h].mean(axis=0)
+        if min(rest.shape[0] - 1, svd_rank(np.linalg.svd(rest, compute_uv=False), *rest.shape)) < U:
+            return None
+    first, second = np.triu_indices(S, k=1)
+    pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
+    rows = np.concatenate(pair_rows)
+    fid = np.repeat(np.arange(first.size), [r.size for r in pair_rows])
+    own = np.argmax(held[:, rows], axis=0)
+    run = np.where(own == first[fid], second[fid], first[fid])  # the inner run an entry is held out for
+    entries = [np.flatnonzero(run == j) for j in range(S)]
+    entries = [e[np.argsort(rows[e], kind="stable")] for e in entries]  # each run's entries in X's row order
+    chunk = max(1, _BATCH_BYTES // ((U + 3) * first.size * min(X.shape) * 8))
+    chosen = np.empty((Y.shape[1], S), dtype=int)
+    try:
+        with blas_threads_for(X):
+            rotation = _rotation(X)
+            for start in range(0, Y.shape[1], chunk):
+                part = Y[:, start : start + chunk]
+                err2 = (_cv_predictions(X, part, fid, U, rows, rotation) - part.T[:, rows, None]) ** 2
+                for j, mine in enumerate(entries):
+                    rmse = np.sqrt(err2[:, mine].mean(axis=1))
+                    chosen[start : start + chunk, j] = np.argmin(rmse[:, 1:], axis=1) + 1
+    except PLSConfigError:
+        return None
+    return chosen
+
+
+def _rotation(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The centred X's left singular vectors times its singular values (the samples, rotated), and the singular
+    values: the same for every target, so computed once for all chunks of a batch."""
+    U, sv, _ = np.linalg.svd(X - X.mean(axis=0), full_matrices=False)
+    return U * sv, sv
+
+
+def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int, rows: np.ndarray | None = None,
+                    rotation: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Out-of-fold predictions (B, n, A+1) of every fold's PLS1 model for each of B targets (Y is n x B).
+
+    ``fid`` gives each held-out entry its fold; an entry is a sample (``rows`` None: every sample held out once, folds
+    a partition) or ``rows[i]``, so that folds may overlap (leave two groups out holds each sample out in many folds).
 
     PLS1 with k components is the least-squares fit restricted to the Krylov space
     K_k(S, s) of the centred cross-products S = X'X, s = X'y (Helland 1988); SIMPLS, NIPALS and
@@ -317,7 +369,7 @@ def _cv_predictions(X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> np
     B x F independent recurrences over the same rotation: they are advanced together as one batch,
     a "batch-fold" g = b * F + f per target b and fold f.
     """
-    folds = _RotatedFolds(X, Y, fid, A)
+    folds = _RotatedFolds(X, Y, fid, A, rows, _rotation(X) if rotation is None else rotation)
     lanczos = _FoldLanczos(folds, A)
     for k in range(A):
         u, u_fold, c_down, alpha = lanczos.apply_operator(k)
@@ -337,38 +389,50 @@ class _RotatedFolds:
     directions simply never enter a Krylov space.
     """
 
-    def __init__(self, X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int) -> None:
+    def __init__(self, X: np.ndarray, Y: np.ndarray, fid: np.ndarray, A: int, rows: np.ndarray | None,
+                 rotation: tuple[np.ndarray, np.ndarray]) -> None:
         n, p = X.shape
-        self.n, self.fid = n, fid
+        self.n, self.fid = fid.size, fid  # held-out entries: the samples, or the ``rows`` of overlapping folds
         self.B = Y.shape[1]
         self.F = int(fid.max()) + 1
         self.G = self.B * self.F
         m = np.bincount(fid, minlength=self.F)
         n_train = n - m
-        self.Yc = Y - Y.mean(axis=0)
+        Yc = Y - Y.mean(axis=0)
         self.y_mean = Y.mean(axis=0)
-        U, sv, _ = np.linalg.svd(X - X.mean(axis=0), full_matrices=False)
-        self.Z, self.lam = U * sv, sv**2  # samples in the rotated coordinates; Z'Z = diag(lam)
+        Z, sv = rotation  # samples in the rotated coordinates; Z'Z = diag(lam)
+        self.lam = sv**2
         _check_fold_support(sv, n, p, n_train, A)
+        self.yz = Yc.T @ Z  # X'y of the whole data, (B, r)
+        self.Yc, self.Z = (Yc, Z) if rows is None else (Yc[rows], Z[rows])
         self.dim = self.Z.shape[1]
-        self.loo = bool(np.all(m == 1)) and bool(np.all(fid == np.arange(n)))
+        self.loo = rows is None and bool(np.all(m == 1)) and bool(np.all(fid == np.arange(n)))
         # Fold sums of scalars are products with the fold-membership matrix; those of rotated samples z_i go
         # fold by fold (one small product per fold: a membership product would cost F times the arithmetic).
-        self.member = np.zeros((0, n) if self.loo else (self.F, n))
+        self.member = np.zeros((0, self.n) if self.loo else (self.F, self.n))
         if not self.loo:
-            self.member[fid, np.arange(n)] = 1.0
+            self.member[fid, np.arange(self.n)] = 1.0
         self.members = [] if self.loo else [np.flatnonzero(fid == f) for f in range(self.F)]
         self.Z_folds = [np.ascontiguousarray(self.Z[idx]) for idx in self.members]
         self.nt = n_train.astype(float)
+        # Overlapping folds given fold by fold in equal blocks (leave two equal groups out): the fold sums and
+        # held-out products are then one batched product each, not a Python loop over the many folds.
+        blocks = rows is not None and np.all(m == m[0]) and np.array_equal(fid, np.repeat(np.arange(self.F), m[0]))
+        self.block = int(m[0]) if blocks else 0
+        self.Z_blocks = self.Z.reshape(self.F, self.block, self.dim) if self.block else None
 
     def fold_sum(self, M: np.ndarray) -> np.ndarray:
         """(B, n) or (B, n, 1) per sample -> (B, F) or (B, F, 1) per fold."""
         if self.loo:
             return M
+        if self.block:
+            return M.reshape(M.shape[0], self.F, self.block, *M.shape[2:]).sum(axis=2)
         return M @ self.member.T if M.ndim == 2 else np.matmul(self.member, M)
 
     def fold_sum_z(self, weights: np.ndarray) -> np.ndarray:
         """Sum over each fold's samples of weights[b, i] z_i: (B, n) -> (B, F, r)."""
+        if self.block:
+            return np.matmul(weights.reshape(-1, self.F, 1, self.block), self.Z_blocks).reshape(-1, self.F, self.dim)
         out = np.empty((weights.shape[0], self.F, self.Z.shape[1]))
         for f, (idx, Zf) in enumerate(zip(self.members, self.Z_folds)):
             np.matmul(weights[:, idx], Zf, out=out[:, f])
@@ -376,6 +440,8 @@ class _RotatedFolds:
 
     def held_out_products(self, W: np.ndarray) -> np.ndarray:
         """z_i'w of the fold that holds sample i out, for every target: W (B, F, r) -> (B, n)."""
+        if self.block:
+            return np.matmul(self.Z_blocks, W[..., None]).reshape(W.shape[0], self.n)
         out = np.empty((W.shape[0], self.n))
         for f, (idx, Zf) in enumerate(zip(self.members, self.Z_folds)):
             out[:, idx] = W[:, f] @ Zf.T
@@ -396,7 +462,7 @@ class _RotatedFolds:
         """X'y per batch-fold (G, r): the full data's, minus the held-out rows', minus the shift of the mean."""
         Yc, Z = self.Yc, self.Z
         held_z_y = Yc.T[:, :, None] * Z[None] if self.loo else self.fold_sum_z(Yc.T)
-        return ((Yc.T @ Z)[:, None, :] - held_z_y - (self.nt[:, None] * d)[None] * e[:, :, None]).reshape(self.G, self.dim)
+        return (self.yz[:, None, :] - held_z_y - (self.nt[:, None] * d)[None] * e[:, :, None]).reshape(self.G, self.dim)
 
 
 def _check_fold_support(sv: np.ndarray, n: int, p: int, n_train: np.ndarray, A: int) -> None:
