@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from tests.foreground import sigint_as_in_a_terminal
 from tests.sweeps import small_sweep
 
 pytestmark = pytest.mark.slurm
@@ -79,7 +80,8 @@ def test_ctrl_c_cancels_the_batch_jobs(tmp_path):
            "DASK_JOBQUEUE__SLURM__LOG_DIRECTORY": str(tmp_path / "logs")}
     process = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(sweep), "--out",
                                 str(tmp_path / "out"), "--scheduler", "slurm", "--workers", "2"], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=sigint_as_in_a_terminal)  # .ci/run may be a background job
     try:
         while not any(line.endswith(" R") for line in _queued()):  # a job is running a worker
             assert process.poll() is None, process.stderr.read()
