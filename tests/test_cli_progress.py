@@ -10,10 +10,25 @@ import pytest
 from roughsense.cli import _common, main
 from roughsense.errors import InputError
 
+#: Not a timing check: how long a stage waits for its start line before the test goes on (and fails on its output).
+HANG_GUARD_S = 60
 
-def _slow(n: int, delay_s: float = 0.03):
+
+def _until_announced() -> None:
+    """Until the stage's start line is out. The timer writes it 5 ms after the start (``announce_at_once``), but a
+    busy machine may run the timer's thread much later than that: waiting for it keeps the stage a long one however
+    late it comes. A line that never comes (written only at the end) fails the test on what it reads."""
+    deadline = time.monotonic() + HANG_GUARD_S
+    while not _common._open and time.monotonic() < deadline:
+        time.sleep(0.005)
+
+
+def _slow(n: int, delay_s: float = 0.03, *, announced: bool = True):
+    """``n`` items ``delay_s`` apart; the first one only once the stage's line is out (``announced``, off a terminal)."""
     for i in range(n):
         time.sleep(delay_s)
+        if i == 0 and announced:
+            _until_announced()
         yield i
 
 
@@ -47,6 +62,7 @@ def test_a_quick_stage_prints_nothing(capsys):
 def test_a_stage_without_a_count(announce_at_once, capsys):
     with _common.stage("writing the report"):
         time.sleep(0.05)
+        _until_announced()
     assert re.fullmatch(r"roughsense: writing the report \.\.\. done in \d+\.\d s\n", capsys.readouterr().err)
 
 
@@ -92,7 +108,7 @@ def test_on_a_terminal_a_bar_with_count_and_estimate(monkeypatch, capsys):
     screen = io.StringIO()
     monkeypatch.setattr(_common, "_interactive", lambda: True)
     monkeypatch.setattr(_common, "_console", lambda: Console(file=screen, force_terminal=True, width=100))
-    assert list(_common.progress(_slow(3), total=3, description="simulating")) == [0, 1, 2]
+    assert list(_common.progress(_slow(3, announced=False), total=3, description="simulating")) == [0, 1, 2]
     drawn = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.getvalue())
     assert "simulating" in drawn and "3/3" in drawn and "eta" in drawn
     assert capsys.readouterr().err == ""  # the bar, not the log line

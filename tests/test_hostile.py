@@ -14,6 +14,7 @@ import pytest
 from roughsense._util import atomic
 from roughsense.errors import OutputExistsError
 from tests.as_user import as_nobody
+from tests.foreground import sigint_as_in_a_terminal
 from tests.sweeps import small_sweep
 
 AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
@@ -198,7 +199,8 @@ def signals():
     from roughsense._util import interrupt
 
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    interrupt.install()
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal, even if pytest runs in the
+    interrupt.install()  # background (SIGINT inherited ignored, and kept so by install(): tests/foreground.py)
     yield interrupt
     for number, handler in saved.items():
         signal.signal(number, handler)
@@ -654,6 +656,7 @@ def test_ctrl_c_during_explore_is_one_interrupted_line_and_no_dask_traceback(tmp
     out = tmp_path / "out"
     run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--workers", "1"],
                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           preexec_fn=sigint_as_in_a_terminal,  # a terminal's job, however pytest was started
                            env={**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")})
     try:
         deadline = time.monotonic() + HANG_GUARD_S  # a guard against a hang, not a timing check

@@ -38,7 +38,7 @@ from roughsense._util.lock import output_lock
 signal.signal(signal.SIGTERM, signal.default_int_handler)  # as roughsense's own entry point does
 with output_lock(sys.argv[1], command="explore"):
     print("held", flush=True)
-    time.sleep(120)
+    time.sleep(600)  # stopped by the test: it holds the lock for as long as the test runs, however slowly
 """
 _TINY_SIM = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
 
@@ -121,13 +121,14 @@ def test_a_symlinked_spelling_of_the_folder_shares_its_lock(holder, tmp_path, ru
 def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
     """The race of issue 22: a second sweep (with --force) into the folder a first sweep is computing."""
     first_sweep, second_sweep = tmp_path / "first.toml", tmp_path / "second.toml"
-    first_sweep.write_text(SWEEP)
+    long_sweep = small_sweep(range(60))  # minutes of cells: still computing when the second run, however slow, ends
+    first_sweep.write_text(long_sweep)
     second_sweep.write_text(small_sweep([7]))
     out = tmp_path / "out"
     first = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(first_sweep), "--out", str(out),
                               "--workers", "1"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 300  # a hang guard: importing roughsense on a busy machine takes a while
         while not (lock_path(out).exists() and lock_path(out).stat().st_size):
             assert first.poll() is None, first.stderr.read().decode()
             assert time.monotonic() < deadline, "the first run never took the lock"
@@ -145,7 +146,7 @@ def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
         _stop(first)
     assert not lock_path(out).exists()
     sweep_copy = out / "sweep.toml"
-    assert not sweep_copy.exists() or sweep_copy.read_text() == SWEEP  # never the second sweep's
+    assert not sweep_copy.exists() or sweep_copy.read_text() == long_sweep  # never the second sweep's
 
 
 def test_a_dead_runs_lock_is_taken_over_and_said(tmp_path, run_cli):
@@ -290,7 +291,7 @@ def test_another_user_in_a_shared_folder_is_told_who_holds_it_and_takes_over_a_d
     out = shared / "out"
     holder = subprocess.Popen(
         [sys.executable, "-c", "import sys, time\nfrom roughsense._util.lock import output_lock\n"
-         f"with output_lock({str(out)!r}, command='simulate'):\n    print('held', flush=True); time.sleep(60)"],
+         f"with output_lock({str(out)!r}, command='simulate'):\n    print('held', flush=True); time.sleep(600)"],
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"

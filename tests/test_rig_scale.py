@@ -124,6 +124,11 @@ def test_force_input_spec():
 # --------------------------------------------------------------------------- serial over a pseudo-terminal
 
 
+#: ``timeout_s`` where the scale does answer (a line every 10 ms): never reached, so a busy machine that runs the
+#: writer's thread late cannot turn the reading into a timeout; the timeouts tested are 0.3 s, on silent scales.
+SUCCESS_TIMEOUT_S = 30
+
+
 @pytest.fixture
 def pty_scale():
     """A pseudo-terminal: the test writes scale lines to the master, the code reads the slave path."""
@@ -156,7 +161,7 @@ def test_serial_takes_the_first_stable_reading(pty_scale):
     path, stream = pty_scale
     stream([b"US,+00150.0 g\r\n", b"noise\r\n", b"ST,+00204.0 g\r\n"])
     prompts = io.StringIO()
-    scale = open_force_input(f"serial:{path}:19200", timeout_s=3, stdin=io.StringIO("\n"), prompt_out=prompts)
+    scale = open_force_input(f"serial:{path}:19200", timeout_s=SUCCESS_TIMEOUT_S, stdin=io.StringIO("\n"), prompt_out=prompts)
     with scale:
         assert isinstance(scale, SerialScale)
         assert scale._port.baudrate == 19200
@@ -184,7 +189,7 @@ def test_serial_never_stable_names_the_last_line(pty_scale):
 def test_serial_reading_out_of_range_is_refused_when_piped(pty_scale):
     path, stream = pty_scale
     stream([b"ST,+00050.0 g\r\n"])
-    with SerialScale(path, timeout_s=2, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+    with SerialScale(path, timeout_s=SUCCESS_TIMEOUT_S, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
         with pytest.raises(InputError, match=r"0.4903 N is outside 1.5..2.5 N"):
             scale.read_force(2.0, low_n=1.5, high_n=2.5)
 
@@ -224,8 +229,8 @@ def test_serial_bytes_without_line_ends_time_out(pty_scale):
 def test_serial_runaway_line_is_dropped_and_the_next_reading_taken(pty_scale):
     path, stream = pty_scale
     stream([b"#" * 5000 + b"\r\nST,+00204.0 g\r\n"])
-    with SerialScale(path, timeout_s=3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
-        done, force = within(5, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
+    with SerialScale(path, timeout_s=SUCCESS_TIMEOUT_S, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        done, force = within(10 * SUCCESS_TIMEOUT_S, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
         assert done, "the read waited for a line end past --timeout-s"
     assert force == pytest.approx(0.204 * G, rel=1e-12)
 
@@ -233,8 +238,8 @@ def test_serial_runaway_line_is_dropped_and_the_next_reading_taken(pty_scale):
 def test_serial_carriage_return_alone_ends_a_line(pty_scale):
     path, stream = pty_scale
     stream([b"US,+00150.0 g\r", b"ST,+00204.0 g\r"])
-    with SerialScale(path, timeout_s=3, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
-        done, force = within(5, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
+    with SerialScale(path, timeout_s=SUCCESS_TIMEOUT_S, stdin=io.StringIO("\n"), prompt_out=io.StringIO()) as scale:
+        done, force = within(10 * SUCCESS_TIMEOUT_S, lambda: scale.read_force(2.0, low_n=1.5, high_n=2.5))
         assert done, "the read waited for a line end past --timeout-s"
     assert force == pytest.approx(0.204 * G, rel=1e-12)
 
@@ -269,7 +274,7 @@ def test_capture_with_a_scale_streaming_no_line_ends_stops_at_timeout(tmp_path, 
             "--specimen", "R3", "--pad", "fp", "--roi", "auto", "--shape", "rectangular", "--wavelength-mm", "3",
             "--force-input", f"serial:{path}", "--timeout-s", "1"]
     try:
-        run = subprocess.run(args, input="\n", capture_output=True, text=True, timeout=60)
+        run = subprocess.run(args, input="\n", capture_output=True, text=True, timeout=300)  # a hang guard
     except subprocess.TimeoutExpired:
         pytest.fail("capture ignored --timeout-s while the scale streamed bytes with no line end")
     assert run.returncode == 2, run.stderr
