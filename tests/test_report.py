@@ -556,9 +556,12 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
 def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulated_analysis, simulated_report_dir):
     """Two processes drawing the figures write byte for byte the report one process writes, every figure once."""
     write_report(simulated_analysis, tmp_path / "two", meta=SIMULATED_META, n_jobs=2)
+    from roughsense.report.html import report_owned
+
     one = {p.name: p.read_bytes() for p in simulated_report_dir.iterdir()}  # the module's, drawn in one process
     two = {p.name: p.read_bytes() for p in (tmp_path / "two").iterdir()}
     assert one == two
+    assert [name for name in one if not report_owned(Path(name))] == []  # --force replaces every file it wrote
     shown = re.findall(r'data-name="([^"]+)"', one["index.html"].decode())
     assert sorted(shown) == sorted(name for name in one if name.endswith(".png"))  # none drawn that is not shown
     assert len(shown) == len(set(shown))

@@ -51,7 +51,7 @@ def template_environment() -> jinja2.Environment:
 
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
-                 "components.csv", "held_out.csv", "presses.csv")
+                 "components.csv", "controls.csv", "claims.csv", "paper_predictive.csv", "held_out.csv", "presses.csv")
 _REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces|presses_per_surface)"
                             r"\.(png|svg|pdf)$")
 
