@@ -306,7 +306,12 @@ def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs
         return
     with process_pool(n_jobs) as pool:
         pending = [pool.submit(_render_figure, job, stamp, style) for job in jobs]
-        yield lambda: [future.result() for future in pending]
+        try:
+            yield lambda: [future.result() for future in pending]
+        except BaseException:  # the page failed: its figures are not waited for
+            for future in pending:
+                future.cancel()
+            raise
 
 
 def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame) -> FigureJob | None:
