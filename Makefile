@@ -17,8 +17,9 @@ study: $(STAMP)
 	$(BIN)/roughsense study --out report --force
 
 # One worker per core, at most 4 (pytest-xdist); a test file's tests share a worker, so its module fixtures run once.
+# Files are handed out in collection order, which tests/conftest.py starts with the longest (LONGEST_FILES).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --numprocesses auto --maxprocesses 4 --dist loadfile
+	$(BIN)/python -m pytest -q --numprocesses auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
 
 # ruff (pyproject's [tool.ruff]) and the import layers (pyproject's [tool.importlinter]; docs/architecture.md).
 lint: $(STAMP)

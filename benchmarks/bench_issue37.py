@@ -15,7 +15,7 @@
 Stage times are the CLI's own stage lines (``roughsense: controls, ... done in 12.3 s``; a stage under 2 s prints
 none). Peak RSS is ``wait4``'s of the study process.
 
-Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src] [--growth | --chunks]
+Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src] [--growth | --chunks | --report-only]
 (ROUGHSENSE_CACHE_DIR selects the cache; the built-in study is simulated there on first use.)
 """
 from __future__ import annotations
@@ -62,16 +62,24 @@ def ratio(args, scratch: Path) -> None:
     peers = {"this": None} | ({"peer": args.peer_src} if args.peer_src else {})
     for src in peers.values():  # untimed: the features cache, the first imports
         study(scratch / "warm", 0, src=src)
-    runs = {(name, b): [] for name in peers for b in (0, 199)}
+    shufflings = (0,) if args.report_only else (0, 199)
+    runs = {(name, b): [] for name in peers for b in shufflings}
     for _ in range(args.repeats):
         for name, src in peers.items():
-            for b in (0, 199):
+            for b in shufflings:
                 runs[(name, b)].append(study(scratch / f"{name}-{b}", b, src=src))
     def walls(some: list[dict]) -> str:
         return ", ".join(f"{r['wall']:.1f}" for r in some)
 
     for name in peers:
-        off, on = runs[(name, 0)], runs[(name, 199)]
+        off = runs[(name, 0)]
+        if args.report_only:
+            report = median(off, "writing the report")
+            print(f"{name}: --permutations 0: {median(off, 'wall'):5.1f} s (CPU {median(off, 'cpu'):5.1f} s), report "
+                  f"{report:4.1f} s ({report / median(off, 'wall'):.0%} of the study; runs: {walls(off)}; report: "
+                  f"{', '.join(str(r.get('writing the report')) for r in off)})")
+            continue
+        on = runs[(name, 199)]
         print(f"{name}: --permutations 0: {median(off, 'wall'):5.1f} s, {median(off, 'rss'):4.0f} MiB, report "
               f"{median(off, 'writing the report'):4.1f} s ({median(off, 'writing the report') / median(off, 'wall'):.0%} "
               f"of the study); 199: {median(on, 'wall'):5.1f} s, {median(on, 'rss'):4.0f} MiB, controls "
@@ -163,6 +171,8 @@ def main() -> None:
     parser.add_argument("--chunks", action="store_true", help="Only the controls' chunk sizes (CPU, peak RSS).")
     parser.add_argument("--chunk-run", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--scratch", type=Path, default=None, help="Reuse this folder (e.g. its simulated studies).")
+    parser.add_argument("--report-only", action="store_true",
+                        help="Only the --permutations 0 study: the report stage's share (and the study's CPU).")
     args = parser.parse_args()
     if args.chunk_run:
         chunk_run(Path(args.chunk_run[0]), int(args.chunk_run[1]), int(args.chunk_run[2]))

@@ -15,14 +15,20 @@ PLS alone and with every family, alternated, median of ``--model-repeats`` each 
 neither pays the first call's imports and worker start-up). ``--models-only`` measures just that, in ``--keep-cache``
 (default: roughsense's own cache), simulating the built-in study there first if it is missing.
 
+Cold against earlier code (issue 37: a cold ``make study`` <= 60 % of e1630a3's): ``--cold-only --cold-peer OLD/src``
+(repeatable) runs the cold study with this checkout's sources and each peer's, alternated round by round (the order
+rotated each round), each run in its own empty cache; it prints each one's median, its stage times (the CLI's stage
+lines) and this / peer.
+
 Run: .venv/bin/python benchmarks/bench_study.py [--warm-repeats 3] [--cold-repeats 3] [--keep-cache DIR] [--peer-src OLD/src]
-     [--model-repeats 3] [--models-only]
+     [--model-repeats 3] [--models-only] [--cold-only --cold-peer OLD/src [--cold-peer OLDER/src]]
 """
 from __future__ import annotations
 
 import argparse
 import os
 import platform
+import re
 import resource
 import shutil
 import statistics
@@ -41,6 +47,49 @@ def run_study(cache: Path, out: Path, src: Path | None = None) -> float:
     subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force"],
                    env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return time.perf_counter() - started
+
+
+STAGE = re.compile(r"roughsense: ([a-z][a-z -]*?)(?:,[^.]*?)?(?: \(\d+\))? \.\.\. done in ([\d.]+) s")
+
+
+def cold_study(scratch: Path, src: Path | None) -> dict[str, float]:
+    """One study from an empty cache (``src``: another checkout's sources): wall time and the CLI's stage times."""
+    cache = scratch / "cold-cache"
+    shutil.rmtree(cache, ignore_errors=True)
+    env = dict(os.environ, ROUGHSENSE_CACHE_DIR=str(cache))
+    if src is not None:
+        env["PYTHONPATH"] = str(src.resolve())
+    started = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(scratch / "report"), "--force"],
+                          env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - started
+    shutil.rmtree(cache, ignore_errors=True)
+    return {"wall": wall, **{name: float(seconds) for name, seconds in STAGE.findall(done.stderr)}}
+
+
+def report_cold_peers(peers: list[Path], repeats: int) -> None:
+    """This checkout's cold study against each peer's, alternated (the order rotated every round)."""
+    names = ["this", *(str(p) for p in peers)]
+    sources: list[Path | None] = [None, *peers]
+    runs: dict[str, list[dict[str, float]]] = {name: [] for name in names}
+    scratch = Path(tempfile.mkdtemp(prefix="roughsense-bench-cold-"))
+    try:
+        for round_ in range(repeats):
+            order = list(range(len(names)))[round_ % len(names):] + list(range(len(names)))[:round_ % len(names)]
+            for i in order:
+                runs[names[i]].append(cold_study(scratch, sources[i]))
+                print(f"  round {round_ + 1}: {names[i]} {runs[names[i]][-1]['wall']:.1f} s "
+                      f"(load {os.getloadavg()[0]:.1f})", flush=True)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    this = statistics.median(r["wall"] for r in runs["this"])
+    for name in names:
+        stages = sorted({stage for run in runs[name] for stage in run if stage != "wall"})
+        median = statistics.median(r["wall"] for r in runs[name])
+        parts = ", ".join(f"{stage} {statistics.median(r.get(stage, 0.0) for r in runs[name]):.1f} s" for stage in stages)
+        walls = ", ".join(f"{r['wall']:.1f}" for r in runs[name])
+        print(f"  {name}: cold study median {median:.1f} s (runs: {walls}); "
+              f"{parts}" + ("" if name == "this" else f"; this / peer = {this / median:.2f}"))
 
 
 def decode_all(study: Path) -> float:
@@ -106,7 +155,17 @@ def main() -> None:
                         help="Timed warm analyses per set of model families (0: skip that measurement).")
     parser.add_argument("--models-only", action="store_true",
                         help="Only measure what the new model family adds, in --keep-cache (default: roughsense's).")
+    parser.add_argument("--cold-only", action="store_true",
+                        help="Only the cold study, against every --cold-peer, alternated --cold-repeats rounds.")
+    parser.add_argument("--cold-peer", type=Path, action="append", default=[],
+                        help="Another checkout's src/ to run the cold study with (repeatable; with --cold-only).")
     args = parser.parse_args()
+    if args.cold_only:
+        print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+              f"load average {os.getloadavg()[0]:.1f} at start")
+        report_cold_peers(args.cold_peer, max(args.cold_repeats, 1))
+        print(f"  load average at the end: {os.getloadavg()[0]:.1f}")
+        return
     if args.models_only:
         from roughsense._util.cache import cache_dir
 

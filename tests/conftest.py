@@ -1,4 +1,5 @@
-"""Shared test configuration: a deterministic hypothesis profile and a CLI runner."""
+"""Shared test configuration: a deterministic hypothesis profile, the longest files first, a CLI runner and the
+simulated studies several modules read."""
 from __future__ import annotations
 
 import os
@@ -14,6 +15,19 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "roughsense"))
+
+#: The test files that take longest, longest first (BENCHMARKS.md, the suite). Under ``make test`` (pytest-xdist,
+#: ``--dist loadfile --no-loadscope-reorder``) a file runs whole on one worker in collection order, so a long file
+#: collected last kept one worker busy alone at the end; started first, the short files fill in around them.
+LONGEST_FILES = ("test_tutorial.py", "test_explore.py", "test_report.py", "test_trustworthy_prediction.py",
+                 "test_hostile.py", "test_cli_study.py", "test_claims.py", "test_input_contract.py",
+                 "test_sweep_bounds.py", "test_interrupted.py", "test_study_analysis.py", "test_locks.py")
+
+
+def pytest_collection_modifyitems(items) -> None:
+    """The longest files first; every file's own tests keep their order."""
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep collection order
 
 
 @pytest.fixture

@@ -29,14 +29,31 @@ def report_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def simulated_report_dir(tmp_path_factory):
-    """The same kind of study, but study.toml has a [simulation] table: every label must say so."""
+def simulated_analysis():
+    """The same kind of study, but study.toml has a [simulation] table: every label must say so (analysed once for
+    the module; read-only)."""
     study, features = synthetic_study(repetitions=2, seed=6)
     study.extra = {"simulation": {"seed": 42, "simulator": "roughsense.sim", "repetitions": 2}}
-    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    return analyse_study(study, features=features, max_components=2, n_permutations=0)
+
+
+#: The simulated report's meta data; its date fixed, so another rendering of it can be compared byte for byte.
+SIMULATED_META = {"source": "synthetic test study", "generated": "fixed"}
+
+
+@pytest.fixture(scope="module")
+def simulated_report_dir(tmp_path_factory, simulated_analysis):
     out = tmp_path_factory.mktemp("simulated") / "report"
-    write_report(analysis, out, meta={"source": "synthetic test study"})
+    write_report(simulated_analysis, out, meta=SIMULATED_META)
     return out
+
+
+@pytest.fixture(scope="module")
+def smooth_simulated_analysis():
+    """One pad of the simulated kind (analysed once for the module; read-only)."""
+    study, features = synthetic_study(repetitions=2, seed=6, pads=("smooth",))
+    study.extra = {"simulation": {"seed": 42}}
+    return analyse_study(study, features=features, max_components=2, n_permutations=0)
 
 
 def _stamp_pixels(png: Path) -> int:
@@ -79,11 +96,10 @@ def test_paper_values_only_where_the_design_matches(tmp_path):
     assert 'class="paper"' not in body
 
 
-def test_no_paper_values_on_the_loso_figure(report_dir):
+def test_no_paper_values_on_the_loso_figure(simulated_analysis):
     from roughsense.report import figures
 
-    study, features = synthetic_study(repetitions=2, seed=6)
-    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    analysis = simulated_analysis  # its [simulation] table changes labels, not the results drawn here
     for cv, expected in (("loo", True), ("loso", False)):
         fig = figures.predicted_vs_perceived_figure(analysis.results(cv), analysis.perceived, cv)
         labels = {line.get_label() for ax in fig.axes for line in ax.get_lines()}
@@ -370,14 +386,12 @@ def test_control_text_names_the_pooled_training_mean_and_a_pass_on_pooled_rmse_o
 
 
 @pytest.mark.parametrize("figure_format", ["svg", "pdf"])
-def test_figures_in_a_vector_format_are_written_and_shown(tmp_path, figure_format):
+def test_figures_in_a_vector_format_are_written_and_shown(tmp_path, figure_format, smooth_simulated_analysis):
     """--figure-format svg embeds the SVGs; pdf writes PDFs, shows a PNG of each and links the PDF."""
     from roughsense.report import FigureStyle
     from roughsense.report.html import report_owned
 
-    study, features = synthetic_study(repetitions=2, seed=6, pads=("smooth",))
-    study.extra = {"simulation": {"seed": 42}}
-    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
+    analysis = smooth_simulated_analysis
     out = tmp_path / "report"
     write_report(analysis, out, style=FigureStyle(figure_format, 60))
     drawn = sorted(p.name for p in out.iterdir() if p.suffix in (".png", ".svg", ".pdf"))
@@ -539,17 +553,15 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
         == "100%, x/÷ 1.50; misses R2 0.42 below"
 
 
-def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path):
+def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulated_analysis, simulated_report_dir):
     """Two processes drawing the figures write byte for byte the report one process writes, every figure once."""
-    study, features = synthetic_study(repetitions=2, seed=6)
-    study.extra = {"simulation": {"seed": 42, "simulator": "roughsense.sim", "repetitions": 2}}
-    analysis = analyse_study(study, features=features, max_components=2, n_permutations=0)
-    meta = {"source": "synthetic test study", "generated": "fixed"}
-    write_report(analysis, tmp_path / "one", meta=meta)
-    write_report(analysis, tmp_path / "two", meta=meta, n_jobs=2)
-    one = {p.name: p.read_bytes() for p in (tmp_path / "one").iterdir()}
+    write_report(simulated_analysis, tmp_path / "two", meta=SIMULATED_META, n_jobs=2)
+    from roughsense.report.html import report_owned
+
+    one = {p.name: p.read_bytes() for p in simulated_report_dir.iterdir()}  # the module's, drawn in one process
     two = {p.name: p.read_bytes() for p in (tmp_path / "two").iterdir()}
     assert one == two
+    assert [name for name in one if not report_owned(Path(name))] == []  # --force replaces every file it wrote
     shown = re.findall(r'data-name="([^"]+)"', one["index.html"].decode())
     assert sorted(shown) == sorted(name for name in one if name.endswith(".png"))  # none drawn that is not shown
     assert len(shown) == len(set(shown))

@@ -16,9 +16,11 @@ from ..paper import COMBINED
 from .tables import jackknife_phrase, model_title
 
 
-def answer_lines(analysis) -> list[str]:
-    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it."""
-    unseen = analysis.unseen_summary()
+def answer_lines(analysis, unseen: pd.DataFrame | None = None) -> list[str]:
+    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it.
+
+    ``unseen``: ``analysis.unseen_summary()`` if the caller holds it (a report reads it in four places)."""
+    unseen = analysis.unseen_summary() if unseen is None else unseen
     if unseen.empty:
         return ["Not answered: leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any "
                 "model predicts a surface left out of training. The leave-one-out results below describe specimens "
@@ -69,7 +71,7 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
             "a period or a shape left out.")
 
 
-def answer_table(analysis) -> dict | None:
+def answer_table(analysis, unseen: pd.DataFrame | None = None) -> dict | None:
     """The first screen's table: per model and held-out scheme (combined condition), each pad's mean per-specimen
     RMSE beside the training mean's and its verdict, and the nested jackknife+ surface interval where there is one.
 
@@ -80,7 +82,7 @@ def answer_table(analysis) -> dict | None:
     if held is None or held.empty:
         return None
     condition = _condition(held)
-    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    unseen = (analysis.unseen_summary() if unseen is None else unseen).set_index(["model", "pad", "condition"])
     presses = getattr(analysis, "presses", pd.DataFrame())
     unseen["presses_needed"] = [_presses_needed(presses, *key) for key in unseen.index]
     pads = list(dict.fromkeys(held["pad"]))

@@ -16,6 +16,7 @@ import datetime as _dt
 import os
 import re
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -50,7 +51,7 @@ def template_environment() -> jinja2.Environment:
 
 
 REPORT_TABLES = ("index.html", "results.csv", "results_loso.csv", "cv.csv", "tests.csv", "predictions.csv",
-                 "components.csv", "held_out.csv", "presses.csv")
+                 "components.csv", "controls.csv", "claims.csv", "paper_predictive.csv", "held_out.csv", "presses.csv")
 _REPORT_FIGURE = re.compile(r"^(spectra_.+|ovl_sd_.+|cv_curves|predicted_vs_perceived_.+|unseen_surfaces|presses_per_surface)"
                             r"\.(png|svg|pdf)$")
 
@@ -177,7 +178,10 @@ def unseen_words(analysis) -> list[str]:
 def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = FigureStyle(),
                   n_jobs: int = 1) -> dict[str, bytes]:
     """Every file of the report, by name, as bytes; ``style``: the figures' format and resolution; ``n_jobs``:
-    processes drawing the figures (the same bytes for any number)."""
+    processes drawing the figures (the same bytes for any number).
+
+    The figures are handed to the worker processes first and the tables built while they draw, so the page's two
+    halves overlap instead of following each other."""
     meta = dict(meta or {})
     has_loso = any(f.cv == "loso" for f in analysis.fits)
     cv_schemes = ["loo", "loso"] if has_loso else ["loo"]
@@ -186,28 +190,38 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
     files = _data_files(analysis, results, chosen)
     unseen_job, presses_job = _unseen_figure(results, analysis.perceived), _presses_figure(analysis)
     jobs = [job for job in (unseen_job, presses_job) if job] + _figures(analysis, results, chosen, cv_schemes)
-    figure_list = _render_figures(analysis, jobs, files, style, n_jobs)
-    unseen_figure = figure_list.pop(0) if unseen_job else None
-    presses_entry = figure_list.pop(0) if presses_job else None
+    with _figure_renderer(analysis, jobs, style, n_jobs) as rendered:
+        page = _page_context(analysis, results, chosen, cv_schemes, meta)
+        figure_list = rendered()
+    for entry in figure_list:
+        files[entry.pop("file")] = entry.pop("bytes")
+    page["unseen_figure"] = figure_list.pop(0) if unseen_job else None
+    page["presses_figure"] = figure_list.pop(0) if presses_job else None
+    template = template_environment().get_template("report.html.j2")
+    files["index.html"] = template.render(**page, figures=figure_list).encode("utf-8")
+    return files
+
+
+def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str],
+                  meta: dict) -> dict:
+    """Everything the page's template shows but the figures: its tables and words."""
     paper_pads = tuple(analysis.paper_pads)
     pls_chosen = chosen[chosen["model"] == PLS]
-    template = template_environment().get_template("report.html.j2")
-    html = template.render(
+    unseen = analysis.unseen_summary()  # read by four sections: computed once
+    return dict(
         title=f"roughsense report: {analysis.study_name}",
         study_name=analysis.study_name,
         version=__version__,
         generated=meta.pop("generated", _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")),
         meta=meta,
         citation=paper.PAPER_CITATION,
-        headline=tables.headline_table(analysis, paper_pads),
-        unseen=tables.unseen_table(analysis.unseen_summary(), analysis.controls),
+        headline=tables.headline_table(analysis, paper_pads, results=results, unseen=unseen),
+        unseen=tables.unseen_table(unseen, analysis.controls),
         unseen_words=unseen_words(analysis),
         held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         presses=presses_table(analysis.presses),
-        presses_figure=presses_entry,
         unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
                                                     else analysis.models[0])),
-        unseen_figure=unseen_figure,
         components=tables.components_table(
             pls_chosen.drop(columns="model"),
             {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso" and f.model == PLS},
@@ -222,15 +236,12 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
         paper_note=analysis.paper_note,
         findings=plain_words(analysis),
         failing=failing_models(analysis),
-        answer=answer_lines(analysis),
-        answer_table=answer_table(analysis),
+        answer=answer_lines(analysis, unseen),
+        answer_table=answer_table(analysis, unseen),
         sections=_sections(analysis, results, cv_schemes),
-        figures=figure_list,
         max_components=analysis.max_components,
         reference_specimen=analysis.reference_specimen,
     )
-    files["index.html"] = html.encode("utf-8")
-    return files
 
 
 def _data_files(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame) -> dict[str, bytes]:
@@ -262,8 +273,9 @@ class FigureJob(NamedTuple):
     caption: str
 
 
-def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> tuple[str, bytes, dict]:
-    """Draw and render one figure (``style``'s format), stamped if the data are simulated: its file and page entry."""
+def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> dict:
+    """Draw and render one figure (``style``'s format), stamped if the data are simulated: its page entry, with its
+    file's name and bytes (``file``, ``bytes``)."""
     name = f"{job.stem}.{style.figure_format}"
     fig = job.draw(*job.args, **job.kwargs)
     caption = job.caption
@@ -276,28 +288,30 @@ def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> tup
     if shown == "png":
         page = figures.page_preview(page)
     figures.plt.close(fig)
-    return name, data, {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
-                        "data": base64.b64encode(page).decode("ascii")}
+    return {"name": name, "caption": caption, "mime": figures.MIME_TYPES[shown],
+            "data": base64.b64encode(page).decode("ascii"), "file": name, "bytes": data}
 
 
-def _render_figures(analysis, jobs: list[FigureJob], files: dict[str, bytes], style: FigureStyle,
-                    n_jobs: int) -> list[dict]:
-    """Render every figure once, in ``n_jobs`` worker processes when there are more than one (matplotlib draws
-    one figure per process at a time); the page entries come back in the jobs' order, the bytes the same."""
+@contextmanager
+def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs: int):
+    """Start rendering every figure once, in ``n_jobs`` worker processes when there are more than one (matplotlib
+    draws one figure per process at a time); yields a call that waits for them and returns their page entries in
+    the jobs' order (the bytes the same for any ``n_jobs``). In one process the figures are drawn by that call."""
     for job in jobs:
         check_name(f"{job.stem}.{style.figure_format}", what="report file name")  # built from pad names
     stamp = None if analysis.simulation is None else f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})"
     n_jobs = min(n_jobs, len(jobs))
-    if n_jobs > 1:
-        with process_pool(n_jobs) as pool:
-            rendered = list(pool.map(_render_figure, jobs, [stamp] * len(jobs), [style] * len(jobs)))
-    else:
-        rendered = [_render_figure(job, stamp, style) for job in jobs]
-    entries = []
-    for name, data, entry in rendered:
-        files[name] = data
-        entries.append(entry)
-    return entries
+    if n_jobs <= 1:
+        yield lambda: [_render_figure(job, stamp, style) for job in jobs]
+        return
+    with process_pool(n_jobs) as pool:
+        pending = [pool.submit(_render_figure, job, stamp, style) for job in jobs]
+        try:
+            yield lambda: [future.result() for future in pending]
+        except BaseException:  # the page failed: its figures are not waited for
+            for future in pending:
+                future.cancel()
+            raise
 
 
 def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame) -> FigureJob | None:

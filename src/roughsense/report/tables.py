@@ -328,13 +328,17 @@ def _control_row(controls: pd.DataFrame, pad: str, condition: str, cv: str, mode
     return rows.iloc[0] if len(rows) else None
 
 
-def headline_table(analysis, paper_pads=None) -> dict:
-    """Mean per-specimen RMSE, OVL and predictive OVL per model x pad x condition, with the controls: LOO, LOSO."""
+def headline_table(analysis, paper_pads=None, *, results: dict | None = None, unseen: pd.DataFrame | None = None) -> dict:
+    """Mean per-specimen RMSE, OVL and predictive OVL per model x pad x condition, with the controls: LOO, LOSO.
+
+    ``results`` (``{cv: analysis.results(cv)}``) and ``unseen`` (``analysis.unseen_summary()``): what the caller holds
+    already, so a report computes each once."""
     rows = []
-    loo = analysis.results("loo")
     has_loso = any(f.cv == "loso" for f in analysis.fits)
-    loso = analysis.results("loso") if has_loso else None
-    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"]) if has_loso else None
+    results = results or {cv: analysis.results(cv) for cv in (("loo", "loso") if has_loso else ("loo",))}
+    loo, loso = results["loo"], results.get("loso") if has_loso else None
+    unseen = analysis.unseen_summary() if has_loso and unseen is None else unseen
+    unseen = unseen.set_index(["model", "pad", "condition"]) if has_loso else None
     for (model, pad, condition), g in loo.groupby(["model", "pad", "condition"], sort=False):
         allowed = (paper_pads is None or pad in paper_pads) and model == PLS
         printed_rmse = published.PAPER_SUMMARIES.get((pad, "rmse", condition, "all")) if allowed else None
