@@ -79,6 +79,22 @@ def study_of(seed: int):
     return study, features, dataset.perceived_roughness(study)
 
 
+def condition_cells(seeds):
+    """Every seed x pad x condition of the built-in study, as the benchmarks of the law walk them: a dict of the
+    study, its features, the condition's design matrix X, perceived targets y, each row's specimen, and shapes."""
+    from roughsense.analysis import dataset
+
+    for seed in seeds:
+        study, features, perceived = study_of(seed)
+        shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
+        for pad in study.pads:
+            for condition in CONDITIONS:
+                X, meta = dataset.condition_matrix(features, pad, condition)
+                yield {"seed": seed, "study": study, "features": features, "pad": pad, "condition": condition,
+                       "X": X, "y": dataset.targets(meta, perceived), "shapes": shapes,
+                       "specimens": meta["specimen"].astype(str).to_numpy()}
+
+
 def law_settings(study, features, pad: str, condition: str, specimens=None) -> dict:
     """The study's own peak-law settings; with ``specimens``, a specimen's presses share its peak (as the study)."""
     from roughsense.analysis import dataset

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import spearmanr
 
-from bench_peak_law import CONDITIONS, law_settings, study_of
+from bench_peak_law import CONDITIONS, condition_cells, law_settings, study_of
 from bench_shape_terms import clipped_cv, scores, term_features
 
 #: Rows averaged in part 3 (~0.9 mm across a 10 mm specimen's band; the centre crop is 150 rows).
@@ -80,26 +80,18 @@ def candidates(X, settings: dict, specimens) -> dict[str, np.ndarray]:
 
 
 def terms_part(seeds) -> pd.DataFrame:
-    from roughsense.analysis import dataset
-
     rows = []
-    for seed in seeds:
-        study, features, perceived = study_of(seed)
-        shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
-        for pad in study.pads:
-            for condition in CONDITIONS:
-                X, meta = dataset.condition_matrix(features, pad, condition)
-                y = dataset.targets(meta, perceived)
-                specimens = meta["specimen"].astype(str).to_numpy()
-                settings = law_settings(study, features, pad, condition, specimens)
-                terms = term_features(X, settings, specimens)
-                current = terms["period+harmonic"] if terms["period+harmonic"] is not None else terms["period"]
-                designs = {"current": current, **{f"+ {name}": np.column_stack([current, value]) for name, value
-                                                  in candidates(X, settings, specimens).items()}}
-                for name, design in designs.items():
-                    prediction = clipped_cv(design, np.log(y), specimens)
-                    rows.append({"seed": seed, "pad": pad, "condition": condition, "terms": name,
-                                 **scores(prediction, y, specimens, shapes), "rho": _rho(prediction, y, specimens)})
+    for cell in condition_cells(seeds):
+        X, y, specimens = cell["X"], cell["y"], cell["specimens"]
+        settings = law_settings(cell["study"], cell["features"], cell["pad"], cell["condition"], specimens)
+        terms = term_features(X, settings, specimens)
+        current = terms["period+harmonic"] if terms["period+harmonic"] is not None else terms["period"]
+        designs = {"current": current, **{f"+ {name}": np.column_stack([current, value]) for name, value
+                                          in candidates(X, settings, specimens).items()}}
+        for name, design in designs.items():
+            prediction = clipped_cv(design, np.log(y), specimens)
+            rows.append({"seed": cell["seed"], "pad": cell["pad"], "condition": cell["condition"], "terms": name,
+                         **scores(prediction, y, specimens, cell["shapes"]), "rho": _rho(prediction, y, specimens)})
     return pd.DataFrame(rows)
 
 

@@ -31,7 +31,7 @@ import platform
 import numpy as np
 import pandas as pd
 
-from bench_peak_law import CONDITIONS, law_settings, study_of
+from bench_peak_law import condition_cells, law_settings
 
 TERM_SETS = ("period", "law", "period+harmonic", "law+harmonic")
 
@@ -79,26 +79,19 @@ def scores(prediction, y, specimens, shapes: dict) -> dict:
 
 
 def ablation(seeds) -> pd.DataFrame:
-    from roughsense.analysis import dataset
-
     rows = []
-    for seed in seeds:
-        study, features, perceived = study_of(seed)
-        shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
+    for cell in condition_cells(seeds):
+        X, y, specimens, study = cell["X"], cell["y"], cell["specimens"], cell["study"]
         periods = dict(zip(study.specimens["specimen"], study.specimens["wavelength_mm"]))
-        for pad in study.pads:
-            for condition in CONDITIONS:
-                X, meta = dataset.condition_matrix(features, pad, condition)
-                y = dataset.targets(meta, perceived)
-                specimens = meta["specimen"].astype(str).to_numpy()
-                settings = law_settings(study, features, pad, condition, specimens)
-                for name, design in term_features(X, settings, specimens).items():
-                    for scheme, folds in (("loso", specimens), ("lopo", np.array([periods[s] for s in specimens]))):
-                        base = {"seed": seed, "pad": pad, "condition": condition, "terms": name, "scheme": scheme}
-                        if design is None:
-                            rows.append({**base, "rmse": np.nan, "bias_rect": np.nan, "bias_circ": np.nan})
-                            continue
-                        rows.append({**base, **scores(clipped_cv(design, np.log(y), folds), y, specimens, shapes)})
+        settings = law_settings(study, cell["features"], cell["pad"], cell["condition"], specimens)
+        for name, design in term_features(X, settings, specimens).items():
+            for scheme, folds in (("loso", specimens), ("lopo", np.array([periods[s] for s in specimens]))):
+                base = {"seed": cell["seed"], "pad": cell["pad"], "condition": cell["condition"], "terms": name,
+                        "scheme": scheme}
+                if design is None:
+                    rows.append({**base, "rmse": np.nan, "bias_rect": np.nan, "bias_circ": np.nan})
+                    continue
+                rows.append({**base, **scores(clipped_cv(design, np.log(y), folds), y, specimens, cell["shapes"])})
     return pd.DataFrame(rows)
 
 
@@ -113,36 +106,29 @@ def _reason_kinds(reasons) -> dict:
 
 def flag_table(seeds) -> pd.DataFrame:
     """Training presses read alone (with and without the presses' scatter), and a shape left out (alone, together)."""
-    from roughsense.analysis import dataset
     from roughsense.model.peak_law import PeakPowerLaw
 
     rows = []
-    for seed in seeds:
-        study, features, perceived = study_of(seed)
-        shapes = dict(zip(study.specimens["specimen"], study.specimens["shape"]))
-        for pad in study.pads:
-            for condition in CONDITIONS:
-                X, meta = dataset.condition_matrix(features, pad, condition)
-                y = dataset.targets(meta, perceived)
-                specimens = meta["specimen"].astype(str).to_numpy()
-                settings = law_settings(study, features, pad, condition)
-                settings.pop("surfaces")
-                base = {"seed": seed, "pad": pad, "condition": condition}
-                law = PeakPowerLaw(**settings).fit(X, y, surfaces=specimens)
-                with_spread = law.applicability(X)
-                law.press_scatter_ = None  # the surface margins alone, as before the presses' scatter was kept
-                rows.append({**base, "test": "training alone", "flagged": np.mean([bool(r) for r in with_spread]),
-                             "flagged_surface_margins": np.mean([bool(r) for r in law.applicability(X)]),
-                             **_reason_kinds(with_spread)})
-                shape_of = np.array([shapes[s] for s in specimens])
-                for trained in ("rectangular", "circular"):
-                    train = shape_of == trained
-                    one = PeakPowerLaw(**settings).fit(X[train], y[train], surfaces=specimens[train])
-                    alone = one.applicability(X[~train])
-                    together = one.applicability(X[~train], surfaces=specimens[~train])
-                    rows.append({**base, "test": f"{trained} trained, other shape",
-                                 "flagged": np.mean([bool(r) for r in alone]),
-                                 "flagged_together": np.mean([bool(r) for r in together]), **_reason_kinds(alone)})
+    for cell in condition_cells(seeds):
+        X, y, specimens = cell["X"], cell["y"], cell["specimens"]
+        settings = law_settings(cell["study"], cell["features"], cell["pad"], cell["condition"])
+        settings.pop("surfaces")
+        base = {"seed": cell["seed"], "pad": cell["pad"], "condition": cell["condition"]}
+        law = PeakPowerLaw(**settings).fit(X, y, surfaces=specimens)
+        with_spread = law.applicability(X)
+        law.press_scatter_ = None  # the surface margins alone, as before the presses' scatter was kept
+        rows.append({**base, "test": "training alone", "flagged": np.mean([bool(r) for r in with_spread]),
+                     "flagged_surface_margins": np.mean([bool(r) for r in law.applicability(X)]),
+                     **_reason_kinds(with_spread)})
+        shape_of = np.array([cell["shapes"][s] for s in specimens])
+        for trained in ("rectangular", "circular"):
+            train = shape_of == trained
+            one = PeakPowerLaw(**settings).fit(X[train], y[train], surfaces=specimens[train])
+            alone = one.applicability(X[~train])
+            together = one.applicability(X[~train], surfaces=specimens[~train])
+            rows.append({**base, "test": f"{trained} trained, other shape",
+                         "flagged": np.mean([bool(r) for r in alone]),
+                         "flagged_together": np.mean([bool(r) for r in together]), **_reason_kinds(alone)})
     return pd.DataFrame(rows)
 
 

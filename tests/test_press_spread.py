@@ -81,13 +81,18 @@ def test_a_surface_of_a_few_presses_just_past_the_range_is_inside_but_one_far_pa
     assert reason.startswith("period 1.70 mm outside the trained 2.0")
 
 
-def test_the_scatter_is_kept_in_the_model_file_and_the_loaded_law_flags_alike(tmp_path):
-    rng = np.random.default_rng(3)
-    X, surfaces, freq = _presses(PERIODS_MM, 10, rng)
-    law = rs.PeakPowerLaw(freq_per_mm=freq).fit(X, (np.repeat(PERIODS_MM, 10) / 3.0) ** 0.9, surfaces=surfaces)
+def _saved_law(tmp_path, presses: int, seed: int):
+    """A law fitted on ``presses`` simulated presses per grating, saved as a model file: (presses X, law, path)."""
+    X, surfaces, freq = _presses(PERIODS_MM, presses, np.random.default_rng(seed))
+    law = rs.PeakPowerLaw(freq_per_mm=freq).fit(X, (np.repeat(PERIODS_MM, presses) / 3.0) ** 0.9, surfaces=surfaces)
     path = tmp_path / "law.json"
     features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
     mf.save_model(path, law, feature_definition=features, training={"study": "gratings"})
+    return X, law, path
+
+
+def test_the_scatter_is_kept_in_the_model_file_and_the_loaded_law_flags_alike(tmp_path):
+    X, law, path = _saved_law(tmp_path, 10, seed=3)
     loaded = mf.load_model(path)
     np.testing.assert_array_equal(loaded.press_scatter_.spread, law.press_scatter_.spread)
     assert loaded.press_scatter_.trained_presses == 10
@@ -99,12 +104,7 @@ def test_the_scatter_is_kept_in_the_model_file_and_the_loaded_law_flags_alike(tm
                                  {"spread": [0.1, -0.2, 0.3, 0.4], "trained_presses": 4},
                                  {"spread": [0.1, 0.2, 0.3, 0.4], "trained_presses": 0}, "wide"])
 def test_a_model_file_with_a_malformed_scatter_is_refused_in_one_line(tmp_path, bad):
-    rng = np.random.default_rng(4)
-    X, surfaces, freq = _presses(PERIODS_MM, 4, rng)
-    law = rs.PeakPowerLaw(freq_per_mm=freq).fit(X, (np.repeat(PERIODS_MM, 4) / 3.0) ** 0.9, surfaces=surfaces)
-    path = tmp_path / "law.json"
-    features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
-    mf.save_model(path, law, feature_definition=features, training={"study": "gratings"})
+    _, _, path = _saved_law(tmp_path, 4, seed=4)
     document = json.loads(path.read_text())
     document["model"]["press_scatter"] = bad
     document["sha256"] = mf._digest(document)  # re-signed: the field check, not the checksum, must refuse it
