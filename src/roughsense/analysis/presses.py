@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..model.families import PEAK_LAW
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
-from ..model.peak_law import domain_margins, held_features, peak_features
+from ..model.peak_law import domain_margins, grid_step, held_features, peak_features
 from ..model.peak_law_folds import law_fold_models, specimen_codes
 from .controls import fold_mean_predictions
 
@@ -32,7 +32,7 @@ def loso_laws(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict):
     held = codes[None, :] == np.arange(names.size)[:, None]
     beta, low, high, _ = law_fold_models(X, y, ~held, **law)
     freq = law["freq_per_mm"]
-    low, high = domain_margins(float(freq[1] - freq[0]), low, high)
+    low, high = domain_margins(grid_step(freq), low, high)
     return beta, low, high
 
 

@@ -69,14 +69,14 @@ class LawFolds:
 
     def log_predict(self, X, surfaces=None) -> np.ndarray:
         """(S, n) each fold's log prediction of each row (rows of one surface share where its peak is read)."""
-        from .peak_law import peak_features
+        from .peak_law import grid_step, peak_features
         from .peak_law_folds import fold_log_predictions
 
         freq = np.asarray(self.settings["freq_per_mm"], dtype=np.float64)
         features = peak_features(X, freq, surfaces=surfaces, **{k: v for k, v in self.settings.items()
                                                               if k in ("n_blocks", "pad_ridge_period_mm",
                                                                        "exclusion_per_mm")})
-        return fold_log_predictions(features, self.beta, self.low, self.high, float(freq[1] - freq[0]))
+        return fold_log_predictions(features, self.beta, self.low, self.high, grid_step(freq))
 
     def to_dict(self) -> dict:
         def bound(values):
@@ -282,7 +282,7 @@ def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearF
 
 
 def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
-    from .peak_law import domain_margins
+    from .peak_law import domain_margins, grid_step
     from .peak_law_file import _check_finite_predictions
 
     p, n = loaded.coef_.size, len(names)
@@ -293,7 +293,7 @@ def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds
     low, high = np.where(np.isnan(low), -np.inf, low), np.where(np.isnan(high), np.inf, high)
     if np.any(low > high):
         raise ModelFileError(f"training.{KEY}.folds.feature_min exceeds feature_max: an empty training range", path=path)
-    step = float(loaded.freq_per_mm[1] - loaded.freq_per_mm[0]) if loaded.freq_per_mm.size > 1 else 0.0
+    step = grid_step(loaded.freq_per_mm)
     for i in range(n):  # each fold's exponent stays finite over its domain, as the deployed law's
         wide_low, wide_high = domain_margins(step, low[i], high[i])
         try:

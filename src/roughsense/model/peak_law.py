@@ -510,7 +510,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
             (n_samples,) predictions (positive).
         """
         return predict_law(self.features(X, surfaces), self.intercept_, self.coef_,
-                           *domain_margins(_step(self.freq_per_mm_), self.feature_min_, self.feature_max_))
+                           *domain_margins(grid_step(self.freq_per_mm_), self.feature_min_, self.feature_max_))
 
     def extrapolates(self, X, surfaces=None) -> np.ndarray:
         """True for each row outside the law's applicability domain (:meth:`applicability` gives the reasons).
@@ -545,7 +545,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False, ensure_min_samples=1)
         _check_positive(X)
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              _step(self.freq_per_mm_), self.press_scatter_)
+                              grid_step(self.freq_per_mm_), self.press_scatter_)
 
 
 def kept_rows(features: np.ndarray, log_y: np.ndarray, beta: np.ndarray, scale: float, epsilon: float,
@@ -575,8 +575,8 @@ def _kept(absolute: np.ndarray, scale: np.ndarray, epsilon: float, train: np.nda
     return np.where(kept.any(axis=2, keepdims=True), kept, train[:, None, :])
 
 
-def _step(freq_per_mm: np.ndarray) -> float:
-    """The grid's spacing (mm^-1); 0 for a one-bin grid."""
+def grid_step(freq_per_mm: np.ndarray) -> float:
+    """The grid's spacing (mm^-1); 0 for a one-bin grid. The one home of the formula for the law's margins."""
     return float(freq_per_mm[1] - freq_per_mm[0]) if len(freq_per_mm) > 1 else 0.0
 
 
@@ -735,7 +735,7 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
     beta, scale = fit_terms(features, log_targets, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
-    low, high = domain_margins(_step(freq_per_mm),
+    low, high = domain_margins(grid_step(freq_per_mm),
                                *fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces))
     predictions = np.empty_like(targets)
     for fold in range(n_folds):

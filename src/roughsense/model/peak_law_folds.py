@@ -18,6 +18,7 @@ from .peak_law import (
     domain_margins,
     fit_terms,
     fold_kept_ranges,
+    grid_step,
     held_features,
     peak_features,
 )
@@ -51,7 +52,7 @@ def law_fold_predictions(X, y, train: np.ndarray, *, freq_per_mm, **law) -> np.n
     """(F, n) predictions of every row by the law fitted on each training mask of ``train`` (F, n)."""
     freq_per_mm = check_grid(freq_per_mm)
     beta, low, high, features = law_fold_models(X, y, train, freq_per_mm=freq_per_mm, **law)
-    return np.exp(fold_log_predictions(features, beta, low, high, float(freq_per_mm[1] - freq_per_mm[0])))
+    return np.exp(fold_log_predictions(features, beta, low, high, grid_step(freq_per_mm)))
 
 
 def specimen_codes(specimens) -> tuple[np.ndarray, np.ndarray]:
@@ -80,7 +81,7 @@ def law_pair_log_predictions(X, y, specimens, *, models=None, **law) -> np.ndarr
     codes, names = specimen_codes(specimens)
     pair, (beta, low, high, features) = models or law_pair_models(X, y, specimens, **law)
     freq = check_grid(law["freq_per_mm"])
-    predicted = np.exp(fold_log_predictions(features, beta, low, high, float(freq[1] - freq[0])))
+    predicted = np.exp(fold_log_predictions(features, beta, low, high, grid_step(freq)))
     return np.log(surface_means(predicted, codes, names.size))[pair]
 
 
@@ -116,7 +117,7 @@ def law_nested_press_check(X, y, specimens, count: int, seed: int, *, level: flo
     rows, reading, owner = press_groups(codes, count, seed)
     features = peak_features(np.asarray(X)[rows], surfaces=reading, **settings)
     freq = check_grid(settings["freq_per_mm"])
-    predicted = np.exp(fold_log_predictions(features, beta, low, high, float(freq[1] - freq[0])))  # (P, rows)
+    predicted = np.exp(fold_log_predictions(features, beta, low, high, grid_step(freq)))  # (P, rows)
     means = np.log(np.stack([np.bincount(reading, weights=p) for p in predicted]) / np.bincount(reading))  # (P, R)
     log_targets = np.log(pd.Series(np.asarray(y, dtype=np.float64)).groupby(codes).first().to_numpy())
     firsts = np.array([np.flatnonzero(owner == s)[0] for s in range(n_specimens)])
