@@ -15,8 +15,10 @@
 Stage times are the CLI's own stage lines (``roughsense: controls, ... done in 12.3 s``; a stage under 2 s prints
 none). Peak RSS is ``wait4``'s of the study process.
 
-Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src] [--growth | --chunks | --report-only]
-(ROUGHSENSE_CACHE_DIR selects the cache; the built-in study is simulated there on first use.)
+Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src [--peer-cache DIR]]
+     [--growth | --chunks | --report-only]
+(ROUGHSENSE_CACHE_DIR selects the cache; the built-in study is simulated there on first use. The peer keeps its
+own, ``--peer-cache``: a simulator that differs keys the built-in study differently.)
 """
 from __future__ import annotations
 
@@ -34,11 +36,15 @@ from pathlib import Path
 STAGE = re.compile(r"roughsense: ([a-z][a-z -]*?)(?:,[^.]*?)?(?: \(\d+\))? \.\.\. done in ([\d.]+) s")
 
 
-def study(out: Path, permutations: int, *, src: Path | None = None, data: Path | None = None) -> dict:
-    """One fresh ``roughsense study``: wall time, peak RSS (MiB) and its stage times."""
+def study(out: Path, permutations: int, *, src: Path | None = None, data: Path | None = None,
+          cache: Path | None = None) -> dict:
+    """One fresh ``roughsense study``: wall time, peak RSS (MiB) and its stage times; ``cache``: its own cache folder
+    (a peer whose simulator differs keys the built-in study differently, and a cache keeps one version of it)."""
     env = dict(os.environ)
     if src is not None:
         env["PYTHONPATH"] = str(src.resolve())
+    if cache is not None:
+        env["ROUGHSENSE_CACHE_DIR"] = str(cache)
     command = [sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force",
                "--permutations", str(permutations)] + ([] if data is None else ["--data", str(data)])
     started = time.perf_counter()
@@ -60,14 +66,15 @@ def median(runs: list[dict], key: str) -> float:
 
 def ratio(args, scratch: Path) -> None:
     peers = {"this": None} | ({"peer": args.peer_src} if args.peer_src else {})
-    for src in peers.values():  # untimed: the features cache, the first imports
-        study(scratch / "warm", 0, src=src)
+    caches = {"this": None, "peer": args.peer_cache or scratch / "peer-cache"}
+    for name, src in peers.items():  # untimed: the features cache, the first imports
+        study(scratch / "warm", 0, src=src, cache=caches[name])
     shufflings = (0,) if args.report_only else (0, 199)
     runs = {(name, b): [] for name in peers for b in shufflings}
     for _ in range(args.repeats):
         for name, src in peers.items():
             for b in shufflings:
-                runs[(name, b)].append(study(scratch / f"{name}-{b}", b, src=src))
+                runs[(name, b)].append(study(scratch / f"{name}-{b}", b, src=src, cache=caches[name]))
     def walls(some: list[dict]) -> str:
         return ", ".join(f"{r['wall']:.1f}" for r in some)
 
@@ -167,6 +174,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--peer-src", type=Path, default=None)
+    parser.add_argument("--peer-cache", type=Path, default=None,
+                        help="The peer's own cache folder (default: one in the scratch folder, built on first use).")
     parser.add_argument("--growth", action="store_true", help="Only the growth at 10 and 20 repetitions.")
     parser.add_argument("--chunks", action="store_true", help="Only the controls' chunk sizes (CPU, peak RSS).")
     parser.add_argument("--chunk-run", nargs=3, help=argparse.SUPPRESS)

@@ -117,7 +117,7 @@ def bench_full(jobs: int, repeats: int, frames: str = "stored") -> tuple[float, 
     saved = png.png_params
     if frames == "whole":  # as before issue 12: whole frames, OpenCV's default PNG (workers fork and inherit this)
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, stored_height_px=0))
-        png.png_params = lambda: ()  # where the workers' write_trial looks it up
+        png.png_params = lambda: ()  # where the workers' write_mount looks it up
     times, size = [], 0
     try:
         for _ in range(repeats):

@@ -59,12 +59,13 @@ def cold_study(scratch: Path, src: Path | None) -> dict[str, float]:
     env = dict(os.environ, ROUGHSENSE_CACHE_DIR=str(cache))
     if src is not None:
         env["PYTHONPATH"] = str(src.resolve())
-    started = time.perf_counter()
+    started, before = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
     done = subprocess.run([sys.executable, "-m", "roughsense.cli", "study", "--out", str(scratch / "report"), "--force"],
                           env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    wall = time.perf_counter() - started
+    wall, after = time.perf_counter() - started, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)  # the process tree, workers too
     shutil.rmtree(cache, ignore_errors=True)
-    return {"wall": wall, **{name: float(seconds) for name, seconds in STAGE.findall(done.stderr)}}
+    return {"wall": wall, "cpu": cpu, **{name: float(seconds) for name, seconds in STAGE.findall(done.stderr)}}
 
 
 def report_cold_peers(peers: list[Path], repeats: int) -> None:
@@ -83,13 +84,14 @@ def report_cold_peers(peers: list[Path], repeats: int) -> None:
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     this = statistics.median(r["wall"] for r in runs["this"])
+    this_cpu = statistics.median(r["cpu"] for r in runs["this"])
     for name in names:
-        stages = sorted({stage for run in runs[name] for stage in run if stage != "wall"})
-        median = statistics.median(r["wall"] for r in runs[name])
+        stages = sorted({stage for run in runs[name] for stage in run if stage not in ("wall", "cpu")})
+        median, cpu = (statistics.median(r[key] for r in runs[name]) for key in ("wall", "cpu"))
         parts = ", ".join(f"{stage} {statistics.median(r.get(stage, 0.0) for r in runs[name]):.1f} s" for stage in stages)
         walls = ", ".join(f"{r['wall']:.1f}" for r in runs[name])
-        print(f"  {name}: cold study median {median:.1f} s (runs: {walls}); "
-              f"{parts}" + ("" if name == "this" else f"; this / peer = {this / median:.2f}"))
+        print(f"  {name}: cold study median {median:.1f} s (runs: {walls}), CPU {cpu:.1f} s; {parts}"
+              + ("" if name == "this" else f"; this / peer = {this / median:.2f} (CPU {this_cpu / cpu:.2f})"))
 
 
 def decode_all(study: Path) -> float:

@@ -7,6 +7,7 @@ import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -424,6 +425,7 @@ def test_the_simulated_stamp_sits_above_every_axes_and_component_ticks_are_whole
     box = stamp.get_window_extent(renderer)
     for artist in (ax, ax.xaxis.label, ax.yaxis.label, ax.title, *ax.get_xticklabels(), *ax.get_yticklabels()):
         assert not box.overlaps(artist.get_window_extent(renderer)), artist
+    assert fig.bbox.contains(box.x0, box.y0) and fig.bbox.contains(box.x1, box.y1)  # on the canvas: drawn once
     plt.close(fig)
     cv = pd.DataFrame({"pad": "smooth", "cv": "loo", "condition": "1N", "n_components": [0, 1, 2, 3],
                        "rmse": [0.5, 0.3, 0.25, 0.26]})
@@ -433,6 +435,50 @@ def test_the_simulated_stamp_sits_above_every_axes_and_component_ticks_are_whole
     ticks = [t for t in fig.axes[0].get_xticks() if fig.axes[0].get_xlim()[0] <= t <= fig.axes[0].get_xlim()[1]]
     assert ticks and all(float(t).is_integer() for t in ticks)
     plt.close(fig)
+
+
+def test_the_stamp_grows_the_figure_and_keeps_every_axes_size_in_inches():
+    import matplotlib.pyplot as plt
+
+    from roughsense.report import figures
+
+    fig, axes = plt.subplots(2, 2, figsize=(6.0, 4.0))
+    fig.tight_layout()
+
+    def boxes_in():  # each axes' box in inches from the figure's bottom left
+        return [np.array(ax.get_position().bounds) * np.tile(fig.get_size_inches(), 2) for ax in axes.flat]
+
+    before = boxes_in()
+    figures.mark_simulated(fig)
+    grown = fig.get_size_inches()[1] - 4.0
+    assert 0.1 < grown < 0.6 and fig.get_size_inches()[0] == 6.0
+    assert np.allclose(before, boxes_in())
+    plt.close(fig)
+
+
+def test_a_png_is_trimmed_to_its_ink_and_a_figure_drawn_past_its_edge_is_kept_whole():
+    """PNGs are drawn once and trimmed by their pixels; ink at the canvas's edge may be cut, so such a figure is
+    saved through matplotlib's tight box, which grows past the canvas to hold it."""
+    import io
+
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from roughsense.report import figures
+
+    def size(fig) -> tuple[int, int]:
+        return Image.open(io.BytesIO(figures.figure_bytes(fig, "png", dpi=100))).size
+
+    fig, ax = plt.subplots(figsize=(4.0, 3.0))
+    ax.plot([0, 1], [0, 1])
+    fig.tight_layout()
+    width, height = size(fig)
+    assert width < 400 and height < 300  # tight_layout's margins trimmed to the pad
+    fig, ax = plt.subplots(figsize=(4.0, 3.0))
+    ax.plot([0, 1], [0, 1])
+    fig.text(0.9, 0.5, "a label that runs past the right edge")
+    width, _ = size(fig)
+    assert width > 400 + 100  # the whole label is in the file
 
 
 def test_the_cli_figure_options_match_the_report():

@@ -5,6 +5,7 @@ so the template can show both without knowing what the numbers mean.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -41,14 +42,16 @@ def _cell(ours: str, paper: str | None = None) -> dict:
     return {"ours": ours, "paper": paper}
 
 
-def _paper_lookup() -> pd.DataFrame:
-    return published.paper_results().set_index(["pad", "specimen", "condition"])
+@functools.cache
+def _paper_lookup() -> dict[str, dict[tuple, float]]:
+    """The paper's per-specimen values by column, then (pad, specimen, condition): read once, looked up per cell
+    (``.loc`` per cell was most of a page's tables' time). Read only: every table shares it."""
+    table = published.paper_results().set_index(["pad", "specimen", "condition"])
+    return {column: table[column].to_dict() for column in table.columns}
 
 
-def _paper_value(paper: pd.DataFrame, key: tuple, column: str):
-    if key in paper.index:
-        return paper.loc[key, column]
-    return None
+def _paper_value(paper: dict[str, dict[tuple, float]], key: tuple, column: str):
+    return paper[column].get(key)
 
 
 OUT_OF_FOLD = ("Every prediction here is out of fold: it comes from a model that did not see that image (LOO) or "
@@ -150,11 +153,13 @@ def metric_table(results: pd.DataFrame, summary: pd.DataFrame, pad: str, specime
             row.append(_cell(value, _num(pv) if pv is not None else None))
         rows.append(row)
     order = {"rectangular": 0, "circular": 1, "all": 99}
+    mine = summary[summary.pad == pad].drop_duplicates(["condition", "group"])  # the first row of each, as before
+    by_cell = dict(zip(zip(mine["condition"], mine["group"]), zip(mine["mean"], mine["sd"])))
     for group in sorted(summary["group"].drop_duplicates(), key=lambda g: (order.get(g, 50), g)):
         row = [_cell(f"{GROUP_TITLES.get(group, group.capitalize())}: mean ± SD")]
         for condition in conditions:
-            s = summary[(summary.pad == pad) & (summary.condition == condition) & (summary.group == group)]
-            value = _pm(s["mean"].iloc[0], s["sd"].iloc[0]) if len(s) else "—"
+            cell = by_cell.get((condition, group))
+            value = _pm(*cell) if cell is not None else "—"
             printed = published.PAPER_SUMMARIES.get((pad, column, condition, group)) if with_paper else None
             row.append(_cell(value, _pm(*printed) if printed else None))
         rows.append(row)

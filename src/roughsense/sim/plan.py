@@ -98,3 +98,16 @@ def plan_trials(config: SimulationConfig, pads: Sequence[Pad], specimens: Sequen
                     trials.append(Trial(name, pad, specimen, float(force), rep, mount, exposure,
                                         (3, *mount_key[1:], fkey), config.seed, config.camera))
     return trials
+
+
+def mount_groups(trials: Sequence[Trial]) -> list[list[Trial]]:
+    """The planned trials in runs of one mount (consecutive trials on the same pad, specimen and mount: its forces),
+    in plan order: what a worker renders together (:func:`.frames.render_mount`)."""
+    groups: list[list[Trial]] = []
+    for trial in trials:
+        if groups and (trial.pad, trial.specimen, trial.mount) == (groups[-1][0].pad, groups[-1][0].specimen,
+                                                                   groups[-1][0].mount):
+            groups[-1].append(trial)
+        else:
+            groups.append([trial])
+    return groups

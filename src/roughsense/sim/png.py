@@ -1,20 +1,22 @@
-"""Writing a rendered frame as PNG: the encoder's settings and the worker task that renders and writes one trial."""
+"""Writing rendered frames as PNG: the encoder's settings and the worker task that renders and writes one mount's
+trials (its forces, whose contacts are solved together)."""
 from __future__ import annotations
 
 from ..io.writer import StudyWriter
-from .frames import render_trial
+from .frames import render_mount
 from .plan import Trial
 
 _WRITERS: dict[tuple[str, bool], StudyWriter] = {}
 
 
-def write_trial(args: tuple[str, bool, Trial]) -> tuple[str, float]:
-    root, force, trial = args
+def write_mount(args: tuple[str, bool, list[Trial]]) -> list[tuple[str, float]]:
+    """Render and write the trials of one mount (:func:`.frames.render_mount`): each image's name and contact fraction."""
+    root, force, trials = args
     writer = _WRITERS.get((root, force))
     if writer is None:  # each worker reopens the folder the parent already checked and created
         writer = _WRITERS[(root, force)] = StudyWriter(root, force=force, resume=True)
-    frame, fraction = render_trial(trial)
-    return writer.write_image(trial.image, frame, params=png_params()), fraction
+    return [(writer.write_image(trial.image, frame, params=png_params()), fraction)
+            for trial, (frame, fraction) in zip(trials, render_mount(trials))]
 
 
 def png_params() -> tuple[int, ...]:

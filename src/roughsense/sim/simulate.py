@@ -25,8 +25,8 @@ from .frames import render_trial, trial_line
 from .manifest import trial_manifest
 from .overwrite import check_overwritable, is_complete_simulation, is_simulated_study, simulation_owned
 from .panel import PANEL_SPAWN_KEY, percept, simulate_panel
-from .plan import Trial, check_unique_images, force_key, plan_trials
-from .png import png_params, write_trial
+from .plan import Trial, check_unique_images, force_key, mount_groups, plan_trials
+from .png import png_params, write_mount
 
 __all__ = [
     "COMPLETE_MARKER", "SimulationConfig", "SimulationRun", "Trial", "check_overwritable", "force_key",
@@ -132,17 +132,18 @@ class SimulationRun:
     def _build(self) -> Iterator[str]:
         staging = self.writer.root
         self._write_tables()
-        tasks = [(str(staging), False, t) for t in self.trials]
+        # One task per mount: its forces' contacts are solved together (the same pixels, less time).
+        tasks = [(str(staging), False, group) for group in mount_groups(self.trials)]
         results: list[tuple[str, float]] = []
         if self.jobs == 1 or len(tasks) < 2:
-            for result in map(write_trial, tasks):
-                results.append(result)
-                yield result[0]
+            for written in map(write_mount, tasks):
+                results += written
+                yield from (image for image, _ in written)
         else:
             with process_pool(min(self.jobs, len(tasks))) as pool:
-                for result in pool.map(write_trial, tasks, chunksize=4):
-                    results.append(result)
-                    yield result[0]
+                for written in pool.map(write_mount, tasks):
+                    results += written
+                    yield from (image for image, _ in written)
         manifest = trial_manifest(self.trials, [r[0] for r in results], [r[1] for r in results])
         self.writer.write_manifest(manifest)
         atomic.write_text(staging / COMPLETE_MARKER, f"seed = {self.config.seed}\nimages = {len(results)}\n")
