@@ -1,0 +1,72 @@
+"""The permutation control's PLS shortcuts against the plain paths and against SIMPLS refitted fold by fold.
+
+Nested leave-one-specimen-out with many shuffled targets fits each pair of specimens left out in that pair's own basis
+(``pls_cv._own_basis_pair_choices``): the same Krylov spaces as the shared rotation's downdated operator, so the same
+predictions to rounding and the same choices.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from roughsense.model import pls_cv as engine
+
+from .test_pls import refit_predictions, spectra
+
+
+def _shuffled(y: np.ndarray, groups: np.ndarray, n_targets: int, seed: int) -> np.ndarray:
+    """The real target and shufflings of it across groups (every member of a group keeps one shared value)."""
+    names, first, codes = np.unique(groups, return_index=True, return_inverse=True)
+    values = y[first]
+    rng = np.random.default_rng(seed)
+    return np.column_stack([y] + [rng.permutation(values)[codes] for _ in range(n_targets - 1)])
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), n_specimens=st.integers(5, 7), repetitions=st.integers(3, 4),
+       p=st.sampled_from([8, 20]), drop=st.booleans())
+def test_own_basis_pair_predictions_equal_the_shared_rotations(seed, n_specimens, repetitions, p, drop):
+    X, y, groups = spectra(n_specimens=n_specimens, repetitions=repetitions, p=p, noise=0.05, seed=seed)
+    if drop:  # one group a press short: pairs of two sizes
+        X, y, groups = X[1:], y[1:], groups[1:]
+    Y = _shuffled(y, groups, 9, seed)
+    A = 3
+    held = groups[None, :] == pd.unique(groups)[:, None]
+    first, second = np.triu_indices(held.shape[0], k=1)
+    pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
+    Z, sv = engine._rotation(X)
+    for rows in pair_rows:
+        plain = engine._cv_predictions(X, Y, np.zeros(rows.size, dtype=np.intp), A, rows, (Z, sv))
+        own = engine._own_basis_predictions(Z, Y, rows[None, :], A, 0.0)[0]
+        np.testing.assert_allclose(own, plain, rtol=1e-9, atol=1e-12)
+
+
+def test_nested_choices_with_many_targets_equal_simpls_refitted_per_group():
+    """Ten targets take the own-basis pairs; every group's inner choice is what refitting SIMPLS on its inner folds
+    chooses, and the nested predictions are the outer run's at that count."""
+    X, y, groups = spectra(n_specimens=6, repetitions=3, p=12, noise=0.05, seed=3)
+    X, y, groups = np.delete(X, 4, axis=0), np.delete(y, 4), np.delete(groups, 4)
+    Y = _shuffled(y, groups, 10, seed=1)
+    assert Y.shape[1] >= engine._OWN_BASIS_MIN_TARGETS
+    outer = engine.pls_cv_many(X, Y, max_components=3, groups=groups).predictions
+    nested, chosen = engine.nested_group_predictions(X, Y, groups, outer)
+    for j, name in enumerate(pd.unique(groups)):
+        held = groups == name
+        for b in range(Y.shape[1]):
+            inner = refit_predictions(X[~held], Y[~held, b], groups[~held], 3)
+            rmse = np.sqrt(((inner - Y[~held, b][:, None]) ** 2).mean(axis=0))
+            assert chosen[b, j] == 1 + int(np.argmin(rmse[1:]))
+            np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
+
+
+def test_own_basis_choices_equal_the_shared_rotations_on_spectra(monkeypatch):
+    X, y, groups = spectra(n_specimens=8, repetitions=4, p=30, seed=5)
+    Y = _shuffled(y, groups, 12, seed=2)
+    outer = engine.pls_cv_many(X, Y, max_components=6, groups=groups).predictions
+    own = engine.nested_group_predictions(X, Y, groups, outer)
+    monkeypatch.setattr(engine, "_OWN_BASIS_MIN_TARGETS", Y.shape[1] + 1)
+    shared = engine.nested_group_predictions(X, Y, groups, outer)
+    np.testing.assert_array_equal(own[1], shared[1])
+    np.testing.assert_array_equal(own[0], shared[0])
