@@ -1,18 +1,22 @@
-"""The permutation control's PLS shortcuts against the plain paths and against SIMPLS refitted fold by fold.
+"""The permutation control's shortcuts against the plain paths, and against SIMPLS refitted fold by fold.
 
 Nested leave-one-specimen-out with many shuffled targets fits each pair of specimens left out in that pair's own basis
 (``pls_cv._own_basis_pair_choices``): the same Krylov spaces as the shared rotation's downdated operator, so the same
-predictions to rounding and the same choices.
+predictions to rounding and the same choices. The peak law's leave-one-out fits a surface's interchangeable folds once
+(``peak_law_cv``): the same bits as fitting every fold.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from roughsense.model import peak_law
 from roughsense.model import pls_cv as engine
 
+from .test_peak_law import GRID, specimen_spectra
 from .test_pls import refit_predictions, spectra
 
 
@@ -70,3 +74,19 @@ def test_own_basis_choices_equal_the_shared_rotations_on_spectra(monkeypatch):
     shared = engine.nested_group_predictions(X, Y, groups, outer)
     np.testing.assert_array_equal(own[1], shared[1])
     np.testing.assert_array_equal(own[0], shared[0])
+
+
+@pytest.mark.parametrize("n_blocks, ridge", [(1, None), (3, 1.0)])
+def test_law_loo_fits_each_surfaces_folds_once_and_equals_every_fold_fitted(monkeypatch, n_blocks, ridge):
+    X, y, groups = specimen_spectra(n_specimens=6, repetitions=3, n_blocks=n_blocks, seed=4)
+    Y = _shuffled(np.repeat(y[::3], 3), groups, 6, seed=3)  # one value per surface, as the control's shufflings
+    settings = {"freq_per_mm": GRID, "n_blocks": n_blocks, "pad_ridge_period_mm": ridge, "surfaces": groups}
+    masks = []
+    original = peak_law.fit_terms
+    monkeypatch.setattr(peak_law, "fit_terms", lambda f, t, train, **k: masks.append(len(train)) or original(f, t, train, **k))
+    once = peak_law.peak_law_cv(X, Y, **settings)
+    assert masks == [6]  # one fit per surface's presses, not one per press
+    monkeypatch.setattr(peak_law, "row_classes", lambda rows: np.arange(len(rows)))  # no two rows interchangeable
+    every = peak_law.peak_law_cv(X, Y, **settings)
+    assert masks[-1] == len(y)
+    np.testing.assert_array_equal(once, every)
