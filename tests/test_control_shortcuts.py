@@ -90,3 +90,15 @@ def test_law_loo_fits_each_surfaces_folds_once_and_equals_every_fold_fitted(monk
     every = peak_law.peak_law_cv(X, Y, **settings)
     assert masks[-1] == len(y)
     np.testing.assert_array_equal(once, every)
+
+
+@pytest.mark.parametrize("drop", [False, True])
+def test_many_targets_leave_one_group_out_in_each_folds_basis_equals_one_cv_per_target(drop):
+    X, y, groups = spectra(n_specimens=7, repetitions=4, p=25, noise=0.05, seed=8)
+    if drop:  # folds of two sizes
+        X, y, groups = X[1:], y[1:], groups[1:]
+    Y = _shuffled(y, groups, 10, seed=4)
+    batch = engine.pls_cv_many(X, Y, max_components=6, groups=groups)
+    for b in range(Y.shape[1]):
+        single = engine.pls_cv(X, Y[:, b], max_components=6, groups=groups)
+        np.testing.assert_allclose(batch.predictions[b], single.predictions, rtol=1e-9, atol=1e-12)

@@ -181,6 +181,12 @@ def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.n
 # --chunks).
 _BATCH_BYTES = 8 * 2**20
 
+# From this many targets on, leave-one-group-out (pls_cv_many) and nested LOSO's pairs of groups left out
+# (_pair_choices) fit each fold in its own basis (the SVD of its training rows): every target of the fold then shares
+# one diagonal operator and one held-out projection, so a Lanczos step is a few elementwise passes and the predictions
+# one product at the end. Below it (the real target alone) the fold's SVD costs more than the downdates it saves.
+_OWN_BASIS_MIN_TARGETS = 8
+
 
 @dataclass(frozen=True)
 class PLSCVBatch:
@@ -249,8 +255,14 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     try:
         with blas_threads_for(X):
             rotation = _rotation(X)
-            for start in range(0, Y.shape[1], chunk):
-                pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A, None, rotation)
+            if groups is not None and Y.shape[1] >= _OWN_BASIS_MIN_TARGETS:  # few folds, many targets: each its basis
+                for _, rows, predictions in _own_basis_runs(X, Y, [np.flatnonzero(fid == f) for f in range(F)], A,
+                                                               rotation):
+                    pred[:, rows.ravel()] = predictions.transpose(1, 0, 2, 3).reshape(Y.shape[1], rows.size, A + 1)
+            else:
+                for start in range(0, Y.shape[1], chunk):
+                    pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A, None,
+                                                                  rotation)
     except PLSConfigError as exc:
         if not cap or exc.supported is None or exc.supported < 1 or exc.supported >= A:
             raise
@@ -348,12 +360,6 @@ def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[i
     return chosen
 
 
-# From this many targets on, _pair_choices fits each pair of groups left out in that pair's own basis (the SVD of
-# its training rows): every target of the pair then shares one diagonal operator and one held-out projection, so a
-# Lanczos step is a few elementwise passes and its predictions one product at the end. Below it (the real target
-# alone) the pair's SVD costs more than the shared rotation's downdates it saves.
-_OWN_BASIS_MIN_TARGETS = 8
-
 
 def _own_basis_pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, U: int, first: np.ndarray,
                             second: np.ndarray) -> np.ndarray:
@@ -364,25 +370,35 @@ def _own_basis_pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, U: i
     leave-one-group-out chooses). Pairs of one size go through in chunks of about :data:`_BATCH_BYTES` of Lanczos
     vectors. Raises PLSConfigError where a pair's Krylov space or training fold is too small.
     """
-    Z, sv = _rotation(X)
-    n, B, S = X.shape[0], Y.shape[1], held.shape[0]
+    B, S = Y.shape[1], held.shape[0]
     pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
-    _check_fold_support(sv, n, X.shape[1], np.array([n - r.size for r in pair_rows]), U)
-    exhausted = _KRYLOV_RTOL * sv.max() ** 2
-    sizes = np.array([r.size for r in pair_rows])
-    chunk = max(1, _BATCH_BYTES // ((U + 1) * B * Z.shape[1] * 8))
     sse = np.zeros((B, S, U + 1))
-    for size in np.unique(sizes):  # pairs of one size share the shapes of their bases: batched together
-        pairs = np.flatnonzero(sizes == size)
-        for part in np.array_split(pairs, -(-pairs.size // chunk)):
-            rows = np.stack([pair_rows[i] for i in part])  # (F, m)
-            err2 = (_own_basis_predictions(Z, Y, rows, U, exhausted) - Y.T[:, rows].transpose(1, 0, 2)[..., None]) ** 2
-            for f, i in enumerate(part):
-                of_k = held[second[i], rows[f]]  # group k's rows are group j's inner fold k, and the other way round
-                sse[:, first[i]] += err2[f][:, of_k].sum(axis=1)
-                sse[:, second[i]] += err2[f][:, ~of_k].sum(axis=1)
+    for part, rows, predictions in _own_basis_runs(X, Y, pair_rows, U, _rotation(X)):
+        err2 = (predictions - Y.T[:, rows].transpose(1, 0, 2)[..., None]) ** 2
+        for f, i in enumerate(part):
+            of_k = held[second[i], rows[f]]  # group k's rows are group j's inner fold k, and the other way round
+            sse[:, first[i]] += err2[f][:, of_k].sum(axis=1)
+            sse[:, second[i]] += err2[f][:, ~of_k].sum(axis=1)
     rmse = np.sqrt(sse / (~held).sum(axis=1)[None, :, None])  # a run's entries: every row but its own group's
     return np.argmin(rmse[:, :, 1:], axis=2) + 1
+
+
+def _own_basis_runs(X: np.ndarray, Y: np.ndarray, fold_rows: list[np.ndarray], A: int,
+                    rotation: tuple[np.ndarray, np.ndarray]):
+    """Every fold (its held-out rows ``fold_rows[f]``) fitted in its own basis for all targets: yields (the folds, their
+    rows (F, m), their predictions (F, B, m, A+1)) in chunks of folds of one size, each about :data:`_BATCH_BYTES` of
+    Lanczos vectors. Raises PLSConfigError where a training fold or a Krylov space is too small for A."""
+    Z, sv = rotation
+    n = X.shape[0]
+    _check_fold_support(sv, n, X.shape[1], np.array([n - r.size for r in fold_rows]), A)
+    exhausted = _KRYLOV_RTOL * sv.max() ** 2
+    sizes = np.array([r.size for r in fold_rows])
+    chunk = max(1, _BATCH_BYTES // ((A + 1) * Y.shape[1] * Z.shape[1] * 8))
+    for size in np.unique(sizes):  # folds of one size share the shapes of their bases: batched together
+        folds = np.flatnonzero(sizes == size)
+        for part in np.array_split(folds, -(-folds.size // chunk)):
+            rows = np.stack([fold_rows[i] for i in part])
+            yield part, rows, _own_basis_predictions(Z, Y, rows, A, exhausted)
 
 
 def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: int, exhausted: float) -> np.ndarray:
