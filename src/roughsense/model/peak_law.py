@@ -739,15 +739,15 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
     beta, scale = fit_terms(features, log_targets, train, epsilon=epsilon, grouped=surfaces is not None)
     low, high = domain_margins(grid_step(freq_per_mm),
                                *fold_kept_ranges(features, log_targets, train, beta, scale, epsilon, surfaces))
-    return _out_of_fold(features, held_out, folds, beta, low, high)
+    return _out_of_fold(features, held_out, folds, beta, low, high, np.empty_like(targets))
 
 
 def _out_of_fold(features: np.ndarray, held_out: np.ndarray, folds: tuple, beta: np.ndarray, low: np.ndarray,
-                 high: np.ndarray) -> np.ndarray:
-    """(B, n) each row's prediction by the laws of the fold holding it out; ``folds`` from :func:`_interchangeable_folds`,
-    ``beta``, ``low`` and ``high`` per problem (its first fold)."""
+                 high: np.ndarray, predictions: np.ndarray) -> np.ndarray:
+    """``predictions`` (B, n) filled with each row's prediction by the laws of the fold holding it out; ``folds`` from
+    :func:`_interchangeable_folds`, ``beta``, ``low`` and ``high`` per problem (its first fold). (The array keeps the
+    targets' memory order: a reduction over it sums in that order.)"""
     row_class, distinct, same_as = folds
-    predictions = np.empty((beta.shape[1], features.shape[0]))
     for fold, problem in enumerate(same_as):
         rows = np.flatnonzero(held_out[fold])
         if fold != distinct[problem]:  # its rows match its problem's first fold's class by class: the same predictions
