@@ -424,8 +424,8 @@ def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: in
     q = V.shape[2]
     u = np.matmul(V.reshape(A, F, B, q), np.stack(projected).transpose(0, 2, 1)[None])  # (A, F, B, m)
     u = u.reshape(A, F * B, m)
-    predictions = np.empty((F * B, m, A + 1))
-    predictions[:, :, 0] = np.concatenate(y_mean)[:, None]
+    predictions = np.empty((A + 1, F * B, m))  # component-major while filling: each step writes one contiguous block
+    predictions[0] = np.concatenate(y_mean)[:, None]
     eta, zeta = alpha[0], norm
     pi = u[0] / eta[:, None]
     for k in range(A):  # the D-Lanczos (CG) recurrences, seen through the held-out samples only
@@ -433,8 +433,8 @@ def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: in
             lam = beta[k - 1] / eta
             eta, zeta = alpha[k] - lam * beta[k - 1], -lam * zeta
             pi = (u[k] - beta[k - 1][:, None] * pi) / eta[:, None]
-        np.add(predictions[:, :, k], zeta[:, None] * pi, out=predictions[:, :, k + 1])
-    return predictions.reshape(F, B, m, A + 1)
+        np.add(predictions[k], zeta[:, None] * pi, out=predictions[k + 1])
+    return predictions.transpose(1, 2, 0).reshape(F, B, m, A + 1)
 
 
 def _diagonal_lanczos(mu: np.ndarray, start: np.ndarray, A: int, exhausted: float):
