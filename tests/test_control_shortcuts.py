@@ -43,7 +43,7 @@ def test_own_basis_pair_predictions_equal_the_shared_rotations(seed, n_specimens
     Z, sv = engine._rotation(X)
     for rows in pair_rows:
         plain = engine._cv_predictions(X, Y, np.zeros(rows.size, dtype=np.intp), A, rows, (Z, sv))
-        own = engine._own_basis_predictions(Z, Y, rows[None, :], A, 0.0)[0]
+        own = engine._own_basis_predictions(Z, Y, rows[None, :], A, 0.0, np.zeros(1, dtype=int))[0]
         np.testing.assert_allclose(own, plain, rtol=1e-9, atol=1e-12)
 
 
@@ -102,3 +102,14 @@ def test_many_targets_leave_one_group_out_in_each_folds_basis_equals_one_cv_per_
     for b in range(Y.shape[1]):
         single = engine.pls_cv(X, Y[:, b], max_components=6, groups=groups)
         np.testing.assert_allclose(batch.predictions[b], single.predictions, rtol=1e-9, atol=1e-12)
+
+
+
+def test_an_exhausted_krylov_space_in_a_folds_own_basis_is_refused_naming_its_fold():
+    """X'X with two distinct eigenvalues spans a Krylov space of two directions: a third component is rounding noise,
+    refused as the shared rotation refuses it, naming the run's fold and what it supports."""
+    mu = np.tile(np.repeat([4.0, 1.0], 5), (2, 1))  # two runs, folds 5 and 7
+    start = np.random.default_rng(0).normal(size=(2, 10))
+    with pytest.raises(engine.PLSConfigError, match=r"in CV fold [57] the Krylov space .* after 2 components") as info:
+        engine._diagonal_lanczos(mu, start, 3, 1e-14 * 16, np.array([5, 7]))
+    assert info.value.supported == 2

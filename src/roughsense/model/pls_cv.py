@@ -360,7 +360,6 @@ def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[i
     return chosen
 
 
-
 def _own_basis_pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, U: int, first: np.ndarray,
                             second: np.ndarray) -> np.ndarray:
     """:func:`_pair_choices`' inner choices (B, S) with every pair fitted in its own basis, all targets at once.
@@ -398,11 +397,13 @@ def _own_basis_runs(X: np.ndarray, Y: np.ndarray, fold_rows: list[np.ndarray], A
         folds = np.flatnonzero(sizes == size)
         for part in np.array_split(folds, -(-folds.size // chunk)):
             rows = np.stack([fold_rows[i] for i in part])
-            yield part, rows, _own_basis_predictions(Z, Y, rows, A, exhausted)
+            yield part, rows, _own_basis_predictions(Z, Y, rows, A, exhausted, part)
 
 
-def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: int, exhausted: float) -> np.ndarray:
-    """Out-of-fold predictions (F, B, m, A+1) of F folds, each holding out m samples (``held``, F x m), for B targets.
+def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: int, exhausted: float,
+                           fold_ids: np.ndarray) -> np.ndarray:
+    """Out-of-fold predictions (F, B, m, A+1) of F folds (numbered ``fold_ids`` in messages), each holding out m samples
+    (``held``, F x m), for B targets.
 
     Each fold's centred training rows are rotated onto their own right singular vectors, in which its X'X is diagonal
     and its X'y are the targets' projections on the left ones: the same Krylov spaces as the shared rotation's
@@ -420,7 +421,8 @@ def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: in
         mu.append(np.tile(sv**2, (B, 1)))
         start.append(((Y_train - y_mean[-1]).T @ left) * sv)  # X'y of the fold, (B, q)
         projected.append((Z[rows] - z_mean) @ right.T)  # the held-out samples about the fold's mean, (m, q)
-    V, alpha, beta, norm = _diagonal_lanczos(np.concatenate(mu), np.concatenate(start), A, exhausted)
+    V, alpha, beta, norm = _diagonal_lanczos(np.concatenate(mu), np.concatenate(start), A, exhausted,
+                                             np.repeat(fold_ids, B))
     q = V.shape[2]
     u = np.matmul(V.reshape(A, F, B, q), np.stack(projected).transpose(0, 2, 1)[None])  # (A, F, B, m)
     u = u.reshape(A, F * B, m)
@@ -437,13 +439,15 @@ def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: in
     return predictions.transpose(1, 2, 0).reshape(F, B, m, A + 1)
 
 
-def _diagonal_lanczos(mu: np.ndarray, start: np.ndarray, A: int, exhausted: float):
+def _diagonal_lanczos(mu: np.ndarray, start: np.ndarray, A: int, exhausted: float, folds: np.ndarray):
     """Lanczos with full reorthogonalisation, as :class:`_FoldLanczos` runs it, of G start vectors X'y (G, q), each
-    under its own diagonal X'X (``mu``, G x q): the basis (A, G, q), alpha (A, G), beta (A - 1, G), and |X'y| (G,)."""
+    under its own diagonal X'X (``mu``, G x q) and in its CV fold ``folds`` (G,): the basis (A, G, q), alpha (A, G),
+    beta (A - 1, G), and |X'y| (G,)."""
     G, q = start.shape
     norm = np.sqrt(np.einsum("gq,gq->g", start, start))
     if not np.all(norm > 0):
-        raise PLSInputError("in a CV fold the training y is constant or uncorrelated with X; PLS finds no direction")
+        f = int(folds[np.flatnonzero(~(norm > 0))[0]])
+        raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
     V = np.empty((A + 1, G, q))  # slots 0..k: the basis; slot k+1: the next vector while it is formed
     np.divide(start, norm[:, None], out=V[0])
     alpha, beta = np.empty((A, G)), np.empty((max(A - 1, 0), G))
@@ -456,11 +460,11 @@ def _diagonal_lanczos(mu: np.ndarray, start: np.ndarray, A: int, exhausted: floa
         x -= alpha[k][:, None] * w
         if k:
             x -= beta[k - 1][:, None] * V[k - 1]
-        beta[k] = _reorthogonalise_last(V, k, exhausted, A)
+        beta[k] = _reorthogonalise_last(V, k, exhausted, A, folds)
     return V[:A], alpha, beta, norm
 
 
-def _reorthogonalise_last(V: np.ndarray, k: int, exhausted: float, A: int) -> np.ndarray:
+def _reorthogonalise_last(V: np.ndarray, k: int, exhausted: float, A: int, folds: np.ndarray) -> np.ndarray:
     """Slot k+1 of V orthogonalised against slots 0..k and normalised, in place; returns its norm before scaling.
 
     As :meth:`_FoldLanczos._reorthogonalise`: one product gives h = W'x and x'x together, beta^2 = x'x - h'h, and the
@@ -473,14 +477,14 @@ def _reorthogonalise_last(V: np.ndarray, k: int, exhausted: float, A: int) -> np
     hh = np.einsum("bk,bk->b", h, h)
     if np.all(hh <= 0.25 * xx):
         beta = np.sqrt(xx - hh)
-        _check_krylov_step(beta, exhausted, A, k, 1)
+        _check_krylov_step(beta, exhausted, A, k, folds)
         if not np.all(hh <= _REORTH_SKIP_RTOL**2 * xx):
             x -= np.matmul(h[:, None, :], Vf[:, : k + 1])[:, 0]
         x /= beta[:, None]
         return beta
     x -= np.matmul(h[:, None, :], Vf[:, : k + 1])[:, 0]  # never seen: Pythagoras would cancel; take the norm itself
     beta = np.sqrt(np.einsum("bq,bq->b", x, x))
-    _check_krylov_step(beta, exhausted, A, k, 1)
+    _check_krylov_step(beta, exhausted, A, k, folds)
     x /= beta[:, None]
     return beta
 
@@ -766,10 +770,12 @@ class _FoldLanczos:
         return beta
 
 
-def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int, n_folds: int) -> None:
-    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted."""
+def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int, n_folds: int | np.ndarray) -> None:
+    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted. ``n_folds``:
+    the number of folds (runs are batch-folds b * F + f) or each run's fold."""
     if not beta.min() > exhausted:  # also catches NaN
-        f = int(np.flatnonzero(~(beta > exhausted))[0]) % n_folds
+        run = int(np.flatnonzero(~(beta > exhausted))[0])
+        f = run % n_folds if isinstance(n_folds, int) else int(n_folds[run])
         raise PLSConfigError(
             f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
             f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
