@@ -8,6 +8,9 @@
   scratch folder, features cached by an untimed first run); the controls stage's time and the peak RSS with 199
   shufflings (goals: time at 20 <= 2.2x time at 10; RSS at 20 <= 500 MB).
 
+- Kinds (``--kinds``): the CPU of the built-in study's 32 control jobs on one thread, summed per kind (PLS and the
+  peak law, each LOO and nested LOSO; 8 models each), this checkout and ``--peer-src`` alternated in fresh processes.
+
 - Chunks (``--chunks``): the controls alone (``run_controls``, 2 threads, the built-in study's 32 jobs) in fresh
   processes for chunk sizes of the law's shufflings (``controls.LAW_CHUNK_CELLS``) and of PLS's targets
   (``pls_cv._BATCH_BYTES``): CPU and peak RSS above the process's own before the controls.
@@ -16,7 +19,7 @@ Stage times are the CLI's own stage lines (``roughsense: controls, ... done in 1
 none). Peak RSS is ``wait4``'s of the study process.
 
 Run: .venv/bin/python benchmarks/bench_issue37.py [--repeats 3] [--peer-src OLD/src [--peer-cache DIR]]
-     [--growth | --chunks | --report-only]
+     [--growth | --chunks | --kinds | --report-only]
 (ROUGHSENSE_CACHE_DIR selects the cache; the built-in study is simulated there on first use. The peer keeps its
 own, ``--peer-cache``: a simulator that differs keys the built-in study differently.)
 """
@@ -170,6 +173,46 @@ def chunks(args, scratch: Path) -> None:
               f"MiB (runs: {', '.join(f'{c:.1f} s' for c, _ in some)})")
 
 
+KINDS = ("pls loo", "pls loso", "peak-law loo", "peak-law loso")
+
+
+def kind_run(path: Path) -> None:
+    """One fresh process: CPU of control_row on the pickled jobs, one thread, single-threaded BLAS, summed per kind
+    (family x CV scheme, 8 models each); after one untimed job (imports, first calls)."""
+    import pickle
+
+    from roughsense.analysis import controls
+    from roughsense.model.pls import single_threaded_blas
+
+    jobs = pickle.loads(path.read_bytes())
+    cpu = dict.fromkeys(KINDS, 0.0)
+    with single_threaded_blas():
+        controls.control_row(*jobs[0])
+        for job in jobs:
+            started = time.process_time()
+            controls.control_row(*job)
+            cpu[f"{getattr(job[0], 'model', 'pls')} {job[0].cv}"] += time.process_time() - started
+    print(" ".join(f"{cpu[kind]:.3f}" for kind in KINDS))
+
+
+def kinds(args, scratch: Path) -> None:
+    """CPU per kind of control job (one thread), this checkout and ``--peer-src`` alternated, each run a fresh process."""
+    jobs = scratch / "jobs.pickle"
+    control_jobs(jobs)
+    peers = {"this": None} | ({"peer": args.peer_src} if args.peer_src else {})
+    runs = {name: [] for name in peers}
+    for _ in range(args.repeats):
+        for name, src in peers.items():
+            env = dict(os.environ) | ({} if src is None else {"PYTHONPATH": str(src.resolve())})
+            out = subprocess.run([sys.executable, __file__, "--kind-run", str(jobs)], env=env, check=True,
+                                 capture_output=True, text=True).stdout.split()
+            runs[name].append([float(value) for value in out])
+    for name, some in runs.items():
+        medians = [statistics.median(run[i] for run in some) for i in range(len(KINDS))]
+        print(f"{name}: " + ", ".join(f"{kind} {m:.2f} s" for kind, m in zip(KINDS, medians))
+              + f"; all {sum(medians):.2f} s (runs: {', '.join(f'{sum(run):.1f}' for run in some)})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
@@ -179,6 +222,9 @@ def main() -> None:
     parser.add_argument("--growth", action="store_true", help="Only the growth at 10 and 20 repetitions.")
     parser.add_argument("--chunks", action="store_true", help="Only the controls' chunk sizes (CPU, peak RSS).")
     parser.add_argument("--chunk-run", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--kinds", action="store_true",
+                        help="Only the controls' CPU per kind of job, one thread (this and --peer-src alternated).")
+    parser.add_argument("--kind-run", help=argparse.SUPPRESS)
     parser.add_argument("--scratch", type=Path, default=None, help="Reuse this folder (e.g. its simulated studies).")
     parser.add_argument("--report-only", action="store_true",
                         help="Only the --permutations 0 study: the report stage's share (and the study's CPU).")
@@ -186,10 +232,13 @@ def main() -> None:
     if args.chunk_run:
         chunk_run(Path(args.chunk_run[0]), int(args.chunk_run[1]), int(args.chunk_run[2]))
         return
+    if args.kind_run:
+        kind_run(Path(args.kind_run))
+        return
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
     scratch = args.scratch or Path(tempfile.mkdtemp(prefix="roughsense-bench-issue37-"))
-    (growth if args.growth else chunks if args.chunks else ratio)(args, scratch)
+    (growth if args.growth else chunks if args.chunks else kinds if args.kinds else ratio)(args, scratch)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
 
 

@@ -35,10 +35,11 @@ DEFAULT_PERMUTATIONS = 199
 #: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
 MAX_PERMUTATIONS = 10_000
-#: The peak law's shufflings run in chunks of about this many cells (folds x shufflings x presses) a working array:
-#: 4 MiB of float64 (a 140-press leave-one-out in 8 chunks), whatever the number of presses. Its IRLS solves one problem
-#: per specimen (huber_batch), so what is left at this size is the kept ranges' arrays: 2^21 cells held the two control
-#: threads ~40 MiB higher at the same CPU, 2^17 cost 13 % more CPU (benchmarks/bench_issue37.py --chunks).
+#: The peak law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
+#: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS
+#: and kept ranges take one fold per specimen (peak_law_cv), so what is left at this size is the kept ranges' arrays:
+#: 2^21 cells held the two control threads ~40 MiB higher at the same CPU, 2^17 cost 13 % more CPU
+#: (benchmarks/bench_issue37.py --chunks).
 LAW_CHUNK_CELLS = 1 << 19
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
@@ -122,7 +123,9 @@ def permuted_law_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: s
     """
     groups = np.asarray(specimens) if cv == "loso" else None
     n = Y.shape[0]
-    size = max(1, LAW_CHUNK_CELLS // (n * (n if groups is None else len(pd.unique(groups)))))
+    # Leave-one-out's folds of one specimen's presses pose one problem (its targets are the specimen's one value):
+    # peak_law_cv fits each once, so both schemes fit as many folds as there are specimens.
+    size = max(1, LAW_CHUNK_CELLS // (n * len(pd.unique(np.asarray(specimens)))))
     predictions = np.vstack([peak_law_cv(X, Y[:, start:start + size], groups=groups, **law)
                              for start in range(0, Y.shape[1], size)])
     return _cv_rmse(predictions, Y.T)

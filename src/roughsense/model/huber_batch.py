@@ -67,17 +67,23 @@ def distinct_masks(rows: np.ndarray, masks: np.ndarray) -> tuple[np.ndarray, np.
     """The masks (F, n) that pose distinct problems on ``rows`` (n, k): indices of one of each (the first), and for
     every mask the index into those of the one posing its problem. Rows are interchangeable when their bytes are
     equal; two masks pose one problem when they take as many rows of every interchangeable class."""
-    flat = np.ascontiguousarray(rows)
-    _, row_class = np.unique(flat.view(np.dtype((np.void, flat.dtype.itemsize * flat.shape[1]))).ravel(),
-                             return_inverse=True)
-    by_class = np.argsort(row_class.ravel(), kind="stable")
-    starts = np.flatnonzero(np.diff(row_class.ravel()[by_class], prepend=-1))
+    row_class = row_classes(rows)
+    by_class = np.argsort(row_class, kind="stable")
+    starts = np.flatnonzero(np.diff(row_class[by_class], prepend=-1))
     taken = np.add.reduceat(masks[:, by_class].astype(np.intp), starts, axis=1)  # (F, classes), O(F n)
     _, first, same_as = np.unique(taken, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)  # keep the masks' own order: the first mask's problem is solved first
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
     return first[order], rank[same_as.ravel()]
+
+
+def row_classes(rows: np.ndarray) -> np.ndarray:
+    """(n,) a class id per row of ``rows`` (n, k): rows of one class have equal bytes, so they are interchangeable."""
+    flat = np.ascontiguousarray(rows)
+    _, row_class = np.unique(flat.view(np.dtype((np.void, flat.dtype.itemsize * flat.shape[1]))).ravel(),
+                             return_inverse=True)
+    return row_class.ravel()
 
 
 def _irls_chunk(design: np.ndarray, targets: np.ndarray, mask: np.ndarray,

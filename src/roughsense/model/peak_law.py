@@ -47,7 +47,7 @@ from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_param
 from ..errors import ConfigError, InputError
 from ..sensor.shape import duty_cycle, harmonic_ratio
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
-from .huber_batch import HUBER_EPSILON, huber_irls
+from .huber_batch import HUBER_EPSILON, distinct_masks, huber_irls, row_classes
 from .press_spread import PressScatter, deviations, robust_spread, trained_presses
 
 #: What the peak readout gives per row. The law's terms are the first and, where every training surface shows it,
@@ -734,15 +734,41 @@ def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_
         raise PeakLawConfigError("cross-validation needs at least 2 folds")
     held_out = fold_of[None, :] == np.arange(n_folds)[:, None]
     log_targets = np.log(targets)
-    beta, scale = fit_terms(features, log_targets, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
+    folds = _interchangeable_folds(features, log_targets, held_out, surfaces)
+    train = ~held_out[folds[1]]
+    beta, scale = fit_terms(features, log_targets, train, epsilon=epsilon, grouped=surfaces is not None)
     low, high = domain_margins(grid_step(freq_per_mm),
-                               *fold_kept_ranges(features, log_targets, ~held_out, beta, scale, epsilon, surfaces))
-    predictions = np.empty_like(targets)
-    for fold in range(n_folds):
-        rows = held_out[fold]
-        clipped = held_features(features[rows][None], low[fold][:, None, :], high[fold][:, None, :])  # (B, rows, p)
-        predictions[:, rows] = np.exp(beta[fold, :, :1] + np.einsum("brf,bf->br", clipped, beta[fold, :, 1:]))
+                               *fold_kept_ranges(features, log_targets, train, beta, scale, epsilon, surfaces))
+    return _out_of_fold(features, held_out, folds, beta, low, high, np.empty_like(targets))
+
+
+def _out_of_fold(features: np.ndarray, held_out: np.ndarray, folds: tuple, beta: np.ndarray, low: np.ndarray,
+                 high: np.ndarray, predictions: np.ndarray) -> np.ndarray:
+    """``predictions`` (B, n) filled with each row's prediction by the laws of the fold holding it out; ``folds`` from
+    :func:`_interchangeable_folds`, ``beta``, ``low`` and ``high`` per problem (its first fold). (The array keeps the
+    targets' memory order: a reduction over it sums in that order.)"""
+    row_class, distinct, same_as = folds
+    for fold, problem in enumerate(same_as):
+        rows = np.flatnonzero(held_out[fold])
+        if fold != distinct[problem]:  # its rows match its problem's first fold's class by class: the same predictions
+            source = np.flatnonzero(held_out[distinct[problem]])
+            predictions[:, rows[np.argsort(row_class[rows], kind="stable")]] = \
+                predictions[:, source[np.argsort(row_class[source], kind="stable")]]
+        else:  # the fold's laws on its held-out rows, their features held to each law's domain
+            clipped = held_features(features[rows][None], low[problem][:, None, :], high[problem][:, None, :])
+            predictions[:, rows] = np.exp(beta[problem, :, :1] + np.einsum("brf,bf->br", clipped, beta[problem, :, 1:]))
     return predictions
+
+
+def _interchangeable_folds(features: np.ndarray, log_targets: np.ndarray, held_out: np.ndarray, surfaces):
+    """Folds (F, n) that leave out interchangeable rows (equal terms, targets and surface: one surface's presses under
+    leave-one-out) fit one law with one kept range of its terms, so each is computed for the first such fold only.
+    The amplitude, never a term, is left out of the comparison (its coefficient is 0: its range moves nothing).
+    Returns each row's class, the first fold of each problem and each fold's problem (:func:`distinct_masks`)."""
+    n = features.shape[0]
+    codes = np.zeros(n) if surfaces is None else surface_codes(surfaces, n)
+    row_class = row_classes(np.column_stack([np.delete(features, AMPLITUDE, axis=1), log_targets.T, codes]))
+    return row_class, *distinct_masks(row_class[:, None], ~held_out)
 
 
 def _cv_inputs(X, Y, groups) -> tuple[np.ndarray, np.ndarray]:

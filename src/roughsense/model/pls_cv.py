@@ -181,6 +181,12 @@ def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.n
 # --chunks).
 _BATCH_BYTES = 8 * 2**20
 
+# From this many targets on, leave-one-group-out (pls_cv_many) and nested LOSO's pairs of groups left out
+# (_pair_choices) fit each fold in its own basis (the SVD of its training rows): every target of the fold then shares
+# one diagonal operator and one held-out projection, so a Lanczos step is a few elementwise passes and the predictions
+# one product at the end. Below it (the real target alone) the fold's SVD costs more than the downdates it saves.
+_OWN_BASIS_MIN_TARGETS = 8
+
 
 @dataclass(frozen=True)
 class PLSCVBatch:
@@ -249,8 +255,14 @@ def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", gr
     try:
         with blas_threads_for(X):
             rotation = _rotation(X)
-            for start in range(0, Y.shape[1], chunk):
-                pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A, None, rotation)
+            if groups is not None and Y.shape[1] >= _OWN_BASIS_MIN_TARGETS:  # few folds, many targets: each its basis
+                for _, rows, predictions in _own_basis_runs(X, Y, [np.flatnonzero(fid == f) for f in range(F)], A,
+                                                               rotation):
+                    pred[:, rows.ravel()] = predictions.transpose(1, 0, 2, 3).reshape(Y.shape[1], rows.size, A + 1)
+            else:
+                for start in range(0, Y.shape[1], chunk):
+                    pred[start : start + chunk] = _cv_predictions(X, Y[:, start : start + chunk], fid, A, None,
+                                                                  rotation)
     except PLSConfigError as exc:
         if not cap or exc.supported is None or exc.supported < 1 or exc.supported >= A:
             raise
@@ -319,6 +331,12 @@ def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[i
         if min(rest.shape[0] - 1, svd_rank(np.linalg.svd(rest, compute_uv=False), *rest.shape)) < U:
             return None
     first, second = np.triu_indices(S, k=1)
+    if Y.shape[1] >= _OWN_BASIS_MIN_TARGETS:
+        try:
+            with blas_threads_for(X):
+                return _own_basis_pair_choices(X, Y, held, U, first, second)
+        except PLSConfigError:
+            return None
     pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
     rows = np.concatenate(pair_rows)
     fid = np.repeat(np.arange(first.size), [r.size for r in pair_rows])
@@ -340,6 +358,135 @@ def _pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, usable: list[i
     except PLSConfigError:
         return None
     return chosen
+
+
+def _own_basis_pair_choices(X: np.ndarray, Y: np.ndarray, held: np.ndarray, U: int, first: np.ndarray,
+                            second: np.ndarray) -> np.ndarray:
+    """:func:`_pair_choices`' inner choices (B, S) with every pair fitted in its own basis, all targets at once.
+
+    The pair's model predicts both groups it leaves out: group k's rows for group j's inner run and j's for k's. Each
+    run's squared errors are summed over its pairs, and its count is the argmin of the RMSE over 1..U (as a run's own
+    leave-one-group-out chooses). Pairs of one size go through in chunks of about :data:`_BATCH_BYTES` of Lanczos
+    vectors. Raises PLSConfigError where a pair's Krylov space or training fold is too small.
+    """
+    B, S = Y.shape[1], held.shape[0]
+    pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
+    sse = np.zeros((B, S, U + 1))
+    for part, rows, predictions in _own_basis_runs(X, Y, pair_rows, U, _rotation(X)):
+        err2 = (predictions - Y.T[:, rows].transpose(1, 0, 2)[..., None]) ** 2
+        for f, i in enumerate(part):
+            of_k = held[second[i], rows[f]]  # group k's rows are group j's inner fold k, and the other way round
+            sse[:, first[i]] += err2[f][:, of_k].sum(axis=1)
+            sse[:, second[i]] += err2[f][:, ~of_k].sum(axis=1)
+    rmse = np.sqrt(sse / (~held).sum(axis=1)[None, :, None])  # a run's entries: every row but its own group's
+    return np.argmin(rmse[:, :, 1:], axis=2) + 1
+
+
+def _own_basis_runs(X: np.ndarray, Y: np.ndarray, fold_rows: list[np.ndarray], A: int,
+                    rotation: tuple[np.ndarray, np.ndarray]):
+    """Every fold (its held-out rows ``fold_rows[f]``) fitted in its own basis for all targets: yields (the folds, their
+    rows (F, m), their predictions (F, B, m, A+1)) in chunks of folds of one size, each about :data:`_BATCH_BYTES` of
+    Lanczos vectors. Raises PLSConfigError where a training fold or a Krylov space is too small for A."""
+    Z, sv = rotation
+    n = X.shape[0]
+    _check_fold_support(sv, n, X.shape[1], np.array([n - r.size for r in fold_rows]), A)
+    exhausted = _KRYLOV_RTOL * sv.max() ** 2
+    sizes = np.array([r.size for r in fold_rows])
+    chunk = max(1, _BATCH_BYTES // ((A + 1) * Y.shape[1] * Z.shape[1] * 8))
+    for size in np.unique(sizes):  # folds of one size share the shapes of their bases: batched together
+        folds = np.flatnonzero(sizes == size)
+        for part in np.array_split(folds, -(-folds.size // chunk)):
+            rows = np.stack([fold_rows[i] for i in part])
+            yield part, rows, _own_basis_predictions(Z, Y, rows, A, exhausted, part)
+
+
+def _own_basis_predictions(Z: np.ndarray, Y: np.ndarray, held: np.ndarray, A: int, exhausted: float,
+                           fold_ids: np.ndarray) -> np.ndarray:
+    """Out-of-fold predictions (F, B, m, A+1) of F folds (numbered ``fold_ids`` in messages), each holding out m samples
+    (``held``, F x m), for B targets.
+
+    Each fold's centred training rows are rotated onto their own right singular vectors, in which its X'X is diagonal
+    and its X'y are the targets' projections on the left ones: the same Krylov spaces as the shared rotation's
+    downdated operator (:func:`_cv_predictions`), so the same models, to rounding. All F x B Lanczos runs advance
+    together; the held-out samples' projections on every Lanczos vector are one product at the end.
+    """
+    (F, m), B = held.shape, Y.shape[1]
+    y_mean, mu, start, projected = [], [], [], []
+    for rows in held:
+        train = np.ones(Z.shape[0], dtype=bool)
+        train[rows] = False
+        z_mean, Y_train = Z[train].mean(axis=0), Y[train]
+        y_mean.append(Y_train.mean(axis=0))
+        left, sv, right = np.linalg.svd(Z[train] - z_mean, full_matrices=False)
+        mu.append(np.tile(sv**2, (B, 1)))
+        start.append(((Y_train - y_mean[-1]).T @ left) * sv)  # X'y of the fold, (B, q)
+        projected.append((Z[rows] - z_mean) @ right.T)  # the held-out samples about the fold's mean, (m, q)
+    V, alpha, beta, norm = _diagonal_lanczos(np.concatenate(mu), np.concatenate(start), A, exhausted,
+                                             np.repeat(fold_ids, B))
+    q = V.shape[2]
+    u = np.matmul(V.reshape(A, F, B, q), np.stack(projected).transpose(0, 2, 1)[None])  # (A, F, B, m)
+    u = u.reshape(A, F * B, m)
+    predictions = np.empty((A + 1, F * B, m))  # component-major while filling: each step writes one contiguous block
+    predictions[0] = np.concatenate(y_mean)[:, None]
+    eta, zeta = alpha[0], norm
+    pi = u[0] / eta[:, None]
+    for k in range(A):  # the D-Lanczos (CG) recurrences, seen through the held-out samples only
+        if k:
+            lam = beta[k - 1] / eta
+            eta, zeta = alpha[k] - lam * beta[k - 1], -lam * zeta
+            pi = (u[k] - beta[k - 1][:, None] * pi) / eta[:, None]
+        np.add(predictions[k], zeta[:, None] * pi, out=predictions[k + 1])
+    return predictions.transpose(1, 2, 0).reshape(F, B, m, A + 1)
+
+
+def _diagonal_lanczos(mu: np.ndarray, start: np.ndarray, A: int, exhausted: float, folds: np.ndarray):
+    """Lanczos with full reorthogonalisation, as :class:`_FoldLanczos` runs it, of G start vectors X'y (G, q), each
+    under its own diagonal X'X (``mu``, G x q) and in its CV fold ``folds`` (G,): the basis (A, G, q), alpha (A, G),
+    beta (A - 1, G), and |X'y| (G,)."""
+    G, q = start.shape
+    norm = np.sqrt(np.einsum("gq,gq->g", start, start))
+    if not np.all(norm > 0):
+        f = int(folds[np.flatnonzero(~(norm > 0))[0]])
+        raise PLSInputError(f"in CV fold {f} the training y is constant or uncorrelated with X; PLS finds no direction")
+    V = np.empty((A + 1, G, q))  # slots 0..k: the basis; slot k+1: the next vector while it is formed
+    np.divide(start, norm[:, None], out=V[0])
+    alpha, beta = np.empty((A, G)), np.empty((max(A - 1, 0), G))
+    for k in range(A):
+        w, x = V[k], V[k + 1]
+        np.multiply(w, mu, out=x)
+        alpha[k] = np.einsum("gq,gq->g", w, x)
+        if k + 1 == A:
+            break
+        x -= alpha[k][:, None] * w
+        if k:
+            x -= beta[k - 1][:, None] * V[k - 1]
+        beta[k] = _reorthogonalise_last(V, k, exhausted, A, folds)
+    return V[:A], alpha, beta, norm
+
+
+def _reorthogonalise_last(V: np.ndarray, k: int, exhausted: float, A: int, folds: np.ndarray) -> np.ndarray:
+    """Slot k+1 of V orthogonalised against slots 0..k and normalised, in place; returns its norm before scaling.
+
+    As :meth:`_FoldLanczos._reorthogonalise`: one product gives h = W'x and x'x together, beta^2 = x'x - h'h, and the
+    removal is skipped where every h is at rounding level.
+    """
+    Vf = V.transpose(1, 0, 2)
+    x = V[k + 1]
+    g = np.matmul(Vf[:, : k + 2], x[:, :, None])[:, :, 0]
+    h, xx = g[:, : k + 1], g[:, k + 1]
+    hh = np.einsum("bk,bk->b", h, h)
+    if np.all(hh <= 0.25 * xx):
+        beta = np.sqrt(xx - hh)
+        _check_krylov_step(beta, exhausted, A, k, folds)
+        if not np.all(hh <= _REORTH_SKIP_RTOL**2 * xx):
+            x -= np.matmul(h[:, None, :], Vf[:, : k + 1])[:, 0]
+        x /= beta[:, None]
+        return beta
+    x -= np.matmul(h[:, None, :], Vf[:, : k + 1])[:, 0]  # never seen: Pythagoras would cancel; take the norm itself
+    beta = np.sqrt(np.einsum("bq,bq->b", x, x))
+    _check_krylov_step(beta, exhausted, A, k, folds)
+    x /= beta[:, None]
+    return beta
 
 
 def _rotation(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -623,10 +770,12 @@ class _FoldLanczos:
         return beta
 
 
-def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int, n_folds: int) -> None:
-    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted."""
+def _check_krylov_step(beta: np.ndarray, exhausted: float, A: int, k: int, n_folds: int | np.ndarray) -> None:
+    """Refuse a Lanczos step whose new direction is rounding noise: the fold's Krylov space is exhausted. ``n_folds``:
+    the number of folds (runs are batch-folds b * F + f) or each run's fold."""
     if not beta.min() > exhausted:  # also catches NaN
-        f = int(np.flatnonzero(~(beta > exhausted))[0]) % n_folds
+        run = int(np.flatnonzero(~(beta > exhausted))[0])
+        f = run % n_folds if isinstance(n_folds, int) else int(n_folds[run])
         raise PLSConfigError(
             f"max_components={A} is more than the data support numerically: in CV fold {f} the Krylov "
             f"space of X'X and X'y is exhausted after {k + 1} components (what is left is rounding noise); "
