@@ -146,6 +146,20 @@ def test_cell_equals_simulate_then_study(tmp_path):
     assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL
 
 
+def test_a_design_in_memory_equals_its_simulated_folder_read_back(tmp_path):
+    """explore.cell.design_features, cold, on the camera's full frame and both pads: the very table (manifest columns
+    and spectra) and perceived roughness that simulate + read_study + study_features give (tests use it as a
+    faster way to the same study)."""
+    config = sim.SimulationConfig(specimens=("R3", "C4", "rect:8"), forces_n=(1.0, 3.0), repetitions=1, seed=3)
+    study = read_study(sim.simulate_study(tmp_path / "study", config, jobs=1), require_ratings=True)
+    folder = study_features(study)
+    memory_study, memory = explore_cell.design_features(config, warm_start=False)
+    pd.testing.assert_frame_equal(memory, folder.assign(image=folder["image"].str.removeprefix("images/")))
+    pd.testing.assert_frame_equal(dataset.perceived_roughness(memory_study), dataset.perceived_roughness(study))
+    assert (memory_study.pads, memory_study.pad_ridge_period_mm, memory_study.forces_n) == (
+        study.pads, study.pad_ridge_period_mm, study.forces_n)
+
+
 def test_run_cell_records_a_failure_as_one_line(tmp_path, monkeypatch):
     cell = read_sweep(_sweep_file(tmp_path)).cells[0]
 
