@@ -604,30 +604,39 @@ def test_null_rmse_from_the_stored_targets_is_the_analysis_training_mean(two_mod
 SEEDED = TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "fingerprint"]').replace("[sweep]", '[sweep]\ncv = ["loso"]')
 
 
-def _report_of(tmp_path: Path, seeds: str):
-    """A tiny two-pad sweep's cells computed in this process (no Dask) and its report."""
+@pytest.fixture(scope="module")
+def computed_cells() -> dict:
+    """Cell id -> its rows, for the sweeps below that share cells (an id is the hash of everything a cell is, and
+    a cell's rows are a function of it); read-only."""
+    return {}
+
+
+def _report_of(tmp_path: Path, seeds: str, computed: dict):
+    """A tiny two-pad sweep's cells computed in this process (no Dask; each once per module) and its report."""
     from roughsense.explore.write_report import SUMMARY_CSV, write_explore_report
 
     sweep = read_sweep(_sweep_file(tmp_path, SEEDED.replace("seeds = [0, 1]", f"seeds = {seeds}")))
     store = ResultStore(tmp_path / "out", sweep)
     store.prepare()
     for cell in sweep.cells:
-        store.write_cell(*explore_cell.cell_rows(cell), cell.id)
+        if cell.id not in computed:
+            computed[cell.id] = explore_cell.cell_rows(cell)
+        store.write_cell(*computed[cell.id], cell.id)
     html = write_explore_report(sweep, tmp_path / "out").read_text()
     return sweep, pd.read_csv(tmp_path / "out" / SUMMARY_CSV), html
 
 
-def test_two_seeds_report_no_interval_and_say_why(tmp_path):
-    _, table, html = _report_of(tmp_path, "[0, 1]")
+def test_two_seeds_report_no_interval_and_say_why(tmp_path, computed_cells):
+    _, table, html = _report_of(tmp_path, "[0, 1]", computed_cells)
     assert "2 seeds: too few for an interval; run &gt;= 3 seeds" in html and "±" not in html
     assert table["rmse_ci95"].isna().all() and table["ci_low"].isna().all() and table["mde_80"].isna().all()
     assert set(table["verdict"]) <= {"the best design", "2 seeds: too few for an interval; run >= 3 seeds"}
 
 
-def test_four_seeds_give_a_verdict_per_comparison(tmp_path):
+def test_four_seeds_give_a_verdict_per_comparison(tmp_path, computed_cells):
     from scipy import stats
 
-    _, table, html = _report_of(tmp_path, "[0, 1, 2, 3]")
+    _, table, html = _report_of(tmp_path, "[0, 1, 2, 3]", computed_cells)
     results = pd.read_parquet(tmp_path / "out" / "results")
     assert table.columns[-1] == "model" and {"diff_mean", "ci_low", "ci_high", "margin", "mde_80", "verdict",
                                               "n_paired", "null_rmse", "null_verdict"} <= set(table.columns)
