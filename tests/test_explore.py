@@ -146,6 +146,20 @@ def test_cell_equals_simulate_then_study(tmp_path):
     assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL
 
 
+def test_a_design_in_memory_equals_its_simulated_folder_read_back(tmp_path):
+    """explore.cell.design_features, cold, on the camera's full frame and both pads: the very table (manifest columns
+    and spectra) and perceived roughness that simulate + read_study + study_features give (tests use it as a
+    faster way to the same study)."""
+    config = sim.SimulationConfig(specimens=("R3", "C4", "rect:8"), forces_n=(1.0, 3.0), repetitions=1, seed=3)
+    study = read_study(sim.simulate_study(tmp_path / "study", config, jobs=1), require_ratings=True)
+    folder = study_features(study)
+    memory_study, memory = explore_cell.design_features(config, warm_start=False)
+    pd.testing.assert_frame_equal(memory, folder.assign(image=folder["image"].str.removeprefix("images/")))
+    pd.testing.assert_frame_equal(dataset.perceived_roughness(memory_study), dataset.perceived_roughness(study))
+    assert (memory_study.pads, memory_study.pad_ridge_period_mm, memory_study.forces_n) == (
+        study.pads, study.pad_ridge_period_mm, study.forces_n)
+
+
 def test_run_cell_records_a_failure_as_one_line(tmp_path, monkeypatch):
     cell = read_sweep(_sweep_file(tmp_path)).cells[0]
 
@@ -590,30 +604,39 @@ def test_null_rmse_from_the_stored_targets_is_the_analysis_training_mean(two_mod
 SEEDED = TINY.replace('pad = ["smooth"]', 'pad = ["smooth", "fingerprint"]').replace("[sweep]", '[sweep]\ncv = ["loso"]')
 
 
-def _report_of(tmp_path: Path, seeds: str):
-    """A tiny two-pad sweep's cells computed in this process (no Dask) and its report."""
+@pytest.fixture(scope="module")
+def computed_cells() -> dict:
+    """Cell id -> its rows, for the sweeps below that share cells (an id is the hash of everything a cell is, and
+    a cell's rows are a function of it); read-only."""
+    return {}
+
+
+def _report_of(tmp_path: Path, seeds: str, computed: dict):
+    """A tiny two-pad sweep's cells computed in this process (no Dask; each once per module) and its report."""
     from roughsense.explore.write_report import SUMMARY_CSV, write_explore_report
 
     sweep = read_sweep(_sweep_file(tmp_path, SEEDED.replace("seeds = [0, 1]", f"seeds = {seeds}")))
     store = ResultStore(tmp_path / "out", sweep)
     store.prepare()
     for cell in sweep.cells:
-        store.write_cell(*explore_cell.cell_rows(cell), cell.id)
+        if cell.id not in computed:
+            computed[cell.id] = explore_cell.cell_rows(cell)
+        store.write_cell(*computed[cell.id], cell.id)
     html = write_explore_report(sweep, tmp_path / "out").read_text()
     return sweep, pd.read_csv(tmp_path / "out" / SUMMARY_CSV), html
 
 
-def test_two_seeds_report_no_interval_and_say_why(tmp_path):
-    _, table, html = _report_of(tmp_path, "[0, 1]")
+def test_two_seeds_report_no_interval_and_say_why(tmp_path, computed_cells):
+    _, table, html = _report_of(tmp_path, "[0, 1]", computed_cells)
     assert "2 seeds: too few for an interval; run &gt;= 3 seeds" in html and "±" not in html
     assert table["rmse_ci95"].isna().all() and table["ci_low"].isna().all() and table["mde_80"].isna().all()
     assert set(table["verdict"]) <= {"the best design", "2 seeds: too few for an interval; run >= 3 seeds"}
 
 
-def test_four_seeds_give_a_verdict_per_comparison(tmp_path):
+def test_four_seeds_give_a_verdict_per_comparison(tmp_path, computed_cells):
     from scipy import stats
 
-    _, table, html = _report_of(tmp_path, "[0, 1, 2, 3]")
+    _, table, html = _report_of(tmp_path, "[0, 1, 2, 3]", computed_cells)
     results = pd.read_parquet(tmp_path / "out" / "results")
     assert table.columns[-1] == "model" and {"diff_mean", "ci_low", "ci_high", "margin", "mde_80", "verdict",
                                               "n_paired", "null_rmse", "null_verdict"} <= set(table.columns)

@@ -362,7 +362,8 @@ def test_a_worker_whose_parent_is_already_gone_exits_at_once():
 _STUDY = """
 import sys
 from roughsense.cli import main
-sys.exit(main(["study", "--data", sys.argv[1], "--out", sys.argv[2], "--max-components", "2", "--no-loso"]))
+sys.exit(main(["study", "--data", sys.argv[1], "--out", sys.argv[2], "--max-components", "2", "--no-loso",
+              "--permutations", "0"]))  # killed while it writes the report: the controls are not what is checked
 """
 
 
@@ -377,11 +378,12 @@ def tiny_study(tmp_path_factory):
 def test_study_force_leaves_no_stale_report_file_and_keeps_the_users(tmp_path, run_cli, tiny_study, monkeypatch):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, "--max-components", "2")
+    quick = ("--max-components", "2", "--permutations", "0")  # which files the second run leaves, not the controls
+    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, *quick)
     assert code == 0, err
     assert (out / "results_loso.csv").is_file() and (out / "predicted_vs_perceived_loso.png").is_file()
     (out / "my-notes.md").write_text("mine")
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, "--max-components", "2", "--no-loso", "--force")
+    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, *quick, "--no-loso", "--force")
     assert code == 0, err
     names = sorted(p.name for p in out.iterdir())
     assert "results_loso.csv" not in names and "predicted_vs_perceived_loso.png" not in names
@@ -401,7 +403,8 @@ def test_a_killed_study_blocks_no_rerun(tmp_path, run_cli, tiny_study, monkeypat
     out.mkdir()
     (out / ".results.csv.k2j4h6g8.tmp").write_text("half")
     (out / "cv.csv").write_text("half")
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, "--max-components", "2", "--no-loso")
+    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, "--max-components", "2", "--no-loso",
+                           "--permutations", "0")
     assert code == 0, err  # roughsense's own incomplete output needs no --force
     assert (out / "index.html").is_file() and not (out / ".results.csv.k2j4h6g8.tmp").exists()
     assert _siblings(out) == []

@@ -22,16 +22,17 @@ CONDITIONS = ("1N", "2N", "3N", "combined")
 
 
 @pytest.fixture(scope="module")
-def paper_design(tmp_path_factory):
-    """Features and perceived roughness of the paper's design and of three gratings outside it."""
+def paper_design():
+    """Features and perceived roughness of the paper's design and of three gratings outside it.
+
+    Simulated in memory (only the rows the sensor reads, contacts solved cold): the features are bit-identical to
+    those of the same study simulated to a folder and read back (tests/test_explore.py checks the two paths)."""
     from roughsense.analysis import dataset
-    from roughsense.io.study import read_study
-    from roughsense.sim.simulate import SimulationConfig, simulate_study
+    from roughsense.explore.cell import design_features
+    from roughsense.sim.simulate import SimulationConfig
 
     config = SimulationConfig(specimens=(*paper.PAPER_SPECIMENS, *ODD), repetitions=10, seed=0)
-    root = simulate_study(tmp_path_factory.mktemp("design") / "study", config, jobs=2)
-    study = read_study(root, require_ratings=True)
-    features = dataset.study_features(study, n_jobs=2)
+    study, features = design_features(config, warm_start=False)
     return study, features, dataset.perceived_roughness(study)
 
 

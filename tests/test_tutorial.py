@@ -3,7 +3,9 @@
 It starts in a folder standing in for the clone, with HOME a fresh folder, and each block starts where the one
 before it left off (the tutorial's ``cd`` into its scratch folder carries over). ``roughsense`` on PATH is a shim for
 the interpreter running the tests, so the tutorial runs against this checkout's code, and everything it reads comes
-out of the package (``roughsense example``), as it would from a wheel. Every step that writes says ``--force``, so it
+out of the package (``roughsense example``), as it would from a wheel. Each command is a process of its own, forked
+from a server that has imported the libraries the CLI loads (tests/forkserver.py), so twenty commands do not pay
+twenty interpreter start-ups. Every step that writes says ``--force``, so it
 re-runs; the clone stand-in must stay empty; the report sections the tutorial lists and the numbers it quotes are the run's.
 """
 from __future__ import annotations
@@ -12,13 +14,14 @@ import html
 import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 import roughsense
+
+from .forkserver import fork_server
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"
@@ -48,14 +51,12 @@ def test_the_tutorial_moves_to_its_scratch_folder_before_writing_anything():
 
 
 def _environment(tmp_path: Path) -> dict[str, str]:
-    shim = tmp_path / "bin" / "roughsense"
-    shim.parent.mkdir()
-    shim.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m roughsense.cli "$@"\n')
-    shim.chmod(0o755)
+    """The shell's environment: a fresh HOME and cache, and tmp_path/bin (where the ``roughsense`` shim goes) on PATH."""
+    (tmp_path / "bin").mkdir()
     env = {
         **os.environ,
         "HOME": str(tmp_path / "home"),
-        "PATH": f"{shim.parent}{os.pathsep}{os.environ.get('PATH', '')}",
+        "PATH": f"{tmp_path / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}",
         "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(roughsense.__file__).parents[1]),
                                                      os.environ.get("PYTHONPATH")])),
         "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache"),
@@ -87,7 +88,10 @@ def tutorial_run(tmp_path_factory) -> Path:
     clone.mkdir()
     commands = blocks("sh")
     assert len(commands) >= 10
-    first = _run_tutorial(clone, env, tmp / "pwd")
+    with fork_server(env) as shim:
+        (tmp / "bin" / "roughsense").write_text(shim)
+        (tmp / "bin" / "roughsense").chmod(0o755)
+        first = _run_tutorial(clone, env, tmp / "pwd")
     assert first == tmp / "home" / SCRATCH
     assert list(clone.iterdir()) == [], "the tutorial wrote into the folder it was started from (the clone)"
     return first

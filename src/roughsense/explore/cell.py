@@ -65,16 +65,26 @@ def simulation_config(cell: Cell) -> SimulationConfig:
 
 
 def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.DataFrame]:
-    """The cell's study in memory (no images) and its feature table (manifest columns + spectrum).
+    """The cell's study in memory (no images) and its feature table (manifest columns + spectrum)."""
+    config = simulation_config(cell)
+    pads, _ = config.validate()
+    pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
+    return design_features(config, pads=pads, warm_start=warm_start, label=f"explore cell {cell.id}")
 
-    Its manifest is the table a simulated folder's manifest.csv holds (sim.manifest), as the study reader returns it.
+
+def design_features(config: SimulationConfig, *, pads=None, warm_start: bool = True,
+                    label: str = "simulated design") -> tuple[Study, pd.DataFrame]:
+    """A simulated design's study in memory (no images) and its feature table (manifest columns + spectrum): what
+    ``simulate`` + ``read_study`` + the sensor give for the same config, without writing or decoding a frame.
+
+    Its manifest is the table a simulated folder's manifest.csv holds (sim.manifest), as the study reader returns it
+    (images by name). ``pads`` replaces the config's pads (a sweep's modulus axis).
 
     ``warm_start=False`` solves every contact from scratch, as ``simulate`` does: the features are then
     bit-identical to those of the simulated study folder (tests compare them).
     """
-    config = simulation_config(cell)
-    pads, specimens = config.validate()
-    pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
+    valid_pads, specimens = config.validate()
+    pads = valid_pads if pads is None else pads
     trials = plan_trials(config, pads, specimens)
     camera = config.camera
     height_px = getattr(camera, "frame_height_px", camera.height_px)  # the rows a frame holds (a sensor window)
@@ -97,11 +107,11 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     manifest = assign_nominal_forces(trial_manifest(trials, [t.image for t in trials], fractions), config.forces_n)
     features = pd.concat([manifest, pd.DataFrame(X, columns=spectrum_columns(spectrum.freq_per_mm_))], axis=1)
     study = Study(
-        root=Path(f"explore-cell-{cell.id}"), name=f"explore cell {cell.id}", reference_specimen=REFERENCE_SPECIMEN,
-        sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(cell.forces_n)),
+        root=Path(label.replace(" ", "-")), name=label, reference_specimen=REFERENCE_SPECIMEN,
+        sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(config.forces_n)),
         specimens=pd.DataFrame([s.table_row() for s in specimens]), manifest=manifest,
-        ratings=panel_ratings(specimens, cell.seed, ratings_from=cell.ratings_from,
-                              participants=cell.participants, sessions=cell.sessions),
+        ratings=panel_ratings(specimens, config.seed, ratings_from=config.ratings_from,
+                              participants=config.participants, sessions=config.sessions),
         pad_ridge_period_mm=ridge_periods(pads),
     )
     return study, features
