@@ -17,7 +17,7 @@ from roughsense.model import peak_law
 from roughsense.model import pls_cv as engine
 
 from .test_peak_law import GRID, specimen_spectra
-from .test_pls import refit_predictions, spectra
+from .test_pls import assert_nested_choices_are_inner_refits, spectra
 
 
 def _shuffled(y: np.ndarray, groups: np.ndarray, n_targets: int, seed: int) -> np.ndarray:
@@ -56,13 +56,7 @@ def test_nested_choices_with_many_targets_equal_simpls_refitted_per_group():
     assert Y.shape[1] >= engine._OWN_BASIS_MIN_TARGETS
     outer = engine.pls_cv_many(X, Y, max_components=3, groups=groups).predictions
     nested, chosen = engine.nested_group_predictions(X, Y, groups, outer)
-    for j, name in enumerate(pd.unique(groups)):
-        held = groups == name
-        for b in range(Y.shape[1]):
-            inner = refit_predictions(X[~held], Y[~held, b], groups[~held], 3)
-            rmse = np.sqrt(((inner - Y[~held, b][:, None]) ** 2).mean(axis=0))
-            assert chosen[b, j] == 1 + int(np.argmin(rmse[1:]))
-            np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
+    assert_nested_choices_are_inner_refits(X, Y, groups, outer, nested, chosen, 3)
 
 
 def test_own_basis_choices_equal_the_shared_rotations_on_spectra(monkeypatch):

@@ -42,6 +42,18 @@ def refit_predictions(X, y, folds, A):
     return out
 
 
+def assert_nested_choices_are_inner_refits(X, Y, groups, outer, nested, chosen, A):
+    """Every group's inner choice (of each target column) is what refitting SIMPLS on its inner folds chooses, and
+    its nested predictions are the outer run's at that count."""
+    for j, name in enumerate(pd.unique(groups)):
+        held = groups == name
+        for b in range(Y.shape[1]):
+            inner = refit_predictions(X[~held], Y[~held, b], groups[~held], A)
+            rmse = np.sqrt(((inner - Y[~held, b][:, None]) ** 2).mean(axis=0))
+            assert chosen[b, j] == 1 + int(np.argmin(rmse[1:]))
+            np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
+
+
 def _refit(X, y, folds, A, out):
     for f in np.unique(folds):
         test = folds == f
@@ -260,13 +272,7 @@ def test_nested_choice_is_each_groups_own_inner_cv_from_one_leave_two_out_batch(
     monkeypatch.setattr(engine, "_cv_predictions", lambda *a: overlapping.append(a[4] is not None) or original(*a))
     nested, chosen = engine.nested_group_predictions(X, Y, groups, outer)
     assert overlapping and all(overlapping)  # one leave-two-groups-out batch, no per-group runs
-    for j, name in enumerate(pd.unique(groups)):
-        held = groups == name
-        for b in range(Y.shape[1]):
-            inner = refit_predictions(X[~held], Y[~held, b], groups[~held], 3)
-            rmse = np.sqrt(((inner - Y[~held, b][:, None]) ** 2).mean(axis=0))
-            assert chosen[b, j] == 1 + int(np.argmin(rmse[1:]))
-            np.testing.assert_array_equal(nested[b, held], outer[b, held, chosen[b, j]])
+    assert_nested_choices_are_inner_refits(X, Y, groups, outer, nested, chosen, 3)
 
 
 def test_chunks_of_one_target_share_one_rotation_and_equal_one_batch(monkeypatch):
