@@ -18,8 +18,10 @@ study: $(STAMP)
 
 # One worker per core, at most 4 (pytest-xdist); a test file's tests share a worker, so its module fixtures run once.
 # Files are handed out in collection order, which tests/conftest.py starts with the longest (LONGEST_FILES).
+# Bytecode is cached even where the shell sets PYTHONDONTWRITEBYTECODE: the suite starts hundreds of interpreters,
+# and compiling the package (and rewriting the tests' asserts) afresh in each cost a fifth of its time (BENCHMARKS.md).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --numprocesses auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q --numprocesses auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
 
 # ruff (pyproject's [tool.ruff]) and the import layers (pyproject's [tool.importlinter]; docs/architecture.md).
 lint: $(STAMP)
