@@ -95,7 +95,7 @@ def main() -> None:
     parser.add_argument("--sklearn-permutations", type=int, default=2)
     args = parser.parse_args()
     from roughsense.analysis import controls
-    from roughsense.analysis.study_analysis import _condition_fit
+    from roughsense.analysis.family_fits import _condition_fit
 
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")

@@ -20,7 +20,7 @@ from ..model.interval import PredictionInterval
 from ..model.jackknife_file import KEY as JACKKNIFE_KEY
 from ..model.jackknife_file import DeployedJackknife, law_jackknife, pls_jackknife
 from . import controls as _controls
-from .study_analysis import family_fit
+from .family_fits import family_fit
 from .unseen import null_specimen_rmse
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sensor.spectrum import grid_step
 from .peak_law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
 from .pls import SIMPLS
 from .press_spread import PressScatter
@@ -58,7 +59,7 @@ class PeakDomain:
                                 readout.overshoot)  # no peak-strength range
         low = np.array([self.log_frequency_range[0], -np.inf, self.harmonic_range[0]])
         high = np.array([self.log_frequency_range[1], np.inf, self.harmonic_range[1]])
-        step = float(self.freq_per_mm[1] - self.freq_per_mm[0])
+        step = grid_step(self.freq_per_mm)
         return domain_reasons(unbounded, low, high, self.clarity_limit, step, self.press_scatter)
 
     def to_dict(self) -> dict:

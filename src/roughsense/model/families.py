@@ -8,6 +8,8 @@ nothing heavy, so the command line can list and check the names without loading 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from ..errors import ConfigError
 
 PLS = "pls"
@@ -19,6 +21,40 @@ MODEL_FAMILIES = (PLS, PEAK_LAW)
 DEFAULT_MODEL = PEAK_LAW
 #: The paper's model: its reproduction and the design sweeps' default family.
 PAPER_MODEL = PLS
+
+
+@dataclass(frozen=True)
+class Family:
+    """What the report, the tables and the model files know of a family without importing its numerics.
+
+    ``paper``: the paper's model (its claims, signed-rank tests and published values are of it). ``chooses_components``:
+    it picks a count by cross-validation (``--rule``, ``--max-components`` apply). ``kind``: its model-file section.
+    """
+
+    name: str
+    title: str
+    marker: str
+    colour: str
+    paper: bool
+    chooses_components: bool
+    kind: str
+
+
+_FAMILIES = (
+    Family(PLS, "PLS (the paper's model)", "o", "#2f5d8a", paper=True, chooses_components=True, kind="pls1-simpls"),
+    Family(PEAK_LAW, "peak law", "s", "#c0392b", paper=False, chooses_components=False, kind="peak-power-law"),
+)
+
+
+def registry() -> tuple[Family, ...]:
+    """Every family, in the order of every table (the paper's first)."""
+    return _FAMILIES
+
+
+def family(name: str) -> Family:
+    """The family called ``name`` (as :func:`check_model_name` accepts it)."""
+    checked = check_model_name(name)
+    return next(f for f in registry() if f.name == checked)
 
 
 def check_model_name(name: object, *, option: str = "--model") -> str:

@@ -46,6 +46,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
 from ..sensor.shape import duty_cycle, harmonic_ratio
+from ..sensor.spectrum import grid_step
 from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
 from .huber_batch import HUBER_EPSILON, distinct_masks, huber_irls, row_classes
 from .press_spread import PressScatter, deviations, robust_spread, trained_presses
@@ -211,7 +212,7 @@ def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm
         agreement = (np.bincount(codes, weights=near) / np.bincount(codes))[codes]
         presses = np.bincount(codes)[codes].astype(np.float64)
         surface_log = surface_log[codes]
-    step = freq[1] - freq[0] if k_bins > 1 else 0.0
+    step = grid_step(freq)
     frequency = freq[peak] + offset * step
     clarity = _parabola_at(surface_log, peak, offset) - np.median(surface_log[:, allowed], axis=1)
     # The shape belongs to the surface, like where its peak is: read on the surface's mean spectrum.
@@ -575,11 +576,6 @@ def _kept(absolute: np.ndarray, scale: np.ndarray, epsilon: float, train: np.nda
     return np.where(kept.any(axis=2, keepdims=True), kept, train[:, None, :])
 
 
-def grid_step(freq_per_mm: np.ndarray) -> float:
-    """The grid's spacing (mm^-1); 0 for a one-bin grid. The one home of the formula for the law's margins."""
-    return float(freq_per_mm[1] - freq_per_mm[0]) if len(freq_per_mm) > 1 else 0.0
-
-
 def predict_law(features: np.ndarray, intercept: float, coef: np.ndarray, low: np.ndarray, high: np.ndarray
                 ) -> np.ndarray:
     """exp(intercept + clip(features) . coef): the law's prediction, features held to [low, high] (the law's
@@ -830,7 +826,7 @@ def held_out_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_pe
     beta, scale = fit_terms(readout.features, log_y, ~held_out, epsilon=epsilon, grouped=surfaces is not None)
     low, high = fold_kept_ranges(readout.features, log_y, ~held_out, beta, scale, epsilon, surfaces)
     fitted = beta[:, 0, 0][None, :] + np.nan_to_num(readout.features) @ beta[:, 0, 1:].T  # (n, F)
-    step = float(freq_per_mm[1] - freq_per_mm[0])
+    step = grid_step(freq_per_mm)
     flags = np.zeros(X.shape[0], dtype=bool)
     for fold, rows in enumerate(held_out):
         train = ~rows

@@ -37,6 +37,7 @@ import numpy as np
 from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
+from ..sensor.spectrum import grid_step
 from .families import PEAK_LAW
 from .peak_law import (
     FEATURE_NAMES,
@@ -126,13 +127,13 @@ class LoadedPeakLaw:
 
     def predict(self, X, surfaces=None) -> np.ndarray:
         """Predicted perceived roughness, exactly as the fitted :class:`PeakPowerLaw` predicts it."""
-        step = float(self.freq_per_mm[1] - self.freq_per_mm[0]) if self.freq_per_mm.size > 1 else 0.0
+        step = grid_step(self.freq_per_mm)
         return predict_law(self.law_features(X, surfaces), self.intercept_, self.coef_,
                            *domain_margins(step, self.feature_min_, self.feature_max_))
 
     def applicability(self, X, surfaces=None) -> list[str]:
         """Per row, what lies outside what the law was fitted on ('' where nothing does)."""
-        step = float(self.freq_per_mm[1] - self.freq_per_mm[0]) if self.freq_per_mm.size > 1 else 0.0
+        step = grid_step(self.freq_per_mm)
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
                               step, self.press_scatter_)
 
@@ -202,7 +203,7 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
         search_bins(freq, period, scalars["exclusion_per_mm"])
     except ValueError as exc:
         raise ModelFileError(f"model.pad_ridge_period_mm and model.exclusion_per_mm: {exc}", path=path) from None
-    step = float(freq[1] - freq[0]) if freq.size > 1 else 0.0  # predictions reach the domain's widened edges
+    step = grid_step(freq)  # predictions reach the domain's widened edges
     low, high = domain_margins(step, pairs["feature_min"], pairs["feature_max"])
     _check_finite_predictions(scalars["intercept"], {**pairs, "feature_min": low, "feature_max": high}, path)
     clarity = _checked(section, "clarity_limit", CLARITY_LIMIT, path) if "clarity_limit" in section else None
@@ -274,7 +275,7 @@ def _grid(spectrum: dict, path: Path | None) -> np.ndarray:
 def _check_log_frequencies(values, freq: np.ndarray, where: str, path: Path | None) -> None:
     """A peak is read on the grid (to within half a bin), so a stored log peak frequency outside the grid's range
     is no fitted value; refused here, before the domain's margins divide by exp() of it and overflow."""
-    step = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
+    step = grid_step(freq)
     low = math.log(max(float(freq[0]) - step, 0.5 * float(freq[0])))
     high = math.log(float(freq[-1]) + step)
     if not all(low <= float(v) <= high for v in values):

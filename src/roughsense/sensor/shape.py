@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .spectrum import grid_step
+
 
 def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
     """Each row's log height of the spectral lobe nearest its own frequency: the highest of the three bins around it,
@@ -31,7 +33,7 @@ def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
     near = np.asarray(near_per_mm, dtype=np.float64)
     n, k_bins = log_spectra.shape
     rows = np.arange(n)
-    step = float(freq[1] - freq[0])
+    step = grid_step(freq)
     centre_bin = np.clip(np.rint((near - freq[0]) / step).astype(int), 0, k_bins - 1)
     around = np.clip(centre_bin[:, None] + np.array([-1, 0, 1]), 0, k_bins - 1)
     peak = around[rows, np.argmax(np.take_along_axis(log_spectra, around, axis=1), axis=1)]
@@ -56,7 +58,7 @@ def readable(freq_per_mm, at_per_mm, pad_ridge_period_mm: float | None = None,
     the pad's own relief, not the surface, sets the amplitude."""
     freq = np.asarray(freq_per_mm, dtype=np.float64)
     at = np.asarray(at_per_mm, dtype=np.float64)
-    slack = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
+    slack = grid_step(freq)
     inside = (at >= freq[0] - slack) & (at <= freq[-1] + slack)
     if pad_ridge_period_mm is None:
         return inside

@@ -102,6 +102,12 @@ def frequency_grid(
     return np.linspace(float(f_min_per_mm), float(f_max_per_mm), int(n_freqs))
 
 
+def grid_step(freq_per_mm) -> float:
+    """The grid's spacing (mm^-1); 0 for a one-bin grid. The one home of the formula: peak frequencies are read
+    to within a bin of it, and the law's domain widens by it."""
+    return float(freq_per_mm[1] - freq_per_mm[0]) if len(freq_per_mm) > 1 else 0.0
+
+
 def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
     band = check_params({"f_min_per_mm": f_min_per_mm, "f_max_per_mm": f_max_per_mm}, SETTINGS)
     if not band["f_min_per_mm"] < band["f_max_per_mm"]:
