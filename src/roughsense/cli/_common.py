@@ -12,6 +12,7 @@ from typing import Annotated, TypeVar
 
 import typer
 
+from .. import defaults
 from .._util import interrupt
 from .._util.workers import usable_cores
 from ..errors import ConfigError
@@ -120,16 +121,18 @@ def _every_core(jobs: int | None) -> int:
     return usable_cores() if jobs is None else jobs
 
 
-#: ``--jobs`` on every command that has it: one default (all cores) and one meaning (how many things at once).
+#: ``--jobs``'s one meaning, how many things at once, on every command that has it (``n_jobs`` in Python).
+JOBS_HELP = ("How much to run at once: images decoded, trials simulated, models fitted, sweep cells computed "
+             "(default: all cores). The results do not depend on it.")
+#: ``--jobs`` on every command that has it: one default (all cores). explore's is its own (batch jobs on a queue).
 Jobs = Annotated[int | None, typer.Option(
     "--jobs", "-j", show_default=False, callback=_every_core, parser=number_option("--jobs", whole=True),
-    help="How much to run at once: images decoded, trials simulated, models fitted (default: all cores). The "
-         "results do not depend on it.")]
+    help=JOBS_HELP)]
 
 
-#: The report figures' formats and default resolution (report/figures.py's; literals keep --help light).
-FIGURE_FORMATS = ("png", "svg", "pdf")
-DEFAULT_DPI = 110
+#: The report figures' formats and default resolution: their home is roughsense.defaults (re-exported for one release).
+FIGURE_FORMATS = defaults.FIGURE_FORMATS
+DEFAULT_DPI = defaults.DPI
 
 
 def check_figure_format(text: str) -> str:

@@ -10,19 +10,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
 from ..errors import ConfigError
 from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
-DEFAULT_PX_PER_MM = 34.9  # the paper's camera: 349 px/cm (section 2.1)
+DEFAULT_PX_PER_MM = defaults.PX_PER_MM  # the paper's camera: 349 px/cm (section 2.1)
 #: Where the contact band is when a study does not say: the paper's centred crop (:data:`CENTER_CROP_PX`).
-DEFAULT_ROI = "center"
+DEFAULT_ROI = defaults.ROI
 
 
 #: What roi="center" means: a 1900 x 150 px (width, height) crop centred on the frame -- the paper's crop of
 #: its 1920 x 1080 camera. Part of the study contract, so the rig can check frames without the sensor code.
-CENTER_CROP_PX = (1900, 150)
+CENTER_CROP_PX = defaults.CENTER_CROP_PX
 
 
 Roi = str | tuple[int, int, int, int]
