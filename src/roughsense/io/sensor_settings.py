@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
-from ..errors import ConfigError
+from ..errors import PASS_FORCE, ConfigError
 from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
@@ -144,7 +144,7 @@ def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = Fal
     old = sensor.get("px_per_mm")
     previous = float(old) if is_number(old) else None
     if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
-        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); pass --force to replace it with "
+        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); {PASS_FORCE} to replace it with "
                           f"the measured {px_per_mm:.5g}")
     item = tomlkit.item(float(round(px_per_mm, 4)))
     item.comment(note)
