@@ -130,15 +130,15 @@ Jobs = Annotated[int | None, typer.Option(
     help=JOBS_HELP)]
 
 
-#: The report figures' formats and default resolution: their home is roughsense.defaults (re-exported for one release).
-FIGURE_FORMATS = defaults.FIGURE_FORMATS
-DEFAULT_DPI = defaults.DPI
+#: The report figures' formats and default resolution; their home is roughsense.defaults.
+FIGURE_FORMATS = defaults.FIGURE_FORMATS  # re-exported for one release
+DEFAULT_DPI = defaults.DPI  # re-exported for one release
 
 
 def check_figure_format(text: str) -> str:
     """``--figure-format``: png, svg or pdf (any case), else one line naming the choices."""
-    if text.lower() not in FIGURE_FORMATS:
-        raise ConfigError(f"--figure-format must be one of {', '.join(FIGURE_FORMATS)}, got {text!r}")
+    if text.lower() not in defaults.FIGURE_FORMATS:
+        raise ConfigError(f"--figure-format must be one of {', '.join(defaults.FIGURE_FORMATS)}, got {text!r}")
     return text.lower()
 
 
