@@ -24,6 +24,8 @@ import roughsense
 
 REPO = Path(__file__).resolve().parents[1]
 PUBLIC = [name for name in roughsense.__all__ if name != "__version__"]
+#: The calls from images to perceived roughness, in the order a newcomer makes them: the API opens with them.
+NEWCOMER = ["simulate_study", "read_study", "analyse_study", "load_model", "predict"]
 SECTION = "{0}\n{1}\n"
 
 
@@ -101,6 +103,33 @@ def test_api_reference_builds_without_warnings(tmp_path):
     page = (tmp_path / "roughsense.html").read_text(encoding="utf-8")
     assert [name for name in PUBLIC if f'id="{name}"' not in page] == []
     assert page.count('<h6 id="examples">Examples</h6>') >= len(PUBLIC)  # the numpydoc sections were understood
+    members = re.findall(r'<section id="(\w+)">', page)
+    assert members[:len(_newcomer_calls())] == _newcomer_calls()  # the page's members follow __all__
+    assert _in_order(page[:page.index('<section id="')], NEWCOMER)  # and its text opens with all five
+
+
+def _newcomer_calls() -> list[str]:
+    """The five calls that are public on this branch (``predict`` joins when its module lands), as __all__ opens."""
+    present = [name for name in NEWCOMER if name in roughsense.__all__]
+    assert len(present) >= 4
+    return present
+
+
+def _in_order(text: str, names: list[str]) -> bool:
+    at = [text.find(f"{name}(") for name in names]
+    return -1 not in at and at == sorted(at)
+
+
+def test_the_api_and_its_help_open_with_the_five_calls():
+    """``__all__``, the module docstring's numbered list and ``help(roughsense)`` all start with the five calls."""
+    import pydoc
+
+    assert roughsense.__all__[:len(_newcomer_calls())] == _newcomer_calls()
+    numbered = re.findall(r"^(\d)\. ``(\w+)\(", roughsense.__doc__, flags=re.M)
+    assert numbered == [(str(i), name) for i, name in enumerate(NEWCOMER, 1)]
+    text = pydoc.render_doc(roughsense, renderer=pydoc.plaintext)
+    opening = text[text.index("DESCRIPTION"):text.index("Then the estimators")]  # before any other name
+    assert _in_order(opening, NEWCOMER)
 
 
 def _readme_snippet() -> str:
@@ -110,11 +139,15 @@ def _readme_snippet() -> str:
     return snippet
 
 
-def test_readme_snippet_runs_as_written(tmp_path):
+def test_readme_snippet_runs_as_written_and_again(tmp_path):
+    """A reader runs it, changes a line and runs it again: the second run replaces the first study."""
     (tmp_path / "snippet.py").write_text(_readme_snippet(), encoding="utf-8")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(roughsense.__file__).parents[1]),
                                                          os.environ.get("PYTHONPATH", "")])}
-    done = subprocess.run([sys.executable, "snippet.py"], cwd=tmp_path, capture_output=True, text=True, env=env,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert (tmp_path / "my-study" / "manifest.csv").is_file()
+    manifests = []
+    for _ in range(2):
+        done = subprocess.run([sys.executable, "snippet.py"], cwd=tmp_path, capture_output=True, text=True, env=env,
+                              timeout=300)
+        assert done.returncode == 0, done.stderr
+        manifests.append((tmp_path / "my-study" / "manifest.csv").read_bytes())
+    assert manifests[0] == manifests[1] and manifests[0].count(b"\n") == 11  # a header and the 10 images

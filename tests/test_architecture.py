@@ -176,22 +176,3 @@ def test_a_fingerprint_changes_with_any_module_it_covers(tmp_path, monkeypatch):
     writer.write_text(writer.read_text() + "\n# changed\n")
     after = fingerprint.code_fingerprint.__wrapped__(*entry)
     assert before != after
-
-
-def test_the_command_line_defaults_are_the_layers_own():
-    """``study --max-components`` is a literal so that ``--help`` stays light; it must equal the model layer's default."""
-    import typer.main
-
-    from roughsense.cli import app
-    from roughsense.model.pls_cv import DEFAULT_MAX_COMPONENTS
-    from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
-
-    commands = typer.main.get_command(app).commands
-
-    def default(command: str, name: str):
-        return next(p.default for p in commands[command].params if p.name == name)
-
-    assert default("study", "max_components") == DEFAULT_MAX_COMPONENTS
-    assert default("simulate", "repetitions") == default("capture", "repetitions") == PAPER_REPETITIONS
-    assert [float(f) for f in default("simulate", "forces").split(",")] == list(PAPER_FORCES_N)
-    assert (default("protocol", "participants"), default("protocol", "sessions")) == (PAPER_PARTICIPANTS, PAPER_SESSIONS)

@@ -131,20 +131,54 @@ def test_version_and_help_import_nothing_heavy(args):
     assert result["heavy"] == []
 
 
-def test_the_literal_defaults_in_the_options_are_the_layers_own():
-    """A few option defaults are literals so that --help stays light; they must equal the layers' values."""
-    from roughsense.analysis.controls import MAX_PERMUTATIONS
-    from roughsense.cli import _defaults as literal
+def test_defaults_imports_nothing_heavy():
+    """roughsense.defaults is the one home of every default a user sees, imported by the CLI's options: it must not
+    bring in the numerical stack, or every ``COMMAND --help`` would pay for it."""
+    probe = "import json, sys, roughsense.defaults; print(json.dumps(sorted(m.split('.')[0] for m in sys.modules)))"
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert set(json.loads(run.stdout)) & set(HEAVY) == set()
+
+
+def _default(command: str, name: str):
+    return next(p.default for p in _commands()[command].params if p.name == name)
+
+
+def test_every_option_default_is_its_homes_value():
+    """The options show roughsense.defaults' values, and the layers use the same ones (one home, no copies)."""
+    from roughsense import defaults
+    from roughsense.analysis.controls import DEFAULT_PERMUTATIONS, MAX_PERMUTATIONS
     from roughsense.io.images import DEFAULT_MAX_PIXELS
     from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
-    from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
+    from roughsense.model.pls_cv import DEFAULT_MAX_COMPONENTS
+    from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
+    from roughsense.report.figures import DEFAULT_DPI, FIGURE_FORMATS
+    from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM
 
-    assert literal.DEFAULT_MAX_PIXELS == DEFAULT_MAX_PIXELS
-    assert literal.MAX_PERMUTATIONS == MAX_PERMUTATIONS
-    assert (literal.CENTER_CROP_PX, literal.DEFAULT_PX_PER_MM, literal.DEFAULT_ROI) == (
-        CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI)
-    assert (literal.DEFAULT_FINGERPRINT_PERIOD_MM, literal.DEFAULT_RIDGE_HEIGHT_MM, literal.PAD_NAMES) == (
-        DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES)
+    seeds = {name: _default(name, "seed") for name, c in _commands().items() if any(p.name == "seed" for p in c.params)}
+    assert {"study", "fit", "features", "simulate", "protocol"} <= set(seeds)
+    assert set(seeds.values()) == {defaults.SEED}
+    assert _default("study", "permutations") == defaults.PERMUTATIONS == DEFAULT_PERMUTATIONS == 199
+    assert _default("study", "max_components") == defaults.MAX_COMPONENTS == DEFAULT_MAX_COMPONENTS
+    assert _default("study", "dpi") == _default("explore", "dpi") == defaults.DPI == DEFAULT_DPI
+    assert defaults.FIGURE_FORMATS == FIGURE_FORMATS and defaults.MAX_PERMUTATIONS == MAX_PERMUTATIONS
+    assert _default("simulate", "fingerprint_period_mm") == defaults.FINGERPRINT_PERIOD_MM == DEFAULT_FINGERPRINT_PERIOD_MM
+    assert _default("simulate", "ridge_height_mm") == defaults.RIDGE_HEIGHT_MM == DEFAULT_RIDGE_HEIGHT_MM
+    assert (defaults.PX_PER_MM, defaults.ROI, defaults.CENTER_CROP_PX, defaults.MAX_PIXELS) == (
+        DEFAULT_PX_PER_MM, DEFAULT_ROI, CENTER_CROP_PX, DEFAULT_MAX_PIXELS)
+    assert _default("simulate", "repetitions") == _default("capture", "repetitions") == PAPER_REPETITIONS
+    assert [float(f) for f in _default("simulate", "forces_n").split(",")] == list(PAPER_FORCES_N)
+    assert (_default("protocol", "participants"), _default("protocol", "sessions")) == (PAPER_PARTICIPANTS, PAPER_SESSIONS)
+
+
+def test_options_that_default_to_the_studys_value_name_the_fallback_in_their_help():
+    """--px-per-mm, --roi and --max-pixels default to the study's; without a study the help's value applies."""
+    from roughsense import defaults
+
+    helps = {p.name: p.help for p in _commands()["features"].params}
+    assert f"else {defaults.PX_PER_MM:g}" in helps["px_per_mm"]
+    assert f"else {defaults.ROI}" in helps["roi"] and f"{defaults.CENTER_CROP_PX[0]}x" in helps["roi"]
+    assert f"else {defaults.MAX_PIXELS}" in helps["max_pixels"]
 
 
 def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path):
@@ -161,7 +195,7 @@ def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path)
     (["protocol", "--seed", "1", "--participants", "1_0"], "--participants"),
     (["protocol", "--seed", "١", "--out", "x.csv"], "--seed"),
     (["protocol", "--seed", "1", "--sessions", "inf"], "--sessions"),
-    (["explore", "sweep.toml", "--out", "o", "--workers", "2_0"], "--workers"),
+    (["explore", "sweep.toml", "--out", "o", "--workers", "2_0"], "--jobs"),  # the old spelling of --jobs
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--timeout-s", "nan"], "--timeout-s"),
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--discard", "2.5"], "--discard"),
 ])

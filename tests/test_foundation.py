@@ -102,6 +102,28 @@ def test_study_writer_refuses_non_empty_folder(tmp_path):
     assert (root / "notes.txt").read_text() == "mine"
 
 
+def test_every_refusal_to_overwrite_names_the_cli_option_and_the_python_keyword(tmp_path):
+    """One wording, errors.PASS_FORCE: a Python caller is told ``force=True``, not only the CLI's ``--force``."""
+    from roughsense import sim
+    from roughsense.errors import PASS_FORCE
+    from roughsense.io.sensor_settings import write_px_per_mm
+
+    assert PASS_FORCE == "pass --force (force=True in Python)"
+    root = tmp_path / "s"
+    root.mkdir()
+    (root / "notes.txt").write_text("mine")
+    (tmp_path / "f.json").write_text("{}")
+    (tmp_path / "study.toml").write_text("[sensor]\npx_per_mm = 17.0\n")
+    refusals = [lambda: StudyWriter(root), lambda: atomic.check_can_write(tmp_path / "f.json"),
+                lambda: sim.simulate_study(root, sim.SimulationConfig(pads=("smooth",), specimens=("R3",))),
+                lambda: write_px_per_mm(tmp_path / "study.toml", 20.0, note="measured")]
+    for refuse in refusals:
+        with pytest.raises((OutputExistsError, ConfigError)) as info:
+            refuse()
+        assert f"; {PASS_FORCE} to " in str(info.value)
+    assert (root / "notes.txt").read_text() == "mine" and "17.0" in (tmp_path / "study.toml").read_text()
+
+
 def test_study_with_unknown_specimen_names_the_row(tmp_path):
     _write_minimal_study(tmp_path / "s")
     manifest = tmp_path / "s" / "manifest.csv"

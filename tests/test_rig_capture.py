@@ -287,7 +287,7 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
         (("--repetitions", "0"), "--repetitions must be a whole number from 1"),
         (("--shape", "wavy"), "--shape 'wavy'"),
         (("--force-input", "usb"), "--force-input must be 'manual' or 'serial:PORT[:BAUD]'"),
-        (("--forces", "1,x"), "--forces: 'x' is not a number"),
+        (("--forces", "1,x"), "--forces-n: 'x' is not a number"),  # --forces: the old spelling
     ],
 )
 def test_bad_options(tmp_path, video, run_cli, typed, args, message):

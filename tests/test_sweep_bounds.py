@@ -152,10 +152,10 @@ def test_workers_beyond_the_bound_are_refused_before_any_work(tmp_path, run_cli,
     monkeypatch.setattr(runner, "default_workers", lambda: 2)  # the bound is 4 per usable core
     for workers in ("100000", "9", "0"):
         line = _one_error(run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "out", "--workers", workers),
-                          "--workers", "from 1 to 8")
+                          "--jobs", "from 1 to 8")  # --workers: the old spelling of --jobs
         assert "absent.toml" not in line  # refused before the sweep file is even read
     assert not (tmp_path / "out").exists()
-    with pytest.raises(Exception, match="--workers must be from 1 to 8"):
+    with pytest.raises(Exception, match="--jobs must be from 1 to 8"), pytest.warns(FutureWarning):
         run_sweep(read_sweep(_sweep_file(tmp_path)), tmp_path / "out", workers=100000)
     assert not (tmp_path / "out").exists()
 

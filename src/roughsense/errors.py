@@ -153,8 +153,12 @@ class ModelFileError(RoughsenseError):
     """
 
 
+#: How every refusal to overwrite names the way through, in the command line's words and in Python's: one wording.
+PASS_FORCE = "pass --force (force=True in Python)"
+
+
 class OutputExistsError(RoughsenseError):
-    """Refusing to overwrite something the user made; ``--force`` is the way through.
+    """Refusing to overwrite something the user made; ``--force`` (``force=True``) is the way through.
 
     Parameters
     ----------
@@ -171,7 +175,7 @@ class OutputExistsError(RoughsenseError):
     ...     rs.StudyWriter("old-study")
     ... except rs.OutputExistsError as error:
     ...     print(error)
-    old-study: folder exists and is not empty; pass --force to write into it
+    old-study: folder exists and is not empty; pass --force (force=True in Python) to write into it
     """
 
 

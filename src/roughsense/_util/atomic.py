@@ -16,7 +16,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
-from ..errors import ConfigError, OutputExistsError, RoughsenseError
+from ..errors import PASS_FORCE, ConfigError, OutputExistsError, RoughsenseError
 from . import interrupt
 from .files import foreign_reason
 from .text import spreadsheet_safe
@@ -40,7 +40,7 @@ def check_can_write(path: str | os.PathLike[str], *, force: bool = False,
     target = Path(path)
     refuse_inputs(target, inputs, option=option)
     if target.exists() and not force:
-        raise OutputExistsError("already exists; pass --force to replace it", path=target)
+        raise OutputExistsError(f"already exists; {PASS_FORCE} to replace it", path=target)
     if target.exists() and target.is_dir():
         raise OutputExistsError("is a folder, expected a file path", path=target)
     return target

@@ -18,6 +18,7 @@ import typer
 
 from .._util import interrupt
 from ..errors import RoughsenseError, one_line
+from ._aliases import apply_aliases, force_hint
 from ._common import close_line
 
 app = typer.Typer(
@@ -136,16 +137,19 @@ def _usage_error(exc: Exception, args: list[str]) -> int:
         path = f"roughsense {name}" if name in typer.main.get_command(app).commands else "roughsense"
     message = exc.format_message().strip().rstrip(".")
     where = path.removeprefix("roughsense").strip()
-    return _fail(f"{where + ': ' if where else ''}{message[:1].lower()}{message[1:]}; see '{path} --help'")
+    hint = force_hint(args)
+    return _fail(f"{where + ': ' if where else ''}{message[:1].lower()}{message[1:]}{hint}; see '{path} --help'")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return its exit code (tests call this directly).
 
     click's usage errors (a bad option, a missing argument) and everything the library raises surface here and
-    are turned into one line; ``--help`` and ``--version`` return 0.
+    are turned into one line; ``--help`` and ``--version`` return 0. An option's old spelling is read as its one
+    name (cli/_aliases.py).
     """
     args, debug = _take_debug(list(sys.argv[1:] if argv is None else argv))
+    args = apply_aliases(args)
     if debug:
         _state["debug"] = True
     warnings.showwarning = _show_warning

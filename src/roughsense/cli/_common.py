@@ -12,6 +12,7 @@ from typing import Annotated, TypeVar
 
 import typer
 
+from .. import defaults
 from .._util import interrupt
 from .._util.workers import usable_cores
 from ..errors import ConfigError
@@ -120,22 +121,24 @@ def _every_core(jobs: int | None) -> int:
     return usable_cores() if jobs is None else jobs
 
 
-#: ``--jobs`` on every command that has it: one default (all cores) and one meaning (how many things at once).
+#: ``--jobs``'s one meaning, how many things at once, on every command that has it (``n_jobs`` in Python).
+JOBS_HELP = ("How much to run at once: images decoded, trials simulated, models fitted, sweep cells computed "
+             "(default: all cores). The results do not depend on it.")
+#: ``--jobs`` on every command that has it: one default (all cores). explore's is its own (batch jobs on a queue).
 Jobs = Annotated[int | None, typer.Option(
     "--jobs", "-j", show_default=False, callback=_every_core, parser=number_option("--jobs", whole=True),
-    help="How much to run at once: images decoded, trials simulated, models fitted (default: all cores). The "
-         "results do not depend on it.")]
+    help=JOBS_HELP)]
 
 
-#: The report figures' formats and default resolution (report/figures.py's; literals keep --help light).
-FIGURE_FORMATS = ("png", "svg", "pdf")
-DEFAULT_DPI = 110
+#: The report figures' formats and default resolution; their home is roughsense.defaults.
+FIGURE_FORMATS = defaults.FIGURE_FORMATS  # re-exported for one release
+DEFAULT_DPI = defaults.DPI  # re-exported for one release
 
 
 def check_figure_format(text: str) -> str:
     """``--figure-format``: png, svg or pdf (any case), else one line naming the choices."""
-    if text.lower() not in FIGURE_FORMATS:
-        raise ConfigError(f"--figure-format must be one of {', '.join(FIGURE_FORMATS)}, got {text!r}")
+    if text.lower() not in defaults.FIGURE_FORMATS:
+        raise ConfigError(f"--figure-format must be one of {', '.join(defaults.FIGURE_FORMATS)}, got {text!r}")
     return text.lower()
 
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import typer
 
-from ..paper import PAPER_REPETITIONS
+from .. import defaults
+from ..paper import PAPER_FORCES_N, PAPER_REPETITIONS
 from ._common import number_option, parse_float_list
-from ._defaults import DEFAULT_PX_PER_MM
 
 ORDER = 50
 _REPETITIONS = number_option("--repetitions", whole=True)
@@ -27,8 +27,11 @@ _REPETITIONS_OPTION = typer.Option(
 _FORCE_INPUT = typer.Option(
     "manual", "--force-input", help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale).")
 _PX_PER_MM_OPTION = typer.Option(
-    None, "--px-per-mm", parser=_PX_PER_MM, help=f"Camera scale for a new study (default {DEFAULT_PX_PER_MM:g}).")
-_ROI = typer.Option(None, "--roi", help="Contact band for a new study: center, auto or X,Y,W,H (default center).")
+    None, "--px-per-mm", parser=_PX_PER_MM, help=f"Camera scale for a new study (default {defaults.PX_PER_MM:g}).")
+_ROI = typer.Option(
+    None, "--roi", help=f"Contact band for a new study: center, auto or X,Y,W,H (default {defaults.ROI}).")
+_FORCES_N = typer.Option(None, "--forces-n", help="Protocol forces in N (default "
+                         f"{','.join(f'{f:g}' for f in PAPER_FORCES_N)}, or the study's).")
 _SHAPE = typer.Option(
     None, "--shape", help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other).")
 _DISCARD_OPTION = typer.Option(
@@ -42,7 +45,7 @@ def register(app: typer.Typer) -> None:
         out: Path = _OUT,
         specimen: str = typer.Option(..., "--specimen", help="Specimen name, e.g. R3 (letters, digits, . _ -)."),
         pad: str = typer.Option(..., "--pad", help="Contact pad name, e.g. fingerprint or flat."),
-        forces: str | None = typer.Option(None, "--forces", help="Protocol forces in N (default 1,2,3, or the study's)."),
+        forces_n: str | None = _FORCES_N,
         repetitions: int = _REPETITIONS_OPTION,
         force_input: str = _FORCE_INPUT,
         px_per_mm: float | None = _PX_PER_MM_OPTION,
@@ -60,7 +63,7 @@ def register(app: typer.Typer) -> None:
         command resumes where it stopped, and nothing already captured is overwritten.
         """
         session = dict(specimen=specimen, pad=pad, repetitions=repetitions, px_per_mm=px_per_mm, roi=roi,
-                       forces_n=parse_float_list(forces, name="forces") if forces is not None else None,
+                       forces_n=parse_float_list(forces_n, name="forces-n") if forces_n is not None else None,
                        shape=shape, wavelength_mm=wavelength_mm)
         _run(out, source, force_input, timeout_s=timeout_s, discard=discard, session=session)
 

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import ConfigError, OutputExistsError
+from ..errors import PASS_FORCE, ConfigError, OutputExistsError
 
 ORDER = 95
 
@@ -57,7 +57,7 @@ def _copy_folder(node, out: Path, force: bool) -> int:
 
     with output_lock(out, command="example"):
         if out.exists() and not force:
-            raise OutputExistsError("already exists; pass --force to replace it", path=out)
+            raise OutputExistsError(f"already exists; {PASS_FORCE} to replace it", path=out)
         refuse_captured(out, "an example is not copied over captured frames; choose a new folder")
         content = _files(node)
         ours = {str(rel) for rel, _ in content} | {str(parent) for rel, _ in content for parent in rel.parents}

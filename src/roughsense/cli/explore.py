@@ -5,10 +5,11 @@ from pathlib import Path
 
 import typer
 
+from .. import defaults
 from .._util.text import counted
-from ._common import DEFAULT_DPI, Dpi, FigureFormat, check_figure_format, number_option, progress
+from ._common import JOBS_HELP, Dpi, FigureFormat, check_figure_format, number_option, progress
 
-_WORKERS = number_option("--workers", whole=True)
+_JOBS = number_option("--jobs", whole=True)
 
 ORDER = 45
 
@@ -20,17 +21,16 @@ def register(app: typer.Typer) -> None:
             ..., metavar="SWEEP.toml",
             help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
         out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
-        workers: int | None = typer.Option(None, "--workers", parser=_WORKERS,
-                                           help="Local worker processes (default: one per core; at most 4 per core); "
-                                           "with --scheduler slurm/pbs/sge, batch jobs (default 1)."),
+        jobs: int | None = typer.Option(None, "--jobs", "-j", parser=_JOBS, show_default=False, help=JOBS_HELP),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
-                                             "of an existing Dask cluster, or slurm, pbs or sge: workers as batch jobs "
-                                             "(dask-jobqueue, configured in Dask's jobqueue.yaml), instead of a local "
-                                             "cluster."),
+                                             "of an existing Dask cluster, or slurm, pbs or sge: --jobs workers as "
+                                             "batch jobs (default 1; dask-jobqueue, configured in Dask's jobqueue.yaml), "
+                                             "instead of a local cluster of one worker process per core (at most 4 per "
+                                             "core)."),
         force: bool = typer.Option(False, "--force", help="Use a folder that holds another sweep's results (they are "
                                    "replaced) or other files (kept)."),
         figure_format: FigureFormat = "png",
-        dpi: Dpi = DEFAULT_DPI,
+        dpi: Dpi = defaults.DPI,
         yes: bool = typer.Option(False, "--yes", help="Run a sweep of more than 1000 cells (its estimate is shown; "
                                  "without --yes it is refused)."),
     ) -> None:
@@ -49,13 +49,13 @@ def register(app: typer.Typer) -> None:
         from ..report.html import FigureStyle
 
         style = FigureStyle(check_figure_format(figure_format), dpi)
-        check_options(workers, scheduler)  # bounds and an empty address: before the sweep is even read
+        check_options(jobs, scheduler)  # bounds and an empty address: before the sweep is even read
         sweep = read_sweep(sweep_file)
-        estimate = check_size_confirmed(sweep, yes=yes, workers=workers or usable_cores())
+        estimate = check_size_confirmed(sweep, yes=yes, workers=jobs or usable_cores())
         if estimate is not None:
             typer.echo(f"roughsense: {estimate}", err=True)
         with output_lock(out, command="explore"):  # two sweeps into one --out would mix their cells
-            outcome = run_sweep(sweep, out, workers=workers, scheduler=scheduler, force=force, progress=progress)
+            outcome = run_sweep(sweep, out, n_jobs=jobs, scheduler=scheduler, force=force, progress=progress)
             index = write_explore_report(sweep, out, style=style)
         line = f"{counted(outcome.computed, 'cell')} computed, {outcome.skipped} already finished"
         if outcome.failures:

@@ -6,10 +6,10 @@ from typing import Annotated
 
 import typer
 
+from .. import defaults
 from ..errors import ConfigError
 from ..sensor.settings import MAX_N_FREQS, SPECTRUM_DEFAULTS
 from ._common import Jobs, number_option, parse_float_list, progress, run_inputs
-from ._defaults import CENTER_CROP_PX, DEFAULT_MAX_PIXELS, DEFAULT_PX_PER_MM, DEFAULT_ROI
 from ._studies import STUDY_METAVAR, resolve_study
 
 ORDER = 10
@@ -35,13 +35,13 @@ StudyDir = Annotated[str | None, typer.Option(
 PxPerMm = Annotated[float | None, typer.Option(
     "--px-per-mm", show_default=False, parser=number_option("--px-per-mm", quantity="px_per_mm",
                                                            must="a positive number (px/mm) from 0.01 to 100000"),
-    help=f"Camera scale in px/mm along the line. Default: the study's, else {DEFAULT_PX_PER_MM:g} (the paper's "
-         f"{DEFAULT_PX_PER_MM * 10:g} px/cm).")]
+    help=f"Camera scale in px/mm along the line. Default: the study's, else {defaults.PX_PER_MM:g} (the paper's "
+         f"{defaults.PX_PER_MM * 10:g} px/cm).")]
 Roi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
-    help=f"Crop: 'center' ({CENTER_CROP_PX[0]}x{CENTER_CROP_PX[1]} px centred, as in the paper), 'auto' (the "
-         f"{CENTER_CROP_PX[1]}-row band with the most horizontal texture) or X,Y,W,H in px. Default: the study's, "
-         "else center.")]
+    help=f"Crop: 'center' ({defaults.CENTER_CROP_PX[0]}x{defaults.CENTER_CROP_PX[1]} px centred, as in the paper), 'auto' (the "
+         f"{defaults.CENTER_CROP_PX[1]}-row band with the most horizontal texture) or X,Y,W,H in px. Default: the study's, "
+         f"else {defaults.ROI}.")]
 Rows = Annotated[int, typer.Option(
     "--rows", parser=number_option("--rows", whole=True),
     help="Average the N central rows of the crop (1 = the paper's middle row).")]
@@ -54,13 +54,13 @@ Window = Annotated[str, typer.Option(
 MaxPixels = Annotated[int | None, typer.Option(
     "--max-pixels", show_default=False, parser=number_option("--max-pixels", whole=True),
     help="Refuse images whose header claims more pixels (width x height) than this, before decoding. "
-         f"Default: the study's [sensor] max_pixels, else {DEFAULT_MAX_PIXELS}.")]
+         f"Default: the study's [sensor] max_pixels, else {defaults.MAX_PIXELS}.")]
 
 
 def features(
     out: FeaturesOut, images: Images = None, study: StudyDir = None,
     seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
-                                      help="Seed of --study builtin.")] = 0,
+                                      help="Seed of --study builtin.")] = defaults.SEED,
     px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
     band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
     n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
@@ -160,10 +160,10 @@ def _spectrum(*, px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_
     from ..sensor.spectrum import SpatialSpectrum
 
     return SpatialSpectrum(
-        px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
-        roi=DEFAULT_ROI if roi is None else roi,
+        px_per_mm=defaults.PX_PER_MM if px_per_mm is None else px_per_mm,
+        roi=defaults.ROI if roi is None else roi,
         rows=rows, f_min_per_mm=f_min, f_max_per_mm=f_max, n_freqs=n_freqs, n_jobs=jobs, window=window,
-        max_pixels=DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels,
+        max_pixels=defaults.MAX_PIXELS if max_pixels is None else max_pixels,
     ).fit()
 
 

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from .. import defaults
 from .._util.text import counted
 from ..errors import ConfigError, RoughsenseWarning
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, PAPER_SPECIMENS, REFERENCE_SPECIMEN
@@ -110,7 +111,8 @@ Sheet = Annotated[Path | None, typer.Option(
 
 def protocol(
     out: ScheduleOut,
-    seed: Annotated[int, typer.Option("--seed", parser=_SEED, help="Seed of the random orders (same seed, same schedule).")],
+    seed: Annotated[int, typer.Option(
+        "--seed", parser=_SEED, help="Seed of the random orders (same seed, same schedule).")] = defaults.SEED,
     participants: Annotated[int, typer.Option(
         "--participants", parser=_PARTICIPANTS, help="Number of participants (IDs P01, P02, ...).")] = PAPER_PARTICIPANTS,
     sessions: Annotated[int, typer.Option("--sessions", parser=_SESSIONS, help="Sessions per participant.")] = PAPER_SESSIONS,

@@ -6,10 +6,10 @@ from typing import Annotated
 
 import typer
 
+from .. import defaults
 from .._util.text import counted
-from ..paper import PAPER_FORCES_N, PAPER_REPETITIONS, PAPER_SPECIMENS
+from ..paper import FINGERPRINT_PAD, PAPER_FORCES_N, PAPER_REPETITIONS, PAPER_SPECIMENS, SMOOTH_PAD
 from ._common import Jobs, number_option, parse_float_list, parse_name_list, progress
-from ._defaults import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES
 
 ORDER = 40
 #: Number options are read by the one number parser (io.numbers): '1_0', non-ASCII digits and 'inf' are refused.
@@ -27,7 +27,7 @@ Specimens = Annotated[str, typer.Option(
     "--specimens", metavar="LIST", show_default=False,
     help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
          "above). Default: the paper's 14, R2..R5 and C2..C5.")]
-Forces = Annotated[str, typer.Option("--forces", help="Nominal pressing forces in N.")]
+ForcesN = Annotated[str, typer.Option("--forces-n", help="Nominal pressing forces in N (comma-separated).")]
 Repetitions = Annotated[int, typer.Option(
     "--repetitions", parser=number_option("--repetitions", whole=True),
     help="Mounts per pad and specimen (each mount steps through the forces).")]
@@ -51,9 +51,10 @@ Force = Annotated[bool, typer.Option(
 
 
 def simulate(
-    out: Out, seed: Seed = 0, pads: Pads = ",".join(PAD_NAMES), specimens: Specimens = ",".join(PAPER_SPECIMENS),
-    forces: Forces = ",".join(f"{f:g}" for f in PAPER_FORCES_N), repetitions: Repetitions = PAPER_REPETITIONS,
-    fingerprint_period_mm: Period = DEFAULT_FINGERPRINT_PERIOD_MM, ridge_height_mm: RidgeHeight = DEFAULT_RIDGE_HEIGHT_MM,
+    out: Out, seed: Seed = defaults.SEED, pads: Pads = f"{SMOOTH_PAD},{FINGERPRINT_PAD}",
+    specimens: Specimens = ",".join(PAPER_SPECIMENS), forces_n: ForcesN = ",".join(f"{f:g}" for f in PAPER_FORCES_N),
+    repetitions: Repetitions = PAPER_REPETITIONS, fingerprint_period_mm: Period = defaults.FINGERPRINT_PERIOD_MM,
+    ridge_height_mm: RidgeHeight = defaults.RIDGE_HEIGHT_MM,
     ratings_from: RatingsFrom = "paper", stored_height_px: StoredHeight = 320, jobs: Jobs = None, force: Force = False,
 ) -> None:
     """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
@@ -74,7 +75,7 @@ def simulate(
     from .._util.lock import output_lock
     from ..sim import SimulationRun
 
-    config = _config(pads=pads, specimens=specimens, forces=forces, repetitions=repetitions, seed=seed,
+    config = _config(pads=pads, specimens=specimens, forces_n=forces_n, repetitions=repetitions, seed=seed,
                      fingerprint_period_mm=fingerprint_period_mm, ridge_height_mm=ridge_height_mm,
                      ratings_from=ratings_from, stored_height_px=stored_height_px)
     with output_lock(out, command="simulate"):  # a second run into --out is refused, naming this one
@@ -85,7 +86,7 @@ def simulate(
                f"ratings to {run.root}")
 
 
-def _config(*, pads, specimens, forces, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
+def _config(*, pads, specimens, forces_n, repetitions, seed, fingerprint_period_mm, ridge_height_mm, ratings_from,
             stored_height_px):
     """The simulator's settings from the command's text options (the simulator checks their values)."""
     from dataclasses import replace
@@ -95,7 +96,7 @@ def _config(*, pads, specimens, forces, repetitions, seed, fingerprint_period_mm
 
     return SimulationConfig(
         pads=tuple(parse_name_list(pads)), specimens=tuple(parse_name_list(specimens)),
-        forces_n=tuple(parse_float_list(forces, name="forces")), repetitions=repetitions, seed=seed,
+        forces_n=tuple(parse_float_list(forces_n, name="forces-n")), repetitions=repetitions, seed=seed,
         fingerprint_period_mm=fingerprint_period_mm, ridge_height_mm=ridge_height_mm,
         ratings_from=ratings_from.strip().lower(), camera=replace(Camera(), stored_height_px=stored_height_px),
     )

@@ -13,7 +13,7 @@ A ``--scheduler`` is checked before any client is made: a scheduler file is read
 (dask/distributed#7698), and against a port that accepts and stays silent it waited past a minute.
 ``--scheduler slurm`` (``pbs``, ``sge``) starts the workers as batch jobs through dask-jobqueue, configured the Dask
 way (``jobqueue.slurm.*`` in ``~/.config/dask/jobqueue.yaml`` or ``DASK_JOBQUEUE__SLURM__...`` variables),
-``--workers`` jobs of them; closing the client cancels them, whether the sweep ended, failed or was interrupted.
+``--jobs`` of them; closing the client cancels them, whether the sweep ended, failed or was interrupted.
 """
 from __future__ import annotations
 
@@ -47,9 +47,9 @@ PROBE_S = 4.0
 SCHEDULER_FILE_MAX_BYTES = 1_000_000
 #: ``--scheduler`` names of the batch systems whose jobs dask-jobqueue runs workers in, and its cluster class for each.
 JOB_QUEUES = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster"}
-#: Batch jobs at most (``--workers`` with a job queue): each is a job in someone's queue.
+#: Batch jobs at most (``--jobs`` with a job queue): each is a job in someone's queue.
 MAX_JOBS = 1000
-#: Local worker processes per usable core at most: more only compete for the cores and memory (--workers).
+#: Local worker processes per usable core at most: more only compete for the cores and memory (--jobs).
 MAX_WORKERS_PER_CORE = 4
 #: Cells in flight at least (and two per worker thread): enough to keep every worker busy, never the whole sweep.
 MIN_WINDOW = 16
@@ -84,28 +84,28 @@ def job_queue(scheduler: str | None) -> str | None:
     return name if name in JOB_QUEUES else None
 
 
-def check_options(workers: int | None, scheduler: str | None) -> None:
-    """``--workers`` and ``--scheduler`` as given, refused before any folder or cluster is made."""
+def check_options(n_jobs: int | None, scheduler: str | None) -> None:
+    """``--jobs`` and ``--scheduler`` as given, refused before any folder or cluster is made."""
     if job_queue(scheduler):
-        if workers is not None and not 1 <= workers <= MAX_JOBS:
-            raise ConfigError(f"--workers (batch jobs with --scheduler {job_queue(scheduler)}) must be from 1 to "
-                              f"{MAX_JOBS}, got {short_repr(workers)}")
+        if n_jobs is not None and not 1 <= n_jobs <= MAX_JOBS:
+            raise ConfigError(f"--jobs (batch jobs with --scheduler {job_queue(scheduler)}) must be from 1 to "
+                              f"{MAX_JOBS}, got {short_repr(n_jobs)}")
         return
-    if workers is not None and scheduler is not None:
-        raise ConfigError("give --workers or --scheduler, not both (an existing cluster has its own workers)")
+    if n_jobs is not None and scheduler is not None:
+        raise ConfigError("give --jobs or --scheduler, not both (an existing cluster has its own workers)")
     if scheduler is not None and not scheduler.strip():
         scheduler_address(scheduler)  # the one message for an empty address
-    check_workers(workers)
+    check_workers(n_jobs)
 
 
-def check_workers(workers: int | None) -> None:
-    """``--workers`` from 1 to :func:`max_workers`."""
-    if workers is None:
+def check_workers(n_jobs: int | None) -> None:
+    """``--jobs`` (local worker processes) from 1 to :func:`max_workers`."""
+    if n_jobs is None:
         return
     limit = max_workers()
-    if not 1 <= workers <= limit:
-        raise ConfigError(f"--workers must be from 1 to {limit} ({MAX_WORKERS_PER_CORE} per usable core of this "
-                          f"machine; more processes only compete for them), got {short_repr(workers)}")
+    if not 1 <= n_jobs <= limit:
+        raise ConfigError(f"--jobs must be from 1 to {limit} ({MAX_WORKERS_PER_CORE} per usable core of this "
+                          f"machine; more processes only compete for them), got {short_repr(n_jobs)}")
 
 
 def scheduler_address(value: str) -> str:
@@ -185,14 +185,14 @@ async def _connect_and_close(address: str) -> None:
         await client.close()
 
 
-def connect(workers: int | None = None, scheduler: str | None = None, *, scratch: Path | None = None):
+def connect(n_jobs: int | None = None, scheduler: str | None = None, *, scratch: Path | None = None):
     """A Dask client: on an existing scheduler (address or scheduler file), on workers in batch jobs
     (``slurm``, ``pbs``, ``sge``), or on a new LocalCluster whose workers keep their scratch files in ``scratch``
     (never ``$TMPDIR``)."""
     from distributed import Client, LocalCluster
 
     if job_queue(scheduler):
-        return _job_queue_client(job_queue(scheduler), 1 if workers is None else int(workers))
+        return _job_queue_client(job_queue(scheduler), 1 if n_jobs is None else int(n_jobs))
     if scheduler is not None:
         address = scheduler_address(scheduler)
         try:
@@ -202,8 +202,8 @@ def connect(workers: int | None = None, scheduler: str | None = None, *, scratch
 
             raise ConfigError(f"--scheduler {short_repr(address)}: cannot reach the Dask scheduler "
                               f"({error_line(exc)})") from None
-    check_workers(workers)
-    n = default_workers() if workers is None else int(workers)
+    check_workers(n_jobs)
+    n = default_workers() if n_jobs is None else int(n_jobs)
     with interrupt.children_ignore_sigint():  # Ctrl-C stops this process, which closes the workers quietly
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR, local_directory=None if scratch is None else str(scratch))
@@ -239,14 +239,16 @@ def _failure(cell: Cell, error: str) -> dict:
     return {"cell": cell.id, "seed": cell.seed, **cell.columns(), "error": error}
 
 
-def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None = None,
+def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, n_jobs: int | None = None,
               scheduler: str | None = None, force: bool = False,
-              progress: Callable | None = None, task: Callable = run_cell) -> SweepOutcome:
+              progress: Callable | None = None, task: Callable = run_cell, workers: int | None = None) -> SweepOutcome:
     """Compute every unfinished cell of ``sweep`` into ``out``; ``progress(iterable, total=, description=)`` may
     wrap the stream of finished cells (the CLI's bar). Failing cells are recorded, never raised. ``task`` computes
-    one cell (an importable function; tests replace it)."""
+    one cell (an importable function; tests replace it). ``n_jobs`` is ``--jobs``: local worker processes, or batch
+    jobs with a job queue; ``workers`` is its old name, accepted for one release."""
     started = time.perf_counter()
-    check_options(workers, scheduler)
+    n_jobs = _renamed_workers(n_jobs, workers)
+    check_options(n_jobs, scheduler)
     store = ResultStore(out, sweep, force=force)  # refuses a wrong folder before any cluster starts
     done = store.finished()  # the files already there: another sweep's are never its cells, so prepare() can wait
     todo = [c for c in sweep.cells if c.id not in done]
@@ -254,7 +256,7 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
     client = None
     try:
         with _temporary_directory(scratch):
-            client = connect(workers, scheduler, scratch=scratch) if todo else None  # nothing to run: no cluster
+            client = connect(n_jobs, scheduler, scratch=scratch) if todo else None  # nothing to run: no cluster
         dropped = store.prepare()
         outcome = SweepOutcome(Path(out), len(sweep.cells), len(sweep.cells) - len(todo), 0, dropped=dropped)
         if todo:
@@ -267,6 +269,18 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, workers: int | None 
             shutil.rmtree(scratch, ignore_errors=True)
     outcome.seconds = time.perf_counter() - started
     return outcome
+
+
+def _renamed_workers(n_jobs: int | None, workers: int | None) -> int | None:
+    """``run_sweep(workers=)``, the old name of ``n_jobs`` (one name with the CLI's ``--jobs``): still read, with a
+    FutureWarning, for one release."""
+    if workers is None:
+        return n_jobs
+    if n_jobs is not None:
+        raise ConfigError("give n_jobs or workers (its old name), not both")
+    warnings.warn("run_sweep(workers=) is now n_jobs= (the CLI's --jobs); workers= goes in the next release",
+                  FutureWarning, stacklevel=3)
+    return workers
 
 
 def _temporary_directory(scratch: Path | None):

@@ -29,7 +29,7 @@ import pyarrow.parquet as pq
 
 from .._util import atomic
 from .._util.checks import short_repr, shown
-from ..errors import OutputExistsError, RoughsenseWarning
+from ..errors import PASS_FORCE, OutputExistsError, RoughsenseWarning
 from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS, result_keys
 from .sweep import COLUMN_KINDS, MODEL_KEY, Cell, Sweep
 
@@ -96,10 +96,10 @@ class ResultStore:
             if same or force:
                 return
             raise OutputExistsError("holds the results of another sweep (its sweep.toml differs); choose a new folder "
-                                    "or pass --force to replace them", path=self.root)
+                                    f"or {PASS_FORCE} to replace them", path=self.root)
         if not force:
             raise OutputExistsError("folder is not empty and holds no sweep (no sweep.toml); choose a new or empty "
-                                    "folder, or pass --force to write into it", path=self.root)
+                                    f"folder, or {PASS_FORCE} to write into it", path=self.root)
 
     def foreign(self) -> list[Path]:
         """Cell files that are not cells of this sweep (another sweep's, or computed by another roughsense)."""
@@ -112,8 +112,8 @@ class ResultStore:
         foreign = self.foreign()
         if foreign and not self.force:
             raise OutputExistsError(f"holds {len(foreign)} result files that are not cells of this sweep (another "
-                                    "sweep's, or computed by another version of roughsense); pass --force to replace "
-                                    "them", path=self.root)
+                                    f"sweep's, or computed by another version of roughsense); {PASS_FORCE} to "
+                                    "replace them", path=self.root)
         for sub in (RESULTS_DIR, SPECIMENS_DIR):
             (self.root / sub).mkdir(parents=True, exist_ok=True)
         atomic.write_bytes(self.root / SWEEP_COPY, self.sweep.path.read_bytes())

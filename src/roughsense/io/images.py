@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import defaults
 from .._util.files import open_regular
 from ..errors import InputError
 
@@ -27,7 +28,7 @@ GRAY_WEIGHTS_RGB = (0.298936021293775, 0.587043074451121, 0.114020904255103)
 #: Largest image read, in pixels (width x height): a header claiming more is refused before decoding, so a
 #: small file that inflates to gigabytes (a "decompression bomb") cannot exhaust memory. 100 Mpx is above
 #: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
-DEFAULT_MAX_PIXELS = 100_000_000
+DEFAULT_MAX_PIXELS = defaults.MAX_PIXELS
 #: The highest pixel limit a study or option may set: OpenCV's decoders refuse images above 2**30 pixels anyway,
 #: so a larger limit (``max_pixels = 1e300``) would only promise what no read can keep.
 MAX_PIXELS_LIMIT = 2**30

@@ -10,19 +10,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
-from ..errors import ConfigError
+from ..errors import PASS_FORCE, ConfigError
 from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
-DEFAULT_PX_PER_MM = 34.9  # the paper's camera: 349 px/cm (section 2.1)
+DEFAULT_PX_PER_MM = defaults.PX_PER_MM  # the paper's camera: 349 px/cm (section 2.1)
 #: Where the contact band is when a study does not say: the paper's centred crop (:data:`CENTER_CROP_PX`).
-DEFAULT_ROI = "center"
+DEFAULT_ROI = defaults.ROI
 
 
 #: What roi="center" means: a 1900 x 150 px (width, height) crop centred on the frame -- the paper's crop of
 #: its 1920 x 1080 camera. Part of the study contract, so the rig can check frames without the sensor code.
-CENTER_CROP_PX = (1900, 150)
+CENTER_CROP_PX = defaults.CENTER_CROP_PX
 
 
 Roi = str | tuple[int, int, int, int]
@@ -143,7 +144,7 @@ def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = Fal
     old = sensor.get("px_per_mm")
     previous = float(old) if is_number(old) else None
     if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
-        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); pass --force to replace it with "
+        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); {PASS_FORCE} to replace it with "
                           f"the measured {px_per_mm:.5g}")
     item = tomlkit.item(float(round(px_per_mm, 4)))
     item.comment(note)

@@ -19,7 +19,7 @@ import pandas as pd
 
 from .._util import atomic
 from .._util.files import open_regular, read_regular
-from ..errors import InputError, OutputExistsError
+from ..errors import PASS_FORCE, InputError, OutputExistsError
 from ..paper import REFERENCE_SPECIMEN
 from .images import DEFAULT_MAX_PIXELS
 from .protocol import DEFAULT_FORCES_N
@@ -140,7 +140,7 @@ class StudyWriter:
         if source == CAPTURED:
             refuse_simulated(self.root, "capture real frames into a folder of their own")
         if self.root.is_dir() and any(self.root.iterdir()) and not (force or resume):
-            raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=self.root)
+            raise OutputExistsError(f"folder exists and is not empty; {PASS_FORCE} to write into it", path=self.root)
         self.root.mkdir(parents=True, exist_ok=True)
         (self.root / IMAGES_DIR).mkdir(exist_ok=True)
 

@@ -15,7 +15,7 @@ import pandas as pd
 
 from .._util import atomic
 from .._util.files import open_regular, read_regular
-from ..errors import InputError, OutputExistsError
+from ..errors import PASS_FORCE, InputError, OutputExistsError
 from ..io.study import COMPLETE_MARKER, IMAGES_DIR, MANIFEST_CSV, RATINGS_CSV, SPECIMENS_CSV, STUDY_TOML
 from ..io.writer import captured_images, refuse_captured
 
@@ -59,7 +59,7 @@ def check_overwritable(root: str | os.PathLike[str], *, force: bool = True) -> N
     if simulated and not (root / COMPLETE_MARKER).is_file():
         return  # roughsense's own interrupted run: replaced without --force (other files in it are kept)
     if not force:
-        raise OutputExistsError("folder exists and is not empty; pass --force to write into it", path=root)
+        raise OutputExistsError(f"folder exists and is not empty; {PASS_FORCE} to write into it", path=root)
     if not simulated:
         raise OutputExistsError("folder is not empty and is not a simulated study (no study.toml with a "
                                 "[simulation] table); --force only replaces an earlier simulation, so choose a new "

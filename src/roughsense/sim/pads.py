@@ -6,14 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import defaults
 from .._util.checks import POSITIVE, AnyOf, Real, check
 from ..errors import ConfigError
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 
 YOUNG_PA = 0.17e6  # PVC plastisol, paper section 2.2
 POISSON = 0.49  # nearly incompressible rubber-like solid; not in the paper, chosen (docs/simulator.md)
-DEFAULT_FINGERPRINT_PERIOD_MM = 1.0  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
-DEFAULT_RIDGE_HEIGHT_MM = 0.2  # not in the paper; chosen, see docs/simulator.md
+DEFAULT_FINGERPRINT_PERIOD_MM = defaults.FINGERPRINT_PERIOD_MM  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
+DEFAULT_RIDGE_HEIGHT_MM = defaults.RIDGE_HEIGHT_MM  # not in the paper; chosen, see docs/simulator.md
 RIDGE_EDGE_MM = 0.05  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
 PAD_NAMES = (SMOOTH_PAD, FINGERPRINT_PAD)
 

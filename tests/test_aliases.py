@@ -1,0 +1,107 @@
+"""Old option spellings (cli/_aliases.py) parse as their one name, never show in --help, and leave ``--`` alone."""
+from __future__ import annotations
+
+import re
+import warnings
+
+import pytest
+import typer.main
+
+from roughsense.cli import _command, app
+from roughsense.cli._aliases import ALIASES, apply_aliases, force_hint
+from roughsense.errors import ConfigError
+
+#: Each alias with a command line that parses without running anything (the required options given), and a value.
+CASES = [
+    ("simulate", "--forces", ["--out", "s"], "1.5,2.5"),
+    ("capture", "--forces", ["--source", "0", "--out", "s", "--specimen", "R3", "--pad", "smooth"], "2,4"),
+    ("explore", "--workers", ["sweep.toml", "--out", "o"], "3"),
+]
+
+
+def _parsed(argv: list[str]) -> dict:
+    """The parameters click hands the command's function, after main()'s rewriting of the old spellings."""
+    args = apply_aliases(argv)
+    command = _command().commands[args[0]]
+    with command.make_context(args[0], args[1:]) as ctx:
+        return dict(ctx.params)
+
+
+def test_the_table_holds_exactly_the_cases_tested():
+    assert {(command, old) for command, table in ALIASES.items() for old in table} == {(c, o) for c, o, _, _ in CASES}
+
+
+@pytest.mark.parametrize("command, old, required, value", CASES)
+def test_an_old_spelling_parses_to_the_same_parameters_as_its_one_name(command, old, required, value):
+    new = ALIASES[command][old]
+    by_new = _parsed([command, *required, new, value])
+    assert _parsed([command, *required, old, value]) == by_new
+    assert _parsed([command, *required, f"{old}={value}"]) == by_new
+    assert _parsed([command, *required]) != by_new  # the value given is not the default: the option was read
+    parameter = {"--forces-n": "forces_n", "--jobs": "jobs"}[new]
+    assert str(by_new[parameter]) == value
+
+
+@pytest.mark.parametrize("name", [None, *typer.main.get_command(app).commands])
+def test_no_old_spelling_shows_in_any_help(run_cli, name):
+    code, out, _ = run_cli(*([] if name is None else [name]), "--help")
+    assert code == 0
+    for old in {old for table in ALIASES.values() for old in table}:
+        assert re.search(rf"{re.escape(old)}(?![\w-])", out) is None, (name, old)
+
+
+def test_no_command_declares_an_old_spelling():
+    """Hidden by construction: the aliases are no options of any command, so they cannot reach a signature."""
+    declared = {opt for command in _command().commands.values() for p in command.params for opt in p.opts}
+    assert declared & {old for table in ALIASES.values() for old in table} == set()
+    assert {new for table in ALIASES.values() for new in table.values()} <= declared
+
+
+def test_tokens_after_a_double_dash_and_before_the_command_stay_as_typed():
+    argv = ["--debug", "explore", "--workers", "2", "--workers=3", "--", "--workers", "--forces"]
+    assert apply_aliases(argv) == ["--debug", "explore", "--jobs", "2", "--jobs=3", "--", "--workers", "--forces"]
+    assert apply_aliases(["fit", "--forces", "2"]) == ["fit", "--forces", "2"]  # no alias on that command
+    assert apply_aliases(["simulate", "--forces-n", "2", "--force"]) == ["simulate", "--forces-n", "2", "--force"]
+    assert apply_aliases([]) == []
+
+
+def test_old_spellings_run_through_main(run_cli, tmp_path):
+    """The whole path a user takes: the error about the value names the option's one name."""
+    code, _, err = run_cli("simulate", "--out", tmp_path / "s", "--forces", "2,x")
+    assert code == 2 and "--forces-n: 'x' is not a number" in err
+    code, _, err = run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "o", "--workers=0")
+    assert code == 2 and "--jobs must be from 1" in err
+    assert not (tmp_path / "s").exists() and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("args", [["simulate", "--out", "s", "--force", "2"], ["simulate", "--force=2,3"],
+                                  ["capture", "--source", "0", "--out", "s", "--specimen", "R3", "--pad", "p",
+                                   "--force", "1.5"]])
+def test_a_force_typed_as_the_overwrite_flag_gets_a_hint(run_cli, tmp_path, monkeypatch, args):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(*args)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert "forces are --forces-n (e.g. --forces-n " in lines[0] and lines[0].endswith("--help'")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_no_hint_without_a_number_or_on_a_command_without_forces():
+    assert force_hint(["simulate", "--force", "--out", "s"]) == ""
+    assert force_hint(["explore", "x.toml", "--force", "2"]) == ""
+    assert force_hint(["simulate", "--out", "s", "--", "--force", "2"]) == ""
+
+
+def test_run_sweep_reads_workers_as_n_jobs_with_a_future_warning(tmp_path):
+    """The Python keyword's old name: the same bound check as ``n_jobs`` (refused before any folder is made)."""
+    from roughsense.explore.runner import run_sweep
+
+    with pytest.raises(ConfigError, match="--jobs must be from 1") as by_new:
+        run_sweep(None, tmp_path / "out", n_jobs=100_000)
+    with pytest.warns(FutureWarning, match="n_jobs"), pytest.raises(ConfigError) as by_old:
+        run_sweep(None, tmp_path / "out", workers=100_000)
+    assert str(by_old.value) == str(by_new.value)
+    with warnings.catch_warnings(), pytest.raises(ConfigError, match="not both"):
+        warnings.simplefilter("error")
+        run_sweep(None, tmp_path / "out", n_jobs=1, workers=1)
+    assert not (tmp_path / "out").exists()
