@@ -169,7 +169,7 @@ def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (("--forces", "1,2"), "--forces 1,2 differs from this study's protocol 1,2,3"),
+        (("--forces", "1,2"), "--forces-n 1,2 differs from this study's protocol 1,2,3"),
         (("--px-per-mm", "20"), "--px-per-mm 20 differs from 34.9"),
         (("--shape", "circular"),
          "specimens.csv, row 2, column 'shape': specimen 'R3' has shape rectangular; --shape says circular"),

@@ -34,7 +34,7 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--specimens", "rect:-3"), "positive"),
     (("--specimens", "sin:0:0.2"), "positive"),
     (("--pads", "velvet"), "unknown pad 'velvet'"),
-    (("--forces", "1,0"), "--forces: '0' must be positive"),
+    (("--forces", "1,0"), "--forces-n: '0' must be positive"),
     (("--forces", "1,x"), "not a number"),
     (("--repetitions", "0"), "--repetitions must be a whole number from 1 to 10000"),
     (("--fingerprint-period-mm", "-1"), "--fingerprint-period-mm must be a positive"),

@@ -18,7 +18,7 @@ from .tables import csv_line
 DEFAULT_FORCES_N = PAPER_FORCES_N
 
 
-#: Largest force accepted anywhere (manifest readings, protocol forces, --forces): stated in :data:`.numbers.BOUNDS`.
+#: Largest force accepted anywhere (manifest readings, protocol forces, --forces-n): stated in :data:`.numbers.BOUNDS`.
 #: A fingertip presses with a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa.
 MAX_FORCE_N = float(BOUNDS["force_n"].high)
 

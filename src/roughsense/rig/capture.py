@@ -116,8 +116,8 @@ def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
     sensor = sensor_from_config(config, toml_path)
     if forces_n is not None and tuple(sorted(map(float, forces_n))) != tuple(sorted(stored_forces)):
         raise ConfigError(
-            f"--forces {','.join(f'{f:g}' for f in forces_n)} differs from this study's protocol "
-            f"{','.join(f'{f:g}' for f in stored_forces)} in {toml_path}; omit --forces to use it"
+            f"--forces-n {','.join(f'{f:g}' for f in forces_n)} differs from this study's protocol "
+            f"{','.join(f'{f:g}' for f in stored_forces)} in {toml_path}; omit --forces-n to use it"
         )
     if px_per_mm is not None and not math.isclose(float(px_per_mm), sensor.px_per_mm):
         raise ConfigError(f"--px-per-mm {px_per_mm:g} differs from {sensor.px_per_mm:g} in {toml_path}; omit it or edit the file")

@@ -59,9 +59,9 @@ class SimulationConfig:
         if not self.specimens:
             raise ConfigError("--specimens: give at least one specimen")
         if not self.forces_n:
-            raise ConfigError("--forces: give at least one force")
+            raise ConfigError("--forces-n: give at least one force")
         for f in self.forces_n:
-            check_force(f, option="--forces: every force")
+            check_force(f, option="--forces-n: every force")
         check_nominal_force_labels(self.forces_n)
         check_ratings_from(self.ratings_from)
         check_repetitions(self.repetitions)

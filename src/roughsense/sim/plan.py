@@ -59,8 +59,8 @@ def check_nominal_force_labels(forces_n: Sequence[float]) -> None:
             if label(f) in seen:
                 other = seen[label(f)]
                 if other == f:
-                    raise ConfigError(f"--forces: {f:g} N is listed twice")
-                raise ConfigError(f"--forces: {other!r} N and {f!r} N are too close to tell apart (both give the "
+                    raise ConfigError(f"--forces-n: {f:g} N is listed twice")
+                raise ConfigError(f"--forces-n: {other!r} N and {f!r} N are too close to tell apart (both give the "
                                   f"{what} {label(f)!r}); give forces that differ in their first six significant digits")
             seen[label(f)] = f
 
