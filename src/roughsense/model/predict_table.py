@@ -1,0 +1,249 @@
+"""The predict table's one home: :func:`predict` scores images with a model file and returns one row per trial,
+:func:`prediction_table` builds that table from scores (as numbers), and :func:`csv_text` writes it as
+``roughsense predict --out`` does (as text).
+
+The CLI and the Python call share these three, so a script's table and the command's CSV cannot drift apart.
+The text keeps 3 significant digits (the panel's own precision is coarser), ``true``/``false`` for flags (any CSV
+reader's booleans) and the scale as typed (34.9, not 34.899999999999999).
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .modelfile import AnyModel
+    from .predict import Scores, SensorOverride
+
+#: Every column the table may hold, in its order, with what it says. ``<reference>`` is the model's reference
+#: specimen and ``<condition>`` each force of a combined model; ``roi`` is there only when the ROI was overridden,
+#: the interval columns only where the model file has an interval, the ``surface_*`` ones only for grouped presses.
+PREDICTION_COLUMNS: dict[str, str] = {
+    "specimen": "with a study: the trial's specimen",
+    "repetition": "with a study: the trial's repetition",
+    "image": "a single-force model's image (image_<condition> per force of a combined model)",
+    "pad": "the model's pad",
+    "condition": "the model's force condition (1N, 2N, 3N or combined)",
+    "model": "the model family",
+    "roi": "where the line was read, when not the model's ROI",
+    "px_per_mm": "the scale the images were read at",
+    "roughness_rel_<reference>": "perceived roughness relative to the reference specimen",
+    "pi90_low": "the trial's 90 % prediction interval, lower bound",
+    "pi90_high": "the trial's 90 % prediction interval, upper bound",
+    "pi90_method": "how that interval was built",
+    "surface_roughness_rel_<reference>": "the surface's mean roughness over its trials",
+    "surface_pi90_low": "the surface's 90 % prediction interval, lower bound",
+    "surface_pi90_high": "the surface's 90 % prediction interval, upper bound",
+    "surface_pi90_method": "how the surface's interval was built",
+    "surface_extrapolates": "any press of the surface lies outside the model's domain",
+    "read_as": "press (read alone) or surface (read with the other presses of its surface)",
+    "extrapolates": "the trial lies outside what the model was trained on",
+    "outside": "how it lies outside ('' where it lies inside)",
+}
+
+#: Columns with one value for every row: the terminal shows them once, above the table.
+CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as", "pi90_method")
+
+_INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "surface_pi90_low", "surface_pi90_high")
+_QUIET = "this press lies inside; other presses of its surface do not (their rows say why)"
+
+
+def roughness_column(loaded: AnyModel) -> str:
+    """``roughness_rel_<reference>``: the column says what the number is a ratio to."""
+    from ..io.names import is_safe_name
+
+    reference = loaded.training.get("reference_specimen") if isinstance(loaded.training, dict) else None
+    # a name no file may carry (an edited model file) still gives a column that says the value is relative
+    return f"roughness_rel_{reference}" if is_safe_name(reference) else "roughness_rel_reference"
+
+
+def roi_text(roi) -> str:
+    """An ROI as a user would type it after --roi."""
+    return roi if isinstance(roi, str) else ",".join(str(v) for v in roi)
+
+
+def prediction_table(loaded: AnyModel, trials: Sequence[tuple], scores: Scores, *, meta: pd.DataFrame | None = None,
+                     override: SensorOverride | None = None, surfaces=None) -> pd.DataFrame:
+    """One row per trial, as numbers: the columns of :data:`PREDICTION_COLUMNS` that apply, after ``meta``'s (a
+    study's specimen and repetition). Flags are booleans; roughness and bounds keep full precision."""
+    import pandas as pd
+
+    from .trials import model_condition, model_pad
+
+    table = pd.DataFrame(index=range(len(trials))) if meta is None else meta.copy()
+    if len(loaded.conditions) == 1:
+        table["image"] = [str(t[0]) for t in trials]
+    else:
+        for i, condition in enumerate(loaded.conditions):
+            table[f"image_{condition}"] = [str(t[i]) for t in trials]
+    table["pad"] = model_pad(loaded)
+    table["condition"] = model_condition(loaded)
+    table["model"] = loaded.family
+    if override is not None and override.roi is not None:
+        table["roi"] = roi_text(override.roi)
+    scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
+    table["px_per_mm"] = float(scale if scale is not None else loaded.features["spectrum"]["px_per_mm"])
+    name = roughness_column(loaded)
+    table[name] = np.asarray(scores.roughness, dtype=float)
+    if np.isfinite(scores.low).all():
+        table["pi90_low"], table["pi90_high"] = scores.low, scores.high
+        table["pi90_method"] = scores.method
+    if scores.surface_roughness is not None:
+        table[f"surface_{name}"] = scores.surface_roughness
+        if np.isfinite(scores.surface_low).all():
+            table["surface_pi90_low"], table["surface_pi90_high"] = scores.surface_low, scores.surface_high
+            table["surface_pi90_method"] = scores.surface_method
+    if surfaces is not None:  # a surface is flagged when any of its presses is
+        flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
+        table["surface_extrapolates"] = flagged.astype(bool)
+    table["read_as"] = "press" if surfaces is None else "surface"
+    table["extrapolates"] = scores.flagged
+    table["outside"] = scores.reasons
+    if "surface_extrapolates" in table:  # its surface's reason is in the other rows
+        table.loc[table["surface_extrapolates"].to_numpy() & ~scores.flagged, "outside"] = _QUIET
+    return table
+
+
+def _three_digits(values) -> list[str]:
+    """Values as text with 3 significant digits (written as is: a float column would print 1.23 as 1.2299...)."""
+    return [f"{float(f'{v:.3g}'):g}" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230, not 1.23e+03
+
+
+def text_table(table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`prediction_table`'s table as the CSV and the terminal show it: every cell text."""
+    text = table.copy()
+    for column in table.columns:
+        if column.startswith(("roughness_rel_", "surface_roughness_rel_")) or column in _INTERVAL_COLUMNS:
+            text[column] = _three_digits(table[column])
+        elif column == "px_per_mm":  # as written in study.toml or on the command line
+            text[column] = [repr(float(v)) for v in table[column]]
+        elif table[column].dtype == bool:
+            text[column] = ["true" if flag else "false" for flag in table[column]]
+    return text
+
+
+def csv_text(table: pd.DataFrame) -> str:
+    """The CSV ``roughsense predict --out`` writes, for :func:`prediction_table`'s (or :func:`predict`'s) table."""
+    from .._util.text import spreadsheet_safe
+
+    return spreadsheet_safe(text_table(table)).to_csv(index=False, lineterminator="\n", float_format="%.17g")
+
+
+def refuse_repeats(images) -> None:
+    """Grouped presses are averaged: one file given twice (by any path) would count as two presses and narrow the
+    surface's interval."""
+    seen: dict[tuple[int, int], str] = {}
+    for image in images:
+        try:
+            info = os.stat(image)
+        except (OSError, TypeError, ValueError):
+            continue  # reading it names the problem (an array has no file)
+        key = (info.st_dev, info.st_ino)
+        if key in seen:
+            raise ConfigError(f"--same-surface: {image} is the same file as {seen[key]}; give each press once")
+        seen[key] = str(image)
+
+
+def study_scale(loaded: AnyModel, study, override: SensorOverride | None, meta: pd.DataFrame):
+    """A study's images are read at its own study.toml scale unless ``override`` states one; the trials of
+    specimens of stated period are marked for the scale check. Returns (override, reference, the note saying
+    which scale was used, or '')."""
+    from .predict import SensorOverride
+
+    model_px = float(loaded.features["spectrum"]["px_per_mm"])
+    note = ""
+    if override is None or override.px_per_mm is None:
+        stated = float(study.sensor.px_per_mm)
+        note = (f"images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was fitted at "
+                f"{model_px:g} px/mm)")
+        override = SensorOverride(None if override is None else override.roi, stated)
+    reference = None
+    if "specimen" in meta:
+        from .scale_check import stated_periods
+
+        periods = stated_periods(study)
+        reference = ("the specimens' periods in specimens.csv",
+                     np.array([periods.get(s, np.nan) for s in meta["specimen"].astype(str)]))
+    return override, reference, note
+
+
+@dataclass(frozen=True)
+class PredictionRun:
+    """What one prediction produced: the table, the scores behind it (the CLI's summary lines read them), the
+    model that made them and the trials' surfaces (None when each press was read alone)."""
+
+    table: pd.DataFrame
+    scores: Scores
+    model: AnyModel
+    surfaces: object
+    n_trials: int
+
+
+def run_prediction(model, images: Sequence | None = None, *, study=None, specimens: Sequence[str] = (),
+                   images_by_force: Mapping[str, Sequence] | None = None, same_surface: bool = False,
+                   override: SensorOverride | None = None, n_jobs: int = 1, progress=None,
+                   note: Callable[[str], None] | None = None) -> PredictionRun:
+    """:func:`predict`, keeping the scores; ``note`` hears the one line on which scale a study was read at."""
+    import pandas as pd
+
+    from .modelfile import load_model
+    from .predict import score_trials, warn_field_of_view
+    from .trials import groups_from_flags, groups_from_images, groups_from_study
+
+    loaded = load_model(model) if isinstance(model, (str, os.PathLike)) else model
+    reference = None
+    if study is not None:
+        from ..io.study import read_study
+
+        read = read_study(study) if isinstance(study, (str, os.PathLike)) else study
+        trials, meta = groups_from_study(loaded, read, list(specimens or ()))
+        override, reference, scale_note = study_scale(loaded, read, override, meta)
+        if scale_note and note is not None:
+            note(scale_note)
+    else:
+        if same_surface:
+            refuse_repeats([*(images or ()), *(p for paths in (images_by_force or {}).values() for p in paths)])
+        trials = (groups_from_flags(loaded, images_by_force) if images_by_force
+                  else groups_from_images(loaded, list(images or ())))
+        meta = pd.DataFrame(index=range(len(trials)))
+    surfaces = meta["specimen"].astype(str).to_numpy() if "specimen" in meta else (
+        ["surface"] * len(trials) if same_surface else None)
+    flat = [image for trial in trials for image in trial]
+    scores = score_trials(loaded, flat, n_jobs=n_jobs, progress=progress, override=override, surfaces=surfaces,
+                          reference=reference)
+    warn_field_of_view(loaded, override, flat)  # after scoring: an error there wins
+    table = prediction_table(loaded, trials, scores, meta=meta, override=override, surfaces=surfaces)
+    return PredictionRun(table, scores, loaded, surfaces, len(trials))
+
+
+def predict(model, images: Sequence | None = None, *, study=None, specimens: Sequence[str] | None = None,
+            images_by_force: Mapping[str, Sequence] | None = None, same_surface: bool = False, roi=None,
+            px_per_mm: float | None = None, n_jobs: int = 1, progress=None) -> pd.DataFrame:
+    """Perceived roughness of images, one row per trial: the table ``roughsense predict`` writes, as numbers.
+
+    ``model`` is a model file's path or a loaded model. Give the images one way: ``images`` (one per trial of a
+    single-force model), ``images_by_force`` (``{"1N": [...], "2N": [...]}``: the i-th of each form trial i) or
+    ``study`` (a folder or a read study, grouped by its manifest; ``specimens`` selects). ``same_surface`` reads
+    the images as presses of one surface. ``roi`` and ``px_per_mm`` read images the model's crop or scale does not
+    fit. Write the table as the CLI does with :func:`csv_text`.
+    """
+    from .predict import SensorOverride
+
+    given = [name for name, used in (("images", images), ("images_by_force", images_by_force),
+                                     ("study", study is not None)) if used]
+    if len(given) != 1:
+        raise ConfigError("give images one way: images, images_by_force or study"
+                          + (f" (got {' and '.join(given)})" if given else ""))
+    if specimens and study is None:
+        raise ConfigError("specimens selects from a study: pass study too")
+    return run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
+                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
+                          n_jobs=n_jobs, progress=progress).table
