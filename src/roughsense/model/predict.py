@@ -367,9 +367,9 @@ def warn_field_of_view(loaded: AnyModel, override: SensorOverride | None, images
     contact, so amplitudes shift even where the grating is the same. Returns the relative difference (or None)."""
     import warnings
 
+    from ..defaults import CENTER_CROP_PX
     from ..errors import RoughsenseWarning
     from ..io.images import header_size, read_bytes
-    from ..io.sensor_settings import CENTER_CROP_PX
 
     if override is None or override.roi != "auto" or not images or not isinstance(images[0], (str, os.PathLike)):
         return None
