@@ -57,10 +57,29 @@ def test_round_trip_predicts_bit_identically(saved):
     assert loaded.n_components == 4 and loaded.coef_.shape == (45,)
     assert loaded.intercept_ == model.intercept_
     assert loaded.training == TRAINING and loaded.conditions == ["1N"]
-    assert loaded.features["spectrum"] == json.loads(json.dumps(spectrum().feature_definition()))
+    assert loaded.model_file_.features["spectrum"] == json.loads(json.dumps(spectrum().feature_definition()))
     document = json.loads(path.read_text())  # plain JSON, versioned, no pickle anywhere
     assert document["format"] == "roughsense-model" and document["version"] == 1
     assert len(document["model"]["coefficients"]) == 4
+
+
+def test_a_loaded_file_is_the_fitted_estimator(saved, saved_law):
+    """load_model gives back each family's own estimator, predicting bit for bit as the one that was saved (the
+    PLS file adds its floor); the file's own part rides along in ``model_file_``."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    for (path, model, X), kind in ((saved, SIMPLS), (saved_law, PeakPowerLaw)):
+        loaded = mf.load_model(path)
+        assert type(loaded) is kind and loaded.model_file_.path == path and loaded.training == TRAINING
+        floor = loaded.floor_ if kind is SIMPLS else -np.inf
+        np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), floor))
+        settings = {k: v for k, v in loaded.get_params().items() if k != "freq_per_mm"}
+        assert settings == {k: v for k, v in model.get_params().items() if k != "freq_per_mm"}
+    np.testing.assert_array_equal(mf.load_model(saved_law[0]).freq_per_mm, saved_law[1].freq_per_mm_)
+    assert mf.LoadedModel is SIMPLS and mf.LoadedPeakLaw is PeakPowerLaw and mf.AnyModel == mf.FittedModel
+    with pytest.raises(ModelFileError, match=r"model\.json: the model expects 45 features per sample, got shape \(1, 3\)"):
+        mf.load_model(saved[0]).predict(np.ones((1, 3)))
+    np.testing.assert_array_equal(saved[1].predict(saved[2]), saved[1].linear_predict(saved[2]))  # a fit has no floor
 
 
 def test_refuses_to_overwrite_without_force(saved):

@@ -100,12 +100,13 @@ def test_every_column_is_named_in_the_schema(study_dir, models):
 
 
 def test_the_text_keeps_three_digits_and_says_true_or_false():
+    from roughsense.model.loaded import ModelFileInfo
+    from roughsense.model.predict import Scores
+
     class Model:
         conditions, family, path = ("1N",), "pls", None
         training = {"pad": "smooth", "reference_specimen": "R3"}
-        features = {"spectrum": {"px_per_mm": 34.9}}
-
-    from roughsense.model.predict import Scores
+        model_file_ = ModelFileInfo(None, {"spectrum": {"px_per_mm": 34.9}}, training, "0")
 
     scores = Scores(np.array([1234.5, 0.012345]), np.full(2, np.nan), np.full(2, np.nan), ["", "period 9 mm"])
     text = csv_text(prediction_table(Model(), [("a.png",), ("b.png",)], scores))

@@ -34,7 +34,7 @@ from ..sensor.settings import MAX_N_FREQS
 from . import peak_law_file, pls_file
 from .applicability import SpectrumDomain
 from .peak_law import PeakPowerLaw
-from .peak_law_file import LoadedPeakLaw
+from .peak_law_file import LoadedPeakLaw  # noqa: F401  re-exported for one release
 from .pls import SIMPLS
 from .pls_file import (  # noqa: F401  re-exported for one release
     KIND,
@@ -50,8 +50,10 @@ VERSION = 1
 #: Largest model file read. A model is (A + 4) x p numbers (p = 135 for a combined model): well under 1 MB.
 MAX_MODEL_BYTES = 10_000_000
 _TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
-#: A loaded model file of either family: both predict, say whether they extrapolate, and carry their features.
-AnyModel = LoadedModel | LoadedPeakLaw
+#: A model of either family, fitted here or loaded from a file: both predict and say whether they extrapolate; a
+#: loaded one also carries its file's part (``model_file_``: features, training).
+FittedModel = SIMPLS | PeakPowerLaw
+AnyModel = FittedModel  # the old name, kept for one release
 
 
 # --------------------------------------------------------------------------- writing
@@ -118,7 +120,7 @@ def _version() -> str:
 # --------------------------------------------------------------------------- reading
 
 
-def load_model(path: str | os.PathLike[str]) -> AnyModel:
+def load_model(path: str | os.PathLike[str]) -> FittedModel:
     """Read and validate a model file; anything wrong raises :class:`ModelFileError` naming the file.
 
     A model file is JSON, never pickle, so loading one from someone else runs nothing. ``roughsense fit`` writes
@@ -131,9 +133,10 @@ def load_model(path: str | os.PathLike[str]) -> AnyModel:
 
     Returns
     -------
-    LoadedModel or LoadedPeakLaw
-        The model (PLS or the peak law), ready to ``predict`` spectra computed as its ``features`` say, and to
-        say which it extrapolates (``applicability``); ``training`` holds what it was fitted on.
+    SIMPLS or PeakPowerLaw
+        The fitted estimator (PLS or the peak law), ready to ``predict`` spectra computed as its file's feature
+        definition says (``model_file_.features``), and to say which it extrapolates (``applicability``);
+        ``model_file_.training`` holds what it was fitted on.
 
     Examples
     --------
@@ -171,7 +174,7 @@ def load_model(path: str | os.PathLike[str]) -> AnyModel:
     return model_from_document(document, path=path)
 
 
-def model_from_document(document, *, path: Path | None = None) -> AnyModel:
+def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     """A checked document (format, version, fields, checksum) loaded as its model kind."""
     def fail(message: str):
         raise ModelFileError(message, path=path)
@@ -255,9 +258,9 @@ def feature_definition_for(spectrum, conditions) -> dict:
     return {"spectrum": spectrum.feature_definition(), "conditions": list(conditions)}
 
 
-def check_features(loaded: AnyModel, feature_definition: dict) -> None:
+def check_features(loaded: FittedModel, feature_definition: dict) -> None:
     """Refuse features computed differently from the model's (scale, ROI, band, frequencies, forces)."""
-    difference = _first_difference(loaded.features, feature_definition, "")
+    difference = _first_difference(loaded.model_file_.features, feature_definition, "")
     if difference is not None:
         key, model_value, given = difference
         raise ModelFileError(

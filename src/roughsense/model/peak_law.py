@@ -37,16 +37,19 @@ cross-validation, and every shuffled target of the permutation control, is fitte
 """
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..sensor.spectrum import grid_step
-from .families import PEAK_LAW as NAME  # noqa: F401 (the family's name, beside its class)
+from .families import PEAK_LAW as NAME  # the family's name, beside its class
 
 # What the estimator uses; the rest is re-exported for one release (the law's features, domain and cross-validation
 # now have modules of their own: peak_search.py, peak_domain.py, peak_law_cv.py).
 from .huber_batch import HUBER_EPSILON, distinct_masks, huber_irls, row_classes  # noqa: F401
+from .loaded import FromModelFile
 from .peak_domain import (  # noqa: F401
     _RANGE_TOL,
     KEPT_WEIGHT,
@@ -95,7 +98,7 @@ held_out_flags = law_domain_flags  # re-exported for one release under its old n
 _DEFAULT_BAND_PER_MM = (0.1, 1.0)
 
 
-class PeakPowerLaw(RegressorMixin, BaseEstimator):
+class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):
     """scikit-learn regressor: spectra (n, n_blocks x K) -> perceived roughness, by a power law of the spectrum's peak.
 
     roughness = exp(intercept + coef . (log peak frequency, log peak amplitude, log second-harmonic ratio)), fitted by
@@ -145,6 +148,8 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
     ['', 'period 8.00 mm outside the trained 2.00-5.00 mm']
     """
 
+    family: ClassVar[str] = NAME
+
     def __init__(self, freq_per_mm=None, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
                  exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON) -> None:
         self.freq_per_mm = freq_per_mm
@@ -193,9 +198,16 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
             (n_samples, 3) as :data:`FEATURE_NAMES` (the ratio NaN where it cannot be read).
         """
         check_is_fitted(self)
-        X = validate_data(self, X, reset=False, ensure_min_samples=1)
+        X = validate_data(self, self._file_inputs(X), reset=False, ensure_min_samples=1)
         _check_positive(X)
         return self._features(X, surfaces)
+
+    def _file_inputs(self, X):
+        X = super()._file_inputs(X)
+        if hasattr(self, "model_file_") and (not np.all(np.isfinite(X)) or np.any(X < 0)):
+            raise PeakLawInputError("a spectrum holds a negative or non-finite amplitude; the peak law reads "
+                                    "amplitudes")
+        return X
 
     def _features(self, X: np.ndarray, surfaces=None) -> np.ndarray:
         return self._readout(X, surfaces).features
@@ -268,21 +280,6 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
         return predict_law(self.features(X, surfaces), self.intercept_, self.coef_,
                            *domain_margins(grid_step(self.freq_per_mm_), self.feature_min_, self.feature_max_))
 
-    def extrapolates(self, X, surfaces=None) -> np.ndarray:
-        """True for each row outside the law's applicability domain (:meth:`applicability` gives the reasons).
-
-        Parameters
-        ----------
-        X, surfaces
-            As :meth:`predict`.
-
-        Returns
-        -------
-        numpy.ndarray
-            (n_samples,) booleans.
-        """
-        return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
-
     def applicability(self, X, surfaces=None) -> list[str]:
         """Per row, what lies outside what the law was fitted on, in a user's words ('' where nothing does).
 
@@ -298,7 +295,7 @@ class PeakPowerLaw(RegressorMixin, BaseEstimator):
             disagree; '' where the row is inside.
         """
         check_is_fitted(self)
-        X = validate_data(self, X, reset=False, ensure_min_samples=1)
+        X = validate_data(self, self._file_inputs(X), reset=False, ensure_min_samples=1)
         _check_positive(X)
         return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
                               grid_step(self.freq_per_mm_), self.press_scatter_)

@@ -25,9 +25,7 @@ without it, and its spectra are then not checked.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 
@@ -35,8 +33,8 @@ from .._util.checks import POSITIVE_INT, Real, short_repr
 from ..errors import ModelFileError
 from . import peak_law_file
 from .applicability import DOMAIN_LEVEL, SpectrumDomain
-from .families import PLS
-from .pls import SIMPLS, linear_predict
+from .loaded import ModelFileInfo
+from .pls import MIN_ROUGHNESS, SIMPLS
 
 KIND = "pls1-simpls"
 _FIELDS = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
@@ -45,85 +43,8 @@ _FIELDS = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficien
 MAX_COEFFICIENT = 1e6
 MAX_X_MEAN = 1e6
 MAX_Y_MEAN = 1e6
-#: The least roughness a PLS file without a trained range may predict (a positive ratio to the reference).
-MIN_ROUGHNESS = 0.01
-
-
-@dataclass(frozen=True)
-class LoadedModel:
-    """A validated PLS model document, ready to predict."""
-
-    family: ClassVar[str] = PLS
-    path: Path | None
-    n_components: int
-    x_mean: np.ndarray
-    y_mean: float
-    coef_path: np.ndarray  # (p, A): column k-1 is the model with k components
-    intercept_path: np.ndarray  # (A,)
-    pct_var: np.ndarray  # (2, A)
-    features: dict
-    training: dict
-    roughsense_version: str
-    domain: SpectrumDomain | None = None
-
-    @property
-    def n_features(self) -> int:
-        return int(self.coef_path.shape[0])
-
-    @property
-    def floor(self) -> float:
-        """The least roughness the model predicts: half the smoothest it was trained on (a positive ratio)."""
-        stored = self.training.get("target_range") if isinstance(self.training, dict) else None
-        return MIN_ROUGHNESS if stored is None else 0.5 * float(stored[0])  # checked on loading
-
-    @property
-    def conditions(self) -> list[str]:
-        """Force conditions, in the order a trial's images are concatenated (one for a single-force model)."""
-        return list(self.features["conditions"])
-
-    @property
-    def coef_(self) -> np.ndarray:
-        return self.coef_path[:, self.n_components - 1]
-
-    @property
-    def intercept_(self) -> float:
-        return float(self.intercept_path[self.n_components - 1])
-
-    def _inputs(self, X) -> np.ndarray:
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] != self.n_features:
-            raise ModelFileError(
-                f"the model expects {self.n_features} features per sample, got shape {X.shape}", path=self.path
-            )
-        return X
-
-    def linear_predict(self, X) -> np.ndarray:
-        """The fitted :class:`SIMPLS`'s own prediction (may be <= 0: see :meth:`predict`)."""
-        k = self.n_components - 1
-        return linear_predict(self._inputs(X), self.coef_path[:, k], self.intercept_path[k])
-
-    def predict(self, X, surfaces=None) -> np.ndarray:
-        """Predicted perceived roughness, held at :attr:`floor` or above (``surfaces`` is accepted, not needed)."""
-        return np.maximum(self.linear_predict(X), self.floor)
-
-    def applicability(self, X, surfaces=None) -> list[str]:
-        """Per row, why its prediction is not to be trusted ('' where nothing says so): a spectrum outside the
-        applicability domain, or a prediction held at the floor."""
-        raw = self.linear_predict(X)
-        shape = self.domain.reasons(self._inputs(X), surfaces) if self.domain is not None else [""] * raw.size
-        reasons = []
-        for value, why in zip(raw, shape):
-            parts = [why] if why else []
-            if value < self.floor:
-                whose = "half the smoothest trained surface" if self.floor != MIN_ROUGHNESS else "the least roughness " \
-                    "an older model file may give"
-                parts.append(f"PLS gave {value:.3g}, below {whose}; held at {self.floor:.3g}")
-            reasons.append("; ".join(parts))
-        return reasons
-
-    def extrapolates(self, X, surfaces=None) -> np.ndarray:
-        """True where :meth:`applicability` gives a reason."""
-        return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
+#: A loaded PLS model file is the fitted estimator: the old name, kept for one release.
+LoadedModel = SIMPLS
 
 
 def _floats(values) -> list:
@@ -176,25 +97,22 @@ def _arrays(section: dict, path: Path | None) -> tuple[np.ndarray, np.ndarray, n
 
 
 def loaded_pls(section: dict, features: dict, *, training: dict, roughsense_version: str,
-               path: Path | None) -> LoadedModel:
-    """A section that passed :func:`check_fields`, with its checked feature definition, as a :class:`LoadedModel`."""
+               path: Path | None) -> SIMPLS:
+    """A section that passed :func:`check_fields`, with its checked feature definition, as the fitted
+    :class:`SIMPLS` (``coef_path_``, ``floor_``, ``domain_``, ``model_file_``: what the file records)."""
     A, p = section["n_components"], section["n_features"]
     x_mean, coef, intercepts, pct_var = _arrays(section, path)
-    domain = checked_domain(section["applicability"], x_mean, A, p, features, path) \
+    model = SIMPLS(n_components=A)
+    model.n_features_in_ = p
+    model.x_mean_, model.y_mean_ = x_mean, float(section["y_mean"])
+    model.coef_path_, model.intercept_path_, model.pct_var_ = np.ascontiguousarray(coef.T), intercepts, pct_var
+    model.coef_, model.intercept_ = model.coef_path_[:, A - 1], float(intercepts[A - 1])
+    stored = training.get("target_range")  # checked on loading
+    model.floor_ = MIN_ROUGHNESS if stored is None else 0.5 * float(stored[0])
+    model.domain_ = checked_domain(section["applicability"], x_mean, A, p, features, path) \
         if "applicability" in section else None
-    return LoadedModel(
-        path=path,
-        n_components=A,
-        x_mean=x_mean,
-        y_mean=float(section["y_mean"]),
-        coef_path=np.ascontiguousarray(coef.T),
-        intercept_path=intercepts,
-        pct_var=pct_var,
-        features=features,
-        training=training,
-        roughsense_version=roughsense_version,
-        domain=domain,
-    )
+    model.model_file_ = ModelFileInfo(path, features, training, roughsense_version)
+    return model
 
 
 def checked_domain(section, x_mean: np.ndarray, A: int, p: int, features: dict, path: Path | None) -> SpectrumDomain:

@@ -20,7 +20,7 @@ from ..errors import ConfigError
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .modelfile import AnyModel
+    from .modelfile import FittedModel
     from .predict import Scores, SensorOverride
 
 #: Every column the table may hold, in its order, with what it says. ``<reference>`` is the model's reference
@@ -56,7 +56,7 @@ _INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "surface_pi90_low", "surface_pi90_
 _QUIET = "this press lies inside; other presses of its surface do not (their rows say why)"
 
 
-def roughness_column(loaded: AnyModel) -> str:
+def roughness_column(loaded: FittedModel) -> str:
     """``roughness_rel_<reference>``: the column says what the number is a ratio to."""
     from ..io.names import is_safe_name
 
@@ -70,7 +70,7 @@ def roi_text(roi) -> str:
     return roi if isinstance(roi, str) else ",".join(str(v) for v in roi)
 
 
-def prediction_table(loaded: AnyModel, trials: Sequence[tuple], scores: Scores, *, meta: pd.DataFrame | None = None,
+def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Scores, *, meta: pd.DataFrame | None = None,
                      override: SensorOverride | None = None, surfaces=None) -> pd.DataFrame:
     """One row per trial, as numbers: the columns of :data:`PREDICTION_COLUMNS` that apply, after ``meta``'s (a
     study's specimen and repetition). Flags are booleans; roughness and bounds keep full precision."""
@@ -90,7 +90,7 @@ def prediction_table(loaded: AnyModel, trials: Sequence[tuple], scores: Scores, 
     if override is not None and override.roi is not None:
         table["roi"] = roi_text(override.roi)
     scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
-    table["px_per_mm"] = float(scale if scale is not None else loaded.features["spectrum"]["px_per_mm"])
+    table["px_per_mm"] = float(scale if scale is not None else loaded.model_file_.features["spectrum"]["px_per_mm"])
     name = roughness_column(loaded)
     table[name] = np.asarray(scores.roughness, dtype=float)
     if np.isfinite(scores.low).all():
@@ -152,13 +152,13 @@ def refuse_repeats(images) -> None:
         seen[key] = str(image)
 
 
-def study_scale(loaded: AnyModel, study, override: SensorOverride | None, meta: pd.DataFrame):
+def study_scale(loaded: FittedModel, study, override: SensorOverride | None, meta: pd.DataFrame):
     """A study's images are read at its own study.toml scale unless ``override`` states one; the trials of
     specimens of stated period are marked for the scale check. Returns (override, reference, the note saying
     which scale was used, or '')."""
     from .predict import SensorOverride
 
-    model_px = float(loaded.features["spectrum"]["px_per_mm"])
+    model_px = float(loaded.model_file_.features["spectrum"]["px_per_mm"])
     note = ""
     if override is None or override.px_per_mm is None:
         stated = float(study.sensor.px_per_mm)
@@ -182,7 +182,7 @@ class PredictionRun:
 
     table: pd.DataFrame
     scores: Scores
-    model: AnyModel
+    model: FittedModel
     surfaces: object
     n_trials: int
 

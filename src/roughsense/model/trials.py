@@ -14,7 +14,7 @@ from ..errors import InputError
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .modelfile import AnyModel
+    from .modelfile import FittedModel
 
 _FORCE_TOKEN = re.compile(r"(?:^|[_\-. ])(\d+(?:\.\d+)?)[nN](?=$|[_\-. ])")
 
@@ -39,17 +39,17 @@ def check_slot(image, condition: str, *, path=None, row: int | None = None) -> N
                          path=path, row=row, column="image" if row is not None else None)
 
 
-def model_pad(loaded: AnyModel) -> str:
+def model_pad(loaded: FittedModel) -> str:
     return str(loaded.training.get("pad", "")) if isinstance(loaded.training, dict) else ""
 
 
-def model_condition(loaded: AnyModel) -> str:
+def model_condition(loaded: FittedModel) -> str:
     """The model's condition: its single force, or "combined"."""
     training = loaded.training if isinstance(loaded.training, dict) else {}
     return str(training.get("condition") or (loaded.conditions[0] if len(loaded.conditions) == 1 else "combined"))
 
 
-def groups_from_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
+def groups_from_images(loaded: FittedModel, images: Sequence) -> list[tuple]:
     """Bare images: one trial each for a single-force model; refused for a combined one (no slots known)."""
     if len(loaded.conditions) > 1:
         flags = " ".join(f"--images-{c.lower()} ..." for c in loaded.conditions)
@@ -61,7 +61,7 @@ def groups_from_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
     return [(image,) for image in images]
 
 
-def groups_from_flags(loaded: AnyModel, by_condition: Mapping[str, Sequence]) -> list[tuple]:
+def groups_from_flags(loaded: FittedModel, by_condition: Mapping[str, Sequence]) -> list[tuple]:
     """``{"1N": [...], "2N": [...], ...}``: the i-th image of each condition forms trial i."""
     wanted = loaded.conditions
     unknown = [c for c in by_condition if c not in wanted]
@@ -86,7 +86,7 @@ def groups_from_flags(loaded: AnyModel, by_condition: Mapping[str, Sequence]) ->
     return groups
 
 
-def groups_from_study(loaded: AnyModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
+def groups_from_study(loaded: FittedModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
     """Trials of the model's pad from a study's manifest: each (specimen, repetition) with one image per force.
 
     Returns the groups (paths, in the model's condition order) and their specimen and repetition.
