@@ -125,3 +125,15 @@ def test_the_text_keeps_three_digits_and_says_true_or_false():
 def test_predict_refuses_what_it_cannot_read_in_one_line(models, kwargs, message):
     with pytest.raises(ConfigError, match=message):
         predict(models["pls-1N"], **kwargs)
+
+
+def test_the_example_in_predicts_docstring_gives_what_it_shows(tmp_path, monkeypatch):
+    """The lead makes ``predict`` public (test_api_docs then runs this too): its example must hold today."""
+    import doctest
+
+    monkeypatch.chdir(tmp_path)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    report: list[str] = []
+    for test in doctest.DocTestFinder().find(predict, "predict", globs={}):
+        runner.run(test, out=report.append)
+    assert runner.failures == 0 and runner.tries > 10, "".join(report)

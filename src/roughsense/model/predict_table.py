@@ -229,11 +229,66 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
             px_per_mm: float | None = None, n_jobs: int = 1, progress=None) -> pd.DataFrame:
     """Perceived roughness of images, one row per trial: the table ``roughsense predict`` writes, as numbers.
 
-    ``model`` is a model file's path or a loaded model. Give the images one way: ``images`` (one per trial of a
-    single-force model), ``images_by_force`` (``{"1N": [...], "2N": [...]}``: the i-th of each form trial i) or
-    ``study`` (a folder or a read study, grouped by its manifest; ``specimens`` selects). ``same_surface`` reads
-    the images as presses of one surface. ``roi`` and ``px_per_mm`` read images the model's crop or scale does not
-    fit. Write the table as the CLI does with :func:`csv_text`.
+    Each row holds the trial's roughness relative to the model's reference specimen, its 90 % prediction interval
+    where the model file keeps one, and whether (``extrapolates``) and how (``outside``) it lies outside what the
+    model was trained on (:data:`PREDICTION_COLUMNS`). :func:`csv_text` writes it as the CLI does.
+
+    Parameters
+    ----------
+    model : str, os.PathLike or a loaded model
+        A model file written by ``roughsense fit`` (or ``save_model``), or what ``load_model`` returned.
+    images : sequence of paths, optional
+        One image per trial, for a single-force model.
+    study : str, os.PathLike or Study, optional
+        A study folder (or a read study): its images of the model's pad, grouped into trials by its manifest.
+    specimens : sequence of str, optional
+        With ``study``: only these specimens.
+    images_by_force : mapping, optional
+        ``{"1N": [...], "2N": [...], ...}``: the i-th image of each force forms trial i (a combined model).
+    same_surface : bool
+        The images are presses of one surface: the peak law reads its period from all of them together, and the
+        surface's mean roughness and interval are added (a study groups by specimen on its own).
+    roi : str, optional
+        Where to read the line instead of the model's ROI: ``"center"``, ``"auto"`` or ``"X,Y,W,H"`` in px.
+    px_per_mm : float, optional
+        The images' scale, if not the model's (a study's own scale is used by default).
+    n_jobs : int
+        Images decoded at once.
+    progress : callable, optional
+        ``progress(iterable, total=, description=)`` wrapping the image stream.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per trial; give the images one way (``images``, ``images_by_force`` or ``study``).
+
+    Examples
+    --------
+    A peak law fitted on square gratings of 2-5 mm, then two new surfaces, one far wider than any trained:
+
+    >>> import numpy as np
+    >>> from PIL import Image
+    >>> import roughsense as rs
+    >>> from roughsense.model.modelfile import save_model
+    >>> from roughsense.model.predict_table import predict
+    >>> x_mm = np.arange(1920) / 34.9
+    >>> def grating(period_mm, name):
+    ...     row = 128 + 100 * np.sign(np.sin(2 * np.pi * x_mm / period_mm))
+    ...     Image.fromarray(np.tile(row, (160, 1)).astype(np.uint8)).save(name)
+    ...     return name
+    >>> periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    >>> spectrum = rs.SpatialSpectrum().fit()
+    >>> X = spectrum.transform([grating(p, f"train{i}.png") for i, p in enumerate(periods)])
+    >>> law = rs.PeakPowerLaw(freq_per_mm=spectrum.freq_per_mm_).fit(X, (periods / 3) ** 0.9)
+    >>> features = {"spectrum": spectrum.feature_definition(), "conditions": ["2N"]}
+    >>> _ = save_model("law.json", law, feature_definition=features, training={"reference_specimen": "R3"})
+    >>> table = predict("law.json", [grating(2.5, "new_2N.png"), grating(8.0, "wide_2N.png")])
+    >>> table[["image", "roughness_rel_R3", "extrapolates"]].round(2)
+             image  roughness_rel_R3  extrapolates
+    0   new_2N.png              0.85         False
+    1  wide_2N.png              1.66          True
+    >>> table["outside"][1]
+    'period 7.97 mm outside the trained 2.00-5.01 mm'
     """
     from .predict import SensorOverride
 
