@@ -333,7 +333,7 @@ def test_help_describes_both_commands(run_cli):
        style=st.sampled_from(["{pad}_{spec}_{f}N_r01.png", "{spec}_{pad}_r01_{f}N.png", "{spec}-{f}n-{pad}.tif"]),
        spec=st.sampled_from(["R3", "C2.5", "sin_3_0.5", "rand_1.5_0.2"]))
 def test_the_force_a_file_name_states(force_n, style, spec):
-    from roughsense.model.predict import check_slot, forces_in_name
+    from roughsense.model.trials import check_slot, forces_in_name
 
     name = style.format(pad="fingerprint", spec=spec, f=f"{force_n:g}")
     assert forces_in_name(f"images/{name}") == {force_n}
@@ -360,7 +360,8 @@ def null_predictions(y, folds):
 @pytest.mark.parametrize(("condition", "cv"), [("combined", "loso"), ("2N", "loo")])
 def test_fit_peak_law_writes_the_law_fitted_in_python(run_cli, study_dir, data, tmp_path, condition, cv):
     from roughsense.model.modelfile import load_model
-    from roughsense.model.peak_law import PeakPowerLaw, peak_law_cv
+    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law_cv import peak_law_cv
 
     out = tmp_path / "law.json"
     code, stdout, err = fit(run_cli, study_dir, out, "--condition", condition, "--cv", cv, "--model", "Peak-Law")
@@ -428,7 +429,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     long_features = law.features(spectra[1:])[0]
     assert np.exp(long_features[0]) < np.exp(law.feature_min_[0])  # its peak is below the lowest trained frequency
     # ... so it is predicted as if at the edge of the law's domain: the law at the clipped features
-    from roughsense.model.peak_law import domain_margins
+    from roughsense.model.peak_domain import domain_margins
 
     low, high = domain_margins(float(np.diff(grid_per_mm())[0]), law.feature_min_, law.feature_max_)
     edge = np.exp(law.intercept_ + np.clip(long_features, low, high) @ law.coef_)
@@ -755,7 +756,7 @@ def test_the_domain_line_of_a_law_that_reads_the_shape_states_its_contact_patter
     contact"); fit's line stating the domain said only the periods. A law that reads no shape says none."""
     from types import SimpleNamespace
 
-    from roughsense.cli.model import _shape_range
+    from roughsense.cli.fit import _shape_range
     from roughsense.sensor.shape import duty_cycle
 
     shaped = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, -3.8]), feature_max_=np.array([-0.7, 3.0, -0.3]))

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from roughsense.model import peak_law
+from roughsense.model import peak_law_cv as law_cv
 from roughsense.model import pls_cv as engine
 
 from .test_peak_law import GRID, specimen_spectra
@@ -76,12 +76,12 @@ def test_law_loo_fits_each_surfaces_folds_once_and_equals_every_fold_fitted(monk
     Y = _shuffled(np.repeat(y[::3], 3), groups, 6, seed=3)  # one value per surface, as the control's shufflings
     settings = {"freq_per_mm": GRID, "n_blocks": n_blocks, "pad_ridge_period_mm": ridge, "surfaces": groups}
     masks = []
-    original = peak_law.fit_terms
-    monkeypatch.setattr(peak_law, "fit_terms", lambda f, t, train, **k: masks.append(len(train)) or original(f, t, train, **k))
-    once = peak_law.peak_law_cv(X, Y, **settings)
+    original = law_cv.fit_terms
+    monkeypatch.setattr(law_cv, "fit_terms", lambda f, t, train, **k: masks.append(len(train)) or original(f, t, train, **k))
+    once = law_cv.peak_law_cv(X, Y, **settings)
     assert masks == [6]  # one fit per surface's presses, not one per press
-    monkeypatch.setattr(peak_law, "row_classes", lambda rows: np.arange(len(rows)))  # no two rows interchangeable
-    every = peak_law.peak_law_cv(X, Y, **settings)
+    monkeypatch.setattr(law_cv, "row_classes", lambda rows: np.arange(len(rows)))  # no two rows interchangeable
+    every = law_cv.peak_law_cv(X, Y, **settings)
     assert masks[-1] == len(y)
     np.testing.assert_array_equal(once, every)
 

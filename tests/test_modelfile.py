@@ -9,6 +9,7 @@ import pytest
 from roughsense import SIMPLS
 from roughsense.errors import InputError, ModelFileError, OutputExistsError
 from roughsense.model import modelfile as mf
+from roughsense.model.pls import MIN_ROUGHNESS
 from roughsense.model.predict import score_images
 from roughsense.sensor.spectrum import SpatialSpectrum
 
@@ -50,17 +51,35 @@ def test_round_trip_predicts_bit_identically(saved):
     path, model, X = saved
     loaded = mf.load_model(path)
     np.testing.assert_array_equal(loaded.linear_predict(X), model.predict(X))
-    np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), mf.MIN_ROUGHNESS))
+    np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), MIN_ROUGHNESS))
     np.testing.assert_array_equal(loaded.coef_path, model.coef_path_)
     np.testing.assert_array_equal(loaded.intercept_path, model.intercept_path_)
     np.testing.assert_array_equal(loaded.x_mean, model.x_mean_)
     assert loaded.n_components == 4 and loaded.coef_.shape == (45,)
     assert loaded.intercept_ == model.intercept_
     assert loaded.training == TRAINING and loaded.conditions == ["1N"]
-    assert loaded.features["spectrum"] == json.loads(json.dumps(spectrum().feature_definition()))
+    assert loaded.model_file_.features["spectrum"] == json.loads(json.dumps(spectrum().feature_definition()))
     document = json.loads(path.read_text())  # plain JSON, versioned, no pickle anywhere
     assert document["format"] == "roughsense-model" and document["version"] == 1
     assert len(document["model"]["coefficients"]) == 4
+
+
+def test_a_loaded_file_is_the_fitted_estimator(saved, saved_law):
+    """load_model gives back each family's own estimator, predicting bit for bit as the one that was saved (the
+    PLS file adds its floor); the file's own part rides along in ``model_file_``."""
+    from roughsense.model.peak_law import PeakPowerLaw
+
+    for (path, model, X), kind in ((saved, SIMPLS), (saved_law, PeakPowerLaw)):
+        loaded = mf.load_model(path)
+        assert type(loaded) is kind and loaded.model_file_.path == path and loaded.training == TRAINING
+        floor = loaded.floor_ if kind is SIMPLS else -np.inf
+        np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), floor))
+        settings = {k: v for k, v in loaded.get_params().items() if k != "freq_per_mm"}
+        assert settings == {k: v for k, v in model.get_params().items() if k != "freq_per_mm"}
+    np.testing.assert_array_equal(mf.load_model(saved_law[0]).freq_per_mm, saved_law[1].freq_per_mm_)
+    with pytest.raises(ModelFileError, match=r"model\.json: the model expects 45 features per sample, got shape \(1, 3\)"):
+        mf.load_model(saved[0]).predict(np.ones((1, 3)))
+    np.testing.assert_array_equal(saved[1].predict(saved[2]), saved[1].linear_predict(saved[2]))  # a fit has no floor
 
 
 def test_refuses_to_overwrite_without_force(saved):
@@ -171,7 +190,7 @@ def test_score_images_recomputes_the_models_features(tmp_path):
     images = gratings([2.0, 2.2, 2.4, 4.0, 4.1, 4.3], rng)
     spectra = spectrum().transform(images)
     combined = np.vstack([np.concatenate(spectra[0:3]), np.concatenate(spectra[3:6])])
-    expected = np.maximum(model.predict(combined), mf.MIN_ROUGHNESS)
+    expected = np.maximum(model.predict(combined), MIN_ROUGHNESS)
     np.testing.assert_array_equal(score_images(loaded, images), expected)
     # A progress callback sees every image once and changes nothing in the result.
     seen = []
@@ -225,7 +244,7 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     np.testing.assert_array_equal(loaded.extrapolates(new), [False, True])
     np.testing.assert_array_equal(loaded.extrapolates(new), law.extrapolates(new))
     np.testing.assert_allclose(loaded.predict(new), law.predict(new), rtol=1e-12, atol=0)
-    from roughsense.model.peak_law import domain_margins
+    from roughsense.model.peak_domain import domain_margins
 
     low, high = domain_margins(float(np.diff(law.freq_per_mm_)[0]), law.feature_min_, law.feature_max_)
     outside = law.features(new[1:])
@@ -263,9 +282,9 @@ def test_a_pls_file_flags_exactly_the_values_it_held_to_the_trained_range(saved)
     loaded = mf.load_model(path)
     assert loaded.family == "pls"
     raw = model.predict(X)
-    np.testing.assert_array_equal(loaded.extrapolates(X), raw < mf.MIN_ROUGHNESS)
+    np.testing.assert_array_equal(loaded.extrapolates(X), raw < MIN_ROUGHNESS)
     assert np.all(loaded.predict(X) > 0)
-    held = [reason for reason, value in zip(loaded.applicability(X), raw) if value < mf.MIN_ROUGHNESS]
+    held = [reason for reason, value in zip(loaded.applicability(X), raw) if value < MIN_ROUGHNESS]
     assert held and all("held at" in reason for reason in held)
 
 

@@ -267,11 +267,14 @@ def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nu
 
 def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearFolds:
     """The fold models, of the loaded model's own kind and size, each as checked as the deployed model's section."""
-    kind = "peak-power-law" if loaded.family == "peak-law" else "pls1-simpls"
+    from .families import family
+    from .pls_file import KIND as PLS_KIND
+
+    kind = family(loaded.family).kind  # the model's own section kind
     if not isinstance(stored, dict) or stored.get("kind") != kind:
         raise ModelFileError(f"training.{KEY}.folds must be an object of kind {kind!r} (the model's own)", path=path)
     n = len(names)
-    if kind == "pls1-simpls":
+    if kind == PLS_KIND:
         coefficients = _numbers(stored.get("coefficients"), (n, loaded.n_features), "folds.coefficients", path)
         intercepts = _numbers(stored.get("intercepts"), (n,), "folds.intercepts", path)
         floors = _numbers(stored.get("floors"), (n,), "folds.floors", path)

@@ -22,34 +22,28 @@ Why each field is bounded. The checksum of a model file is unkeyed, so anyone ca
 field checks are what refuse a file that would predict nonsense. The bounds are loose enough for any law fitted on
 real spectra (log features of a few units, slopes of a few units) and tight enough that every prediction stays a
 finite positive number: a law whose exponent could leave floating point anywhere in its feature box is refused.
-A loaded law predicts with :func:`~roughsense.model.peak_law.peak_features` and
-:func:`~roughsense.model.peak_law.predict_law`, the fitted estimator's own arithmetic, so it predicts identically.
+A loaded law is the fitted :class:`~roughsense.model.peak_law.PeakPowerLaw` itself, its fitted attributes set
+from the section, so it predicts with the estimator's own code.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 
 from .._util.checks import POSITIVE_INT, Constraint, Real, shown
-from ..errors import InputError, ModelFileError
+from ..errors import ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.spectrum import grid_step
-from .families import PEAK_LAW
+from .loaded import ModelFileInfo
 from .peak_law import (
     FEATURE_NAMES,
     HARMONIC,
     LOG_MARGIN,
     PeakPowerLaw,
-    PeakReadout,
     check_grid,
     domain_margins,
-    domain_reasons,
-    peak_readout,
-    predict_law,
     search_bins,
 )
 from .press_spread import N_SPREAD, PressScatter
@@ -80,66 +74,8 @@ OPTIONAL_FIELDS = ("clarity_limit", "press_scatter")
 _SPREAD = Real(0.0, LIMIT)
 
 
-@dataclass(frozen=True)
-class LoadedPeakLaw:
-    """A validated peak-law document, ready to predict and to say which inputs it extrapolates."""
-
-    family: ClassVar[str] = PEAK_LAW
-    path: Path | None
-    freq_per_mm: np.ndarray
-    n_blocks: int
-    pad_ridge_period_mm: float | None
-    exclusion_per_mm: float
-    epsilon: float
-    intercept_: float
-    coef_: np.ndarray
-    scale_: float
-    feature_min_: np.ndarray
-    feature_max_: np.ndarray
-    clarity_limit_: float | None
-    features: dict
-    training: dict
-    roughsense_version: str
-    press_scatter_: PressScatter | None = None
-
-    @property
-    def n_features(self) -> int:
-        return int(self.n_blocks * self.freq_per_mm.size)
-
-    @property
-    def conditions(self) -> list[str]:
-        """Force conditions, in the order a trial's images are concatenated (one for a single-force model)."""
-        return list(self.features["conditions"])
-
-    def _readout(self, X, surfaces=None) -> PeakReadout:
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] != self.n_features:
-            raise ModelFileError(f"the model expects {self.n_features} features per sample, got shape {X.shape}",
-                                 path=self.path)
-        if not np.all(np.isfinite(X)) or np.any(X < 0):
-            raise InputError("a spectrum holds a negative or non-finite amplitude; the peak law reads amplitudes")
-        return peak_readout(X, self.freq_per_mm, n_blocks=self.n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
-                            exclusion_per_mm=self.exclusion_per_mm, surfaces=surfaces)
-
-    def law_features(self, X, surfaces=None) -> np.ndarray:
-        """(n, 3) the peak readout of each row (FEATURE_NAMES), as the fitted law reads it."""
-        return self._readout(X, surfaces).features
-
-    def predict(self, X, surfaces=None) -> np.ndarray:
-        """Predicted perceived roughness, exactly as the fitted :class:`PeakPowerLaw` predicts it."""
-        step = grid_step(self.freq_per_mm)
-        return predict_law(self.law_features(X, surfaces), self.intercept_, self.coef_,
-                           *domain_margins(step, self.feature_min_, self.feature_max_))
-
-    def applicability(self, X, surfaces=None) -> list[str]:
-        """Per row, what lies outside what the law was fitted on ('' where nothing does)."""
-        step = grid_step(self.freq_per_mm)
-        return domain_reasons(self._readout(X, surfaces), self.feature_min_, self.feature_max_, self.clarity_limit_,
-                              step, self.press_scatter_)
-
-    def extrapolates(self, X, surfaces=None) -> np.ndarray:
-        """True where a row lies outside the law's domain (:meth:`applicability` says how)."""
-        return np.array([bool(reason) for reason in self.applicability(X, surfaces)], dtype=bool)
+#: A loaded peak-law file is the fitted estimator: the old name, kept for one release.
+LoadedPeakLaw = PeakPowerLaw
 
 
 def law_section(model: PeakPowerLaw) -> dict:
@@ -179,7 +115,7 @@ def check_fields(section: dict, path: Path | None) -> int:
 
 
 def loaded_law(section: dict, features: dict, *, training: dict, roughsense_version: str,
-               path: Path | None) -> LoadedPeakLaw:
+               path: Path | None) -> PeakPowerLaw:
     """Check every field of a law's section (``features`` already checked against ``n_features``) and load it."""
     n_blocks = _checked(section, "n_blocks", POSITIVE_INT, path)
     if n_blocks != len(features["conditions"]):
@@ -207,13 +143,14 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
     low, high = domain_margins(step, pairs["feature_min"], pairs["feature_max"])
     _check_finite_predictions(scalars["intercept"], {**pairs, "feature_min": low, "feature_max": high}, path)
     clarity = _checked(section, "clarity_limit", CLARITY_LIMIT, path) if "clarity_limit" in section else None
-    return LoadedPeakLaw(
-        path=path, freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,
-        exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"], intercept_=scalars["intercept"],
-        coef_=pairs["coefficients"], scale_=scalars["scale"], feature_min_=pairs["feature_min"],
-        feature_max_=pairs["feature_max"], clarity_limit_=clarity, features=features, training=training,
-        roughsense_version=roughsense_version, press_scatter_=press_scatter(section, "model", path),
-    )
+    law = PeakPowerLaw(freq_per_mm=freq, n_blocks=n_blocks, pad_ridge_period_mm=period,
+                       exclusion_per_mm=scalars["exclusion_per_mm"], epsilon=scalars["epsilon"])
+    law.freq_per_mm_, law.n_features_in_ = freq, n_blocks * freq.size
+    law.intercept_, law.coef_, law.scale_ = scalars["intercept"], pairs["coefficients"], scalars["scale"]
+    law.feature_min_, law.feature_max_, law.clarity_limit_ = pairs["feature_min"], pairs["feature_max"], clarity
+    law.press_scatter_ = press_scatter(section, "model", path)
+    law.model_file_ = ModelFileInfo(path, features, training, roughsense_version)
+    return law
 
 
 def press_scatter(section: dict, where: str, path: Path | None) -> PressScatter | None:

@@ -8,6 +8,7 @@ count 1..A, so predicting with fewer components needs no refit. Its exact, fast 
 from __future__ import annotations
 
 import contextlib
+from typing import ClassVar
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
@@ -15,6 +16,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._util.checks import POSITIVE_INT, Integer, check
 from ..errors import ConfigError, InputError
+from .families import PLS
+from .loaded import FromModelFile
 
 __all__ = ["SIMPLS", "PLSInputError", "PLSConfigError", "linear_predict"]
 
@@ -93,7 +96,11 @@ def blas_threads_for(X: np.ndarray):
     return single_threaded_blas() if X.size <= SINGLE_THREAD_MAX_ELEMENTS else contextlib.nullcontext()
 
 
-class SIMPLS(RegressorMixin, BaseEstimator):
+#: The least roughness a PLS model file without a trained range may predict (a positive ratio to the reference).
+MIN_ROUGHNESS = 0.01
+
+
+class SIMPLS(FromModelFile, RegressorMixin, BaseEstimator):
     """PLS1 regression by SIMPLS, numerically the model of MATLAB ``plsregress(X, y, A)``.
 
     X is centred, not scaled; y is centred. After ``fit`` the attributes mirror plsregress:
@@ -105,7 +112,9 @@ class SIMPLS(RegressorMixin, BaseEstimator):
     - ``x_loadings_`` (p, A): XL; ``y_loadings_`` (A,): YL; ``x_scores_`` (n, A): XS (unit-norm columns);
       ``y_scores_`` (n, A): YS;
     - ``pct_var_`` (2, A): PCTVAR, fractions of X and y variance explained per component (not percent,
-      exactly as plsregress returns them).
+      exactly as plsregress returns them);
+    - ``floor_``: the least roughness ``predict`` gives (-inf for a fit; a loaded model file's is half the smoothest
+      surface it was trained on), and ``domain_``: its applicability domain (None for a fit; a file's, loaded).
 
     Signs follow the paper's eq. (2), r = s/||s||; MATLAB's SVD may flip a component's weights, scores and
     loadings together, which leaves the coefficients unchanged.
@@ -128,6 +137,8 @@ class SIMPLS(RegressorMixin, BaseEstimator):
     >>> model.predict(X[:2]).round(2), model.predict(X[:2], n_components=1).round(2)
     (array([3.01, 4.71]), array([2.98, 4.6 ]))
     """
+
+    family: ClassVar[str] = PLS
 
     def __init__(self, n_components: int = 2):
         self.n_components = n_components
@@ -217,9 +228,10 @@ class SIMPLS(RegressorMixin, BaseEstimator):
         self.coef_ = np.ascontiguousarray(self.coef_path_[:, -1])
         self.intercept_ = float(self.intercept_path_[-1])
         self.pct_var_ = np.vstack([(P**2).sum(axis=0) / (X0**2).sum(), Q**2 / (y0 @ y0)])
+        self.floor_, self.domain_ = -np.inf, None
 
-    def predict(self, X, n_components: int | None = None):
-        """Predictions of the model with ``n_components`` (default: all fitted) components.
+    def predict(self, X, n_components: int | None = None, surfaces=None):
+        """Predictions of the model with ``n_components`` (default: all fitted) components, held at ``floor_``.
 
         Parameters
         ----------
@@ -227,6 +239,23 @@ class SIMPLS(RegressorMixin, BaseEstimator):
             (n_samples, n_features) predictors with the training columns.
         n_components : int, optional
             A count from 1 to the fitted one; no refit is needed.
+        surfaces : array-like, optional
+            Accepted as every family accepts it; PLS reads each row alone.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples,) predictions.
+        """
+        return np.maximum(self.linear_predict(X, n_components), self.floor_)
+
+    def linear_predict(self, X, n_components: int | None = None) -> np.ndarray:
+        """The fitted coefficients' own prediction, before the floor (PLS is linear: it may be <= 0).
+
+        Parameters
+        ----------
+        X, n_components
+            As :meth:`predict`.
 
         Returns
         -------
@@ -234,12 +263,51 @@ class SIMPLS(RegressorMixin, BaseEstimator):
             (n_samples,) predictions.
         """
         check_is_fitted(self, "coef_path_")
+        X = self._file_inputs(X)
         try:
             X = validate_data(self, X, reset=False, dtype=np.float64)
         except ValueError as exc:
             raise PLSInputError(str(exc)) from None
         k = self._component_index(n_components)
         return linear_predict(X, self.coef_path_[:, k], self.intercept_path_[k])
+
+    def applicability(self, X, surfaces=None) -> list[str]:
+        """Per row, why its prediction is not to be trusted ('' where nothing says so): a spectrum outside
+        ``domain_`` (a loaded model file's), or a prediction held at ``floor_``.
+
+        Parameters
+        ----------
+        X : array-like
+            (n_samples, n_features) spectra.
+        surfaces : array-like, optional
+            (n_samples,) labels: the domain's peak readout reads a surface's presses together.
+
+        Returns
+        -------
+        list of str
+            One reason per row; '' where the row is inside.
+        """
+        raw = self.linear_predict(X)
+        shape = self.domain_.reasons(self._file_inputs(X), surfaces) if self.domain_ is not None else [""] * raw.size
+        reasons = []
+        for value, why in zip(raw, shape):
+            parts = [why] if why else []
+            if value < self.floor_:
+                whose = "half the smoothest trained surface" if self.floor_ != MIN_ROUGHNESS else "the least " \
+                    "roughness an older model file may give"
+                parts.append(f"PLS gave {value:.3g}, below {whose}; held at {self.floor_:.3g}")
+            reasons.append("; ".join(parts))
+        return reasons
+
+    # LoadedModel's names, kept for one release
+    x_mean = property(lambda self: self.x_mean_)
+    y_mean = property(lambda self: self.y_mean_)
+    coef_path = property(lambda self: self.coef_path_)
+    intercept_path = property(lambda self: self.intercept_path_)
+    pct_var = property(lambda self: self.pct_var_)
+    floor = property(lambda self: self.floor_)
+    domain = property(lambda self: self.domain_)
+    features = property(lambda self: self.model_file_.features)
 
     def _component_index(self, n_components: int | None) -> int:
         A = self.coef_path_.shape[1]

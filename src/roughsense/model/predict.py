@@ -7,15 +7,14 @@ law's period, peak strength or an unclear peak; PLS's spectrum shape, or a value
 a model file with an interval gives each prediction its 90 % prediction interval: a surface's (and a press read alone)
 the jackknife+ over specimens (model/jackknife_file.py), a press read with its surface's others the plain jackknife
 (model/interval.py).
-:func:`score_images` trusts that order; the ``groups_from_*`` functions build it from what a user gives
-(a manifest, one flag per force) and refuse what contradicts a slot.
+:func:`score_images` trusts that order; model/trials.py builds it from what a user gives (a manifest, one flag per
+force) and refuses what contradicts a slot.
 """
 from __future__ import annotations
 
 import math
 import os
-import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,11 +22,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError, InputError
-from .modelfile import AnyModel, check_features, feature_definition_for
+from .modelfile import FittedModel, check_features, feature_definition_for
+from .trials import (  # noqa: F401  re-exported for one release
+    check_slot,
+    condition_force_n,
+    forces_in_name,
+    groups_from_flags,
+    groups_from_images,
+    groups_from_study,
+    model_condition,
+    model_pad,
+)
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from ..io.sensor_settings import Roi
 
 
@@ -71,14 +78,14 @@ class SensorOverride:
         return given
 
 
-def model_spectrum(loaded: AnyModel, *, n_jobs: int = 1, override: SensorOverride | None = None):
+def model_spectrum(loaded: FittedModel, *, n_jobs: int = 1, override: SensorOverride | None = None):
     """The SpatialSpectrum the model was trained with, rebuilt from its file (and checked against it).
 
     With ``override``, the checked definition is then read where and at the scale the override says.
     """
     from ..sensor.spectrum import SpatialSpectrum
 
-    stored = loaded.features["spectrum"]
+    stored = loaded.model_file_.features["spectrum"]
     spectrum = SpatialSpectrum.from_definition(stored, n_jobs=n_jobs).fit()
     check_features(loaded, feature_definition_for(spectrum, loaded.conditions))
     if override is None:
@@ -91,7 +98,7 @@ def model_spectrum(loaded: AnyModel, *, n_jobs: int = 1, override: SensorOverrid
     return SpatialSpectrum.from_definition({**stored, **override.fields()}, n_jobs=n_jobs).fit()
 
 
-def group_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
+def group_images(loaded: FittedModel, images: Sequence) -> list[tuple]:
     """Images grouped into trials: one image each, or one per condition for a combined model."""
     k = len(loaded.conditions)
     if len(images) == 0:
@@ -104,7 +111,7 @@ def group_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
     return [tuple(images[i : i + k]) for i in range(0, len(images), k)]
 
 
-def spectra_to_features(loaded: AnyModel, spectra: np.ndarray) -> np.ndarray:
+def spectra_to_features(loaded: FittedModel, spectra: np.ndarray) -> np.ndarray:
     """(n_images, n_freqs) spectra in trial order -> (n_trials, n_features) model inputs."""
     from ..sensor.spectrum import combine_forces
 
@@ -113,7 +120,7 @@ def spectra_to_features(loaded: AnyModel, spectra: np.ndarray) -> np.ndarray:
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
-def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+def image_features(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                    override: SensorOverride | None = None) -> np.ndarray:
     """The model's inputs, one row per image (per trial of k images for a k-force model).
 
@@ -123,7 +130,7 @@ def image_features(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progr
     return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
 
 
-def image_readings(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                    override: SensorOverride | None = None):
     """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
     scale checks read the lines, at no second decoding)."""
@@ -138,17 +145,17 @@ def image_readings(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progr
     return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
 
 
-def model_ridge_period_mm(loaded: AnyModel) -> float | None:
+def model_ridge_period_mm(loaded: FittedModel) -> float | None:
     """The ridge period (mm) of the model's pad, or None for a smooth pad (or a file that does not say)."""
     training = loaded.training if isinstance(loaded.training, dict) else {}
     stated = training.get("pad_ridge_period_mm", getattr(loaded, "pad_ridge_period_mm", None))
-    domain = getattr(loaded, "domain", None)
+    domain = getattr(loaded, "domain_", None)
     if stated is None and domain is not None and domain.peak is not None:
         stated = domain.peak.pad_ridge_period_mm
     return float(stated) if isinstance(stated, (int, float)) and stated > 0 else None
 
 
-def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None, *, dominance: float | None = None
+def trial_band_reasons(loaded: FittedModel, spectrum, lines: list, surfaces=None, *, dominance: float | None = None
                        ) -> list[str]:
     """Per trial, why its structure lies outside the spectrum's band ('' where it lies inside): the one band test
     (``sensor/band.py``) every family's predictions pass, a trial read from the medians of its images."""
@@ -163,7 +170,7 @@ def trial_band_reasons(loaded: AnyModel, spectrum, lines: list, surfaces=None, *
     return band_reasons(trials, f_min, f_max, surfaces, dominance=DOMINANCE if dominance is None else dominance)
 
 
-def score_images(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+def score_images(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                  override: SensorOverride | None = None) -> np.ndarray:
     """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
     return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
@@ -192,7 +199,7 @@ class Scores:
         return np.array([bool(reason) for reason in self.reasons], dtype=bool)
 
 
-def model_interval(loaded: AnyModel):
+def model_interval(loaded: FittedModel):
     """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
     trial's). A malformed entry is refused in one line naming the field, never silently dropped."""
     from .._util.checks import Real, short_repr
@@ -221,7 +228,7 @@ def model_interval(loaded: AnyModel):
     return interval if math.isfinite(interval.trial_log_halfwidth) else None
 
 
-def domain_reasons(loaded: AnyModel, spectrum, lines: list, X: np.ndarray, surfaces=None) -> list[str]:
+def domain_reasons(loaded: FittedModel, spectrum, lines: list, X: np.ndarray, surfaces=None) -> list[str]:
     """Why each trial lies outside the model's domain ('' where it lies inside): the band's reason first, then the
     family's own, named by the band when the structure outside it is at least as strong as the band's own peak.
     Shared by predict's trials and live mode's frames, so a frame says what its image would say."""
@@ -232,7 +239,7 @@ def domain_reasons(loaded: AnyModel, spectrum, lines: list, X: np.ndarray, surfa
     return [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
 
 
-def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                  override: SensorOverride | None = None, surfaces=None, reference=None) -> Scores:
     """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
 
@@ -263,7 +270,7 @@ def score_trials(loaded: AnyModel, images: Sequence, *, n_jobs: int = 1, progres
 PLAIN_METHOD = "jackknife (no coverage guarantee)"
 
 
-def trial_intervals(loaded: AnyModel, X: np.ndarray, roughness: np.ndarray, surfaces=None):
+def trial_intervals(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, surfaces=None):
     """Each trial's 90 % bounds and method: a press read alone is a surface of one press, so it gets the
     jackknife+ of one-press surfaces where the file keeps one; a press read with its surface's others gets the plain
     jackknife (the peak law reads it less surely alone: its own calibration). NaN and None without an interval."""
@@ -280,7 +287,7 @@ def trial_intervals(loaded: AnyModel, X: np.ndarray, roughness: np.ndarray, surf
     return low, high, [PLAIN_METHOD] * roughness.size
 
 
-def surface_intervals(loaded: AnyModel, X: np.ndarray, surface: np.ndarray, surfaces):
+def surface_intervals(loaded: FittedModel, X: np.ndarray, surface: np.ndarray, surfaces):
     """Each trial's surface's 90 % bounds and method: the jackknife+ with the residuals of surfaces read from as
     many presses as this one (model/jackknife_file.py), else (an older file) the plain jackknife."""
     from .jackknife_file import deployed_jackknife
@@ -296,7 +303,7 @@ def surface_intervals(loaded: AnyModel, X: np.ndarray, surface: np.ndarray, surf
     return low, high, [PLAIN_METHOD] * surface.size
 
 
-def plain_fallback_line(loaded: AnyModel) -> str:
+def plain_fallback_line(loaded: FittedModel) -> str:
     """One line when a file's intervals fall back to the plain jackknife: written before the jackknife+ was kept,
     or from too few specimens for it (9 at 90 %). Said, never failed."""
     from .jackknife_file import deployed_jackknife
@@ -312,7 +319,7 @@ def plain_fallback_line(loaded: AnyModel) -> str:
             f"intervals are the plain {PLAIN_METHOD}; refit it with roughsense fit for the jackknife+ over specimens")
 
 
-def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
+def images_scale_check(loaded: FittedModel, spectrum, lines: list, reference=None):
     """The images' scale against the pad's ridges (every image) and the stated periods of ``reference``'s trials,
     at the scale the spectrum read them (``model/scale_check.py``)."""
     from .scale_check import check_study_lines
@@ -331,7 +338,7 @@ def images_scale_check(loaded: AnyModel, spectrum, lines: list, reference=None):
     return check_study_lines(groups, float(spectrum.px_per_mm))
 
 
-def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
+def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
                  ) -> Callable[[np.ndarray], tuple[float, str]]:
     """Live mode's scorer: one camera frame (an array) -> (roughness, why it lies outside the model's domain, ''
     where it lies inside: the reason predict gives the same image read alone), the spectrum built once."""
@@ -350,145 +357,23 @@ def frame_scorer(loaded: AnyModel, override: SensorOverride | None = None
     return score_frame
 
 
-# --------------------------------------------------------------------------- grouping images into trials
-#
-# A combined model reads a trial as its 1 N, 2 N and 3 N spectra side by side: three images taken in the wrong
-# slots still give numbers, just wrong ones. So images reach a model only in groups whose force slot is known --
-# from the manifest of a study, or from one flag per force -- and a file name or manifest row that says another
-# force than its slot is refused.
-
-_FORCE_TOKEN = re.compile(r"(?:^|[_\-. ])(\d+(?:\.\d+)?)[nN](?=$|[_\-. ])")
-
-
-def condition_force_n(condition: str) -> float:
-    """The nominal force of a condition label ("2.5N" -> 2.5)."""
-    return float(condition[:-1]) if condition.upper().endswith("N") else float("nan")
-
-
-def forces_in_name(image) -> set[float]:
-    """Forces a file name states as tokens like ``_1N_`` or ``-2.5n.`` (empty if it states none)."""
-    stem = Path(str(image)).stem
-    return {float(m) for m in _FORCE_TOKEN.findall(stem)}
-
-
-def check_slot(image, condition: str, *, path=None, row: int | None = None) -> None:
-    """Refuse an image whose name states forces, none of them the force of the slot it fills."""
-    stated = forces_in_name(image)
-    if stated and condition_force_n(condition) not in stated:
-        said = ", ".join(f"{f:g}N" for f in sorted(stated))
-        raise InputError(f"image {Path(str(image)).name!r} fills the {condition} slot but its name says {said}",
-                         path=path, row=row, column="image" if row is not None else None)
-
-
-def model_pad(loaded: AnyModel) -> str:
-    return str(loaded.training.get("pad", "")) if isinstance(loaded.training, dict) else ""
-
-
-def model_condition(loaded: AnyModel) -> str:
-    """The model's condition: its single force, or "combined"."""
-    training = loaded.training if isinstance(loaded.training, dict) else {}
-    return str(training.get("condition") or (loaded.conditions[0] if len(loaded.conditions) == 1 else "combined"))
-
-
-def groups_from_images(loaded: AnyModel, images: Sequence) -> list[tuple]:
-    """Bare images: one trial each for a single-force model; refused for a combined one (no slots known)."""
-    if len(loaded.conditions) > 1:
-        flags = " ".join(f"--images-{c.lower()} ..." for c in loaded.conditions)
-        raise InputError(f"this model combines {', '.join(loaded.conditions)}: bare images cannot say which force each "
-                         f"is; group them with --study DIR (from its manifest) or with {flags} (the i-th of each "
-                         "flag form a trial)", path=loaded.path)
-    for image in images:
-        check_slot(image, loaded.conditions[0])
-    return [(image,) for image in images]
-
-
-def groups_from_flags(loaded: AnyModel, by_condition: Mapping[str, Sequence]) -> list[tuple]:
-    """``{"1N": [...], "2N": [...], ...}``: the i-th image of each condition forms trial i."""
-    wanted = loaded.conditions
-    unknown = [c for c in by_condition if c not in wanted]
-    if unknown:
-        raise InputError(f"--images-{unknown[0].lower()}: this model uses {', '.join(wanted)}, not {unknown[0]}",
-                         path=loaded.path)
-    missing = [c for c in wanted if not by_condition.get(c)]
-    if missing:
-        raise InputError(f"this model needs images at {', '.join(wanted)}: --images-{missing[0].lower()} is missing",
-                         path=loaded.path)
-    counts = {c: len(by_condition[c]) for c in wanted}
-    if len(set(counts.values())) > 1:
-        shown = ", ".join(f"{n} at {c}" for c, n in counts.items())
-        raise InputError(f"every force needs as many images (the i-th of each form a trial); got {shown}")
-    groups = list(zip(*(by_condition[c] for c in wanted)))
-    for number, group in enumerate(groups, start=1):
-        resolved = [os.path.realpath(str(image)) for image in group]
-        if len(set(resolved)) < len(resolved):
-            raise InputError(f"trial {number}: the same image fills two force slots ({Path(str(group[0])).name})")
-        for image, condition in zip(group, wanted):
-            check_slot(image, condition)
-    return groups
-
-
-def groups_from_study(loaded: AnyModel, study, specimens: Sequence[str] = ()) -> tuple[list[tuple], pd.DataFrame]:
-    """Trials of the model's pad from a study's manifest: each (specimen, repetition) with one image per force.
-
-    Returns the groups (paths, in the model's condition order) and their specimen and repetition.
-    """
-    import pandas as pd
-
-    from ..io.study import MANIFEST_CSV
-    from ..io.tables import csv_line
-
-    manifest_path = study.root / MANIFEST_CSV
-    manifest = study.manifest.reset_index(drop=True)
-    pad = model_pad(loaded)
-    if pad and pad not in set(manifest["pad"]):
-        raise InputError(f"no images of the model's pad {pad!r} (pads in the study: {', '.join(study.pads)})",
-                         path=manifest_path)
-    rows = manifest[manifest["pad"] == pad] if pad else manifest
-    if specimens:
-        unknown = [s for s in specimens if s not in set(rows["specimen"])]
-        if unknown:
-            raise InputError(f"no images of specimen {unknown[0]!r} on pad {pad!r}", path=manifest_path)
-        rows = rows[rows["specimen"].isin(specimens)]
-    conditions = loaded.conditions
-    rows = rows[rows["condition"].isin(conditions)]
-    if rows.empty:
-        raise InputError(f"no images of pad {pad!r} at {', '.join(conditions)}", path=manifest_path)
-    for i, row in rows.iterrows():
-        check_slot(row["image"], row["condition"], path=manifest_path, row=csv_line(i))
-    groups, meta = [], []
-    for (specimen, repetition), trial in rows.groupby(["specimen", "repetition"], sort=True):
-        slots = []
-        for condition in conditions:
-            at = trial[trial["condition"] == condition]
-            if len(at) != 1:
-                what = "no image" if at.empty else f"{len(at)} images"
-                where = f" (rows {', '.join(str(csv_line(i)) for i in at.index)})" if len(at) > 1 else ""
-                raise InputError(f"specimen {specimen!r}, repetition {repetition} on pad {pad!r} has {what} at "
-                                 f"{condition}{where}; a trial needs exactly one image per force of the model",
-                                 path=manifest_path)
-            slots.append(study.root / at["image"].iloc[0])
-        groups.append(tuple(slots))
-        meta.append({"specimen": specimen, "repetition": int(repetition)})
-    return groups, pd.DataFrame(meta)
-
-
 #: ``--roi auto`` on images whose field along the line differs from the model's by more than this warns.
 FIELD_TOLERANCE = 0.20
 
 
-def warn_field_of_view(loaded: AnyModel, override: SensorOverride | None, images: Sequence) -> float | None:
+def warn_field_of_view(loaded: FittedModel, override: SensorOverride | None, images: Sequence) -> float | None:
     """With ``--roi auto``, warn when the first image's field along the line (crop width / px_per_mm, in mm) differs
     from the model's by more than :data:`FIELD_TOLERANCE`: the spectrum then averages over a different length of
     contact, so amplitudes shift even where the grating is the same. Returns the relative difference (or None)."""
     import warnings
 
+    from ..defaults import CENTER_CROP_PX
     from ..errors import RoughsenseWarning
     from ..io.images import header_size, read_bytes
-    from ..io.sensor_settings import CENTER_CROP_PX
 
     if override is None or override.roi != "auto" or not images or not isinstance(images[0], (str, os.PathLike)):
         return None
-    stored = loaded.features["spectrum"]
+    stored = loaded.model_file_.features["spectrum"]
     size = header_size(read_bytes(images[0]))
     if size is None:
         return None

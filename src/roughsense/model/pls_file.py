@@ -1,0 +1,186 @@
+"""The PLS section of a model file (kind ``pls1-simpls``): written from a fitted :class:`SIMPLS`, checked field by
+field and loaded as :class:`LoadedModel`, as model/peak_law_file.py does for the peak law; model/modelfile.py holds
+the envelope (format, version, checksum, feature definition) around either.
+
+The section::
+
+    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
+     "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]],
+     "applicability": {"rotations": [[p] x A], "loadings": [[p] x A], "score_var": [A],
+                       "t2_limit": t, "q_limit": q, "level": 0.95}   (optional: see below)}
+
+``coefficients[k-1]`` is the model with k components; the file predicts with ``n_components``.
+
+Bounds. Features are spectra normalised to unit area, so a feature is at most 2 / (frequency step) and a
+row's features sum to a few hundred at most; responses are ratings, within 1e6 (``io.numbers.BOUNDS``). A fit
+on such data gives coefficients of order one (|c| <= :data:`MAX_COEFFICIENT` is a millionfold margin), and
+each intercept is ``y_mean - x_mean . c`` by construction, so it is bounded by ``|y_mean| + |x_mean| . |c|``.
+Within these bounds every prediction of a computed spectrum is a finite number.
+
+Impossible values. Perceived roughness is a positive ratio to the reference, but PLS is linear and can predict a
+value <= 0. A loaded PLS model holds its predictions at or above a floor, half the smoothest roughness it was trained
+on (``training``'s ``target_range``; :data:`MIN_ROUGHNESS` for a file without one), and flags every value it held.
+``applicability`` is PLS's applicability domain (:mod:`.applicability`); a file written before it existed loads
+without it, and its spectra are then not checked.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._util.checks import POSITIVE_INT, Real, short_repr
+from ..errors import ModelFileError
+from . import peak_law_file
+from .applicability import DOMAIN_LEVEL, SpectrumDomain
+from .loaded import ModelFileInfo
+from .pls import MIN_ROUGHNESS, SIMPLS
+
+KIND = "pls1-simpls"
+_FIELDS = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
+
+#: Largest |coefficient| and |x_mean| of a PLS model file, and largest |y_mean| (a rating's bound): see above.
+MAX_COEFFICIENT = 1e6
+MAX_X_MEAN = 1e6
+MAX_Y_MEAN = 1e6
+#: A loaded PLS model file is the fitted estimator: the old name, kept for one release.
+LoadedModel = SIMPLS
+
+
+def _floats(values) -> list:
+    return np.asarray(values, dtype=np.float64).tolist()
+
+
+def pls_section(model: SIMPLS) -> dict:
+    """The section of a fitted :class:`SIMPLS` (every component count's coefficients: the file predicts with all)."""
+    if not hasattr(model, "coef_path_"):
+        raise ModelFileError("the model is not fitted")
+    p, A = model.coef_path_.shape
+    return {
+        "kind": KIND,
+        "n_components": int(A),
+        "n_features": int(p),
+        "x_mean": _floats(model.x_mean_),
+        "y_mean": float(model.y_mean_),
+        "coefficients": _floats(model.coef_path_.T),
+        "intercepts": _floats(model.intercept_path_),
+        "pct_var": _floats(model.pct_var_),
+    }
+
+
+def check_fields(section: dict, path: Path | None) -> int:
+    """Exactly the section's fields, its arrays' shapes and finiteness, and the bounds above; returns the feature
+    count (the feature definition is checked on it)."""
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    if set(section) - {"applicability"} != _FIELDS:
+        fail(f"\"model\" must have exactly the fields {', '.join(sorted(_FIELDS))} (and optionally applicability)")
+    A, p = section["n_components"], section["n_features"]
+    for name, value in (("n_components", A), ("n_features", p)):
+        if not POSITIVE_INT.accepts(value):
+            fail(f"model.{name} must be a positive whole number, got {value!r}")
+    x_mean, coef, intercepts, _ = _arrays(section, path)
+    y_mean = section["y_mean"]
+    if not Real().accepts(y_mean):
+        fail(f"model.y_mean must be a finite number, got {short_repr(y_mean)}")
+    check_bounds(x_mean, y_mean, coef, intercepts, path)
+    return p
+
+
+def _arrays(section: dict, path: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    A, p = section["n_components"], section["n_features"]
+    return (_array(section["x_mean"], (p,), "model.x_mean", path),
+            _array(section["coefficients"], (A, p), "model.coefficients", path),
+            _array(section["intercepts"], (A,), "model.intercepts", path),
+            _array(section["pct_var"], (2, A), "model.pct_var", path))
+
+
+def loaded_pls(section: dict, features: dict, *, training: dict, roughsense_version: str,
+               path: Path | None) -> SIMPLS:
+    """A section that passed :func:`check_fields`, with its checked feature definition, as the fitted
+    :class:`SIMPLS` (``coef_path_``, ``floor_``, ``domain_``, ``model_file_``: what the file records)."""
+    A, p = section["n_components"], section["n_features"]
+    x_mean, coef, intercepts, pct_var = _arrays(section, path)
+    model = SIMPLS(n_components=A)
+    model.n_features_in_ = p
+    model.x_mean_, model.y_mean_ = x_mean, float(section["y_mean"])
+    model.coef_path_, model.intercept_path_, model.pct_var_ = np.ascontiguousarray(coef.T), intercepts, pct_var
+    model.coef_, model.intercept_ = model.coef_path_[:, A - 1], float(intercepts[A - 1])
+    stored = training.get("target_range")  # checked on loading
+    model.floor_ = MIN_ROUGHNESS if stored is None else 0.5 * float(stored[0])
+    model.domain_ = checked_domain(section["applicability"], x_mean, A, p, features, path) \
+        if "applicability" in section else None
+    model.model_file_ = ModelFileInfo(path, features, training, roughsense_version)
+    return model
+
+
+def checked_domain(section, x_mean: np.ndarray, A: int, p: int, features: dict, path: Path | None) -> SpectrumDomain:
+    """A PLS file's applicability section, checked: shapes, finite numbers, positive variances and limits."""
+    fields = {"rotations", "loadings", "score_var", "t2_limit", "q_limit", "level"}
+    if not isinstance(section, dict) or set(section) - {"peak"} != fields:
+        raise ModelFileError("model.applicability must have exactly the fields rotations, loadings, score_var, "
+                             "t2_limit, q_limit, level (and optionally peak)", path=path)
+    rotations = _array(section["rotations"], (A, p), "model.applicability.rotations", path)
+    loadings = _array(section["loadings"], (A, p), "model.applicability.loadings", path)
+    score_var = _array(section["score_var"], (A,), "model.applicability.score_var", path)
+    for name in ("t2_limit", "q_limit"):
+        if not Real(0.0, MAX_COEFFICIENT, low_open=True).accepts(section[name]):
+            raise ModelFileError(f"model.applicability.{name} must be a positive number, got "
+                                 f"{short_repr(section[name])}", path=path)
+    if not (Real().accepts(section["level"]) and section["level"] == DOMAIN_LEVEL):  # the level its limits are at
+        raise ModelFileError(f"model.applicability.level must be {DOMAIN_LEVEL} (the percentile roughsense's T2 and Q "
+                             f"limits are drawn at), got {short_repr(section['level'])}", path=path)
+    if np.any(score_var <= 0) or max(np.abs(rotations).max(), np.abs(loadings).max()) > MAX_COEFFICIENT:
+        raise ModelFileError("model.applicability holds a non-positive score variance or a value beyond "
+                             f"{MAX_COEFFICIENT:g}", path=path)
+    peak = peak_law_file.peak_domain(section["peak"], features, path) if "peak" in section else None
+    return SpectrumDomain(x_mean, rotations.T.copy(), loadings.T.copy(), score_var, float(section["t2_limit"]),
+                          float(section["q_limit"]), peak, len(features["conditions"]))
+
+
+def check_bounds(x_mean: np.ndarray, y_mean: float, coef: np.ndarray, intercepts: np.ndarray,
+                 path: Path | None) -> None:
+    """Refuse numbers no fit on spectra and ratings produces (see the module docstring): an edited, re-signed
+    file with coefficients of 1e308 would otherwise predict ``inf``."""
+    def fail(message: str):
+        raise ModelFileError(message, path=path)
+
+    for name, values, limit in (("coefficients", coef, MAX_COEFFICIENT), ("x_mean", x_mean, MAX_X_MEAN)):
+        worst = float(np.max(np.abs(values))) if values.size else 0.0
+        if worst > limit:
+            fail(f"model.{name} holds {worst:g}; a fitted model's are at most {limit:g} in magnitude")
+    if abs(y_mean) > MAX_Y_MEAN:
+        fail(f"model.y_mean is {y_mean:g}; a rating is at most {MAX_Y_MEAN:g}")
+    # intercept_k = y_mean - x_mean . c_k for a fit: its magnitude is at most this (with rounding slack).
+    reach = (abs(y_mean) + np.abs(coef) @ np.abs(x_mean)) * (1 + 1e-9) + 1e-12
+    over = np.flatnonzero(np.abs(intercepts) > reach)
+    if over.size:
+        k = int(over[0])
+        fail(f"model.intercepts[{k}] is {intercepts[k]:g}, beyond what a fit can give (|y_mean| + |x_mean|.|c| = "
+             f"{reach[k]:g})")
+
+
+def _all_numbers(value) -> bool:
+    """Nested lists of JSON numbers only: no strings ("1.5" would convert), booleans or nulls."""
+    if isinstance(value, list):
+        return all(_all_numbers(v) for v in value)
+    return type(value) in (int, float)
+
+
+def _array(value, shape: tuple[int, ...], name: str, path: Path | None) -> np.ndarray:
+    try:
+        numbers = isinstance(value, list) and _all_numbers(value)
+    except RecursionError:
+        numbers = False
+    if not numbers:
+        raise ModelFileError(f"{name} must be an array of numbers", path=path)
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ModelFileError(f"{name} must be an array of numbers", path=path) from None
+    if array.shape != shape:
+        raise ModelFileError(f"{name} has shape {array.shape}, expected {shape}", path=path)
+    if not np.all(np.isfinite(array)):
+        raise ModelFileError(f"{name} holds a value that is not a finite number", path=path)
+    return array
