@@ -33,7 +33,7 @@ __getattr__ = lazy_loader.attach(__name__, submod_attrs={
     "io.study": ["read_study"],
     "analysis.study_analysis": ["analyse_study"],
     "model.modelfile": ["load_model"],
-    # The lead adds "model.predict_table": ["predict"] here and in __all__ once package D's module is merged.
+    "model.predict_table": ["predict"],
     "sensor.spectrum": ["SpatialSpectrum", "spatial_spectrum", "frequency_grid"],
     "model.pls": ["SIMPLS"],
     "model.peak_law": ["PeakPowerLaw", "peak_law_cv"],
@@ -49,6 +49,7 @@ __all__ = [
     "read_study",
     "analyse_study",
     "load_model",
+    "predict",
     # the estimators, then the functions behind them
     "SpatialSpectrum",
     "SIMPLS",

@@ -229,69 +229,62 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
             px_per_mm: float | None = None, n_jobs: int = 1, progress=None) -> pd.DataFrame:
     """Perceived roughness of images, one row per trial: the table ``roughsense predict`` writes, as numbers.
 
-    Each row holds the trial's roughness relative to the model's reference specimen, its 90 % prediction interval
-    where the model file keeps one, and whether (``extrapolates``) and how (``outside``) it lies outside what the
-    model was trained on (:data:`PREDICTION_COLUMNS`). :func:`csv_text` writes it as the CLI does.
+    Each row holds the trial's roughness relative to the model's reference specimen, its 90 % interval where the
+    model file keeps one, and whether (``extrapolates``) and how (``outside``) it lies outside what the model was
+    trained on (:data:`PREDICTION_COLUMNS`); :func:`csv_text` writes it as the CLI does.
 
     Parameters
     ----------
     model : str, os.PathLike or a loaded model
         A model file written by ``roughsense fit`` (or ``save_model``), or what ``load_model`` returned.
-    images : sequence of paths, optional
-        One image per trial, for a single-force model.
-    study : str, os.PathLike or Study, optional
-        A study folder (or a read study): its images of the model's pad, grouped into trials by its manifest.
-    specimens : sequence of str, optional
-        With ``study``: only these specimens.
-    images_by_force : mapping, optional
-        ``{"1N": [...], "2N": [...], ...}``: the i-th image of each force forms trial i (a combined model).
+    images, images_by_force, study : optional, exactly one of them
+        One image per trial (a single-force model); ``{"1N": [...], "2N": [...]}``, whose i-th images form trial i
+        (a combined model); or a study folder (or read study), grouped into trials by its manifest (``specimens``:
+        only these).
     same_surface : bool
         The images are presses of one surface: the peak law reads its period from all of them together, and the
-        surface's mean roughness and interval are added (a study groups by specimen on its own).
-    roi : str, optional
-        Where to read the line instead of the model's ROI: ``"center"``, ``"auto"`` or ``"X,Y,W,H"`` in px.
-    px_per_mm : float, optional
-        The images' scale, if not the model's (a study's own scale is used by default).
-    n_jobs : int
-        Images decoded at once.
-    progress : callable, optional
-        ``progress(iterable, total=, description=)`` wrapping the image stream.
+        surface's mean roughness and interval are added.
+    roi, px_per_mm : optional
+        Where to read the line (``"center"``, ``"auto"``, ``"X,Y,W,H"`` px) and the images' scale, if not the model's.
+    n_jobs, progress
+        Images decoded at once; ``progress(iterable, total=, description=)`` wrapping the image stream.
 
     Returns
     -------
     pandas.DataFrame
-        One row per trial; give the images one way (``images``, ``images_by_force`` or ``study``).
+        One row per trial.
 
     Examples
     --------
     A peak law fitted on square gratings of 2-5 mm, then two new surfaces, one far wider than any trained:
 
-    >>> import numpy as np
-    >>> from PIL import Image
-    >>> import roughsense as rs
+    >>> import numpy as np, cv2, roughsense as rs
     >>> from roughsense.model.modelfile import save_model
-    >>> from roughsense.model.predict_table import predict
-    >>> x_mm = np.arange(1920) / 34.9
     >>> def grating(period_mm, name):
-    ...     row = 128 + 100 * np.sign(np.sin(2 * np.pi * x_mm / period_mm))
-    ...     Image.fromarray(np.tile(row, (160, 1)).astype(np.uint8)).save(name)
-    ...     return name
+    ...     row = 128 + 100 * np.sign(np.sin(2 * np.pi * np.arange(1920) / 34.9 / period_mm))
+    ...     return name if cv2.imwrite(name, np.tile(row, (160, 1)).astype(np.uint8)) else None
     >>> periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
     >>> spectrum = rs.SpatialSpectrum().fit()
     >>> X = spectrum.transform([grating(p, f"train{i}.png") for i, p in enumerate(periods)])
     >>> law = rs.PeakPowerLaw(freq_per_mm=spectrum.freq_per_mm_).fit(X, (periods / 3) ** 0.9)
     >>> features = {"spectrum": spectrum.feature_definition(), "conditions": ["2N"]}
     >>> _ = save_model("law.json", law, feature_definition=features, training={"reference_specimen": "R3"})
-    >>> table = predict("law.json", [grating(2.5, "new_2N.png"), grating(8.0, "wide_2N.png")])
+    >>> table = rs.predict("law.json", [grating(2.5, "new_2N.png"), grating(8.0, "wide_2N.png")])
     >>> table[["image", "roughness_rel_R3", "extrapolates"]].round(2)
              image  roughness_rel_R3  extrapolates
     0   new_2N.png              0.85         False
     1  wide_2N.png              1.66          True
-    >>> table["outside"][1]
-    'period 7.97 mm outside the trained 2.00-5.01 mm'
     """
     from .predict import SensorOverride
 
+    _check_one_source(images, images_by_force, study, specimens)
+    return run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
+                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
+                          n_jobs=n_jobs, progress=progress).table
+
+
+def _check_one_source(images, images_by_force, study, specimens) -> None:
+    """Python's names in the refusal: the CLI has its own options and words for the same mistake."""
     given = [name for name, used in (("images", images), ("images_by_force", images_by_force),
                                      ("study", study is not None)) if used]
     if len(given) != 1:
@@ -299,6 +292,3 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
                           + (f" (got {' and '.join(given)})" if given else ""))
     if specimens and study is None:
         raise ConfigError("specimens selects from a study: pass study too")
-    return run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
-                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
-                          n_jobs=n_jobs, progress=progress).table
