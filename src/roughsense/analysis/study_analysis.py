@@ -51,7 +51,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
         period and a shape left out, and presses per surface (``held_out``, ``presses``; a sweep cell skips them).
     n_permutations, seed, models
         Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
-        folds and controls ("pls", "peak-law"; claims and signed-rank tests are the paper's PLS).
+        folds and controls (names in roughsense.model.families; claims and signed-rank tests are the paper's).
     n_jobs, progress : int, callable
         Threads computing the features; a wrapper of long loops (e.g. a progress bar).
 

@@ -244,7 +244,7 @@ def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> dic
     caption = job.caption
     if stamp is not None:
         figures.mark_simulated(fig, stamp)
-        caption = source.SIMULATED_CAPTION + caption
+        caption = source.STAMPED_CAPTION_PREFIX + caption
     data = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
     shown = "png" if style.figure_format == "pdf" else style.figure_format
     page = data if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)

@@ -22,7 +22,7 @@ NO_LOSO_SECTION = ("Leave-one-specimen-out was not run (--no-loso), so this repo
                    "predicts a grating left out of training; the LOO results below describe specimens seen in training.")
 
 #: The words put before a figure's caption when its data are simulated.
-SIMULATED_CAPTION = "Simulated data. "
+STAMPED_CAPTION_PREFIX = "Simulated data. "
 
 
 def _seed(provenance, missing: str = NOT_RECORDED):
