@@ -84,19 +84,22 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     record = _study_record(study, perceived, features, models=models, conditions=tuple(conditions),
                            cv_schemes=tuple(cv_schemes), max_components=max_components, seed=int(seed),
                            n_permutations=n_permutations)
-    jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
-    iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
-    fits, control_jobs = _fit_every_condition(record, iterator, features, study, combined_forces)
+    fits, control_jobs = _fit_every_condition(record, features, study, combined_forces, progress)
     record = replace(record, fits=fits)
-    controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
-    # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
-    controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
-    record = replace(record, controls=controls)
+    record = replace(record, controls=_controls_table(control_jobs, record.seed, n_jobs, progress))
     held_out, presses = _stricter(record, control_jobs) if stricter else (pd.DataFrame(),) * 2
     record = replace(record, held_out=held_out, presses=presses, tests=signed_rank_tests(record, conditions),
                      paper_predictive=paper_predictive())
     record = replace(record, claims=evaluate_claims(record))
     return replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
+
+
+def _controls_table(control_jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> pd.DataFrame:
+    """controls.csv: every fit against the training mean and the shuffled targets (controls.py)."""
+    controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
+    controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
+    return controls
 
 
 def _stricter(analysis: StudyResults, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -164,13 +167,17 @@ def _study_record(study: Study, perceived: pd.DataFrame, features: pd.DataFrame,
     )
 
 
-def _fit_every_condition(record: StudyResults, jobs, features: pd.DataFrame, study: Study,
-                         combined_forces: Sequence[str] | None) -> tuple[tuple[ConditionFit, ...], list[tuple]]:
+def _fit_every_condition(record: StudyResults, features: pd.DataFrame, study: Study,
+                         combined_forces: Sequence[str] | None,
+                         progress: Callable | None) -> tuple[tuple[ConditionFit, ...], list[tuple]]:
     """Cross-validate each (pad, condition, cv) and model: the fits, and the controls' jobs.
 
     X, y and the shufflings are built once per pad and condition and shared by both CV schemes, every model and
     the controls (so every model faces the same shuffled targets). Jobs come back grouped by model, as the tables.
     """
+    jobs = [(pad, condition, cv) for pad in study.pads for condition in record.conditions for cv in record.cv_schemes]
+    if progress:
+        jobs = progress(jobs, total=len(jobs), description="cross-validating")
     matrices: dict[tuple[str, str], tuple] = {}
     fits: list[ConditionFit] = []
     control_jobs: list[tuple] = []
