@@ -55,7 +55,7 @@ def _empty() -> pd.DataFrame:
     return pd.DataFrame()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # tables compare by identity: two analyses are equal only if they are one
 class StudyResults:
     """One study analysed: its facts, what was run, and everything computed from it, each once.
 
