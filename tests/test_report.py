@@ -12,10 +12,10 @@ import pandas as pd
 import pytest
 
 from roughsense import paper
+from roughsense.analysis.results import Provenance
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import OutputExistsError
 from roughsense.report import write_report
-from roughsense.analysis.results import Provenance
 from roughsense.report.control_tables import control_text, permutation_p_text
 from roughsense.report.provenance import figure_stamp
 
