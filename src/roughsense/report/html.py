@@ -181,8 +181,8 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         unseen_words=unseen_words(analysis),
         held_out=unseen_tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         presses=presses_table(analysis.presses),
-        unsure=unseen_tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
-                                                    else analysis.models[0])),
+        unsure=unseen_tables.unsure_table(unsure_specimens(
+            analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models else analysis.models[0])),
         components=paper_tables.components_table(
             paper_chosen.drop(columns="model"),
             {(f.pad, f.condition): f.nested_n_components for f in analysis.fits
