@@ -145,3 +145,24 @@ def test_the_report_and_cli_compare_no_family_name():
     run = subprocess.run(["grep", "-nE", r'"(pls|peak-law)"|PEAK_LAW|\bPLS\b *[!=]=|model ?[!=]= ?PLS', *map(str, files)],
                          capture_output=True, text=True)
     assert run.stdout == ""
+
+
+def test_the_study_command_takes_study_and_echoes_what_the_report_package_words(tmp_path, run_cli, monkeypatch):
+    """``study --study DIR`` (the name fit, predict and features use); the console prints report.answer's lines and the
+    page's source is report.provenance's label, for a user's folder (no [simulation] table)."""
+    from roughsense.io.study import read_study
+
+    from .test_dataset import make_study
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    folder = make_study(tmp_path / "study", repetitions=2)
+    out = tmp_path / "report"
+    code, stdout, err = run_cli("study", "--study", folder, "--out", out, "--max-components", "2", "--permutations", "0",
+                                "--no-loso")
+    assert code == 0, err
+    expected = console_lines(analyse_study(read_study(folder), max_components=2, n_permutations=0,
+                                           cv_schemes=("loo",)))
+    assert stdout.splitlines()[:len(expected)] == expected and expected[0] == provenance.NO_LOSO_CONSOLE
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert provenance.source_label(Provenance("user"), builtin=False) in html
+    assert provenance.NO_LOSO_ANSWER in html and "SIMULATED" not in html
