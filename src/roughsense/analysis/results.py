@@ -65,7 +65,8 @@ class StudyResults:
     ``conditions``, ``cv_schemes``, ``max_components``, ``seed`` and ``n_permutations``. Computed once: ``fits``, and
     the tables ``controls`` (controls.CONTROL_COLUMNS), ``tests``, ``claims`` (claims.CLAIM_COLUMNS),
     ``paper_predictive``, ``held_out`` (HELD_OUT_COLUMNS), ``presses`` (PRESS_COLUMNS) and ``unseen`` (UNSEEN_COLUMNS;
-    empty without LOSO), and ``headline_condition``, the condition every "surface left out" summary quotes.
+    empty without LOSO), ``headline_condition``, the condition every "surface left out" summary quotes, and ``unsure``
+    (UNSURE_COLUMNS), the held-out specimens fit's default family (else the first fitted) is least sure of.
     DataFrames stay mutable objects, but nothing assigns to a field after :func:`analyse_study` built the record.
     """
 
@@ -94,6 +95,7 @@ class StudyResults:
     presses: pd.DataFrame = field(default_factory=_empty)
     unseen: pd.DataFrame = field(default_factory=_empty)
     headline_condition: str = ""
+    unsure: pd.DataFrame = field(default_factory=_empty)
 
     def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PAPER_MODEL) -> ConditionFit:
         """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""

@@ -21,7 +21,7 @@ import pandas as pd
 from .. import defaults, paper
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.families import MODEL_FAMILIES, check_model_name
+from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
@@ -31,7 +31,7 @@ from .presses import presses_analysis
 from .results import CV_SCHEMES, RESULT_COLUMNS, Provenance, StudyAnalysis, StudyResults  # noqa: F401 (re-exported for one release)
 from .signed_rank_tests import paper_comparability, signed_rank_tests
 from .spread import paper_predictive
-from .unseen import headline_condition, unseen_summary
+from .unseen import headline_condition, unseen_summary, unsure_specimens
 
 
 def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = defaults.MAX_COMPONENTS,
@@ -91,7 +91,8 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     record = replace(record, held_out=held_out, presses=presses, tests=signed_rank_tests(record, conditions),
                      paper_predictive=paper_predictive())
     record = replace(record, claims=evaluate_claims(record))
-    return replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
+    record = replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
+    return replace(record, unsure=unsure_specimens(record, DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]))
 
 
 def _controls_table(control_jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> pd.DataFrame:

@@ -30,10 +30,9 @@ from .._util.text import spreadsheet_safe
 from .._util.workers import process_pool
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
-from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
-from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+from ..model.families import PAPER_MODEL
 from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
 from .answer import answer_lines, answer_table
@@ -181,8 +180,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         unseen_words=unseen_words(analysis),
         held_out=unseen_tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         presses=presses_table(analysis.presses),
-        unsure=unseen_tables.unsure_table(unsure_specimens(
-            analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models else analysis.models[0])),
+        unsure=unseen_tables.unsure_table(analysis.unsure),
         components=paper_tables.components_table(
             paper_chosen.drop(columns="model"),
             {(f.pad, f.condition): f.nested_n_components for f in analysis.fits

@@ -99,7 +99,7 @@ def paper_predictive_table(paper_predictive: pd.DataFrame) -> dict:
 
 
 def unsure_table(unsure: pd.DataFrame) -> dict:
-    """analysis.unseen.unsure_specimens() as a table: the held-out surfaces the default model is least sure of."""
+    """analysis.unsure (unseen.unsure_specimens) as a table: the held-out surfaces the default model is least sure of."""
     rows = [[_cell(r.pad), _cell(r.specimen), _cell(f"{r.perceived:.2f}"), _cell(f"{r.prediction:.2f}"),
              _cell(f"{r.pi90_low:.2f}-{r.pi90_high:.2f}"),
              _cell("yes" if r.covered else f"no: x{r.missed_by:.2f} {'below' if r.perceived < r.pi90_low else 'above'}"),
