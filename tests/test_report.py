@@ -12,10 +12,12 @@ import pandas as pd
 import pytest
 
 from roughsense import paper
+from roughsense.analysis.results import Provenance
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.errors import OutputExistsError
 from roughsense.report import write_report
-from roughsense.report.tables import control_text, permutation_p_text
+from roughsense.report.control_tables import control_text, permutation_p_text
+from roughsense.report.provenance import figure_stamp
 
 from .test_study_analysis import synthetic_study
 
@@ -420,7 +422,7 @@ def test_the_simulated_stamp_sits_above_every_axes_and_component_ticks_are_whole
     ax.set_xlabel("x label")
     ax.set_title("title")
     fig.tight_layout()
-    stamp = figures.mark_simulated(fig).texts[-1]
+    stamp = figures.mark_simulated(fig, figure_stamp(Provenance("simulated", seed=0))).texts[-1]
     renderer = fig.canvas.get_renderer()
     box = stamp.get_window_extent(renderer)
     for artist in (ax, ax.xaxis.label, ax.yaxis.label, ax.title, *ax.get_xticklabels(), *ax.get_yticklabels()):
@@ -449,7 +451,7 @@ def test_the_stamp_grows_the_figure_and_keeps_every_axes_size_in_inches():
         return [np.array(ax.get_position().bounds) * np.tile(fig.get_size_inches(), 2) for ax in axes.flat]
 
     before = boxes_in()
-    figures.mark_simulated(fig)
+    figures.mark_simulated(fig, figure_stamp(Provenance("simulated", seed=0)))
     grown = fig.get_size_inches()[1] - 4.0
     assert 0.1 < grown < 0.6 and fig.get_size_inches()[0] == 6.0
     assert np.allclose(before, boxes_in())
@@ -548,10 +550,10 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
     unseen = pd.DataFrame({"model": ["pls", "pls"], "pad": ["smooth", "fingerprint"], "condition": ["combined"] * 2,
                            "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
                            "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
-    analysis = SimpleNamespace(unseen_summary=lambda: unseen, held_out=pd.DataFrame(), simulation=None, synthetic=None)
+    analysis = SimpleNamespace(unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance())
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
-    from roughsense.cli.study_report import which_model_line
+    from roughsense.report.answer import which_model_line
 
     assert "pls passes in 1 of 2 (and in 1 on pooled RMSE only)" in which_model_line(unseen)  # the terminal, too
 
@@ -574,7 +576,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
                            "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
                            "jackknife_plus_median_factor": [float("nan"), 1.72]})
-    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen, presses=presses))
+    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
         ["peak law", "a grating left out of training",
@@ -588,7 +590,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     # too few specimens: the jackknife+ has no finite width, and an infinite interval "held 100%" says nothing
     unseen["jackknife_plus_coverage"] = [float("nan"), 1.0]
     unseen["jackknife_plus_median_factor"] = [float("nan"), float("inf")]
-    table = answer_table(SimpleNamespace(held_out=held, unseen_summary=lambda: unseen, presses=presses))
+    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
                                    "press(es) per surface")
     from roughsense.report.tables import _jackknife_text

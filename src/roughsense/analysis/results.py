@@ -1,19 +1,21 @@
-"""A study's analysed results: every fit's tables and the views the report and the command line render.
+"""A study's analysed results, computed once: every fit, control and summary the report and the command line render.
 
-The record is filled by :func:`roughsense.analysis.study_analysis.analyse_study` only; its views (``results``,
-``predictions``, ``cv_table`` ...) compute nothing new, they arrange what the fits hold."""
+:func:`roughsense.analysis.study_analysis.analyse_study` is the only builder. The record is frozen, so a renderer
+cannot change what another renderer reads; its views (``results``, ``predictions``, ``cv_table`` ...) compute nothing
+new, they arrange what the fits hold. Where the data came from (:class:`Provenance`) is decided here once, from the
+study folder, and every sentence about it is worded in one place (roughsense.report.provenance)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 
-from ..model.families import PLS
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
+from .. import defaults
+from ..model.families import PAPER_MODEL
 from .family_fits import ConditionFit
 from .metrics import shape_summary
-from .unseen import unseen_summary
 
 CV_SCHEMES = ("loo", "loso")
 
@@ -23,40 +25,79 @@ RESULT_COLUMNS = ["pad", "specimen", "condition", "pred_mean", "pred_sd", "ovl",
                   "ovl_predictive", "model"]
 
 
-@dataclass
-class StudyAnalysis:
+@dataclass(frozen=True)
+class Provenance:
+    """Where a study's images and ratings came from, which decides what its numbers can claim.
+
+    ``kind``: "simulated" (study.toml has a [simulation] table: the digital twin wrote it), "synthetic" (``[study]
+    synthetic`` says the images are made, not measured, e.g. an example) or "user" (neither: findings about real
+    data). ``seed`` and ``ratings_from`` are the simulation's (None where not recorded or not simulated); ``note`` is
+    the synthetic folder's own account; ``settings`` the whole [simulation] table, shown in the report as written.
+    """
+
+    kind: Literal["simulated", "synthetic", "user"] = "user"
+    seed: object = None
+    ratings_from: str | None = None
+    note: str | None = None
+    settings: dict | None = None
+
+    @classmethod
+    def of(cls, study) -> Provenance:
+        """The provenance of a read study folder (roughsense.io.study.Study)."""
+        simulation, synthetic = study.simulation, study.synthetic
+        if simulation is not None:
+            return cls("simulated", simulation.get("seed"), simulation.get("ratings_from", "paper"), synthetic,
+                       dict(simulation))
+        return cls("synthetic" if synthetic else "user", note=synthetic or None)
+
+
+def _empty() -> pd.DataFrame:
+    return pd.DataFrame()
+
+
+@dataclass(frozen=True, eq=False)  # tables compare by identity: two analyses are equal only if they are one
+class StudyResults:
+    """One study analysed: its facts, what was run, and everything computed from it, each once.
+
+    The study: ``perceived`` (targets per specimen), ``shapes``, ``wavelengths``, ``freq_per_mm`` and ``mean_spectra``
+    (per pad x specimen x condition), ``provenance``, and whether the paper's per-specimen values describe it
+    (``paper_pads``, ``paper_note``). What was run: ``models`` (in the order of every table, the paper's first),
+    ``conditions``, ``cv_schemes``, ``max_components``, ``seed`` and ``n_permutations``. Computed once: ``fits``, and
+    the tables ``controls`` (controls.CONTROL_COLUMNS), ``tests``, ``claims`` (claims.CLAIM_COLUMNS),
+    ``paper_predictive``, ``held_out`` (HELD_OUT_COLUMNS), ``presses`` (PRESS_COLUMNS) and ``unseen`` (UNSEEN_COLUMNS;
+    empty without LOSO), ``headline_condition``, the condition every "surface left out" summary quotes, and ``unsure``
+    (UNSURE_COLUMNS), the held-out specimens fit's default family (else the first fitted) is least sure of.
+    DataFrames stay mutable objects, but nothing assigns to a field after :func:`analyse_study` built the record.
+    """
+
     study_name: str
     reference_specimen: str
     perceived: pd.DataFrame
     shapes: dict[str, str]
     freq_per_mm: np.ndarray
     mean_spectra: pd.DataFrame
-    fits: list[ConditionFit] = field(default_factory=list)
-    tests: pd.DataFrame = field(default_factory=pd.DataFrame)
-    max_components: int = DEFAULT_MAX_COMPONENTS
-    #: One row per pad x condition x CV scheme (controls.CONTROL_COLUMNS): permutation test and null model.
-    controls: pd.DataFrame = field(default_factory=pd.DataFrame)
-    #: The paper's claims, each with our statistic, p and verdict (claims.CLAIM_COLUMNS).
-    claims: pd.DataFrame = field(default_factory=pd.DataFrame)
-    #: The paper's published predictions with the predictive OVL of a spread model (spread.paper_predictive).
-    paper_predictive: pd.DataFrame = field(default_factory=pd.DataFrame)
-    #: The study's [simulation] table (seed and settings) when a simulator wrote it; None for real data.
-    simulation: dict | None = None
-    #: study.toml's ``[study] synthetic``: where a folder's synthetic images came from (not measurements); None else.
-    synthetic: str | None = None
-    #: Whether the paper's per-specimen values describe this study, per pad, and why not where they do not.
+    wavelengths: dict[str, float] = field(default_factory=dict)
+    provenance: Provenance = Provenance()
     paper_pads: tuple[str, ...] = ()
     paper_note: str = ""
-    seed: int = 0
-    wavelengths: dict[str, float] = field(default_factory=dict)
-    #: The model families fitted, in the order of every table (the paper's PLS first).
-    models: tuple[str, ...] = (PLS,)
-    #: Every LOSO fit again with a period, and a shape, held out (analysis/held_out.py; HELD_OUT_COLUMNS).
-    held_out: pd.DataFrame = field(default_factory=pd.DataFrame)
-    #: A held-out surface's error against the presses it is read from (analysis/presses.py; PRESS_COLUMNS).
-    presses: pd.DataFrame = field(default_factory=pd.DataFrame)
+    models: tuple[str, ...] = (PAPER_MODEL,)
+    conditions: tuple[str, ...] = ()
+    cv_schemes: tuple[str, ...] = CV_SCHEMES
+    max_components: int = defaults.MAX_COMPONENTS
+    seed: int = defaults.SEED
+    n_permutations: int = defaults.PERMUTATIONS
+    fits: tuple[ConditionFit, ...] = ()
+    controls: pd.DataFrame = field(default_factory=_empty)
+    tests: pd.DataFrame = field(default_factory=_empty)
+    claims: pd.DataFrame = field(default_factory=_empty)
+    paper_predictive: pd.DataFrame = field(default_factory=_empty)
+    held_out: pd.DataFrame = field(default_factory=_empty)
+    presses: pd.DataFrame = field(default_factory=_empty)
+    unseen: pd.DataFrame = field(default_factory=_empty)
+    headline_condition: str = ""
+    unsure: pd.DataFrame = field(default_factory=_empty)
 
-    def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PLS) -> ConditionFit:
+    def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PAPER_MODEL) -> ConditionFit:
         """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""
         for item in self.fits:
             if (item.pad, item.condition, item.cv, item.model) == (pad, condition, cv, model):
@@ -65,12 +106,30 @@ class StudyAnalysis:
         raise KeyError(f"no model for {model} {pad} {condition} {cv}; fitted: {fitted}")
 
     def ordered_fits(self) -> list[ConditionFit]:
-        """The fits grouped by model family (PLS's rows first, as they were before any other family existed)."""
+        """The fits grouped by model family (the paper's rows first, as they were before any other family existed)."""
         return [f for model in self.models for f in self.fits if f.model == model]
 
     @property
     def pads(self) -> list[str]:
         return list(dict.fromkeys(f.pad for f in self.fits))
+
+    def unseen_summary(self) -> pd.DataFrame:
+        """How well each model predicts a surface it never saw (analysis/unseen.py): the table analyse_study made."""
+        return self.unseen
+
+    # The study folder's tables as the analysis used to hold them, for code that still reads them; re-exported for
+    # one release: read ``provenance`` instead.
+    @property
+    def simulation(self) -> dict | None:
+        return self.provenance.settings
+
+    @property
+    def synthetic(self) -> str | None:
+        return self.provenance.note
+
+    @property
+    def simulated(self) -> bool:
+        return self.provenance.kind == "simulated"
 
     def results(self, cv: str = "loo") -> pd.DataFrame:
         """Per-specimen results in the schema of the paper's tables (paper_results.csv)."""
@@ -116,15 +175,7 @@ class StudyAnalysis:
             for f in self.ordered_fits()
         ])
 
-    def unseen_summary(self) -> pd.DataFrame:
-        """How well each model predicts a surface it never saw: nested LOSO per model x pad x condition (unseen.py)."""
-        return unseen_summary(self)
-
-    @property
-    def simulated(self) -> bool:
-        return self.simulation is not None
-
-    def summary(self, cv: str, column: str, model: str = PLS, results: pd.DataFrame | None = None) -> pd.DataFrame:
+    def summary(self, cv: str, column: str, model: str = PAPER_MODEL, results: pd.DataFrame | None = None) -> pd.DataFrame:
         """Mean ± SD of ``column`` over rectangular, circular and all specimens, per pad x condition, of one model.
 
         ``results``: ``self.results(cv)`` if the caller holds it already (a report summarises it a dozen times)."""
@@ -137,3 +188,7 @@ class StudyAnalysis:
             summary.insert(1, "condition", condition)
             frames.append(summary)
         return pd.concat(frames, ignore_index=True)
+
+
+#: The record's name before it was frozen; re-exported for one release.
+StudyAnalysis = StudyResults

@@ -8,22 +8,23 @@ from collections.abc import Sequence
 import pandas as pd
 
 from .. import paper
-from ..model.families import PLS
+from ..model.families import family
 from .metrics import compare_conditions, signed_rank
-from .results import CV_SCHEMES, StudyAnalysis
+from .results import CV_SCHEMES, StudyResults
 
 
-def signed_rank_tests(analysis: StudyAnalysis, conditions: Sequence[str]) -> pd.DataFrame:
+def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.DataFrame:
     """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
 
     Of the paper's PLS only (tests.csv has no model column): these are the paper's own comparisons.
     """
     frames = []
     for cv in CV_SCHEMES:
-        if not any(f.cv == cv and f.model == PLS for f in analysis.fits):
+        if not any(f.cv == cv and family(f.model).paper for f in analysis.fits):
             continue
         results = analysis.results(cv)
-        results = results[results["model"] == PLS].drop(columns="model")  # the paper's model, as the paper tested
+        paper_rows = results["model"].map(lambda name: family(name).paper).astype(bool)
+        results = results[paper_rows].drop(columns="model")  # the paper's model, as the paper tested
         singles = [c for c in conditions if c != paper.COMBINED]
         for pad in analysis.pads:
             if paper.COMBINED not in conditions or not singles:

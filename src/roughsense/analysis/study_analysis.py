@@ -13,31 +13,32 @@ targets, so its out-of-fold predictions are its fit on each training fold.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
-from .. import paper
+from .. import defaults, paper
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.families import MODEL_FAMILIES, check_model_name
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
+from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
-from .family_fits import ConditionFit, fit_all, law_settings  # noqa: F401 (re-exported for one release)
+from .family_fits import ConditionFit, fit_all, law_settings
 from .held_out import held_out_analysis
 from .presses import presses_analysis
-from .results import CV_SCHEMES, RESULT_COLUMNS, StudyAnalysis  # noqa: F401 (re-exported)
+from .results import CV_SCHEMES, RESULT_COLUMNS, Provenance, StudyAnalysis, StudyResults  # noqa: F401 (re-exported for one release)
 from .signed_rank_tests import paper_comparability, signed_rank_tests
 from .spread import paper_predictive
+from .unseen import headline_condition, unseen_summary, unsure_specimens
 
 
-def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = DEFAULT_MAX_COMPONENTS,
+def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = defaults.MAX_COMPONENTS,
                   conditions: Sequence[str] = paper.PAPER_CONDITIONS, cv_schemes: Sequence[str] = CV_SCHEMES,
-                  n_jobs: int = 1, progress: Callable | None = None, n_permutations: int = _controls.DEFAULT_PERMUTATIONS,
-                  seed: int = 0, combined_forces: Sequence[str] | None = None,
-                  models: Sequence[str] = MODEL_FAMILIES, stricter: bool = True) -> StudyAnalysis:
+                  n_jobs: int = 1, progress: Callable | None = None, n_permutations: int = defaults.PERMUTATIONS,
+                  seed: int = defaults.SEED, combined_forces: Sequence[str] | None = None,
+                  models: Sequence[str] = MODEL_FAMILIES, stricter: bool = True) -> StudyResults:
     """The paper's whole analysis of a validated study, with every model's controls and the claims' verdicts.
 
     Parameters
@@ -50,14 +51,15 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
         period and a shape left out, and presses per surface (``held_out``, ``presses``; a sweep cell skips them).
     n_permutations, seed, models
         Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
-        folds and controls ("pls", "peak-law"; claims and signed-rank tests are the paper's PLS).
+        folds and controls (names in roughsense.model.families; claims and signed-rank tests are the paper's).
     n_jobs, progress : int, callable
         Threads computing the features; a wrapper of long loops (e.g. a progress bar).
 
     Returns
     -------
-    StudyAnalysis
-        ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``, ``presses``: the report's content.
+    StudyResults
+        Frozen, every table computed once: ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``,
+        ``presses``, ``unseen``, ``headline_condition`` and ``provenance``: what the report renders.
 
     Examples
     --------
@@ -79,23 +81,29 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
     _check_repetitions(features, study)
-    analysis = _empty_analysis(study, perceived, features, max_components, seed, models)
-    analysis.paper_pads, analysis.paper_note = paper_comparability(
-        study.specimen_names, study.pads, conditions, study.reference_specimen)
-    jobs = [(pad, condition, cv) for pad in study.pads for condition in conditions for cv in cv_schemes]
-    iterator = progress(jobs, total=len(jobs), description="cross-validating") if progress else jobs
-    control_jobs = _fit_every_condition(analysis, iterator, features, study, combined_forces, n_permutations)
-    analysis.controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    record = _study_record(study, perceived, features, models=models, conditions=tuple(conditions),
+                           cv_schemes=tuple(cv_schemes), max_components=max_components, seed=int(seed),
+                           n_permutations=n_permutations)
+    fits, control_jobs = _fit_every_condition(record, features, study, combined_forces, progress)
+    record = replace(record, fits=fits)
+    record = replace(record, controls=_controls_table(control_jobs, record.seed, n_jobs, progress))
+    held_out, presses = _stricter(record, control_jobs) if stricter else (pd.DataFrame(),) * 2
+    record = replace(record, held_out=held_out, presses=presses, tests=signed_rank_tests(record, conditions),
+                     paper_predictive=paper_predictive())
+    record = replace(record, claims=evaluate_claims(record))
+    record = replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
+    return replace(record, unsure=unsure_specimens(record, DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]))
+
+
+def _controls_table(control_jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> pd.DataFrame:
+    """controls.csv: every fit against the training mean and the shuffled targets (controls.py)."""
+    controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
-    analysis.controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
-    analysis.held_out, analysis.presses = _stricter(analysis, control_jobs) if stricter else (pd.DataFrame(),) * 2
-    analysis.tests = signed_rank_tests(analysis, conditions)
-    analysis.paper_predictive = paper_predictive()
-    analysis.claims = evaluate_claims(analysis)
-    return analysis
+    controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
+    return controls
 
 
-def _stricter(analysis: StudyAnalysis, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _stricter(analysis: StudyResults, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
     return held_out_analysis(analysis, control_jobs), presses_analysis(analysis, control_jobs)
 
@@ -136,49 +144,56 @@ def _check_repetitions(features: pd.DataFrame, study: Study) -> None:
         )
 
 
-def _empty_analysis(study: Study, perceived: pd.DataFrame, features: pd.DataFrame, max_components: int,
-                    seed: int, models: tuple[str, ...]) -> StudyAnalysis:
-    """The analysis's record of the study (targets, shapes, mean spectra) before any model is fitted."""
+def _study_record(study: Study, perceived: pd.DataFrame, features: pd.DataFrame, **run) -> StudyResults:
+    """The analysis's record of the study (targets, shapes, mean spectra, provenance) and of what is run (``run``:
+    models, conditions, CV schemes, max_components, seed, n_permutations), before any model is fitted."""
     freq_columns = dataset.frequency_columns(features)
     mean_spectra = dataset.plain_names(
         features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index())
-    return StudyAnalysis(
+    paper_pads, paper_note = paper_comparability(
+        study.specimen_names, study.pads, run["conditions"], study.reference_specimen)
+    return StudyResults(
         study_name=study.name,
         reference_specimen=study.reference_specimen,
         perceived=perceived,
         shapes=dict(zip(study.specimens["specimen"], study.specimens["shape"])),
         freq_per_mm=dataset.column_frequencies(freq_columns),
         mean_spectra=mean_spectra,
-        max_components=max_components,
-        simulation=study.simulation,
-        synthetic=study.synthetic,
-        seed=int(seed),
-        models=models,
+        provenance=Provenance.of(study),
+        paper_pads=paper_pads,
+        paper_note=paper_note,
         wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
             "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
+        **run,
     )
 
 
-def _fit_every_condition(analysis: StudyAnalysis, jobs, features: pd.DataFrame, study: Study,
-                         combined_forces: Sequence[str] | None, n_permutations: int) -> list[tuple]:
-    """Cross-validate each (pad, condition, cv) and model into ``analysis.fits``; returns the controls' jobs.
+def _fit_every_condition(record: StudyResults, features: pd.DataFrame, study: Study,
+                         combined_forces: Sequence[str] | None,
+                         progress: Callable | None) -> tuple[tuple[ConditionFit, ...], list[tuple]]:
+    """Cross-validate each (pad, condition, cv) and model: the fits, and the controls' jobs.
 
     X, y and the shufflings are built once per pad and condition and shared by both CV schemes, every model and
     the controls (so every model faces the same shuffled targets). Jobs come back grouped by model, as the tables.
     """
+    jobs = [(pad, condition, cv) for pad in study.pads for condition in record.conditions for cv in record.cv_schemes]
+    if progress:
+        jobs = progress(jobs, total=len(jobs), description="cross-validating")
     matrices: dict[tuple[str, str], tuple] = {}
+    fits: list[ConditionFit] = []
     control_jobs: list[tuple] = []
     for pad, condition, cv in jobs:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
-            y = dataset.targets(meta, analysis.perceived, path=study.root / RATINGS_CSV)
+            y = dataset.targets(meta, record.perceived, path=study.root / RATINGS_CSV)
             specimens = meta["specimen"].astype(str).to_numpy()
-            permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, analysis.seed)
-            law = law_settings(X, analysis.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
+            permutations = _controls.specimen_permutations(len(pd.unique(specimens)), record.n_permutations,
+                                                           record.seed)
+            law = law_settings(X, record.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
             matrices[(pad, condition)] = (X, y, meta, specimens, permutations, law)
         X, y, meta, specimens, permutations, law = matrices[(pad, condition)]
-        for fit in fit_all(analysis.models, X, y, meta, analysis.perceived, pad, condition, cv, law,
-                           max_components=analysis.max_components, seed=analysis.seed):
-            analysis.fits.append(fit)
+        for fit in fit_all(record.models, X, y, meta, record.perceived, pad, condition, cv, law,
+                           max_components=record.max_components, seed=record.seed):
+            fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
-    return sorted(control_jobs, key=lambda job: analysis.models.index(job[0].model))
+    return tuple(fits), sorted(control_jobs, key=lambda job: record.models.index(job[0].model))

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..model.families import PAPER_MODEL
 from ..model.interval import held_out_coverage
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
@@ -25,6 +26,13 @@ UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
                   "pi90_coverage_specimens", "jackknife_plus_coverage", "jackknife_plus_median_factor",
                   "jackknife_plus_misses", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
+
+
+def headline_condition(conditions) -> str:
+    """The condition every "surface left out" summary quotes: combined where it was analysed (every force's images
+    together, what a user scores with), else the last one analysed."""
+    conditions = list(conditions)
+    return COMBINED if COMBINED in conditions else conditions[-1]
 
 
 def null_specimen_rmse(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.Series:
@@ -54,7 +62,7 @@ def _spearman(table: pd.DataFrame, reference: str) -> tuple[float, float, int]:
 def _control(controls: pd.DataFrame, fit) -> dict:
     if controls is None or controls.empty:
         return {"permutation_p": float("nan"), "n_permutations": 0, "passes": None}
-    model = controls.get("model", "pls")
+    model = controls.get("model", PAPER_MODEL)  # controls.csv before a second family had no model column
     rows = controls[(controls["pad"] == fit.pad) & (controls["condition"] == fit.condition) & (controls["cv"] == "loso")
                     & (model == fit.model)]
     if rows.empty:
@@ -143,8 +151,7 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
     fits = [f for f in analysis.ordered_fits() if f.cv == "loso" and f.model == model]
     if not fits:
         return pd.DataFrame(columns=UNSURE_COLUMNS)
-    conditions = list(dict.fromkeys(f.condition for f in fits))
-    condition = COMBINED if COMBINED in conditions else conditions[-1]
+    condition = headline_condition(dict.fromkeys(f.condition for f in fits))
     perceived = analysis.perceived.set_index("specimen")["gmean"]
     rows = []
     for fit in (f for f in fits if f.condition == condition):

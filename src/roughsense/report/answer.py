@@ -1,37 +1,35 @@
-"""The report's first screen: the answer to the question users ask, in a few lines, before anything else.
+"""The report's first screen and the console's summary: the answer to the question users ask, in a few lines.
 
 Which model to use for a new surface, how wrong it is with a grating, a period and a shape left out of training
 against the training mean, how often its 90 % interval held the panel's value, where it passes its controls, and
 how far to trust it (whose images these are). Every number comes from the analysis's held-out summaries
-(analysis/unseen.py, analysis/held_out.py), the same tables the report shows below, so the first screen and the
-tables cannot disagree.
+(analysis/unseen.py, analysis/held_out.py), the same tables the report shows below, so the first screen, the
+console and the tables cannot disagree.
 """
 from __future__ import annotations
 
+import math
+
 import pandas as pd
 
+from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
+from ..analysis.unseen import headline_condition
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
-from ..paper import COMBINED
-from .tables import jackknife_phrase, model_title
+from . import provenance as source
+from .control_tables import permutation_p_text
+from .paper_tables import is_paper_model, model_title
+from .unseen_tables import jackknife_phrase
 
 
-def answer_lines(analysis, unseen: pd.DataFrame | None = None) -> list[str]:
-    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it.
-
-    ``unseen``: ``analysis.unseen_summary()`` if the caller holds it (a report reads it in four places)."""
-    unseen = analysis.unseen_summary() if unseen is None else unseen
+def answer_lines(analysis) -> list[str]:
+    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it."""
+    unseen = analysis.unseen
     if unseen.empty:
-        return ["Not answered: leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any "
-                "model predicts a surface left out of training. The leave-one-out results below describe specimens "
-                "seen in training."]
+        return [source.NO_LOSO_ANSWER]
     passes = unseen["passes"].fillna(False).astype(bool)
-    lines = [_use_line(unseen, passes), _passes_line(unseen, passes), _trust_line(analysis)]
+    lines = [_use_line(unseen, passes), _passes_line(unseen, passes), source.trust_line(analysis.provenance)]
     return [line for line in lines if line]
-
-
-def _condition(unseen: pd.DataFrame) -> str:
-    return COMBINED if (unseen["condition"] == COMBINED).any() else str(unseen["condition"].iloc[-1])
 
 
 #: What the report and the console say when no family passes its controls for surfaces left out of training.
@@ -52,7 +50,7 @@ def recommended_model(unseen: pd.DataFrame) -> str | None:
 
 def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
-    condition = _condition(unseen)
+    condition = headline_condition(unseen["condition"])
     model = recommended_model(unseen)
     if model is None:
         return NO_MODEL
@@ -71,7 +69,7 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
             "a period or a shape left out.")
 
 
-def answer_table(analysis, unseen: pd.DataFrame | None = None) -> dict | None:
+def answer_table(analysis) -> dict | None:
     """The first screen's table: per model and held-out scheme (combined condition), each pad's mean per-specimen
     RMSE beside the training mean's and its verdict, and the nested jackknife+ surface interval where there is one.
 
@@ -81,8 +79,8 @@ def answer_table(analysis, unseen: pd.DataFrame | None = None) -> dict | None:
     held = getattr(analysis, "held_out", None)
     if held is None or held.empty:
         return None
-    condition = _condition(held)
-    unseen = (analysis.unseen_summary() if unseen is None else unseen).set_index(["model", "pad", "condition"])
+    condition = headline_condition(held["condition"])
+    unseen = analysis.unseen.set_index(["model", "pad", "condition"])
     presses = getattr(analysis, "presses", pd.DataFrame())
     unseen["presses_needed"] = [_presses_needed(presses, *key) for key in unseen.index]
     pads = list(dict.fromkeys(held["pad"]))
@@ -160,14 +158,59 @@ def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
             "reproducing the paper, not for new surfaces where it fails them.")
 
 
-def _trust_line(analysis) -> str:
-    """How far to trust the numbers: whose images and ratings these are."""
-    if analysis.simulation is None and getattr(analysis, "synthetic", None):
-        return (f"How far to trust it: the images are synthetic ({analysis.synthetic}), not measurements; the numbers "
-                "illustrate the analysis, they are no finding about a real sensor.")
-    if analysis.simulation is None:
-        return ("How far to trust it: these are your images and ratings; the numbers are findings about them, for "
-                "surfaces like the ones held out here.")
-    seed = analysis.simulation.get("seed", "not recorded")
-    return (f"How far to trust it: SIMULATED data (the digital twin, seed {seed}), not measurements. The numbers hold "
-            "for the twin; a real rig confirms them only with real images and ratings of surfaces held out of training.")
+def console_lines(analysis) -> list[str]:
+    """What the study command prints once its report is written: surfaces left out (:func:`unseen_lines`), then the
+    paper's model under the paper's protocol, per pad and condition."""
+    lines = unseen_lines(analysis)
+    loo = analysis.results("loo")
+    loo = loo[loo["model"].map(is_paper_model).astype(bool)]
+    for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
+        count = analysis.condition_fit(pad, condition, "loo", PAPER_MODEL).best_n_components
+        lines.append(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL "
+                     f"{group['ovl'].mean():.3f}, {counted(count, 'component')} ({PAPER_MODEL}, LOO)")
+    return lines
+
+
+def unseen_lines(analysis) -> list[str]:
+    """The question users ask first, in a headline and one line per pad: how well each model predicts an unseen
+    surface (nested LOSO mean per-specimen RMSE against the training mean's, permutation p, Spearman's rho)."""
+    unseen = analysis.unseen
+    if unseen.empty:
+        return [source.NO_LOSO_CONSOLE]
+    condition = analysis.headline_condition
+    rows = unseen[unseen["condition"] == condition]
+    best = rows.loc[rows["rmse"].idxmin()]
+    lines = [f"Held-out surfaces (a grating left out of training: nested leave-one-specimen-out, {condition}; "
+             "mean per-specimen RMSE, lower is better): "
+             f"lowest {best['model']} on the {best['pad']} pad, {best['rmse']:.2f} vs the training mean's "
+             f"{best['null_rmse']:.2f}."]
+    for pad, group in rows.groupby("pad", sort=False):
+        parts = []
+        for r in group.itertuples():
+            p = f"p {permutation_p_text(r.permutation_p, r.n_permutations, at_most='<=')}" if r.n_permutations \
+                else "no permutations"
+            verdict = "" if r.passes else ", fails controls"
+            verdict += ", not below the training mean" if r.rmse >= r.null_rmse else ""
+            cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"
+            parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{cover}{verdict})")
+        lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
+    return [*lines, which_model_line(unseen)]
+
+
+def which_model_line(unseen: pd.DataFrame) -> str:
+    """Which model to use for what, in one sentence: the first screen's verdict (:func:`recommended_model`), so the
+    console and the report never disagree; the paper's model reproduces the paper."""
+    passes = unseen["passes"].fillna(False).astype(bool)
+    below = unseen["rmse"] < unseen["null_rmse"]  # a pass on pooled RMSE alone is not counted as one
+    parts = []
+    for name, rows in unseen.groupby("model", sort=False):
+        pooled_only = int((passes[rows.index] & ~below[rows.index]).sum())
+        parts.append(f"{name} passes in {int((passes[rows.index] & below[rows.index]).sum())} of {len(rows)}"
+                     + (f" (and in {pooled_only} on pooled RMSE only)" if pooled_only else ""))
+    controls = f"Controls with a grating left out, per pad x condition: {', '.join(parts)}."
+    model = recommended_model(unseen)
+    if model is None:
+        return f"Which model to use: none. {NO_MODEL} {PAPER_MODEL} reproduces the paper. {controls}"
+    default = " (roughsense fit's default)" if model == DEFAULT_MODEL else f" (roughsense fit --model {model})"
+    return (f"Which model to use: {model}{default} to score surfaces left out of training, where it passes its "
+            f"controls; {PAPER_MODEL} to reproduce the paper. {controls}")

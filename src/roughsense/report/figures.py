@@ -14,15 +14,16 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import MaxNLocator
 
-from .. import paper
+from .. import defaults, paper
+from ..model.families import registry
 from ..paper import COMBINED
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
 
 #: The formats a report's figures can be written in, and the resolution of their raster parts (dots per inch).
-FIGURE_FORMATS = ("png", "svg", "pdf")
-DEFAULT_DPI = 110
+FIGURE_FORMATS = defaults.FIGURE_FORMATS
+DEFAULT_DPI = defaults.DPI
 #: Each format's timestamp and tool entries left out, so a rerun gives the same bytes.
 _NO_STAMP = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None},
              "pdf": {"CreationDate": None, "Creator": None, "Producer": None}}
@@ -117,8 +118,9 @@ def page_preview(png: bytes, colours: int = PREVIEW_COLOURS) -> bytes:
     return buffer.getvalue()
 
 
-def mark_simulated(figure, text: str = "SIMULATED DATA"):
-    """Stamp a figure above its top edge, so a copied image of a simulated study never passes for real data.
+def mark_simulated(figure, text: str):
+    """Stamp a figure above its top edge, so a copied image of a simulated study never passes for real data
+    (``text``: roughsense.report.provenance.figure_stamp's).
 
     Above every axes, not in a corner: a corner stamp covered tick and axis labels. The figure grows at the top by
     the stamp's height and every axes keeps its place and size in inches, so a laid-out figure stays laid out
@@ -301,9 +303,6 @@ def _predicted_vs_perceived_axes(ax, top: float, title: str) -> None:
     ax.grid(alpha=0.3)
 
 
-MODEL_MARKERS = {"pls": ("o", "#2f5d8a"), "peak-law": ("s", "#c0392b")}
-
-
 def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str):
     """Surfaces never seen: each specimen's LOSO prediction (mean ± SD) against its perceived roughness.
 
@@ -316,10 +315,11 @@ def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str
     fig, axes = plt.subplots(1, max(len(pads), 1), figsize=(5.6 * max(len(pads), 1), 5.2), squeeze=False, sharey=True)
     truth = perceived.set_index("specimen")["gmean"]
     top = float(np.nanmax([truth.max(), (rows["pred_mean"] + rows["pred_sd"]).max()])) * 1.1
+    styles = {f.name: (f.marker, f.colour) for f in registry()}  # a family the registry does not know: grey diamonds
     for ax, pad in zip(axes[0], pads):
         ax.plot([0, top], [0, top], color="0.5", lw=1, label="identity")
         for model in models:
-            marker, colour = MODEL_MARKERS.get(model, ("D", "0.3"))
+            marker, colour = styles.get(model, ("D", "0.3"))
             data = rows[(rows.pad == pad) & (rows.model == model)]
             x = truth.reindex(data["specimen"]).to_numpy()
             ax.errorbar(x, data["pred_mean"], yerr=data["pred_sd"], fmt=marker, color=colour, ms=4, capsize=2,

@@ -30,13 +30,13 @@ from .._util.text import spreadsheet_safe
 from .._util.workers import process_pool
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
-from ..analysis.unseen import unsure_specimens
 from ..errors import OutputExistsError
 from ..io.names import check_name
-from ..model.families import DEFAULT_MODEL, PLS
-from ..paper import COMBINED
-from . import figures, tables
+from ..model.families import PAPER_MODEL
+from . import control_tables, figures, paper_tables, unseen_tables
+from . import provenance as source
 from .answer import answer_lines, answer_table
+from .paper_tables import is_paper_model
 from .presses import presses_figure, presses_table
 
 
@@ -100,30 +100,7 @@ def _csv_bytes(frame: pd.DataFrame) -> bytes:
 
 def plain_words(analysis) -> list[str]:
     """The report's opening paragraphs: what is a property of the simulator, what is a finding, what failed."""
-    lines = []
-    if analysis.simulation is not None:
-        if analysis.simulation.get("ratings_from", "paper") == "paper":
-            ratings = ("by default the simulated ratings of the paper's specimens are drawn from the paper's Table 1, so "
-                       "perceived roughness, its spread and every claim about the ratings agree with the paper because "
-                       "they were put in")
-        else:
-            ratings = (f"the ratings come from the simulator's finger model (ratings_from = "
-                       f"{analysis.simulation.get('ratings_from')}), so every claim about the ratings is a property of "
-                       "that model, not of people")
-        lines.append(
-            "This study is SIMULATED (study.toml has a [simulation] table; seed "
-            f"{analysis.simulation.get('seed', 'not recorded')}). Properties of the simulator, not findings: {ratings}; "
-            "and the simulator's noise was tuned so that leave-one-out errors land in the paper's range, so LOO RMSE "
-            "and OVL close to the paper's confirm the tuning, not the method.")
-        lines.append(
-            "Findings (about the digital twin, not about real skin or a real rig): whether the spectra predict roughness "
-            "for a grating left out of training (LOSO; a period and a shape left out beside it), whether models beat "
-            "specimen-shuffled targets and the training "
-            "mean (Controls), and which of the paper's claims hold under those checks (Claims).")
-    else:
-        lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
-                     "This study is user data (study.toml has no [simulation] table): every result below is a finding "
-                     "about these images and ratings.")
+    lines = source.source_paragraphs(analysis.provenance)
     if not analysis.controls.empty:
         failing = failing_models(analysis)
         if failing:
@@ -140,39 +117,22 @@ def plain_words(analysis) -> list[str]:
     return lines
 
 
-def _synthetic_words(analysis) -> str:
-    return (f"This study's images are synthetic, not measurements (study.toml [study] synthetic: {analysis.synthetic}): "
-            "the results illustrate the analysis and are no finding about a real sensor or real people.")
-
-
 def failing_models(analysis) -> list[str]:
     """Every model that fails its controls, as "model pad condition (CV)": listed once, collapsed, on the page."""
     if analysis.controls.empty:
         return []
     failing = analysis.controls[~analysis.controls["passes"].astype(bool)]
-    return [f"{getattr(r, 'model', PLS)} {r.pad} {r.condition} ({str(r.cv).upper()})" for r in failing.itertuples()]
+    return [f"{getattr(r, 'model', PAPER_MODEL)} {r.pad} {r.condition} ({str(r.cv).upper()})" for r in failing.itertuples()]
 
 
 def unseen_words(analysis) -> list[str]:
     """What the "held out of training" section can and cannot claim: whose images and ratings these are."""
     if not any(f.cv == "loso" for f in analysis.fits):
-        return ["Leave-one-specimen-out was not run (--no-loso), so this report cannot say how well any model "
-                "predicts a grating left out of training; the LOO results below describe specimens seen in training."]
+        return [source.NO_LOSO_SECTION]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
              "clearly below the training mean's and it beats specimen-shuffled targets."]
-    if analysis.simulation is not None:
-        lines.append("The images are the digital twin's, not the paper's rig's: these results hold for the twin. To "
-                     "confirm them, a real rig needs real images and real people's ratings of surfaces held out of "
-                     "training (periods and shapes no training surface had), scored by a model fitted without them.")
-        if analysis.simulation.get("ratings_from", "paper") == "physics":
-            lines.append("The ratings come from the simulated finger (ratings_from = physics), which reads the same "
-                         "contact that the images show, so agreement between images and ratings is partly built in; "
-                         "judge the models on the paper's ratings (ratings_from = paper).")
-    else:
-        lines.append(_synthetic_words(analysis) if getattr(analysis, "synthetic", None) else
-                     "This is user data: the results are findings about these images and these ratings.")
-    return lines
+    return [*lines, *source.unseen_source_words(analysis.provenance)]
 
 
 def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = FigureStyle(),
@@ -188,7 +148,8 @@ def render_report(analysis, *, meta: dict | None = None, style: FigureStyle = Fi
     results = {cv: analysis.results(cv) for cv in cv_schemes}
     chosen = analysis.chosen_components()
     files = _data_files(analysis, results, chosen)
-    unseen_job, presses_job = _unseen_figure(results, analysis.perceived), _presses_figure(analysis)
+    unseen_job = _unseen_figure(results, analysis.perceived, analysis.headline_condition)
+    presses_job = _presses_figure(analysis)
     jobs = [job for job in (unseen_job, presses_job) if job] + _figures(analysis, results, chosen, cv_schemes)
     with _figure_renderer(analysis, jobs, style, n_jobs) as rendered:
         page = _page_context(analysis, results, chosen, cv_schemes, meta)
@@ -206,8 +167,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
                   meta: dict) -> dict:
     """Everything the page's template shows but the figures: its tables and words."""
     paper_pads = tuple(analysis.paper_pads)
-    pls_chosen = chosen[chosen["model"] == PLS]
-    unseen = analysis.unseen_summary()  # read by four sections: computed once
+    paper_chosen = chosen[chosen["model"].map(is_paper_model).astype(bool)]
     return dict(
         title=f"roughsense report: {analysis.study_name}",
         study_name=analysis.study_name,
@@ -215,29 +175,30 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         generated=meta.pop("generated", _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")),
         meta=meta,
         citation=paper.PAPER_CITATION,
-        headline=tables.headline_table(analysis, paper_pads, results=results, unseen=unseen),
-        unseen=tables.unseen_table(unseen, analysis.controls),
+        headline=control_tables.headline_table(analysis, paper_pads, results=results),
+        unseen=unseen_tables.unseen_table(analysis.unseen, analysis.controls),
         unseen_words=unseen_words(analysis),
-        held_out=tables.held_out_table(analysis.held_out, SCHEME_WORDS),
+        held_out=unseen_tables.held_out_table(analysis.held_out, SCHEME_WORDS),
         presses=presses_table(analysis.presses),
-        unsure=tables.unsure_table(unsure_specimens(analysis, DEFAULT_MODEL if DEFAULT_MODEL in analysis.models
-                                                    else analysis.models[0])),
-        components=tables.components_table(
-            pls_chosen.drop(columns="model"),
-            {(f.pad, f.condition): f.nested_n_components for f in analysis.fits if f.cv == "loso" and f.model == PLS},
+        unsure=unseen_tables.unsure_table(analysis.unsure),
+        components=paper_tables.components_table(
+            paper_chosen.drop(columns="model"),
+            {(f.pad, f.condition): f.nested_n_components for f in analysis.fits
+             if f.cv == "loso" and is_paper_model(f.model)},
             paper_pads,
         ),
-        tests=tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
-        claims=tables.claims_table(analysis.claims, paper_pads, analysis.controls),
+        tests=paper_tables.tests_table(analysis.tests, paper_values=set(paper_pads) == set(paper.PAPER_PADS)),
+        claims=control_tables.claims_table(analysis.claims, paper_pads, analysis.controls),
         verdict_rule=VERDICT_RULE,
-        controls=tables.controls_report_table(analysis.controls),
-        paper_predictive=tables.paper_predictive_table(analysis.paper_predictive),
-        simulation=analysis.simulation,
+        controls=control_tables.controls_report_table(analysis.controls),
+        paper_predictive=unseen_tables.paper_predictive_table(analysis.paper_predictive),
+        simulation=analysis.provenance.settings,
+        simulated_banner=source.simulated_banner(analysis.provenance),
         paper_note=analysis.paper_note,
         findings=plain_words(analysis),
         failing=failing_models(analysis),
-        answer=answer_lines(analysis, unseen),
-        answer_table=answer_table(analysis, unseen),
+        answer=answer_lines(analysis),
+        answer_table=answer_table(analysis),
         sections=_sections(analysis, results, cv_schemes),
         max_components=analysis.max_components,
         reference_specimen=analysis.reference_specimen,
@@ -281,7 +242,7 @@ def _render_figure(job: FigureJob, stamp: str | None, style: FigureStyle) -> dic
     caption = job.caption
     if stamp is not None:
         figures.mark_simulated(fig, stamp)
-        caption = "Simulated data. " + caption
+        caption = source.STAMPED_CAPTION_PREFIX + caption
     data = figures.figure_bytes(fig, style.figure_format, dpi=style.dpi, close=False)
     shown = "png" if style.figure_format == "pdf" else style.figure_format
     page = data if shown == style.figure_format else figures.figure_bytes(fig, shown, dpi=style.dpi, close=False)
@@ -299,7 +260,7 @@ def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs
     the jobs' order (the bytes the same for any ``n_jobs``). In one process the figures are drawn by that call."""
     for job in jobs:
         check_name(f"{job.stem}.{style.figure_format}", what="report file name")  # built from pad names
-    stamp = None if analysis.simulation is None else f"SIMULATED DATA (seed {analysis.simulation.get('seed', '?')})"
+    stamp = source.figure_stamp(analysis.provenance)
     n_jobs = min(n_jobs, len(jobs))
     if n_jobs <= 1:
         yield lambda: [_render_figure(job, stamp, style) for job in jobs]
@@ -314,12 +275,10 @@ def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs
             raise
 
 
-def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame) -> FigureJob | None:
-    """Predicted against perceived per specimen under LOSO, every model, the combined condition (or the last one)."""
+def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame, condition: str) -> FigureJob | None:
+    """Predicted against perceived per specimen under LOSO, every model, the headline condition."""
     if "loso" not in results:
         return None
-    conditions = list(dict.fromkeys(results["loso"]["condition"]))
-    condition = COMBINED if COMBINED in conditions else conditions[-1]
     models = ", ".join(dict.fromkeys(results["loso"]["model"]))
     return FigureJob("unseen_surfaces", figures.unseen_figure, (results["loso"], perceived, condition), {},
                      f"A grating left out of training: each specimen's leave-one-specimen-out prediction (mean ± SD over "
@@ -338,29 +297,31 @@ def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, c
     """Every figure of the Figures section, to be drawn (:func:`_render_figures`)."""
     paper_pads = tuple(analysis.paper_pads)
     freq_columns = [c for c in analysis.mean_spectra.columns if c not in ("pad", "specimen", "condition")]
-    pls = {cv: frame[frame["model"] == PLS] for cv, frame in results.items()}
+    paper_model = next((model for model in analysis.models if is_paper_model(model)), None)
+    paper_rows = {cv: frame[frame["model"] == paper_model] for cv, frame in results.items()}
     cv_table = analysis.cv_table()
     jobs = [FigureJob(f"spectra_{pad}", figures.spectra_figure, (analysis.mean_spectra, freq_columns, pad,
                                                                  analysis.shapes), {},
                       f"Mean normalised amplitude spectra per specimen and force, {pad} pad (cf. the paper's Fig. 7).")
             for pad in analysis.pads]
-    if PLS in analysis.models:
+    if paper_model is not None:
         jobs.append(FigureJob(
-            "cv_curves", figures.cv_curves_figure, (cv_table[cv_table["model"] == PLS], chosen[chosen["model"] == PLS]),
+            "cv_curves", figures.cv_curves_figure,
+            (cv_table[cv_table["model"] == paper_model], chosen[chosen["model"] == paper_model]),
             {}, "Cross-validated RMSE of PLS against the number of components, LOO (top) and LOSO (bottom); red circles "
             "mark the chosen count (cf. Fig. 8). At 0 components (not drawn; in cv.csv) the model predicts the "
             "training mean."))
-        jobs += [FigureJob(f"ovl_sd_{pad}", figures.ovl_sd_figure, (pls["loo"], analysis.perceived, pad, analysis.shapes),
+        jobs += [FigureJob(f"ovl_sd_{pad}", figures.ovl_sd_figure, (paper_rows["loo"], analysis.perceived, pad, analysis.shapes),
                            {"paper": pad in paper_pads},
                            f"OVL per specimen and SD of participants vs predictions, {pad} pad, PLS, LOO (cf. Fig. 9).")
                  for pad in analysis.pads]
     for model in analysis.models:
         for cv in cv_schemes:
             rows = results[cv][results[cv]["model"] == model]
-            suffix = "" if model == PLS else f"_{model}"
+            suffix = "" if is_paper_model(model) else f"_{model}"
             jobs.append(FigureJob(
                 f"predicted_vs_perceived_{cv}{suffix}", figures.predicted_vs_perceived_figure,
-                (rows, analysis.perceived, cv), {"paper": paper_pads if model == PLS else False},
+                (rows, analysis.perceived, cv), {"paper": paper_pads if is_paper_model(model) else False},
                 f"Predicted (mean ± SD over repetitions) against perceived roughness, {model}, {cv.upper()}; "
                 "grey: identity."))
     return jobs
@@ -384,10 +345,10 @@ def _sections(analysis, results: dict[str, pd.DataFrame], cv_schemes: list[str])
             for model in analysis.models:
                 rows = results[cv][results[cv]["model"] == model]
                 summaries = {column: summary[(model, column)] for column in columns}
-                flags = tables.control_flags(analysis.controls, pad, cv, model)
+                flags = control_tables.control_flags(analysis.controls, pad, cv, model)
                 kwargs = {"paper_values": pad in paper_pads, "flags": flags, "model": model}
-                pad_tables.append(tables.prediction_table(rows, analysis.perceived, pad, specimens, cv, **kwargs))
-                pad_tables += [tables.metric_table(rows, summaries[column], pad, specimens, column, cv, **kwargs)
+                pad_tables.append(paper_tables.prediction_table(rows, analysis.perceived, pad, specimens, cv, **kwargs))
+                pad_tables += [paper_tables.metric_table(rows, summaries[column], pad, specimens, column, cv, **kwargs)
                                for column in columns]
             pads.append({"pad": pad, "tables": pad_tables})
         sections.append({"cv": cv, "pads": pads})
