@@ -16,6 +16,7 @@ CASES = [
     ("simulate", "--forces", ["--out", "s"], "1.5,2.5"),
     ("capture", "--forces", ["--source", "0", "--out", "s", "--specimen", "R3", "--pad", "smooth"], "2,4"),
     ("explore", "--workers", ["sweep.toml", "--out", "o"], "3"),
+    ("study", "--data", ["--out", "r"], "my-study"),
 ]
 
 
@@ -38,7 +39,7 @@ def test_an_old_spelling_parses_to_the_same_parameters_as_its_one_name(command, 
     assert _parsed([command, *required, old, value]) == by_new
     assert _parsed([command, *required, f"{old}={value}"]) == by_new
     assert _parsed([command, *required]) != by_new  # the value given is not the default: the option was read
-    parameter = {"--forces-n": "forces_n", "--jobs": "jobs"}[new]
+    parameter = {"--forces-n": "forces_n", "--jobs": "jobs", "--study": "study"}[new]
     assert str(by_new[parameter]) == value
 
 

@@ -6,9 +6,9 @@ table is the whole mechanism: CHANGELOG.md lists the same pairs.
 """
 from __future__ import annotations
 
-#: ``{command: {old spelling: one name}}``. After package B renames ``study --data``, the lead adds
-#: ``"study": {"--data": "--study"}`` here.
+#: ``{command: {old spelling: one name}}``.
 ALIASES: dict[str, dict[str, str]] = {
+    "study": {"--data": "--study"},
     "simulate": {"--forces": "--forces-n"},
     "capture": {"--forces": "--forces-n"},
     "explore": {"--workers": "--jobs"},
