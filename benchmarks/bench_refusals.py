@@ -64,7 +64,7 @@ def silent_port() -> int:
 
 def locked_case(folder: Path, sweep: Path) -> list[str]:
     """Start a first explore that holds ``folder/out``; the command of the second one."""
-    first = subprocess.Popen(cli("explore", str(sweep), "--out", str(folder / "out"), "--workers", "1"),
+    first = subprocess.Popen(cli("explore", str(sweep), "--out", str(folder / "out"), "--jobs", "1"),
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     from roughsense._util.lock import lock_path
 

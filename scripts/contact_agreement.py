@@ -5,7 +5,7 @@ without the fingerprint ridges' own image: the true contact fraction is the solv
 truth); the apparent one is the fraction of pixel columns whose brightness, after the lens blur, is above half-way
 between "nothing touches" and "full contact" -- what one would read off the band. docs/simulator.md, Optics.
 
-    .venv/bin/python scripts/contact_agreement.py [--pads smooth] [--specimens C2,...] [--forces 1,2,3]
+    .venv/bin/python scripts/contact_agreement.py [--pads smooth] [--specimens C2,...] [--forces-n 1,2,3]
         [--camera key=value ...]
 """
 from __future__ import annotations
@@ -42,12 +42,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pads", default="smooth")
     parser.add_argument("--specimens", default=",".join(SPECIMENS))
-    parser.add_argument("--forces", default="1,2,3")
+    parser.add_argument("--forces-n", default="1,2,3")
     parser.add_argument("--camera", nargs="*", default=[], help="camera overrides, e.g. micro_roughness_mm=0.0005")
     args = parser.parse_args()
     camera = Camera(**{k: float(v) for k, v in (item.split("=") for item in args.camera)})
     rows = agreement(pads=args.pads.split(","), specimens=args.specimens.split(","),
-                     forces_n=tuple(float(f) for f in args.forces.split(",")), camera=camera)
+                     forces_n=tuple(float(f) for f in args.forces_n.split(",")), camera=camera)
     print("| pad | specimen | force (N) | true | apparent | apparent / true - 1 |")
     print("|---|---|---:|---:|---:|---:|")
     for r in rows:

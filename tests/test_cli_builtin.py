@@ -48,12 +48,12 @@ def test_fit_and_features_take_builtin_with_seed(run_cli, cache, tmp_path, monke
 @pytest.mark.slow
 def test_study_prints_the_folder_it_used(run_cli, cache, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    code, out, err = run_cli("study", "--data", "builtin", "--seed", SEED, "--out", "r", "--max-components", "2",
+    code, out, err = run_cli("study", "--study", "builtin", "--seed", SEED, "--out", "r", "--max-components", "2",
                              "--no-loso", "--permutations", "0")  # which folder, not the controls, is checked here
     assert code == 0, err
     assert f"Study folder: {cache.resolve()}" in out
     assert "builtin" in out.split("Study folder:")[1].splitlines()[0]
-    # The default (no --data) is the same study.
+    # The default (no --study) is the same study.
     code, out2, err = run_cli("study", "--seed", SEED, "--out", "r", "--max-components", "2", "--no-loso", "--force",
                               "--permutations", "0")
     assert code == 0, err

@@ -12,7 +12,7 @@ def test_counted_agrees_in_number():
 
 
 def test_simulate_one_image_says_so(run_cli, tmp_path):
-    code, out, err = run_cli("simulate", "--out", tmp_path / "s", "--pads", "smooth", "--specimens", "R3", "--forces",
+    code, out, err = run_cli("simulate", "--out", tmp_path / "s", "--pads", "smooth", "--specimens", "R3", "--forces-n",
                              "2", "--repetitions", "1", "--stored-height-px", "40")
     assert code == 0, err
     assert len(pd.read_csv(tmp_path / "s" / "manifest.csv")) == 1

@@ -33,7 +33,7 @@ def study_copy(small_study, tmp_path):
 def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeypatch):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
-    code, stdout, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4")
+    code, stdout, err = run_cli("study", "--study", small_study, "--out", out, "--max-components", "4")
     assert code == 0, err
     results = pd.read_csv(out / "results.csv")
     assert len(results) == len(SPECIMENS) * 4 * 2 and list(results.columns)[-1] == "model"
@@ -47,7 +47,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     assert set(tests["comparison"]) == {"smooth: combined vs 1N", "smooth: combined vs 2N", "smooth: combined vs 3N"}
     assert (tests["p_adjusted"] >= tests["p"]).all()
     assert "Report written to" in stdout
-    # A folder the simulator wrote is labelled simulated (with its seed) even when passed with --data.
+    # A folder the simulator wrote is labelled simulated (with its seed) even when passed with --study.
     html = (out / "index.html").read_text()
     assert "simulated: simulated study (digital twin), simulation seed 11" in html and "user data" not in html
     controls = pd.read_csv(out / "controls.csv")
@@ -55,7 +55,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     _check_unseen_lines(stdout, out)
     # A second run reuses the feature cache and gives the same numbers (the controls, which results.csv does not
     # hold, are left out of it).
-    code, stdout2, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "4", "--force",
+    code, stdout2, err = run_cli("study", "--study", small_study, "--out", out, "--max-components", "4", "--force",
                                  "--permutations", "0")
     assert code == 0, err
     pd.testing.assert_frame_equal(pd.read_csv(out / "results.csv"), results)
@@ -82,14 +82,14 @@ def test_study_refuses_a_non_empty_report_folder(run_cli, small_study, tmp_path)
     out = tmp_path / "mine"
     out.mkdir()
     (out / "draft.txt").write_text("mine")
-    code, _, err = run_cli("study", "--data", small_study, "--out", out)
+    code, _, err = run_cli("study", "--study", small_study, "--out", out)
     assert code == 2 and "--force" in err and str(out) in err
     assert sorted(p.name for p in out.iterdir()) == ["draft.txt"]
 
 
 def test_study_with_a_missing_file_names_it(run_cli, study_copy, tmp_path):
     (study_copy / "ratings.csv").unlink()
-    code, _, err = run_cli("study", "--data", study_copy, "--out", tmp_path / "r")
+    code, _, err = run_cli("study", "--study", study_copy, "--out", tmp_path / "r")
     assert code == 2 and "ratings.csv" in err and err.count("\n") == 1
     assert err.rstrip().endswith(f"run `roughsense check {study_copy}` to list every problem")
     assert not (tmp_path / "r").exists()
@@ -98,7 +98,7 @@ def test_study_with_a_missing_file_names_it(run_cli, study_copy, tmp_path):
 def test_study_with_a_missing_image_names_the_row(run_cli, study_copy, tmp_path):
     manifest = pd.read_csv(study_copy / "manifest.csv")
     (study_copy / manifest["image"].iloc[4]).unlink()
-    code, _, err = run_cli("study", "--data", study_copy, "--out", tmp_path / "r")
+    code, _, err = run_cli("study", "--study", study_copy, "--out", tmp_path / "r")
     assert code == 2 and "manifest.csv, row 6" in err and "image file not found" in err
 
 
@@ -107,14 +107,14 @@ def test_study_with_ratings_for_an_unknown_specimen_names_the_row(run_cli, study
     lines = ratings.read_text().splitlines()
     lines.append("P1,1,X9,1.2")
     ratings.write_text("\n".join(lines) + "\n")
-    code, _, err = run_cli("study", "--data", study_copy, "--out", tmp_path / "r")
+    code, _, err = run_cli("study", "--study", study_copy, "--out", tmp_path / "r")
     assert code == 2 and f"ratings.csv, row {len(lines)}" in err and "X9" in err
 
 
 def test_study_with_too_few_repetitions_says_so(run_cli, tmp_path, monkeypatch):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     study = _simulate(tmp_path / "one-rep", repetitions=1)
-    code, _, err = run_cli("study", "--data", study, "--out", tmp_path / "r")
+    code, _, err = run_cli("study", "--study", study, "--out", tmp_path / "r")
     assert code == 2 and "too few repetitions" in err and "manifest.csv" in err
     assert not (tmp_path / "r").exists()
 
@@ -178,7 +178,7 @@ def test_a_participant_missing_a_session_is_one_warning_line_and_in_the_report(r
     gap = (ratings.participant == first.participant) & (ratings.session == first.session)
     ratings[~gap].to_csv(study_copy / "ratings.csv", index=False)
     out = tmp_path / "r"
-    code, _, err = run_cli("study", "--data", study_copy, "--out", out, "--max-components", "3", "--no-loso",
+    code, _, err = run_cli("study", "--study", study_copy, "--out", out, "--max-components", "3", "--no-loso",
                            "--permutations", "0")  # the ratings' warning, not the controls
     assert code == 0, err
     warnings_lines = [line for line in err.splitlines() if line.startswith("roughsense: warning:")]
@@ -189,12 +189,12 @@ def test_a_participant_missing_a_session_is_one_warning_line_and_in_the_report(r
 
 def test_study_writes_its_figures_in_the_format_and_resolution_asked(run_cli, small_study, tmp_path):
     out = tmp_path / "svg"
-    code, _, err = run_cli("study", "--data", small_study, "--out", out, "--max-components", "2", "--no-loso",
+    code, _, err = run_cli("study", "--study", small_study, "--out", out, "--max-components", "2", "--no-loso",
                            "--permutations", "0", "--figure-format", "SVG", "--dpi", "50")
     assert code == 0, err
     assert (out / "cv_curves.svg").is_file() and not list(out.glob("*.png"))
     for bad, needle in ((["--figure-format", "jpg"], "--figure-format must be one of png, svg, pdf"),
                         (["--dpi", "5"], "--dpi")):
-        code, _, err = run_cli("study", "--data", small_study, "--out", tmp_path / "bad", *bad)
+        code, _, err = run_cli("study", "--study", small_study, "--out", tmp_path / "bad", *bad)
         assert code == 2 and needle in err and err.count("\n") == 1 and "Traceback" not in err
         assert not (tmp_path / "bad").exists()

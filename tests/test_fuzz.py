@@ -373,7 +373,7 @@ def command_args(command: str, study: Path, out: Path, model: Path | None = None
     if command == "predict":
         return ["predict", model, "--study", study, "--out", out / "predictions.csv"]
     if command == "study":
-        return ["study", "--data", study, "--out", out / "report", "--max-components", "2", "--no-loso", "--jobs", "1"]
+        return ["study", "--study", study, "--out", out / "report", "--max-components", "2", "--no-loso", "--jobs", "1"]
     raise AssertionError(command)
 
 

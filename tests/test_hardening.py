@@ -321,7 +321,7 @@ def test_an_output_that_is_an_input_is_refused_even_with_force(run_cli, study, t
         (["features", "--study", study, "--out", study / "specimens.csv"], study / "specimens.csv"),
         (["protocol", "--seed", "1", "--specimens", study / "specimens.csv", "--out", study / "specimens.csv"],
          study / "specimens.csv"),
-        (["study", "--data", study, "--out", study], study),
+        (["study", "--study", study, "--out", study], study),
     ]
     for args, victim in cases:
         before = victim.read_bytes() if victim.is_file() else None

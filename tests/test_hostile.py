@@ -621,7 +621,7 @@ def test_a_sweep_beyond_the_confirmation_size_shows_its_estimate_and_needs_yes(r
     from roughsense.explore import sweep as sweep_module
 
     path = _big_sweep(tmp_path, sweep_module.CONFIRM_CELLS + 1)
-    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--workers", 1)
+    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--jobs", 1)
     frames = (sweep_module.CONFIRM_CELLS + 1) * 5 * 3 * 2  # cells x specimens x the default 3 forces x repetitions
     hours = frames * sweep_module.CELL_SECONDS_PER_FRAME / 3600
     assert code == 2 and error_line(err) == (
@@ -764,8 +764,8 @@ def test_two_decimal_commas_are_two_problems_not_four_or_a_pandas_error(run_cli,
 
 
 def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_path):
-    """Also seen: ``study --data missing`` suggested running check on the missing folder."""
-    code, _, err = run_cli("study", "--data", tmp_path / "missing", "--out", tmp_path / "rep")
+    """Also seen: ``study --study missing`` suggested running check on the missing folder."""
+    code, _, err = run_cli("study", "--study", tmp_path / "missing", "--out", tmp_path / "rep")
     assert code == 2 and error_line(err) == f"roughsense: error: {tmp_path / 'missing'}: study folder not found"
 
 

@@ -84,7 +84,7 @@ def edit_csv(path: Path, row: int, column: str, value: str) -> None:
 
 
 def study_args(root: Path, out: Path) -> list:
-    return ["study", "--data", root, "--out", out, "--max-components", "2", "--no-loso"]
+    return ["study", "--study", root, "--out", out, "--max-components", "2", "--no-loso"]
 
 
 # --------------------------------------------------------------------------- 1. one name rule
@@ -533,7 +533,7 @@ def test_manifest_numbers_out_of_range_are_refused_by_cell(sandbox, column, valu
 
 
 def test_option_forces_and_repetitions_are_bounded(run_cli, tmp_path):
-    line = one_error(*run_cli("simulate", "--out", tmp_path / "s", "--forces", "1,1e308")[::2])
+    line = one_error(*run_cli("simulate", "--out", tmp_path / "s", "--forces-n", "1,1e308")[::2])
     assert "up to 100" in line
     line = one_error(*run_cli("simulate", "--out", tmp_path / "s", "--repetitions", "100000000000")[::2])
     assert "from 1 to 10000" in line

@@ -193,7 +193,7 @@ def test_simulate_force_replaces_the_whole_study_and_keeps_the_users_files(tmp_p
     assert (out / "images" / "my-photo.jpg").read_bytes() == b"\xff\xd8 not the simulator's"
 
 
-_TINY = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+_TINY = ("--pads", "smooth", "--specimens", "R2", "--forces-n", "2", "--repetitions", "1", "--jobs", "1")
 
 
 @pytest.mark.slow
@@ -204,7 +204,7 @@ def test_simulate_force_killed_midway_leaves_the_old_study_whole(tmp_path, run_c
     before = _files(out)
     env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
     run = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(out), "--force",
-                            "--seed", "2", "--pads", "smooth", "--specimens", "R2,R3,C3", "--forces", "1,2,3",
+                            "--seed", "2", "--pads", "smooth", "--specimens", "R2,R3,C3", "--forces-n", "1,2,3",
                             "--repetitions", "3", "--jobs", "1"],
                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _kill_when(run, lambda: _staged_images(out) >= 2)  # killed after its first images
@@ -227,7 +227,7 @@ def test_a_killed_first_simulation_leaves_no_study_and_blocks_nothing(tmp_path, 
     run = _python(_SIMULATE, str(out), "2", "30", "1")
     _kill_when(run, lambda: _staged_images(out) >= 1)
     assert not out.exists() and len(atomic.leftovers(out)) == 1
-    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2", "--forces", "2",
+    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2", "--forces-n", "2",
                            "--repetitions", "1", "--jobs", "1")  # no --force needed
     assert code == 0, err
     assert len(read_study(out).manifest) == 1 and _siblings(out) == []
@@ -239,7 +239,7 @@ def test_readers_refuse_an_interrupted_simulation(tmp_path, run_cli):
     with pytest.raises(InputError, match="simulated study is incomplete"):
         read_study(out)
     hint = f"rerun `roughsense simulate --out {out} --force`"
-    for args in (("study", "--data", out, "--out", tmp_path / "report"),
+    for args in (("study", "--study", out, "--out", tmp_path / "report"),
                  ("fit", "--study", out, "--pad", "smooth", "--condition", "1N", "--out", tmp_path / "m.json"),
                  ("features", "--study", out, "--out", tmp_path / "f.csv")):
         code, _, err = run_cli(*args)
@@ -248,7 +248,7 @@ def test_readers_refuse_an_interrupted_simulation(tmp_path, run_cli):
     assert not (tmp_path / "report").exists() and not (tmp_path / "f.csv").exists()
     # an interrupted simulation is roughsense's own: replaced without --force, a user's file in it kept
     (out / "notes.txt").write_text("mine")
-    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2", "--forces", "2",
+    code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2", "--forces-n", "2",
                            "--repetitions", "1", "--jobs", "1")
     assert code == 0, err
     assert (out / "notes.txt").read_text() == "mine" and len(read_study(out).manifest) == 1
@@ -304,7 +304,7 @@ def test_workers_end_when_simulate_is_killed(tmp_path):
     out = tmp_path / "sim"
     env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
     run = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "simulate", "--out", str(out), "--pads", "smooth",
-                            "--specimens", "R2,R3,C3", "--forces", "1,2,3", "--repetitions", "4", "--jobs", "2"],
+                            "--specimens", "R2,R3,C3", "--forces-n", "1,2,3", "--repetitions", "4", "--jobs", "2"],
                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     workers: list[int] = []
 
@@ -362,7 +362,7 @@ def test_a_worker_whose_parent_is_already_gone_exits_at_once():
 _STUDY = """
 import sys
 from roughsense.cli import main
-sys.exit(main(["study", "--data", sys.argv[1], "--out", sys.argv[2], "--max-components", "2", "--no-loso",
+sys.exit(main(["study", "--study", sys.argv[1], "--out", sys.argv[2], "--max-components", "2", "--no-loso",
               "--permutations", "0"]))  # killed while it writes the report: the controls are not what is checked
 """
 
@@ -379,11 +379,11 @@ def test_study_force_leaves_no_stale_report_file_and_keeps_the_users(tmp_path, r
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
     quick = ("--max-components", "2", "--permutations", "0")  # which files the second run leaves, not the controls
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, *quick)
+    code, _, err = run_cli("study", "--study", tiny_study, "--out", out, *quick)
     assert code == 0, err
     assert (out / "results_loso.csv").is_file() and (out / "predicted_vs_perceived_loso.png").is_file()
     (out / "my-notes.md").write_text("mine")
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, *quick, "--no-loso", "--force")
+    code, _, err = run_cli("study", "--study", tiny_study, "--out", out, *quick, "--no-loso", "--force")
     assert code == 0, err
     names = sorted(p.name for p in out.iterdir())
     assert "results_loso.csv" not in names and "predicted_vs_perceived_loso.png" not in names
@@ -403,7 +403,7 @@ def test_a_killed_study_blocks_no_rerun(tmp_path, run_cli, tiny_study, monkeypat
     out.mkdir()
     (out / ".results.csv.k2j4h6g8.tmp").write_text("half")
     (out / "cv.csv").write_text("half")
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out, "--max-components", "2", "--no-loso",
+    code, _, err = run_cli("study", "--study", tiny_study, "--out", out, "--max-components", "2", "--no-loso",
                            "--permutations", "0")
     assert code == 0, err  # roughsense's own incomplete output needs no --force
     assert (out / "index.html").is_file() and not (out / ".results.csv.k2j4h6g8.tmp").exists()
@@ -414,7 +414,7 @@ def test_a_finished_report_still_needs_force(tmp_path, run_cli, tiny_study):
     out = tmp_path / "report"
     out.mkdir()
     (out / "index.html").write_text("<html>an earlier report</html>")
-    code, _, err = run_cli("study", "--data", tiny_study, "--out", out)
+    code, _, err = run_cli("study", "--study", tiny_study, "--out", out)
     assert code == 2 and "--force" in err and (out / "index.html").read_text() == "<html>an earlier report</html>"
 
 
@@ -422,7 +422,7 @@ def test_a_finished_report_still_needs_force(tmp_path, run_cli, tiny_study):
 def test_study_out_on_an_unwritable_place_fails_before_the_analysis(tmp_path, run_cli):
     (tmp_path / "file").write_text("x")
     for out in (tmp_path / "file" / "report", Path("/proc/roughsense-report")):
-        code, stdout, err = run_cli("study", "--data", tmp_path / "no-such-study", "--out", out)
+        code, stdout, err = run_cli("study", "--study", tmp_path / "no-such-study", "--out", out)
         assert code == 2 and len(err.strip().splitlines()) == 1
         assert f"{out}: cannot write here" in err and "no-such-study" not in err  # --out is checked first
         assert stdout == ""

@@ -40,7 +40,7 @@ with output_lock(sys.argv[1], command="explore"):
     print("held", flush=True)
     time.sleep(600)  # stopped by the test: it holds the lock for as long as the test runs, however slowly
 """
-_TINY_SIM = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+_TINY_SIM = ("--pads", "smooth", "--specimens", "R2", "--forces-n", "2", "--repetitions", "1", "--jobs", "1")
 
 
 def _dead_pid() -> int:
@@ -92,7 +92,7 @@ def test_every_command_that_writes_a_folder_is_refused_naming_the_holder(holder,
     commands = {
         "simulate": ("simulate", "--out", out, "--force", *_TINY_SIM),
         "capture": ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", "--roi", "auto"),
-        "study": ("study", "--data", tmp_path / "no-such-study", "--out", out, "--force"),
+        "study": ("study", "--study", tmp_path / "no-such-study", "--out", out, "--force"),
         "example": ("example", "my-study", "--out", out, "--force"),
         "explore": ("explore", sweep, "--out", out, "--force"),
     }
@@ -126,7 +126,7 @@ def test_two_explore_runs_on_one_folder_the_second_is_refused_at_once(tmp_path):
     second_sweep.write_text(small_sweep([7]))
     out = tmp_path / "out"
     first = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(first_sweep), "--out", str(out),
-                              "--workers", "1"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                              "--jobs", "1"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 300  # a hang guard: importing roughsense on a busy machine takes a while
         while not (lock_path(out).exists() and lock_path(out).stat().st_size):

@@ -82,7 +82,7 @@ def test_a_huge_image_path_in_the_manifest_is_one_short_line(run_cli, study, tmp
     manifest = pd.read_csv(root / "manifest.csv", dtype=str, keep_default_na=False)
     manifest.loc[0, "image"] = "images/" + "a" * HUGE + ".png"
     manifest.to_csv(root / "manifest.csv", index=False)
-    code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report")
+    code, _, err = run_cli("study", "--study", root, "--out", tmp_path / "report")
     assert str(root) in error_line(code, err)
     assert len(err) < 2000
 
@@ -172,7 +172,7 @@ def test_a_camera_scale_below_nyquist_names_study_toml_and_the_key(run_cli, stud
     root = shutil.copytree(study, tmp_path / "study")
     toml = root / "study.toml"
     toml.write_text(toml.read_text().replace("px_per_mm = 34.9\n", "px_per_mm = 1.5\n", 1))
-    code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report")
+    code, _, err = run_cli("study", "--study", root, "--out", tmp_path / "report")
     assert error_line(code, err) == (
         f"roughsense: error: {toml}: [sensor] px_per_mm 1.5 is too coarse: its Nyquist frequency 0.75 mm^-1 is not "
         "above the band's f_max 1 mm^-1 (it must be above 2 px/mm)")

@@ -132,7 +132,7 @@ def test_a_roi_reads_its_numbers_with_the_same_parser(roi):
     (["features", "--out", "OUT", "--rows", "\u0661", "X.png"], "--rows"),
     (["features", "--out", "OUT", "--px-per-mm", "3_4.9", "X.png"], "--px-per-mm"),
     (["simulate", "--out", "OUT", "--repetitions", "1_0"], "--repetitions"),
-    (["simulate", "--out", "OUT", "--forces", "1,2_0"], "--forces"),
+    (["simulate", "--out", "OUT", "--forces-n", "1,2_0"], "--forces"),
     (["simulate", "--out", "OUT", "--jobs", "\u0662"], "--jobs"),
     (["fit", "--study", "builtin", "--pad", "smooth", "--condition", "1N", "--out", "OUT", "--max-components", "1_0"],
      "--max-components"),

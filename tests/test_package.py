@@ -160,7 +160,7 @@ def test_the_wheel_installs_and_runs_in_a_clean_venv(clean_venv, dist, tmp_path)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROUGHSENSE_DEBUG")}
     env["ROUGHSENSE_CACHE_DIR"] = str(tmp_path / "cache")
     study = _example_from_the_installed_package(clean_venv / "bin", tmp_path, env)
-    _run([clean_venv / "bin" / "roughsense", "study", "--data", study, "--out", tmp_path / "report",
+    _run([clean_venv / "bin" / "roughsense", "study", "--study", study, "--out", tmp_path / "report",
           "--max-components", "2", "--no-loso"], cwd=tmp_path, env=env)
     html = (tmp_path / "report" / "index.html").read_text()
     assert "<html" in html.lower() and "paper" in html.lower()

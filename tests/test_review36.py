@@ -141,7 +141,7 @@ def test_no_output_may_be_an_image_the_manifest_lists_outside_images(run_cli, tm
     args = {"features": ["features", "--study", root, "-o", out],
             "predict": ["predict", LEGACY_MODEL, "--study", root, "-o", out],
             "fit": ["fit", "--study", root, "--pad", "smooth", "--condition", "2N", "-o", out],
-            "study": ["study", "--data", root, "--out", out]}[command]
+            "study": ["study", "--study", root, "--out", out]}[command]
     code, _, err = run_cli(*args, "--force")
     assert code == 2 and image.read_bytes() == before
     line = error_line(err)
@@ -184,7 +184,7 @@ def test_simulate_force_over_a_folder_whose_manifest_is_a_fifo_does_not_hang(tmp
     safe point, and one SIGTERM did not end it."""
     roughsense = os.path.join(os.path.dirname(sys.executable), "roughsense")
     args = [roughsense, "simulate", "--out", str(tmp_path / "s"), "--pads", "smooth", "--specimens", "R2,R3",
-            "--forces", "1", "--repetitions", "2", "--jobs", "1"]
+            "--forces-n", "1", "--repetitions", "2", "--jobs", "1"]
     env = {**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")}
     assert subprocess.run(args, capture_output=True, env=env, timeout=HANG_GUARD_S).returncode == 0
     manifest = tmp_path / "s" / "manifest.csv"

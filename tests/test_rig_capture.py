@@ -169,7 +169,7 @@ def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (("--forces", "1,2"), "--forces-n 1,2 differs from this study's protocol 1,2,3"),
+        (("--forces-n", "1,2"), "--forces-n 1,2 differs from this study's protocol 1,2,3"),
         (("--px-per-mm", "20"), "--px-per-mm 20 differs from 34.9"),
         (("--shape", "circular"),
          "specimens.csv, row 2, column 'shape': specimen 'R3' has shape rectangular; --shape says circular"),
@@ -421,7 +421,7 @@ def test_capture_refuses_a_folder_the_simulator_wrote(tmp_path, video, run_cli, 
         (sim / STUDY_TOML).write_text(toml[:toml.index("[simulation]")])
     before = snapshot(sim)
     typed("", "", "")
-    code, _, stderr = run_cli(*capture_args(video, sim, "--repetitions", "1", "--forces", "1,2"))
+    code, _, stderr = run_cli(*capture_args(video, sim, "--repetitions", "1", "--forces-n", "1,2"))
     assert_one_line_error(code, stderr, f"{sim}: is a simulated study", "capture into a folder of their own")
     assert snapshot(sim) == before
 

@@ -220,7 +220,7 @@ def test_check_reports_a_missing_misspelt_or_implausible_scale(run_cli, tmp_path
     code, out, err = run_cli("check", root)
     assert code == 2 and problem in out, out
     if "misspelt" in problem:  # study refuses it too: never the default in its place
-        code, _, err = run_cli("study", "--data", root, "--out", tmp_path / "report", "--permutations", "0")
+        code, _, err = run_cli("study", "--study", root, "--out", tmp_path / "report", "--permutations", "0")
         assert code == 2 and "looks like a misspelt" in err and len(err.splitlines()) == 1
 
 

@@ -11,7 +11,7 @@ from roughsense.io.study import read_study
 def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     out = tmp_path / "s"
     code, stdout, err = run_cli("simulate", "--out", out, "--pads", "fingerprint", "--specimens", "C3",
-                                "--forces", "1", "--repetitions", "1", "--seed", "5", "--jobs", "1",
+                                "--forces-n", "1", "--repetitions", "1", "--seed", "5", "--jobs", "1",
                                 "--fingerprint-period-mm", "0.5")
     assert code == 0, err
     assert "wrote 1 image, 1 specimen" in stdout
@@ -23,7 +23,7 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     assert cv2.imread(str(out / study.manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (320, 1920)
     assert study.extra["simulation"]["camera_stored_height_px"] == 320 and study.sensor.roi == "center"
     whole = tmp_path / "w"
-    code, _, err = run_cli("simulate", "--out", whole, "--pads", "smooth", "--specimens", "R3", "--forces", "2",
+    code, _, err = run_cli("simulate", "--out", whole, "--pads", "smooth", "--specimens", "R3", "--forces-n", "2",
                            "--repetitions", "1", "--jobs", "1", "--stored-height-px", "0")
     assert code == 0, err
     assert cv2.imread(str(whole / read_study(whole).manifest["image"][0]), cv2.IMREAD_UNCHANGED).shape == (1080, 1920)
@@ -34,15 +34,15 @@ def test_simulate_writes_a_readable_study(run_cli, tmp_path):
     (("--specimens", "rect:-3"), "positive"),
     (("--specimens", "sin:0:0.2"), "positive"),
     (("--pads", "velvet"), "unknown pad 'velvet'"),
-    (("--forces", "1,0"), "--forces-n: '0' must be positive"),
-    (("--forces", "1,x"), "not a number"),
+    (("--forces-n", "1,0"), "--forces-n: '0' must be positive"),
+    (("--forces-n", "1,x"), "not a number"),
     (("--repetitions", "0"), "--repetitions must be a whole number from 1 to 10000"),
     (("--fingerprint-period-mm", "-1"), "--fingerprint-period-mm must be a positive"),
     (("--fingerprint-period-mm", "-1", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
     (("--fingerprint-period-mm", "0", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
     (("--fingerprint-period-mm", "nan", "--pads", "smooth"), "--fingerprint-period-mm must be a positive"),
     (("--ridge-height-mm", "inf", "--pads", "smooth"), "--ridge-height-mm must be a positive"),
-    (("--forces", "1,1.0000001"), "too close to tell apart"),
+    (("--forces-n", "1,1.0000001"), "too close to tell apart"),
     (("--seed", "-1"), "--seed must be"),
     (("--jobs", "0"), "--jobs must be at least 1"),
     (("--ratings-from", "table"), "--ratings-from must be one of paper, physics, got 'table'"),
@@ -59,7 +59,7 @@ def test_bad_input_is_one_line_and_exit_2(run_cli, tmp_path, args, message):
 def test_ratings_from_physics_feels_every_specimen(run_cli, tmp_path):
     out = tmp_path / "s"
     code, _, err = run_cli("simulate", "--out", out, "--pads", "smooth", "--specimens", "R2,R3,sin:3:0.3",
-                           "--forces", "1", "--repetitions", "1", "--jobs", "1", "--ratings-from", "physics")
+                           "--forces-n", "1", "--repetitions", "1", "--jobs", "1", "--ratings-from", "physics")
     assert code == 0, err
     study = read_study(out)
     assert study.extra["simulation"]["ratings_from"] == "physics"
@@ -72,7 +72,7 @@ def _tree(root):
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-_SMALL = ("--pads", "smooth", "--specimens", "R2", "--forces", "2", "--repetitions", "1", "--jobs", "1")
+_SMALL = ("--pads", "smooth", "--specimens", "R2", "--forces-n", "2", "--repetitions", "1", "--jobs", "1")
 
 
 def test_non_empty_folder_needs_force_and_keeps_user_files(run_cli, tmp_path):
@@ -121,7 +121,7 @@ def test_close_forces_into_an_earlier_simulation_change_nothing(run_cli, tmp_pat
     assert run_cli("simulate", "--out", sim, *_SMALL)[0] == 0
     before = _tree(sim)
     code, _, err = run_cli("simulate", "--out", sim, "--pads", "smooth", "--specimens", "R2", "--repetitions", "1",
-                           "--forces", "1,1.0000001", "--force")
+                           "--forces-n", "1,1.0000001", "--force")
     assert code == 2 and "1.0000001" in err
     assert _tree(sim) == before
 

@@ -59,12 +59,12 @@ def test_a_sweep_through_slurm_equals_the_local_cluster_row_for_row(tmp_path):
            "DASK_JOBQUEUE__SLURM__CORES": "1", "DASK_JOBQUEUE__SLURM__PROCESSES": "1",
            "DASK_JOBQUEUE__SLURM__MEMORY": "1GiB", "DASK_JOBQUEUE__SLURM__WALLTIME": "00:20:00",
            "DASK_JOBQUEUE__SLURM__NAME": JOB_NAME, "DASK_JOBQUEUE__SLURM__LOG_DIRECTORY": str(tmp_path / "logs")}
-    slurm = _explore(sweep, tmp_path / "slurm", env, "--scheduler", "slurm", "--workers", "2")
+    slurm = _explore(sweep, tmp_path / "slurm", env, "--scheduler", "slurm", "--jobs", "2")
     assert slurm.returncode == 0, slurm.stderr
     assert "2 cells computed" in slurm.stdout
     assert sorted(p.suffix for p in (tmp_path / "logs").iterdir()) == [".err", ".err", ".out", ".out"]  # 2 jobs ran
     assert _left_queued() == []  # cancelled when the sweep ended
-    local = _explore(sweep, tmp_path / "local", env, "--workers", "2")
+    local = _explore(sweep, tmp_path / "local", env, "--jobs", "2")
     assert local.returncode == 0, local.stderr
     pd.testing.assert_frame_equal(_results(tmp_path / "slurm"), _results(tmp_path / "local"), check_exact=True)
     assert (tmp_path / "slurm" / "summary.csv").read_bytes() == (tmp_path / "local" / "summary.csv").read_bytes()
@@ -92,7 +92,7 @@ def test_ctrl_c_cancels_the_batch_jobs(tmp_path):
            "DASK_JOBQUEUE__SLURM__MEMORY": "1GiB", "DASK_JOBQUEUE__SLURM__NAME": JOB_NAME,
            "DASK_JOBQUEUE__SLURM__LOG_DIRECTORY": str(tmp_path / "logs")}
     process = subprocess.Popen([sys.executable, "-m", "roughsense.cli", "explore", str(sweep), "--out",
-                                str(tmp_path / "out"), "--scheduler", "slurm", "--workers", "2"], env=env,
+                                str(tmp_path / "out"), "--scheduler", "slurm", "--jobs", "2"], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                preexec_fn=sigint_as_in_a_terminal)  # .ci/run may be a background job
     try:

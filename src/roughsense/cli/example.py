@@ -16,7 +16,7 @@ ORDER = 95
 
 #: Each shipped example: where it lives in the package, and one line on what it is.
 EXAMPLES: dict[str, tuple[str, str]] = {
-    "my-study": ("data/examples/my-study", "a complete tiny study folder (30 synthetic images, ratings): `study --data`"),
+    "my-study": ("data/examples/my-study", "a complete tiny study folder (30 synthetic images, ratings): `study --study`"),
     "tiny.toml": ("data/examples/tiny.toml", "a sweep of the twin small enough for about a minute: `explore`"),
     "paper_questions.toml": ("data/examples/paper_questions.toml",
                              "the sweep asking the twin the paper's open questions: `explore`"),

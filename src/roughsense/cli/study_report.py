@@ -77,7 +77,7 @@ def register(app: typer.Typer) -> None:
                 permutations=permutations, style=FigureStyle(check_figure_format(figure_format), dpi))
         for line in summary:  # once the report is in place: nothing is announced that was not written
             typer.echo(line)
-        where = f' (built-in, seed {seed}; "builtin" names it in --data and --study)' if builtin else ""
+        where = f' (built-in, seed {seed}; "builtin" names it in --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
 
