@@ -14,8 +14,8 @@ disagree with a margin rather than with a hidden threshold. ``rule`` says what t
 ratings only checks what the simulator was given (by default its ratings for the paper's specimens are
 drawn from the paper's Table 1), and the LOO error level was tuned to land in the paper's range.
 
-The claims are about the paper's model, so only the PLS fits and their controls are judged (``model == "pls"``);
-other model families are reported beside them, never mixed into a verdict.
+The claims are about the paper's model, so only its fits and controls are judged (the registered family whose
+``paper`` is true: PLS); other model families are reported beside them, never mixed into a verdict.
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import PLS
+from ..model.families import family, registry
 from ..paper import COMBINED, FINGERPRINT_PAD, FORCE_CONDITIONS, SMOOTH_PAD
 from .controls import ALPHA, training_mean_predictions
 from .metrics import compare_conditions, paired_tost, signed_rank, slope_tost, specimen_table
@@ -452,10 +452,11 @@ def _claim_row(claim: ClaimTest, controls: pd.DataFrame, simulation: dict | None
 
 
 def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
-    """The paper's model's rows (a frame without a model column is all PLS)."""
+    """The paper's model's rows (a frame without a model column is all the paper's)."""
     if frame is None or "model" not in frame.columns:
         return frame
-    return frame[frame["model"] == PLS].drop(columns="model").reset_index(drop=True)
+    paper = [f.name for f in registry() if f.paper]
+    return frame[frame["model"].isin(paper)].drop(columns="model").reset_index(drop=True)
 
 
 def training_mean_results(analysis, cv: str) -> pd.DataFrame:
@@ -467,7 +468,7 @@ def training_mean_results(analysis, cv: str) -> pd.DataFrame:
     frames = []
     gmean = analysis.perceived.set_index("specimen")["gmean"]
     for fit in analysis.fits:
-        if fit.cv != cv or fit.model != PLS:
+        if fit.cv != cv or not family(fit.model).paper:
             continue
         trials = fit.predictions[["specimen"]].copy()
         y = trials["specimen"].map(gmean).to_numpy(dtype=float)
@@ -518,7 +519,7 @@ def evaluate_claims(analysis, wavelengths: dict | None = None) -> pd.DataFrame:
 
     Of the paper's PLS model only: the other families' rows of the results and controls are left out.
     """
-    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv and f.model == PLS for f in analysis.fits)]
+    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv and family(f.model).paper for f in analysis.fits)]
     controls = _of_pls(analysis.controls)
     if controls is None or controls.empty:
         controls = pd.DataFrame(columns=["pad", "condition", "cv", "passes"])
