@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from ..errors import InputError
 from ..model.families import engine, family, paper_family
 from ..model.family import FoldResult, FoldSettings
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
 from .metrics import specimen_table
 from .spread import predictive_ovl
 
@@ -140,7 +140,7 @@ def _record(model: str, fold: FoldResult, meta: pd.DataFrame, perceived: pd.Data
 
 def family_fit(model: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, pad: str,
                condition: str, cv: str, *, law: dict | FoldSettings | None = None,
-               max_components: int = DEFAULT_MAX_COMPONENTS) -> FamilyFit:
+               max_components: int = defaults.MAX_COMPONENTS) -> FamilyFit:
     """One family cross-validated on one pad x condition under ``cv`` (LOSO nested where it chooses), as the study
     does it; its curve starts with the training mean's RMSE under the same folds (the null model)."""
     fold = _cross_validated(model, X, y, meta, pad, condition, cv, law, max_components)
@@ -152,7 +152,7 @@ def held_out_flags(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.n
     return engine(fit.model).held_out_flags(X, y, specimens, FoldSettings.of(law), fit.fold())
 
 
-def interval_check(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law, seed: int = 0
+def interval_check(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law, seed: int = defaults.SEED
                    ) -> pd.DataFrame | None:
     """The fully nested jackknife+ check of a LOSO fit's intervals (surface and press), where its family has
     cheap leave-two-out fits; None otherwise."""
@@ -160,8 +160,8 @@ def interval_check(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.n
 
 
 def fit_all(models: Sequence[str], X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame,
-            pad: str, condition: str, cv: str, law: dict, *, max_components: int = DEFAULT_MAX_COMPONENTS,
-            seed: int = 0) -> list[FamilyFit]:
+            pad: str, condition: str, cv: str, law: dict, *, max_components: int = defaults.MAX_COMPONENTS,
+            seed: int = defaults.SEED) -> list[FamilyFit]:
     """Every requested family on one pad x condition x CV scheme, under the same folds, in the order asked; a LOSO
     fit carries its held-out flags and interval check from the start."""
     fits = [family_fit(model, X, y, meta, perceived, pad, condition, cv, law=law, max_components=max_components)

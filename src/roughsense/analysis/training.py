@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 from sklearn.base import clone
 
+from .. import defaults
 from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.sensor_settings import Roi
@@ -28,7 +29,7 @@ from ..model.modelfile import feature_definition_for
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.peak_law_family import PeakLawFamily
 from ..model.pls import SIMPLS
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, fold_ids, pls_cv
+from ..model.pls_cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 from .assessment import UnseenAssessment, assess_unseen
@@ -136,7 +137,7 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
     # The seed, not a Generator: a capped retry must shuffle the K folds exactly as the first try did.
     try:
         return pls_cv(
-            X, y, max_components=DEFAULT_MAX_COMPONENTS if max_components is None else max_components,
+            X, y, max_components=defaults.MAX_COMPONENTS if max_components is None else max_components,
             cv=None if scheme == "loso" else scheme, groups=groups, random_state=seed, cap=max_components is None,
         )
     except PLSConfigError as exc:
@@ -147,7 +148,7 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
 
 
 def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str | None = None,
-                seed: int = 0, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
+                seed: int = defaults.SEED, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
                 progress: Callable | None = None, model: str | None = None, roi: Roi | None = None) -> TrainedModel:
     """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
     default), or the peak law with the pad's ridge period left out of its peak search.
@@ -190,7 +191,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                 "pad_ridge_period_mm": law.pad_ridge_period_mm, "surfaces": specimens}
     try:
         unseen = assess_unseen(name, X, y, meta, dataset.perceived_roughness(study), pad=pad, condition=condition,
-                               law=settings, max_components=max_components or DEFAULT_MAX_COMPONENTS, seed=seed)
+                               law=settings, max_components=max_components or defaults.MAX_COMPONENTS, seed=seed)
     except InputError as exc:  # a design too small for leave-one-specimen-out: said, never silently skipped
         training["unseen"] = {"cv": "loso (nested)", "passes_controls": None,
                               "failure": "this model could not be judged for a grating left out of training "

@@ -13,18 +13,16 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import defaults
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
 from .._util.files import open_regular
 from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
-from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ..model.families import check_model_name
 from ..model.families import names as family_names
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
 from ..paper import (
     PAPER_FORCES_N,
     PAPER_PARTICIPANTS,
@@ -36,7 +34,7 @@ from ..paper import (
 from ..sensor.settings import SPECTRUM_DEFAULTS
 from ..sim.limits import pad_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
-from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
+from ..sim.pads import PAD_NAMES, YOUNG_PA
 from ..sim.panel import RATINGS_FROM
 from ..sim.specimens import parse_specimen
 from .sweep_cells import (  # noqa: F401 (the grid's cells, re-exported: the sweep's readers import them here)
@@ -69,15 +67,15 @@ CELL_SECONDS_PER_FRAME = 6.7 / 420
 #: a cell may render up to MAX_CELL_FRAMES, so 999 cells can be 50 times the hours of 1000.
 CONFIRM_CORE_HOURS = CONFIRM_CELLS * 420 * CELL_SECONDS_PER_FRAME / 3600
 PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked against
-    "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
-    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / DEFAULT_PX_PER_MM, 3), "forces_n": "1,2,3",
+    "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / defaults.PX_PER_MM, 3), "forces_n": "1,2,3",
 }
 #: Design parameters: every one may be a single value in [sweep] or a list of values in [axes].
 DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
                "specimens", "repetitions", "ratings_from")
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
 DEFAULTS = {
-    "pad": SMOOTH_PAD, "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
+    "pad": SMOOTH_PAD, "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
     "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": PAPER_FORCES_N,
     "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": "paper",
 }
@@ -299,16 +297,16 @@ def _run_settings(settings: dict, path: Path) -> dict:
     seeds = [_checked(path, "[sweep] seeds", s, RUN_CONSTRAINTS["seeds"]) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
-    given = {"max_components": DEFAULT_MAX_COMPONENTS, "participants": PAPER_PARTICIPANTS, "sessions": PAPER_SESSIONS}
+    given = {"max_components": defaults.MAX_COMPONENTS, "participants": PAPER_PARTICIPANTS, "sessions": PAPER_SESSIONS}
     run = {key: _checked(path, f"[sweep] {key}", settings.get(key, default), RUN_CONSTRAINTS[key])
            for key, default in given.items()}
     size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
     width_px, height_px = (_checked(path, "[sweep] image_size_px", v, RUN_CONSTRAINTS["image_size_px"]) for v in size)
-    if width_px * height_px > DEFAULT_MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
+    if width_px * height_px > defaults.MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
         raise _error(path, f"[sweep] image_size_px: {width_px} x {height_px} px is above the limit of "
-                           f"{DEFAULT_MAX_PIXELS / 1e6:g} Mpx per frame")
+                           f"{defaults.MAX_PIXELS / 1e6:g} Mpx per frame")
     cv = settings.get("cv", list(CV_SCHEMES))
     if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
         raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")

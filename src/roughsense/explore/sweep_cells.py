@@ -14,10 +14,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from .. import defaults
 from ..analysis.ratings import schedule_size_problem
 from ..errors import ConfigError
-from ..io.images import DEFAULT_MAX_PIXELS
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
 from ..model.families import paper_family
 from ..paper import PAPER_SPECIMENS, SMOOTH_PAD
 from ..sim.limits import panel_problem
@@ -136,25 +135,25 @@ def _check_size(path: Path, fixed: dict, axes: dict[str, list], run: dict) -> No
 
 def _width_px(field_mm: float | None, run: dict) -> int:
     """The frame's width for a field length: the camera's pixel pitch, whole pixels (the sweep's width if None)."""
-    return run["width_px"] if field_mm is None else max(16, int(round(field_mm * DEFAULT_PX_PER_MM)))
+    return run["width_px"] if field_mm is None else max(16, int(round(field_mm * defaults.PX_PER_MM)))
 
 
 def _check_fields(path: Path, fields: list, where: str, run: dict) -> None:
     """Every field length makes a frame within the pixel limit, and no two make the same frame (one cell id)."""
     height = run["height_px"]
-    longest_mm = DEFAULT_MAX_PIXELS / height / DEFAULT_PX_PER_MM
+    longest_mm = defaults.MAX_PIXELS / height / defaults.PX_PER_MM
     widths: dict[int, float] = {}
     for field_mm in fields:
         if field_mm is None:
             continue
         if field_mm > longest_mm:
-            raise _error(path, f"{where}: {field_mm:g} mm at {DEFAULT_PX_PER_MM:g} px/mm and {height} px high is a "
-                               f"frame above the limit of {DEFAULT_MAX_PIXELS / 1e6:g} Mpx (at most "
+            raise _error(path, f"{where}: {field_mm:g} mm at {defaults.PX_PER_MM:g} px/mm and {height} px high is a "
+                               f"frame above the limit of {defaults.MAX_PIXELS / 1e6:g} Mpx (at most "
                                f"{longest_mm:.0f} mm)")
         width = _width_px(field_mm, run)
         if width in widths:
             raise _error(path, f"{where}: {widths[width]:g} and {field_mm:g} mm make the same frame of {width} px (a "
-                               f"pixel is {1 / DEFAULT_PX_PER_MM:.4g} mm), so the same cell; list one of them")
+                               f"pixel is {1 / defaults.PX_PER_MM:.4g} mm), so the same cell; list one of them")
         widths[width] = field_mm
 
 
@@ -192,7 +191,7 @@ def _cells(points: list[dict], run: dict, models: tuple[str, ...] = PAPER_ONLY) 
             content = dict(
                 seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],
                 ridge_height_mm=point["ridge_height_mm"], pad_modulus_mpa=point["pad_modulus_mpa"],
-                field_length_mm=round(cell_width / DEFAULT_PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
+                field_length_mm=round(cell_width / defaults.PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
                 specimens=tuple(names), specimens_label=_label("specimens", specimens),
                 repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=run["participants"],
                 sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],

@@ -14,6 +14,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
+from .families import PEAK_LAW
 from .family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from .jackknife_file import law_jackknife
 from .jackknife_plus import nested_check
@@ -67,7 +68,7 @@ def loso_laws(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law):
 class PeakLawFamily(FamilyEngine):
     """The peak power law: one law, nothing chosen, every fold and shuffling in one batch."""
 
-    name: ClassVar[str] = "peak-law"
+    name: ClassVar[str] = PEAK_LAW
     reads_surfaces: ClassVar[bool] = True
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .applicability import nested_domain_flags
+from .families import PLS
 from .family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from .jackknife_file import pls_jackknife
 from .peak_law import PeakPowerLaw
@@ -74,7 +75,7 @@ def pls_scheme_predictions(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, 
 class PLSFamily(FamilyEngine):
     """PLS1 by SIMPLS with its component count chosen by cross-validation (nested under LOSO)."""
 
-    name: ClassVar[str] = "pls"
+    name: ClassVar[str] = PLS
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """LOO at the curve's minimum, or nested LOSO; ``max_components`` is what the folds support."""
