@@ -146,3 +146,34 @@ def test_claims_stay_the_paper_familys_with_a_third_family_beside_it(with_toy):
     alone = analyse_study(study, features=features, max_components=2, conditions=("1N", "combined"),
                           n_permutations=9, models=("pls",))
     pd.testing.assert_frame_equal(with_toy.claims, alone.claims)
+
+
+def test_fold_settings_pass_the_same_keywords_as_the_dict_they_replace():
+    from roughsense.analysis.family_fits import law_settings
+    from roughsense.model.family import FoldSettings
+
+    X = np.ones((4, 6))
+    law = law_settings(X, np.linspace(0.1, 1.0, 3), 1.0, ["a", "a", "b", "b"])
+    assert list(law) == ["freq_per_mm", "n_blocks", "pad_ridge_period_mm", "surfaces"] and law["n_blocks"] == 2
+    again = FoldSettings.of(law).law()
+    assert list(again) == list(law) and all(again[k] is law[k] for k in law)  # the very arrays, in the same order
+    partial = FoldSettings.of({"freq_per_mm": law["freq_per_mm"]})
+    assert (partial.n_blocks, partial.pad_ridge_period_mm, partial.surfaces) == (1, None, None)  # the kernels' defaults
+    assert FoldSettings.of(None) is None and FoldSettings.of(partial) is partial
+
+
+def test_the_fit_record_is_frozen_and_keeps_its_old_names(with_toy):
+    import dataclasses
+
+    from roughsense.analysis.family_fits import ConditionFit, FamilyFit
+
+    assert ConditionFit is FamilyFit
+    pls = with_toy.condition_fit("smooth", "combined", "loso", "pls")
+    assert pls.cv_rmse is pls.curve and pls.best_n_components == pls.best == int(np.argmin(pls.curve))
+    assert pls.nested_n_components is pls.per_specimen and len(pls.per_specimen) == 14
+    assert pls.held_out_flags is not None and pls.interval_check is None  # PLS: flags, no leave-two-out check
+    law = with_toy.condition_fit("smooth", "combined", "loso", "peak-law")
+    assert (law.best, law.one_se, law.per_specimen, law.curve.size) == (1, 1, {}, 2)
+    assert law.interval_check is not None and len(law.interval_check) == 14
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        pls.best = 3
