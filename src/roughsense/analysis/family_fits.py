@@ -147,18 +147,6 @@ def family_fit(model: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, per
     return _record(model, fold, meta, perceived, pad, condition, cv)
 
 
-def held_out_flags(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law) -> np.ndarray | None:
-    """The applicability flag each held-out trial of a LOSO fit would have carried, as its family's domain says."""
-    return engine(fit.model).held_out_flags(X, y, specimens, FoldSettings.of(law), fit.fold())
-
-
-def interval_check(fit: FamilyFit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law, seed: int = defaults.SEED
-                   ) -> pd.DataFrame | None:
-    """The fully nested jackknife+ check of a LOSO fit's intervals (surface and press), where its family has
-    cheap leave-two-out fits; None otherwise."""
-    return engine(fit.model).interval_check(X, y, specimens, FoldSettings.of(law), seed)
-
-
 def fit_all(models: Sequence[str], X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame,
             pad: str, condition: str, cv: str, law: dict, *, max_components: int = defaults.MAX_COMPONENTS,
             seed: int = defaults.SEED) -> list[FamilyFit]:
@@ -168,6 +156,9 @@ def fit_all(models: Sequence[str], X: np.ndarray, y: np.ndarray, meta: pd.DataFr
             for model in models]
     if cv != "loso":
         return fits
-    specimens = meta["specimen"].astype(str).to_numpy()
-    return [dataclasses.replace(fit, held_out_flags=held_out_flags(fit, X, y, specimens, law),
-                                interval_check=interval_check(fit, X, y, specimens, law, seed)) for fit in fits]
+    specimens, settings = meta["specimen"].astype(str).to_numpy(), FoldSettings.of(law)
+    # Whether each held-out trial lay outside the domain of the model fitted without it, as its family's domain
+    # says; and the fully nested jackknife+ check of its intervals where the family has cheap leave-two-out fits.
+    return [dataclasses.replace(
+        fit, held_out_flags=engine(fit.model).held_out_flags(X, y, specimens, settings, fit.fold()),
+        interval_check=engine(fit.model).interval_check(X, y, specimens, settings, seed)) for fit in fits]
