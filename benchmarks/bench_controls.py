@@ -95,7 +95,7 @@ def main() -> None:
     parser.add_argument("--sklearn-permutations", type=int, default=2)
     args = parser.parse_args()
     from roughsense.analysis import controls
-    from roughsense.analysis.family_fits import _condition_fit
+    from roughsense.analysis.family_fits import family_fit
 
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
@@ -117,7 +117,7 @@ def main() -> None:
         specimens = meta["specimen"].astype(str).to_numpy()
         perms = controls.specimen_permutations(len(np.unique(specimens)), B, 0)
         for cv in ("loo", "loso"):
-            fit = _condition_fit(X, y, meta, perceived, pad, condition, cv, 20)
+            fit = family_fit("pls", X, y, meta, perceived, pad, condition, cv, max_components=20)
             started = time.perf_counter()
             controls.control_row(fit, X, y, specimens, perms)
             per_model[(pad, condition, cv)] = time.perf_counter() - started

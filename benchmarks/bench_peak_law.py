@@ -106,7 +106,7 @@ def law_settings(study, features, pad: str, condition: str, specimens=None) -> d
 
 
 def pls_loso(X, Y, specimens) -> np.ndarray:
-    """Nested LOSO predictions (B, n) of the paper's PLS for each column of Y, as study_analysis._loso_nested."""
+    """Nested LOSO predictions (B, n) of the paper's PLS for each column of Y, as model.pls_family.loso_nested."""
     from roughsense.model.pls_cv import nested_group_predictions, pls_cv_many
 
     held_out = int(pd.Series(specimens).value_counts().max())

@@ -214,6 +214,9 @@ def test_peak_law_permutation_control_matches_refits(small, cv):
 @pytest.mark.parametrize("cv", ["loo", "loso"])
 def test_peak_law_control_in_chunks_of_shufflings_equals_one_batch(small, cv, monkeypatch):
     """Memory bounded by chunks of shufflings (one at a time here) changes no shuffling's RMSE beyond rounding."""
+    from roughsense.model import peak_law_family
+    from roughsense.model.peak_law import peak_law_cv
+
     from .test_study_analysis import FREQS
 
     analysis, study, features = small
@@ -221,10 +224,14 @@ def test_peak_law_control_in_chunks_of_shufflings_equals_one_batch(small, cv, mo
     specimens = rows["specimen"].to_numpy()
     law = {"freq_per_mm": FREQS, "n_blocks": 1, "pad_ridge_period_mm": None, "surfaces": specimens}
     Y = controls.permuted_targets(y, specimens, controls.specimen_permutations(len(pd.unique(specimens)), 5, seed=3))
-    whole = controls.permuted_law_rmse(X, Y, specimens, cv, law)
-    monkeypatch.setattr(controls, "LAW_CHUNK_CELLS", 1)
-    one_by_one = controls.permuted_law_rmse(X, Y, specimens, cv, law)
+    whole = peak_law_family.permuted_law_rmse(X, Y, specimens, cv, law)
+    batches = []
+    monkeypatch.setattr(peak_law_family, "LAW_CHUNK_CELLS", 1)
+    monkeypatch.setattr(peak_law_family, "peak_law_cv", lambda X, Y, **kw: batches.append(Y.shape[1]) or
+                        peak_law_cv(X, Y, **kw))
+    one_by_one = peak_law_family.permuted_law_rmse(X, Y, specimens, cv, law)
+    assert batches == [1] * Y.shape[1]  # one shuffling per chunk: the chunking ran
     for b in range(Y.shape[1]):  # and each equals the law cross-validated on that shuffling alone
-        alone = controls.permuted_law_rmse(X, Y[:, b:b + 1], specimens, cv, law)
+        alone = peak_law_family.permuted_law_rmse(X, Y[:, b:b + 1], specimens, cv, law)
         assert one_by_one[b] == pytest.approx(alone[0], rel=1e-12)
     np.testing.assert_allclose(one_by_one, whole, rtol=1e-12)

@@ -9,16 +9,18 @@ The 90 % prediction intervals come from the same leave-one-specimen-out fits: pe
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from ..model.families import PLS
+from ..model.families import engine
+from ..model.family import FoldSettings
 from ..model.interval import PredictionInterval
 from ..model.jackknife_file import KEY as JACKKNIFE_KEY
-from ..model.jackknife_file import DeployedJackknife, law_jackknife, pls_jackknife
+from ..model.jackknife_file import DeployedJackknife
 from . import controls as _controls
 from .family_fits import family_fit
 from .unseen import null_specimen_rmse
@@ -85,13 +87,14 @@ def assess_unseen(family: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame,
     permutations = _controls.specimen_permutations(len(pd.unique(specimens)), n_permutations, seed)
     row = _controls.control_row(fit, X, y, specimens, permutations, law)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
+    numerics, settings = engine(fit.model), FoldSettings.of(law)
     alone = None
-    if law is not None and law.get("surfaces") is not None and family != PLS:  # a press read without its surface
-        alone = family_fit(family, X, y, meta, perceived, pad, condition, "loso", law={**law, "surfaces": None},
+    if numerics.reads_surfaces and settings is not None and settings.surfaces is not None:  # a press read alone
+        alone = family_fit(family, X, y, meta, perceived, pad, condition, "loso",
+                           law=dataclasses.replace(settings, surfaces=None),
                            max_components=max_components).predictions["prediction"].to_numpy(dtype=float)
     interval = PredictionInterval.from_cv(predictions, y, specimens, alone_predictions=alone)
-    jackknife = pls_jackknife(X, y, specimens, fit.nested_n_components, seed) if family == PLS else \
-        law_jackknife(X, y, specimens, law, seed) if law is not None else None
+    jackknife = numerics.jackknife(X, y, specimens, settings, fit.fold(), seed)
     return UnseenAssessment(
         rmse=float(fit.table["rmse"].mean()),
         null_rmse=float(null_specimen_rmse(fit.predictions, perceived).mean()),

@@ -8,12 +8,11 @@ components, and for leave-one-specimen-out its nested choice) is rerun on the sh
 p-value is the share of shufflings whose CV RMSE is at least as good as the real one's. The null model
 predicts each training fold's mean; its RMSE under the same CV is the floor any useful model must beat.
 
-Every shuffling's cross-validation runs through :func:`roughsense.model.pls_cv.pls_cv_many`, which advances all of
-them as one batch over one rotation of X, and through the same nested-selection code as the real targets.
-
-The peak power law (model family ``peak-law``) faces the same test with the same shufflings: all of them go through
-one :func:`roughsense.model.peak_law.peak_law_cv` call (every fold and shuffled target in one batched fit). It
-chooses nothing from the targets, so its fit on each training fold is the whole of what is rerun.
+Every family faces the same test with the same shufflings, each through its engine's ``permuted_rmse``
+(roughsense.model.family): PLS advances all of them as one batch over one rotation of X
+(:func:`roughsense.model.pls_cv.pls_cv_many`) through the same nested-selection code as the real targets; the peak
+power law fits every fold and shuffled target in one batched IRLS, and chooses nothing, so that fit is the whole of
+what is rerun.
 """
 from __future__ import annotations
 
@@ -23,24 +22,20 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from .._util.checks import Integer, check
-from ..model.families import PEAK_LAW, PLS
-from ..model.peak_law import peak_law_cv
+from ..model.families import engine
+from ..model.family import FoldSettings, cv_rmse
+from ..model.peak_law_family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls import single_threaded_blas
-from ..model.pls_cv import nested_group_predictions, pls_cv_many
+from ..model.pls_family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
 from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
-DEFAULT_PERMUTATIONS = 199
+DEFAULT_PERMUTATIONS = defaults.PERMUTATIONS
 #: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
 #: 10^9 of them ran out of memory after half a minute; more is refused before any work.
-MAX_PERMUTATIONS = 10_000
-#: The peak law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
-#: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS
-#: and kept ranges take one fold per specimen (peak_law_cv), so what is left at this size is the kept ranges' arrays:
-#: 2^21 cells held the two control threads ~40 MiB higher at the same CPU, 2^17 cost 13 % more CPU
-#: (benchmarks/bench_issue37.py --chunks).
-LAW_CHUNK_CELLS = 1 << 19
+MAX_PERMUTATIONS = defaults.MAX_PERMUTATIONS
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
@@ -78,8 +73,7 @@ def permuted_targets(y: np.ndarray, specimens: Sequence, permutations: np.ndarra
     return values[permutations][:, codes].T
 
 
-def _cv_rmse(prediction: np.ndarray, target: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean((prediction - target) ** 2, axis=-1))
+_cv_rmse = cv_rmse  # the pooled RMSE, as every family's permuted_rmse computes it
 
 
 def fold_mean_predictions(y: np.ndarray, folds: Sequence) -> np.ndarray:
@@ -100,37 +94,6 @@ def training_mean_predictions(y: np.ndarray, specimens: Sequence, cv: str) -> np
     return fold_mean_predictions(y, np.arange(len(y)) if cv == "loo" else specimens)
 
 
-def permuted_cv_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: str, max_components: int) -> np.ndarray:
-    """CV RMSE of each target column of Y after the same selection the study applies to the real target.
-
-    LOO: the argmin over 1..max_components of the LOO RMSE. LOSO: nested leave-one-specimen-out (each
-    held-out specimen's count chosen by LOSO over the others), pooled over all trials.
-    """
-    if cv == "loo":
-        batch = pls_cv_many(X, Y, max_components=max_components, cv="loo", cap=True)
-        return batch.rmse[:, 1:].min(axis=1)
-    outer = pls_cv_many(X, Y, max_components=max_components, groups=specimens, cap=True)
-    nested, _ = nested_group_predictions(X, Y, specimens, outer.predictions)
-    return _cv_rmse(nested, Y.T)
-
-
-def permuted_law_rmse(X: np.ndarray, Y: np.ndarray, specimens: np.ndarray, cv: str, law: dict) -> np.ndarray:
-    """CV RMSE of the peak power law on each target column of Y, pooled over all trials (LOO or LOSO).
-
-    ``law``: peak_law_cv's keywords for this pad and condition (grid, spectra per row, the pad's ridge period).
-    Shufflings go through in chunks of about :data:`LAW_CHUNK_CELLS` folds x shufflings x presses, so the memory
-    stays flat in the number of presses (leave-one-out has as many folds as presses); each shuffling's fit is its own.
-    """
-    groups = np.asarray(specimens) if cv == "loso" else None
-    n = Y.shape[0]
-    # Leave-one-out's folds of one specimen's presses pose one problem (its targets are the specimen's one value):
-    # peak_law_cv fits each once, so both schemes fit as many folds as there are specimens.
-    size = max(1, LAW_CHUNK_CELLS // (n * len(pd.unique(np.asarray(specimens)))))
-    predictions = np.vstack([peak_law_cv(X, Y[:, start:start + size], groups=groups, **law)
-                             for start in range(0, Y.shape[1], size)])
-    return _cv_rmse(predictions, Y.T)
-
-
 def permutation_p(rmse: float, permuted: np.ndarray) -> float:
     """(1 + shufflings at least as good) / (1 + shufflings); ``rmse`` computed as the shuffled ones, so ties count."""
     return float((1 + np.sum(permuted <= rmse * (1 + 1e-12))) / (1 + permuted.size))
@@ -138,23 +101,21 @@ def permutation_p(rmse: float, permuted: np.ndarray) -> float:
 
 def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permutations: np.ndarray,
                 law: dict | None = None) -> dict:
-    """One row of controls.csv for a fitted pad x condition x CV scheme (a ``ConditionFit``) of either family.
+    """One row of controls.csv for a fitted pad x condition x CV scheme (a ``FamilyFit``) of any family.
 
-    ``law``: the peak law's settings (:func:`permuted_law_rmse`); needed for a peak-law fit only.
+    ``law``: the pad x condition's settings (:class:`roughsense.model.family.FoldSettings` or its keyword dict),
+    for a family whose folds read them (the peak law's).
     """
     specimens = np.asarray(specimens).astype(str)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
     rmse = float(_cv_rmse(predictions, y))
     # cv_rmse[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
-    null_rmse = float(fit.cv_rmse[0])
-    model = getattr(fit, "model", PLS)
+    null_rmse = float(fit.curve[0])
     n_permutations = int(permutations.shape[0])
     if n_permutations:
         Y = permuted_targets(y, specimens, permutations)
-        if model == PEAK_LAW:
-            permuted = permuted_law_rmse(X, Y, specimens, fit.cv, law)
-        else:
-            permuted = permuted_cv_rmse(X, Y, specimens, fit.cv, int(fit.cv_rmse.size - 1))
+        permuted = engine(fit.model).permuted_rmse(X, Y, specimens, fit.cv, FoldSettings.of(law),
+                                                   int(fit.curve.size - 1))
         p = permutation_p(rmse, permuted)
         median, low = float(np.median(permuted)), float(permuted.min())
     else:
@@ -164,10 +125,10 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
     beats_permutation = bool(p < ALPHA) if n_permutations else None
     return {
         "pad": fit.pad, "condition": fit.condition, "cv": fit.cv, "rmse": rmse, "null_rmse": null_rmse,
-        "permutation_p": p, "n_permutations": n_permutations, "n_components": int(fit.best_n_components),
+        "permutation_p": p, "n_permutations": n_permutations, "n_components": int(fit.best),
         "permuted_rmse_median": median, "permuted_rmse_min": low, "beats_null": beats_null,
         "beats_permutation": beats_permutation, "passes": beats_null and beats_permutation is not False,
-        MODEL_COLUMN: model,
+        MODEL_COLUMN: fit.model,
     }
 
 

@@ -11,8 +11,8 @@ Two stricter schemes say how far that carries:
 Each row gives, per model x pad x condition x scheme, the mean per-specimen RMSE beside the training mean's under
 the same folds, the mean bias (rating units) and the mean log bias of each shape (a shape left out: one row per
 held-out shape, its specimens only), Spearman's rho over the rated
-specimens, the permutation p (the peak law only: its batched CV refits every shuffled target at no cost; PLS's
-nested search would double the study's controls) and the share of presses the applicability flag fell on. The
+specimens, the permutation p (of a family whose batched CV refits every shuffled target at no cost, the peak law's;
+PLS's nested search would double the study's controls) and the share of presses the applicability flag fell on. The
 ``specimen`` rows are the study's own LOSO fits and controls, repeated here so the three schemes stand side by side.
 """
 from __future__ import annotations
@@ -23,10 +23,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import PEAK_LAW, PLS
-from ..model.peak_law import held_out_flags as law_flags
-from ..model.peak_law import peak_law_cv
-from ..model.pls_cv import pls_cv_many
+from ..model.families import engine, paper_family
+from ..model.family import FoldSettings
+from ..model.pls_family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
 from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets
 
 #: The schemes, strictest last, and what each holds out in a user's words.
@@ -48,28 +47,6 @@ def scheme_folds(scheme: str, specimens: np.ndarray, shapes: dict, wavelengths: 
     if labels.isna().any() or labels.nunique() < 2:
         return None
     return labels.astype(str).to_numpy()
-
-
-def pls_scheme_predictions(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray,
-                           max_components: int) -> np.ndarray | None:
-    """PLS's out-of-fold predictions under ``folds``, each fold's component count chosen by leave-one-specimen-out
-    within its training data only (a shape held out leaves one training shape: its specimens are the inner folds).
-    None where a fold leaves too few trials or specimens to choose a count without it."""
-    largest = int(pd.Series(folds).value_counts().max())
-    usable = int(min(max_components, len(y) - largest - 1, X.shape[1]))
-    inner_usable = {}
-    for fold in pd.unique(folds):
-        rest = pd.Series(specimens[folds != fold])
-        inner_usable[fold] = int(min(usable, len(rest) - rest.value_counts().max() - 1, X.shape[1]))
-        if rest.nunique() < 3 or inner_usable[fold] < 1:
-            return None
-    outer = pls_cv_many(X, y[:, None], max_components=usable, groups=folds, cap=True).predictions[0]
-    predictions = np.empty(len(y))
-    for fold, inner_max in inner_usable.items():
-        held = folds == fold
-        inner = pls_cv_many(X[~held], y[~held, None], max_components=inner_max, groups=specimens[~held], cap=True)
-        predictions[held] = outer[held, int(inner.best_n_components[0])]
-    return predictions
 
 
 def judged(prediction: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: np.ndarray, shapes: dict,
@@ -135,27 +112,26 @@ def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law:
         p, n_perm = (float("nan"), 0) if control is None else (float(control["permutation_p"]),
                                                               int(control["n_permutations"]))
         return fit.predictions["prediction"].to_numpy(dtype=float), p, n_perm, fit.held_out_flags
-    if fit.model == PEAK_LAW:
-        targets = y[:, None] if shuffled is None else np.column_stack([y, shuffled])
-        every = peak_law_cv(X, targets, groups=folds, **law)
-        p, n_perm = float("nan"), 0
-        if shuffled is not None:
-            real = np.sqrt(np.mean((every[0] - y) ** 2))
-            p = permutation_p(real, np.sqrt(np.mean((every[1:] - shuffled.T) ** 2, axis=1)))
-            n_perm = int(shuffled.shape[1])
-        return every[0], p, n_perm, law_flags(X, y, folds, **law)
-    if fit.model == PLS:
-        prediction = pls_scheme_predictions(X, y, specimens, folds, analysis.max_components)
-        return None if prediction is None else (prediction, float("nan"), 0, None)
-    return None
+    targets = y[:, None] if shuffled is None else np.column_stack([y, shuffled])
+    scored = engine(fit.model).scheme_predictions(X, targets, specimens, folds, FoldSettings.of(law),
+                                                  analysis.max_components)
+    if scored is None:
+        return None
+    every, flags = scored
+    p, n_perm = float("nan"), 0
+    if len(every) > 1:  # the family refitted the shufflings too
+        real = np.sqrt(np.mean((every[0] - y) ** 2))
+        p = permutation_p(real, np.sqrt(np.mean((every[1:] - shuffled.T) ** 2, axis=1)))
+        n_perm = int(shuffled.shape[1])
+    return every[0], p, n_perm, flags
 
 
 def _control(controls: pd.DataFrame, fit) -> pd.Series | None:
     if controls is None or controls.empty:
         return None
-    model = controls["model"] if "model" in controls else pd.Series(PLS, index=controls.index)
+    named = controls["model"] if "model" in controls else pd.Series(paper_family().name, index=controls.index)
     rows = controls[(controls["pad"] == fit.pad) & (controls["condition"] == fit.condition)
-                    & (controls["cv"] == "loso") & (model == fit.model)]
+                    & (controls["cv"] == "loso") & named.eq(fit.model)]
     return None if rows.empty else rows.iloc[0]
 
 

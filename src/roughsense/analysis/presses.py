@@ -7,18 +7,19 @@ a held-out specimen's score from its perceived roughness when it is read from 1,
 count draws :data:`DRAWS` random subsets of each specimen's presses (seeded from the study's seed); a specimen's
 RMSE is over its draws, and the curve is the mean over specimens beside the training mean's (which reads no press).
 ``presses_needed`` is the fewest presses that gain at least half of what the most presses gain over the training
-mean. The peak law only: its
-leave-one-specimen-out fits are one batch (:func:`roughsense.model.peak_law.fit_terms`), PLS's nested search is not.
+mean. Of every family that reads a surface from its presses together (its engine's ``surface_reader``: the peak
+law, whose leave-one-specimen-out fits are one batch); PLS reads each press alone, so the mean is all it has.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from ..model.families import PEAK_LAW
+from ..model.families import engine, engines
+from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
-from ..model.peak_law import domain_margins, grid_step, held_features, peak_features
-from ..model.peak_law_folds import law_fold_models, specimen_codes
+from ..model.peak_law_family import loso_laws  # noqa: F401 (re-exported for one release)
+from ..model.peak_law_folds import specimen_codes
 from .controls import fold_mean_predictions
 
 #: Random subsets of a specimen's presses per count.
@@ -26,23 +27,17 @@ DRAWS = 20
 PRESS_COLUMNS = ["model", "pad", "condition", "n_presses", "rmse", "null_rmse"]
 
 
-def loso_laws(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict):
-    """The law fitted without each specimen (as the study fits it): coefficients (S, p + 1) and domains (S, p)."""
-    codes, names = specimen_codes(specimens)
-    held = codes[None, :] == np.arange(names.size)[:, None]
-    beta, low, high, _ = law_fold_models(X, y, ~held, **law)
-    freq = law["freq_per_mm"]
-    low, high = domain_margins(grid_step(freq), low, high)
-    return beta, low, high
-
-
-def presses_curve(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict, seed: int,
-                  counts=PRESS_COUNTS, draws: int = DRAWS) -> pd.DataFrame:
+def presses_curve(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law, seed: int,
+                  counts=PRESS_COUNTS, draws: int = DRAWS, *, model: str | None = None) -> pd.DataFrame | None:
     """Mean per-specimen RMSE of a held-out surface read from k of its presses, per k (columns n_presses, rmse,
-    null_rmse)."""
+    null_rmse), by family ``model`` (default: the first registered one that reads surfaces); None for a family
+    that reads each press alone."""
     specimens = np.asarray(specimens).astype(str)
+    chosen = engine(model) if model is not None else next(e for e in engines() if e.reads_surfaces)
+    read = chosen.surface_reader(X, y, specimens, FoldSettings.of(law))
+    if read is None:
+        return None
     codes, names = specimen_codes(specimens)
-    beta, low, high = loso_laws(X, y, specimens, law)
     target = pd.Series(y).groupby(codes).first().to_numpy()
     null = pd.Series(np.abs(fold_mean_predictions(y, specimens) - y)).groupby(codes).first().to_numpy()
     rng = np.random.default_rng(seed)
@@ -53,11 +48,7 @@ def presses_curve(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, law: dict
                                  for s in range(names.size)]) for _ in range(draws)]
         rows_of = np.concatenate(picks)
         labels = np.repeat(np.arange(draws * names.size), k)  # one surface per specimen and draw
-        settings = {**law, "surfaces": labels}
-        features = peak_features(X[rows_of], **{key: v for key, v in settings.items() if key != "epsilon"})
-        owner = codes[rows_of]
-        held = held_features(features, low[owner], high[owner])
-        predicted = np.exp(beta[owner, 0] + np.einsum("nf,nf->n", held, beta[owner, 1:]))
+        predicted = read(rows_of, labels)
         surface = pd.Series(predicted).groupby(labels).mean().to_numpy().reshape(draws, names.size)
         per_specimen = np.sqrt(np.mean((surface - target[None, :]) ** 2, axis=0))
         rows.append({"n_presses": k, "rmse": float(per_specimen.mean()), "null_rmse": float(null.mean())})
@@ -83,12 +74,13 @@ def presses_needed(curve: pd.DataFrame) -> int | None:
 
 
 def presses_analysis(analysis, jobs) -> pd.DataFrame:
-    """The study's table (PRESS_COLUMNS) over the peak law's LOSO fits among the controls' jobs."""
+    """The study's table (PRESS_COLUMNS) over the LOSO fits among the controls' jobs of every family that reads a
+    surface from its presses together."""
     frames = []
     for fit, X, y, specimens, _, law in jobs:
-        if fit.cv != "loso" or fit.model != PEAK_LAW:
+        curve = presses_curve(X, y, specimens, law, analysis.seed, model=fit.model) if fit.cv == "loso" else None
+        if curve is None:
             continue
-        curve = presses_curve(X, y, specimens, law, analysis.seed)
         curve.insert(0, "model", fit.model)
         curve.insert(1, "pad", fit.pad)
         curve.insert(2, "condition", fit.condition)

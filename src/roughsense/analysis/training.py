@@ -12,22 +12,24 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 from sklearn.base import clone
 
+from .. import defaults
 from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model.applicability import SpectrumDomain, fit_domain
-from ..model.families import DEFAULT_MODEL, PEAK_LAW, PLS, check_model_name
+from ..model.families import check_model_name, default_family, family, paper_family, registry
 from ..model.modelfile import feature_definition_for
 from ..model.peak_law import PeakPowerLaw, peak_law_cv
+from ..model.peak_law_family import PeakLawFamily
 from ..model.pls import SIMPLS
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS, PLSConfigError, PLSCVResult, fold_ids, pls_cv
+from ..model.pls_cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 from .assessment import UnseenAssessment, assess_unseen
@@ -38,7 +40,7 @@ RULES = ("min", "1se")
 
 
 #: What the peak law's CV rows are, in order (the training mean under the same folds first, as PLS's 0 components).
-LAW_CV_MODELS = ("training mean", PEAK_LAW)
+LAW_CV_MODELS = ("training mean", PeakLawFamily.name)
 
 
 @dataclass(frozen=True)
@@ -63,7 +65,7 @@ class TrainedModel:
     training: dict
     n_samples: int
     n_features: int
-    family: str = PLS
+    family: str = field(default_factory=lambda: paper_family().name)
     unseen: UnseenAssessment | None = None
     domain: SpectrumDomain | None = None  # PLS's applicability domain (the law's is in the fitted law)
 
@@ -83,25 +85,26 @@ def parse_cv(text: str) -> str | int:
 
 
 def check_training_options(condition: str, rule: str | None, max_components: int | None,
-                           model: str = DEFAULT_MODEL) -> str:
-    """Refuse options before any image is read; returns the model family's name.
+                           model: str | None = None) -> str:
+    """Refuse options before any image is read; returns the model family's name (default: fit's default).
 
-    ``rule`` and ``max_components`` choose PLS's component count: given with the peak law (which has none to
-    choose) they are refused rather than silently ignored.
+    ``rule`` and ``max_components`` choose a component count: given with a family that has none to choose (the
+    peak law) they are refused rather than silently ignored.
     """
-    family = check_model_name(model)
+    name = check_model_name(model) if model is not None else default_family().name
     check(condition, Options(CONDITIONS), name="--condition", must=f"one of {', '.join(CONDITIONS)}")
-    if family == PEAK_LAW:
+    if not family(name).chooses_components:
+        chooser = next(f for f in registry() if f.chooses_components)
         for option, value in (("--rule", rule), ("--max-components", max_components)):
             if value is not None:
-                raise ConfigError(f"{option} chooses PLS components; the peak law has none to choose "
-                                  f"(drop {option} or use --model {PLS})")
-        return family
+                raise ConfigError(f"{option} chooses {chooser.name.upper()} components; the {family(name).title} has "
+                                  f"none to choose (drop {option} or use --model {chooser.name})")
+        return name
     if rule is not None:
         check(rule, Options(RULES), name="--rule", must="min or 1se")
     if max_components is not None:
         check(max_components, POSITIVE_INT, name="--max-components", must="at least 1")
-    return family
+    return name
 
 
 def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
@@ -134,7 +137,7 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
     # The seed, not a Generator: a capped retry must shuffle the K folds exactly as the first try did.
     try:
         return pls_cv(
-            X, y, max_components=DEFAULT_MAX_COMPONENTS if max_components is None else max_components,
+            X, y, max_components=defaults.MAX_COMPONENTS if max_components is None else max_components,
             cv=None if scheme == "loso" else scheme, groups=groups, random_state=seed, cap=max_components is None,
         )
     except PLSConfigError as exc:
@@ -145,14 +148,14 @@ def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str
 
 
 def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo", rule: str | None = None,
-                seed: int = 0, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
-                progress: Callable | None = None, model: str = DEFAULT_MODEL, roi: Roi | None = None) -> TrainedModel:
+                seed: int = defaults.SEED, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
+                progress: Callable | None = None, model: str | None = None, roi: Roi | None = None) -> TrainedModel:
     """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
     default), or the peak law with the pad's ridge period left out of its peak search.
 
     ``roi`` reads the line there instead of at the study's [sensor] roi; the model file records both.
     """
-    family = check_training_options(condition, rule, max_components, model)
+    name = check_training_options(condition, rule, max_components, model)
     study_roi = study.sensor.roi
     if roi is not None:
         study = dataclasses.replace(study, sensor=dataclasses.replace(study.sensor, roi=roi))
@@ -179,16 +182,16 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     specimens = meta["specimen"].astype(str).to_numpy()
     law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                        pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))
-    if family == PEAK_LAW:
-        trained = _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training, what=what)
-    else:
+    if family(name).chooses_components:  # a count to choose by ``rule``; else one fit, nothing chosen
         trained = _train_pls(X, y, meta, cv, rule=rule, seed=seed, max_components=max_components, law=law,
                              definition=definition, training=training, what=what, manifest=study.root / MANIFEST_CSV)
+    else:
+        trained = _train_law(law, X, y, meta, cv, seed=seed, definition=definition, training=training, what=what)
     settings = {"freq_per_mm": law.freq_per_mm, "n_blocks": law.n_blocks,
                 "pad_ridge_period_mm": law.pad_ridge_period_mm, "surfaces": specimens}
     try:
-        unseen = assess_unseen(family, X, y, meta, dataset.perceived_roughness(study), pad=pad, condition=condition,
-                               law=settings, max_components=max_components or DEFAULT_MAX_COMPONENTS, seed=seed)
+        unseen = assess_unseen(name, X, y, meta, dataset.perceived_roughness(study), pad=pad, condition=condition,
+                               law=settings, max_components=max_components or defaults.MAX_COMPONENTS, seed=seed)
     except InputError as exc:  # a design too small for leave-one-specimen-out: said, never silently skipped
         training["unseen"] = {"cv": "loso (nested)", "passes_controls": None,
                               "failure": "this model could not be judged for a grating left out of training "
@@ -197,8 +200,9 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
         return trained
     training["unseen"] = unseen.record()
     training.update(unseen.interval_record())
-    if family == PEAK_LAW:  # how many presses a surface needs (analysis/presses.py); predict says when it has fewer
-        curve = presses_curve(X, y, specimens, settings, seed)
+    # How many presses a surface needs (analysis/presses.py; None: presses read alone); predict warns below it.
+    curve = presses_curve(X, y, specimens, settings, seed, model=name)
+    if curve is not None:
         training["presses"] = {"needed": presses_needed(curve), "null_rmse": float(curve["null_rmse"].iloc[0]),
                                "rmse_by_presses": {str(int(k)): float(v) for k, v in zip(curve["n_presses"],
                                                                                         curve["rmse"])}}
@@ -262,12 +266,12 @@ def _train_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFra
     except ValueError as exc:
         raise ConfigError(f"the peak law cannot be fitted to {what}: {exc}") from None
     training.update({
-        "model": PEAK_LAW,
+        "model": PeakLawFamily.name,
         "cv_models": list(LAW_CV_MODELS),
         "cv_rmse": [float(v) for v in result.rmse],
         "cv_rmse_se": [float(v) for v in result.rmse_se],
     })
-    return TrainedModel(fitted, result, 1, definition, training, int(len(y)), int(X.shape[1]), family=PEAK_LAW)
+    return TrainedModel(fitted, result, 1, definition, training, int(len(y)), int(X.shape[1]), family=PeakLawFamily.name)
 
 
 def cross_validate_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *,

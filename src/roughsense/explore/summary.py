@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.metrics import mean_interval
-from ..model.families import MODEL_FAMILIES
+from ..model.families import names
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
 from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
@@ -125,9 +125,10 @@ def best_design(table: pd.DataFrame, mask: pd.Series | None = None) -> dict | No
 
 
 def models_in(frame: pd.DataFrame) -> list[str]:
-    """The model families present, the paper's PLS first (MODEL_FAMILIES order, unknown names after)."""
+    """The model families present, the paper's PLS first (the registry's order, unknown names after)."""
     present = list(dict.fromkeys(frame[MODEL_KEY].dropna())) if MODEL_KEY in frame.columns else []
-    return [m for m in MODEL_FAMILIES if m in present] + [m for m in present if m not in MODEL_FAMILIES]
+    known = names()
+    return [m for m in known if m in present] + [m for m in present if m not in known]
 
 
 def best_per_model(table: pd.DataFrame) -> list[dict]:

@@ -2,56 +2,60 @@
 
 A cell is one grid point x one seed. Everything a cell needs travels inside :class:`Cell` (no files), so a worker on
 another machine computes it from the cell alone, and the cell's id is a hash of exactly that content: a rerun of the
-same sweep, or a sweep that shares some of its cells, finds them finished.
-
-The ``model`` axis is not a grid dimension of cells: a model family does not change the simulated frames, so a cell
-simulates once and fits every requested family on the same spectra (rows per model). Its id covers the families only
-when they differ from the paper's PLS alone, so sweeps without the axis keep the ids (and results) they had.
+same sweep, or a sweep that shares some of its cells, finds them finished. This module reads and checks the file;
+the grid's expansion into cells, their bounds and ids are :mod:`.sweep_cells`'.
 """
 from __future__ import annotations
 
-import hashlib
-import itertools
 import json
-import math
 import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import defaults
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
 from .._util.files import open_regular
-from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS, schedule_size_problem
+from ..analysis.ratings import MAX_PARTICIPANTS, MAX_SESSIONS
 from ..analysis.study_analysis import CV_SCHEMES
 from ..errors import ConfigError
-from ..io.images import DEFAULT_MAX_PIXELS
 from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
-from ..model.families import MODEL_FAMILIES, PAPER_MODEL, check_model_name
-from ..model.pls_cv import DEFAULT_MAX_COMPONENTS
+from ..model.families import check_model_name
+from ..model.families import names as family_names
 from ..paper import (
     PAPER_FORCES_N,
     PAPER_PARTICIPANTS,
     PAPER_REPETITIONS,
     PAPER_SESSIONS,
-    PAPER_SPECIMENS,
     REFERENCE_SPECIMEN,
     SMOOTH_PAD,
 )
 from ..sensor.settings import SPECTRUM_DEFAULTS
-from ..sim.limits import pad_problem, panel_problem, specimen_problem
+from ..sim.limits import pad_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
-from ..sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, YOUNG_PA
+from ..sim.pads import PAD_NAMES, YOUNG_PA
 from ..sim.panel import RATINGS_FROM
 from ..sim.specimens import parse_specimen
+from .sweep_cells import (  # noqa: F401 (the grid's cells, re-exported: the sweep's readers import them here)
+    FINGERPRINT_ONLY,
+    MAX_CELL_FRAMES,
+    MAX_CELLS,
+    MODEL_KEY,
+    PAPER_ONLY,
+    SPECIMEN_SETS,
+    Cell,
+    _cells,
+    _check_size,
+    _design_points,
+    _error,
+    _label,
+    forces_label,
+)
 
 MIN_FIELD_MM = 1.0 / SPECTRUM_DEFAULTS.f_min_per_mm  # a shorter line cannot resolve the spectrum's lowest frequency
 #: A sweep file is a few kB of settings and lists; a megabyte is no sweep anyone wrote by hand.
 MAX_SWEEP_BYTES = 1_000_000
-#: Most cells (designs x seeds) in one sweep: at seconds to a minute each, 100,000 cells are days of a cluster;
-#: counted from the axes before any cell is built (a 1000 x 1000 grid is refused at once).
-MAX_CELLS = 100_000
 #: Longest sweep name: it titles the report page.
 MAX_NAME_CHARS = 200
 #: A sweep of more cells than this runs only with ``--yes``, after its estimate is shown: hours of work are asked for.
@@ -62,29 +66,16 @@ CELL_SECONDS_PER_FRAME = 6.7 / 420
 #: ... and so does one of fewer cells whose estimate exceeds that of CONFIRM_CELLS paper-sized cells (420 frames each):
 #: a cell may render up to MAX_CELL_FRAMES, so 999 cells can be 50 times the hours of 1000.
 CONFIRM_CORE_HOURS = CONFIRM_CELLS * 420 * CELL_SECONDS_PER_FRAME / 3600
-#: Most frames one cell renders (specimens x forces x repetitions; the paper's pad: 14 x 3 x 10 = 420): 50 times the
-#: paper, tens of minutes and about 100 MB of spectra per cell.
-MAX_CELL_FRAMES = 20_000
-#: Named specimen sets usable wherever a list of specimens is expected.
-SPECIMEN_SETS = {
-    "paper": PAPER_SPECIMENS,
-    "rectangular": tuple(s for s in PAPER_SPECIMENS if s.startswith("R")),
-    "circular": tuple(s for s in PAPER_SPECIMENS if s.startswith("C")),
-}
 PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked against
-    "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
-    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / DEFAULT_PX_PER_MM, 3), "forces_n": "1,2,3",
+    "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
+    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / defaults.PX_PER_MM, 3), "forces_n": "1,2,3",
 }
 #: Design parameters: every one may be a single value in [sweep] or a list of values in [axes].
 DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
                "specimens", "repetitions", "ratings_from")
-FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless for the smooth pad
-#: The model families a cell fits: one value in [sweep] or a list in [axes], like a design parameter, but every
-#: family of a design is fitted in the same cell (the frames do not depend on the model).
-MODEL_KEY = "model"
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
 DEFAULTS = {
-    "pad": SMOOTH_PAD, "fingerprint_period_mm": DEFAULT_FINGERPRINT_PERIOD_MM, "ridge_height_mm": DEFAULT_RIDGE_HEIGHT_MM,
+    "pad": SMOOTH_PAD, "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
     "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": PAPER_FORCES_N,
     "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": "paper",
 }
@@ -92,48 +83,6 @@ DEFAULTS = {
 COLUMN_KINDS = {"pad": "str", "fingerprint_period_mm": "float", "ridge_height_mm": "float",
                 "pad_modulus_mpa": "float", "field_length_mm": "float", "forces_n": "str", "specimens": "str",
                 "repetitions": "int", "ratings_from": "str", MODEL_KEY: "str"}
-
-
-@dataclass(frozen=True)
-class Cell:
-    """One grid point x one seed: everything needed to compute it, nothing else."""
-
-    id: str
-    seed: int
-    pad: str
-    fingerprint_period_mm: float | None
-    ridge_height_mm: float | None
-    pad_modulus_mpa: float
-    field_length_mm: float
-    forces_n: tuple[float, ...]
-    specimens: tuple[str, ...]
-    specimens_label: str
-    repetitions: int
-    ratings_from: str
-    participants: int
-    sessions: int
-    width_px: int
-    height_px: int
-    max_components: int
-    cv: tuple[str, ...]
-    code: str = ""  # fingerprint of the twin and analysis that compute it (explore.code_fingerprint)
-    models: tuple[str, ...] = (PAPER_MODEL,)  # the families fitted on the cell's spectra, in MODEL_FAMILIES order
-
-    def columns(self) -> dict:
-        """The design as result columns: one scalar per design parameter (lists as text; ``model`` lists the
-        cell's families, each result row names its own)."""
-        return {
-            "pad": self.pad,
-            "fingerprint_period_mm": math.nan if self.fingerprint_period_mm is None else self.fingerprint_period_mm,
-            "ridge_height_mm": math.nan if self.ridge_height_mm is None else self.ridge_height_mm,
-            "pad_modulus_mpa": self.pad_modulus_mpa,
-            "field_length_mm": self.field_length_mm,
-            "forces_n": forces_label(self.forces_n),
-            "specimens": self.specimens_label,
-            "repetitions": self.repetitions,
-            "ratings_from": self.ratings_from,
-            MODEL_KEY: ",".join(self.models),
-        }
 
 
 @dataclass
@@ -146,15 +95,7 @@ class Sweep:
     cells: list[Cell]
     cv: tuple[str, ...]
     source: dict = field(default_factory=dict)  # the parsed file, to tell one sweep from another
-    models: tuple[str, ...] = (PAPER_MODEL,)
-
-
-def forces_label(forces_n) -> str:
-    return ",".join(f"{f:g}" for f in forces_n)
-
-
-def _error(path: Path, message: str) -> ConfigError:
-    return ConfigError(message, path=path)
+    models: tuple[str, ...] = PAPER_ONLY
 
 
 def _checked(path: Path, where: str, value, constraint: Constraint):
@@ -257,14 +198,6 @@ def _check_value(path: Path, key: str, value, where: str):
     return value if further is None else further(path, key, value, where)
 
 
-def _label(key: str, value) -> object:
-    if key == "forces_n":
-        return forces_label(value)
-    if key == "specimens":
-        return value if isinstance(value, str) else ",".join(value)
-    return value
-
-
 def read_sweep(path: str | os.PathLike[str]) -> Sweep:
     """Read and check a sweep file; every problem is one line naming the file and the key."""
     path = Path(path)
@@ -319,18 +252,18 @@ def _models(settings: dict, axes_in: dict, path: Path) -> tuple[str, ...]:
         where, values = f"[axes] {MODEL_KEY}", axes_in[MODEL_KEY]
         if not isinstance(values, list) or not values:
             raise _error(path, f"{where}: expected a non-empty list of model families "
-                               f"({', '.join(MODEL_FAMILIES)}), got {values!r}")
+                               f"({', '.join(family_names())}), got {values!r}")
     elif MODEL_KEY in settings:
         where, values = f"[sweep] {MODEL_KEY}", [settings[MODEL_KEY]]
     else:
-        return (PAPER_MODEL,)
+        return PAPER_ONLY
     try:
         names = [check_model_name(v, option=where) for v in values]
     except ConfigError as exc:
         raise _error(path, exc.message) from None
     if len(set(names)) != len(names):
         raise _error(path, f"{where}: a model is listed twice")
-    return tuple(m for m in MODEL_FAMILIES if m in names)
+    return tuple(m for m in family_names() if m in names)
 
 
 def _tables(source: dict, path: Path) -> tuple[dict, dict]:
@@ -364,16 +297,16 @@ def _run_settings(settings: dict, path: Path) -> dict:
     seeds = [_checked(path, "[sweep] seeds", s, RUN_CONSTRAINTS["seeds"]) for s in seeds]
     if len(set(seeds)) != len(seeds):
         raise _error(path, "[sweep] seeds: a seed is listed twice")
-    given = {"max_components": DEFAULT_MAX_COMPONENTS, "participants": PAPER_PARTICIPANTS, "sessions": PAPER_SESSIONS}
+    given = {"max_components": defaults.MAX_COMPONENTS, "participants": PAPER_PARTICIPANTS, "sessions": PAPER_SESSIONS}
     run = {key: _checked(path, f"[sweep] {key}", settings.get(key, default), RUN_CONSTRAINTS[key])
            for key, default in given.items()}
     size = settings.get("image_size_px", [WIDTH_PX, HEIGHT_PX])
     if not (isinstance(size, list) and len(size) == 2):
         raise _error(path, f"[sweep] image_size_px: expected [width, height], got {size!r}")
     width_px, height_px = (_checked(path, "[sweep] image_size_px", v, RUN_CONSTRAINTS["image_size_px"]) for v in size)
-    if width_px * height_px > DEFAULT_MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
+    if width_px * height_px > defaults.MAX_PIXELS:  # the study contract's pixel limit holds for simulated frames too
         raise _error(path, f"[sweep] image_size_px: {width_px} x {height_px} px is above the limit of "
-                           f"{DEFAULT_MAX_PIXELS / 1e6:g} Mpx per frame")
+                           f"{defaults.MAX_PIXELS / 1e6:g} Mpx per frame")
     cv = settings.get("cv", list(CV_SCHEMES))
     if not isinstance(cv, list) or not cv or any(c not in CV_SCHEMES for c in cv):
         raise _error(path, f"[sweep] cv: expected a list of {', '.join(CV_SCHEMES)}, got {cv!r}")
@@ -395,110 +328,6 @@ def _axes(axes_in: dict, path: Path) -> dict[str, list]:
             raise _error(path, f"[axes] {key}: a value is listed twice")
         axes[key] = checked
     return axes
-
-
-def _where(key: str, axes: dict) -> str:
-    return f"[axes] {key}" if key in axes else f"[sweep] {key}"
-
-
-def _values(key: str, fixed: dict, axes: dict) -> list:
-    return axes[key] if key in axes else [fixed[key]]
-
-
-def _check_size(path: Path, fixed: dict, axes: dict[str, list], run: dict) -> None:
-    """The sweep's bounds that need the whole file: cells per sweep, frames and pixels per cell, the panel, and
-    field lengths that would make the same frame; counted from the axes, so nothing is built to find out."""
-    cells = 0
-    for pad in _values("pad", fixed, axes):
-        grid = math.prod(len(v) for k, v in axes.items() if k != "pad" and not (pad == SMOOTH_PAD and k in FINGERPRINT_ONLY))
-        cells += grid * len(run["seeds"])
-    if cells > MAX_CELLS:
-        sizes = " x ".join(f"{len(v)} {k}" for k, v in axes.items())
-        raise _error(path, f"[axes]: {sizes} x {len(run['seeds'])} seeds make {cells} cells, above the limit of "
-                           f"{MAX_CELLS} per sweep; split it into several sweeps")
-    specimens = max(len(SPECIMEN_SETS[v] if isinstance(v, str) else v) for v in _values("specimens", fixed, axes))
-    forces = max(len(v) for v in _values("forces_n", fixed, axes))
-    repetitions = max(_values("repetitions", fixed, axes))
-    if specimens * forces * repetitions > MAX_CELL_FRAMES:
-        raise _error(path, f"{_where('specimens', axes)} x {_where('forces_n', axes)} x {_where('repetitions', axes)}"
-                           f": a cell of {specimens} specimens x {forces} forces x {repetitions} repetitions renders "
-                           f"{specimens * forces * repetitions} frames, above the limit of {MAX_CELL_FRAMES}")
-    names = ("[sweep] participants", "[sweep] sessions")
-    problem = (panel_problem(run["participants"], run["sessions"], names)
-               or schedule_size_problem(run["participants"], run["sessions"], specimens - 1, names=names))
-    if problem:
-        raise _error(path, problem)
-    _check_fields(path, _values("field_length_mm", fixed, axes), _where("field_length_mm", axes), run)
-
-
-def _width_px(field_mm: float | None, run: dict) -> int:
-    """The frame's width for a field length: the camera's pixel pitch, whole pixels (the sweep's width if None)."""
-    return run["width_px"] if field_mm is None else max(16, int(round(field_mm * DEFAULT_PX_PER_MM)))
-
-
-def _check_fields(path: Path, fields: list, where: str, run: dict) -> None:
-    """Every field length makes a frame within the pixel limit, and no two make the same frame (one cell id)."""
-    height = run["height_px"]
-    longest_mm = DEFAULT_MAX_PIXELS / height / DEFAULT_PX_PER_MM
-    widths: dict[int, float] = {}
-    for field_mm in fields:
-        if field_mm is None:
-            continue
-        if field_mm > longest_mm:
-            raise _error(path, f"{where}: {field_mm:g} mm at {DEFAULT_PX_PER_MM:g} px/mm and {height} px high is a "
-                               f"frame above the limit of {DEFAULT_MAX_PIXELS / 1e6:g} Mpx (at most "
-                               f"{longest_mm:.0f} mm)")
-        width = _width_px(field_mm, run)
-        if width in widths:
-            raise _error(path, f"{where}: {widths[width]:g} and {field_mm:g} mm make the same frame of {width} px (a "
-                               f"pixel is {1 / DEFAULT_PX_PER_MM:.4g} mm), so the same cell; list one of them")
-        widths[width] = field_mm
-
-
-def _design_points(fixed: dict, axes: dict[str, list]) -> list[dict]:
-    """The grid's distinct designs (a smooth pad has no ridge settings, so those collapse)."""
-    keys = list(axes)
-    points, seen = [], set()
-    for combo in itertools.product(*(axes[k] for k in keys)):
-        point = {**fixed, **dict(zip(keys, combo))}
-        if point["pad"] == SMOOTH_PAD:
-            for key in FINGERPRINT_ONLY:
-                point[key] = None
-        signature = json.dumps({k: _label(k, v) for k, v in point.items()}, sort_keys=True)
-        if signature not in seen:
-            seen.add(signature)
-            points.append(point)
-    return points
-
-
-def _cells(points: list[dict], run: dict, models: tuple[str, ...] = (PAPER_MODEL,)) -> list[Cell]:
-    """One cell per design and seed, its id a hash of everything it computes from, the code included.
-
-    The model families enter the hash only when they are not the paper's PLS alone: a sweep without the ``model``
-    axis hashes exactly the content it always did, and any other set of families gives other ids.
-    """
-    from .code_fingerprint import code_fingerprint
-
-    code = code_fingerprint()
-    cells = []
-    for point in points:
-        specimens = point["specimens"]
-        names = SPECIMEN_SETS[specimens] if isinstance(specimens, str) else specimens
-        cell_width = _width_px(point["field_length_mm"], run)
-        for seed in run["seeds"]:
-            content = dict(
-                seed=seed, pad=point["pad"], fingerprint_period_mm=point["fingerprint_period_mm"],
-                ridge_height_mm=point["ridge_height_mm"], pad_modulus_mpa=point["pad_modulus_mpa"],
-                field_length_mm=round(cell_width / DEFAULT_PX_PER_MM, 6), forces_n=tuple(point["forces_n"]),
-                specimens=tuple(names), specimens_label=_label("specimens", specimens),
-                repetitions=point["repetitions"], ratings_from=point["ratings_from"], participants=run["participants"],
-                sessions=run["sessions"], width_px=cell_width, height_px=run["height_px"],
-                max_components=run["max_components"], cv=run["cv"], code=code,
-            )
-            hashed = content if models == (PAPER_MODEL,) else {**content, "models": list(models)}
-            digest = hashlib.sha256(json.dumps(hashed, sort_keys=True).encode()).hexdigest()[:16]
-            cells.append(Cell(id=digest, **content, models=models))
-    return cells
 
 
 def estimated_core_hours(sweep: Sweep) -> float:

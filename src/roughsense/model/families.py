@@ -4,7 +4,9 @@
 (:data:`PAPER_MODEL`). ``peak-law`` is :class:`roughsense.model.peak_law.PeakPowerLaw`, built to predict surfaces the
 model never saw; it passes its controls for unseen surfaces where PLS fails them, so ``fit`` writes it unless told
 otherwise (:data:`DEFAULT_MODEL`). This module imports
-nothing heavy, so the command line can list and check the names without loading scikit-learn.
+nothing heavy, so the command line can list and check the names without loading scikit-learn: a family's numerics
+(:class:`roughsense.model.family.FamilyEngine`) are imported by :func:`engines` when first asked for. A third family
+is one engine module, one :class:`Family` line here and one import line in :func:`engines`.
 """
 from __future__ import annotations
 
@@ -14,8 +16,6 @@ from ..errors import ConfigError
 
 PLS = "pls"
 PEAK_LAW = "peak-law"
-#: Every family, the paper's first.
-MODEL_FAMILIES = (PLS, PEAK_LAW)
 #: What ``roughsense fit`` writes unless --model says otherwise: the family that answers "how rough does a surface I
 #: never trained on feel?" (the study's "surfaces never seen" section judges it).
 DEFAULT_MODEL = PEAK_LAW
@@ -46,20 +46,59 @@ _FAMILIES = (
 )
 
 
+#: Every family's name, the paper's first (the registry's order at import; :func:`names` follows it at run time).
+MODEL_FAMILIES = tuple(f.name for f in _FAMILIES)
+
+
 def registry() -> tuple[Family, ...]:
     """Every family, in the order of every table (the paper's first)."""
     return _FAMILIES
 
 
-def family(name: str) -> Family:
+def names() -> tuple[str, ...]:
+    """Every registered family's name, in table order."""
+    return tuple(f.name for f in registry())
+
+
+def family(name: str | Family) -> Family:
     """The family called ``name`` (as :func:`check_model_name` accepts it)."""
+    if isinstance(name, Family):
+        return name
     checked = check_model_name(name)
     return next(f for f in registry() if f.name == checked)
+
+
+def paper_family() -> Family:
+    """The paper's model: its claims, signed-rank tests and published values are of it, and sweeps fit it."""
+    return next(f for f in registry() if f.paper)
+
+
+def default_family() -> Family:
+    """What ``roughsense fit`` writes unless told otherwise (:data:`DEFAULT_MODEL`)."""
+    return family(DEFAULT_MODEL)
+
+
+def engines() -> tuple:
+    """Every family's numerics (:class:`roughsense.model.family.FamilyEngine`), in the registry's order.
+
+    Imported here, on first use, so ``--help`` never loads NumPy; real import statements, so the code fingerprint
+    of cache keys and sweep ids (``_util/fingerprint.py``) follows them."""
+    from .peak_law_family import PeakLawFamily
+    from .pls_family import PLSFamily
+
+    return PLSFamily(), PeakLawFamily()
+
+
+def engine(name: str | Family):
+    """The numerics of the family called ``name`` (or of the :class:`Family` given)."""
+    wanted = family(name).name
+    return next(e for e in engines() if e.name == wanted)
 
 
 def check_model_name(name: object, *, option: str = "--model") -> str:
     """The family's name, case-insensitive; anything else is one line naming the choices."""
     text = str(name).strip().lower() if isinstance(name, str) else None
-    if text not in MODEL_FAMILIES:
-        raise ConfigError(f"{option} must be one of {', '.join(MODEL_FAMILIES)}, got {name!r}")
+    known = names()
+    if text not in known:
+        raise ConfigError(f"{option} must be one of {', '.join(known)}, got {name!r}")
     return text
