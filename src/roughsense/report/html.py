@@ -30,7 +30,7 @@ from .._util.text import spreadsheet_safe
 from .._util.workers import process_pool
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
-from ..errors import OutputExistsError
+from ..errors import PASS_FORCE, OutputExistsError
 from ..io.names import check_name
 from ..model.families import PAPER_MODEL
 from . import control_tables, figures, paper_tables, unseen_tables
@@ -83,7 +83,7 @@ def check_report_dir(out_dir: Path, force: bool) -> None:
     entries = [p for p in out_dir.iterdir() if not atomic.is_temporary(p)]
     unfinished = not (out_dir / "index.html").exists() and all(report_owned(Path(p.name)) for p in entries)
     if entries and not unfinished:
-        raise OutputExistsError("report folder exists and is not empty; pass --force to replace the report in it", path=out_dir)
+        raise OutputExistsError(f"report folder exists and is not empty; {PASS_FORCE} to replace the report in it", path=out_dir)
 
 
 def open_report_dir(out_dir: str | os.PathLike[str], force: bool) -> atomic.FolderSwap:
