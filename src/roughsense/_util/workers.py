@@ -1,17 +1,21 @@
-"""How many workers this process may run, and worker processes that die with the process that started them.
+"""The one home of parallel work inside a process: how many workers it may run, a thread map, and worker processes
+that die with the process that started them -- all on joblib and its loky executor.
 
-Cores are counted once, here (:func:`usable_cores`): the share of the machine this process may run on (a container's
-or taskset's CPU affinity), which ``os.cpu_count()`` ignores.
+Cores are counted by ``joblib.cpu_count()``: the share of the machine this process may run on (CPU affinity and a
+container's cgroup quota), which ``os.cpu_count()`` ignores.
 
-A ``kill -9`` of ``roughsense simulate`` gives its pool no chance to shut down: without help, the workers keep
-rendering into the folder, then idle for ever. Each worker therefore ties its life to its parent's: on Linux the
-kernel sends it SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread polls the
-parent id. Both check that the parent is still the one that started the worker, since it may have died before
-the worker got that far.
+A ``kill -9`` of ``roughsense simulate`` gives its pool no chance to shut down, and loky promises no quick end to
+orphaned workers: without help they keep rendering into the folder. Each worker therefore ties its life to its
+parent's: on Linux the kernel sends it SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); elsewhere a
+daemon thread polls the parent id. Both check that the parent is still the one that started the worker, since it may
+have died before the worker got that far. Linux delivers the signal when the *thread* that started the worker ends;
+loky starts them in the thread that submits first (or its manager thread, which lives as long as the pool), so a pool
+is used from a thread that outlives it (the CLI's main thread).
 
-Linux delivers the signal when the *thread* that forked the worker ends, so a pool must be used from a thread
-that outlives it (the CLI uses it from the main thread; ``ProcessPoolExecutor`` forks its workers in the thread
-that submits the first task).
+loky's workers are spawned, not forked: they inherit no signal handler, warning filter or module global. What a task
+needs travels in its arguments or is set up by the modules it imports (matplotlib's backend is chosen by
+``report/figures.py`` on import); the one inherited decision, that Ctrl-C is the parent's to honour, is passed to the
+initializer.
 """
 from __future__ import annotations
 
@@ -20,23 +24,69 @@ import signal
 import sys
 import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING, TypeVar
 
 from . import interrupt
 
-if TYPE_CHECKING:  # imported where a pool is made: counting cores (the CLI's --jobs) stays light
-    from concurrent.futures import ProcessPoolExecutor
+if TYPE_CHECKING:  # imported where a pool is made: counting cores (the CLI's --jobs) stays light (joblib imports NumPy)
+    from concurrent.futures import Executor
 
 PARENT_POLL_S = 0.5
 _PR_SET_PDEATHSIG = 1
 
+T = TypeVar("T")
+R = TypeVar("R")
+
 
 def usable_cores() -> int:
-    """The cores this process may run on (a container's or taskset's share, not the machine's)."""
+    """The cores this process may run on (its affinity and cgroup quota, not the machine's)."""
+    from joblib import cpu_count
+
+    return max(1, cpu_count())
+
+
+class _Raised:
+    """An exception a task raised, carried back as its result so that :func:`thread_map` raises it in item order."""
+
+    __slots__ = ("error",)
+
+    def __init__(self, error: BaseException) -> None:
+        self.error = error
+
+
+def _caught(fn: Callable[[T], R]) -> Callable[[T], R | _Raised]:
+    def call(item: T) -> R | _Raised:
+        try:
+            return fn(item)
+        except Exception as error:  # raised in the caller's thread, in order, as a plain loop would
+            return _Raised(error)
+    return call
+
+
+def thread_map(fn: Callable[[T], R], items: Iterable[T], n_jobs: int) -> Iterator[R]:
+    """``map(fn, items)`` over ``n_jobs`` threads: results in item order, at most ~2 x ``n_jobs`` items in flight.
+
+    For work that releases the GIL (decoding, NumPy). The first failing item raises its own exception once every item
+    before it has been yielded, whichever thread finished first, so the error named is the one a plain loop names.
+    joblib takes items after the first 2 x ``n_jobs`` from its threads: ``items`` must not depend on the thread that
+    advances it (a list, or a generator of independent objects). Stopping the iteration cancels what has not started.
+    """
+    if n_jobs == 1:
+        yield from map(fn, items)
+        return
+    from joblib import Parallel, delayed
+
+    call = _caught(fn)
+    results = Parallel(n_jobs=n_jobs, prefer="threads", return_as="generator", pre_dispatch="2*n_jobs",
+                       batch_size=1)(delayed(call)(item) for item in items)
     try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+        for result in results:
+            if isinstance(result, _Raised):
+                raise result.error
+            yield result
+    finally:
+        results.close()  # joblib's generator stops dispatching and ends its threads
 
 
 def _arm_parent_death_signal() -> bool:
@@ -59,9 +109,15 @@ def _watch_parent(parent_pid: int) -> None:
             os._exit(1)
 
 
-def die_with_parent(parent_pid: int) -> None:
-    """Pool initializer: end this worker as soon as ``parent_pid`` is no longer its parent."""
-    interrupt.reset_in_worker()
+def die_with_parent(parent_pid: int, parent_stops_on_sigint: bool = False) -> None:
+    """Pool initializer: end this worker as soon as ``parent_pid`` is no longer its parent.
+
+    ``parent_stops_on_sigint``: the parent records Ctrl-C and stops at a safe point (:mod:`.interrupt`), so the
+    worker, which the terminal's Ctrl-C reaches too, ignores it rather than fail the task it is running.
+    """
+    interrupt.reset_in_worker()  # a forked worker: the parent's handler is inherited and undone here
+    if parent_stops_on_sigint:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     armed = _arm_parent_death_signal()
     if os.getppid() != parent_pid:  # the parent died before the signal was armed (or we were re-parented)
         os._exit(1)
@@ -69,12 +125,13 @@ def die_with_parent(parent_pid: int) -> None:
         threading.Thread(target=_watch_parent, args=(parent_pid,), name="roughsense-parent-watch", daemon=True).start()
 
 
-def process_pool(max_workers: int) -> ProcessPoolExecutor:
-    """A ``ProcessPoolExecutor`` whose workers end within about a second of this process's death."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+def process_pool(max_workers: int) -> Executor:
+    """loky's reusable executor, whose workers end within about a second of this process's death.
 
-    # fork (Linux) or spawn: either way the worker's parent is this process, which the initializer checks.
-    method = "fork" if sys.platform.startswith("linux") else "spawn"
-    return ProcessPoolExecutor(max_workers=max_workers, mp_context=multiprocessing.get_context(method),
-                               initializer=die_with_parent, initargs=(os.getpid(),))
+    Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. It is one per
+    process (loky's): two pools at once in one process would replace each other.
+    """
+    from joblib.externals.loky import get_reusable_executor
+
+    return get_reusable_executor(max_workers=max_workers, initializer=die_with_parent,
+                                 initargs=(os.getpid(), interrupt.installed()))

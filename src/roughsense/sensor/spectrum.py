@@ -12,9 +12,7 @@ explained in docs/sensor.md.
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -22,7 +20,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, Integer, Options, check, check_params
-from .._util.workers import usable_cores
+from .._util.workers import thread_map, usable_cores
 from ..errors import ConfigError, InputError
 from ..io.images import (
     DEFAULT_MAX_PIXELS,
@@ -516,26 +514,8 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         return self._iter(images, _Plan.spectrum_and_line)
 
     def _iter(self, images: Iterable, one) -> Iterator:
-        plan = self._plan()
-        jobs = self._jobs()
-        numbered = enumerate(images)
-        if jobs == 1:
-            for index, image in numbered:
-                yield one(plan, image, index)
-            return
-        pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="roughsense-decode")
-        pending: deque = deque()
-        try:
-            for index, image in numbered:
-                pending.append(pool.submit(one, plan, image, index))
-                if len(pending) >= 2 * jobs:
-                    yield pending.popleft().result()
-            while pending:
-                yield pending.popleft().result()
-        finally:
-            for future in pending:
-                future.cancel()
-            pool.shutdown(wait=True, cancel_futures=True)
+        plan = self._plan()  # checked at the first image, as before: a generator, like the loop it replaced
+        yield from thread_map(lambda numbered: one(plan, numbered[1], numbered[0]), enumerate(images), self._jobs())
 
     def line(self, image) -> tuple[np.ndarray, tuple[int, int, int, int]]:
         """The gray line (values along the row, one per px) whose spectrum :meth:`transform` takes, and its crop
