@@ -6,7 +6,6 @@ import codecs
 import csv
 import io
 import os
-import re
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -16,13 +15,11 @@ import pandas as pd
 
 from .._util.files import read_regular
 from ..errors import InputError, RoughsenseWarning
-from .numbers import BOUNDS, NumberError, parse_number
+from .numbers import BOUNDS, COMMA_NUMBER, POINT_NUMBER, NumberError, parse_number
 from .problems import Problems, flag, report, same_but_case
 
 #: Columns holding names, never numbers: a decimal comma is not looked for there ("1,5" stays a (bad) name).
 NAME_COLUMNS = frozenset({"image", "specimen", "pad", "participant", "session", "shape"})
-_COMMA_NUMBER = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?", re.ASCII)
-_POINT_NUMBER = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", re.ASCII)
 
 
 def csv_line(index: int) -> int:
@@ -126,9 +123,9 @@ def _from_semicolons(path: Path, text: str) -> str:
             if k < len(header) and header[k] in NAME_COLUMNS:
                 continue
             cell = cell.strip()
-            if comma is None and _COMMA_NUMBER.fullmatch(cell):
+            if comma is None and COMMA_NUMBER.fullmatch(cell):
                 comma = (cell, line)
-            elif point is None and _POINT_NUMBER.fullmatch(cell):
+            elif point is None and POINT_NUMBER.fullmatch(cell):
                 point = (cell, line)
     if comma is not None and point is not None:
         raise InputError(f"is semicolon-separated but mixes decimal commas ({comma[0]!r}, row {comma[1]}) and "
@@ -138,7 +135,7 @@ def _from_semicolons(path: Path, text: str) -> str:
     writer = csv.writer(out, lineterminator="\n")
     for number, row in enumerate(rows):
         if comma is not None and number > 0:
-            row = [cell.strip().replace(",", ".") if _COMMA_NUMBER.fullmatch(cell.strip())
+            row = [cell.strip().replace(",", ".") if COMMA_NUMBER.fullmatch(cell.strip())
                    and not (k < len(header) and header[k] in NAME_COLUMNS) else cell for k, cell in enumerate(row)]
         writer.writerow(row)
     decimals = " with decimal commas" if comma is not None else ""
