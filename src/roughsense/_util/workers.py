@@ -2,7 +2,7 @@
 that die with the process that started them -- all on joblib and its loky executor.
 
 Cores are counted by ``joblib.cpu_count()``: the share of the machine this process may run on (CPU affinity and a
-container's cgroup quota), which ``os.cpu_count()`` ignores.
+container's cgroup quota), which the standard library's count of the machine's CPUs ignores.
 
 A ``kill -9`` of ``roughsense simulate`` gives its pool no chance to shut down, and loky promises no quick end to
 orphaned workers: without help they keep rendering into the folder. Each worker therefore ties its life to its

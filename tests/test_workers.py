@@ -1,0 +1,82 @@
+"""The one parallel module (``_util/workers.py``, on joblib): the thread map gives what a plain loop gives, in the
+same order and with the same first error; cores are joblib's count; loky's workers compute what this process does."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from roughsense._util import workers
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+@settings(max_examples=40, deadline=None)
+@given(items=st.lists(st.integers(-1000, 1000), max_size=40), n_jobs=st.integers(1, 4))
+def test_thread_map_is_map_in_order(items, n_jobs):
+    assert list(workers.thread_map(_square, items, n_jobs)) == list(map(_square, items))
+
+
+def test_thread_map_takes_a_generator_and_numpy_work():
+    rows = list(workers.thread_map(lambda seed: np.random.default_rng(seed).normal(size=5).sum(), (s for s in range(9)), 3))
+    assert rows == [np.random.default_rng(s).normal(size=5).sum() for s in range(9)]
+
+
+def test_the_first_failing_item_raises_after_every_item_before_it():
+    later_failed = threading.Event()
+
+    def job(i: int) -> int:
+        if i == 4:
+            later_failed.set()
+            raise ValueError("item 4")
+        if i == 2:
+            later_failed.wait(timeout=30)  # item 4 has failed first: a plain loop would still name item 2
+            raise ValueError("item 2")
+        return i
+
+    seen = []
+    with pytest.raises(ValueError, match="item 2"):
+        for value in workers.thread_map(job, range(6), 4):
+            seen.append(value)
+    assert seen == [0, 1]
+
+
+def test_usable_cores_is_joblibs_count_within_this_process_affinity():
+    import joblib
+
+    assert workers.usable_cores() == max(1, joblib.cpu_count())
+    if hasattr(os, "sched_getaffinity"):
+        assert 1 <= workers.usable_cores() <= len(os.sched_getaffinity(0))
+
+
+def _spectrum_of(seed: int) -> bytes:
+    rng = np.random.default_rng(seed)
+    return np.abs(np.fft.rfft(rng.normal(size=4096))).tobytes()
+
+
+def test_loky_workers_give_the_bytes_this_process_gives():
+    with workers.process_pool(2) as pool:
+        remote = list(pool.map(_spectrum_of, range(4)))
+    assert remote == [_spectrum_of(s) for s in range(4)]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+@pytest.mark.parametrize("stops_on_sigint", [False, True])
+def test_a_spawned_worker_is_told_whether_ctrl_c_is_its_parents(stops_on_sigint):
+    code = ("import os, signal, sys; sys.path.insert(0, sys.argv[1]); from roughsense._util.workers import "
+            f"die_with_parent; die_with_parent(os.getppid(), {stops_on_sigint}); "
+            "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)")
+    done = subprocess.run([sys.executable, "-c", code, SRC], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == str(stops_on_sigint)
