@@ -80,3 +80,32 @@ def test_a_spawned_worker_is_told_whether_ctrl_c_is_its_parents(stops_on_sigint)
     done = subprocess.run([sys.executable, "-c", code, SRC], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == str(stops_on_sigint)
+
+
+def _warn_and_return(value: int) -> int:
+    import warnings
+
+    from roughsense.errors import RoughsenseWarning
+
+    warnings.warn(RoughsenseWarning(f"figure {value} drawn smaller"), stacklevel=1)
+    return value
+
+
+def test_a_worker_warns_under_the_filters_and_hook_in_force_when_the_pool_was_made(monkeypatch, capfd):
+    """As a forked worker did: the CLI's one-line hook says a task's warning, and an 'error' filter raises it."""
+    import warnings
+
+    from roughsense.cli import _show_warning
+    from roughsense.errors import RoughsenseWarning
+
+    monkeypatch.setattr(warnings, "showwarning", _show_warning)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", RoughsenseWarning)
+        with workers.process_pool(2) as pool:
+            assert list(pool.map(_warn_and_return, [1, 2])) == [1, 2]
+    assert sorted(capfd.readouterr().err.splitlines()) == [
+        "roughsense: warning: figure 1 drawn smaller", "roughsense: warning: figure 2 drawn smaller"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RoughsenseWarning)
+        with workers.process_pool(2) as pool, pytest.raises(RoughsenseWarning, match="figure 3"):
+            pool.submit(_warn_and_return, 3).result()

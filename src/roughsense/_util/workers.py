@@ -14,8 +14,9 @@ is used from a thread that outlives it (the CLI's main thread).
 
 loky's workers are spawned, not forked: they inherit no signal handler, warning filter or module global. What a task
 needs travels in its arguments or is set up by the modules it imports (matplotlib's backend is chosen by
-``report/figures.py`` on import); the one inherited decision, that Ctrl-C is the parent's to honour, is passed to the
-initializer.
+``report/figures.py`` on import). What a fork passed on and a run relies on is handed to the initializer: whether
+Ctrl-C is the parent's to honour, and the warning filters and display hook in force when the pool is made (the CLI's
+one-line warnings, a warning a task raises said as the parent would say it).
 """
 from __future__ import annotations
 
@@ -109,15 +110,50 @@ def _watch_parent(parent_pid: int) -> None:
             os._exit(1)
 
 
-def die_with_parent(parent_pid: int, parent_stops_on_sigint: bool = False) -> None:
+def _parent_warnings() -> tuple[list, object]:
+    """The warning filters and display hook in force here, as a worker can take them (a hook that cannot be sent by
+    reference, such as a test's recorder, stays behind: the worker keeps Python's own)."""
+    import pickle
+    import warnings
+
+    filters, hook = list(warnings.filters), warnings.showwarning
+    try:
+        pickle.dumps(filters)
+    except Exception:
+        filters = []
+    try:
+        pickle.dumps(hook)
+    except Exception:
+        hook = None
+    return filters, hook
+
+
+def _take_warnings(filters: list, hook) -> None:
+    import re
+    import warnings
+
+    def pattern(match) -> str:  # None matches all, a text exactly (Python's own defaults), a regex as it is
+        return "" if match is None else re.escape(match) + r"\Z" if isinstance(match, str) else match.pattern
+
+    if filters:
+        warnings.resetwarnings()
+        for action, message, category, module, lineno in filters:  # in order, each appended: the same precedence
+            warnings.filterwarnings(action, pattern(message), category, pattern(module), lineno, append=True)
+    if hook is not None:
+        warnings.showwarning = hook
+
+
+def die_with_parent(parent_pid: int, parent_stops_on_sigint: bool = False, parent_warnings: tuple = ([], None)) -> None:
     """Pool initializer: end this worker as soon as ``parent_pid`` is no longer its parent.
 
     ``parent_stops_on_sigint``: the parent records Ctrl-C and stops at a safe point (:mod:`.interrupt`), so the
     worker, which the terminal's Ctrl-C reaches too, ignores it rather than fail the task it is running.
+    ``parent_warnings``: the parent's warning filters and display hook (:func:`_parent_warnings`).
     """
     interrupt.reset_in_worker()  # a forked worker: the parent's handler is inherited and undone here
     if parent_stops_on_sigint:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _take_warnings(*parent_warnings)
     armed = _arm_parent_death_signal()
     if os.getppid() != parent_pid:  # the parent died before the signal was armed (or we were re-parented)
         os._exit(1)
@@ -134,4 +170,4 @@ def process_pool(max_workers: int) -> Executor:
     from joblib.externals.loky import get_reusable_executor
 
     return get_reusable_executor(max_workers=max_workers, initializer=die_with_parent,
-                                 initargs=(os.getpid(), interrupt.installed()))
+                                 initargs=(os.getpid(), interrupt.installed(), _parent_warnings()))
