@@ -109,3 +109,11 @@ def test_a_worker_warns_under_the_filters_and_hook_in_force_when_the_pool_was_ma
         warnings.simplefilter("error", RoughsenseWarning)
         with workers.process_pool(2) as pool, pytest.raises(RoughsenseWarning, match="figure 3"):
             pool.submit(_warn_and_return, 3).result()
+
+
+def test_thread_map_stays_on_threads_under_a_callers_process_backend():
+    import joblib
+
+    with joblib.parallel_config(backend="loky"):
+        ids = set(workers.thread_map(lambda _: os.getpid(), range(6), 2))  # a closure: no process could take it
+    assert ids == {os.getpid()}

@@ -79,8 +79,10 @@ def thread_map(fn: Callable[[T], R], items: Iterable[T], n_jobs: int) -> Iterato
     from joblib import Parallel, delayed
 
     call = _caught(fn)
-    results = Parallel(n_jobs=n_jobs, prefer="threads", return_as="generator", pre_dispatch="2*n_jobs",
-                       batch_size=1)(delayed(call)(item) for item in items)
+    # require="sharedmem": threads even inside a caller's joblib.parallel_config(backend="loky"), which would
+    # otherwise overrule the preference (and ``fn`` may be a closure no process can receive).
+    results = Parallel(n_jobs=n_jobs, prefer="threads", require="sharedmem", return_as="generator",
+                       pre_dispatch="2*n_jobs", batch_size=1)(delayed(call)(item) for item in items)
     try:
         for result in results:
             if isinstance(result, _Raised):
