@@ -1,8 +1,9 @@
 """Benchmark the parallel plumbing on joblib against the hand-written pools it replaced, in the same run.
 
-* Simulation: ``simulate_study`` of a small study with 2 jobs through ``_util.workers.process_pool`` (loky's
-  reusable executor, spawned workers) against the same call through the former pool (``ProcessPoolExecutor`` with
-  forked workers and the same die-with-parent initializer), and against 1 job. The images must be the same bytes.
+* Simulation: ``simulate_study`` of a small study (``--full``: the default 840 images) with 2 jobs through
+  ``_util.workers.process_pool`` (loky's reusable executor, spawned workers) against the same call through the former
+  pool (``ProcessPoolExecutor`` with forked workers and the same die-with-parent initializer), and against 1 job
+  (not with ``--full``). The images must be the same bytes.
 * Pool start: a pool of 2 from its making to two tasks done, each needing the modules of the report's figure
   drawing (imported in this process first, as ``roughsense study`` has them when it draws): loky against fork.
 * Decoding: ``SpatialSpectrum(n_jobs=2).transform`` of the study's PNGs through ``_util.workers.thread_map``
@@ -13,7 +14,7 @@
 
 Medians over repeats, alternating the peers; the machine is shared, so only the ratios mean much.
 
-Run: .venv/bin/python benchmarks/bench_workers.py [--repeats 3] [--decode-repeats 7] [--report STUDY]
+Run: .venv/bin/python benchmarks/bench_workers.py [--repeats 3] [--decode-repeats 7] [--full] [--report STUDY]
 """
 from __future__ import annotations
 
@@ -77,11 +78,14 @@ def simulate_once(out: Path, config: SimulationConfig, jobs: int, pool) -> tuple
     return time.perf_counter() - start, images_digest(out)
 
 
-def bench_simulation(root: Path, repeats: int) -> Path:
-    config = SimulationConfig(pads=("smooth", "fingerprint"), specimens=("R2", "R3", "C3", "C4"),
-                              forces_n=(1.0, 2.0, 3.0), repetitions=2, seed=3)
+def bench_simulation(root: Path, repeats: int, full: bool) -> Path:
+    config = SimulationConfig(seed=3) if full else SimulationConfig(
+        pads=("smooth", "fingerprint"), specimens=("R2", "R3", "C3", "C4"), forces_n=(1.0, 2.0, 3.0), repetitions=2,
+        seed=3)
     loky_pool = simulate_module.process_pool
-    peers = {"loky (2 jobs)": (2, loky_pool), "fork (2 jobs)": (2, fork_pool), "serial (1 job)": (1, loky_pool)}
+    peers = {"loky (2 jobs)": (2, loky_pool), "fork (2 jobs)": (2, fork_pool)}
+    if not full:
+        peers["serial (1 job)"] = (1, loky_pool)
     times: dict[str, list[float]] = {name: [] for name in peers}
     digests: dict[str, set[str]] = {name: set() for name in peers}
     for _ in range(repeats):
@@ -173,11 +177,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--decode-repeats", type=int, default=7)
+    parser.add_argument("--full", action="store_true", help="simulate the default 840-image study (no serial peer)")
     parser.add_argument("--report", metavar="STUDY", help="also time drawing this study's report's figures")
     args = parser.parse_args()
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory() as folder:
-        study = bench_simulation(Path(folder), args.repeats)
+        study = bench_simulation(Path(folder), args.repeats, args.full)
         bench_decoding(study, args.decode_repeats)
     bench_pool_start(args.repeats)
     if args.report:
