@@ -117,3 +117,32 @@ def test_thread_map_stays_on_threads_under_a_callers_process_backend():
     with joblib.parallel_config(backend="loky"):
         ids = set(workers.thread_map(lambda _: os.getpid(), range(6), 2))  # a closure: no process could take it
     assert ids == {os.getpid()}
+
+
+@pytest.mark.parametrize("stop", ["error", "break"])
+def test_stopping_takes_no_further_item_and_warns_nothing(stop):
+    """Items from 4 on wait (a guard of 2 s, not a timing): when the consumer stops at item 3, joblib has handed out
+    at most 2 x n_jobs items past those done, and no more is taken once it stops."""
+    import warnings
+
+    called: list[int] = []
+    gate = threading.Event()
+
+    def job(i: int) -> int:
+        called.append(i)
+        if i >= 4:
+            gate.wait(timeout=2)
+        if stop == "error" and i == 3:
+            raise ValueError("item 3")
+        return i
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # joblib's "tasks ... have been cancelled" warning would fail here
+        items = workers.thread_map(job, range(1000), 2)
+        if stop == "error":
+            with pytest.raises(ValueError, match="item 3"):
+                list(items)
+        else:
+            assert [next(items) for _ in range(4)] == [0, 1, 2, 3]
+            items.close()
+    assert sorted(called) == list(range(len(called))) and len(called) <= 4 + 2 * 2

@@ -66,30 +66,41 @@ def _caught(fn: Callable[[T], R]) -> Callable[[T], R | _Raised]:
 
 
 def thread_map(fn: Callable[[T], R], items: Iterable[T], n_jobs: int) -> Iterator[R]:
-    """``map(fn, items)`` over ``n_jobs`` threads: results in item order, at most ~2 x ``n_jobs`` items in flight.
+    """``map(fn, items)`` over ``n_jobs`` threads: results in item order, at most 2 x ``n_jobs`` items handed out
+    beyond those finished (joblib's ``pre_dispatch``; finished results wait for a slower consumer, their inputs do not).
 
     For work that releases the GIL (decoding, NumPy). The first failing item raises its own exception once every item
     before it has been yielded, whichever thread finished first, so the error named is the one a plain loop names.
     joblib takes items after the first 2 x ``n_jobs`` from its threads: ``items`` must not depend on the thread that
-    advances it (a list, or a generator of independent objects). Stopping the iteration cancels what has not started.
+    advances it (a list, or a generator of independent objects). Stopping the iteration takes no further item and
+    waits for the items already handed to a thread.
     """
     if n_jobs == 1:
         yield from map(fn, items)
         return
     from joblib import Parallel, delayed
 
-    call = _caught(fn)
+    call, stop = _caught(fn), threading.Event()
     # require="sharedmem": threads even inside a caller's joblib.parallel_config(backend="loky"), which would
     # otherwise overrule the preference (and ``fn`` may be a closure no process can receive).
     results = Parallel(n_jobs=n_jobs, prefer="threads", require="sharedmem", return_as="generator",
-                       pre_dispatch="2*n_jobs", batch_size=1)(delayed(call)(item) for item in items)
+                       pre_dispatch="2*n_jobs", batch_size=1)(delayed(call)(item) for item in _until(stop, items))
     try:
         for result in results:
             if isinstance(result, _Raised):
                 raise result.error
             yield result
     finally:
-        results.close()  # joblib's generator stops dispatching and ends its threads
+        stop.set()  # no item is taken any more; those handed out finish (joblib warns when its generator is cut short)
+        for _ in results:
+            pass
+
+
+def _until(stop: threading.Event, items: Iterable[T]) -> Iterator[T]:
+    for item in items:
+        if stop.is_set():
+            return
+        yield item
 
 
 def _arm_parent_death_signal() -> bool:
