@@ -177,8 +177,8 @@ def die_with_parent(parent_pid: int, parent_stops_on_sigint: bool = False, paren
 def process_pool(max_workers: int) -> Executor:
     """loky's reusable executor, whose workers end within about a second of this process's death.
 
-    Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. It is one per
-    process (loky's): two pools at once in one process would replace each other.
+    Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. loky keeps one per
+    process: a pool made while another is in use is that same executor (resized), so pools are never nested.
     """
     from joblib.externals.loky import get_reusable_executor
 
