@@ -208,7 +208,7 @@ def real_gray_png(width: int, height: int) -> bytes:
 def no_decoding(monkeypatch):
     """Fail the test if anything tries to decode pixels."""
     import roughsense.io.images as images
-    import roughsense.sensor.spectrum as sensor  # imported first: it binds decode_png_top_rows by name
+    import roughsense.sensor.line as sensor  # imported first: it binds decode_png_top_rows by name
 
     def refuse(*args, **kwargs):
         raise AssertionError("an image was decoded")

@@ -187,3 +187,69 @@ def test_a_sweep_file_number_is_spelled_as_a_csv_cell(tmp_path):
     (tmp_path / "s.toml").write_text('[sweep]\nname = "n_1"\nseeds = [0, 1_0]\n')
     with pytest.raises(ConfigError, match=r"line 3: '1_0' is not a number .*write 10"):
         read_sweep(tmp_path / "s.toml")
+
+
+# --------------------------------------------------------------------------- one grammar, built from fragments
+# The patterns as each module spelled them before io/numbers.py's fragments built them all (issue 38), copied here
+# as literals: the built ones must accept exactly the same strings and capture the same groups.
+_OLD = {
+    "NUMBER": (r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII),
+    "COMMA_NUMBER": (r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII),
+    "tables COMMA_NUMBER": (r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?", re.ASCII),
+    "POINT_NUMBER": (r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", re.ASCII),
+    "NUMBER_WITH_UNIT": (r"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*",
+                         0),
+    "_READING": (r"^(?P<prefix>(?:[A-Za-z]{2}[\s,]+)*)(?P<sign>[+-])?\s*(?P<number>\d+(?:\.\d*)?|\.\d+)\s*"
+                 r"(?P<unit>kg|mn|g|n)$", re.IGNORECASE | re.ASCII),
+    "_TYPED_UNIT": (r"^(?P<number>.*?\S)\s*(?P<unit>kg|mn|g|n)$", re.IGNORECASE | re.ASCII),
+}
+
+
+def _new_patterns() -> dict[str, re.Pattern]:
+    from roughsense.io import numbers
+    from roughsense.rig import scale
+
+    return {"NUMBER": numbers.NUMBER, "COMMA_NUMBER": numbers.COMMA_NUMBER, "tables COMMA_NUMBER": numbers.COMMA_NUMBER,
+            "POINT_NUMBER": numbers.POINT_NUMBER, "NUMBER_WITH_UNIT": numbers.NUMBER_WITH_UNIT,
+            "_READING": scale._READING, "_TYPED_UNIT": scale._TYPED_UNIT}
+
+
+# Number-like text: digits, signs, points, commas, exponents, spaces, units and a little garbage (other scripts'
+# digits and letters, an underscore, a newline, which ``$`` treats specially).
+_PIECES = st.sampled_from(["0", "1", "7", "42", "+", "-", ".", ",", "e", "E", "e-", "E+", " ", "\t", "\n", "kg", "g",
+                           "N", "mn", "mm", "%", "\u00b0", "\u00b5", "ST,", "US ", "GS", "_", "x", "\u0661", "\u00e9",
+                           "\uff11", "\u00a0"])
+_NUMBER_LIKE = st.lists(_PIECES, max_size=8).map("".join)
+
+
+def _groups(match: re.Match | None):
+    return None if match is None else (match.group(0), match.groups(), match.groupdict())
+
+
+@settings(max_examples=600, deadline=None)
+@given(text=_NUMBER_LIKE)
+def test_the_built_patterns_accept_exactly_what_the_old_spellings_did(text):
+    for name, pattern in _new_patterns().items():
+        old = re.compile(*_OLD[name])
+        assert _groups(pattern.fullmatch(text)) == _groups(old.fullmatch(text)), (name, text)
+        assert _groups(pattern.match(text)) == _groups(old.match(text)), (name, text)  # the scale uses match + $
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data())
+def test_what_an_old_spelling_generates_the_built_pattern_reads_alike(data):
+    for name, pattern in _new_patterns().items():
+        old = re.compile(*_OLD[name])
+        text = data.draw(st.from_regex(old, fullmatch=True), label=name)
+        assert _groups(pattern.fullmatch(text)) == _groups(old.fullmatch(text)), (name, text)
+
+
+def test_the_fragments_keep_the_grammars_rules():
+    from roughsense.io import numbers
+    from roughsense.rig import scale
+
+    assert numbers.POINT_NUMBER.fullmatch("2.5") and not numbers.POINT_NUMBER.fullmatch("2.")  # a digit after it
+    assert not numbers.POINT_NUMBER.fullmatch("2")
+    assert numbers.COMMA_NUMBER.fullmatch("-,5e3") and not numbers.COMMA_NUMBER.fullmatch("2,")
+    assert scale._READING.match("ST,+ 12.5 g") and not scale._READING.match("1e3 g")  # a display has no exponent
+    assert numbers.NUMBER_WITH_UNIT.fullmatch("2\u00a0\u041d")  # any script's letter is a unit

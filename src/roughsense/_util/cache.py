@@ -1,6 +1,7 @@
 """Where roughsense keeps what it can recompute: the built-in simulated study and extracted features.
 
-The cache is ``$ROUGHSENSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/roughsense``, else ``~/.cache/roughsense``.
+The cache is ``$ROUGHSENSE_CACHE_DIR``, else the platform's user cache folder as platformdirs knows it (on Linux
+``$XDG_CACHE_HOME/roughsense``, else ``~/.cache/roughsense``; on macOS ``~/Library/Caches/roughsense``).
 A whole folder (the built-in study) is an entry named by its stem and version (:func:`cached_folder`): the caller
 says how to build it, so this layer knows nothing of the simulator.
 Entries are keyed by content, so a stale entry is never reused: features are keyed by every input that shapes
@@ -29,11 +30,13 @@ from .files import foreign_reason, kind_of, read_regular
 
 
 def cache_dir() -> Path:
+    """``$ROUGHSENSE_CACHE_DIR``, else the platform's user cache folder (platformdirs) for roughsense."""
     explicit = os.environ.get("ROUGHSENSE_CACHE_DIR")
     if explicit:
         return Path(explicit)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "roughsense"
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("roughsense", appauthor=False))
 
 
 _BYPASS_SAID: set[str] = set()  # cache folders this process has said it bypasses (once each)

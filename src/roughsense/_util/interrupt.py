@@ -42,10 +42,15 @@ def install() -> None:
         signal.signal(signal.SIGINT, _record)
 
 
+def installed() -> bool:
+    """Whether this process records signals (:func:`install`): a spawned worker is told, since it inherits nothing."""
+    return signal.getsignal(signal.SIGTERM) is _record
+
+
 def reset_in_worker() -> None:
     """In a forked worker of a run that installed the handler: the parent decides when to stop, so Ctrl-C (sent
     to the whole process group) is ignored, and SIGTERM ends the worker as usual."""
-    if signal.getsignal(signal.SIGTERM) is not _record:
+    if not installed():
         return
     _received.clear()
     signal.signal(signal.SIGINT, signal.SIG_IGN)

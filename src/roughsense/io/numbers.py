@@ -16,14 +16,26 @@ import re
 
 from .._util.checks import SEED, Integer, Real, short_repr, shown
 
-#: The accepted spelling (``re.ASCII``: ``\\d`` would match every script's digits).
-NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
-_WHOLE = re.compile(r"[+-]?[0-9]+", re.ASCII)
+# The grammar's fragments, the one spelling of each part of a number (``[0-9]``, not ``\d``: with ``re.ASCII``
+# or without it, no other script's digits). Every number pattern of roughsense is built from them.
+SIGN = r"[+-]"
+#: Digits with an optional point and fraction, or a point and digits (``2``, ``2.``, ``2.5``, ``.5``).
+UNSIGNED_DECIMAL = r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"
+EXPONENT = r"(?:[eE][+-]?[0-9]+)"
+_NUMBER = rf"{SIGN}?{UNSIGNED_DECIMAL}{EXPONENT}?"
+
+#: The accepted spelling (``re.ASCII``).
+NUMBER = re.compile(_NUMBER, re.ASCII)
+_WHOLE = re.compile(rf"{SIGN}?[0-9]+", re.ASCII)
 #: A whole number written with a leading zero (``0104``): no count is written so, but a decimal comma in a
 #: comma-separated file leaves one (``2,0104`` split into ``2`` and ``0104``).
-_LEADING_ZERO = re.compile(r"[+-]?0[0-9]", re.ASCII)
-_COMMA_NUMBER = re.compile(r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII)
-_NUMBER_WITH_UNIT = re.compile(r"([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)\s*([^\W\d_]|[%\u00b0\u00b5]).*")
+_LEADING_ZERO = re.compile(rf"{SIGN}?0[0-9]", re.ASCII)
+#: A decimal comma (``2,5``, ``-,5``, ``1,5e3``): a digit must follow it.
+COMMA_NUMBER = re.compile(rf"{SIGN}?[0-9]*,[0-9]+{EXPONENT}?", re.ASCII)
+#: A decimal point with a digit after it (``2.5``, ``.5``; not ``2`` or ``2.``): what tells a file's decimal mark.
+POINT_NUMBER = re.compile(rf"{SIGN}?[0-9]*\.[0-9]+{EXPONENT}?", re.ASCII)
+#: A number followed by a unit or symbol (``2 N``, ``5mm``, ``3%``); letters of any script, so not ``re.ASCII``.
+NUMBER_WITH_UNIT = re.compile(rf"({_NUMBER})\s*([^\W\d_]|[%\u00b0\u00b5]).*")
 #: Whole numbers written with a point or an exponent are exact up to here (2**53); larger ones need digits only.
 _EXACT_WHOLE = 2.0**53
 _LARGEST_FLOAT = 1.7976931348623157e308
@@ -69,9 +81,9 @@ def spelling_hint(text: str) -> str:
         return f" (no '_' between digits: write {text.replace('_', '')})"
     if any(ch.isdigit() and not ch.isascii() for ch in text):
         return " (write the digits 0-9)"
-    if _COMMA_NUMBER.fullmatch(text):
+    if COMMA_NUMBER.fullmatch(text):
         return f" (a decimal comma: write {text.replace(',', '.')})"
-    unit = _NUMBER_WITH_UNIT.fullmatch(text)
+    unit = NUMBER_WITH_UNIT.fullmatch(text)
     if unit is not None and not text.lower().startswith(("0x", "-0x", "+0x")):
         return f" (drop the unit: write {unit.group(1)})"
     return ""

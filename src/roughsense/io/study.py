@@ -9,14 +9,14 @@ Layout (docs/study.md)::
     ratings.csv     participant, session, specimen, rating
     images/         image files; manifest paths are relative to the folder
 
-Every reader here validates and raises :class:`~roughsense.errors.InputError` naming the file and line,
-so nothing downstream has to re-check. Writing a folder is :mod:`roughsense.io.writer`'s job, atomic file by file.
+study.toml's tables are read by :mod:`.study_config`. Every reader validates and raises
+:class:`~roughsense.errors.InputError` naming the file and line, so nothing downstream has to re-check. Writing a
+folder is :mod:`roughsense.io.writer`'s job, atomic file by file.
 """
 from __future__ import annotations
 
 import os
 import re
-import tomllib
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -26,16 +26,22 @@ import pandas as pd
 
 from .._util.checks import short_repr
 from .._util.files import open_regular
-from ..errors import ConfigError, InputError, RoughsenseWarning
+from ..errors import InputError, RoughsenseWarning
 from ..paper import REFERENCE_SPECIMEN
-from .images import DEFAULT_MAX_PIXELS
+from .csv_read import csv_line, read_table, refuse_unknown
 from .names import check_name, check_name_column
-from .numbers import BOUNDS, toml_spelling_problem
 from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
 from .ratings import read_ratings_table
-from .sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings
-from .tables import csv_line, read_table, read_text, refuse_unknown
+from .sensor_settings import SensorSettings
+from .study_config import CONFIG_KEYS as CONFIG_KEYS  # re-exported for one release
+from .study_config import MAX_CONFIG_BYTES as MAX_CONFIG_BYTES  # re-exported for one release
+from .study_config import MAX_RIDGE_PERIOD_MM as MAX_RIDGE_PERIOD_MM  # re-exported for one release
+from .study_config import MIN_RIDGE_PERIOD_MM as MIN_RIDGE_PERIOD_MM  # re-exported for one release
+from .study_config import NO_SCALE as NO_SCALE  # re-exported for one release
+from .study_config import PAD_KEYS as PAD_KEYS  # re-exported for one release
+from .study_config import pad_ridge_periods, read_config, sensor_from_config
+from .study_config import shadowed_key as shadowed_key  # re-exported for one release
 
 #: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"
@@ -53,24 +59,6 @@ SPECIMEN_COLUMNS = ("specimen", "shape", "wavelength_mm")
 
 
 SHAPES = ("rectangular", "circular", "sinusoidal", "random", "other")
-
-
-#: Every table and key study.toml may hold. ``None`` means any key: the ``[simulation]`` table is the
-#: simulator's own record of its settings. An unknown table or key is a warning naming it, so a typo such as
-#: ``roi_typo`` is noticed. Add a key here when a reader starts using it.
-CONFIG_KEYS: dict[str, frozenset[str] | None] = {
-    "study": frozenset({"name", "reference_specimen", "synthetic"}),
-    "sensor": frozenset({"px_per_mm", "roi", "max_pixels"}),
-    "protocol": frozenset({"forces_n"}),
-    "pads": None,  # one sub-table per pad name: [pads.fingerprint] ridge_period_mm = 1.0
-    "simulation": None,
-}
-#: Keys of a ``[pads.NAME]`` sub-table.
-PAD_KEYS = frozenset({"ridge_period_mm"})
-#: A pad's ridge period is at most this (mm): ridges coarser than the specimens are not a fingerprint. Its lower
-#: bound (1 um) keeps the ridge frequency 1/period finite; both are stated in :data:`.numbers.BOUNDS`.
-MAX_RIDGE_PERIOD_MM = float(BOUNDS["ridge_period_mm"].high)
-MIN_RIDGE_PERIOD_MM = float(BOUNDS["ridge_period_mm"].low)
 
 
 @dataclass
@@ -119,114 +107,6 @@ class Study:
         """
         table = self.extra.get("simulation")
         return dict(table) if isinstance(table, dict) else None
-
-
-#: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
-MAX_CONFIG_BYTES = 1_000_000
-
-
-def read_config(path: str | os.PathLike[str]) -> dict:
-    """Parse study.toml and check its shape: known tables are tables; unknown tables and keys are warned about.
-
-    Values are checked by the readers that use them (:func:`sensor_from_config`, :func:`parse_forces`).
-    """
-    path = Path(path)
-    if not path.exists():  # a FIFO or a folder there is named by read_text, not "not found"
-        raise InputError("file not found (every study folder needs study.toml)", path=path)
-    text = read_text(path, max_bytes=MAX_CONFIG_BYTES)
-    try:
-        config = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"is not valid TOML ({exc})", path=path) from None
-    except RecursionError:
-        raise InputError("is not a study.toml: its values are nested too deeply", path=path) from None
-    problem = toml_spelling_problem(text)
-    if problem is not None:  # TOML's own spellings (1_0, 0x2, inf) are not numbers to the CSVs: one spelling everywhere
-        raise InputError(problem, path=path)
-    for table, value in config.items():
-        if table not in CONFIG_KEYS:
-            kind = "table" if isinstance(value, dict) else "key"
-            shadowed = shadowed_key(table, CONFIG_KEYS, set(config))
-            if shadowed is not None:  # [sensors] would leave [sensor] and its scale at their defaults, unseen
-                raise InputError(f"unknown {kind} {table!r} looks like a misspelt [{shadowed}], which is not there: its "
-                                 f"defaults would be used; write [{shadowed}]", path=path)
-            warnings.warn(f"{path}: unknown {kind} {table!r} ignored (known tables: {', '.join(CONFIG_KEYS)})",
-                          RoughsenseWarning, stacklevel=2)
-            continue
-        if not isinstance(value, dict):
-            raise InputError(f"{table} must be a table ([{table}] followed by key = value lines), "
-                             f"got {type(value).__name__} {short_repr(value)}", path=path)
-        known = CONFIG_KEYS[table]
-        for key in value:
-            if known is not None and key not in known:
-                shadowed = shadowed_key(key, known, set(value))
-                if shadowed is not None:  # px_per_mmm = 8.7 would leave px_per_mm at its default, unseen
-                    raise InputError(f"[{table}] unknown key {key!r} looks like a misspelt {shadowed!r}, which is "
-                                     f"not set: its default would be used; write {shadowed} = ...", path=path)
-                warnings.warn(f"{path}: unknown key {key!r} in [{table}] ignored (known: {', '.join(sorted(known))})",
-                              RoughsenseWarning, stacklevel=2)
-    return config
-
-
-def shadowed_key(key: str, known, present) -> str | None:
-    """The known key an unknown ``key`` is most likely a misspelling of (one not set beside it), else None: a match
-    of 85 % by difflib's ratio or of the same letters without case and '_', '-' or spaces."""
-    import difflib
-
-    def plain(text: str) -> str:
-        return "".join(ch for ch in text.lower() if ch.isalnum())
-
-    missing = [k for k in known if k not in present]
-    same = [k for k in missing if plain(k) == plain(key)]
-    close = difflib.get_close_matches(key, missing, n=1, cutoff=0.85)
-    return (same or close or [None])[0]
-
-
-#: What a study.toml without a scale is told: every spectrum depends on it, so it is never assumed unsaid.
-NO_SCALE = ("[sensor] states no px_per_mm: the paper's 34.9 px/mm is assumed, and every spectrum depends on it; "
-            "measure this camera's with `roughsense calibrate DIR` (it writes px_per_mm here)")
-
-
-def sensor_from_config(config: Mapping, path: Path, *, strict: bool = False) -> SensorSettings:
-    """The ``[sensor]`` table as :class:`SensorSettings`. A missing px_per_mm is a problem with ``strict``
-    (``roughsense check``), else one warning line naming the default taken."""
-    sensor = config.get("sensor", {})
-    if not isinstance(sensor, Mapping):
-        raise InputError(f"sensor must be a table, got {type(sensor).__name__}", path=path)
-    if "px_per_mm" not in sensor:
-        if strict:
-            raise InputError(NO_SCALE, path=path)
-        warnings.warn(f"{path}: {NO_SCALE}", RoughsenseWarning, stacklevel=2)
-    try:
-        return SensorSettings(px_per_mm=sensor.get("px_per_mm", DEFAULT_PX_PER_MM), roi=sensor.get("roi", DEFAULT_ROI),
-                              max_pixels=sensor.get("max_pixels", DEFAULT_MAX_PIXELS))
-    except ConfigError as exc:
-        raise InputError(f"[sensor] {exc.message}", path=path) from None
-
-
-def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
-    """``[pads.NAME] ridge_period_mm`` of every pad that states one, checked (a number of mm from 0.001 to 100)."""
-    from .._util.checks import Real, check
-
-    pads = config.get("pads", {})
-    periods: dict[str, float] = {}
-    for pad, table in pads.items():
-        check_name(pad, path=path, what="[pads] pad name")
-        if not isinstance(table, Mapping):
-            raise InputError(f"[pads] {pad} must be a table ([pads.{pad}] followed by ridge_period_mm = ...), "
-                             f"got {short_repr(table)}", path=path)
-        for key in table:
-            if key not in PAD_KEYS:
-                warnings.warn(f"{path}: unknown key {key!r} in [pads.{pad}] ignored (known: {', '.join(sorted(PAD_KEYS))})",
-                              RoughsenseWarning, stacklevel=2)
-        if "ridge_period_mm" in table:
-            try:
-                periods[pad] = check(table["ridge_period_mm"], Real(MIN_RIDGE_PERIOD_MM, MAX_RIDGE_PERIOD_MM),
-                                     name=f"[pads.{pad}] ridge_period_mm", must=f"a number of mm from "
-                                     f"{MIN_RIDGE_PERIOD_MM:g} to {MAX_RIDGE_PERIOD_MM:g}")
-            except ConfigError as exc:
-                raise InputError(exc.message, path=path) from None
-    return periods
 
 
 def read_specimens(path: str | os.PathLike[str], *, problems: Problems | None = None) -> pd.DataFrame:

@@ -26,20 +26,21 @@ from typing import IO, Protocol
 from .._util import interrupt
 from .._util.checks import short_repr
 from ..errors import ConfigError, InputError
-from ..io.numbers import NumberError, parse_number, spelling_hint
+from ..io.numbers import SIGN, UNSIGNED_DECIMAL, NumberError, parse_number, spelling_hint
 
 #: Standard gravity (m/s^2): converts a scale's mass reading into the pressing force.
 STANDARD_GRAVITY = 9.80665
 DEFAULT_BAUD = 9600
 
 _UNIT_TO_N = {"g": STANDARD_GRAVITY / 1000.0, "kg": STANDARD_GRAVITY, "n": 1.0, "mn": 1e-3}
+_UNIT = r"(?P<unit>kg|mn|g|n)$"
 _READING = re.compile(
     r"^(?P<prefix>(?:[A-Za-z]{2}[\s,]+)*)"  # flags such as ST, US, GS, NT
-    r"(?P<sign>[+-])?\s*(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>kg|mn|g|n)$",
+    rf"(?P<sign>{SIGN})?\s*(?P<number>{UNSIGNED_DECIMAL})\s*{_UNIT}",  # a display shows no exponent
     re.IGNORECASE | re.ASCII,  # the digits 0-9 only, as every number reader of roughsense (io/numbers.py)
 )
 #: A typed force with its unit: the number before it is read by the one number parser, as a unit-less one is.
-_TYPED_UNIT = re.compile(r"^(?P<number>.*?\S)\s*(?P<unit>kg|mn|g|n)$", re.IGNORECASE | re.ASCII)
+_TYPED_UNIT = re.compile(rf"^(?P<number>.*?\S)\s*{_UNIT}", re.IGNORECASE | re.ASCII)
 _UNSTABLE_FLAGS = {"US", "OL"}
 _LINE_END = re.compile(rb"[\r\n]")
 #: Longest line kept while waiting for its end: real readings are under 30 bytes; more is noise or a wrong baud rate.

@@ -1,50 +1,33 @@
-"""Contact image -> spatial spectrum: the predictors X of the paper (section 3.2).
+"""Contact image -> spatial spectrum: the predictors X of the paper (section 3.2), as a scikit-learn transformer.
 
 crop the contact band -> gray (MATLAB weights) -> middle row (or mean of the N central rows) ->
 remove the line mean -> Hann window -> amplitude of the DFT evaluated exactly at an evenly spaced grid
 of spatial frequencies (mm^-1) -> normalise to unit trapezoid area over mm^-1.
 
-Only the rows that are used are converted to gray, so the work after decoding is a few thousand
-multiply-adds per image; decoding is the floor, and :meth:`SpatialSpectrum.iter_transform` overlaps it
-over threads while holding only a handful of images in memory. The choices the paper leaves open are
-explained in docs/sensor.md.
+The image-to-line steps and the one-image function are :mod:`.line`'s, the grid and the DFT :mod:`.grid`'s; this
+module is the sensor's public face and re-exports them. Decoding is the floor, and
+:meth:`SpatialSpectrum.iter_transform` overlaps it over threads (:func:`roughsense._util.workers.thread_map`) while
+holding only a handful of images in memory. The choices the paper leaves open are explained in docs/sensor.md.
 """
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, Integer, Options, check, check_params
-from .._util.workers import usable_cores
+from .._util.checks import POSITIVE_INT, AnyOf, Described, Integer, check
+from .._util.workers import thread_map, usable_cores
+from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
-from ..io.images import (
-    DEFAULT_MAX_PIXELS,
-    GRAY_WEIGHTS_RGB,
-    as_image,
-    check_pixels,
-    decode,
-    decode_png_top_rows,
-    png_size,
-    read_bytes,
-    to_gray,
-)
-from ..io.sensor_settings import (
-    CENTER_CROP_PX,
-    DEFAULT_PX_PER_MM,
-    DEFAULT_ROI,
-    Roi,
-    check_max_pixels,
-    parse_roi,
-    roi_misfit,
-)
-from .settings import MAX_N_FREQS, SPECTRUM_DEFAULTS, WINDOWS
+from ..io.images import GRAY_WEIGHTS_RGB, as_image
+from ..io.sensor_settings import Roi
+from .grid import frequency_grid, line_amplitude
+from .grid import grid_step as grid_step  # the sensor's public face: peak_law, applicability and shape import it here
+from .line import _Plan, extract_line, resolve_roi, spatial_spectrum
+from .line import scale_misfit as scale_misfit  # the sensor's public face: roughsense check imports it here
+from .settings import SPECTRUM_DEFAULTS
 
 __all__ = [
     "SpatialSpectrum",
@@ -56,315 +39,7 @@ __all__ = [
 ]
 
 FEATURE_VERSION = 1
-_FREQUENCY = Described(POSITIVE, "a positive number (mm^-1)")
-#: The settings and what each must be (scikit-learn's ``_parameter_constraints``, in roughsense's vocabulary); the
-#: region of interest and the pixel limit are the study folder's (``io.sensor_settings``).
-SETTINGS = {
-    "px_per_mm": Described(POSITIVE, "a positive number"),
-    "rows": Integer(1),
-    "window": Described(Options(WINDOWS), f"one of {', '.join(WINDOWS)}"),
-    "f_min_per_mm": _FREQUENCY,
-    "f_max_per_mm": _FREQUENCY,
-    "n_freqs": Integer(2, MAX_N_FREQS),
-}
 N_JOBS = Described(AnyOf(POSITIVE_INT, Integer(-1, -1)), "a positive whole number or -1")
-
-
-def frequency_grid(
-    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
-) -> np.ndarray:
-    """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0).
-
-    Parameters
-    ----------
-    f_min_per_mm, f_max_per_mm : float
-        The band's ends (mm^-1), 0 < f_min < f_max.
-    n_freqs : int
-        How many frequencies (at least 2).
-
-    Returns
-    -------
-    numpy.ndarray
-        (n_freqs,) frequencies in mm^-1, the grid every spectrum is evaluated on.
-
-    Examples
-    --------
-    >>> import roughsense as rs
-    >>> grid = rs.frequency_grid()
-    >>> grid.size, float(grid[0]), float(grid[-1])
-    (45, 0.1, 1.0)
-    >>> rs.frequency_grid(0.2, 1.0, 5)
-    array([0.2, 0.4, 0.6, 0.8, 1. ])
-    """
-    _check_band(f_min_per_mm, f_max_per_mm, n_freqs)
-    return np.linspace(float(f_min_per_mm), float(f_max_per_mm), int(n_freqs))
-
-
-def grid_step(freq_per_mm) -> float:
-    """The grid's spacing (mm^-1); 0 for a one-bin grid. The one home of the formula: peak frequencies are read
-    to within a bin of it, and the law's domain widens by it."""
-    return float(freq_per_mm[1] - freq_per_mm[0]) if len(freq_per_mm) > 1 else 0.0
-
-
-def _check_band(f_min_per_mm, f_max_per_mm, n_freqs) -> None:
-    band = check_params({"f_min_per_mm": f_min_per_mm, "f_max_per_mm": f_max_per_mm}, SETTINGS)
-    if not band["f_min_per_mm"] < band["f_max_per_mm"]:
-        raise ConfigError(f"band must satisfy 0 < f_min < f_max (mm^-1), got {f_min_per_mm!r}, {f_max_per_mm!r}")
-    check_params({"n_freqs": n_freqs}, SETTINGS)
-
-
-# --------------------------------------------------------------------------- the spectrum of one line
-
-
-@lru_cache(maxsize=16)
-def _dft_basis(width_px: int, px_per_mm: float, freqs: tuple[float, ...], window: str) -> np.ndarray:
-    """(2K, W) real matrix: windowed cos and sin rows at the K grid frequencies, scaled to sine amplitude.
-
-    Evaluating the DFT directly at the grid frequencies is the limit of infinite zero-padding: it needs
-    no interpolation between FFT bins, and costs K*W multiply-adds (45 x 1900 for the paper).
-    """
-    x_mm = (np.arange(width_px) - (width_px - 1) / 2.0) / px_per_mm  # centred: phases stay small
-    taper = np.hanning(width_px) if window == "hann" else np.ones(width_px)
-    gain = 2.0 / taper.sum()  # a sinusoid of amplitude A reads A at its own frequency
-    phase = 2.0 * np.pi * np.outer(np.asarray(freqs), x_mm)
-    basis = np.vstack([np.cos(phase) * taper, np.sin(phase) * taper]) * gain
-    basis.setflags(write=False)
-    return basis
-
-
-def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = SPECTRUM_DEFAULTS.window) -> np.ndarray:
-    """Amplitude spectrum of one gray-level line at the given frequencies, before normalisation.
-
-    The mean is removed first, so brightness offsets and the DC leakage into the band vanish.
-    """
-    line = np.asarray(line, dtype=np.float64)
-    freqs = tuple(float(f) for f in np.asarray(freq_per_mm, dtype=np.float64))
-    basis = _dft_basis(line.shape[-1], float(px_per_mm), freqs, window)
-    centred = line - line.mean(axis=-1, keepdims=True)
-    parts = basis @ centred.T if centred.ndim > 1 else basis @ centred
-    k = len(freqs)
-    return np.hypot(parts[:k], parts[k:]).T
-
-
-def _normalise(amplitude: np.ndarray, freq_per_mm: np.ndarray, name: str | None, where: str) -> np.ndarray:
-    area = np.trapezoid(amplitude, freq_per_mm)
-    if not (np.isfinite(area) and area > 0):
-        raise InputError(f"{where}no texture along the line (flat gray level); the spectrum cannot be normalised", path=name)
-    return amplitude / area
-
-
-# --------------------------------------------------------------------------- crop and line
-
-
-#: ``auto`` looks at every 2nd row and every 4th column: the band is ~150 rows tall and its texture spans
-#: many pixels, so 1/8 of the frame locates it to a row while costing a few % of decoding.
-AUTO_STRIDE_ROWS, AUTO_STRIDE_COLS = 2, 4
-
-
-def _auto_band(pixels: np.ndarray, height_px: int) -> int:
-    """Top row of the ``height_px``-row window with the most horizontal texture.
-
-    Texture of a row = mean squared difference of gray levels AUTO_STRIDE_COLS px apart along it;
-    the best window maximises the sum over its rows (a box filter), the first one on ties. Only finite
-    differences count: one NaN pixel anywhere would otherwise make its row's texture NaN, and ``argmax`` would
-    pick the first window holding it (a crop that does hold one is refused later, by ``extract_line``).
-    """
-    total_rows = pixels.shape[0]
-    cols = AUTO_STRIDE_COLS if pixels.shape[1] >= 8 * AUTO_STRIDE_COLS else 1
-    gray = to_gray(pixels[::AUTO_STRIDE_ROWS, ::cols])
-    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf is a NaN here, dropped just below
-        steps = np.diff(gray, axis=1)
-    finite = np.isfinite(steps)
-    counts = finite.sum(axis=1)
-    energy = np.divide(np.square(np.where(finite, steps, 0.0)).sum(axis=1), counts,
-                       out=np.zeros(len(counts)), where=counts > 0)
-    energy = np.repeat(energy, AUTO_STRIDE_ROWS)[:total_rows]
-    window_sum = np.convolve(energy, np.ones(height_px), mode="valid")
-    return int(np.argmax(window_sum))
-
-
-def resolve_roi(roi: Roi, pixels: np.ndarray, *, name=None, where: str = "") -> tuple[int, int, int, int]:
-    """The crop (x, y, w, h) in pixels for this image; a crop that does not fit is refused (``roi_misfit``'s rule)."""
-    height, width = pixels.shape[:2]
-    roi = parse_roi(roi)
-    misfit = roi_misfit(roi, width, height)
-    if misfit is not None:
-        hint = "; pass --roi X,Y,W,H or --roi auto" if roi == "center" else ""
-        raise InputError(f"{where}image is {width}x{height} px, {misfit}{hint}", path=name)
-    if roi == "center":
-        crop_w, crop_h = CENTER_CROP_PX
-        return ((width - crop_w) // 2, (height - crop_h) // 2, crop_w, crop_h)
-    if roi == "auto":
-        crop_w, crop_h = min(CENTER_CROP_PX[0], width), min(CENTER_CROP_PX[1], height)
-        return ((width - crop_w) // 2, _auto_band(pixels, crop_h), crop_w, crop_h)
-    return roi
-
-
-def extract_line(pixels: np.ndarray, box: tuple[int, int, int, int], rows: int, *, name=None, where: str = "") -> np.ndarray:
-    """Gray level along the middle row of the crop, or the mean of its ``rows`` central rows.
-
-    The central rows start at (h - rows) // 2, so one row of a 150-row crop is row 74 (MATLAB's
-    ``round(end/2)``). Only those rows are converted to gray: cropping comes before the colour work.
-    """
-    x, y, w, h = box
-    if rows > h:
-        raise InputError(f"{where}rows {rows} is more than the crop height ({h} px)", path=name)
-    top = y + (h - rows) // 2
-    gray = to_gray(pixels[top : top + rows, x : x + w])
-    line = gray.mean(axis=0) if rows > 1 else gray[0]
-    if not np.all(np.isfinite(line)):
-        raise InputError(f"{where}image contains NaN or infinite values in the crop", path=name)
-    return line
-
-
-def scale_misfit(px_per_mm: float, roi: Roi, *, f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-                 f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm) -> str | None:
-    """Why a camera scale cannot measure the band with this crop (None if it can): f_max at or above the Nyquist
-    frequency, or a line (the crop's width; at most the centre crop's for 'auto') shorter than 1/f_min. What
-    ``roughsense check`` calls an implausible scale; ``_Plan`` refuses the first and every image the second."""
-    if not px_per_mm / 2 > f_max_per_mm:
-        return (f"px_per_mm {px_per_mm:g} cannot resolve the band: its Nyquist frequency {px_per_mm / 2:g} mm^-1 is not "
-                f"above f_max {f_max_per_mm:g} mm^-1 (it must be above {2 * f_max_per_mm:g} px/mm)")
-    width_px = CENTER_CROP_PX[0] if isinstance(roi, str) else roi[2]
-    if width_px / px_per_mm < 1 / f_min_per_mm:
-        return (f"px_per_mm {px_per_mm:g} makes the line {width_px / px_per_mm:.3g} mm long ({width_px} px), shorter "
-                f"than 1/f_min = {1 / f_min_per_mm:g} mm: the band's coarse end cannot be measured")
-    return None
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """Validated settings, shared read-only by the worker threads."""
-
-    px_per_mm: float
-    roi: Roi
-    rows: int
-    freq_per_mm: np.ndarray
-    window: str
-    max_pixels: int = DEFAULT_MAX_PIXELS
-
-    @classmethod
-    def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window,
-              max_pixels=DEFAULT_MAX_PIXELS) -> _Plan:
-        px = check_params({"px_per_mm": px_per_mm}, SETTINGS)["px_per_mm"]
-        max_pixels = check_max_pixels(max_pixels)
-        check_params({"rows": rows, "window": window}, SETTINGS)
-        roi = parse_roi(roi)
-        crop_h = CENTER_CROP_PX[1] if roi == "center" else roi[3] if not isinstance(roi, str) else None
-        if crop_h is not None and rows > crop_h:
-            raise ConfigError(f"rows {rows} is more than the crop height ({crop_h} px)")
-        freqs = frequency_grid(f_min_per_mm, f_max_per_mm, n_freqs)
-        if freqs[-1] >= px / 2:
-            raise ConfigError(  # names the key: callers add where it came from (study.toml or an option)
-                f"px_per_mm {px:g} is too coarse: its Nyquist frequency {px / 2:g} mm^-1 is not above the band's "
-                f"f_max {freqs[-1]:g} mm^-1 (it must be above {2 * freqs[-1]:g} px/mm)"
-            )
-        return cls(px, roi, int(rows), freqs, window, max_pixels)
-
-    def spectrum(self, image, index: int | None = None) -> np.ndarray:
-        return self.spectrum_and_line(image, index)[0]
-
-    def spectrum_and_line(self, image, index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The normalised spectrum and the gray line it was taken from (the band and scale checks read the line)."""
-        is_file = isinstance(image, (str, os.PathLike))
-        name = image if is_file else None
-        where = "" if is_file or index is None else f"image {index} of the batch: "
-        pixels = box = None
-        if is_file:
-            data = read_bytes(image, max_pixels=self.max_pixels)
-            check_pixels(data, self.max_pixels, image)  # before any decoding: a small file may claim gigapixels
-            pixels, box = self._top_rows_only(data, name)
-            if pixels is None:
-                pixels = decode(data, image, max_pixels=self.max_pixels)
-        else:
-            pixels = as_image(image, name=where.rstrip(": ") or None)
-        if box is None:
-            box = resolve_roi(self.roi, pixels, name=name, where=where)
-        line_mm = box[2] / self.px_per_mm
-        min_mm = 1.0 / self.freq_per_mm[0]
-        if line_mm < min_mm * (1 - 1e-12):
-            raise InputError(
-                f"{where}the line is {line_mm:.3g} mm long ({box[2]} px at {self.px_per_mm:g} px/mm), shorter than "
-                f"1/f_min = {min_mm:.3g} mm, so it cannot resolve the band",
-                path=name,
-            )
-        line = extract_line(pixels, box, self.rows, name=name, where=where)
-        amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
-        return _normalise(amplitude, self.freq_per_mm, name, where), line
-
-    def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
-        """Decode a PNG only down to the last row the line uses (same result, about half the decoding).
-
-        Not for ``roi="auto"``, which must see the whole frame to find the band.
-        """
-        if self.roi == "auto":
-            return None, None
-        size = png_size(data)
-        if size is None:
-            return None, None
-        box = resolve_roi(self.roi, np.empty((*size, 0), dtype=np.uint8), name=name)
-        x, y, w, h = box
-        if self.rows > h:
-            return None, None
-        stop_row = y + (h - self.rows) // 2 + self.rows
-        pixels = decode_png_top_rows(data, stop_row)
-        return (pixels, box) if pixels is not None else (None, None)
-
-
-def spatial_spectrum(
-    image,
-    *,
-    px_per_mm: float = DEFAULT_PX_PER_MM,
-    roi: Roi = DEFAULT_ROI,
-    rows: int = SPECTRUM_DEFAULTS.rows,
-    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
-    window: str = SPECTRUM_DEFAULTS.window,
-) -> np.ndarray:
-    """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid.
-
-    The function form of :class:`SpatialSpectrum` for a single image (docs/sensor.md gives every step).
-
-    Parameters
-    ----------
-    image : str, os.PathLike or numpy.ndarray
-        An image file, or its pixels (gray or RGB; uint8, uint16 or float in 0-1).
-    px_per_mm : float
-        The camera's scale, pixels per mm (the paper's rig: 34.9).
-    roi : {"center", "auto"} or tuple of int
-        Where the contact band is: the 1900 x 150 px centre crop, the band with the strongest horizontal
-        texture, or an explicit crop (x, y, w, h) in pixels.
-    rows : int
-        How many central rows of the crop are averaged into the line.
-    f_min_per_mm, f_max_per_mm, n_freqs
-        The frequency grid (:func:`frequency_grid`).
-    window : str
-        The window applied to the line ("hann", the default, or "none").
-
-    Returns
-    -------
-    numpy.ndarray
-        (n_freqs,) amplitudes, normalised to unit area over mm^-1.
-
-    Examples
-    --------
-    A synthetic band whose brightness repeats every 2 mm peaks near 0.5 mm^-1:
-
-    >>> import numpy as np
-    >>> import roughsense as rs
-    >>> x_mm = np.arange(700) / 34.9
-    >>> image = np.tile(0.5 + 0.4 * np.sin(2 * np.pi * x_mm / 2.0), (20, 1))
-    >>> spectrum = rs.spatial_spectrum(image, px_per_mm=34.9, roi=(0, 0, 700, 20))
-    >>> spectrum.shape
-    (45,)
-    >>> round(float(rs.frequency_grid()[spectrum.argmax()]), 2)
-    0.51
-    """
-    plan = _Plan.build(px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window)
-    return plan.spectrum(image)
 
 
 def combine_forces(spectra_by_force: Sequence[np.ndarray]) -> np.ndarray:
@@ -414,15 +89,15 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
 
     def __init__(
         self,
-        px_per_mm: float = DEFAULT_PX_PER_MM,
-        roi: Roi = DEFAULT_ROI,
+        px_per_mm: float = PX_PER_MM,
+        roi: Roi = ROI,
         rows: int = SPECTRUM_DEFAULTS.rows,
         f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
         f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
         n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
         n_jobs: int = 1,
         window: str = SPECTRUM_DEFAULTS.window,
-        max_pixels: int = DEFAULT_MAX_PIXELS,
+        max_pixels: int = MAX_PIXELS,
     ) -> None:
         self.max_pixels = max_pixels
         self.px_per_mm = px_per_mm
@@ -516,26 +191,8 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         return self._iter(images, _Plan.spectrum_and_line)
 
     def _iter(self, images: Iterable, one) -> Iterator:
-        plan = self._plan()
-        jobs = self._jobs()
-        numbered = enumerate(images)
-        if jobs == 1:
-            for index, image in numbered:
-                yield one(plan, image, index)
-            return
-        pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="roughsense-decode")
-        pending: deque = deque()
-        try:
-            for index, image in numbered:
-                pending.append(pool.submit(one, plan, image, index))
-                if len(pending) >= 2 * jobs:
-                    yield pending.popleft().result()
-            while pending:
-                yield pending.popleft().result()
-        finally:
-            for future in pending:
-                future.cancel()
-            pool.shutdown(wait=True, cancel_futures=True)
+        plan = self._plan()  # checked at the first image, as before: a generator, like the loop it replaced
+        yield from thread_map(lambda numbered: one(plan, numbered[1], numbered[0]), enumerate(images), self._jobs())
 
     def line(self, image) -> tuple[np.ndarray, tuple[int, int, int, int]]:
         """The gray line (values along the row, one per px) whose spectrum :meth:`transform` takes, and its crop
@@ -605,7 +262,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         }
 
     @classmethod
-    def from_definition(cls, definition: dict, *, n_jobs: int = 1, max_pixels: int = DEFAULT_MAX_PIXELS) -> SpatialSpectrum:
+    def from_definition(cls, definition: dict, *, n_jobs: int = 1, max_pixels: int = MAX_PIXELS) -> SpatialSpectrum:
         """Rebuild the transformer from :meth:`feature_definition` (e.g. one stored in a model file).
 
         Parameters

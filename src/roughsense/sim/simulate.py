@@ -16,7 +16,8 @@ import pandas as pd
 from .._util import atomic
 from .._util.checks import POSITIVE_INT, check
 from .._util.workers import process_pool, usable_cores
-from ..io.sensor_settings import DEFAULT_ROI, SensorSettings
+from ..defaults import ROI
+from ..io.sensor_settings import SensorSettings
 from ..io.study import COMPLETE_MARKER
 from ..io.writer import StudyWriter
 from ..paper import REFERENCE_SPECIMEN
@@ -115,7 +116,7 @@ class SimulationRun:
         config, writer = self.config, self.writer
         pads = {f"pads.{name}": {"ridge_period_mm": period} for name, period in ridge_periods(self.pads).items()}
         writer.write_config(name=config.name, reference_specimen=REFERENCE_SPECIMEN,
-                            sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi=DEFAULT_ROI),
+                            sensor=SensorSettings(px_per_mm=config.camera.px_per_mm, roi=ROI),
                             forces_n=sorted(config.forces_n),
                             extra={**pads, "simulation": config.toml_table()})
         table = pd.DataFrame([{**s.table_row(), "ratings_source": percept(s, ratings_from=config.ratings_from).source}
