@@ -44,7 +44,7 @@ def study_matrices():
     from roughsense._util import cache
     from roughsense._util.cache import cache_dir
     from roughsense.analysis import dataset
-    from roughsense.analysis.ratings import aggregate_ratings
+    from roughsense.analysis.magnitude_estimation import aggregate_ratings
     from roughsense.io.study import read_study
 
     root = next(p for p in sorted(cache_dir().glob("simulated-study-seed0-*")) if (p / "manifest.csv").is_file())

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy import integrate, stats
 
+from roughsense.analysis.magnitude_estimation import aggregate_ratings, make_schedule
 from roughsense.analysis.metrics import overlap, signed_rank
-from roughsense.analysis.ratings import aggregate_ratings, make_schedule
 from roughsense.paper import PAPER_SPECIMENS
 
 

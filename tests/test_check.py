@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from roughsense.errors import InputError, RoughsenseWarning
-from roughsense.io.ratings import read_ratings
+from roughsense.io.ratings_file import read_ratings
 from roughsense.io.study import read_study
 
 SPECIMENS = [("R2", "rectangular", 2.0), ("R3", "rectangular", 3.0), ("R4", "rectangular", 4.0),

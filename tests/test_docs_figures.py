@@ -122,7 +122,7 @@ def test_the_sensor_page_quotes_the_untapered_leakage():
     assert _agrees(percent, 100 * worst), worst
 
 
-# --- docs/simulator.md, "The finger": every figure scripts/fit_finger.py and the finger model produce -------------
+# --- docs/simulator.md, "The finger": every figure scripts/fit_finger_to_paper.py and the finger model produce -------------
 
 def _finger_section() -> str:
     text = _prose(REPO / "docs" / "simulator.md")
@@ -131,7 +131,7 @@ def _finger_section() -> str:
 
 @pytest.fixture(scope="module")
 def finger_validation():
-    from scripts.finger_fit import geometric_leave_one_out, leave_one_out
+    from scripts.finger_fitting import geometric_leave_one_out, leave_one_out
 
     from roughsense.paper import PAPER_SPECIMENS, REFERENCE_SPECIMEN
     from roughsense.sim.panel import paper_perceived
@@ -147,7 +147,7 @@ def finger_validation():
 
 
 def test_the_finger_is_no_better_than_the_geometric_law_as_the_docs_say(finger_validation):
-    from scripts.finger_fit import DEPTHS_MM, SATURATIONS, paired_p
+    from scripts.finger_fitting import DEPTHS_MM, SATURATIONS, paired_p
 
     finger, law, human_log_sd = finger_validation
     text = _finger_section()

@@ -402,8 +402,8 @@ def test_physics_ratings_reach_the_cell(tmp_path):
     cell = sweep.cells[0]
     config = explore_cell.simulation_config(cell)
     assert cell.ratings_from == "physics" and config.ratings_from == "physics"
-    from roughsense.explore.ratings import panel_ratings
-    from roughsense.io.ratings import validate_ratings
+    from roughsense.explore.cell_panel import panel_ratings
+    from roughsense.io.ratings_file import validate_ratings
 
     specimens = config.validate()[1]
     ours = panel_ratings(specimens, cell.seed, ratings_from="physics")

@@ -550,7 +550,7 @@ def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
     from roughsense.cli._common import number_option
     from roughsense.errors import ConfigError, InputError
     from roughsense.io.numbers import NumberError, parse_number
-    from roughsense.io.ratings import validate_ratings
+    from roughsense.io.ratings_file import validate_ratings
     from roughsense.io.tables import read_table
 
     cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case

@@ -148,7 +148,7 @@ def test_a_wide_encoding_is_named(study, encoding, name):
 
 def test_a_markdown_sheet_with_a_column_named_twice_is_refused(tmp_path):
     """28.7 for the other ratings reader: a filled-in Markdown sheet kept the last of two rating columns."""
-    from roughsense.io.ratings import read_ratings
+    from roughsense.io.ratings_file import read_ratings
 
     path = tmp_path / "sheet.md"
     path.write_text("| participant | session | specimen | rating | rating |\n|---|---|---|---|---|\n| P1 | 1 | R2 | 5 | 0.5 |\n")

@@ -97,7 +97,7 @@ def test_a_huge_option_value_is_one_short_line(run_cli, tmp_path):
 
 def test_a_library_warning_is_one_line_of_ours_without_source(run_cli, tmp_path, monkeypatch):
     """Any warning a library raises during a command (numpy here) is one ``roughsense: warning:`` line."""
-    import roughsense.analysis.ratings as analysis
+    import roughsense.analysis.magnitude_estimation as analysis
 
     aggregate = analysis.aggregate_ratings
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from roughsense.errors import InputError
 from roughsense.io.numbers import BOUNDS, NumberError, parse_number
-from roughsense.io.ratings import read_ratings
+from roughsense.io.ratings_file import read_ratings
 from roughsense.io.sensor_settings import parse_roi
 from roughsense.io.tables import read_table
 
@@ -106,7 +106,7 @@ def test_ratings_study_and_manifest_readers_refuse_the_same_cells(tmp_path, cell
     ratings.write_text(f"participant,session,specimen,rating\nP1,1,R2,0.5\nP1,1,C2,{cell}\n", encoding="utf-8")
     with pytest.raises(InputError) as by_command:
         read_ratings(ratings)
-    from roughsense.io.ratings import read_ratings_table
+    from roughsense.io.ratings_file import read_ratings_table
 
     with pytest.raises(InputError) as by_study:
         read_ratings_table(ratings)

@@ -13,9 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy import stats
 
-from roughsense.analysis.ratings import MissingRatingsWarning, aggregate_ratings, make_schedule
+from roughsense.analysis.magnitude_estimation import MissingRatingsWarning, aggregate_ratings, make_schedule
 from roughsense.errors import ConfigError, InputError, RoughsenseWarning
-from roughsense.io.ratings import natural_key, read_ratings, validate_ratings
+from roughsense.io.ratings_file import natural_key, read_ratings, validate_ratings
 from roughsense.paper import PAPER_SPECIMENS
 from roughsense.report.ratings_sheet import render_sheet
 
@@ -204,7 +204,7 @@ def test_in_memory_frames_pass_the_readers_validator():
 
 def test_a_study_folder_and_the_ratings_command_refuse_a_bad_rating_alike(tmp_path):
     """study.toml folders read ratings.csv through the same validator as `roughsense ratings`."""
-    from roughsense.io.ratings import read_ratings_table
+    from roughsense.io.ratings_file import read_ratings_table
 
     path = write(tmp_path, GOOD + "P3,1,R2,0\n")
     with pytest.raises(InputError) as by_study:

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy import integrate
-from scripts.finger_fit import fit_readout, fit_spread, leave_one_out
+from scripts.finger_fitting import fit_readout, fit_spread, leave_one_out
 
 from roughsense.errors import ConfigError
 from roughsense.paper import PAPER_SPECIMENS
@@ -75,7 +75,7 @@ def test_bad_finger_parameters_are_config_errors():
 
 
 def test_committed_constants_are_the_fitting_scripts_output():
-    """scripts/fit_finger.py's numbers, recomputed: the module's constants are not hand-tuned."""
+    """scripts/fit_finger_to_paper.py's numbers, recomputed: the module's constants are not hand-tuned."""
     gmean = PAPER.loc[RATED, "perceived_gmean"].to_numpy(float)
     fit = fit_readout([PRESETS[n] for n in RATED], gmean)
     assert fit.receptor_depth_mm == finger_model.FITTED_RECEPTOR_DEPTH_MM
@@ -186,7 +186,7 @@ def test_roughness_rises_with_amplitude_at_fixed_wavelength(wavelength_mm):
 def test_the_finger_never_reads_the_papers_tables(monkeypatch):
     """Physics ratings need no paper table at run time: with the reader broken they still come out, and the
     finger's modules do not mention the shipped results."""
-    from scripts import finger_fit
+    from scripts import finger_fitting
 
     from roughsense.sim import panel
 
@@ -196,7 +196,7 @@ def test_the_finger_never_reads_the_papers_tables(monkeypatch):
     monkeypatch.setattr(panel, "paper_perceived", refuse)
     table = panel.simulate_panel([PRESETS[n] for n in ("R2", "R3", "C5")], 0, ratings_from="physics")
     assert set(table["specimen"]) == {"R2", "C5"} and (table["rating"] > 0).all()
-    for module in (finger_model, finger_fit):
+    for module in (finger_model, finger_fitting):
         text = Path(module.__file__).read_text(encoding="utf-8")
         assert "perceived_roughness" not in text and "data.paper" not in text and "paper_perceived" not in text
 
@@ -215,8 +215,8 @@ def test_subsurface_stress_is_in_equilibrium_and_shift_equivariant(pressure, dep
 
 
 def test_the_geometric_yardstick_is_two_parameter_least_squares_held_out():
-    """finger_fit.geometric_leave_one_out against the normal equations solved by hand, fold by fold."""
-    from scripts.finger_fit import geometric_leave_one_out
+    """finger_fitting.geometric_leave_one_out against the normal equations solved by hand, fold by fold."""
+    from scripts.finger_fitting import geometric_leave_one_out
 
     gmean = PAPER.loc[RATED, "perceived_gmean"].to_numpy(float)
     law = geometric_leave_one_out([PRESETS[n] for n in RATED], gmean)

@@ -173,7 +173,7 @@ def test_protocol_sizes_are_bounded_before_any_work(tmp_path, run_cli, args, mes
 def test_the_schedule_function_refuses_before_making_ids():
     import numpy as np
 
-    from roughsense.analysis.ratings import MAX_PARTICIPANTS, make_schedule
+    from roughsense.analysis.magnitude_estimation import MAX_PARTICIPANTS, make_schedule
     from roughsense.errors import ConfigError
 
     with pytest.raises(ConfigError, match="participants must be at most 1000"):

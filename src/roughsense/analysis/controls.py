@@ -17,13 +17,13 @@ what is rerun.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
 
 from .. import defaults
 from .._util.checks import Integer, check
+from .._util.workers import thread_map
 from ..model.families import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.peak_law_family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
@@ -152,10 +152,6 @@ def run_controls(jobs: Sequence[tuple], *, n_jobs: int = 1, progress: Callable |
         return control_row(*job)
 
     with single_threaded_blas():
-        if n_jobs > 1 and len(jobs) > 1:
-            with ThreadPoolExecutor(max_workers=n_jobs, thread_name_prefix="roughsense-controls") as pool:
-                rows = pool.map(one, jobs)
-                rows = list(progress(rows, total=len(jobs), description=description) if progress else rows)
-        else:
-            rows = [one(job) for job in (progress(jobs, total=len(jobs), description=description) if progress else jobs)]
+        rows = thread_map(one, jobs, min(n_jobs, max(len(jobs), 1)))
+        rows = list(progress(rows, total=len(jobs), description=description) if progress else rows)
     return controls_table(rows)

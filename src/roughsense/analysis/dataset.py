@@ -15,7 +15,7 @@ import pandas as pd
 from ..errors import ConfigError, InputError
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, STUDY_TOML, Study
 from ..paper import COMBINED, FORCE_CONDITIONS
-from .ratings import aggregate_ratings
+from .magnitude_estimation import aggregate_ratings
 
 TRIAL_KEYS = ("specimen", "pad", "repetition")
 #: The analysis's own mark on a spectrum column (``spectrum@0.1`` holds the amplitude at 0.1 mm^-1). Spectrum

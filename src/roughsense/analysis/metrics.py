@@ -127,7 +127,7 @@ def specimen_table(pred_df: pd.DataFrame, summary_df: pd.DataFrame, *, pred_sd_d
     """Per specimen: perceived gmean/sd, predictions' mean and SD, OVL and RMSE (Tables 1-6).
 
     ``pred_df`` has one row per prediction (columns specimen, prediction); ``summary_df`` is the output
-    of :func:`roughsense.analysis.ratings.aggregate_ratings`. Rows follow the order of ``summary_df``; only
+    of :func:`roughsense.analysis.magnitude_estimation.aggregate_ratings`. Rows follow the order of ``summary_df``; only
     specimens with predictions appear. OVL is NaN where the perceived SD is undefined (the reference).
     ``pred_sd`` is the sample SD by default; the paper's tables are consistent with the population SD
     (``pred_sd_ddof=0``), which also enters the OVL -- see docs/perception.md.

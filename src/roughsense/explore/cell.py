@@ -29,7 +29,7 @@ from ..sim.manifest import trial_manifest
 from ..sim.optics import Camera
 from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
 from .allocator import relax_frozen_malloc_thresholds
-from .ratings import panel_ratings
+from .cell_panel import panel_ratings
 from .sweep import MODEL_KEY, Cell
 
 RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",

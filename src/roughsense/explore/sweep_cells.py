@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import defaults
-from ..analysis.ratings import schedule_size_problem
+from ..analysis.magnitude_estimation import schedule_size_problem
 from ..errors import ConfigError
 from ..model.families import paper_family
 from ..paper import PAPER_SPECIMENS, SMOOTH_PAD

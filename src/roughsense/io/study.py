@@ -32,7 +32,7 @@ from .csv_read import csv_line, read_table, refuse_unknown
 from .names import check_name, check_name_column
 from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
-from .ratings import read_ratings_table
+from .ratings_file import read_ratings_table
 from .sensor_settings import SensorSettings
 from .study_config import CONFIG_KEYS as CONFIG_KEYS  # re-exported for one release
 from .study_config import MAX_CONFIG_BYTES as MAX_CONFIG_BYTES  # re-exported for one release

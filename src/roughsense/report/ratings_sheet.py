@@ -1,7 +1,7 @@
 """The experimenter's printable sheet of a schedule (``roughsense protocol --sheet``): HTML or Markdown.
 
-Rendering only: the schedule itself is drawn by :func:`roughsense.analysis.ratings.make_schedule`, and a filled-in
-Markdown sheet is read back by :func:`roughsense.io.ratings.read_ratings`.
+Rendering only: the schedule itself is drawn by :func:`roughsense.analysis.magnitude_estimation.make_schedule`, and a filled-in
+Markdown sheet is read back by :func:`roughsense.io.ratings_file.read_ratings`.
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def render_sheet(
 
     ``"html"`` prints well from a browser (with the schedule CSV line of each trial for typing the
     ratings in); ``"markdown"`` is a plain-text sheet whose tables carry the rating columns, so the
-    filled-in Markdown file itself can be read back by :func:`roughsense.io.ratings.read_ratings`.
+    filled-in Markdown file itself can be read back by :func:`roughsense.io.ratings_file.read_ratings`.
     """
     blocks = _blocks(schedule)
     if fmt == "html":

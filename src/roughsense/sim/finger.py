@@ -22,7 +22,7 @@ Three stages, each after a published account of macroscopic roughness (spatial c
    specimens far from the reference, and the spread across people follows from the model, not from a table.
 
 The depth, the saturation strain and the exponent b were fitted to the paper's 13 rated specimens by
-``scripts/fit_finger.py``, and the three spreads to the paper's SDs; the constants below are that script's output.
+``scripts/fit_finger_to_paper.py``, and the three spreads to the paper's SDs; the constants below are that script's output.
 This module never reads the paper's tables.
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ from ..paper import REFERENCE_SPECIMEN
 from . import contact
 from .specimens import PRESETS, SPECIMEN_LENGTH_MM, Specimen
 
-# --- output of scripts/fit_finger.py (paper's 13 rated specimens; rerun it to reproduce, do not edit by hand).
+# --- output of scripts/fit_finger_to_paper.py (paper's 13 rated specimens; rerun it to reproduce, do not edit by hand).
 # Depth and saturation ended on their search bounds (1.0 mm, 3 %): docs/simulator.md, "The finger". ---
 FITTED_RECEPTOR_DEPTH_MM = 1.0
 FITTED_SATURATION_STRAIN = 0.03

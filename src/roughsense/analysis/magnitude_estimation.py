@@ -19,7 +19,7 @@ import pandas as pd
 
 from .._util.checks import POSITIVE_INT, check
 from ..errors import ConfigError, InputError, RoughsenseWarning
-from ..io.ratings import natural_key
+from ..io.ratings_file import natural_key
 from ..paper import REFERENCE_SPECIMEN
 
 SD_DEFINITION = (
@@ -72,7 +72,7 @@ def aggregate_ratings(
     else natural order (C2 < C2.5 < ... < R5). A participant missing a session or a trial gets a
     :class:`MissingRatingsWarning` naming the gap (unless ``warn`` is false) and the analysis goes on.
     ``path`` only labels errors and warnings; frame rows are taken to be file lines ``index + 2``.
-    ``ratings`` is a validated frame: from a reader, or from :func:`roughsense.io.ratings.validate_ratings`.
+    ``ratings`` is a validated frame: from a reader, or from :func:`roughsense.io.ratings_file.validate_ratings`.
     """
     frame = ratings
     if frame.empty:
@@ -151,7 +151,7 @@ def make_schedule(
     every participant and session from ``rng`` (a Generator, or a seed for one).
 
     Columns participant, session, order, specimen and an empty ``rating`` column for the experimenter
-    to fill; the filled-in schedule is then read by :func:`roughsense.io.ratings.read_ratings` as it is.
+    to fill; the filled-in schedule is then read by :func:`roughsense.io.ratings_file.read_ratings` as it is.
     """
     if rng is None:
         raise ConfigError("make_schedule needs rng (a numpy Generator or a seed) so the orders can be reproduced")

@@ -40,7 +40,7 @@ def _print_summary(summary, reference: str) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from ..analysis.ratings import SD_DEFINITION
+    from ..analysis.magnitude_estimation import SD_DEFINITION
 
     table = Table(title="Perceived roughness (magnitude estimation)")
     table.add_column("specimen")
@@ -83,9 +83,9 @@ def ratings(
     naming its line, and nothing is written.
     """
     from .._util.atomic import check_can_write, write_csv
-    from ..analysis.ratings import aggregate_ratings
+    from ..analysis.magnitude_estimation import aggregate_ratings
     from ..io.names import check_name
-    from ..io.ratings import read_ratings
+    from ..io.ratings_file import read_ratings
 
     check_can_write(out, force=force, inputs=[ratings_file, *_specimens_file(specimens)])
     check_name(reference, what="--reference")
@@ -131,7 +131,7 @@ def protocol(
     import numpy as np
 
     from .._util.atomic import check_outputs, write_csv, write_text
-    from ..analysis.ratings import make_schedule
+    from ..analysis.magnitude_estimation import make_schedule
     from ..io.names import check_name
     from ..report.ratings_sheet import render_sheet
 
@@ -156,8 +156,8 @@ def protocol(
 
 
 def _check_panel(participants: int, sessions: int, specimens: int) -> None:
-    """--participants and --sessions within the schedule's stated bounds (analysis.ratings.MAX_*)."""
-    from ..analysis.ratings import schedule_size_problem
+    """--participants and --sessions within the schedule's stated bounds (analysis.magnitude_estimation.MAX_*)."""
+    from ..analysis.magnitude_estimation import schedule_size_problem
 
     for name, value in (("--participants", participants), ("--sessions", sessions)):
         if value < 1:

@@ -2,12 +2,12 @@
 
 Reads the paper's perceived roughness as shipped in roughsense.data.paper (the only place the finger model meets
 the paper's results), fits the receptor depth, the saturation strain and the exponent
-(scripts/finger_fit.py), then the participants' spreads to the paper's SDs, runs the leave-one-specimen-out
+(scripts/finger_fitting.py), then the participants' spreads to the paper's SDs, runs the leave-one-specimen-out
 check beside that of a two-parameter geometric law with no mechanics (log rating = b log(period/3) + c [circular]),
 says which fitted parameters ended on their search bounds, and prints the constants to paste into
 src/roughsense/sim/finger.py. docs/simulator.md quotes its numbers; tests/test_docs_figures.py recomputes them.
 
-    PYTHONPATH=src .venv/bin/python scripts/fit_finger.py
+    PYTHONPATH=src .venv/bin/python scripts/fit_finger_to_paper.py
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from finger_fit import (
+from finger_fitting import (
     DEPTHS_MM,
     SATURATIONS,
     Validation,

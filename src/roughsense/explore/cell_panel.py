@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..io.ratings import validate_ratings
+from ..io.ratings_file import validate_ratings
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, REFERENCE_SPECIMEN
 from ..sim.panel import PANEL_SPAWN_KEY, simulate_panel
 from ..sim.specimens import Specimen

@@ -1,6 +1,6 @@
 """Fitting and validating the simulated finger (:mod:`roughsense.sim.finger`) against given ratings.
 
-Not part of the package: the fitted constants are committed in ``finger.py``, so only ``fit_finger.py`` beside this
+Not part of the package: the fitted constants are committed in ``finger.py``, so only ``fit_finger_to_paper.py`` beside this
 file (which passes the paper's values and prints those constants) and the tests use it. The functions take the
 targets as arguments and read no table.
 
