@@ -24,7 +24,7 @@ import pandas as pd
 from .. import defaults
 from .._util.checks import Integer, check
 from .._util.workers import thread_map
-from ..model.families import engine
+from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.peak_law_family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls import single_threaded_blas

@@ -15,7 +15,8 @@ import pandas as pd
 
 from .. import defaults
 from ..errors import InputError
-from ..model.families import engine, family, paper_family
+from ..model.engines import engine
+from ..model.families import family, paper_family
 from ..model.family import FoldResult, FoldSettings
 from .metrics import specimen_table
 from .spread import predictive_ovl

@@ -78,23 +78,6 @@ def default_family() -> Family:
     return family(DEFAULT_MODEL)
 
 
-def engines() -> tuple:
-    """Every family's numerics (:class:`roughsense.model.family.FamilyEngine`), in the registry's order.
-
-    Imported here, on first use, so ``--help`` never loads NumPy; real import statements, so the code fingerprint
-    of cache keys and sweep ids (``_util/fingerprint.py``) follows them."""
-    from .peak_law_family import PeakLawFamily
-    from .pls_family import PLSFamily
-
-    return PLSFamily(), PeakLawFamily()
-
-
-def engine(name: str | Family):
-    """The numerics of the family called ``name`` (or of the :class:`Family` given)."""
-    wanted = family(name).name
-    return next(e for e in engines() if e.name == wanted)
-
-
 def check_model_name(name: object, *, option: str = "--model") -> str:
     """The family's name, case-insensitive; anything else is one line naming the choices."""
     text = str(name).strip().lower() if isinstance(name, str) else None
