@@ -1,16 +1,16 @@
 """Benchmark the parallel plumbing on joblib against the hand-written pools it replaced, in the same run.
 
 * Simulation: ``simulate_study`` of a small study (``--full``: the default 840 images) with 2 jobs through
-  ``_util.workers.process_pool`` (loky's reusable executor, spawned workers) against the same call through the former
-  pool (``ProcessPoolExecutor`` with forked workers and the same die-with-parent initializer), and against 1 job
-  (not with ``--full``). The images must be the same bytes.
+  ``_util.workers.process_pool`` (loky's executor, forked workers) against loky's reusable executor (spawned
+  workers), the former pool (``ProcessPoolExecutor`` with forked workers and the same die-with-parent initializer)
+  and 1 job (not with ``--full``). The images must be the same bytes.
 * Pool start: a pool of 2 from its making to two tasks done, each needing the modules of the report's figure
   drawing (imported in this process first, as ``roughsense study`` has them when it draws): loky against fork.
 * Decoding: ``SpatialSpectrum(n_jobs=2).transform`` of the study's PNGs through ``_util.workers.thread_map``
   (joblib's threads) against the former bounded deque over a ``ThreadPoolExecutor``. The spectra must be equal.
 
 * With ``--report STUDY``: the report of that study (analysed once, 19 shufflings) rendered with its figures drawn in
-  2 loky workers, 2 forked workers and in this process; the files must be the same bytes.
+  2 loky workers, 2 spawned loky workers, 2 forked workers and in this process; the files must be the same bytes.
 
 Medians over repeats, alternating the peers; the machine is shared, so only the ratios mean much.
 
@@ -44,6 +44,13 @@ def fork_pool(max_workers: int) -> ProcessPoolExecutor:
     """The pool before joblib: forked workers, tied to this process by the same initializer."""
     return ProcessPoolExecutor(max_workers=max_workers, mp_context=multiprocessing.get_context("fork"),
                                initializer=die_with_parent, initargs=(os.getpid(),))
+
+
+def spawned_pool(max_workers: int):
+    """loky's reusable executor, its workers spawned (loky refuses fork there): the pool issue 38 first tried."""
+    from joblib.externals.loky import get_reusable_executor
+
+    return get_reusable_executor(max_workers=max_workers, initializer=die_with_parent, initargs=(os.getpid(),))
 
 
 def deque_map(fn, items, n_jobs: int):
@@ -83,7 +90,7 @@ def bench_simulation(root: Path, repeats: int, full: bool) -> Path:
         pads=("smooth", "fingerprint"), specimens=("R2", "R3", "C3", "C4"), forces_n=(1.0, 2.0, 3.0), repetitions=2,
         seed=3)
     loky_pool = simulate_module.process_pool
-    peers = {"loky (2 jobs)": (2, loky_pool), "fork (2 jobs)": (2, fork_pool)}
+    peers = {"loky (2 jobs)": (2, loky_pool), "loky spawned": (2, spawned_pool), "fork (2 jobs)": (2, fork_pool)}
     if not full:
         peers["serial (1 job)"] = (1, loky_pool)
     times: dict[str, list[float]] = {name: [] for name in peers}
@@ -110,7 +117,7 @@ def imported(name: str) -> int:
 
 def bench_pool_start(repeats: int) -> None:
     importlib.import_module("roughsense.report.html")
-    peers = {"loky": simulate_module.process_pool, "fork": fork_pool}
+    peers = {"loky": simulate_module.process_pool, "loky spawned": spawned_pool, "fork": fork_pool}
     times: dict[str, list[float]] = {name: [] for name in peers}
     for _ in range(repeats):
         for name, pool_of in peers.items():
@@ -151,8 +158,8 @@ def bench_report(study_path: str, repeats: int) -> None:
     from roughsense.io.study import read_study
 
     analysis = analyse_study(read_study(study_path, require_ratings=True), n_permutations=19, n_jobs=2)
-    peers = {"loky (2 jobs)": (2, html.process_pool), "fork (2 jobs)": (2, fork_pool),
-             "serial (1 job)": (1, html.process_pool)}
+    peers = {"loky (2 jobs)": (2, html.process_pool), "loky spawned": (2, spawned_pool),
+             "fork (2 jobs)": (2, fork_pool), "serial (1 job)": (1, html.process_pool)}
     loky_pool = html.process_pool
     times: dict[str, list[float]] = {name: [] for name in peers}
     files = set()

@@ -16,7 +16,7 @@ CASES = [
     ("simulate", "--forces", ["--out", "s"], "1.5,2.5"),
     ("capture", "--forces", ["--source", "0", "--out", "s", "--specimen", "R3", "--pad", "smooth"], "2,4"),
     ("explore", "--workers", ["sweep.toml", "--out", "o"], "3"),
-    ("study", "--study", ["--out", "r"], "my-study"),
+    ("study", "--data", ["--out", "r"], "my-study"),
 ]
 
 

@@ -260,7 +260,7 @@ def local_run(tmp_path_factory):
     """The tiny sweep on a 2-worker LocalCluster, with a task that fails seed 1 on the worker."""
     tmp = tmp_path_factory.mktemp("explore")
     sweep = read_sweep(_sweep_file(tmp))
-    outcome = run_sweep(sweep, tmp / "out", workers=2, task=explore_tasks.fail_seed_one)
+    outcome = run_sweep(sweep, tmp / "out", n_jobs=2, task=explore_tasks.fail_seed_one)
     return sweep, tmp / "out", outcome
 
 
@@ -278,7 +278,7 @@ def test_local_cluster_run_records_failures_and_resumes(local_run):
     # Rerun: the finished cell is skipped (its file untouched), the failed one is computed now.
     done = out / "results" / f"cell-{results['cell'].iloc[0]}.parquet"
     stamp = done.stat().st_mtime_ns
-    again = run_sweep(sweep, out, workers=1)
+    again = run_sweep(sweep, out, n_jobs=1)
     assert (again.skipped, again.computed, again.failures) == (1, 1, [])
     assert done.stat().st_mtime_ns == stamp and not (out / "failures.csv").exists()
     assert pd.read_parquet(out / "results")["seed"].nunique() == 2

@@ -175,12 +175,18 @@ def die_with_parent(parent_pid: int, parent_stops_on_sigint: bool = False, paren
 
 
 def process_pool(max_workers: int) -> Executor:
-    """loky's reusable executor, whose workers end within about a second of this process's death.
+    """A loky process pool whose workers end within about a second of this process's death.
 
-    Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. loky keeps one per
-    process: a pool made while another is in use is that same executor (resized), so pools are never nested.
+    Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. Its workers are
+    forked where the platform can (they start with the parent's imports: a spawned worker re-imports NumPy and
+    matplotlib, which cost a warm ``roughsense study`` 3.6 s of its 21, BENCHMARKS.md), else spawned; either way
+    they take the parent's Ctrl-C handling and warning filters (:func:`die_with_parent`).
     """
-    from joblib.externals.loky import get_reusable_executor
+    import multiprocessing
 
-    return get_reusable_executor(max_workers=max_workers, initializer=die_with_parent,
-                                 initargs=(os.getpid(), interrupt.installed(), _parent_warnings()))
+    from joblib.externals.loky import ProcessPoolExecutor
+
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork") if fork else None  # loky refuses fork only for its reusable pool
+    return ProcessPoolExecutor(max_workers, context=context, initializer=die_with_parent,
+                               initargs=(os.getpid(), interrupt.installed(), _parent_warnings()))
