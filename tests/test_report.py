@@ -12,8 +12,10 @@ import pandas as pd
 import pytest
 
 from roughsense import paper
+from roughsense.analysis.presses import presses_needed_by_curve
 from roughsense.analysis.results import Provenance
 from roughsense.analysis.study_analysis import analyse_study
+from roughsense.analysis.unseen import headline_condition
 from roughsense.errors import OutputExistsError
 from roughsense.report import write_report
 from roughsense.report.control_tables import control_text, permutation_p_text
@@ -550,7 +552,8 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
     unseen = pd.DataFrame({"model": ["pls", "pls"], "pad": ["smooth", "fingerprint"], "condition": ["combined"] * 2,
                            "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
                            "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
-    analysis = SimpleNamespace(unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance())
+    analysis = SimpleNamespace(unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance(),
+                               headline_condition=headline_condition(unseen["condition"]))
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
     from roughsense.report.answer import which_model_line
@@ -576,7 +579,9 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
                            "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
                            "jackknife_plus_median_factor": [float("nan"), 1.72]})
-    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses))
+    needed = presses_needed_by_curve(presses)  # as analyse_study computes it once
+    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
+                                         headline_condition="combined"))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
         ["peak law", "a grating left out of training",
@@ -590,7 +595,8 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     # too few specimens: the jackknife+ has no finite width, and an infinite interval "held 100%" says nothing
     unseen["jackknife_plus_coverage"] = [float("nan"), 1.0]
     unseen["jackknife_plus_median_factor"] = [float("nan"), float("inf")]
-    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses))
+    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
+                                         headline_condition="combined"))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
                                    "press(es) per surface")
     from roughsense.report.tables import _jackknife_text

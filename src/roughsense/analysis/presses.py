@@ -86,3 +86,11 @@ def presses_analysis(analysis, jobs) -> pd.DataFrame:
         curve.insert(2, "condition", fit.condition)
         frames.append(curve)
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=PRESS_COLUMNS)
+
+
+def presses_needed_by_curve(presses: pd.DataFrame) -> dict[tuple[str, str, str], int | None]:
+    """:func:`presses_needed` of every (model, pad, condition) curve of presses.csv, computed once for the report."""
+    if presses.empty:
+        return {}
+    return {(str(model), str(pad), str(condition)): presses_needed(curve)
+            for (model, pad, condition), curve in presses.groupby(["model", "pad", "condition"], sort=False)}

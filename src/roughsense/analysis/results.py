@@ -96,6 +96,8 @@ class StudyResults:
     unseen: pd.DataFrame = field(default_factory=_empty)
     headline_condition: str = ""
     unsure: pd.DataFrame = field(default_factory=_empty)
+    #: (model, pad, condition) -> the presses a surface needs (analysis/presses.py; None: no count beats the mean).
+    presses_needed: dict = field(default_factory=dict)
 
     def condition_fit(self, pad: str, condition: str, cv: str = "loo", model: str = PAPER_MODEL) -> ConditionFit:
         """The cross-validated model of one pad, condition, CV scheme and family (a lookup: all fitted already)."""

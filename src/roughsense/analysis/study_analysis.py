@@ -27,7 +27,7 @@ from . import dataset
 from .claims import evaluate_claims
 from .family_fits import ConditionFit, fit_all, law_settings
 from .held_out import held_out_analysis
-from .presses import presses_analysis
+from .presses import presses_analysis, presses_needed_by_curve
 from .results import CV_SCHEMES, RESULT_COLUMNS, Provenance, StudyAnalysis, StudyResults  # noqa: F401 (re-exported for one release)
 from .signed_rank_tests import paper_comparability, signed_rank_tests
 from .spread import paper_predictive
@@ -88,8 +88,8 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     record = replace(record, fits=fits)
     record = replace(record, controls=_controls_table(control_jobs, record.seed, n_jobs, progress))
     held_out, presses = _stricter(record, control_jobs) if stricter else (pd.DataFrame(),) * 2
-    record = replace(record, held_out=held_out, presses=presses, tests=signed_rank_tests(record, conditions),
-                     paper_predictive=paper_predictive())
+    record = replace(record, held_out=held_out, presses=presses, presses_needed=presses_needed_by_curve(presses),
+                     tests=signed_rank_tests(record, conditions), paper_predictive=paper_predictive())
     record = replace(record, claims=evaluate_claims(record))
     record = replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
     return replace(record, unsure=unsure_specimens(record, DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]))

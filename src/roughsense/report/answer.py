@@ -14,7 +14,6 @@ import pandas as pd
 
 from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
-from ..analysis.unseen import headline_condition
 from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from . import provenance as source
 from .control_tables import permutation_p_text
@@ -28,7 +27,8 @@ def answer_lines(analysis) -> list[str]:
     if unseen.empty:
         return [source.NO_LOSO_ANSWER]
     passes = unseen["passes"].fillna(False).astype(bool)
-    lines = [_use_line(unseen, passes), _passes_line(unseen, passes), source.trust_line(analysis.provenance)]
+    lines = [_use_line(unseen, passes, analysis.headline_condition), _passes_line(unseen, passes),
+             source.trust_line(analysis.provenance)]
     return [line for line in lines if line]
 
 
@@ -48,9 +48,9 @@ def recommended_model(unseen: pd.DataFrame) -> str | None:
     return DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
 
 
-def _use_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
-    """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage."""
-    condition = headline_condition(unseen["condition"])
+def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
+    """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage, quoted
+    at the headline ``condition``."""
     model = recommended_model(unseen)
     if model is None:
         return NO_MODEL
@@ -79,10 +79,10 @@ def answer_table(analysis) -> dict | None:
     held = getattr(analysis, "held_out", None)
     if held is None or held.empty:
         return None
-    condition = headline_condition(held["condition"])
+    condition = analysis.headline_condition
     unseen = analysis.unseen.set_index(["model", "pad", "condition"])
-    presses = getattr(analysis, "presses", pd.DataFrame())
-    unseen["presses_needed"] = [_presses_needed(presses, *key) for key in unseen.index]
+    needed = [analysis.presses_needed.get(tuple(map(str, key))) for key in unseen.index]
+    unseen["presses_needed"] = [float("nan") if n is None else float(n) for n in needed]
     pads = list(dict.fromkeys(held["pad"]))
     rows = []
     for (model, scheme, part), group in held[held["condition"] == condition].groupby(
@@ -124,17 +124,6 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
         if pd.notna(control.get("presses_needed")):
             verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
     return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
-
-
-def _presses_needed(presses: pd.DataFrame, model: str, pad: str, condition: str) -> float:
-    """The presses a surface needs (analysis/presses.py), NaN where the study has no such curve."""
-    from ..analysis.presses import presses_needed
-
-    if presses is None or presses.empty:
-        return float("nan")
-    mine = presses[(presses["model"] == model) & (presses["pad"] == pad) & (presses["condition"] == condition)]
-    needed = presses_needed(mine) if len(mine) else None
-    return float("nan") if needed is None else float(needed)
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:

@@ -179,7 +179,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         unseen=unseen_tables.unseen_table(analysis.unseen, analysis.controls),
         unseen_words=unseen_words(analysis),
         held_out=unseen_tables.held_out_table(analysis.held_out, SCHEME_WORDS),
-        presses=presses_table(analysis.presses),
+        presses=presses_table(analysis.presses, analysis.presses_needed),
         unsure=unseen_tables.unsure_table(analysis.unsure),
         components=paper_tables.components_table(
             paper_chosen.drop(columns="model"),

@@ -6,15 +6,14 @@ import pandas as pd
 from .figures import plt
 
 
-def presses_table(presses: pd.DataFrame) -> dict:
-    """One row per pad and condition: the held-out error read from 1, 3, 5, 10 presses, and the presses needed."""
-    from ..analysis.presses import presses_needed
-
+def presses_table(presses: pd.DataFrame, presses_needed: dict) -> dict:
+    """One row per pad and condition: the held-out error read from 1, 3, 5, 10 presses, and the presses needed
+    (``presses_needed``: the analysis's, by (model, pad, condition))."""
     counts = sorted(presses["n_presses"].unique()) if len(presses) else []
     rows = []
     for (pad, condition), group in presses.groupby(["pad", "condition"], sort=False):
         by_count = group.set_index("n_presses")["rmse"]
-        needed = presses_needed(group)
+        needed = presses_needed.get((str(group["model"].iloc[0]), str(pad), str(condition)))
         cells = [str(pad), str(condition), *[f"{by_count[k]:.3f}" if k in by_count else "—" for k in counts],
                  f"{group['null_rmse'].iloc[0]:.3f}", "none of these" if needed is None else str(needed)]
         rows.append([{"ours": cell, "paper": None} for cell in cells])
