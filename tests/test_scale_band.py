@@ -267,7 +267,7 @@ def test_console_and_report_give_one_verdict_on_which_model_to_use(passes, model
                            "condition": "combined", "rmse": 0.2, "null_rmse": 0.3, "pi90_coverage_trials": np.nan,
                            "passes": list(passes)})
     assert recommended_model(unseen) == model
-    console, report = which_model_line(unseen), _use_line(unseen, unseen["passes"])
+    console, report = which_model_line(unseen), _use_line(unseen, unseen["passes"], "combined")
     if model is None:
         assert report == NO_MODEL and console.startswith(f"Which model to use: none. {NO_MODEL}")
     else:

@@ -10,6 +10,7 @@ import pandas as pd
 from .._util import atomic
 from ..report.explore_page import axis_figure_files, html_table, render_explore
 from ..report.html import FigureStyle
+from ..report.provenance import SWEEP_LIMITS
 from .paired import MARGINS, MIN_SEEDS, too_few
 from .store import FAILURES_CSV, REPORT, SPECIMENS_DIR, ResultStore
 from .summary import (
@@ -29,22 +30,6 @@ from .summary import (
 from .sweep import MODEL_KEY, Sweep
 
 SUMMARY_CSV = "summary.csv"
-LIMITS = [
-    "The twin was calibrated to reproduce the paper's error regime with the paper's two pads (smooth; 1 mm fingerprint, "
-    "0.2 mm ridges) on the paper's fourteen gratings. Agreement with the paper there is a property of the calibration, "
-    "not a finding; every other design is an extrapolation of the same physics (elastic half-space contact, gap-to-"
-    "brightness optics, bench noise drawn as in the calibration).",
-    "With ratings_from = \"paper\", only the paper's fourteen presets carry the paper's panel; every other specimen "
-    "gets its perceived roughness from the twin's simulated finger (sim/finger.py: contact of a fingertip, SA1 "
-    "strain readout, a fitted power law), which ratings_from = \"physics\" uses for every specimen. Those targets are "
-    "not measurements, so 'can it be measured' means 'does the sensor track the model'.",
-    "The spectrum covers 0.1-1 mm^-1 (wavelengths 1-10 mm): a grating whose fundamental lies above 1 mm^-1 "
-    "(wavelength below 1 mm) is seen only through its contact pattern's harmonics and aliasing of the pad relief.",
-    "A shorter field is modelled as a narrower camera view of the same 50 x 10 mm contact; a physically smaller pad "
-    "would also change the nominal pressure and the edge effects, which the twin does not model.",
-    "The pad modulus enters only the contact mechanics (how far the pad sinks into the grooves); its optical and "
-    "frictional consequences and its ageing are not modelled.",
-]
 
 
 def _varying(results: pd.DataFrame) -> list[str]:
@@ -93,7 +78,7 @@ def write_explore_report(sweep: Sweep, out: str | os.PathLike[str], *, meta: dic
         if not failures.empty else failures
     figure_files, shown = axis_figure_files(axes, style)
     html = render_explore(name=sweep.name, meta=meta, best=best_frame, axes=axes, questions=questions,
-                          summary=summary, failures=fail_view, limits=LIMITS,
+                          summary=summary, failures=fail_view, limits=SWEEP_LIMITS,
                           notes=_best_flags(table), rule=_rule(results), shown=shown)
     for name, data in figure_files.items():
         atomic.write_bytes(out / name, data)

@@ -110,3 +110,22 @@ def unseen_source_words(provenance) -> list[str]:
                      "contact that the images show, so agreement between images and ratings is partly built in; "
                      "judge the models on the paper's ratings (ratings_from = paper).")
     return lines
+
+
+#: What a sweep page says of its data: every cell is the twin's, and which of its agreement with the paper is tuned in.
+SWEEP_LIMITS = [
+    "The twin was calibrated to reproduce the paper's error regime with the paper's two pads (smooth; 1 mm fingerprint, "
+    "0.2 mm ridges) on the paper's fourteen gratings. Agreement with the paper there is a property of the calibration, "
+    "not a finding; every other design is an extrapolation of the same physics (elastic half-space contact, gap-to-"
+    "brightness optics, bench noise drawn as in the calibration).",
+    "With ratings_from = \"paper\", only the paper's fourteen presets carry the paper's panel; every other specimen "
+    "gets its perceived roughness from the twin's simulated finger (sim/finger.py: contact of a fingertip, SA1 "
+    "strain readout, a fitted power law), which ratings_from = \"physics\" uses for every specimen. Those targets are "
+    "not measurements, so 'can it be measured' means 'does the sensor track the model'.",
+    "The spectrum covers 0.1-1 mm^-1 (wavelengths 1-10 mm): a grating whose fundamental lies above 1 mm^-1 "
+    "(wavelength below 1 mm) is seen only through its contact pattern's harmonics and aliasing of the pad relief.",
+    "A shorter field is modelled as a narrower camera view of the same 50 x 10 mm contact; a physically smaller pad "
+    "would also change the nominal pressure and the edge effects, which the twin does not model.",
+    "The pad modulus enters only the contact mechanics (how far the pad sinks into the grooves); its optical and "
+    "frictional consequences and its ageing are not modelled.",
+]
