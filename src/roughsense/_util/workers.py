@@ -178,7 +178,7 @@ def process_pool(max_workers: int) -> Executor:
     """A loky process pool whose workers end within about a second of this process's death.
 
     Use it as ``with process_pool(n) as pool: pool.submit/map``; leaving the block shuts it down. Its workers are
-    forked where the platform can (they start with the parent's imports: a spawned worker re-imports NumPy and
+    forked on Linux (they start with the parent's imports: a spawned worker re-imports NumPy and
     matplotlib, which cost a warm ``roughsense study`` 3.6 s of its 21, BENCHMARKS.md), else spawned; either way
     they take the parent's Ctrl-C handling and warning filters (:func:`die_with_parent`).
     """
@@ -186,7 +186,8 @@ def process_pool(max_workers: int) -> Executor:
 
     from joblib.externals.loky import ProcessPoolExecutor
 
-    fork = "fork" in multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("fork") if fork else None  # loky refuses fork only for its reusable pool
+    # Linux only: macOS lists fork too, but its system libraries are not safe to use in a forked child.
+    # loky refuses fork only for its reusable executor.
+    context = multiprocessing.get_context("fork") if sys.platform.startswith("linux") else None
     return ProcessPoolExecutor(max_workers, context=context, initializer=die_with_parent,
                                initargs=(os.getpid(), interrupt.installed(), _parent_warnings()))
