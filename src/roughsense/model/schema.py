@@ -131,7 +131,7 @@ def _message(error, where: str) -> str:
     if error.validator == "required":
         missing = next(k for k in error.validator_value if k not in error.instance)
         wanted = error.schema.get("properties", {}).get(missing, {})
-        return f"{join(place, missing)}: missing (expected {describe(wanted)})"
+        return f"{join(place, missing)}: missing" + (f" (expected {describe(wanted)})" if wanted else "")
     if error.validator == "additionalProperties":
         known = set(error.schema.get("properties", {}))
         pattern = "|".join(error.schema.get("patternProperties", {}))
@@ -149,7 +149,8 @@ def _got(value: object) -> str:
     if isinstance(value, bool) or value is None:
         return json.dumps(value)
     if isinstance(value, (dict, list)):
-        return f"{'an object' if isinstance(value, dict) else 'an array'} {short_repr(json.dumps(value), 40)}"
+        text = json.dumps(value)
+        return f"{'an object' if isinstance(value, dict) else 'an array'} {text if len(text) <= 40 else text[:37] + '...'}"
     return shown(value) if isinstance(value, (int, float)) else short_repr(value)
 
 
@@ -250,7 +251,7 @@ def number(low: float | None = None, high: float | None = None, *, null: bool = 
 
 def integer(low: int | None = None, high: int | None = None, **more) -> dict:
     """A JSON integer (never 3.0) within [low, high]."""
-    return number(low, high, **more) | {"type": "integer"}
+    return number(low, high, **more) | {"type": more.get("type", "integer")}
 
 
 def strict(properties: dict, required=(), **more) -> dict:
