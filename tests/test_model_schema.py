@@ -255,7 +255,8 @@ def test_a_bare_string_verdict_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize(("change", "expected"), [
-    (lambda s: s.update(px_per_mm=0), "features.spectrum: px_per_mm must be a positive number, got 0.0"),
+    (lambda s: s.update(px_per_mm=0), "features.spectrum.px_per_mm: expected a scale a study can state, from 0.01 to "
+                                      "100000 px/mm, got 0"),
     (lambda s: s.update(freq_per_mm=s["freq_per_mm"][::-1]), "features.spectrum.freq_per_mm: is [1.0, "),
     (lambda s: s.update(f_min_per_mm=0.2), "features.spectrum.freq_per_mm: is [0.1, "),
     (lambda s: s.update(window="boxcar"), "features.spectrum"),
@@ -343,3 +344,47 @@ def test_a_section_plugged_in_is_checked(tmp_path, monkeypatch):
         assert refusal(path) == "training.gate.limit: expected a number from 0 to 1, got 2"
     finally:
         schema._validator.cache_clear()
+
+
+# --------------------------------------------------------------------------- more hostile edits (issue 44's extra cases)
+
+
+@pytest.mark.parametrize(("change", "field"), [
+    (lambda d: d["training"].update(presses=[]), "training.presses: expected an object"),
+    (lambda d: d["training"]["presses"]["rmse_by_presses"].update({"0": 0.1}), "training.presses.rmse_by_presses"),
+    (lambda d: d["training"]["presses"]["rmse_by_presses"].update({"01": 0.1}), "training.presses.rmse_by_presses"),
+    (lambda d: d["training"]["presses"].update(needed=True), "training.presses.needed"),
+    (lambda d: d["training"]["presses"].update(rmse_by_presses={}), "training.presses.rmse_by_presses"),
+    (lambda d: d["training"]["unseen"].update(permutation_p=0), "training.unseen.permutation_p"),
+    (lambda d: d["training"]["unseen"].update(n_permutations=10**6), "training.unseen.n_permutations"),
+    (lambda d: d["training"]["unseen"].update(rmse=-1.0), "training.unseen.rmse"),
+    (lambda d: d["training"]["interval"].update(trial_log_halfwidth=-0.1), "training.interval.trial_log_halfwidth"),
+    (lambda d: d["training"]["interval"].update(n_surfaces=3), "training.interval.n_surfaces"),
+    (lambda d: d["training"][KEY].update(presses=[1, 1]), "training.jackknife_plus.presses"),
+    (lambda d: d["training"][KEY].update(method="bootstrap"), "training.jackknife_plus.method"),
+    (lambda d: d["training"][KEY]["folds"].update(secret=[1]), "training.jackknife_plus.folds.secret"),
+    (lambda d: d["features"]["spectrum"].update(n_freqs=44), "the feature definition gives 44"),
+    (lambda d: d["features"]["spectrum"].update(px_per_mm=1e300),  # held on 390ce82 and at first here: now bounded
+     "features.spectrum.px_per_mm: expected a scale a study can state, from 0.01 to 100000 px/mm, got 1e+300"),
+    (lambda d: d["features"].update(conditions=["2N", "2N"]), "the feature definition repeats"),
+    (lambda d: d["training"].update({"a\nb": 1}), "training['a\\nb']: unknown field"),
+    (lambda d: d["training"].update(pad_ridge_period_mm=0), "training.pad_ridge_period_mm"),
+    (lambda d: d["training"].update(study_roi=[0, 0, 0]), "training.study_roi"),
+    (lambda d: d["training"].update(cv="0-fold"), "training.cv"),
+    (lambda d: d["training"].update(target_range=[2.0, 1.0]), "training.target_range"),
+    (lambda d: d["training"].update(n_samples=0), "training.n_samples"),
+    (lambda d: d["training"].update(specimens=[]), "training.specimens"),
+    (lambda d: d["training"].update(pad=""), "training.pad"),
+    (lambda d: d["training"]["unseen"].update(failure=None), "training.unseen.failure"),
+])
+def test_more_hostile_edits_are_refused_in_one_line(tmp_path, change, field):
+    assert refusal(forged(tmp_path, change)).startswith(field)
+
+
+def test_a_deeply_nested_or_infinite_file_is_one_line(tmp_path):
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    assert refusal(deep).startswith("is not a valid model file: damaged or truncated JSON")
+    huge = tmp_path / "huge.json"
+    huge.write_text(FITTED.read_text().replace('"seed": 0,', '"seed": 1e999,', 1))
+    assert refusal(huge) == "model file is damaged or was edited: its checksum does not match its content"

@@ -57,7 +57,11 @@ TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "tra
 #: The ``features`` section: the spectrum's definition (its settings are rebuilt on loading, so its numbers are
 #: checked by the spectrum's own rules) and the force conditions in the order a trial's spectra are concatenated.
 FEATURES_SCHEMA = schema.strict({
-    "spectrum": {"type": "object", "required": ["kind", "version", "n_freqs", "freq_per_mm", "px_per_mm", "roi"]},
+    "spectrum": {"type": "object", "required": ["kind", "version", "n_freqs", "freq_per_mm", "px_per_mm", "roi"],
+                 "properties": {"px_per_mm": schema.number(BOUNDS["px_per_mm"].low, BOUNDS["px_per_mm"].high,
+                                                           description="a scale a study can state, from "
+                                                                       f"{BOUNDS['px_per_mm'].low:g} to "
+                                                                       f"{BOUNDS['px_per_mm'].high:g} px/mm")}},
     "conditions": {"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1, "uniqueItems": True},
 }, required=("spectrum", "conditions"))
 #: A model of either family, fitted here or loaded from a file: both predict and say whether they extrapolate; a
