@@ -101,7 +101,8 @@ def test_a_users_study_under_the_builders_names_is_never_deleted(cache, built, t
     assert not entry.exists()
 
 
-@pytest.mark.parametrize("plant", ["study", "link", "foreign-key", "other-key", "key-is-a-folder"])
+@pytest.mark.parametrize("plant", ["study", "link", "foreign-key", "other-key", "key-is-a-folder", "key-is-a-fifo",
+                                   "key-with-more", "key-is-a-link"])
 def test_a_users_folder_at_the_exact_entry_is_left_and_the_study_built_elsewhere(cache, built, tmp_path, plant):
     build, calls = built
     entry = folder_entry(STEM, "v1")
@@ -118,6 +119,13 @@ def test_a_users_folder_at_the_exact_entry_is_left_and_the_study_built_elsewhere
         (entry / KEY_FILE).write_text("simulated-study-seed4-v1\n")
     if plant == "key-is-a-folder":
         (entry / KEY_FILE).mkdir()
+    if plant == "key-is-a-fifo":  # never opened for reading (it would block): lstat says what it is
+        os.mkfifo(entry / KEY_FILE)
+    if plant == "key-with-more":
+        (entry / KEY_FILE).write_text(f"{entry.name}\n" * 2)
+    if plant == "key-is-a-link":
+        (tmp_path / "real-key").write_text(f"{entry.name}\n")
+        (entry / KEY_FILE).symlink_to(tmp_path / "real-key")
     looked = entry.resolve() if plant == "link" else entry
     before = snapshot(looked)
     root, said = get("v1", build)
