@@ -300,6 +300,27 @@ def test_a_pls_record_agrees_with_its_model(tmp_path):
     assert refusal(path) == "training.n_components: is 3, but the model has 2"
 
 
+@pytest.mark.parametrize(("change", "expected"), [
+    (lambda m: m["pct_var"][1].__setitem__(0, 1.5), "model.pct_var[1][0]: expected a number from 0 to 1, got 1.5"),
+    (lambda m: m["pct_var"][0].__setitem__(1, 0.99), "model.pct_var[0]: sums to "),
+    (lambda m: m["pct_var"][0].__setitem__(0, -0.1), "model.pct_var[0][0]: expected a number from 0 to 1, got -0.1"),
+])
+def test_the_pls_section_is_stated_whole(tmp_path, change, expected):
+    """A share of variance explained is of the whole (0 to 1, summing to at most 1): unchecked on 390ce82."""
+    assert refusal(pls_file(tmp_path, lambda d: change(d["model"]), "edited.json")).startswith(expected)
+
+
+def test_the_law_section_schema_states_what_its_code_checks(tmp_path):
+    """The law's own code names a bad field first; its schema holds the same bounds (one home: the module's)."""
+    from roughsense.model import peak_law_file
+
+    assert peak_law_file.SCHEMA["properties"]["epsilon"] == {"type": "number", "exclusiveMinimum": 0.0,
+                                                             "maximum": 100.0}
+    assert refusal(forged(tmp_path, lambda d: d["model"].update(epsilon=0))).startswith("model.epsilon must be")
+    assert refusal(forged(tmp_path, lambda d: d["model"]["press_scatter"].update(trained_presses=2.5e4))
+                   ).startswith("model.press_scatter must be")
+
+
 def test_fit_refuses_to_write_what_loading_would_refuse(tmp_path):
     """The writer checks the document as the reader will: a contradictory record is never written."""
     model = rs.SIMPLS(2).fit(np.random.default_rng(0).random((20, 45)), np.arange(20.0) + 1)
@@ -318,7 +339,7 @@ def test_every_section_is_a_valid_draft_2020_12_schema_in_its_own_module():
     from jsonschema import Draft202012Validator
 
     found = schema.sections()
-    assert list(found) == ["features", "training", "training.presses", "training.unseen", "training.interval",
+    assert list(found) == ["model", "features", "training", "training.presses", "training.unseen", "training.interval",
                            "training.jackknife_plus"]
     for section in found.values():
         Draft202012Validator.check_schema(section.schema)

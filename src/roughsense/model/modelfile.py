@@ -233,6 +233,7 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     _check_spectrum(features["spectrum"], path)
     load = peak_law_file.loaded_law if family is peak_law_file else pls_file.loaded_pls
     loaded = load(model, features, training=training, roughsense_version=document["roughsense_version"], path=path)
+    schema.check_document(document, path, after_family=True)
     jackknife_file.deployed_jackknife(loaded)  # its folds and residuals, checked against the model now
     return loaded
 

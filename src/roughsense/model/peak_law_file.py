@@ -36,6 +36,7 @@ from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.spectrum import grid_step
+from . import schema
 from .loaded import ModelFileInfo
 from .peak_law import (
     FEATURE_NAMES,
@@ -77,6 +78,46 @@ _SPREAD = Real(0.0)
 
 #: A loaded peak-law file is the fitted estimator: the old name, kept for one release.
 LoadedPeakLaw = PeakPowerLaw
+
+
+def _bounded(constraint: Real, *, null: bool = False, **more) -> dict:
+    """A :class:`Real` constraint of this module as a JSON Schema node (the same bounds, one home)."""
+    node = schema.number(constraint.low, constraint.high, null=null, **more)
+    if constraint.low_open:
+        node["exclusiveMinimum"] = node.pop("minimum")
+    return node
+
+
+_PAIR = {"type": "array", "minItems": 2, "maxItems": len(FEATURE_NAMES)}
+#: The press scatter (model/press_spread.py); each spread's limit, which depends on the grid, is checked in code.
+PRESS_SCATTER_SCHEMA = schema.strict({
+    "spread": {"type": "array", "items": schema.number(0.0), "minItems": N_SPREAD, "maxItems": N_SPREAD},
+    "trained_presses": schema.number(1.0, BOUNDS["repetition"].high),
+}, required=("spread", "trained_presses"))
+#: The law's section, as JSON Schema (model/schema.py): checked after the code above has checked it field by field,
+#: so this states the whole section in one place and catches what no message above names.
+SCHEMA = schema.strict({
+    "kind": {"const": KIND},
+    "n_features": schema.integer(1, None),
+    "n_blocks": schema.integer(1, None),
+    "pad_ridge_period_mm": _bounded(_PAD_PERIOD, null=True),
+    **{name: _bounded(constraint) for name, constraint in _SCALARS.items()},
+    "coefficients": {**_PAIR, "items": _bounded(_BOUNDED)},
+    "feature_min": {**_PAIR, "items": _bounded(_BOUNDED, null=True)},
+    "feature_max": {**_PAIR, "items": _bounded(_BOUNDED, null=True)},
+    "feature_names": {"type": "array", "items": {"enum": list(FEATURE_NAMES)}, "uniqueItems": True},
+    "clarity_limit": _bounded(CLARITY_LIMIT),
+    "press_scatter": PRESS_SCATTER_SCHEMA,
+}, required=FIELDS)
+#: A PLS file's peak readout domain (``model.applicability.peak``), as JSON Schema.
+PEAK_DOMAIN_SCHEMA = schema.strict({
+    "log_frequency_range": {"type": "array", "items": _bounded(_BOUNDED), "minItems": 2, "maxItems": 2},
+    "clarity_limit": _bounded(CLARITY_LIMIT),
+    "pad_ridge_period_mm": _bounded(_PAD_PERIOD, null=True),
+    "exclusion_per_mm": _bounded(_SCALARS["exclusion_per_mm"]),
+    "harmonic_range": {"type": "array", "items": _bounded(_BOUNDED, null=True), "minItems": 2, "maxItems": 2},
+    "press_scatter": PRESS_SCATTER_SCHEMA,
+}, required=("log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"))
 
 
 def law_section(model: PeakPowerLaw) -> dict:

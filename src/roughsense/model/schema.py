@@ -38,24 +38,30 @@ from .._util.checks import short_repr, shown
 from ..errors import ModelFileError
 
 #: What a section's check is called with: its value, the whole document, and ``fail(field, message)``, which
-#: raises the one-line refusal (``field`` relative to the section, e.g. ``"needed"``; "" for the section itself).
+#: raises the one-line refusal (``field`` relative to the section, e.g. ``"needed"`` or ``"pct_var[0]"``; "" for
+#: the section itself).
 Check = Callable[[object, dict, Callable[[str, str], None]], None]
 
 
 @dataclass(frozen=True)
 class Section:
-    """One section of a model file: its JSON Schema and, when its fields relate, its check."""
+    """One section of a model file: its JSON Schema and, when its fields relate, its check. ``after_family``: checked
+    once the model's family has loaded its section with its own messages (the schema then states the rest)."""
 
     schema: dict
     check: Check | None = None
+    after_family: bool = False
 
 
 def sections() -> dict[str, Section]:
     """Every checked section, by its dotted place in the document, parents before children (each module states
     its own; see the module docstring for adding one)."""
-    from . import interval, jackknife_file, modelfile, training_file
+    from . import interval, jackknife_file, modelfile, peak_law_file, pls_file, training_file
 
+    by_kind = {"if": {"properties": {"kind": {"const": pls_file.KIND}}}, "then": pls_file.SCHEMA,
+               "else": peak_law_file.SCHEMA}
     return {
+        "model": Section(by_kind, _by_kind({pls_file.KIND: pls_file.check_section}), after_family=True),
         "features": Section(modelfile.FEATURES_SCHEMA),
         "training": Section(training_file.SCHEMA, training_file.check),
         "training.presses": Section(training_file.PRESSES_SCHEMA, training_file.check_presses),
@@ -65,11 +71,12 @@ def sections() -> dict[str, Section]:
     }
 
 
-def check_document(document: dict, path: Path | None) -> None:
-    """Every section of :func:`sections` present in ``document``: its schema, then its check."""
+def check_document(document: dict, path: Path | None, *, after_family: bool = False) -> None:
+    """Every section of :func:`sections` present in ``document`` (those checked before the family's own loading,
+    or with ``after_family`` those after it): its schema, then its check."""
     for where, section in sections().items():
         value, found = _at(document, where)
-        if not found:
+        if not found or section.after_family != after_family:
             continue
         refusal = first_refusal(value, section.schema, where)
         if refusal is not None:
@@ -78,9 +85,18 @@ def check_document(document: dict, path: Path | None) -> None:
             section.check(value, document, _failing(where, path))
 
 
+def _by_kind(checks: dict[str, Check]) -> Check:
+    """The check of a section whose ``kind`` says which family's it is."""
+    def check(value, document: dict, fail) -> None:
+        if value.get("kind") in checks:
+            checks[value["kind"]](value, document, fail)
+
+    return check
+
+
 def _failing(where: str, path: Path | None) -> Callable[[str, str], None]:
     def fail(field: str, message: str) -> None:
-        raise ModelFileError(f"{join(where, field)}: {message}", path=path)
+        raise ModelFileError(f"{where}.{field}: {message}" if field else f"{where}: {message}", path=path)
 
     return fail
 
