@@ -175,3 +175,18 @@ def test_simulate_study_writes_its_markers_into_the_study(tmp_path):
                                               participants=2, sessions=1), 400, 60)
     out = simulate_study(tmp_path / "s", config, seed=3, jobs=1, markers=key_files(tmp_path / "s"))
     assert (out / KEY_FILE).read_text() == "s\n" and made_here(out, "s") and complete(out)
+
+
+def test_a_link_of_another_user_at_an_old_entry_with_a_partial_beside_it(cache, built, tmp_path):
+    """A partial folder of the cache's own beside a link another user planted at its target's name: the link is
+    never followed or removed, and the build goes on."""
+    if os.geteuid() != 0:
+        pytest.skip("needs root to give a link to another user")
+    build, calls = built
+    (cache / f"{STEM}-v0").symlink_to(user_study(tmp_path / "theirs"))
+    os.lchown(cache / f"{STEM}-v0", 12345, 12345)
+    partial = cache / f".{STEM}-v0{atomic.PARTIAL_TAG}999999999-x"
+    partial.mkdir()
+    (partial / KEY_FILE).write_text(f"{STEM}-v0\n")
+    entry, _ = get("v1", build)
+    assert calls == [entry] and (cache / f"{STEM}-v0").is_symlink() and (tmp_path / "theirs" / "study.toml").exists()

@@ -234,5 +234,6 @@ def _remove_own(cache: Path, stem: str, *, keep: Path) -> None:
             shutil.rmtree(stale, ignore_errors=True)
     for partial in cache.glob(f".{glob.escape(stem)}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
         target = partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0]
-        if partial in atomic.leftovers(target) and made_here(partial, target.name):
-            shutil.rmtree(partial, ignore_errors=True)
+        with contextlib.suppress(RoughsenseError):  # a link planted at the target's name: nothing of ours to clean
+            if made_here(partial, target.name) and partial in atomic.leftovers(target):
+                shutil.rmtree(partial, ignore_errors=True)
