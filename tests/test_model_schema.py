@@ -409,3 +409,14 @@ def test_a_deeply_nested_or_infinite_file_is_one_line(tmp_path):
     huge = tmp_path / "huge.json"
     huge.write_text(FITTED.read_text().replace('"seed": 0,', '"seed": 1e999,', 1))
     assert refusal(huge) == "model file is damaged or was edited: its checksum does not match its content"
+
+
+def test_a_top_level_section_plugged_in_is_optional_and_checked(tmp_path, monkeypatch):
+    plugged = schema.Section(schema.strict({"limit": schema.number(0.0, 1.0)}, required=("limit",)))
+    real = schema.sections
+    monkeypatch.setattr(schema, "sections", lambda: {**real(), "gate": plugged})
+    monkeypatch.setattr(mf, "OPTIONAL_TOP_KEYS", ("gate",))
+    mf.load_model(FITTED)  # a file without it still loads
+    assert mf.load_model(forged(tmp_path, lambda d: d.update(gate={"limit": 0.5}), name="ok.json"))
+    assert refusal(forged(tmp_path, lambda d: d.update(gate={"limit": -1}))) == \
+        "gate.limit: expected a number from 0 to 1, got -1"

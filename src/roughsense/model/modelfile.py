@@ -52,8 +52,10 @@ FORMAT = "roughsense-model"
 VERSION = 1
 #: Largest model file read. A model is (A + 4) x p numbers (p = 135 for a combined model): well under 1 MB.
 MAX_MODEL_BYTES = 10_000_000
-#: The document's keys, every one required (a new top-level section is added here and in model/schema.py).
+#: The document's keys, every one required, and the top-level sections a file may lack (a section added after
+#: version 1 goes there, and into model/schema.py's ``sections``, so that older files still load).
 TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
+OPTIONAL_TOP_KEYS: tuple[str, ...] = ()
 #: The ``features`` section: the spectrum's definition (its settings are rebuilt on loading, so its numbers are
 #: checked by the spectrum's own rules) and the force conditions in the order a trial's spectra are concatenated.
 FEATURES_SCHEMA = schema.strict({
@@ -206,7 +208,7 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     missing = [k for k in TOP_KEYS if k not in document]
     if missing:
         fail(f"model file lacks {', '.join(missing)}")
-    unknown = sorted(set(document) - set(TOP_KEYS))
+    unknown = sorted(set(document) - set(TOP_KEYS) - set(OPTIONAL_TOP_KEYS))
     if unknown:
         fail(f"model file has unknown field(s) {', '.join(unknown)}")
     try:

@@ -12,7 +12,7 @@ the condition agrees with the features, a verdict agrees with its numbers) -- is
 A section is a place in the document (a dotted path, ``training.presses``) with its schema and, optionally, its
 check; each is stated in the module of the code that writes and reads it, and :func:`sections` lists them. To plug
 a new section in, state ``SCHEMA`` (and a ``check(value, document, fail)`` if fields relate) in its module and add
-one line to :func:`sections`; a new top-level key also goes into :data:`~roughsense.model.modelfile.TOP_KEYS`. A
+one line to :func:`sections`; a new top-level key also goes into ``modelfile.OPTIONAL_TOP_KEYS``. A
 section absent from a file is skipped (its parent's schema says whether it is required). A family's ``model``
 section is checked first by its own module's code (whose messages say why a bound is where it is, and which derives
 bounds from other fields: shapes from the component count, a law's finite exponent over its feature box), then by
