@@ -24,8 +24,12 @@ def tiny(simulated_tiny):
 def cache(tiny, tmp_path, monkeypatch):
     """A cache whose built-in study of seed SEED is the tiny one (so nothing is simulated here)."""
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    from roughsense._util.cache import key_files
+
     root = builtin_study_path(SEED)
     shutil.copytree(tiny, root)
+    for name, text in key_files(root).items():  # as the builder marks the entries it makes
+        (root / name).write_text(text)
     assert (root / COMPLETE_MARKER).is_file()
     return root
 
@@ -79,19 +83,20 @@ def test_a_cached_folder_is_built_once_and_replaces_older_versions_and_killed_ru
     """_util/cache.cached_folder: a complete entry is reused; another version's complete entry and a killed run's
     partial sibling are removed before a build; an entry of another stem is left alone."""
     from roughsense._util import atomic
-    from roughsense._util.cache import cached_folder, folder_entry
+    from roughsense._util.cache import KEY_FILE, cached_folder, folder_entry
 
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path))
     built = []
 
-    def build(root):
+    def build(root, keys):
         with atomic.staged_folder(root) as staging:
+            for name, text in keys.items():
+                (staging / name).write_text(text)
             (staging / "done").write_text("yes")
         built.append(root)
 
     def get(version):
-        return cached_folder("thing-seed1", version, build, is_complete=lambda r: (r / "done").is_file(),
-                             marker="done")
+        return cached_folder("thing-seed1", version, build, is_complete=lambda r: (r / "done").is_file())
 
     old = get("v1")
     assert built == [old] and old == folder_entry("thing-seed1", "v1") and get("v1") == old and len(built) == 1
@@ -100,5 +105,6 @@ def test_a_cached_folder_is_built_once_and_replaces_older_versions_and_killed_ru
     (other / "done").write_text("yes")
     partial = tmp_path / f".thing-seed1-v0{atomic.PARTIAL_TAG}999999999-x"
     partial.mkdir()
+    (partial / KEY_FILE).write_text("thing-seed1-v0\n")  # a killed build marks its partial folder first
     new = get("v2")
     assert built == [old, new] and not old.exists() and not partial.exists() and other.exists()

@@ -145,9 +145,11 @@ def test_a_model_file_round_trip_gives_the_same_intervals(tmp_path):
 
 
 @pytest.mark.parametrize(("edit", "message"), [
-    (lambda entry: entry.update(level=0.8), "training.jackknife_plus.level must be 0.9"),
+    (lambda entry: entry.update(level=0.8), r"training.jackknife_plus.level: expected 0.9 \(the level predict labels "
+                                            r"pi90\), got 0.8"),
     (lambda entry: entry["log_residuals"][0].pop(), r"training.jackknife_plus.log_residuals has shape"),
-    (lambda entry: entry["log_residuals"][1].__setitem__(0, 60.0), r"log residuals within \+-50"),
+    (lambda entry: entry["log_residuals"][1].__setitem__(0, 60.0),
+     r"training.jackknife_plus.log_residuals\[1\]\[0\]: expected a number from -50 to 50, got 60"),
     (lambda entry: entry.update(presses=[3, 1, 4]), "training.jackknife_plus.presses must be increasing"),
     (lambda entry: entry["folds"].update(kind="pls1-simpls"), "folds must be an object of kind 'peak-power-law'"),
     (lambda entry: entry["folds"]["coefficients"][2].__setitem__(0, 900.0), r"fold 3 \(S2\): .*log roughness"),
@@ -159,10 +161,9 @@ def test_an_edited_entry_is_refused_in_one_line_naming_the_field(tmp_path, edit,
     edit(document["training"][KEY])
     document["sha256"] = _digest(document)  # re-signed: the field checks, not the checksum, must refuse it
     path.write_text(json.dumps(document))
-    loaded = load_model(path)
-    with pytest.raises(ModelFileError, match=message) as raised:
-        deployed_jackknife(loaded)
-    assert "\n" not in str(raised.value)
+    with pytest.raises(ModelFileError, match=message) as raised:  # on loading, not first when predict reads it
+        load_model(path)
+    assert "\n" not in str(raised.value) and str(raised.value).startswith(f"{path}: training.{KEY}")
 
 
 def test_a_surface_read_from_fewer_presses_gets_the_residuals_of_that_many():

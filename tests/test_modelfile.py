@@ -227,14 +227,14 @@ def saved_law(tmp_path):
     y = (periods / 3.0) ** 0.9 * np.exp(0.05 * rng.standard_normal(periods.size))
     law = PeakPowerLaw(freq_per_mm=spectrum().freq_per_mm_, pad_ridge_period_mm=1.0).fit(X, y)
     path = tmp_path / "law.json"
-    mf.save_model(path, law, feature_definition=mf.feature_definition_for(spectrum(), ["2N"]), training=TRAINING)
+    mf.save_model(path, law, feature_definition=mf.feature_definition_for(spectrum(), ["1N"]), training=TRAINING)
     return path, law, X
 
 
 def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     path, law, X = saved_law
     loaded = mf.load_model(path)
-    assert loaded.family == "peak-law" and loaded.conditions == ["2N"] and loaded.n_features == 45
+    assert loaded.family == "peak-law" and loaded.conditions == ["1N"] and loaded.n_features == 45
     np.testing.assert_allclose(loaded.predict(X), law.predict(X), rtol=1e-12, atol=0)
     assert loaded.intercept_ == law.intercept_ and list(loaded.coef_) == list(law.coef_)
     assert loaded.pad_ridge_period_mm == 1.0 and loaded.scale_ == law.scale_

@@ -122,9 +122,16 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        if isinstance(exc, OSError) and exc.filename is None:  # a failed write (a full disk): name the file
+        if isinstance(exc, OSError) and _about_the_write(exc, tmp):  # name the file asked for, never the temporary
             raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
         raise
+
+
+def _about_the_write(exc: OSError, tmp: Path) -> bool:
+    """An error of the write itself (a full disk: no file named) or of its temporary or rename (a sticky shared
+    folder refuses the rename, naming the temporary), not one of other files the caller's block touched."""
+    names = {None, str(tmp), os.fsencode(tmp)}
+    return exc.filename in names and exc.filename2 in names
 
 
 def _remove_dead_temporaries(parent: Path, name: str) -> None:

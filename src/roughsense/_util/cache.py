@@ -12,6 +12,7 @@ that fails it is recomputed.
 from __future__ import annotations
 
 import contextlib
+import glob
 import hashlib
 import io
 import json
@@ -167,30 +168,72 @@ def folder_entry(stem: str, version: str) -> Path:
     return cache_dir() / f"{stem}-{version}"
 
 
-def cached_folder(stem: str, version: str, build: Callable[[Path], object], *,
-                  is_complete: Callable[[Path], bool], marker: str) -> Path:
-    """The folder ``stem`` of ``version``, built by ``build(path)`` once and reused while ``is_complete`` says so.
+#: The file the builder of a cached folder writes into it, holding the entry's key (its name): the one mark by which
+#: the cache knows a folder as its own. A folder without it, or holding another key (a copy renamed), or of another
+#: user's, or a link, is a user's: it is never reused, replaced or deleted.
+KEY_FILE = ".roughsense-cache-key"
 
-    ``build`` writes beside the entry and swaps it in whole, so a killed run leaves no entry (only a partial sibling
-    the next call removes), never a half-written one that later runs would trust. Complete entries of other
-    versions (``marker`` inside) are roughsense's own and never read again, so they are removed.
+
+def key_files(entry: Path) -> dict[str, str]:
+    """What a builder writes into the folder ``entry`` before anything else (name -> text): its key."""
+    return {KEY_FILE: f"{entry.name}\n"}
+
+
+def made_here(folder: Path, key: str) -> bool:
+    """Whether ``folder`` is a cache folder the builder made for ``key``: a real folder of this user's (lstat, never
+    followed) holding :data:`KEY_FILE`, a regular file of this user's whose text is ``key``."""
+    try:
+        if not stat.S_ISDIR(os.lstat(folder).st_mode) or foreign_reason(folder, folder=True) is not None:
+            return False
+        if foreign_reason(folder / KEY_FILE, folder=False) is not None:
+            return False
+        return read_regular(folder / KEY_FILE, limit=1000, own=True) == f"{key}\n".encode()
+    except (OSError, RoughsenseError):
+        return False
+
+
+def cached_folder(stem: str, version: str, build: Callable[[Path, dict[str, str]], object], *,
+                  is_complete: Callable[[Path], bool]) -> Path:
+    """The folder ``stem`` of ``version``, built by ``build(path, key_files)`` once and reused while ``is_complete``
+    says so.
+
+    ``build`` writes ``key_files`` (:func:`key_files`) into the folder first, writes beside the entry and swaps it
+    in whole, so a killed run leaves no entry (only a partial sibling the next call removes), never a half-written
+    one that later runs would trust. The cache finds its entries by that key alone (:func:`made_here`): complete
+    entries of other versions are its own and never read again, so they are removed; a folder under any of these
+    names that the builder did not make is a user's, never touched: the entry is then built in a private folder
+    of this run's instead.
     """
     cache = usable_cache_dir()
-    if cache is None:  # an untrusted cache: built afresh in a private folder of this run's, removed at exit
+    root = None if cache is None else folder_entry(stem, version)
+    if root is not None and made_here(root, root.name) and is_complete(root):
+        return root
+    if root is not None and (os.path.lexists(root) and not made_here(root, root.name)):
+        warnings.warn(RoughsenseWarning(f"{root} was not made by roughsense (no {KEY_FILE} of its own in it), so it is "
+                                        "left as it is and the entry is built afresh in a temporary folder; move it "
+                                        "away to let the cache keep the entry"), stacklevel=2)
+        root = None
+    if root is None:  # an untrusted cache, or a user's folder in the entry's place: a private folder of this run's
         import atexit
         import tempfile
 
         root = Path(tempfile.mkdtemp(prefix=f"roughsense-{stem}-")) / stem
         atexit.register(shutil.rmtree, root.parent, ignore_errors=True)
-        build(root)
+        build(root, key_files(root))
         return root
-    root = folder_entry(stem, version)
-    if foreign_reason(root, folder=True) is None and is_complete(root):
-        return root
-    for stale in cache.glob(f"{stem}-*"):
-        if stale != root and foreign_reason(stale, folder=True) is None and (stale / marker).is_file():
-            shutil.rmtree(stale, ignore_errors=True)
-    for partial in cache.glob(f".{stem}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
-        atomic.clean_leftovers(partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0])
-    build(root)
+    _remove_own(cache, stem, keep=root)
+    build(root, key_files(root))
     return root
+
+
+def _remove_own(cache: Path, stem: str, *, keep: Path) -> None:
+    """The cache's own entries of ``stem`` other than ``keep``, and its killed runs' partial ones: only those whose
+    key the builder wrote (:func:`made_here`); every other folder is a user's and stays."""
+    for stale in cache.glob(f"{glob.escape(stem)}-*"):
+        if stale != keep and made_here(stale, stale.name):
+            shutil.rmtree(stale, ignore_errors=True)
+    for partial in cache.glob(f".{glob.escape(stem)}-*{atomic.PARTIAL_TAG}*"):  # killed runs, any version
+        target = partial.parent / partial.name[1:].split(atomic.PARTIAL_TAG)[0]
+        with contextlib.suppress(RoughsenseError):  # a link planted at the target's name: nothing of ours to clean
+            if made_here(partial, target.name) and partial in atomic.leftovers(target):
+                shutil.rmtree(partial, ignore_errors=True)

@@ -21,6 +21,7 @@ from ..model.family import FoldSettings
 from ..model.interval import PredictionInterval
 from ..model.jackknife_file import KEY as JACKKNIFE_KEY
 from ..model.jackknife_file import DeployedJackknife
+from ..model.training_file import FAILS
 from . import controls as _controls
 from .family_fits import family_fit
 from .unseen import null_specimen_rmse
@@ -56,7 +57,7 @@ class UnseenAssessment:
             return ""
         verdict = ("Its predictions for new surfaces are no better than guessing" if len(problems) == 2 else
                    "Its predictions for new surfaces are not shown to be better than guessing")
-        return ("this model FAILS its controls for a grating left out of training (nested leave-one-specimen-out): "
+        return (f"{FAILS} for a grating left out of training (nested leave-one-specimen-out): "
                 + "; ".join(problems) + f". {verdict}")
 
     def interval_record(self) -> dict:

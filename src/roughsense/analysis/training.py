@@ -30,6 +30,7 @@ from ..model.peak_law import PeakPowerLaw, peak_law_cv
 from ..model.peak_law_family import PeakLawFamily
 from ..model.pls import SIMPLS
 from ..model.pls_cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
+from ..model.training_file import UNJUDGED
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 from .assessment import UnseenAssessment, assess_unseen
@@ -194,7 +195,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                                law=settings, max_components=max_components or defaults.MAX_COMPONENTS, seed=seed)
     except InputError as exc:  # a design too small for leave-one-specimen-out: said, never silently skipped
         training["unseen"] = {"cv": "loso (nested)", "passes_controls": None,
-                              "failure": "this model could not be judged for a grating left out of training "
+                              "failure": f"{UNJUDGED} for a grating left out of training "
                                          f"({exc.message}); its predictions for new surfaces are untested and carry no "
                                          "interval"}
         return trained

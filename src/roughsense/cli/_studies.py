@@ -47,16 +47,14 @@ def builtin_study(seed: int, jobs: int | None = None) -> Path:
     The cache (``_util/cache.cached_folder``) keeps the entry whole; this says what goes in it.
     """
     from .._util.cache import cached_folder
-    from ..io.study import COMPLETE_MARKER
     from ..sim import simulate as sim
 
-    def simulate(root: Path) -> None:
+    def simulate(root: Path, key_files: dict[str, str]) -> None:
         print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
               "later runs reuse it", file=sys.stderr, flush=True)
-        sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress)
+        sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress, markers=key_files)
 
-    return cached_folder(_stem(seed), simulator_fingerprint(), simulate, is_complete=sim.is_complete_simulation,
-                         marker=COMPLETE_MARKER)
+    return cached_folder(_stem(seed), simulator_fingerprint(), simulate, is_complete=sim.is_complete_simulation)
 
 
 def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None = None) -> Path:

@@ -39,6 +39,10 @@ MIN_RIDGE_PERIOD_MM = float(BOUNDS["ridge_period_mm"].low)
 
 #: study.toml is a few hundred bytes; a file far larger is not one (and is not read whole).
 MAX_CONFIG_BYTES = 1_000_000
+#: Deepest nesting of tables and arrays study.toml may hold. A study's own is 3 (``[pads.NAME] key``); every writer
+#: of study.toml must be able to write back what ``check`` accepts, and tomlkit (``calibrate``) refuses arrays past
+#: 100 levels, tomli-w (the study writer) past about 250: 32 is far above any study and far below both.
+MAX_CONFIG_DEPTH = 32
 
 
 def read_config(path: str | os.PathLike[str]) -> dict:
@@ -56,6 +60,10 @@ def read_config(path: str | os.PathLike[str]) -> dict:
         raise InputError(f"is not valid TOML ({exc})", path=path) from None
     except RecursionError:
         raise InputError("is not a study.toml: its values are nested too deeply", path=path) from None
+    if (depth := nesting_depth(config)) > MAX_CONFIG_DEPTH:
+        raise InputError(f"is not a study.toml: its values are nested too deeply ({depth} levels, at most "
+                         f"{MAX_CONFIG_DEPTH}; a study's own nest 3), so no writer of study.toml could write it back",
+                         path=path)
     problem = toml_spelling_problem(text)
     if problem is not None:  # TOML's own spellings (1_0, 0x2, inf) are not numbers to the CSVs: one spelling everywhere
         raise InputError(problem, path=path)
@@ -82,6 +90,17 @@ def read_config(path: str | os.PathLike[str]) -> dict:
                 warnings.warn(f"{path}: unknown key {key!r} in [{table}] ignored (known: {', '.join(sorted(known))})",
                               RoughsenseWarning, stacklevel=2)
     return config
+
+
+def nesting_depth(value: object) -> int:
+    """How many tables and arrays deep ``value`` nests (a bare value: 0), counted without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, (dict, list)):
+            deepest = max(deepest, depth + 1)
+            stack.extend((child, depth + 1) for child in (node.values() if isinstance(node, dict) else node))
+    return deepest
 
 
 def shadowed_key(key: str, known, present) -> str | None:

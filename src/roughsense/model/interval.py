@@ -23,8 +23,23 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .schema import integer, number, strict
+
 #: The interval's nominal coverage.
 INTERVAL_LEVEL = 0.9
+#: Largest log half-width a model file may hold (a factor e^50 either way; real ones are below 1).
+MAX_LOG_HALFWIDTH = 50.0
+_RESIDUALS = "log(perceived) - log(predicted), leave-one-specimen-out"
+_METHOD = "jackknife: no coverage guarantee (the study checks the jackknife+ over specimens)"
+_WIDTH = number(0.0, MAX_LOG_HALFWIDTH, null=True)
+#: The model file's ``training.interval`` (:meth:`PredictionInterval.to_dict`), checked by model/schema.py.
+SCHEMA = strict({
+    "level": {"const": INTERVAL_LEVEL, "description": f"{INTERVAL_LEVEL} (the level roughsense writes and labels "
+                                                      "pi90)"},
+    "trial_log_halfwidth": _WIDTH, "surface_log_halfwidth": _WIDTH, "alone_log_halfwidth": _WIDTH,
+    "n_trials": integer(0, None), "n_surfaces": integer(0, None),
+    "residuals": {"const": _RESIDUALS}, "method": {"const": _METHOD},
+}, required=("level", "trial_log_halfwidth", "surface_log_halfwidth"))
 
 
 def conformal_halfwidth(absolute_residuals, level: float = INTERVAL_LEVEL) -> float:
@@ -119,8 +134,26 @@ class PredictionInterval:
         return {"level": self.level, "trial_log_halfwidth": finite(self.trial_log_halfwidth),
                 "surface_log_halfwidth": finite(self.surface_log_halfwidth),
                 "alone_log_halfwidth": finite(self.alone_log_halfwidth), "n_trials": self.n_trials,
-                "n_surfaces": self.n_surfaces, "residuals": "log(perceived) - log(predicted), leave-one-specimen-out",
-                "method": "jackknife: no coverage guarantee (the study checks the jackknife+ over specimens)"}
+                "n_surfaces": self.n_surfaces, "residuals": _RESIDUALS, "method": _METHOD}
+
+
+def check_record(record: dict, document: dict, fail) -> None:
+    """A stored interval's counts: those of the training record, and enough residuals for each width it gives
+    (:func:`conformal_halfwidth` is infinite, stored null, below ``ceil((n + 1) level)`` residuals)."""
+    training = document.get("training", {})
+    for name, counted, what in (("n_trials", training.get("n_samples"), "training.n_samples"),
+                                ("n_surfaces", len(training.get("specimens", [])) or None, "training.specimens")):
+        if name in record and counted is not None and record[name] != counted:
+            fail(name, f"is {record[name]}, but {what} gives {counted}")
+    for width, name in (("trial_log_halfwidth", "n_trials"), ("surface_log_halfwidth", "n_surfaces"),
+                        ("alone_log_halfwidth", "n_trials")):
+        if name not in record:
+            continue
+        enough = 1 <= math.ceil((record[name] + 1) * INTERVAL_LEVEL) <= record[name]
+        if record.get(width) is not None and not enough:
+            fail(width, f"is {record[width]}, but {record[name]} residuals give no {INTERVAL_LEVEL:g} interval")
+        if record.get(width, 0.0) is None and enough and width != "alone_log_halfwidth":
+            fail(width, f"is null, but {record[name]} residuals give a {INTERVAL_LEVEL:g} interval")
 
 
 def held_out_coverage(predictions, targets, surfaces, *, floor=None, level: float = INTERVAL_LEVEL

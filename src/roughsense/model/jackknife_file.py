@@ -30,6 +30,7 @@ from .._util.checks import Real, short_repr
 from ..errors import ModelFileError
 from .interval import INTERVAL_LEVEL, held_out_floors
 from .jackknife_plus import jackknife_plus, ranks, surface_means
+from .schema import integer, number, strict
 
 #: The model file's ``training`` key, and the method it names (in predict's CSV too).
 KEY = "jackknife_plus"
@@ -39,6 +40,22 @@ PRESS_COUNTS = (1, 3, 5, 10)
 #: Largest |log residual| and |fold coefficient| a file may hold (a factor e^50; slopes of real fits are a few units).
 MAX_LOG_RESIDUAL = 50.0
 MAX_FOLD_VALUE = 1e6
+_RESIDUALS = "log(perceived) - log(predicted) of each specimen by the model fitted without it"
+_FOLD_ARRAY = {"type": "array", "minItems": 1}
+#: The model file's ``training.jackknife_plus`` (:meth:`DeployedJackknife.to_dict`), checked by model/schema.py;
+#: the shapes, and that the folds bracket the model they travel with, by :func:`deployed_jackknife` on loading.
+SCHEMA = strict({
+    "method": {"const": METHOD},
+    "level": {"const": INTERVAL_LEVEL, "description": f"{INTERVAL_LEVEL} (the level predict labels pi90)"},
+    "specimens": {"type": "array", "items": {"type": "string"}, "minItems": 1, "uniqueItems": True},
+    "presses": {"type": "array", "items": integer(1, 10_000), "minItems": 1, "uniqueItems": True},
+    "log_residuals": {"type": "array", "items": {"type": "array", "items": number(-MAX_LOG_RESIDUAL,
+                                                                                    MAX_LOG_RESIDUAL)}},
+    "residuals": {"const": _RESIDUALS},
+    "folds": strict({"kind": {"enum": ["peak-power-law", "pls1-simpls"]}, "intercept": _FOLD_ARRAY,
+                     "coefficients": _FOLD_ARRAY, "feature_min": _FOLD_ARRAY, "feature_max": _FOLD_ARRAY,
+                     "intercepts": _FOLD_ARRAY, "floors": _FOLD_ARRAY}, required=("kind",)),
+}, required=("method", "level", "specimens", "presses", "log_residuals", "folds"))
 
 
 def press_counts(presses_per_specimen) -> tuple[int, ...]:
@@ -161,8 +178,7 @@ class DeployedJackknife:
         """The model file's ``training.jackknife_plus`` entry."""
         return {"method": METHOD, "level": self.level, "specimens": list(self.specimens),
                 "presses": list(self.counts), "log_residuals": self.log_residuals.tolist(),
-                "residuals": "log(perceived) - log(predicted) of each specimen by the model fitted without it",
-                "folds": self.folds.to_dict()}
+                "residuals": _RESIDUALS, "folds": self.folds.to_dict()}
 
 
 def deploy(folds: LawFolds | LinearFolds, X, y, specimens, seed: int) -> DeployedJackknife:
@@ -239,8 +255,56 @@ def deployed_jackknife(loaded) -> DeployedJackknife | None:
     residuals = _numbers(stored.get("log_residuals"), (len(counts), len(names)), "log_residuals", path)
     if np.abs(residuals).max() > MAX_LOG_RESIDUAL:
         fail("log_residuals", f"log residuals within +-{MAX_LOG_RESIDUAL:g}", float(np.abs(residuals).max()))
-    folds = _folds(stored.get("folds"), loaded, names, path)
+    trained = training.get("specimens")
+    if trained is not None and sorted(names) != sorted(trained):
+        raise ModelFileError(f"training.{KEY}.specimens are not the specimens trained on (training.specimens)",
+                             path=path)
+    with np.errstate(all="ignore"):  # a forged fold is refused in one line, never with a warning before it
+        folds = _folds(stored.get("folds"), loaded, names, path)
+        _check_bracket(folds, loaded, path)
     return DeployedJackknife(folds, tuple(names), tuple(counts), residuals, float(stored["level"]))
+
+
+def _check_bracket(folds: LawFolds | LinearFolds, loaded, path: Path | None) -> None:
+    """The folds bracket the model they travel with: each is the model refitted without one specimen, so where the
+    model is anchored (PLS: its training centroid, where it predicts the mean rating; the law: the centre and
+    corners of its trained feature box) their predictions lie around the model's. Their spread, on either side,
+    allows for folds whose nested CV chose another component count; folds that all agree (spread 0) must agree
+    with the model. A file whose folds do not is refused: its interval could exclude its own prediction."""
+    if isinstance(folds, LinearFolds):
+        x_mean = np.asarray(loaded.x_mean_, dtype=np.float64)
+        around, model = folds.coefficients @ x_mean + folds.intercepts, float(loaded.y_mean_)
+        where = "at the training centroid (model.x_mean), where the model predicts model.y_mean"
+    else:
+        used = np.flatnonzero(np.asarray(loaded.coef_) != 0)  # their ranges are finite (checked on loading)
+        low, high = np.asarray(loaded.feature_min_), np.asarray(loaded.feature_max_)
+        centre = np.where(np.isfinite(low) & np.isfinite(high), 0.5 * (low + high), 0.0)
+        points = [centre]
+        for corner in _corners(centre.size, used):
+            point = centre.copy()
+            point[used] = np.where(corner[used], high[used], low[used])
+            points.append(point)
+        points = np.array(points)
+        around = folds.beta[:, :1] + folds.beta[:, 1:] @ points.T  # (S, points): log roughness
+        model = loaded.intercept_ + points @ np.asarray(loaded.coef_)
+        where = "over the trained feature box (log roughness at its centre and corners)"
+    low, high = np.min(around, axis=0), np.max(around, axis=0)
+    slack = (high - low) + 1e-9 * (1.0 + np.abs(model))
+    if np.any(model < low - slack) or np.any(model > high + slack):
+        raise ModelFileError(f"training.{KEY}.folds do not bracket the model they travel with {where}: the folds "
+                             f"give {float(np.min(low)):.4g} to {float(np.max(high)):.4g}, the model "
+                             f"{float(np.min(model)):.4g}" + (f" to {float(np.max(model)):.4g}" if np.size(model) > 1
+                                                              else ""), path=path)
+
+
+def _corners(width: int, used: np.ndarray) -> list[np.ndarray]:
+    """Every combination of low (False) and high (True) ends over the ``used`` features (``width`` in all)."""
+    corners = []
+    for code in range(2 ** used.size):
+        corner = np.zeros(width, dtype=bool)
+        corner[used] = [(code >> i) & 1 == 1 for i in range(used.size)]
+        corners.append(corner)
+    return corners
 
 
 def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nulls: bool = False) -> np.ndarray:
@@ -286,7 +350,7 @@ def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearF
 
 def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
     from .peak_law import domain_margins, grid_step
-    from .peak_law_file import _check_finite_predictions
+    from .peak_law_file import _check_finite_predictions, _check_log_frequencies
 
     p, n = loaded.coef_.size, len(names)
     intercept = _numbers(stored.get("intercept"), (n,), "folds.intercept", path)
@@ -297,7 +361,9 @@ def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds
     if np.any(low > high):
         raise ModelFileError(f"training.{KEY}.folds.feature_min exceeds feature_max: an empty training range", path=path)
     step = grid_step(loaded.freq_per_mm)
-    for i in range(n):  # each fold's exponent stays finite over its domain, as the deployed law's
+    for i in range(n):  # each fold's peak read on the grid, and its exponent finite over its domain, as the law's
+        _check_log_frequencies([low[i, 0], high[i, 0]], loaded.freq_per_mm,
+                               f"training.{KEY}.folds.feature_min[{i}][0] and feature_max[{i}][0]", path)
         wide_low, wide_high = domain_margins(step, low[i], high[i])
         try:
             _check_finite_predictions(float(intercept[i]), {"coefficients": coefficients[i], "feature_min": wide_low,

@@ -13,7 +13,10 @@ version. This module holds the envelope; each family's section is its own module
 
 The checksum is an integrity check, not a signature: it catches a flipped digit or a truncated copy, but it is
 unkeyed, so anyone who edits a file can recompute it. What keeps an edited file from predicting nonsense is the
-field checks on loading (shapes, finiteness, each family's bounds), never the checksum.
+field checks on loading, never the checksum: every section's JSON Schema and cross-field facts (model/schema.py;
+the ``features`` section's is :data:`FEATURES_SCHEMA` here), each family's section by its own module (shapes,
+finiteness, bounds derived from what a fit gives), and the feature definition rebuilt as the spectrum it names.
+A file that holds a key twice is refused: JSON readers disagree on which value counts.
 """
 from __future__ import annotations
 
@@ -31,7 +34,7 @@ from .._util.files import read_regular
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
-from . import peak_law_file, pls_file
+from . import jackknife_file, peak_law_file, pls_file, schema
 from .applicability import SpectrumDomain
 from .peak_law import PeakPowerLaw
 from .peak_law_file import LoadedPeakLaw  # noqa: F401  re-exported for one release
@@ -49,7 +52,20 @@ FORMAT = "roughsense-model"
 VERSION = 1
 #: Largest model file read. A model is (A + 4) x p numbers (p = 135 for a combined model): well under 1 MB.
 MAX_MODEL_BYTES = 10_000_000
-_TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
+#: The document's keys, every one required, and the top-level sections a file may lack (a section added after
+#: version 1 goes there, and into model/schema.py's ``sections``, so that older files still load).
+TOP_KEYS = ("format", "version", "roughsense_version", "model", "features", "training", "sha256")
+OPTIONAL_TOP_KEYS: tuple[str, ...] = ()
+#: The ``features`` section: the spectrum's definition (its settings are rebuilt on loading, so its numbers are
+#: checked by the spectrum's own rules) and the force conditions in the order a trial's spectra are concatenated.
+FEATURES_SCHEMA = schema.strict({
+    "spectrum": {"type": "object", "required": ["kind", "version", "n_freqs", "freq_per_mm", "px_per_mm", "roi"],
+                 "properties": {"px_per_mm": schema.number(BOUNDS["px_per_mm"].low, BOUNDS["px_per_mm"].high,
+                                                           description="a scale a study can state, from "
+                                                                       f"{BOUNDS['px_per_mm'].low:g} to "
+                                                                       f"{BOUNDS['px_per_mm'].high:g} px/mm")}},
+    "conditions": {"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1, "uniqueItems": True},
+}, required=("spectrum", "conditions"))
 #: A model of either family, fitted here or loaded from a file: both predict and say whether they extrapolate; a
 #: loaded one also carries its file's part (``model_file_``: features, training).
 FittedModel = SIMPLS | PeakPowerLaw
@@ -69,10 +85,11 @@ def _digest(document: dict) -> str:
 
 
 def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, training: dict,
-                   domain: SpectrumDomain | None = None) -> dict:
-    """The JSON document of a fitted model (see the module docstring); a law is checked as a loaded file would be.
+                   domain: SpectrumDomain | None = None, path: Path | None = None) -> dict:
+    """The JSON document of a fitted model (see the module docstring), checked as :func:`load_model` will check it.
 
-    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.applicability.fit_domain`).
+    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.applicability.fit_domain`); ``path``:
+    the file it is for, which a refusal names.
     """
     section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else pls_file.pls_section(model)
     if domain is not None:
@@ -99,6 +116,7 @@ def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, tr
         document["sha256"] = _digest(document)
     except (TypeError, ValueError) as exc:
         raise ModelFileError(f"the model or its metadata cannot be stored as JSON ({exc})") from None
+    model_from_document(json.loads(_canonical(document)), path=path)  # refuse now what load_model would refuse
     return document
 
 
@@ -106,7 +124,8 @@ def save_model(path: str | os.PathLike[str], model: SIMPLS | PeakPowerLaw, *, fe
                training: dict, force: bool = False, domain: SpectrumDomain | None = None) -> Path:
     """Write the model file atomically; an existing file is replaced only with ``force``."""
     target = atomic.check_can_write(path, force=force)
-    document = model_document(model, feature_definition=feature_definition, training=training, domain=domain)
+    document = model_document(model, feature_definition=feature_definition, training=training, domain=domain,
+                              path=target)
     text = json.dumps(document, indent=1, allow_nan=False) + "\n"
     return atomic.write_text(target, text)
 
@@ -168,7 +187,9 @@ def load_model(path: str | os.PathLike[str]) -> FittedModel:
         raise ModelFileError(f"is larger than {MAX_MODEL_BYTES // 1_000_000} MB; a roughsense model file is a few "
                              "hundred kB, so this is not one", path=path)
     try:
-        document = json.loads(raw.decode("utf-8"))
+        document = schema.loads_unique(raw.decode("utf-8"))
+    except schema.RepeatedKeyError as exc:
+        raise ModelFileError(str(exc), path=path) from None
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ModelFileError(f"is not a valid model file: damaged or truncated JSON ({exc})", path=path) from None
     return model_from_document(document, path=path)
@@ -184,10 +205,10 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     version = document.get("version")
     if type(version) is not int or version != VERSION:  # 1.0 and true are not the integer 1
         fail(f"model file version {version!r} is not supported (this roughsense {_version()} reads version {VERSION})")
-    missing = [k for k in _TOP_KEYS if k not in document]
+    missing = [k for k in TOP_KEYS if k not in document]
     if missing:
         fail(f"model file lacks {', '.join(missing)}")
-    unknown = sorted(set(document) - set(_TOP_KEYS))
+    unknown = sorted(set(document) - set(TOP_KEYS) - set(OPTIONAL_TOP_KEYS))
     if unknown:
         fail(f"model file has unknown field(s) {', '.join(unknown)}")
     try:
@@ -210,8 +231,34 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
              f"{peak_law_file.KIND!r})")
     n_features = family.check_fields(model, path)
     features = _check_feature_definition(document["features"], n_features, path)
+    schema.check_document(document, path)
+    _check_spectrum(features["spectrum"], path)
     load = peak_law_file.loaded_law if family is peak_law_file else pls_file.loaded_pls
-    return load(model, features, training=training, roughsense_version=document["roughsense_version"], path=path)
+    loaded = load(model, features, training=training, roughsense_version=document["roughsense_version"], path=path)
+    schema.check_document(document, path, after_family=True)
+    jackknife_file.deployed_jackknife(loaded)  # its folds and residuals, checked against the model now
+    return loaded
+
+
+def _check_spectrum(spectrum: dict, path: Path | None) -> None:
+    """The stored spectrum is the one its own settings define: rebuilt from them (the spectrum's own rules refuse
+    a scale of 0 or a band upside down), every stored field must be what roughsense writes for them, so a grid
+    edited to run backwards is refused here, naming the file, not later as if the user's options were wrong."""
+    from ..errors import RoughsenseError
+    from ..sensor.spectrum import SpatialSpectrum
+
+    try:
+        rebuilt = SpatialSpectrum.from_definition(spectrum).fit().feature_definition()
+    except (RoughsenseError, ValueError, TypeError, OverflowError) as exc:
+        raise ModelFileError(f"features.spectrum: {getattr(exc, 'message', exc)}", path=path) from None
+    unknown = sorted(set(spectrum) - set(rebuilt))
+    if unknown:
+        raise ModelFileError(f"features.spectrum.{unknown[0]}: unknown field", path=path)
+    found = _first_difference({k: rebuilt[k] for k in spectrum}, spectrum, "")
+    if found is not None:
+        key, own, given = found
+        raise ModelFileError(f"features.spectrum.{key}: is {_short(given)}, but the spectrum's own settings give "
+                             f"{_short(own)}", path=path)
 
 
 def _check_target_range(stored, path: Path | None) -> None:

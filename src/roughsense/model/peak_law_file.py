@@ -36,6 +36,7 @@ from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.spectrum import grid_step
+from . import schema
 from .loaded import ModelFileInfo
 from .peak_law import (
     FEATURE_NAMES,
@@ -46,7 +47,8 @@ from .peak_law import (
     domain_margins,
     search_bins,
 )
-from .press_spread import N_SPREAD, PressScatter
+from .peak_search import AGREEMENT_BINS
+from .press_spread import MAD_PER_SD, N_SPREAD, PressScatter
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -70,12 +72,52 @@ _PAIRS = ("coefficients", "feature_min", "feature_max")
 FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_PAIRS, "feature_names")
 #: Fields a file may lack (written before they existed).
 OPTIONAL_FIELDS = ("clarity_limit", "press_scatter")
-#: One number of the training presses' scatter (log units, >= 0).
-_SPREAD = Real(0.0, LIMIT)
+#: One number of the training presses' scatter (log units, >= 0; each column's limit is :func:`spread_limits`).
+_SPREAD = Real(0.0)
 
 
 #: A loaded peak-law file is the fitted estimator: the old name, kept for one release.
 LoadedPeakLaw = PeakPowerLaw
+
+
+def _bounded(constraint: Real, *, null: bool = False, **more) -> dict:
+    """A :class:`Real` constraint of this module as a JSON Schema node (the same bounds, one home)."""
+    node = schema.number(constraint.low, constraint.high, null=null, **more)
+    if constraint.low_open:
+        node["exclusiveMinimum"] = node.pop("minimum")
+    return node
+
+
+_PAIR = {"type": "array", "minItems": 2, "maxItems": len(FEATURE_NAMES)}
+#: The press scatter (model/press_spread.py); each spread's limit, which depends on the grid, is checked in code.
+PRESS_SCATTER_SCHEMA = schema.strict({
+    "spread": {"type": "array", "items": schema.number(0.0), "minItems": N_SPREAD, "maxItems": N_SPREAD},
+    "trained_presses": schema.number(1.0, BOUNDS["repetition"].high),
+}, required=("spread", "trained_presses"))
+#: The law's section, as JSON Schema (model/schema.py): checked after the code above has checked it field by field,
+#: so this states the whole section in one place and catches what no message above names.
+SCHEMA = schema.strict({
+    "kind": {"const": KIND},
+    "n_features": schema.integer(1, None),
+    "n_blocks": schema.integer(1, None),
+    "pad_ridge_period_mm": _bounded(_PAD_PERIOD, null=True),
+    **{name: _bounded(constraint) for name, constraint in _SCALARS.items()},
+    "coefficients": {**_PAIR, "items": _bounded(_BOUNDED)},
+    "feature_min": {**_PAIR, "items": _bounded(_BOUNDED, null=True)},
+    "feature_max": {**_PAIR, "items": _bounded(_BOUNDED, null=True)},
+    "feature_names": {"type": "array", "items": {"enum": list(FEATURE_NAMES)}, "uniqueItems": True},
+    "clarity_limit": _bounded(CLARITY_LIMIT),
+    "press_scatter": PRESS_SCATTER_SCHEMA,
+}, required=FIELDS)
+#: A PLS file's peak readout domain (``model.applicability.peak``), as JSON Schema.
+PEAK_DOMAIN_SCHEMA = schema.strict({
+    "log_frequency_range": {"type": "array", "items": _bounded(_BOUNDED), "minItems": 2, "maxItems": 2},
+    "clarity_limit": _bounded(CLARITY_LIMIT),
+    "pad_ridge_period_mm": _bounded(_PAD_PERIOD, null=True),
+    "exclusion_per_mm": _bounded(_SCALARS["exclusion_per_mm"]),
+    "harmonic_range": {"type": "array", "items": _bounded(_BOUNDED, null=True), "minItems": 2, "maxItems": 2},
+    "press_scatter": PRESS_SCATTER_SCHEMA,
+}, required=("log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"))
 
 
 def law_section(model: PeakPowerLaw) -> dict:
@@ -148,14 +190,14 @@ def loaded_law(section: dict, features: dict, *, training: dict, roughsense_vers
     law.freq_per_mm_, law.n_features_in_ = freq, n_blocks * freq.size
     law.intercept_, law.coef_, law.scale_ = scalars["intercept"], pairs["coefficients"], scalars["scale"]
     law.feature_min_, law.feature_max_, law.clarity_limit_ = pairs["feature_min"], pairs["feature_max"], clarity
-    law.press_scatter_ = press_scatter(section, "model", path)
+    law.press_scatter_ = press_scatter(section, "model", freq, path)
     law.model_file_ = ModelFileInfo(path, features, training, roughsense_version)
     return law
 
 
-def press_scatter(section: dict, where: str, path: Path | None) -> PressScatter | None:
+def press_scatter(section: dict, where: str, freq: np.ndarray, path: Path | None) -> PressScatter | None:
     """The section's ``press_scatter`` ({"spread": 4 numbers >= 0, "trained_presses": a count >= 1}), or None where
-    the file predates it (or the law was fitted without surfaces)."""
+    the file predates it (or the law was fitted without surfaces); each spread within :func:`spread_limits`."""
     if "press_scatter" not in section:
         return None
     value = section["press_scatter"]
@@ -163,10 +205,34 @@ def press_scatter(section: dict, where: str, path: Path | None) -> PressScatter 
     count = value.get("trained_presses") if isinstance(value, dict) else None
     if not isinstance(value, dict) or set(value) != {"spread", "trained_presses"} or not isinstance(spread, list) \
             or len(spread) != N_SPREAD or not all(_SPREAD.accepts(v) for v in spread) \
-            or not Real(1.0, 1e6).accepts(count):
-        raise ModelFileError(f"{where}.press_scatter must be {{\"spread\": {N_SPREAD} numbers from 0 to {LIMIT:g}, "
-                             f"\"trained_presses\": a count >= 1}}, got {shown(value)}", path=path)
+            or not Real(1.0, BOUNDS["repetition"].high).accepts(count):
+        raise ModelFileError(f"{where}.press_scatter must be {{\"spread\": {N_SPREAD} numbers >= 0, \"trained_presses\": "
+                             f"a count of presses >= 1}}, got {shown(value)}", path=path)
+    for i, (number, limit) in enumerate(zip(spread, spread_limits(freq))):
+        if number > limit:
+            raise ModelFileError(f"{where}.press_scatter.spread[{i}] is {shown(number)}; a fit gives at most "
+                                 f"{limit:.4g} (robust SD of {SPREAD_NAMES[i]})", path=path)
     return PressScatter(np.array(spread, dtype=np.float64), float(count))
+
+
+#: What each spread is the robust SD of (model/press_spread.py).
+SPREAD_NAMES = ("a press's log peak frequency", "its log peak amplitude", "its second-harmonic ratio",
+                "its peak's clarity")
+
+
+def spread_limits(freq: np.ndarray) -> np.ndarray:
+    """The largest spread a fit gives, per column: the robust SD is the median absolute deviation of every training
+    press from its surface's reading, / 0.6745. A press that agrees with its surface on where the peak is (within
+    AGREEMENT_BINS bins, as a surface's presses must mostly agree for its reading to stand) reads a log frequency
+    within log(1 + AGREEMENT_BINS step / (f_lowest - step / 2)) of it, so a median over presses most of which agree
+    lies within that (0.44 on the default grid; real spreads: 0.01-0.05). The amplitude, shape and clarity are log
+    heights of one 8- or 16-bit image's spectrum, which differ by less than CLARITY_LIMIT's e^50 (an edited spread
+    of 1000 would switch every flag off)."""
+    step = grid_step(freq)
+    lowest = float(freq[0]) - 0.5 * step if freq.size > 1 else float(freq[0])
+    period = math.log1p(AGREEMENT_BINS * step / max(lowest, 1e-12)) / MAD_PER_SD
+    heights = CLARITY_LIMIT.high / MAD_PER_SD
+    return np.array([period, heights, heights, heights])
 
 
 def _checked(section: dict, name: str, constraint: Constraint, path: Path | None, *, must: str | None = None):
@@ -271,4 +337,4 @@ def peak_domain(section, features: dict, path: Path | None):
         raise ModelFileError(f"{where}: {exc}", path=path) from None
     return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
                       None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic,
-                      press_scatter(section, where, path))
+                      press_scatter(section, where, freq, path))

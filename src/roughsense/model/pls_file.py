@@ -31,7 +31,7 @@ import numpy as np
 
 from .._util.checks import POSITIVE_INT, Real, short_repr
 from ..errors import ModelFileError
-from . import peak_law_file
+from . import peak_law_file, schema
 from .applicability import DOMAIN_LEVEL, SpectrumDomain
 from .loaded import ModelFileInfo
 from .pls import MIN_ROUGHNESS, SIMPLS
@@ -45,6 +45,46 @@ MAX_X_MEAN = 1e6
 MAX_Y_MEAN = 1e6
 #: A loaded PLS model file is the fitted estimator: the old name, kept for one release.
 LoadedModel = SIMPLS
+
+
+#: The whole variance, to rounding: no share explained exceeds it.
+_WHOLE = 1.0 + 1e-9
+
+
+def _matrix(limit: float | None = None, **more) -> dict:
+    return {"type": "array", "items": {"type": "array", "items": schema.number(None if limit is None else -limit, limit)},
+            **more}
+
+
+#: The section as JSON Schema (model/schema.py), checked after the code below has checked shapes and bounds:
+#: ``pct_var`` is each component's share of the variance of X and of y, so within 0 to 1 (its rows sum to at most
+#: 1: :func:`check_section`).
+SCHEMA = schema.strict({
+    "kind": {"const": KIND},
+    "n_components": schema.integer(1, None),
+    "n_features": schema.integer(1, None),
+    "x_mean": {"type": "array", "items": schema.number(-MAX_X_MEAN, MAX_X_MEAN)},
+    "y_mean": schema.number(-MAX_Y_MEAN, MAX_Y_MEAN),
+    "coefficients": _matrix(MAX_COEFFICIENT),
+    "intercepts": {"type": "array", "items": schema.number()},
+    "pct_var": {"type": "array", "items": {"type": "array", "items": schema.number(0.0, _WHOLE)}, "minItems": 2,
+                "maxItems": 2},
+    "applicability": schema.strict({
+        "rotations": _matrix(MAX_COEFFICIENT), "loadings": _matrix(MAX_COEFFICIENT),
+        "score_var": {"type": "array", "items": schema.number(exclusiveMinimum=0.0)},
+        "t2_limit": schema.number(None, MAX_COEFFICIENT, exclusiveMinimum=0.0),
+        "q_limit": schema.number(None, MAX_COEFFICIENT, exclusiveMinimum=0.0),
+        "level": {"const": DOMAIN_LEVEL},
+        "peak": peak_law_file.PEAK_DOMAIN_SCHEMA,
+    }, required=("rotations", "loadings", "score_var", "t2_limit", "q_limit", "level")),
+}, required=tuple(sorted(_FIELDS)))
+
+
+def check_section(section: dict, document: dict, fail) -> None:
+    """Each share of variance explained is of the whole: a row of ``pct_var`` sums to at most 1 (to rounding)."""
+    for i, row in enumerate(section["pct_var"]):
+        if sum(row) > _WHOLE:
+            fail(f"pct_var[{i}]", f"sums to {sum(row):.6g}; shares of the variance explained sum to at most 1")
 
 
 def _floats(values) -> list:

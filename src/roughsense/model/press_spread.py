@@ -30,7 +30,7 @@ PRESS_Z = 3.0
 #: The spread's columns: the law's three features (peak_law.FEATURE_NAMES), then the peak's clarity.
 N_SPREAD = 4
 #: Median absolute deviation of a normal, in SDs.
-_MAD_PER_SD = 0.6744897501960817
+MAD_PER_SD = 0.6744897501960817
 
 
 def deviations(alone: np.ndarray, clarity_alone: np.ndarray, surface: np.ndarray, clarity_surface: np.ndarray
@@ -50,7 +50,7 @@ def robust_spread(deviation: np.ndarray, train: np.ndarray) -> np.ndarray:
     high = np.take_along_axis(ordered, (count // 2)[:, None, :], axis=1)[:, 0]
     with np.errstate(invalid="ignore"):
         median = 0.5 * (low + high)
-    return np.where(count > 0, median / _MAD_PER_SD, 0.0)
+    return np.where(count > 0, median / MAD_PER_SD, 0.0)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ and swaps the finished folder in. The names callers import from here are re-expo
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -38,7 +38,7 @@ __all__ = [
 
 def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None = None, *,
                    seed: int | None = None, force: bool = False, jobs: int | None = None,
-                   progress: Callable[..., Iterable] | None = None) -> Path:
+                   progress: Callable[..., Iterable] | None = None, markers: Mapping[str, str] | None = None) -> Path:
     """Simulate the experiment and write the study folder ``out``; returns its path.
 
     ``seed`` overrides ``config.seed``. ``progress(iterable, total=, description=)`` may wrap the image loop
@@ -59,6 +59,9 @@ def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None 
         Worker processes rendering images (default: one per core).
     progress : callable, optional
         Wraps the image loop, e.g. a progress bar.
+    markers : mapping, optional
+        Files (name -> text) written into the folder before anything else: the cache's key of the built-in study
+        (``_util/cache.key_files``), by which the cache knows the folder as its own.
 
     Returns
     -------
@@ -79,7 +82,7 @@ def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None 
     config = config if config is not None else SimulationConfig()
     if seed is not None:
         config = replace(config, seed=int(seed))
-    run = SimulationRun(out, config, force=force, jobs=jobs)
+    run = SimulationRun(out, config, force=force, jobs=jobs, markers=markers)
     steps = progress(run, total=run.total, description="simulating") if progress else run
     for _ in steps:
         pass
@@ -94,8 +97,9 @@ class SimulationRun:
     """
 
     def __init__(self, out: str | os.PathLike[str], config: SimulationConfig = SimulationConfig(), *,
-                 force: bool = False, jobs: int | None = None) -> None:
+                 force: bool = False, jobs: int | None = None, markers: Mapping[str, str] | None = None) -> None:
         self.config = config
+        self.markers = dict(markers or {})
         self.pads, self.specimens = config.validate()
         self.jobs = usable_cores() if jobs is None else check(jobs, POSITIVE_INT, name="--jobs", must="at least 1")
         self.trials = plan_trials(config, self.pads, self.specimens)
@@ -132,6 +136,8 @@ class SimulationRun:
 
     def _build(self) -> Iterator[str]:
         staging = self.writer.root
+        for name, text in self.markers.items():  # first: a killed run's partial folder is known by them too
+            atomic.write_text(staging / name, text)
         self._write_tables()
         # One task per mount: its forces' contacts are solved together (the same pixels, less time).
         tasks = [(str(staging), False, group) for group in mount_groups(self.trials)]

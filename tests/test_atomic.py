@@ -1,0 +1,89 @@
+"""Atomic writes (_util/atomic.py): a refused write names the file the user asked for, never its temporary."""
+from __future__ import annotations
+
+import errno
+import os
+
+import pytest
+
+from roughsense._util import atomic
+from roughsense.errors import RoughsenseError
+
+
+def refuse_rename(monkeypatch):
+    """What a sticky shared folder does to another user's file (root bypasses it, so it is simulated): the rename
+    of the temporary over the target is refused, and the error names the temporary."""
+    real = os.replace
+
+    def replace(src, dst, *args, **kwargs):
+        if atomic.is_temporary(src):
+            raise PermissionError(errno.EPERM, "Operation not permitted", os.fspath(src), os.fspath(dst))
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(os, "replace", replace)
+
+
+@pytest.mark.parametrize("write", [lambda p: atomic.write_text(p, "x\n"), lambda p: atomic.write_bytes(p, b"x"),
+                                   lambda p: atomic.write_csv(p, __import__("pandas").DataFrame({"a": [1]}))])
+def test_a_refused_rename_names_the_file_not_the_temporary(tmp_path, monkeypatch, write):
+    target = tmp_path / "study.toml"
+    target.write_text("theirs\n")
+    refuse_rename(monkeypatch)
+    with pytest.raises(RoughsenseError) as info:
+        write(target)
+    message = str(info.value)
+    assert message == f"{target}: cannot write: Operation not permitted"
+    assert ".tmp" not in message and info.value.path == target
+    assert target.read_text() == "theirs\n" and [p.name for p in tmp_path.iterdir()] == ["study.toml"]
+
+
+def test_a_refused_temporary_names_the_file(tmp_path, monkeypatch):
+    """The temporary itself refused (a folder the user may not write): named as the file asked for."""
+    real = os.chmod
+
+    def chmod(path, mode, *args, **kwargs):
+        if atomic.is_temporary(path):
+            raise PermissionError(errno.EACCES, "Permission denied", os.fspath(path))
+        return real(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(os, "chmod", chmod)
+    with pytest.raises(RoughsenseError, match=r"out\.csv: cannot write: Permission denied$") as info:
+        atomic.write_text(tmp_path / "out.csv", "x\n")
+    assert ".tmp" not in str(info.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_that_is_a_file_names_the_file(tmp_path):
+    (tmp_path / "shared").write_text("a file, not a folder\n")
+    with pytest.raises(RoughsenseError, match=r"shared/out\.csv: cannot write") as info:
+        atomic.write_text(tmp_path / "shared" / "out.csv", "x\n")
+    assert ".tmp" not in str(info.value)
+
+
+def test_an_error_about_another_file_keeps_its_own_name(tmp_path):
+    """An OSError of another file met inside the write's block is not the write's: it is not renamed."""
+    with pytest.raises(FileNotFoundError) as info:
+        with atomic.atomic_open(tmp_path / "out.txt") as handle:
+            handle.write(open(tmp_path / "missing.txt").read())  # noqa: SIM115
+    assert info.value.filename == str(tmp_path / "missing.txt")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_model_file_whose_rename_is_refused_is_named(tmp_path, monkeypatch):
+    """A writer above (save_model, as ``fit`` calls it) gets the message naming the model file."""
+    import numpy as np
+
+    from roughsense import SIMPLS
+    from roughsense.model import modelfile as mf
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    target = tmp_path / "model.json"
+    refuse_rename(monkeypatch)
+
+    rng = np.random.default_rng(0)
+    X = rng.random((20, 45))
+    model = SIMPLS(2).fit(X, X @ rng.standard_normal(45))
+    definition = mf.feature_definition_for(SpatialSpectrum(px_per_mm=20.0, roi=(0, 8, 400, 16)).fit(), ["1N"])
+    with pytest.raises(RoughsenseError) as info:
+        mf.save_model(target, model, feature_definition=definition, training={})
+    assert str(info.value) == f"{target}: cannot write: Operation not permitted"

@@ -1,0 +1,52 @@
+"""study.toml's reader (io/study_config.py): it accepts only what the writers of study.toml can write back."""
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from roughsense.errors import InputError
+from roughsense.io.study_config import MAX_CONFIG_DEPTH, nesting_depth, read_config
+
+
+def nested(depth: int) -> str:
+    """A [simulation] key holding arrays ``depth`` deep (any key is allowed in that table)."""
+    return "\n[simulation]\nx = " + "[" * depth + "1" + "]" * depth + "\n"
+
+
+def test_nesting_depth_counts_tables_and_arrays():
+    assert nesting_depth(1) == 0 and nesting_depth({}) == 1 and nesting_depth({"a": [[1]]}) == 3
+    assert nesting_depth({"pads": {"fingerprint": {"ridge_period_mm": 1.0}}}) == 3
+    assert nesting_depth([[[[]]]] * 2) == 4
+
+
+@pytest.mark.parametrize("depth", [150, 300, 450])
+def test_a_study_toml_nested_deeper_than_any_writer_writes_is_refused(tmp_path, depth):
+    """On 390ce82 these parsed (tomllib reads ~1000 levels) while calibrate's tomlkit refuses past 100 levels."""
+    import tomlkit
+
+    path = tmp_path / "study.toml"
+    path.write_text("[study]\nname = 's'\n" + nested(depth))
+    with pytest.raises(tomlkit.exceptions.ParseError):  # what calibrate would meet writing px_per_mm back
+        tomlkit.parse(path.read_text())
+    with pytest.raises(InputError, match=r"study\.toml: is not a study\.toml: its values are nested too deeply "
+                                         rf"\({depth + 2} levels, at most {MAX_CONFIG_DEPTH}"):
+        read_config(path)
+
+
+def test_a_study_toml_at_the_depth_limit_reads(tmp_path):
+    path = tmp_path / "study.toml"
+    path.write_text("[study]\nname = 's'\n" + nested(MAX_CONFIG_DEPTH - 2))
+    assert nesting_depth(read_config(path)) == MAX_CONFIG_DEPTH
+
+
+def test_check_refuses_a_deeply_nested_study_toml_in_one_line(run_cli, simulated_tiny, tmp_path):
+    study = tmp_path / "study"
+    shutil.copytree(simulated_tiny, study)
+    with (study / "study.toml").open("a") as handle:
+        handle.write("\n[simulation.deep]\nx = " + "[" * 200 + "1" + "]" * 200 + "\n")
+    code, out, err = run_cli("check", study)
+    text = out + err
+    assert code == 2 and "Traceback" not in text
+    lines = [line for line in text.splitlines() if "nested too deeply" in line]
+    assert len(lines) == 1 and "study.toml" in lines[0]
