@@ -18,8 +18,8 @@ import typer
 
 from .._util import interrupt
 from ..errors import RoughsenseError, one_line
-from ._aliases import apply_aliases, force_hint, in_users_words, renamed_refusal, renamings, said_twice
-from ._common import close_line
+from ._aliases import apply_aliases, command_index, force_hint, in_users_words, renamed_refusal, renamings, said_twice
+from ._common import close_line, limit_advice
 
 app = typer.Typer(
     name="roughsense",
@@ -183,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         close_line()
         if _state["debug"]:
             traceback.print_exc()
-        return _fail(str(exc))
+        at = command_index(args)
+        return _fail(str(exc) + limit_advice(exc, None if at is None else args[at]))
     except OSError as exc:
         close_line()
         if _state["debug"]:

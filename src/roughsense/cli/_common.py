@@ -152,6 +152,22 @@ Dpi = Annotated[int, typer.Option(
          "drawn at the resolution that fits).")]
 
 
+#: How each command's pixel limit is raised, said after an image above it (io.images.PixelLimitError): only what the
+#: command has. A study's [sensor] max_pixels is read by the commands that read a study; predict's limit is fixed.
+PIXEL_LIMIT_ADVICE = {
+    "features": "pass --max-pixels (or raise [sensor] max_pixels in study.toml) if it is genuine",
+    **dict.fromkeys(("study", "fit", "calibrate", "check"), "raise [sensor] max_pixels in study.toml if it is genuine"),
+}
+
+
+def limit_advice(error: Exception, command: str | None) -> str:
+    """"; how to raise the limit" after an image above the pixel limit, as ``command`` can, else ""."""
+    images = sys.modules.get("roughsense.io.images")  # loaded if it raised: --help never imports it
+    if images is None or not isinstance(error, images.PixelLimitError) or command not in PIXEL_LIMIT_ADVICE:
+        return ""
+    return f"; {PIXEL_LIMIT_ADVICE[command]}"
+
+
 def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 
