@@ -168,6 +168,42 @@ def limit_advice(error: Exception, command: str | None) -> str:
     return f"; {PIXEL_LIMIT_ADVICE[command]}"
 
 
+def terminal_table(frame, *, float_format=None) -> str:
+    """``frame`` as text within the terminal's width (``shutil.get_terminal_size``: the terminal's, else $COLUMNS,
+    else 80): columns too wide to sit side by side fold their cells, where pandas' ``to_string`` broke the table
+    into blocks joined by a ``\\`` continuation. Numbers right-aligned; ``float_format`` writes a float cell."""
+    import io
+    import shutil
+
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    def cell(value) -> str:
+        return float_format(value) if float_format is not None and isinstance(value, float) else str(value)
+
+    rows = [[cell(v) for v in row] for row in frame.itertuples(index=False)]
+    table = Table(box=box.SIMPLE_HEAD, show_edge=False, pad_edge=False)
+    for k, name in enumerate(frame.columns):
+        numeric = bool(rows) and all(_is_number(row[k]) for row in rows)
+        table.add_column(Text(str(name)), justify="right" if numeric else "left", overflow="fold")
+    for row in rows:
+        table.add_row(*(Text(value) for value in row))
+    console = Console(file=io.StringIO(), width=shutil.get_terminal_size().columns, color_system=None,
+                      highlight=False, emoji=False)
+    console.print(table)
+    return "\n".join(line.rstrip() for line in console.file.getvalue().splitlines())
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 

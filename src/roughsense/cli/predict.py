@@ -251,6 +251,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
     import textwrap
 
     from ..model.predict_table import CONSTANT_COLUMNS
+    from ._common import terminal_table
 
     constant = [c for c in CONSTANT_COLUMNS if c in table.columns]
     heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
@@ -260,7 +261,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
     if from_study:
         heading += "; each trial's images: add --out PRED.csv"
     width = shutil.get_terminal_size().columns
-    body = table.drop(columns=dropped + surface).to_string(index=False, line_width=width)
+    body = terminal_table(table.drop(columns=dropped + surface))
     lines = [*textwrap.wrap(heading, width=width, subsequent_indent="  "), body] if heading else [body]
     if surface:
         key = "specimen" if "specimen" in table else None
