@@ -451,6 +451,7 @@ def _slow_figure(marker: str, seconds: float):
 
 
 @pytest.mark.skipif(not LINUX, reason="fork context")
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")  # loky's manager thread ends well
 def test_a_stop_while_figures_render_kills_their_workers_instead_of_waiting(tmp_path, monkeypatch):
     """A stop during the report ended only once every figure already rendering was drawn (12-18 s on the paper's
     study, beyond a container's 10 s grace): now the wait honours it, pending figures are cancelled and the worker

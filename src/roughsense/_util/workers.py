@@ -213,9 +213,19 @@ def results_in_order(futures: list) -> list:
     return [future.result() for future in futures]
 
 
-def stop_pool(pool, futures: list) -> None:
-    """End a :func:`process_pool` now: pending tasks cancelled and its worker processes killed, not waited for
-    (what they were computing is not wanted any more; nothing of theirs is committed)."""
-    for future in futures:
-        future.cancel()
+def stop_pool(pool) -> None:
+    """End a :func:`process_pool` now: its worker processes killed, not waited for (what they were computing is not
+    wanted any more; nothing of theirs is committed), and every task not done failed by loky's shutdown. Its futures
+    are not cancelled here: loky's manager thread sets each pending one's exception, and a cancelled one raises
+    there, killing that thread before it kills the workers. The tasks not yet handed to a worker are taken off
+    loky's queue of work ids first: its manager thread would look each up after the shutdown dropped it (a KeyError
+    printed as a traceback, joblib 1.4)."""
+    import queue
+
+    ids = getattr(pool, "_work_ids", None)
+    while ids is not None:
+        try:
+            ids.get_nowait()
+        except queue.Empty:
+            break
     pool.shutdown(wait=False, kill_workers=True)

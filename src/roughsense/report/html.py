@@ -270,7 +270,7 @@ def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs
     try:
         yield lambda: results_in_order(pending)  # a stop is honoured while they draw
     except BaseException:  # the page failed or the run was stopped: its figures are neither waited for nor kept
-        stop_pool(pool, pending)
+        stop_pool(pool)
         raise
     pool.shutdown(wait=True)
 
