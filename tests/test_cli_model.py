@@ -613,6 +613,7 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     assert code == 0, err
     lines = stdout.splitlines()
     assert max(len(line) for line in lines) <= 80, stdout
+    assert not any(line.endswith("\\") for line in lines), stdout  # one line per row, no continuation block
     assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:2])
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err
