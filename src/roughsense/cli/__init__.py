@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
 
     click's usage errors (a bad option, a missing argument) and everything the library raises surface here and
     are turned into one line; ``--help`` and ``--version`` return 0. An option's old spelling is read as its one
-    name (cli/_aliases.py).
+    name, an option is said once, and an error names the spelling typed (cli/_aliases.py).
     """
     args, debug = _take_debug(list(sys.argv[1:] if argv is None else argv))
     if debug:
