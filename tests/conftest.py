@@ -44,6 +44,16 @@ def run_cli(capsys):
     return _run
 
 
+@pytest.fixture
+def quick_figures(monkeypatch):
+    """Skip rasterising the report's figures where a test checks the page's text or tables: drawing and PNG writing
+    are test_report.py's to check (its figure tests keep them), and they are a report's largest cost."""
+    from roughsense.report import figures
+
+    monkeypatch.setattr(figures, "figure_bytes", lambda figure, figure_format="png", **options: b"\x89PNG")
+    monkeypatch.setattr(figures, "page_preview", lambda png, **options: png)
+
+
 @pytest.fixture(scope="session")
 def shared_build(tmp_path_factory):
     """``shared_build(name, build)``: the folder ``build(path)`` made, built once per test run and read-only after.

@@ -8,7 +8,7 @@ import pytest
 import typer.main
 
 from roughsense.cli import _command, app
-from roughsense.cli._aliases import ALIASES, apply_aliases, force_hint
+from roughsense.cli._aliases import ALIASES, RENAMED, apply_aliases, force_hint, in_users_words, said_twice
 from roughsense.errors import ConfigError
 
 #: Each alias with a command line that parses without running anything (the required options given), and a value.
@@ -69,9 +69,9 @@ def test_tokens_after_a_double_dash_and_before_the_command_stay_as_typed():
 def test_old_spellings_run_through_main(run_cli, tmp_path):
     """The whole path a user takes: the error about the value names the option's one name."""
     code, _, err = run_cli("simulate", "--out", tmp_path / "s", "--forces", "2,x")
-    assert code == 2 and "--forces-n: 'x' is not a number" in err
+    assert code == 2 and "--forces: 'x' is not a number" in err
     code, _, err = run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "o", "--workers=0")
-    assert code == 2 and "--jobs must be from 1" in err
+    assert code == 2 and "--workers must be from 1" in err and "--jobs" not in err  # the option the user typed
     assert not (tmp_path / "s").exists() and not (tmp_path / "o").exists()
 
 
@@ -106,3 +106,72 @@ def test_run_sweep_reads_workers_as_n_jobs_with_a_future_warning(tmp_path):
         warnings.simplefilter("error")
         run_sweep(None, tmp_path / "out", n_jobs=1, workers=1)
     assert not (tmp_path / "out").exists()
+
+
+#: An option said twice: under its old and new names, or the same spelling (long, ``=``, short, attached) twice.
+TWICE = [
+    (["study", "--data", "A", "--study", "B"], "'--data A' and '--study B'"),
+    (["study", "--study=B", "--data=A"], "'--study=B' and '--data=A'"),
+    (["simulate", "--forces", "1", "--forces-n", "2,3", "--out", "s"], "'--forces 1' and '--forces-n 2,3'"),
+    (["explore", "s.toml", "--out", "o", "--workers", "2", "-j3"], "'--workers 2' and '-j3'"),
+    (["explore", "s.toml", "-j", "2", "--jobs=3", "--out", "o"], "'-j 2' and '--jobs=3'"),
+    (["simulate", "--seed", "1", "--seed=2", "--out", "s"], "'--seed 1' and '--seed=2'"),
+    (["simulate", "-o", "s", "--out", "t"], "'-o s' and '--out t'"),
+    (["predict", "m.json", "-ob.csv", "--out", "a.csv"], "'-ob.csv' and '--out a.csv'"),
+    (["study", "--seed", "-1", "--seed", "2"], "'--seed -1' and '--seed 2'"),
+    (["simulate", "--out", "s", "--force", "--force"], "--force is given twice"),
+]
+
+
+@pytest.mark.parametrize("argv, named", TWICE)
+def test_an_option_said_twice_is_refused_naming_both_spellings(run_cli, tmp_path, monkeypatch, argv, named):
+    """D9: the last one won unsaid (``study --data A --study B`` analysed B)."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli(*argv)
+    lines = err.strip().splitlines()
+    assert code == 2 and out == "" and len(lines) == 1, err
+    assert named in lines[0] and "give it once" in lines[0] and f"roughsense {argv[0]} --help" in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv", [
+    ["simulate", "--out", "s", "--seed", "--seed"],  # one --seed whose value is the word "--seed" (click's reading)
+    ["study", "--out", "r", "--", "--out", "x"],  # after --, words are arguments
+    ["simulate", "--out", "s", "--forces-n", "1", "--seed", "3"],
+    ["explore", "-j", "2", "--out", "--jobs"],
+])
+def test_an_option_said_once_passes(argv):
+    assert said_twice(argv, _command().commands) == ""
+
+
+def test_a_repeatable_option_may_be_given_again():
+    import click
+
+    command = click.Command("c", params=[click.Option(["--tag", "-t"], multiple=True), click.Option(["--seed"])])
+    assert said_twice(["c", "--tag", "a", "-t", "b"], {"c": command}) == ""
+    assert "--seed" in said_twice(["c", "--seed", "1", "--tag", "a", "--seed", "2"], {"c": command})
+
+
+def test_a_message_names_the_spelling_typed():
+    assert in_users_words("--jobs must be at least 1; --jobs-x and x--jobs stay", {"--jobs": "--workers"}) == \
+        "--workers must be at least 1; --jobs-x and x--jobs stay"
+
+
+@pytest.mark.parametrize("command, old", [(c, o) for c, table in RENAMED.items() for o in table])
+def test_a_spelling_renamed_before_release_is_refused_naming_its_new_name(run_cli, tmp_path, monkeypatch, command,
+                                                                           old):
+    monkeypatch.chdir(tmp_path)
+    new = RENAMED[command][old]
+    code, _, err = run_cli(command, f"{old}=x", "--out", "o")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"{old} is now {new}" in err
+    declared = {opt for p in _command().commands[command].params for opt in p.opts}
+    assert new in declared and old not in declared
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_every_command_that_writes_one_output_takes_dash_o():
+    """``-o`` is ``--out`` on every command with an ``--out`` (study, simulate, explore and capture lacked it)."""
+    outs = {name: p for name, c in _command().commands.items() for p in c.params if "--out" in p.opts}
+    assert {"study", "simulate", "explore", "capture", "fit", "predict", "features"} <= set(outs)
+    assert {name for name, out in outs.items() if "-o" not in out.opts} == set()

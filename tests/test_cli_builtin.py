@@ -108,3 +108,19 @@ def test_a_cached_folder_is_built_once_and_replaces_older_versions_and_killed_ru
     (partial / KEY_FILE).write_text("thing-seed1-v0\n")  # a killed build marks its partial folder first
     new = get("v2")
     assert built == [old, new] and not old.exists() and not partial.exists() and other.exists()
+
+
+def test_check_and_calibrate_take_builtin_with_seed(run_cli, cache, tmp_path, monkeypatch):
+    """They answered "builtin: study folder not found". calibrate measures the built-in study and prints, but writes
+    nothing into the cache's folder (it is rebuilt whenever the simulator changes), saying so."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli("check", "builtin", "--seed", SEED)
+    assert code == 0, err
+    assert "not found" not in err and out.strip()
+    toml = (cache / "study.toml").read_bytes()
+    code, out, err = run_cli("calibrate", "builtin", "--seed", SEED, "--limit", "6")
+    assert code == 0, err
+    assert "px/mm measured from" in out and "wrote" not in out
+    assert "nothing written" in err
+    assert (cache / "study.toml").read_bytes() == toml
+    assert [p.name for p in tmp_path.iterdir()] == ["cache"]

@@ -92,6 +92,12 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     assert code == 0, err
     assert "roughness" in stdout and images[5].name in stdout
     assert f"{roughness(table)[5]:.3g}" in stdout
+    # Long image paths in an 80-column terminal: one line per image, ending with its file's name (the table broke
+    # into blocks joined by a backslash)
+    lines = stdout.splitlines()
+    assert max(map(len, lines)) <= 80 and not any(line.endswith("\\") for line in lines), stdout
+    row = next(line for line in lines if images[5].name in line)
+    assert f"{roughness(table)[5]:.3g}" in row.split()
 
 
 def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path):
@@ -613,6 +619,7 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     assert code == 0, err
     lines = stdout.splitlines()
     assert max(len(line) for line in lines) <= 80, stdout
+    assert not any(line.endswith("\\") for line in lines), stdout  # one line per row, no continuation block
     assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:2])
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err

@@ -428,15 +428,6 @@ def test_damaged_study_folders_give_boring_outcomes(run_cli, base, combined_mode
     run_example(run_cli, base, changes, command, monkeypatch, combined_model)
 
 
-@pytest.fixture()
-def quick_figures(monkeypatch):
-    """Rasterising figures is test_report's job; here it would spend the fuzz budget on matplotlib."""
-    from roughsense.report import figures
-
-    monkeypatch.setattr(figures, "figure_bytes", lambda figure, figure_format="png", **options: b"\x89PNG")
-    monkeypatch.setattr(figures, "page_preview", lambda png, **options: png)
-
-
 @NO_RAW_WARNINGS
 @settings(FUZZ, max_examples=max(8, EXAMPLES // 10))
 @given(changes=st.lists(mutations, min_size=1, max_size=2))

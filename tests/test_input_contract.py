@@ -44,15 +44,6 @@ def sandbox(base, tmp_path):
     return root
 
 
-@pytest.fixture()
-def quick_figures(monkeypatch):
-    """Skip rasterising the report's figures (test_report covers them); the tables are what these tests compare."""
-    from roughsense.report import figures
-
-    monkeypatch.setattr(figures, "figure_bytes", lambda figure, figure_format="png", **options: b"\x89PNG")
-    monkeypatch.setattr(figures, "page_preview", lambda png, **options: png)
-
-
 def tree(root: Path) -> dict[str, tuple[int, int]]:
     """Every file under ``root`` with its size and mtime: what a run may not change outside its --out."""
     return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)

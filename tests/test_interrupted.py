@@ -439,3 +439,48 @@ def test_a_killed_writer_leaves_no_temporary_file_for_long(tmp_path):
     atomic.write_text(target, "whole")
     assert target.read_text() == "whole"
     assert not dead.exists() and live.exists() and legacy.exists()
+
+
+def _slow_figure(marker: str, seconds: float):
+    """A figure that takes ``seconds`` to draw and leaves ``marker`` once drawn (a worker that was waited for)."""
+    time.sleep(seconds)
+    Path(marker).write_text("drawn")
+    import matplotlib.figure
+
+    return matplotlib.figure.Figure(figsize=(1, 1))
+
+
+@pytest.mark.skipif(not LINUX, reason="fork context")
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")  # loky's manager thread ends well
+def test_a_stop_while_figures_render_kills_their_workers_instead_of_waiting(tmp_path, monkeypatch):
+    """A stop during the report ended only once every figure already rendering was drawn (12-18 s on the paper's
+    study, beyond a container's 10 s grace): now the wait honours it, pending figures are cancelled and the worker
+    processes killed. The figures here take HANG_GUARD_S to draw, so a waited-for one would leave its marker."""
+    from roughsense._util import interrupt, workers
+    from roughsense.report import html
+
+    pools = []
+
+    def recorded(n):
+        pools.append(workers.process_pool(n))
+        return pools[-1]
+
+    monkeypatch.setattr(html, "process_pool", recorded)
+    analysis = type("Analysis", (), {"provenance": None})()
+    monkeypatch.setattr(html.source, "figure_stamp", lambda provenance: None)
+    markers = [tmp_path / f"figure{i}" for i in range(4)]
+    jobs = [html.FigureJob(f"f{i}", _slow_figure, (str(m), HANG_GUARD_S), {}, "") for i, m in enumerate(markers)]
+    with pytest.raises(interrupt.Interrupted):
+        with html._figure_renderer(analysis, jobs, html.FigureStyle(), 2) as rendered:
+            time.sleep(1.0)  # two figures are drawing, two wait for a worker
+            processes = list(pools[0]._processes.values())
+            interrupt._received.append(signal.SIGTERM)
+            try:
+                rendered()
+            finally:
+                interrupt._received.clear()
+    assert len(pools) == 1 and len(processes) == 2
+    for process in processes:
+        process.join(HANG_GUARD_S)
+        assert not process.is_alive()
+    assert not any(m.exists() for m in markers)  # nothing drawn: killed, not waited for

@@ -84,7 +84,7 @@ def test_simulated_and_real_studies_are_labelled(report_dir, simulated_report_di
     assert claims.loc[("ratings_rise", "none"), "basis"].startswith("property of the simulator")
 
 
-def test_paper_values_only_where_the_design_matches(tmp_path):
+def test_paper_values_only_where_the_design_matches(tmp_path, quick_figures):
     study, features = synthetic_study(repetitions=2, seed=8, pads=("smooth",))
     keep = ["R2", "R3", "R4", "C3", "C5"]
     study.specimens = study.specimens[study.specimens.specimen.isin(keep)].reset_index(drop=True)
@@ -231,7 +231,7 @@ def test_report_shows_the_papers_values_in_the_right_cells(report_dir):
     assert "src=\"http" not in html and "href=\"http" not in html  # self-contained, offline
 
 
-def test_report_refuses_a_non_empty_folder_without_force(report_dir, tmp_path):
+def test_report_refuses_a_non_empty_folder_without_force(report_dir, tmp_path, quick_figures):
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "notes.txt").write_text("keep me")
@@ -355,7 +355,7 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     assert all(cells[c][1] == "" for cells in peak.values() for c in cells)  # no paper values beside the law
 
 
-def test_unseen_section_labels_the_twin_and_built_in_agreement(simulated_report_dir, tmp_path):
+def test_unseen_section_labels_the_twin_and_built_in_agreement(simulated_report_dir, tmp_path, quick_figures):
     simulated = (simulated_report_dir / "index.html").read_text()
     section = simulated.split('<h2 id="unseen">', 1)[1].split('id="glance"', 1)[0]
     assert "digital twin" in section and "held out of" in section and "real images" in section

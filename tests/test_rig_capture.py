@@ -266,7 +266,7 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
 
     monkeypatch.setattr("sys.stdin", EnterKey("\n\n", silence_from_second_prompt))
     try:
-        code, _, stderr = run_cli(*capture_args(video, out, "--force-input", f"serial:{port}", "--timeout-s", "1",
+        code, _, stderr = run_cli(*capture_args(video, out, "--forces-from", f"serial:{port}", "--timeout-s", "1",
                                                 "--shape", "rectangular", "--wavelength-mm", "3"))
     finally:
         stop.set()
@@ -286,8 +286,8 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
         (("--pad", "../x"), "--pad '../x'"),
         (("--repetitions", "0"), "--repetitions must be a whole number from 1"),
         (("--shape", "wavy"), "--shape 'wavy'"),
-        (("--force-input", "usb"), "--force-input must be 'manual' or 'serial:PORT[:BAUD]'"),
-        (("--forces", "1,x"), "--forces-n: 'x' is not a number"),  # --forces: the old spelling
+        (("--forces-from", "usb"), "--forces-from must be 'manual' or 'serial:PORT[:BAUD]'"),
+        (("--forces", "1,x"), "--forces: 'x' is not a number"),  # the old spelling, named as typed
     ],
 )
 def test_bad_options(tmp_path, video, run_cli, typed, args, message):

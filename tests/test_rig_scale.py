@@ -272,7 +272,7 @@ def test_capture_with_a_scale_streaming_no_line_ends_stops_at_timeout(tmp_path, 
     args = [sys.executable, "-c", "from roughsense.cli import run; run()",
             "capture", "--source", str(video), "--out", str(tmp_path / "study"),
             "--specimen", "R3", "--pad", "fp", "--roi", "auto", "--shape", "rectangular", "--wavelength-mm", "3",
-            "--force-input", f"serial:{path}", "--timeout-s", "1"]
+            "--forces-from", f"serial:{path}", "--timeout-s", "1"]
     try:
         run = subprocess.run(args, input="\n", capture_output=True, text=True, timeout=300)  # a hang guard
     except subprocess.TimeoutExpired:

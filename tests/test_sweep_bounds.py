@@ -152,7 +152,7 @@ def test_workers_beyond_the_bound_are_refused_before_any_work(tmp_path, run_cli,
     monkeypatch.setattr(runner, "default_workers", lambda: 2)  # the bound is 4 per usable core
     for workers in ("100000", "9", "0"):
         line = _one_error(run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "out", "--workers", workers),
-                          "--jobs", "from 1 to 8")  # --workers: the old spelling of --jobs
+                          "--workers", "from 1 to 8")  # the old spelling of --jobs, named as typed
         assert "absent.toml" not in line  # refused before the sweep file is even read
     assert not (tmp_path / "out").exists()
     with pytest.raises(Exception, match="--jobs must be from 1 to 8"), pytest.warns(FutureWarning):

@@ -18,8 +18,8 @@ import typer
 
 from .._util import interrupt
 from ..errors import RoughsenseError, one_line
-from ._aliases import apply_aliases, force_hint
-from ._common import close_line
+from ._aliases import apply_aliases, command_index, force_hint, in_users_words, renamed_refusal, renamings, said_twice
+from ._common import close_line, limit_advice
 
 app = typer.Typer(
     name="roughsense",
@@ -91,8 +91,13 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 def _fail(message: str) -> int:
     close_line()
-    print(f"roughsense: error: {one_line(message)}", file=sys.stderr)
+    print(f"roughsense: error: {one_line(in_users_words(message, _state.get('typed', {})))}", file=sys.stderr)
     return 2
+
+
+def _said_once(args: list[str], group) -> str:
+    """One line when the command line says an option twice or by a spelling renamed before release, else ""."""
+    return renamed_refusal(args) or said_twice(args, getattr(group, "commands", {}))
 
 
 def _take_debug(args: list[str]) -> tuple[list[str], bool]:
@@ -146,17 +151,23 @@ def main(argv: list[str] | None = None) -> int:
 
     click's usage errors (a bad option, a missing argument) and everything the library raises surface here and
     are turned into one line; ``--help`` and ``--version`` return 0. An option's old spelling is read as its one
-    name (cli/_aliases.py).
+    name, an option is said once, and an error names the spelling typed (cli/_aliases.py).
     """
     args, debug = _take_debug(list(sys.argv[1:] if argv is None else argv))
-    args = apply_aliases(args)
     if debug:
         _state["debug"] = True
+    group = _command()
+    refusal = _said_once(args, group)
+    if refusal:
+        _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))
+        return _fail(refusal)
+    _state["typed"] = renamings(args)  # an error about an option names the spelling typed (--workers, not --jobs)
+    args = apply_aliases(args)
     warnings.showwarning = _show_warning
     try:
         with warnings.catch_warnings():  # the main thread, around the whole run: workers never touch the filters
             warnings.filterwarnings("ignore", module=PILLOW_WARNINGS)
-            code = _command().main(args=args, prog_name="roughsense", standalone_mode=False)
+            code = group.main(args=args, prog_name="roughsense", standalone_mode=False)
         interrupt.check()  # stopped after its last safe point: still a run that was stopped, not a success
         return code if isinstance(code, int) and not isinstance(code, bool) else 0
     except SystemExit as exc:
@@ -172,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         close_line()
         if _state["debug"]:
             traceback.print_exc()
-        return _fail(str(exc))
+        at = command_index(args)
+        return _fail(str(exc) + limit_advice(exc, None if at is None else args[at]))
     except OSError as exc:
         close_line()
         if _state["debug"]:
@@ -189,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     finally:
         _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))
+        _state["typed"] = {}
         warnings.showwarning = _python_showwarning
 
 

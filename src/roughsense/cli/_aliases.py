@@ -2,9 +2,16 @@
 
 One concept has one option name on every command (``--study``, ``--forces-n``, ``--jobs``); an older spelling still
 works, but no command declares it, so it never shows in ``--help`` and adds nothing to a command's signature. The
-table is the whole mechanism: CHANGELOG.md lists the same pairs.
+table is the whole mechanism: CHANGELOG.md lists the same pairs. A spelling renamed before any release is no alias:
+it is refused, naming its new name (:data:`RENAMED`).
+
+An option is said once (:func:`said_twice`): given twice, or under its old and its new name, the command line is
+refused in one line naming both spellings as typed -- the last one would otherwise win unsaid. And an error about an
+option names it as the user typed it (:func:`in_users_words`): ``--workers 0`` is answered about ``--workers``.
 """
 from __future__ import annotations
+
+import re
 
 #: ``{command: {old spelling: one name}}``.
 ALIASES: dict[str, dict[str, str]] = {
@@ -12,6 +19,11 @@ ALIASES: dict[str, dict[str, str]] = {
     "simulate": {"--forces": "--forces-n"},
     "capture": {"--forces": "--forces-n"},
     "explore": {"--workers": "--jobs"},
+}
+
+#: ``{command: {spelling renamed before any release: its one name}}``: refused, naming the new name (no alias).
+RENAMED: dict[str, dict[str, str]] = {
+    "capture": {"--force-input": "--forces-from"},
 }
 
 #: Commands whose forces are ``--forces-n``: there, ``--force 2`` is a force typed as the overwrite flag.
@@ -63,3 +75,92 @@ def _is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def _words(args: list[str]) -> tuple[int, list[str]] | None:
+    """Where the command's name is and the words after it up to ``--`` (what may be its options)."""
+    at = command_index(args)
+    if at is None:
+        return None
+    end = args.index("--") if "--" in args else len(args)
+    return at, args[at + 1:end]
+
+
+def renamed_refusal(args: list[str]) -> str:
+    """"COMMAND: --old is now --new" when a spelling of :data:`RENAMED` is typed, else ""."""
+    found = _words(args)
+    table = RENAMED.get(args[found[0]], {}) if found else {}
+    for word in found[1] if table else []:
+        new = table.get(word.partition("=")[0])
+        if new is not None:
+            return f"{args[found[0]]}: {word.partition('=')[0]} is now {new}; see 'roughsense {args[found[0]]} --help'"
+    return ""
+
+
+def renamings(args: list[str]) -> dict[str, str]:
+    """``{one name: old spelling}`` for each old spelling typed on the command line (before ``--``)."""
+    found = _words(args)
+    table = ALIASES.get(args[found[0]], {}) if found else {}
+    return {table[name]: name for name in (w.partition("=")[0] for w in (found[1] if found else [])) if name in table}
+
+
+def in_users_words(message: str, renamed: dict[str, str]) -> str:
+    """``message`` with each option's one name replaced by the old spelling the user typed for it."""
+    for new, old in renamed.items():
+        message = re.sub(rf"(?<![\w-]){re.escape(new)}(?![\w-])", old, message)
+    return message
+
+
+def _takes(param) -> int:
+    """How many words a click option takes after its name: 0 for a flag or a counter."""
+    return 0 if getattr(param, "is_flag", False) or getattr(param, "count", False) else max(1, param.nargs)
+
+
+def _option_words(command, words: list[str], table: dict[str, str]) -> list[tuple[object, str]]:
+    """``(click parameter, as typed)`` for each option of ``command`` in ``words``: ``--opt value``, ``--opt=value``,
+    ``-o value``, ``-ovalue`` and grouped short flags (``-ab``). A word that is no option of the command (an
+    argument, or a mistake click reports) is passed over; the value of an option is never read as an option."""
+    params = {opt: p for p in command.params for opt in (*p.opts, *p.secondary_opts)}
+    params.update({old: params[new] for old, new in table.items() if new in params})
+    found, i = [], 0
+    while i < len(words):
+        word = words[i]
+        name, sep, _ = word.partition("=")
+        param = params.get(name)
+        if param is not None:
+            taken = 0 if sep else _takes(param)
+            found.append((param, " ".join(words[i:i + 1 + taken])))
+            i += 1 + taken
+            continue
+        if word.startswith("-") and not word.startswith("--") and len(word) > 2:  # -ovalue, or -ab
+            for k in range(1, len(word)):
+                param = params.get(f"-{word[k]}")
+                if param is None:
+                    break
+                found.append((param, f"-{word[k]}" + (word[k + 1:] if _takes(param) else "")))
+                if _takes(param):
+                    break
+        i += 1
+    return found
+
+
+def said_twice(args: list[str], commands: dict) -> str:
+    """One line when an option of the command is given twice (under any of its spellings, old or new), else "".
+
+    Options declared ``multiple`` (repeatable by design) may be given again."""
+    found = _words(args)
+    command = commands.get(args[found[0]]) if found else None
+    if command is None:
+        return ""
+    name = args[found[0]]
+    seen: dict[str, str] = {}
+    for param, typed in _option_words(command, found[1], ALIASES.get(name, {})):
+        if getattr(param, "multiple", False):
+            continue
+        if param.name in seen:
+            one, first = max(param.opts, key=len), seen[param.name]
+            what = (f"{one} is given twice ({first!r}, {typed!r})" if first == typed else
+                    f"{first!r} and {typed!r} are the same option ({one})")
+            return f"{name}: {what}; give it once; see 'roughsense {name} --help'"
+        seen[param.name] = typed
+    return ""

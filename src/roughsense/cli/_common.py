@@ -152,6 +152,99 @@ Dpi = Annotated[int, typer.Option(
          "drawn at the resolution that fits).")]
 
 
+#: How each command's pixel limit is raised, said after an image above it (io.images.PixelLimitError): only what the
+#: command has. A study's [sensor] max_pixels is read by the commands that read a study; predict's limit is fixed.
+PIXEL_LIMIT_ADVICE = {
+    "features": "pass --max-pixels (or raise [sensor] max_pixels in study.toml) if it is genuine",
+    **dict.fromkeys(("study", "fit", "calibrate", "check"), "raise [sensor] max_pixels in study.toml if it is genuine"),
+}
+
+
+def limit_advice(error: Exception, command: str | None) -> str:
+    """"; how to raise the limit" after an image above the pixel limit, as ``command`` can, else ""."""
+    images = sys.modules.get("roughsense.io.images")  # loaded if it raised: --help never imports it
+    if images is None or not isinstance(error, images.PixelLimitError) or command not in PIXEL_LIMIT_ADVICE:
+        return ""
+    return f"; {PIXEL_LIMIT_ADVICE[command]}"
+
+
+#: The narrowest a text column (an image path) is cut to when a table must fit the terminal.
+MIN_TEXT_COLUMN = 12
+
+
+def terminal_table(frame, *, float_format=None) -> str:
+    """``frame`` as text within the terminal's width (``shutil.get_terminal_size``: the terminal's, else $COLUMNS,
+    else 80), one line per row. pandas' ``to_string`` where it fits; else a long text cell (an image path) keeps its
+    end ("...images/R3_1N_r01.png") and a header wider than its column wraps, where pandas broke the table into
+    blocks joined by a backslash. A number is never cut."""
+    import shutil
+
+    width = shutil.get_terminal_size().columns
+    plain = frame.to_string(index=False, float_format=float_format)
+    if max(map(len, plain.splitlines()), default=0) <= width or frame.empty:
+        return plain
+    names = [str(c) for c in frame.columns]
+    cells = [[float_format(v) if float_format is not None and isinstance(v, float) else str(v) for v in frame.iloc[:, k]]
+             for k in range(len(names))]
+    numeric = [all(_is_number(v) for v in column) for column in cells]
+    widths = _column_widths(names, cells, numeric, width)
+    heads = [_wrapped_header(name, w) for name, w in zip(names, widths)]
+    lines = [["" if i >= len(head) else head[i] for head in heads] for i in range(max(map(len, heads)))]
+    lines += [[_cut_start(column[row], w) for column, w in zip(cells, widths)] for row in range(len(frame))]
+    return "\n".join("  ".join(value.rjust(w) if is_number else value.ljust(w)
+                                for value, w, is_number in zip(line, widths, numeric)).rstrip() for line in lines)
+
+
+def _column_widths(names: list[str], cells: list[list[str]], numeric: list[bool], width: int) -> list[int]:
+    """Numbers as wide as their longest value or their header's longest word (``roughness_`` of
+    ``roughness_rel_R3``); text shares the rest (at least MIN_TEXT_COLUMN each); room left over widens the narrow
+    headers first."""
+    words = [max(len(w) for w in name.replace("_", "_ ").split() or [""]) for name in names]
+    longest = [max(max(map(len, column)), min(word, MIN_TEXT_COLUMN) if n else 0)
+               for column, word, n in zip(cells, words, numeric)]
+    room = width - 2 * (len(names) - 1) - sum(w for w, n in zip(longest, numeric) if n)
+    natural = {k: max(longest[k], len(names[k])) for k, n in enumerate(numeric) if not n}
+    widths = list(longest)
+    for i, k in enumerate(sorted(natural, key=natural.get)):  # the narrow take what they need, the wide share
+        widths[k] = min(natural[k], max(MIN_TEXT_COLUMN, room // (len(natural) - i)))
+        room -= widths[k]
+    spare = width - 2 * (len(names) - 1) - sum(widths)
+    for k in sorted(range(len(names)), key=lambda k: len(names[k]) - widths[k]):
+        grow = min(max(0, len(names[k]) - widths[k]), max(0, spare))
+        widths[k] += grow
+        spare -= grow
+    return [max(1, w) for w in widths]
+
+
+def _wrapped_header(name: str, width: int) -> list[str]:
+    """A header on as many lines as its column needs, broken after an underscore where it can."""
+    parts = [p for p in name.replace("_", "_\0").split("\0") if p]
+    lines = [""]
+    for part in parts:
+        while len(part) > width:  # a part longer than the column: cut it
+            if lines[-1]:
+                lines.append("")
+            lines[-1], part = part[:width], part[width:]
+            lines.append("")
+        if len(lines[-1]) + len(part) > width and lines[-1]:
+            lines.append("")
+        lines[-1] += part
+    return [line for line in lines if line] or [""]
+
+
+def _cut_start(text: str, width: int) -> str:
+    """``text`` within ``width``, its start dropped (a path's end names the file)."""
+    return text if len(text) <= width else "\u2026" + text[len(text) - width + 1:]
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def parse_name_list(text: str) -> list[str]:
     return [p.strip() for p in text.split(",") if p.strip()]
 

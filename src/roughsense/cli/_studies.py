@@ -9,11 +9,18 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import Annotated
 
-from ._common import progress
+import typer
+
+from ._common import number_option, progress
 
 BUILTIN = "builtin"
 STUDY_METAVAR = "DIR|builtin"
+#: ``--seed`` of a command whose only seed is the built-in study's (check, calibrate).
+BuiltinSeed = Annotated[int, typer.Option(
+    "--seed", parser=number_option("--seed", quantity="seed"),
+    help="Seed of the built-in simulated study, when the folder is builtin.")]
 #: Where the built-in study's simulation starts, and the package data it reads: the cache key covers both.
 SIMULATOR_ENTRY_POINTS = ("roughsense.sim.simulate",)
 SIMULATOR_DATA = ("roughsense.data.paper",)
@@ -65,6 +72,23 @@ def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None 
         print(f"roughsense: note: {BUILTIN!r} names the built-in simulated study; for the folder here, "
               f"write ./{BUILTIN}", file=sys.stderr)
     return builtin_study(seed, jobs)
+
+
+def study_folder(value: str | os.PathLike[str], seed: int) -> Path:
+    """A study folder given as a command's argument (``check DIR``, ``calibrate DIR``): ``builtin`` is the built-in
+    study of ``seed`` (:data:`BuiltinSeed`), as ``--study builtin`` is."""
+    return resolve_study(value, seed=seed)
+
+
+def builtin_writable(value: str | os.PathLike[str]) -> bool:
+    """False for ``builtin``, with one line saying why nothing is written into it: the built-in study is the cache's
+    (rebuilt whenever the simulator changes), so a value written into its study.toml would be lost, and it would no
+    longer be the study its cache key names."""
+    if not is_builtin(value):
+        return True
+    print(f"roughsense: note: {BUILTIN} is the cache's simulated study: measured and printed, nothing written into it",
+          file=sys.stderr)
+    return False
 
 
 def checked_scale(study, *, pad: str | None = None):

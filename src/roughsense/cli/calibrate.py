@@ -6,16 +6,18 @@ from typing import Annotated
 
 import typer
 
+from .. import defaults
 from ..errors import ConfigError
 from ._common import number_option
+from ._studies import BuiltinSeed
 
 ORDER = 5
 #: The fewest mounts of a target whose measurement is written: a standard error needs two (the scale check that
 #: every run makes wants three, model.scale_check.MIN_MOUNTS).
 MIN_MOUNTS = 2
 
-Folder = Annotated[str, typer.Argument(metavar="DIR", help="The study folder: its manifest lists the presses, its "
-                                                           "study.toml receives px_per_mm.")]
+Folder = Annotated[str, typer.Argument(metavar="DIR|builtin", help="The study folder: its manifest lists the presses, "
+                                       "its study.toml receives px_per_mm (builtin: measured and printed only).")]
 Specimen = Annotated[str | None, typer.Option(
     "--specimen", show_default=False,
     help="The target: this specimen's presses, its period the wavelength_mm of specimens.csv. Default: the "
@@ -33,25 +35,26 @@ Force = Annotated[bool, typer.Option("--force", help="Replace a px_per_mm study.
 
 
 def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False, limit: Limit = 30,
-              scale_range: ScaleRange = None, dry_run: DryRun = False, force: Force = False) -> None:
+              scale_range: ScaleRange = None, dry_run: DryRun = False, force: Force = False,
+              seed: BuiltinSeed = defaults.SEED) -> None:
     """Measure the camera's scale (px/mm) from presses of a target of known period and write it into study.toml.
 
     Each press's line is read where the study's [sensor] roi says; the target's period in pixels is found first
     over --range (on a pad with ridges, where the target and the ridges both sit), then refined below the DFT's
     bin. The median over the presses is written as [sensor] px_per_mm, with its precision as the value's comment.
     """
-    from pathlib import Path
-
     from ..io.sensor_settings import write_px_per_mm
     from ..io.study import STUDY_TOML, read_study
     from ._common import parse_float_list
+    from ._studies import builtin_writable, study_folder
 
     low_high = None if scale_range is None else tuple(parse_float_list(scale_range, name="range"))
     if low_high is not None and (len(low_high) != 2 or not 0 < low_high[0] < low_high[1]):
         raise ConfigError(f"--range must be LOW,HIGH px/mm with 0 < LOW < HIGH, got {scale_range!r}")
     if ridges and specimen is not None:
         raise ConfigError("give one target: --specimen NAME or --ridges, not both")
-    study = read_study(Path(folder))
+    study = read_study(study_folder(folder, seed))
+    dry_run = dry_run or not builtin_writable(folder)
     targets = _targets(study, specimen, ridges, limit)
     m, what = _measure(study, targets, low_high)
     if m.n_measured == 0:

@@ -20,12 +20,12 @@ _DISCARD = number_option("--discard", low=0, high=1000, whole=True)
 
 _SOURCE = typer.Option(
     ..., "--source", help="Camera index (0), device (/dev/video2), video file or image pattern (img_%04d.png).")
-_OUT = typer.Option(..., "--out", help="Study folder: created on the first capture, extended by later runs.")
+_OUT = typer.Option(..., "--out", "-o", help="Study folder: created on the first capture, extended by later runs.")
 _REPETITIONS_OPTION = typer.Option(
     PAPER_REPETITIONS, "--repetitions", parser=_REPETITIONS,
     help="Target number of repetitions for this specimen and pad; a rerun captures only what is missing.")
 _FORCE_INPUT = typer.Option(
-    "manual", "--force-input", help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale).")
+    "manual", "--forces-from", help="'manual' (typed; Enter = nominal) or 'serial:PORT[:BAUD]' (a streaming scale).")
 _PX_PER_MM_OPTION = typer.Option(
     None, "--px-per-mm", parser=_PX_PER_MM, help=f"Camera scale for a new study (default {defaults.PX_PER_MM:g}).")
 _ROI = typer.Option(

@@ -1,17 +1,21 @@
 """``roughsense check DIR``: list every problem of a study folder (file, row, column, what to do), write nothing."""
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from .. import defaults
+from ._studies import BuiltinSeed
+
 ORDER = 4
 
-Folder = Annotated[Path, typer.Argument(metavar="DIR", help="The study folder to check.", show_default=False)]
+Folder = Annotated[str, typer.Argument(
+    metavar="DIR|builtin", show_default=False,
+    help="The study folder to check (builtin: the built-in simulated study of --seed).")]
 
 
-def check(folder: Folder) -> None:
+def check(folder: Folder, seed: BuiltinSeed = defaults.SEED) -> None:
     """Check a study folder and list every problem at once, one per line, exit 2 if there is any.
 
     The same checks `study`, `fit` and `features` make, which stop at the first problem: study.toml, specimens.csv,
@@ -20,8 +24,9 @@ def check(folder: Folder) -> None:
     """
     from ..errors import InputError
     from ..io.study_check import check_study
+    from ._studies import study_folder
 
-    result = check_study(folder)
+    result = check_study(study_folder(folder, seed))
     _check_scale(result)
     if not result.ok:
         for line in result.problems.lines():

@@ -20,7 +20,8 @@ def register(app: typer.Typer) -> None:
         sweep_file: Path = typer.Argument(
             ..., metavar="SWEEP.toml",
             help="The sweep file: settings in \\[sweep], the grid in \\[axes] (docs/explore.md)."),
-        out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
+        out: Path = typer.Option(..., "--out", "-o",
+                                 help="Output folder: results/ (Parquet), specimens/, sweep.toml, index.html."),
         jobs: int | None = typer.Option(None, "--jobs", "-j", parser=_JOBS, show_default=False, help=JOBS_HELP),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Address (tcp://host:8786) or scheduler file (.json) "
                                              "of an existing Dask cluster, or slurm, pbs or sge: --jobs workers as "

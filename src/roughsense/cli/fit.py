@@ -154,16 +154,17 @@ def _echo_cv(trained) -> None:
 
     from ..analysis.training import curve_table, law_table
     from ..model.families import family
+    from ._common import terminal_table
 
     result, number = trained.cv, (lambda v: f"{v:.5f}")
     if family(trained.family).chooses_components:
         chosen = trained.n_components
-        typer.echo(curve_table(result, chosen).to_string(index=False, float_format=number))
+        typer.echo(terminal_table(curve_table(result, chosen), float_format=number))
         typer.echo(f"chosen: {counted(chosen, 'component')} (CV RMSE {result.rmse[chosen]:.5f}; "
                    f"min at {result.best_n_components}, one-SE rule {result.one_se_n_components})")
         return
     law = trained.model
-    typer.echo(law_table(result).to_string(index=False, float_format=number))
+    typer.echo(terminal_table(law_table(result), float_format=number))
     typer.echo(f"peak law: CV RMSE {result.rmse[1]:.5f} (training mean {result.rmse[0]:.5f}); "
                f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1)"
                + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else

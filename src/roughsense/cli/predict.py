@@ -182,8 +182,25 @@ def _echo_extrapolation(loaded, scores) -> None:
     else:
         echo(f"{'all ' if total > 1 else ''}{counted(total, 'prediction')} within what the model was trained on")
     if model_interval(loaded) is None:
-        echo("no prediction interval: the model file has none it can use (written before intervals, or from "
-                   "too few specimens); refit it with roughsense fit")
+        echo(no_interval_line(loaded.training))
+
+
+def no_interval_line(training: dict) -> str:
+    """Why a model has no interval, by its real cause: too few specimens (refitting the same study would not help),
+    a design too small to be judged on a grating left out, or a file written before intervals."""
+    import math
+
+    from ..model.interval import INTERVAL_LEVEL
+
+    training = training if isinstance(training, dict) else {}
+    specimens = training.get("specimens")
+    fitted = f"fitted on {counted(len(specimens), 'specimen')}, " if isinstance(specimens, list) else ""
+    unseen = training.get("unseen")
+    if "interval" in training or (isinstance(unseen, dict) and unseen.get("failure")):
+        fewest = next(n for n in range(1, 1000) if math.ceil((n + 1) * INTERVAL_LEVEL) <= n)
+        return (f"no prediction interval: the model was {fitted}too few for a {100 * INTERVAL_LEVEL:g} % interval "
+                f"(at least {fewest}); fit it on a study of more specimens")
+    return "no prediction interval: the model file was written before intervals; refit it with roughsense fit"
 
 
 def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
@@ -234,6 +251,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
     import textwrap
 
     from ..model.predict_table import CONSTANT_COLUMNS
+    from ._common import terminal_table
 
     constant = [c for c in CONSTANT_COLUMNS if c in table.columns]
     heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
@@ -243,7 +261,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
     if from_study:
         heading += "; each trial's images: add --out PRED.csv"
     width = shutil.get_terminal_size().columns
-    body = table.drop(columns=dropped + surface).to_string(index=False, line_width=width)
+    body = terminal_table(table.drop(columns=dropped + surface))
     lines = [*textwrap.wrap(heading, width=width, subsequent_indent="  "), body] if heading else [body]
     if surface:
         key = "specimen" if "specimen" in table else None

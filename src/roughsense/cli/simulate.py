@@ -18,7 +18,7 @@ _SEED = number_option("--seed", quantity="seed")
 _HEIGHT = number_option("--ridge-height-mm", low=0.0, low_open=True, must="a positive number of mm")
 
 # The command's options, declared once here so that the command itself reads as what it does.
-Out = Annotated[Path, typer.Option("--out", help="Study folder to write (must be new, empty or an interrupted "
+Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write (must be new, empty or an interrupted "
                                                  "simulation, unless --force).")]
 Seed = Annotated[int, typer.Option("--seed", parser=_SEED,
                                    help="Master seed: the same seed gives byte-identical files.")]

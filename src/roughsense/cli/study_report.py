@@ -36,7 +36,8 @@ def register(app: typer.Typer) -> None:
                                  help="Study folder (study.toml, specimens.csv, manifest.csv, ratings.csv, images/), "
                                  "or builtin (the default): the paper's study simulated with --seed, generated on "
                                  "first use and cached (a folder named builtin: ./builtin)."),
-        out: Path = typer.Option(Path("report"), "--out", help="Report folder to write (index.html, CSV tables, PNG figures)."),
+        out: Path = typer.Option(Path("report"), "--out", "-o",
+                                 help="Report folder to write (index.html, CSV tables, PNG figures)."),
         seed: int = typer.Option(defaults.SEED, "--seed", parser=number_option("--seed", quantity="seed"),
                                  help="Seed of the built-in simulated study (and any random draw)."),
         max_components: int = typer.Option(defaults.MAX_COMPONENTS, "--max-components",

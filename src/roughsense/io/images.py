@@ -34,6 +34,12 @@ DEFAULT_MAX_PIXELS = defaults.MAX_PIXELS
 MAX_PIXELS_LIMIT = 2**30
 
 
+class PixelLimitError(InputError):
+    """An image above the pixel limit. The message says the size and the limit, never how to raise it: that is the
+    command's to say (a study's ``[sensor] max_pixels``, ``features --max-pixels``; ``predict`` has no way), so no
+    message advises an option the command at hand does not have."""
+
+
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_MODES = {0: "L", 2: "RGB", 6: "RGBA"}  # 8-bit colour types whose rows Pillow's "zip" decoder unpacks as they are
 _PILLOW_GUARD = threading.Lock()  # Pillow's bomb limit is a module global: one read at a time lifts it
@@ -91,9 +97,8 @@ def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
         with os.fdopen(open_regular(path, what="image file"), "rb") as handle:  # a FIFO or a device: refused, no wait
             size = os.fstat(handle.fileno()).st_size
             if size > max_file_bytes(max_pixels):
-                raise InputError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel limit "
-                                 f"of {max_pixels / 1e6:.3g} Mpx can take; raise [sensor] max_pixels if it is "
-                                 "genuine", path=path)
+                raise PixelLimitError(f"image file is {size / 1e6:.0f} MB, more than any image within the pixel "
+                                      f"limit of {max_pixels / 1e6:.3g} Mpx can take", path=path)
             data = np.fromfile(handle, dtype=np.uint8)
     except FileNotFoundError:
         raise InputError("image file not found", path=path) from None
@@ -182,12 +187,31 @@ def check_pixels(data: np.ndarray, max_pixels: int, path: str | os.PathLike[str]
     if width < 1 or height < 1:
         raise InputError(f"image header gives an empty size ({width} x {height} px)", path=path)
     if width * height > max_pixels:
-        raise InputError(
-            f"image is {width} x {height} px ({width * height / 1e6:.3g} Mpx), above the limit of "
-            f"{max_pixels / 1e6:.3g} Mpx; raise [sensor] max_pixels in study.toml (or --max-pixels) if it is genuine",
-            path=path,
-        )
+        raise PixelLimitError(f"image is {width} x {height} px ({width * height / 1e6:.3g} Mpx), above the limit of "
+                              f"{max_pixels / 1e6:.3g} Mpx", path=path)
+    _refuse_pages(data, path)
     return width, height
+
+
+def _refuse_pages(data: np.ndarray, path) -> None:
+    """A TIFF of several pages (a stack, a multi-exposure file) is refused: OpenCV would read its first page
+    without a word, and which page is the press is not the reader's to guess."""
+    from PIL import TiffImagePlugin
+
+    head = data[:8].tobytes()
+    if head[:4] not in (b"II*\x00", b"MM\x00*"):
+        return
+    try:
+        directory = TiffImagePlugin.ImageFileDirectory_v2(head)
+        stream = io.BytesIO(data.tobytes())
+        stream.seek(directory.next)
+        directory.load(stream)
+        more = directory.next != 0
+    except Exception:  # a damaged directory: the decoder's to report
+        return
+    if more:
+        raise InputError("a TIFF of several pages: save the press as a single-page image (which page is the press "
+                         "is not roughsense's to guess)", path=path)
 
 
 def png_size(data: np.ndarray) -> tuple[int, int] | None:

@@ -25,9 +25,9 @@ import jinja2
 import pandas as pd
 
 from .. import __version__, paper
-from .._util import atomic
+from .._util import atomic, interrupt
 from .._util.text import spreadsheet_safe
-from .._util.workers import process_pool
+from .._util.workers import process_pool, results_in_order, stop_pool
 from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
 from ..errors import PASS_FORCE, OutputExistsError
@@ -263,16 +263,22 @@ def _figure_renderer(analysis, jobs: list[FigureJob], style: FigureStyle, n_jobs
     stamp = source.figure_stamp(analysis.provenance)
     n_jobs = min(n_jobs, len(jobs))
     if n_jobs <= 1:
-        yield lambda: [_render_figure(job, stamp, style) for job in jobs]
+        yield lambda: [_checked(_render_figure, job, stamp, style) for job in jobs]
         return
-    with process_pool(n_jobs) as pool:
-        pending = [pool.submit(_render_figure, job, stamp, style) for job in jobs]
-        try:
-            yield lambda: [future.result() for future in pending]
-        except BaseException:  # the page failed: its figures are not waited for
-            for future in pending:
-                future.cancel()
-            raise
+    pool = process_pool(n_jobs)
+    pending = [pool.submit(_render_figure, job, stamp, style) for job in jobs]
+    try:
+        yield lambda: results_in_order(pending)  # a stop is honoured while they draw
+    except BaseException:  # the page failed or the run was stopped: its figures are neither waited for nor kept
+        stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _checked(render: Callable, *args):
+    """One figure drawn in this process, after a safe point: a stop waits for one figure at most."""
+    interrupt.check()
+    return render(*args)
 
 
 def _unseen_figure(results: dict[str, pd.DataFrame], perceived: pd.DataFrame, condition: str) -> FigureJob | None:

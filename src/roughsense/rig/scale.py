@@ -288,8 +288,8 @@ def open_force_input(
         if sep and tail.isdigit():
             port, baud = head, int(tail)
         if not port:
-            raise ConfigError(f"--force-input {short_repr(spec)}: give the port, e.g. serial:/dev/ttyUSB0:9600")
+            raise ConfigError(f"--forces-from {short_repr(spec)}: give the port, e.g. serial:/dev/ttyUSB0:9600")
         if baud <= 0:
-            raise ConfigError(f"--force-input {short_repr(spec)}: baud rate must be positive")
+            raise ConfigError(f"--forces-from {short_repr(spec)}: baud rate must be positive")
         return SerialScale(port, baud, timeout_s=timeout_s, stdin=stdin, prompt_out=prompt_out)
-    raise ConfigError(f"--force-input must be 'manual' or 'serial:PORT[:BAUD]', got {short_repr(spec)}")
+    raise ConfigError(f"--forces-from must be 'manual' or 'serial:PORT[:BAUD]', got {short_repr(spec)}")
