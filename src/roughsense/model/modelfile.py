@@ -31,7 +31,7 @@ from .._util.files import read_regular
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
-from . import peak_law_file, pls_file
+from . import gate_file, peak_law_file, pls_file
 from .applicability import SpectrumDomain
 from .peak_law import PeakPowerLaw
 from .peak_law_file import LoadedPeakLaw  # noqa: F401  re-exported for one release
@@ -204,6 +204,7 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     if not isinstance(training, dict):
         fail("\"training\" must be an object")
     _check_target_range(training.get("target_range", None), path)
+    gate_file.loaded_gate(training.get(gate_file.KEY), path)  # the contact-image gate's section, when there
     family = {peak_law_file.KIND: peak_law_file, pls_file.KIND: pls_file}.get(model.get("kind"))
     if family is None:
         fail(f"model kind {short_repr(model.get('kind'))} is not supported (expected {pls_file.KIND!r} or "

@@ -44,9 +44,12 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "surface_pi90_high": "the surface's 90 % prediction interval, upper bound",
     "surface_pi90_method": "how the surface's interval was built",
     "surface_extrapolates": "any press of the surface lies outside the model's domain",
+    "orientation_deg": "the grating lines' angle from the image columns, degrees (flagged beyond +-5)",
     "read_as": "press (read alone) or surface (read with the other presses of its surface)",
-    "extrapolates": "the trial lies outside what the model was trained on",
-    "outside": "how it lies outside ('' where it lies inside)",
+    "contact_p": "the contact-image gate's p-value (empty for a model file without a gate)",
+    "withheld": "no roughness given: not a contact image like the training presses, or unreadable (`outside` says why)",
+    "extrapolates": "the trial lies outside what the model was trained on (every withheld trial does)",
+    "outside": "how it lies outside, or why it is withheld ('' where it lies inside)",
 }
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
@@ -93,18 +96,24 @@ def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Score
     table["px_per_mm"] = float(scale if scale is not None else loaded.model_file_.features["spectrum"]["px_per_mm"])
     name = roughness_column(loaded)
     table[name] = np.asarray(scores.roughness, dtype=float)
-    if np.isfinite(scores.low).all():
+    withheld = np.zeros(len(trials), dtype=bool) if scores.withheld is None else scores.withheld
+    if np.isfinite(scores.low[~withheld]).all() and not withheld.all():
         table["pi90_low"], table["pi90_high"] = scores.low, scores.high
         table["pi90_method"] = scores.method
     if scores.surface_roughness is not None:
         table[f"surface_{name}"] = scores.surface_roughness
-        if np.isfinite(scores.surface_low).all():
+        if np.isfinite(scores.surface_low[~withheld]).all() and not withheld.all():
             table["surface_pi90_low"], table["surface_pi90_high"] = scores.surface_low, scores.surface_high
             table["surface_pi90_method"] = scores.surface_method
     if surfaces is not None:  # a surface is flagged when any of its presses is
         flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
         table["surface_extrapolates"] = flagged.astype(bool)
+    if scores.orientation_deg is not None:
+        table["orientation_deg"] = scores.orientation_deg
     table["read_as"] = "press" if surfaces is None else "surface"
+    if scores.withheld is not None:
+        table["contact_p"] = scores.contact_p
+        table["withheld"] = withheld
     table["extrapolates"] = scores.flagged
     table["outside"] = scores.reasons
     if "surface_extrapolates" in table:  # its surface's reason is in the other rows
@@ -114,7 +123,7 @@ def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Score
 
 def _three_digits(values) -> list[str]:
     """Values as text with 3 significant digits (written as is: a float column would print 1.23 as 1.2299...)."""
-    return [f"{float(f'{v:.3g}'):g}" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230, not 1.23e+03
+    return [f"{float(f'{v:.3g}'):g}" if np.isfinite(v) else "" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230
 
 
 def text_table(table: pd.DataFrame) -> pd.DataFrame:
@@ -123,6 +132,9 @@ def text_table(table: pd.DataFrame) -> pd.DataFrame:
     for column in table.columns:
         if column.startswith(("roughness_rel_", "surface_roughness_rel_")) or column in _INTERVAL_COLUMNS:
             text[column] = _three_digits(table[column])
+        elif column in ("orientation_deg", "contact_p"):
+            text[column] = [f"{v:.2g}" if column == "contact_p" and np.isfinite(v) else f"{v:.1f}" if np.isfinite(v)
+                            else "" for v in table[column]]
         elif column == "px_per_mm":  # as written in study.toml or on the command line
             text[column] = [repr(float(v)) for v in table[column]]
         elif table[column].dtype == bool:
