@@ -75,6 +75,12 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     >>> list(analysis.controls[["cv", "model"]].itertuples(index=False, name=None))
     [('loo', 'pls'), ('loso', 'pls'), ('loo', 'peak-law'), ('loso', 'peak-law')]
     """
+    from .._util.arguments import callable_argument, jobs_argument
+
+    if not hasattr(study, "manifest"):
+        raise ConfigError(f"study must be what read_study returned, got {type(study).__name__}")
+    jobs_argument(n_jobs)
+    callable_argument(progress)
     models = _check_models(models)
     _controls.check_permutations(n_permutations)  # before the features: the shufflings are held in memory at once
     perceived = _perceived_by_enough_people(study)

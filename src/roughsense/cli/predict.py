@@ -80,7 +80,14 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
 
     Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
     (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
-    (outside); with --study or --same-surface, each surface's mean roughness and interval too.
+    (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
+    orientation is written beside each (orientation_deg; flagged beyond +-5 degrees).
+
+    Every image first passes the model's contact-image gate (a conformal test at 1 % per press, fitted by
+    `roughsense fit`): a press unlike the training presses (a photograph, noise, a blank frame, the other pad, a
+    magnified or resampled image), or an unreadable image, is withheld: its row has no roughness and no interval,
+    withheld=true and the reason in `outside`; the others are scored as usual. Exit status: 0 all rows predicted,
+    3 some rows withheld (one line on stderr says how many), 2 an error (nothing written).
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
@@ -117,6 +124,29 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _echo_scale(run.scores.scale)
     _warn_few_presses(loaded.training, run.surfaces, run.n_trials)
     _warn_failed_controls(loaded.training)
+    _exit_if_withheld(run.scores)
+
+
+#: ``predict``'s exit status when some rows were withheld (the table is still written for the others).
+WITHHELD_EXIT = 3
+
+
+def _exit_if_withheld(scores) -> None:
+    """One line on stderr, and exit status :data:`WITHHELD_EXIT`, when the gate or an unreadable image withheld
+    rows; one line when the model file has no gate to apply."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..model.press_gate import NO_GATE_LINE
+
+    if not scores.gated:
+        warnings.warn(RoughsenseWarning(NO_GATE_LINE), stacklevel=2)
+    count = int(scores.withheld.sum()) if scores.withheld is not None else 0
+    if count:
+        typer.echo(f"roughsense: {count} of {counted(len(scores.withheld), 'row')} withheld (no roughness: not a "
+                   f"contact image like the model's training presses, or unreadable; the `outside` column says why); "
+                   f"exit status {WITHHELD_EXIT}", err=True)
+        raise typer.Exit(WITHHELD_EXIT)
 
 
 def _warn_plain_interval(loaded) -> None:

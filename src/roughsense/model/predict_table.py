@@ -33,6 +33,7 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "pad": "the model's pad",
     "condition": "the model's force condition (1N, 2N, 3N or combined)",
     "model": "the model family",
+    "passes_controls": "whether the model beat its controls for surfaces never seen (fit's check; '' if untested)",
     "roi": "where the line was read, when not the model's ROI",
     "px_per_mm": "the scale the images were read at",
     "roughness_rel_<reference>": "perceived roughness relative to the reference specimen",
@@ -53,7 +54,7 @@ PREDICTION_COLUMNS: dict[str, str] = {
 }
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as", "pi90_method")
+CONSTANT_COLUMNS = ("pad", "condition", "model", "passes_controls", "roi", "px_per_mm", "read_as", "pi90_method")
 
 _INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "surface_pi90_low", "surface_pi90_high")
 _QUIET = "this press lies inside; other presses of its surface do not (their rows say why)"
@@ -66,6 +67,14 @@ def roughness_column(loaded: FittedModel) -> str:
     reference = loaded.training.get("reference_specimen") if isinstance(loaded.training, dict) else None
     # a name no file may carry (an edited model file) still gives a column that says the value is relative
     return f"roughness_rel_{reference}" if is_safe_name(reference) else "roughness_rel_reference"
+
+
+def controls_verdict(loaded: FittedModel) -> str:
+    """'true' or 'false': whether the model beat its controls for surfaces never seen (fit's nested check); ''
+    where its file does not say (written before the check, or a design too small for it)."""
+    unseen = loaded.training.get("unseen") if isinstance(loaded.training, dict) else None
+    verdict = unseen.get("passes_controls") if isinstance(unseen, dict) else None
+    return "" if not isinstance(verdict, bool) else "true" if verdict else "false"
 
 
 def roi_text(roi) -> str:
@@ -90,6 +99,7 @@ def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Score
     table["pad"] = model_pad(loaded)
     table["condition"] = model_condition(loaded)
     table["model"] = loaded.family
+    table["passes_controls"] = controls_verdict(loaded)
     if override is not None and override.roi is not None:
         table["roi"] = roi_text(override.roi)
     scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
@@ -289,10 +299,58 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
     """
     from .predict import SensorOverride
 
+    model, images, study, specimens, images_by_force = _checked_arguments(model, images, study, specimens,
+                                                                          images_by_force, same_surface, n_jobs,
+                                                                          progress)
     _check_one_source(images, images_by_force, study, specimens)
-    return run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
-                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
-                          n_jobs=n_jobs, progress=progress).table
+    run = run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
+                         same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
+                         n_jobs=n_jobs, progress=progress)
+    _warn_as_the_cli(run)
+    return run.table
+
+
+def _checked_arguments(model, images, study, specimens, images_by_force, same_surface, n_jobs, progress):
+    """Each of :func:`predict`'s arguments refused in one line naming it (``_util/arguments.py``); a str where a
+    list is wanted is one path (one specimen). Returns model, images, study, specimens and images_by_force."""
+    from .._util.arguments import callable_argument, flag_argument, jobs_argument, names_argument, path_argument, paths_argument
+
+    if not hasattr(model, "model_file_"):
+        path_argument(model, "model", "a model file or what load_model returned")
+    if study is not None and not hasattr(study, "manifest"):
+        path_argument(study, "study", "a study folder or what read_study returned")
+    images = None if images is None else paths_argument(images, "images")
+    if images_by_force is not None:
+        if not isinstance(images_by_force, Mapping):
+            raise ConfigError(f"images_by_force must be a mapping like {{'1N': [...], '2N': [...]}}, got "
+                              f"{type(images_by_force).__name__}")
+        images_by_force = {str(k): paths_argument(v, f"images_by_force[{k!r}]") for k, v in images_by_force.items()}
+    specimens = None if specimens is None else names_argument(specimens, "specimens")
+    flag_argument(same_surface, "same_surface")
+    jobs_argument(n_jobs)
+    callable_argument(progress)
+    return model, images, study, specimens, images_by_force
+
+
+def _warn_as_the_cli(run: PredictionRun) -> None:
+    """What the CLI says beside its table, as warnings of roughsense's own class: a model that fails its controls,
+    a model file without a gate, rows withheld."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from .press_gate import NO_GATE_LINE
+
+    unseen = run.model.training.get("unseen") if isinstance(run.model.training, dict) else None
+    failure = unseen.get("failure") if isinstance(unseen, dict) else None
+    if isinstance(failure, str) and failure:
+        warnings.warn(RoughsenseWarning(failure), stacklevel=3)
+    if not run.scores.gated:
+        warnings.warn(RoughsenseWarning(NO_GATE_LINE), stacklevel=3)
+    count = int(run.scores.withheld.sum()) if run.scores.withheld is not None else 0
+    if count:
+        warnings.warn(RoughsenseWarning(f"{count} of {len(run.scores.withheld)} rows withheld (no roughness: not a "
+                                        "contact image like the model's training presses, or unreadable; the "
+                                        "`outside` column says why)"), stacklevel=3)
 
 
 def _check_one_source(images, images_by_force, study, specimens) -> None:
