@@ -78,10 +78,11 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
-                                   "pi90_high", "pi90_method", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "model", "passes_controls", "px_per_mm",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "orientation_deg",
+                                   "read_as", "contact_p", "withheld", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
-    assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
+    assert pred.read_text().splitlines()[1].split(",")[5] == "20.0"
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -109,8 +110,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
-                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "read_as", "extrapolates",
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "passes_controls",
+                                   "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
+                                   "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates",
                                    "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
@@ -130,9 +132,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
-                                     "surface_roughness_rel_R3", "surface_extrapolates", "read_as", "extrapolates",
-                                     "outside"]
+                                     "model", "passes_controls", "px_per_mm", "roughness_rel_R3", "pi90_low",
+                                     "pi90_high", "pi90_method", "surface_roughness_rel_R3", "surface_extrapolates",
+                                     "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates", "outside"]
     assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
     assert len(grouped) == len(meta) == 18
     expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
@@ -564,7 +566,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
                                 "--out", tmp_path / "b.csv")
     assert code == 0, err
     native, scaled = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
-    assert list(scaled.columns[4:7]) == ["roi", "px_per_mm", "roughness_rel_R3"]
+    assert list(scaled.columns[5:8]) == ["roi", "px_per_mm", "roughness_rel_R3"]
     assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0 and native["px_per_mm"][0] == 20.0
     loaded = load_model(model)
     line_at_40 = SpatialSpectrum(px_per_mm=40.0, roi=(0, 16, 1200, 32)).fit().transform([at_40])
@@ -613,7 +615,7 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     assert code == 0, err
     lines = stdout.splitlines()
     assert max(len(line) for line in lines) <= 80, stdout
-    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:2])
+    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:3])
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err
     table = pd.read_csv(tmp_path / "p.csv")  # every value the terminal shows, row by row

@@ -266,10 +266,13 @@ def _terminal_table(table, *, from_study: bool) -> str:
     from ..model.predict_table import CONSTANT_COLUMNS
 
     constant = [c for c in CONSTANT_COLUMNS if c in table.columns]
-    heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
+    firsts = {c: next((str(v) for v in table[c] if str(v)), "") for c in constant}  # a withheld row has none
+    heading = ", ".join(f"{c.replace('_', ' ')} {firsts[c]}" for c in constant if firsts[c])
     dropped = constant + ([c for c in table.columns if c.startswith("image")] if from_study else [])
     surface = [c for c in table.columns if c.startswith("surface_")]
     dropped.append("outside")  # too long for a column: said below the table, once per distinct reason
+    # the gate's and the orientation's columns are in --out's CSV; a withheld or turned row's reason is said below
+    dropped.extend(c for c in ("orientation_deg", "contact_p", "withheld") if c in table.columns)
     if from_study:
         heading += "; each trial's images: add --out PRED.csv"
     width = shutil.get_terminal_size().columns

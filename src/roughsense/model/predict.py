@@ -407,12 +407,26 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
             "(fit one with --condition 1N, 2N or 3N)"
         )
+    from .contact_gate import orientation_reason
+    from .gate_file import model_gate
+
     spectrum = model_spectrum(loaded, override=override)
+    gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
 
     def score_frame(frame: np.ndarray) -> tuple[float, str]:
-        [(row, line)] = list(spectrum.iter_transform_lines([frame]))
+        [reading] = list(spectrum.iter_readings([frame], ridge_period_mm=ridge))
+        if isinstance(reading, InputError):
+            raise reading
+        row, line, described = reading
+        if gate is not None:  # a frame the gate withholds gets no number, as predict's row gets none
+            values = np.array([described[name] for name in gate.names])
+            p = float(gate.p_values(values[None, :])[0])
+            if p <= gate.alpha:
+                return math.nan, f"withheld: {gate.reason(values, p)}"
         X = row[None, :]
-        return float(loaded.predict(X)[0]), str(domain_reasons(loaded, spectrum, [line], X)[0])
+        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X)[0]),
+                               orientation_reason(described["orientation_deg"])) if r]
+        return float(loaded.predict(X)[0]), "; ".join(reasons)
 
     return score_frame
 

@@ -3,7 +3,8 @@
 Each image is read once (``SpatialSpectrum.iter_readings``): its spectrum, its line and its descriptors, or the error
 that refused it. A trial is withheld when one of its images cannot be read or the gate (``model/contact_gate.py``)
 finds it unlike the training presses; the others go on, scored exactly as if the withheld ones had never been given,
-so the gate never changes a prediction it lets through. Each trial's orientation (its images' mean) is kept for the
+so the gate never changes a prediction it lets through. A batch none of whose images can be read is refused with the
+first one's error (there is no table to write for the others). Each trial's orientation (its images' mean) is kept for the
 table and flagged beyond the tolerance.
 """
 from __future__ import annotations
@@ -51,6 +52,9 @@ def read_trials(loaded: FittedModel, spectrum, images, *, progress=None) -> Tria
     if progress is not None:
         stream = progress(stream, total=len(images), description="spectra")
     readings = list(stream)
+    errors = [r for r in readings if isinstance(r, InputError)]
+    if errors and len(errors) == len(readings):  # no other row to write: the one error, as before
+        raise errors[0]
     n_trials = len(readings) // k
     reasons = [""] * n_trials
     for i, reading in enumerate(readings):

@@ -8,6 +8,7 @@ is of a fresh frame.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -118,8 +119,12 @@ def render_live(
             return table
         rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
         flag = f"  [bold yellow]extrapolates[/] ({escape(why or 'outside the training range')})" if flagged else ""
-        table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]{flag}")
-        table.add_row("last 2 s", f"{min(recent):.3f} .. {max(recent):.3f}")
+        if math.isnan(recent[-1]):  # withheld by the model's gate: no number, only the reason
+            table.add_row(label, f"[bold yellow]withheld[/] ({escape(why or 'not a contact image')})")
+        else:
+            table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]{flag}")
+        shown = [v for v in recent if not math.isnan(v)]
+        table.add_row("last 2 s", f"{min(shown):.3f} .. {max(shown):.3f}" if shown else "every frame withheld")
         table.add_row("updates", f"{count} ({rate:.1f}/s)")
         return table
 
