@@ -41,6 +41,10 @@ LOG_DESCRIPTORS = ("peak_over_noise", "ridges_over_noise", "ridge_period_mm", "c
 #: The smallest scale (standardised units) a descriptor is divided by: a descriptor constant over training does
 #: not make every press infinitely far.
 MIN_SCALE = 1e-3
+#: A press with a descriptor beyond its training range by more than this many robust standard deviations (the
+#: standardisation's units) is withheld whatever its p-value: a gross outlier is caught even where the training
+#: presses are too few for the conformal test to reach alpha (fewer than 1 / alpha - 1: 99 at 1 %).
+RANGE_MARGIN = 4.0
 #: Covariance ridge (standardised units) before inverting: the detector stays defined for nearly collinear inputs.
 RIDGE = 1e-3
 
@@ -72,6 +76,20 @@ class ContactGate:
         beaten = self.calibration[None, :] >= scores[:, self.folds]
         p = (1.0 + beaten.sum(axis=1)) / (self.calibration.size + 1.0)
         return np.where(np.isfinite(z).all(axis=1), p, 1.0 / (self.calibration.size + 1.0))
+
+    def beyond_range(self, values: np.ndarray) -> np.ndarray:
+        """Per row: a descriptor lies :data:`RANGE_MARGIN` beyond its training range (or could not be measured)."""
+        z = self.standardised(np.atleast_2d(values))
+        z_low = self.standardised(self.low[None, :])
+        z_high = self.standardised(self.high[None, :])
+        with np.errstate(invalid="ignore"):
+            far = (z - z_high > RANGE_MARGIN) | (z_low - z > RANGE_MARGIN)
+        return far.any(axis=1) | ~np.isfinite(z).all(axis=1)
+
+    @property
+    def can_reach_alpha(self) -> bool:
+        """Whether the conformal test can withhold at all: its smallest p is 1 / (n + 1)."""
+        return 1.0 / (self.calibration.size + 1.0) <= self.alpha
 
     def reason(self, values: np.ndarray, p: float) -> str:
         """Why a withheld press is withheld, naming what is unlike the training presses."""
@@ -171,7 +189,8 @@ def withheld_reason(gate: ContactGate, values: np.ndarray, p: float) -> str:
     z_high = gate.standardised(gate.high[None, :])[0]
     outside = np.where(np.isfinite(z), np.maximum(z - z_high, z_low - z), np.inf)
     order = [i for i in np.argsort(-outside) if outside[i] > 0][:2]
-    head = f"not a contact image like the training presses (p = {p:.2g} <= {gate.alpha:g})"
+    test = f"p = {p:.2g} <= {gate.alpha:g}" if p <= gate.alpha else "far outside their range"
+    head = f"not a contact image like the training presses ({test})"
     if not order:
         return f"{head}: every measure lies within its training range, but not together"
     return f"{head}: " + "; ".join(_phrase(gate.names[i], float(values[i]), float(gate.low[i]),

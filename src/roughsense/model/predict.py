@@ -310,10 +310,8 @@ def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
     orientation beside each, and a kept trial turned beyond the tolerance flagged."""
     n = read.withheld.size
     keep = np.flatnonzero(~read.withheld)
-    if scores is None:
-        nan = np.full(n, math.nan)
-        surface = None if surfaces is None else nan
-        scores = Scores(nan, nan, nan, [], surface, surface, surface, method=None, surface_method=None)
+    if scores is None:  # every trial withheld: nothing was scored
+        scores = Scores(np.empty(0), np.empty(0), np.empty(0), [], *(3 * [None if surfaces is None else np.empty(0)]))
     reasons = _spread(scores.reasons, keep, n, "")
     for i in range(n):
         extra = read.withheld_reasons[i] or read.orientation_reasons[i]

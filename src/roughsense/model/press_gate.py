@@ -92,9 +92,11 @@ def _gate(gate, readings, reasons: list[str], k: int) -> np.ndarray:
     trial_p = np.minimum(1.0, k * np.nanmin(press_p.reshape(-1, k), axis=1)) if readable.all() else np.array(
         [min(1.0, k * np.nanmin(press_p[t * k:(t + 1) * k])) if readable[t * k:(t + 1) * k].all() else math.nan
          for t in range(n_trials)])
+    far = np.zeros(len(readings), dtype=bool)
+    far[readable] = gate.beyond_range(values[readable])
     for t in range(n_trials):
-        if not reasons[t] and trial_p[t] <= gate.alpha:
-            worst = t * k + int(np.nanargmin(press_p[t * k:(t + 1) * k]))
+        if not reasons[t] and (trial_p[t] <= gate.alpha or far[t * k:(t + 1) * k].any()):
+            worst = t * k + int(np.nanargmin(press_p[t * k:(t + 1) * k] - far[t * k:(t + 1) * k]))
             reasons[t] = gate.reason(values[worst], float(trial_p[t]))
     return trial_p
 
