@@ -79,5 +79,5 @@ def test_one_specimen_is_not_enough_to_calibrate_over_specimens():
 
 
 def test_orientation_within_tolerance_is_quiet():
-    assert orientation_reason(4.9) == "" and orientation_reason(math.nan) == ""
+    assert orientation_reason(5.9) == "" and orientation_reason(math.nan) == ""
     assert orientation_reason(-12.04).startswith("rotated: the grating's lines lean -12.0 degrees")

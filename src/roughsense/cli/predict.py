@@ -81,7 +81,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
     (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
     (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
-    orientation is written beside each (orientation_deg; flagged beyond +-5 degrees).
+    orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
 
     Every image first passes the model's contact-image gate (a conformal test at 1 % per press, fitted by
     `roughsense fit`): a press unlike the training presses (a photograph, noise, a blank frame, the other pad, a

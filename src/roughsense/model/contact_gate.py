@@ -31,13 +31,13 @@ import numpy as np
 
 #: The gate's false-alarm rate per press (a trial's, for a combined-force model).
 ALPHA = 0.01
-#: A grating turned by 5 degrees reads its period 1/cos 5 = 0.4 % long along the line, far inside the 3 % a press
-#: may move; the twin's straight presses read 0 +- 1-4 degrees (its phase estimate, at the coarsest gratings), so
-#: 5 flags what is turned and seldom what is straight.
-ORIENTATION_TOLERANCE_DEG = 5.0
+#: A grating turned by 6 degrees reads its period 1/cos 6 = 0.55 % long along the line, far inside the 3 % a press
+#: may move; the twin's straight presses read 0 +- 1.2 degrees (sd; at most 4.7 of 140 on the smooth pad), so
+#: 6 flags what is turned and seldom what is straight.
+ORIENTATION_TOLERANCE_DEG = 6.0
 #: Descriptors compared on a log scale (the positive ones: ratios, levels); the rest as they are.
-LOG_DESCRIPTORS = ("peak_over_noise", "ridges_over_noise", "ridge_period_mm", "contrast_dn", "mean_dn", "noise_dn",
-                   "noise_whiteness")
+LOG_DESCRIPTORS = ("peak_over_noise", "ridges_over_noise", "ridges_over_band", "ridge_period_mm", "contrast_dn",
+                   "mean_dn", "noise_dn", "noise_whiteness")
 #: The smallest scale (standardised units) a descriptor is divided by: a descriptor constant over training does
 #: not make every press infinitely far.
 MIN_SCALE = 1e-3
@@ -167,14 +167,20 @@ def _phrase(name: str, value: float, low: float, high: float, ridged: bool) -> s
         if not ridged and value > high:
             return f"another pad: ridges at 1 mm ({_num(value)}x above the noise, {span}x)"
         return f"ridge peak {_num(value)}x its noise ({span}x)"
-    words = {"ridge_period_mm": ("ridges {v} mm apart ({s} mm): magnified, or another pad or scale", ""),
-             "contrast_dn": ("contrast {v} DN ({s})", ""),
-             "mean_dn": ("brightness {v} DN ({s})", ""),
-             "noise_dn": ("pixel noise {v} DN ({s}): magnified, resampled or another camera", ""),
-             "noise_whiteness": ("smoothed pixel noise: whiteness {v} ({s}, 3 for a raw camera frame): "
-                                 "magnified or resampled", ""),
-             "coherence": ("no lines along one direction: coherence {v} ({s})", "")}
-    return words[name][0].format(v=_num(value), s=span)
+    if name == "ridges_over_band":
+        if not ridged and value > high:
+            return f"another pad: a peak at 1 mm {_num(value)}x the band's own ({span}x)"
+        if ridged and value < low:
+            return f"another pad: the 1 mm ridges only {_num(value)}x the band's peak ({span}x)"
+        return f"1 mm peak {_num(value)}x the band's ({span}x)"
+    words = {"ridge_period_mm": "ridges {v} mm apart ({s} mm): magnified, or another pad or scale",
+             "contrast_dn": "contrast {v} DN ({s})",
+             "mean_dn": "brightness {v} DN ({s})",
+             "noise_dn": "pixel noise {v} DN ({s}): magnified, resampled or another camera",
+             "noise_whiteness": "smoothed pixel noise: whiteness {v} ({s}, 3 for a raw camera frame): magnified or "
+                                "resampled",
+             "coherence": "no lines along one direction: coherence {v} ({s})"}
+    return words[name].format(v=_num(value), s=span)
 
 
 def _num(value: float) -> str:

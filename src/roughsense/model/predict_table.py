@@ -45,7 +45,7 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "surface_pi90_high": "the surface's 90 % prediction interval, upper bound",
     "surface_pi90_method": "how the surface's interval was built",
     "surface_extrapolates": "any press of the surface lies outside the model's domain",
-    "orientation_deg": "the grating lines' angle from the image columns, degrees (flagged beyond +-5)",
+    "orientation_deg": "the grating lines' angle from the image columns, degrees (flagged beyond +-6)",
     "read_as": "press (read alone) or surface (read with the other presses of its surface)",
     "contact_p": "the contact-image gate's p-value (empty for a model file without a gate)",
     "withheld": "no roughness given: not a contact image like the training presses, or unreadable (`outside` says why)",

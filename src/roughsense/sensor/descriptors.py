@@ -6,14 +6,18 @@ gray line and a thin strip of :data:`STRIP_ROWS` rows ending at it (the PNG is d
 strip costs no decoding). Each one answers a way a real rig goes wrong:
 
 ``peak_over_noise``
-    The band's strongest peak over the line spectrum's noise floor (the median amplitude from f_min to Nyquist: a
+    The band's strongest peak (below the ridge window) over the line spectrum's noise floor (the median amplitude from f_min to Nyquist: a
     grating's harmonics are a few bins, so the median is the noise). A grating stands far above it; a blank frame,
     noise or a photograph does not. "No grating".
 ``ridges_over_noise``
-    The strongest peak around the fingerprint pad's ridge frequency (1 / ridge period, x0.8-1.25) over the same
-    floor: present on a fingerprint pad, absent on a smooth one. "Another pad".
+    The strongest peak at the fingerprint pad's ridge frequency (1 / ridge period, +-5 %: the twin's mounts vary
+    its scale by 2 %) over the same floor: present on a fingerprint pad, absent on a smooth one. "Another pad".
+``ridges_over_band``
+    That peak over the band's own: a smooth pad's gratings may put a harmonic at 1 mm^-1, but far below their
+    fundamental; a fingerprint pad's ridges rival or exceed it.
 ``ridge_period_mm`` (a ridged pad only)
-    Where that peak is: a press magnified by 10 % puts 1 mm ridges at 1.1 mm.
+    Where the strongest peak around the ridge frequency (x0.8-1.25) is: a press magnified by 10 % puts 1 mm ridges at
+    1.1 mm.
 ``contrast_dn``
     The line's 5-95 % gray range in 8-bit levels (DN): the contact band's contrast; a bare background or a blank frame
     has none, a photograph has another.
@@ -31,7 +35,9 @@ strip costs no decoding). Each one answers a way a real rig goes wrong:
     strip's structure runs in one direction (a grating's lines) rather than every way (a photograph, noise).
 
 ``orientation_deg`` is the angle of the grating's lines from the image columns (0 when they run straight across the
-line), from how the grating's phase moves down the strip (:func:`line_shift_angle`). It is not a gate
+line), from how the grating's phase moves down the strip (:func:`line_shift_angle`); on a ridged pad, from the
+ridges' phase where it moves more cleanly (the ridges run along the grating's lines, and the grating's own peak is
+mixed there with the ridges' sidebands). It is not a gate
 input but a flag with its own tolerance (``model/contact_gate.py``), said beside each prediction.
 """
 from __future__ import annotations
@@ -54,13 +60,14 @@ NOISE_ROWS = 16
 STRIP_COLUMNS = 640
 #: The fingerprint pad's ridge window, as factors of its ridge frequency; a pad without ridges is looked at 1 mm.
 RIDGE_WINDOW = (0.8, 1.25)
+RIDGE_PEAK = (0.95, 1.05)
 DEFAULT_RIDGE_PERIOD_MM = 1.0
 #: 8-bit gray levels: the unit of contrast, brightness and noise the reasons speak in.
 DN = 255.0
 
-#: Every descriptor a gate may use, in order, and the unit its reasons print.
-DESCRIPTORS = ("peak_over_noise", "ridges_over_noise", "ridge_period_mm", "contrast_dn", "mean_dn", "noise_dn",
-               "noise_whiteness", "coherence")
+#: Every descriptor a gate may use, in order.
+DESCRIPTORS = ("peak_over_noise", "ridges_over_noise", "ridges_over_band", "ridge_period_mm", "contrast_dn",
+               "mean_dn", "noise_dn", "noise_whiteness", "coherence")
 
 
 def descriptor_names(ridged: bool) -> tuple[str, ...]:
@@ -113,39 +120,46 @@ def press_descriptors(strips: tuple[np.ndarray, np.ndarray], line: np.ndarray, p
     freq, amplitude = line_spectrum(line, px_per_mm)
     floor = float(np.median(amplitude[freq >= f_min])) or 1e-12
     ridge_low, ridge_high = RIDGE_WINDOW[0] / ridge_mm, RIDGE_WINDOW[1] / ridge_mm
-    band_high = min(f_max, ridge_low) if ridge_period_mm else f_max
+    band_high = min(f_max, ridge_low)  # the ridges' window is theirs, on either pad: "another pad" reads it
     band_peak, band_freq = _peak(freq, amplitude, f_min, band_high)
-    ridge_peak, ridge_freq = _peak(freq, amplitude, ridge_low, ridge_high)
+    _, ridge_freq = _peak(freq, amplitude, ridge_low, ridge_high)
+    ridge_peak, _ = _peak(freq, amplitude, RIDGE_PEAK[0] / ridge_mm, RIDGE_PEAK[1] / ridge_mm)
     n = line.size
     ordered = np.partition(line, (n // 20, n - 1 - n // 20))
     values = {"peak_over_noise": band_peak / floor, "ridges_over_noise": ridge_peak / floor,
+              "ridges_over_band": ridge_peak / band_peak if band_peak > 0 else math.nan,
               "ridge_period_mm": 1.0 / ridge_freq if ridge_freq > 0 else math.nan,
               "contrast_dn": float(ordered[n - 1 - n // 20] - ordered[n // 20]) * DN,
               "mean_dn": float(line.mean()) * DN}
     spaced, centre = strips
     values.update(_noise(centre))
     values["coherence"], _ = structure_tensor(centre)
-    values["orientation_deg"] = line_shift_angle(spaced, band_freq / px_per_mm, ORIENTATION_STRIDE)
+    candidates = [line_shift_angle(spaced, band_freq / px_per_mm, ORIENTATION_STRIDE)]
+    if ridge_period_mm:  # the ridges run along the grating's lines: the clearer phase of the two is read
+        candidates.append(line_shift_angle(spaced, ridge_freq / px_per_mm, ORIENTATION_STRIDE))
+    values["orientation_deg"] = min(candidates, key=lambda c: c[1] if math.isfinite(c[1]) else math.inf)[0]
     return values
 
 
-def line_shift_angle(rows: np.ndarray, cycles_per_px: float, stride: int = 1) -> float:
+def line_shift_angle(rows: np.ndarray, cycles_per_px: float, stride: int = 1) -> tuple[float, float]:
     """The grating lines' angle from the image columns (degrees, positive where they lean right going down): how far
     the grating's phase at its own frequency moves down ``rows`` (``stride`` px apart), one projection per row.
 
     A row shifted by s px multiplies that projection by exp(-2 pi i f s), so the least-squares slope of the unwrapped
     phase over the rows gives s per row = tan(angle), with the whole line's width behind each row (a structure
-    tensor's angle over the same strip is noisier by far: every pixel's noise enters its gradients).
+    tensor's angle over the same strip is noisier by far: every pixel's noise enters its gradients). Returns the
+    angle and the phase's RMS residual about its line (radians): how clearly this frequency's phase moved.
     """
     if rows.shape[0] < 3 or not cycles_per_px > 0:
-        return math.nan
+        return math.nan, math.nan
     x = 2 * np.pi * cycles_per_px * np.arange(rows.shape[1])
     window = _hann(rows.shape[1])
     phase = np.unwrap(np.arctan2(-(rows @ (window * np.sin(x))), rows @ (window * np.cos(x))))
     depth = np.arange(phase.size) * float(stride)
     depth -= depth.mean()
     slope = float(depth @ phase) / float(depth @ depth)
-    return math.degrees(math.atan(-slope / (2 * np.pi * cycles_per_px)))
+    residual = phase - phase.mean() - slope * depth
+    return math.degrees(math.atan(-slope / (2 * np.pi * cycles_per_px))), float(np.sqrt(np.mean(residual ** 2)))
 
 
 def _noise(strip: np.ndarray) -> dict[str, float]:
