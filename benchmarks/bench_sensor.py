@@ -7,7 +7,9 @@ decode like camera frames, not like flat test patterns), then reports medians ov
 * ``SpatialSpectrum(n_jobs=1)`` and ``(n_jobs=2)`` over the same paths (decode + crop + spectrum);
 * the work after decoding alone (crop, gray, line, DFT, normalise) on frames already in memory;
 * peak traced memory of the streaming transform for N/4 and N images (it should not grow);
-* the band test and the scale check predict runs on each image's line, against features' cost per image.
+* the band test and the scale check predict runs on each image's line, against features' cost per image;
+* predict with and without the contact-image gate and the orientation (issue 43: at most +10 % per image), on these
+  frames and on 1920 x 320 gray crops of them (the twin's frame).
 
 The machine is shared, so besides wall-clock rates it prints CPU seconds per image (all threads) and
 the rate that CPU cost allows when every core is free (cores / CPU per image): a projection, labelled so.
@@ -102,6 +104,54 @@ def checks_against_features(frames, paths) -> None:
           f"of features ({features_s * 1e3:.2f} ms/image: read, decode to the line, spectrum)")
 
 
+def gate_against_predict(frames, folder: Path, repeats: int) -> None:
+    """What the contact-image gate and the orientation add to ``predict`` per image (issue 43's goal: at most 10 %):
+    one peak-law model file saved twice, with and without its gate, predicting the same files, interleaved; and, in
+    thread CPU, the per-image reading with the descriptors against the reading without them."""
+    import warnings
+
+    import roughsense as rs
+    from roughsense.model.contact_gate import fit_gate
+    from roughsense.model.gate_file import KEY, gate_section
+    from roughsense.model.modelfile import save_model
+    from roughsense.sensor.descriptors import descriptor_names
+
+    for label, crop in (("1920x1080 RGB", lambda f: f), ("1920x320 gray (the twin's)", lambda f: f[380:700, :, 1])):
+        paths = []
+        for i, frame in enumerate(frames):
+            paths.append(folder / f"gate_{i:03d}_{crop(frames[0]).ndim}.png")
+            cv2.imwrite(str(paths[-1]), crop(frame))
+        spectrum = SpatialSpectrum().fit()
+        readings = list(spectrum.iter_readings(paths))
+        X = np.vstack([r[0] for r in readings])
+        periods = 1.0 + np.arange(len(paths)) % 5
+        law = rs.PeakPowerLaw(freq_per_mm=spectrum.freq_per_mm_).fit(X, periods / 3)
+        names = descriptor_names(False)
+        values = np.array([[r[2][n] for n in names] for r in readings])
+        gate = fit_gate(values, names, np.arange(len(paths)) % 5, seed=0)
+        features = {"spectrum": spectrum.feature_definition(), "conditions": ["2N"]}
+        models = {}
+        for gated in (False, True):
+            training = {"reference_specimen": "R3", **({KEY: gate_section(gate)} if gated else {})}
+            models[gated] = save_model(folder / f"law_{gated}_{label[:4]}.json", law, feature_definition=features,
+                                       training=training, force=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rs.predict(models[True], paths[:2])
+            ratios = []
+            for _ in range(repeats):
+                without = timed(lambda: rs.predict(models[False], paths))
+                ratios.append(timed(lambda: rs.predict(models[True], paths)) / without)
+        plan = _Plan.build(PX_PER_MM, "center", 1, 0.1, 1.0, 45, "hann")
+        old = statistics.median(thread_timed(lambda p=p: plan.spectrum_and_line(p)) for p in paths for _ in range(3))
+        new = statistics.median(thread_timed(lambda p=p: plan.reading(p)) for p in paths for _ in range(3))
+        print(f"  predict with / without the gate and orientation, {label}: median {statistics.median(ratios):.3f} "
+              f"(per repeat {min(ratios):.2f}-{max(ratios):.2f}; {len(paths)} images, "
+              f"{statistics.median([timed(lambda: rs.predict(models[False], paths)) for _ in range(3)]) / len(paths) * 1e3:.1f}"
+              f" ms/image without); reading with / without descriptors, thread CPU: {new / old:.3f} "
+              f"({old * 1e3:.2f} -> {new * 1e3:.2f} ms/image)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--images", type=int, default=60)
@@ -157,6 +207,7 @@ def main() -> None:
             print(f"  work after decoding, roi={roi:6s}: {work_s * 1e3:7.3f} ms/image = {100 * work_s / decode_s:5.1f} % "
                   f"of decoding ({decode_s * 1e3:.2f} ms/image)")
         checks_against_features(frames, paths[:20])
+        gate_against_predict([f[:, :, ::-1] for f in frames], Path(tmp), args.repeats)
         del frames
 
         quarter = paths[: len(paths) // 4]
