@@ -6,9 +6,9 @@ gray line and a thin strip of :data:`STRIP_ROWS` rows ending at it (the PNG is d
 strip costs no decoding). Each one answers a way a real rig goes wrong:
 
 ``peak_over_noise``
-    The band's strongest peak (below the ridge window) over the line spectrum's noise floor (the median amplitude from f_min to Nyquist: a
-    grating's harmonics are a few bins, so the median is the noise). A grating stands far above it; a blank frame,
-    noise or a photograph does not. "No grating".
+    The band's strongest peak (below the ridge window) over the line spectrum's noise floor (the median amplitude from
+    f_min to Nyquist: a grating's harmonics are a few bins, so the median is the noise). A grating stands far above
+    it; a blank frame, noise or a photograph does not. "No grating".
 ``ridges_over_noise``
     The strongest peak at the fingerprint pad's ridge frequency (1 / ridge period, +-5 %: the twin's mounts vary
     its scale by 2 %) over the same floor: present on a fingerprint pad, absent on a smooth one. "Another pad".
