@@ -83,11 +83,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
     orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
 
-    Every image first passes the model's contact-image gate (a conformal test at 1 % per press, fitted by
-    `roughsense fit`): a press unlike the training presses (a photograph, noise, a blank frame, the other pad, a
-    magnified or resampled image), or an unreadable image, is withheld: its row has no roughness and no interval,
-    withheld=true and the reason in `outside`; the others are scored as usual. Exit status: 0 all rows predicted,
-    3 some rows withheld (one line on stderr says how many), 2 an error (nothing written).
+    Each image passes the model's contact-image gate (a conformal test at 1 % per press, fitted by `fit`): a press
+    unlike the training presses (a photograph, noise, the other pad, a magnified image), or an unreadable one, is
+    withheld (no roughness, withheld=true, the reason in `outside`). Exit status: 0; 3 some rows withheld; 2 an error.
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model

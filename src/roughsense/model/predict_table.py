@@ -253,7 +253,8 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
 
     Each row holds the trial's roughness relative to the model's reference specimen, its 90 % interval where the
     model file keeps one, and whether (``extrapolates``) and how (``outside``) it lies outside what the model was
-    trained on (:data:`PREDICTION_COLUMNS`); :func:`csv_text` writes it as the CLI does.
+    trained on (:data:`PREDICTION_COLUMNS`; a ``withheld`` row has no roughness); :func:`csv_text` writes it as the CLI
+    does. What the CLI says beside its table comes as a RoughsenseWarning.
 
     Parameters
     ----------
@@ -299,15 +300,12 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
     """
     from .predict import SensorOverride
 
-    model, images, study, specimens, images_by_force = _checked_arguments(model, images, study, specimens,
-                                                                          images_by_force, same_surface, n_jobs,
-                                                                          progress)
-    _check_one_source(images, images_by_force, study, specimens)
+    model, images, study, specimens, images_by_force = _checked_arguments(
+        model, images, study, specimens, images_by_force, same_surface, n_jobs, progress)
     run = run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
                          n_jobs=n_jobs, progress=progress)
-    _warn_as_the_cli(run)
-    return run.table
+    return _warn_as_the_cli(run).table
 
 
 def _checked_arguments(model, images, study, specimens, images_by_force, same_surface, n_jobs, progress):
@@ -329,10 +327,11 @@ def _checked_arguments(model, images, study, specimens, images_by_force, same_su
     flag_argument(same_surface, "same_surface")
     jobs_argument(n_jobs)
     callable_argument(progress)
+    _check_one_source(images, images_by_force, study, specimens)
     return model, images, study, specimens, images_by_force
 
 
-def _warn_as_the_cli(run: PredictionRun) -> None:
+def _warn_as_the_cli(run: PredictionRun) -> PredictionRun:
     """What the CLI says beside its table, as warnings of roughsense's own class: a model that fails its controls,
     a model file without a gate, rows withheld."""
     import warnings
@@ -351,6 +350,7 @@ def _warn_as_the_cli(run: PredictionRun) -> None:
         warnings.warn(RoughsenseWarning(f"{count} of {len(run.scores.withheld)} rows withheld (no roughness: not a "
                                         "contact image like the model's training presses, or unreadable; the "
                                         "`outside` column says why)"), stacklevel=3)
+    return run
 
 
 def _check_one_source(images, images_by_force, study, specimens) -> None:
