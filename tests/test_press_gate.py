@@ -111,3 +111,20 @@ def test_orientation_is_written_beside_each_prediction(gated_model, simulated_ti
         table = rs.predict(gated_model, [str(p) for p in _presses(simulated_tiny)])
     assert (table["orientation_deg"].abs() < 6).all() and not table["withheld"].any()
     assert ((table["contact_p"] > 0) & (table["contact_p"] <= 1)).all()
+
+
+def test_the_figures_docs_quote_are_the_codes():
+    """docs/sensor.md and README quote alpha, the orientation tolerance, the exit status and the presses a 1 % test
+    needs: each is the code's."""
+    from pathlib import Path
+
+    from roughsense.cli.predict import WITHHELD_EXIT
+    from roughsense.model.contact_gate import ALPHA, ORIENTATION_TOLERANCE_DEG
+
+    repo = Path(__file__).resolve().parent.parent
+    docs = " ".join((repo / "docs" / "sensor.md").read_text(encoding="utf-8").split())
+    readme = " ".join((repo / "README.md").read_text(encoding="utf-8").split())
+    assert f"alpha ({ALPHA:.0%}".replace("%", " %") in docs
+    assert f"+-{ORIENTATION_TOLERANCE_DEG:g} degrees" in docs
+    assert f"fewer than {round(1 / ALPHA) - 1} training presses" in docs
+    assert f"exits with status {WITHHELD_EXIT}" in docs and f"exits with status {WITHHELD_EXIT} when it withheld" in readme

@@ -184,7 +184,7 @@ def _phrase(name: str, value: float, low: float, high: float, ridged: bool) -> s
 
 
 def _num(value: float) -> str:
-    return f"{value:.2g}" if abs(value) < 10 else f"{value:.0f}"
+    return f"{value:.3g}"
 
 
 def withheld_reason(gate: ContactGate, values: np.ndarray, p: float) -> str:
