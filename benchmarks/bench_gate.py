@@ -160,9 +160,9 @@ def main() -> None:
         for name, frames in hostile_set(shape, own, other, rng).items():
             withheld, either, table = caught(model, frames)
             total, total_caught = total + len(frames), total_caught + either
-            missed = table.loc[~(table["withheld"] | table["extrapolates"]), "image"].tolist()
+            missed = [int(i) for i in np.flatnonzero(~(table["withheld"] | table["extrapolates"]).to_numpy())]
             print(f"  {name:18s} {either:3d}/{len(frames):<3d} withheld or flagged ({withheld} withheld)"
-                  + (f"  MISSED rows {missed}" if missed else ""))
+                  + (f"  missed: frames {missed}" if missed else ""))
         print(f"  hostile total: {total_caught}/{total} ({total_caught / total:.0%})")
         in_distribution(model, pad, args.seeds, folder)
 
