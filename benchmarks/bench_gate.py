@@ -125,6 +125,25 @@ def caught(model: Path, frames: list[np.ndarray]):
     return int(table["withheld"].sum()), int((table["withheld"] | table["extrapolates"]).sum()), table
 
 
+def rotation_goal(model: Path, own: list[Path]) -> None:
+    """Issue 43: a press turned 0-20 degrees moves at most 3 % or is withheld or flagged."""
+    picks = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in own[::10]]
+    angles = (0.5, 1, 2, 3, 5, 8, 12, 16, 20)
+    frames = list(picks) + [_warp(p, a, 1.0, cv2.INTER_LINEAR) for a in angles for p in picks]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = rs.predict(str(model), frames)
+    column = next(c for c in table.columns if c.startswith("roughness_rel_"))
+    base = np.tile(table[column].to_numpy()[:len(picks)], len(angles))
+    turned = table.iloc[len(picks):]
+    moved = np.abs(turned[column].to_numpy() / base - 1)
+    caught = (turned["withheld"] | turned["extrapolates"]).to_numpy()
+    bad = int((~caught & ~(moved <= 0.03)).sum())
+    print(f"  rotated 0.5-20 deg: {len(turned)} presses, {int(caught.sum())} withheld or flagged, of the rest the "
+          f"largest move {np.nanmax(np.where(caught, np.nan, moved)) if (~caught).any() else 0:.1%}; moved > 3 % "
+          f"and not caught: {bad}")
+
+
 def in_distribution(model: Path, pad: str, seeds, folder: Path) -> None:
     for seed in seeds:
         study = folder / f"seed{seed}"
@@ -164,6 +183,7 @@ def main() -> None:
             print(f"  {name:18s} {either:3d}/{len(frames):<3d} withheld or flagged ({withheld} withheld)"
                   + (f"  missed: frames {missed}" if missed else ""))
         print(f"  hostile total: {total_caught}/{total} ({total_caught / total:.0%})")
+        rotation_goal(model, own)
         in_distribution(model, pad, args.seeds, folder)
 
 

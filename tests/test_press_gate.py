@@ -128,3 +128,19 @@ def test_the_figures_docs_quote_are_the_codes():
     assert f"+-{ORIENTATION_TOLERANCE_DEG:g} degrees" in docs
     assert f"fewer than {round(1 / ALPHA) - 1} training presses" in docs
     assert f"exits with status {WITHHELD_EXIT}" in docs and f"exits with status {WITHHELD_EXIT} when it withheld" in readme
+
+
+def test_live_frames_the_gate_withholds_get_no_number(gated_model, simulated_tiny):
+    """--live scores a frame as predict reads the image alone: a noise frame is withheld, a press is scored."""
+    import math
+
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.predict import frame_scorer
+
+    score = frame_scorer(load_model(gated_model))
+    noise = np.random.default_rng(3).integers(0, 256, (170, 1920, 3)).astype(np.uint8)
+    value, reason = score(noise)
+    assert math.isnan(value) and reason.startswith("withheld: not a contact image")
+    press = cv2.cvtColor(cv2.imread(str(_presses(simulated_tiny)[0])), cv2.COLOR_BGR2RGB)
+    value, _ = score(press)
+    assert math.isfinite(value)

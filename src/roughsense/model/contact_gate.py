@@ -86,6 +86,10 @@ class ContactGate:
             far = (z - z_high > RANGE_MARGIN) | (z_low - z > RANGE_MARGIN)
         return far.any(axis=1) | ~np.isfinite(z).all(axis=1)
 
+    def withholds(self, values: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Per row of descriptors with its p-value: withheld (p at most alpha, or far beyond a training range)."""
+        return (np.asarray(p) <= self.alpha) | self.beyond_range(values)
+
     @property
     def can_reach_alpha(self) -> bool:
         """Whether the conformal test can withhold at all: its smallest p is 1 / (n + 1)."""

@@ -419,7 +419,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
         if gate is not None:  # a frame the gate withholds gets no number, as predict's row gets none
             values = np.array([described[name] for name in gate.names])
             p = float(gate.p_values(values[None, :])[0])
-            if p <= gate.alpha:
+            if gate.withholds(values[None, :], p)[0]:
                 return math.nan, f"withheld: {gate.reason(values, p)}"
         X = row[None, :]
         reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X)[0]),

@@ -93,7 +93,7 @@ def _gate(gate, readings, reasons: list[str], k: int) -> np.ndarray:
         [min(1.0, k * np.nanmin(press_p[t * k:(t + 1) * k])) if readable[t * k:(t + 1) * k].all() else math.nan
          for t in range(n_trials)])
     far = np.zeros(len(readings), dtype=bool)
-    far[readable] = gate.beyond_range(values[readable])
+    far[readable] = gate.withholds(values[readable], np.ones(int(readable.sum())))  # the range rule, per image
     for t in range(n_trials):
         if not reasons[t] and (trial_p[t] <= gate.alpha or far[t * k:(t + 1) * k].any()):
             worst = t * k + int(np.nanargmin(press_p[t * k:(t + 1) * k] - far[t * k:(t + 1) * k]))
