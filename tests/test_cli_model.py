@@ -18,6 +18,7 @@ from roughsense.analysis import dataset
 from roughsense.errors import InputError
 from roughsense.io.study import read_study
 from tests.test_dataset import SPECIMENS, make_study
+from tests.test_gate_file import ungated
 
 
 @pytest.fixture(scope="module")
@@ -411,6 +412,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
 
     out = tmp_path / "law.json"
     assert fit(run_cli, study_dir, out, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(out)  # a drawn grating far longer than trained: the band flag, not the gate, is tested here
     rng = np.random.default_rng(7)
     images = []
     for name, period_mm in (("trained_3mm.png", 3.0), ("long_9mm.png", 9.0)):  # trained: 1.5-5 mm
@@ -461,6 +463,7 @@ def test_live_mode_counts_the_frames_that_extrapolate(run_cli, study_dir, tmp_pa
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(model)  # synthetic frames unlike its training presses on purpose: the gate is tested elsewhere
     rng = np.random.default_rng(8)
     video = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (600, 64))
@@ -492,6 +495,7 @@ def test_every_shipped_sample_scores_with_roi_auto(run_cli, paper_scale_study, t
     model = tmp_path / "m.json"
     assert run_cli("fit", "--study", paper_scale_study, "--pad", "smooth", "--condition", "2N", "--max-components", "2",
                    "--model", "pls", "--out", model)[0] == 0
+    ungated(model)  # the shipped samples are drawings, not contact images: the gate would withhold them
     document = json.loads(model.read_text())
     assert document["features"]["spectrum"]["roi"] == "center" and document["features"]["spectrum"]["px_per_mm"] == 34.9
     small = next(p for p in SAMPLES if "2.5mm" in p.name)  # 640x200: the model's 1900x150 crop does not fit
@@ -558,6 +562,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
 
     model = tmp_path / "m.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3")[0] == 0  # 20 px/mm, 600 px
+    ungated(model)  # another scale, a drawing: the gate (tests/test_press_gate.py) would withhold it
     at_20 = _grating_at(20.0, 2.0, 600, tmp_path / "at20.png")
     at_40 = _grating_at(40.0, 2.0, 1200, tmp_path / "at40.png")  # the same surface, twice the resolution
     code, _, err = run_cli("predict", model, at_20, "--out", tmp_path / "a.csv")
@@ -735,6 +740,7 @@ def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(model)  # synthetic frames unlike its training presses on purpose: the gate is tested elsewhere
     fine = _grating_at(20.0, 0.5, 600, tmp_path / "fine_1N.png")  # 0.5 mm: finer than the band's 1 mm
     loaded = load_model(model)
     scores = score_trials(loaded, [fine])

@@ -44,3 +44,38 @@ def test_a_damaged_field_is_refused_naming_it(field, value, message):
     with pytest.raises(ModelFileError, match=message) as raised:
         loaded_gate(stored, None)
     assert f"training.{KEY}" in str(raised.value)
+
+
+def ungated(path):
+    """A model file as written before the gate (its section removed, the checksum recomputed): for tests of other
+    features that feed a model images unlike its training presses on purpose (drawings, other scales)."""
+    from roughsense.model.modelfile import _digest
+
+    document = json.loads(path.read_text())
+    document["training"].pop(KEY, None)
+    document["sha256"] = _digest(document)
+    path.write_text(json.dumps(document))
+    return path
+
+
+def test_a_file_without_the_section_predicts_and_says_so_once(tmp_path):
+    import warnings
+
+    import roughsense as rs
+    from roughsense.model.press_gate import NO_GATE_LINE
+
+    rng = np.random.default_rng(0)
+    spectrum = rs.SpatialSpectrum().fit()
+    images = [np.tile(128 + 100 * np.sign(np.sin(2 * np.pi * np.arange(1920) / 34.9 / p)), (320, 1))
+              + rng.normal(0, 5, (320, 1920)) for p in (2.0, 3.0, 4.0, 5.0)]
+    X = spectrum.transform([np.clip(i, 0, 255).astype(np.uint8) for i in images])
+    law = rs.PeakPowerLaw(freq_per_mm=spectrum.freq_per_mm_).fit(X, np.array([2.0, 3.0, 4.0, 5.0]) / 3)
+    from roughsense.model.modelfile import save_model
+
+    path = save_model(tmp_path / "law.json", law, training={"reference_specimen": "R3"},
+                      feature_definition={"spectrum": spectrum.feature_definition(), "conditions": ["2N"]})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        table = rs.predict(ungated(path), [np.clip(images[0], 0, 255).astype(np.uint8)])
+    assert [str(w.message) for w in caught].count(NO_GATE_LINE) == 1
+    assert not table["withheld"].any() and table["contact_p"].isna().all()

@@ -130,7 +130,8 @@ def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
 def training_gate(study: Study, pad: str, condition: str, *, seed: int, n_jobs: int = 1,
                   progress: Callable | None = None):
     """The contact-image gate (model/contact_gate.py) of the pad's training images at the model's forces, each image
-    one press, calibrated over specimens, as its model-file section. The images are read once more for their
+    one press, calibrated over specimens: ``{KEY: its model-file section}``, or ``{}`` where none can be fitted (one
+    specimen, a crop too small: predict then says the model has no gate). The images are read once more for their
     descriptors (the features' cache keeps spectra only); an image the features read cannot fail here."""
     from ..model.contact_gate import fit_gate
     from ..sensor.descriptors import descriptor_names
@@ -148,8 +149,11 @@ def training_gate(study: Study, pad: str, condition: str, *, seed: int, n_jobs: 
         if isinstance(reading, InputError):
             raise InputError(f"{image}: {reading.message}", path=study.root / MANIFEST_CSV)
         values.append([reading[2][n] for n in names])
-    specimens = rows["specimen"].astype(str).to_numpy()
-    return gate_file.gate_section(fit_gate(np.array(values), names, specimens, seed=seed))
+    try:
+        gate = fit_gate(np.array(values), names, rows["specimen"].astype(str).to_numpy(), seed=seed)
+    except ValueError:
+        return {}
+    return {gate_file.KEY: gate_file.gate_section(gate)}
 
 
 def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *, seed: int,
@@ -204,7 +208,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)  # either family: copies of one image teach nothing
     training["target_range"] = [float(np.min(y)), float(np.max(y))]
     training["pad_ridge_period_mm"] = study.pad_ridge_period_mm.get(pad)  # predict's band and scale checks read it
-    training[gate_file.KEY] = training_gate(study, pad, condition, seed=seed, n_jobs=n_jobs, progress=progress)
+    training.update(training_gate(study, pad, condition, seed=seed, n_jobs=n_jobs, progress=progress))
     specimens = meta["specimen"].astype(str).to_numpy()
     law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                        pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))

@@ -115,9 +115,16 @@ def fold_scores(z: np.ndarray, locations: np.ndarray, precisions: np.ndarray) ->
 
 
 def fit_gate(values: np.ndarray, names, specimens, *, seed: int, alpha: float = ALPHA) -> ContactGate:
-    """The gate of training presses' descriptors ``values`` (n, d), calibrated over ``specimens`` (n,)."""
+    """The gate of training presses' descriptors ``values`` (n, d), calibrated over ``specimens`` (n,); a descriptor
+    no training press could measure (a crop too small for it) is left out. ValueError when nothing is left or the
+    presses are of fewer than two specimens."""
     values = np.asarray(values, dtype=np.float64)
     specimens = np.asarray(specimens).astype(str)
+    measured = np.isfinite(values).all(axis=0) & (values.shape[0] > 0)  # a crop too small for one drops it
+    if not measured.any():
+        raise ValueError("no descriptor could be measured on the training presses (a crop too small)")
+    names = [n for n, keep in zip(names, measured) if keep]
+    values = values[:, measured]
     logged = np.array([n in LOG_DESCRIPTORS for n in names])
     with np.errstate(divide="ignore", invalid="ignore"):
         raw = np.where(logged, np.log(np.where(values > 0, values, np.nan)), values)

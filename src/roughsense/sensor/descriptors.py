@@ -186,7 +186,7 @@ def structure_tensor(strip: np.ndarray) -> tuple[float, float]:
     Gradients are central differences of 2 x 2 block means, which halves the pixel noise each one carries while
     keeping a 3-8 mm grating's edges; orientation is the lines' angle from the image columns, positive clockwise.
     """
-    if strip.shape[0] < 4 or strip.shape[1] < 4:
+    if strip.shape[0] < 6 or strip.shape[1] < 6:  # 2 x 2 blocks, then a central difference each way
         return math.nan, math.nan
     h, w = strip.shape[0] // 2 * 2, strip.shape[1] // 2 * 2
     blocks = strip[0:h:2, 0:w:2] + strip[1:h:2, 0:w:2] + strip[0:h:2, 1:w:2] + strip[1:h:2, 1:w:2]  # 4 x the means
