@@ -18,6 +18,7 @@ from roughsense.analysis import dataset
 from roughsense.errors import InputError
 from roughsense.io.study import read_study
 from tests.test_dataset import SPECIMENS, make_study
+from tests.test_gate_file import ungated
 
 
 @pytest.fixture(scope="module")
@@ -78,10 +79,11 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     code, stdout, err = run_cli("predict", out, *images, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image", "pad", "condition", "model", "px_per_mm", "roughness_rel_R3", "pi90_low",
-                                   "pi90_high", "pi90_method", "read_as", "extrapolates", "outside"] and len(table) == len(images)
+    assert list(table.columns) == ["image", "pad", "condition", "model", "passes_controls", "px_per_mm",
+                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "orientation_deg",
+                                   "read_as", "contact_p", "withheld", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
-    assert pred.read_text().splitlines()[1].split(",")[4] == "20.0"
+    assert pred.read_text().splitlines()[1].split(",")[5] == "20.0"
     assert set(table["model"]) == {"pls"}
     assert table["extrapolates"].dtype == bool and not table["extrapolates"].any()  # training spectra, in its domain
     assert "all 18 predictions within what the model was trained on" in stdout
@@ -115,8 +117,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     code, _, err = run_cli("predict", out, *flags, "--out", pred)
     assert code == 0, err
     table = pd.read_csv(pred)
-    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "px_per_mm",
-                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "read_as", "extrapolates",
+    assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "passes_controls",
+                                   "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
+                                   "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates",
                                    "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
     assert set(table["pad"]) == {"fingerprint"} and set(table["condition"]) == {"combined"}
@@ -136,9 +139,9 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
-                                     "surface_roughness_rel_R3", "surface_extrapolates", "read_as", "extrapolates",
-                                     "outside"]
+                                     "model", "passes_controls", "px_per_mm", "roughness_rel_R3", "pi90_low",
+                                     "pi90_high", "pi90_method", "surface_roughness_rel_R3", "surface_extrapolates",
+                                     "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates", "outside"]
     assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
     assert len(grouped) == len(meta) == 18
     expected_rows = meta.sort_values(["specimen", "repetition"]).reset_index(drop=True)
@@ -415,6 +418,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
 
     out = tmp_path / "law.json"
     assert fit(run_cli, study_dir, out, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(out)  # a drawn grating far longer than trained: the band flag, not the gate, is tested here
     rng = np.random.default_rng(7)
     images = []
     for name, period_mm in (("trained_3mm.png", 3.0), ("long_9mm.png", 9.0)):  # trained: 1.5-5 mm
@@ -465,6 +469,7 @@ def test_live_mode_counts_the_frames_that_extrapolate(run_cli, study_dir, tmp_pa
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(model)  # synthetic frames unlike its training presses on purpose: the gate is tested elsewhere
     rng = np.random.default_rng(8)
     video = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (600, 64))
@@ -496,6 +501,7 @@ def test_every_shipped_sample_scores_with_roi_auto(run_cli, paper_scale_study, t
     model = tmp_path / "m.json"
     assert run_cli("fit", "--study", paper_scale_study, "--pad", "smooth", "--condition", "2N", "--max-components", "2",
                    "--model", "pls", "--out", model)[0] == 0
+    ungated(model)  # the shipped samples are drawings, not contact images: the gate would withhold them
     document = json.loads(model.read_text())
     assert document["features"]["spectrum"]["roi"] == "center" and document["features"]["spectrum"]["px_per_mm"] == 34.9
     small = next(p for p in SAMPLES if "2.5mm" in p.name)  # 640x200: the model's 1900x150 crop does not fit
@@ -562,6 +568,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
 
     model = tmp_path / "m.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--max-components", "3")[0] == 0  # 20 px/mm, 600 px
+    ungated(model)  # another scale, a drawing: the gate (tests/test_press_gate.py) would withhold it
     at_20 = _grating_at(20.0, 2.0, 600, tmp_path / "at20.png")
     at_40 = _grating_at(40.0, 2.0, 1200, tmp_path / "at40.png")  # the same surface, twice the resolution
     code, _, err = run_cli("predict", model, at_20, "--out", tmp_path / "a.csv")
@@ -570,7 +577,7 @@ def test_predict_px_per_mm_scores_images_at_their_own_scale(run_cli, study_dir, 
                                 "--out", tmp_path / "b.csv")
     assert code == 0, err
     native, scaled = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
-    assert list(scaled.columns[4:7]) == ["roi", "px_per_mm", "roughness_rel_R3"]
+    assert list(scaled.columns[5:8]) == ["roi", "px_per_mm", "roughness_rel_R3"]
     assert scaled["roi"][0] == "0,16,1200,32" and scaled["px_per_mm"][0] == 40.0 and native["px_per_mm"][0] == 20.0
     loaded = load_model(model)
     line_at_40 = SpatialSpectrum(px_per_mm=40.0, roi=(0, 16, 1200, 32)).fit().transform([at_40])
@@ -620,7 +627,7 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     lines = stdout.splitlines()
     assert max(len(line) for line in lines) <= 80, stdout
     assert not any(line.endswith("\\") for line in lines), stdout  # one line per row, no continuation block
-    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:2])
+    assert lines[0].startswith("pad fingerprint, condition combined") and "--out" in " ".join(lines[:3])
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err
     table = pd.read_csv(tmp_path / "p.csv")  # every value the terminal shows, row by row
@@ -740,6 +747,7 @@ def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0
+    ungated(model)  # synthetic frames unlike its training presses on purpose: the gate is tested elsewhere
     fine = _grating_at(20.0, 0.5, 600, tmp_path / "fine_1N.png")  # 0.5 mm: finer than the band's 1 mm
     loaded = load_model(model)
     scores = score_trials(loaded, [fine])

@@ -40,6 +40,11 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
+#: ``--jobs`` (``n_jobs`` in Python) above this many per usable core only queues work (and simulate would fork that
+#: many processes at once).
+MAX_JOBS_PER_CORE = 4
+
+
 def usable_cores() -> int:
     """The cores this process may run on (its affinity and cgroup quota, not the machine's)."""
     from joblib import cpu_count

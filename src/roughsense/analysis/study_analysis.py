@@ -75,6 +75,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     >>> list(analysis.controls[["cv", "model"]].itertuples(index=False, name=None))
     [('loo', 'pls'), ('loso', 'pls'), ('loo', 'peak-law'), ('loso', 'peak-law')]
     """
+    _check_arguments(study, n_jobs, progress)
     models = _check_models(models)
     _controls.check_permutations(n_permutations)  # before the features: the shufflings are held in memory at once
     perceived = _perceived_by_enough_people(study)
@@ -106,6 +107,16 @@ def _controls_table(control_jobs: list[tuple], seed: int, n_jobs: int, progress:
 def _stricter(analysis: StudyResults, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
     return held_out_analysis(analysis, control_jobs), presses_analysis(analysis, control_jobs)
+
+
+def _check_arguments(study, n_jobs, progress) -> None:
+    """The public call's arguments refused at the edge, each named (``_util/arguments.py``)."""
+    from .._util.arguments import callable_argument, jobs_argument
+
+    if not hasattr(study, "manifest"):
+        raise ConfigError(f"study must be what read_study returned, got {type(study).__name__}")
+    jobs_argument(n_jobs)
+    callable_argument(progress)
 
 
 def _check_models(models: Sequence[str]) -> tuple[str, ...]:

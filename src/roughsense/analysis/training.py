@@ -23,6 +23,7 @@ from .._util.checks import POSITIVE_INT, Options, check
 from ..errors import ConfigError, InputError
 from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
+from ..model import gate_file
 from ..model.applicability import SpectrumDomain, fit_domain
 from ..model.families import check_model_name, default_family, family, paper_family, registry
 from ..model.modelfile import feature_definition_for
@@ -127,6 +128,35 @@ def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
     return X, y, meta
 
 
+def training_gate(study: Study, pad: str, condition: str, *, seed: int, n_jobs: int = 1,
+                  progress: Callable | None = None):
+    """The contact-image gate (model/contact_gate.py) of the pad's training images at the model's forces, each image
+    one press, calibrated over specimens: ``{KEY: its model-file section}``, or ``{}`` where none can be fitted (one
+    specimen, a crop too small: predict then says the model has no gate). The images are read once more for their
+    descriptors (the features' cache keeps spectra only); an image the features read cannot fail here."""
+    from ..model.contact_gate import fit_gate
+    from ..sensor.descriptors import descriptor_names
+
+    rows = study.manifest[study.manifest["pad"].eq(pad)
+                          & study.manifest["condition"].isin(dataset.conditions_of(condition))]
+    ridge = study.pad_ridge_period_mm.get(pad)
+    spectrum = dataset.spectrum_for(study, n_jobs=n_jobs)
+    stream = spectrum.iter_readings([study.root / image for image in rows["image"]], ridge_period_mm=ridge)
+    if progress is not None:
+        stream = progress(stream, total=len(rows), description="contact-image gate")
+    names = descriptor_names(ridge is not None)
+    values = []
+    for image, reading in zip(rows["image"], stream):
+        if isinstance(reading, InputError):
+            raise InputError(f"{image}: {reading.message}", path=study.root / MANIFEST_CSV)
+        values.append([reading[2][n] for n in names])
+    try:
+        gate = fit_gate(np.array(values), names, rows["specimen"].astype(str).to_numpy(), seed=seed)
+    except ValueError:
+        return {}
+    return {gate_file.KEY: gate_file.gate_section(gate)}
+
+
 def cross_validate(X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, scheme: str | int, *, seed: int,
                    max_components: int | None, what: str) -> PLSCVResult:
     """PLS CV over 0..max components; the default maximum shrinks to what the folds support, a user's does not.
@@ -152,8 +182,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
                 seed: int = defaults.SEED, max_components: int | None = None, study_path: str = "", n_jobs: int = 1,
                 progress: Callable | None = None, model: str | None = None, roi: Roi | None = None) -> TrainedModel:
     """Cross-validate and fit on every trial: PLS with its count chosen by ``rule`` (the paper's §3.3, "min" by
-    default), or the peak law with the pad's ridge period left out of its peak search.
-
+    default), or the peak law with the pad's ridge period left out of its peak search; and the contact-image gate.
     ``roi`` reads the line there instead of at the study's [sensor] roi; the model file records both.
     """
     name = check_training_options(condition, rule, max_components, model)
@@ -180,6 +209,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     _refuse_constant_spectra(X, what, study.root / MANIFEST_CSV)  # either family: copies of one image teach nothing
     training["target_range"] = [float(np.min(y)), float(np.max(y))]
     training["pad_ridge_period_mm"] = study.pad_ridge_period_mm.get(pad)  # predict's band and scale checks read it
+    training.update(training_gate(study, pad, condition, seed=seed, n_jobs=n_jobs, progress=progress))
     specimens = meta["specimen"].astype(str).to_numpy()
     law = PeakPowerLaw(freq_per_mm=np.asarray(spectrum.freq_per_mm_), n_blocks=len(definition["conditions"]),
                        pad_ridge_period_mm=study.pad_ridge_period_mm.get(pad))

@@ -14,7 +14,7 @@ import typer
 
 from .. import defaults
 from .._util import interrupt
-from .._util.workers import usable_cores
+from .._util.workers import MAX_JOBS_PER_CORE, usable_cores
 from ..errors import ConfigError
 
 T = TypeVar("T")
@@ -106,10 +106,6 @@ def _manifest_images(root: Path) -> list[Path]:
         return []
     column = header.index("image")
     return [root / row[column].strip() for row in rows[1:] if len(row) > column and row[column].strip()]
-
-
-#: ``--jobs`` above this many per usable core only queues work (and simulate would fork that many processes at once).
-MAX_JOBS_PER_CORE = 4
 
 
 def _every_core(jobs: int | None) -> int:

@@ -2,6 +2,7 @@
 it for new surfaces, and the interval and domain it records for ``roughsense predict``."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -96,6 +97,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     _echo_cv(trained)
     _echo_unseen(trained.unseen)
     typer.echo(f"wrote {out}")
+    _echo_gate(trained.training)
     echo_scale(scale)
     _warn_failed_controls(trained.training)
 
@@ -133,6 +135,22 @@ def _p_text(p: float, n_permutations: int) -> str:
 
     text = permutation_p_text(p, n_permutations, at_most="<=")
     return text if text.startswith("<=") or text == "—" else f"= {text}"
+
+
+def _echo_gate(training) -> None:
+    """One line on the contact-image gate predict will apply: its presses, specimens and false-alarm rate."""
+    from ..model.gate_file import KEY, loaded_gate
+
+    gate = loaded_gate(training.get(KEY), None)
+    if gate is None:
+        return
+    n, groups = gate.calibration.size, gate.locations.shape[0]
+    line = (f"contact-image gate: {n} training presses of {groups} specimens, calibrated over specimens; predict "
+            f"withholds a press at p <= {gate.alpha:g}")
+    if not gate.can_reach_alpha:
+        line += (f" (too few presses for that test: {math.ceil(1 / gate.alpha) - 1} are needed; only presses far "
+                 "outside the training ranges are withheld)")
+    typer.echo(line)
 
 
 def _warn_failed_controls(training) -> None:

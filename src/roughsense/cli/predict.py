@@ -80,7 +80,12 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
 
     Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
     (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
-    (outside); with --study or --same-surface, each surface's mean roughness and interval too.
+    (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
+    orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
+
+    Each image passes the model's contact-image gate (a conformal test at 1 % per press, fitted by `fit`): a press
+    unlike the training presses (a photograph, noise, the other pad, a magnified image), or an unreadable one, is
+    withheld (no roughness, withheld=true, the reason in `outside`). Exit status: 0; 3 some rows withheld; 2 an error.
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
@@ -117,6 +122,29 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _echo_scale(run.scores.scale)
     _warn_few_presses(loaded.training, run.surfaces, run.n_trials)
     _warn_failed_controls(loaded.training)
+    _exit_if_withheld(run.scores)
+
+
+#: ``predict``'s exit status when some rows were withheld (the table is still written for the others).
+WITHHELD_EXIT = 3
+
+
+def _exit_if_withheld(scores) -> None:
+    """One line on stderr, and exit status :data:`WITHHELD_EXIT`, when the gate or an unreadable image withheld
+    rows; one line when the model file has no gate to apply."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..model.press_gate import NO_GATE_LINE
+
+    if not scores.gated:
+        warnings.warn(RoughsenseWarning(NO_GATE_LINE), stacklevel=2)
+    count = int(scores.withheld.sum()) if scores.withheld is not None else 0
+    if count:
+        typer.echo(f"roughsense: {count} of {counted(len(scores.withheld), 'row')} withheld (no roughness: not a "
+                   f"contact image like the model's training presses, or unreadable; the `outside` column says why); "
+                   f"exit status {WITHHELD_EXIT}", err=True)
+        raise typer.Exit(WITHHELD_EXIT)
 
 
 def _warn_plain_interval(loaded) -> None:
@@ -254,10 +282,13 @@ def _terminal_table(table, *, from_study: bool) -> str:
     from ._common import terminal_table
 
     constant = [c for c in CONSTANT_COLUMNS if c in table.columns]
-    heading = ", ".join(f"{c.replace('_', ' ')} {table[c].iloc[0]}" for c in constant if str(table[c].iloc[0]))
+    firsts = {c: next((str(v) for v in table[c] if str(v)), "") for c in constant}  # a withheld row has none
+    heading = ", ".join(f"{c.replace('_', ' ')} {firsts[c]}" for c in constant if firsts[c])
     dropped = constant + ([c for c in table.columns if c.startswith("image")] if from_study else [])
     surface = [c for c in table.columns if c.startswith("surface_")]
     dropped.append("outside")  # too long for a column: said below the table, once per distinct reason
+    # the gate's and the orientation's columns are in --out's CSV; a withheld or turned row's reason is said below
+    dropped.extend(c for c in ("orientation_deg", "contact_p", "withheld") if c in table.columns)
     if from_study:
         heading += "; each trial's images: add --out PRED.csv"
     width = shutil.get_terminal_size().columns

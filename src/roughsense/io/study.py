@@ -237,6 +237,11 @@ def read_study(root: str | os.PathLike[str], *, require_ratings: bool = False, c
     >>> list(study.ratings.columns)
     ['participant', 'session', 'specimen', 'rating']
     """
+    from .._util.arguments import flag_argument, path_argument
+
+    path_argument(root, "root", "a study folder")
+    flag_argument(require_ratings, "require_ratings")
+    flag_argument(check_images, "check_images")
     return load_study(root, require_ratings=require_ratings, check_images=check_images)
 
 

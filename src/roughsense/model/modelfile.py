@@ -172,7 +172,9 @@ def load_model(path: str | os.PathLike[str]) -> FittedModel:
     >>> model.family, model.conditions, model.predict(X[::2]).round(2)
     ('peak-law', ['2N'], array([0.69, 1.  , 1.3 , 1.58]))
     """
-    path = Path(path)
+    from .._util.arguments import path_argument
+
+    path = Path(path_argument(path, "path", "a model file"))
     try:
         raw = read_regular(path, limit=MAX_MODEL_BYTES + 1, what="model file")  # never more; a FIFO: no wait
     except InputError as exc:

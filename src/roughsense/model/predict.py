@@ -193,6 +193,12 @@ class Scores:
     #: Per trial, how its interval (``method``) and its surface's (``surface_method``) were built (None: none).
     method: list[str] | None = None
     surface_method: list[str] | None = None
+    #: Per trial: withheld (no roughness, no interval; ``reasons`` says why), the grating's orientation (degrees
+    #: from the image columns) and the contact-image gate's p-value (NaN without a gate); whether a gate was applied.
+    withheld: np.ndarray | None = None
+    orientation_deg: np.ndarray | None = None
+    contact_p: np.ndarray | None = None
+    gated: bool = False
 
     @property
     def flagged(self) -> np.ndarray:
@@ -243,13 +249,32 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
                  override: SensorOverride | None = None, surfaces=None, reference=None) -> Scores:
     """Roughness, interval and domain reasons of every trial (and of every surface, given ``surfaces``).
 
-    A trial whose structure lies outside the spectrum's band says so in place of the family's reading of the band
-    (which would name a period the surface does not have); so does a trial the family flags whose outside structure
-    is at least as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the
-    pad's ridges and on the trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where
-    none)``: a study's specimens of stated period); beyond its tolerance every trial is flagged ``scale: ...``.
+    A trial the contact-image gate withholds, or one with an unreadable image, gets no roughness and no interval,
+    only its reason (``model/press_gate.py``); the others are scored as if it had never been given. A trial whose
+    structure lies outside the spectrum's band says so in place of the family's reading of the band (which would
+    name a period the surface does not have); so does a trial the family flags whose outside structure is at least
+    as strong as the band's own peak (``sensor.band.NAMING_DOMINANCE``). The scale is checked on the pad's ridges
+    and on the trials whose period ``reference`` states (``(what, per-trial period in mm, NaN where none)``: a
+    study's specimens of stated period); beyond its tolerance every trial is flagged ``scale: ...``.
     """
-    X, lines, spectrum = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
+    from .press_gate import read_trials
+
+    images = list(images)
+    group_images(loaded, images)  # refuse a wrong count before any decoding
+    spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
+    read = read_trials(loaded, spectrum, images, progress=progress)
+    kept = ~read.withheld
+    keep = np.flatnonzero(kept)
+    if reference is not None:
+        reference = (reference[0], np.asarray(reference[1])[keep])
+    kept_surfaces = None if surfaces is None else np.asarray(surfaces)[keep]
+    scores = _score_kept(loaded, spectrum, read.spectra, read.lines, kept_surfaces, reference) if keep.size else None
+    return _with_withheld(scores, read, surfaces)
+
+
+def _score_kept(loaded: FittedModel, spectrum, spectra: np.ndarray, lines: list, surfaces, reference) -> Scores:
+    """The trials the gate let through, scored as predict always scored a batch."""
+    X = spectra_to_features(loaded, spectra)
     roughness = loaded.predict(X, surfaces=surfaces)
     reasons = domain_reasons(loaded, spectrum, lines, X, surfaces)
     scale = images_scale_check(loaded, spectrum, lines, reference)
@@ -264,6 +289,39 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
     s_low, s_high, s_method = surface_intervals(loaded, X, surface, surfaces)
     return Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale, method=method,
                   surface_method=s_method)
+
+
+def _spread(values, keep: np.ndarray, n: int, fill=math.nan):
+    """Kept trials' values back in their places among ``n`` trials, ``fill`` in the withheld ones."""
+    if values is None:
+        return None
+    if isinstance(values, list):
+        out = [fill] * n
+        for i, v in zip(keep, values):
+            out[i] = v
+        return out
+    out = np.full(n, fill, dtype=float)
+    out[keep] = values
+    return out
+
+
+def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
+    """Every trial's scores: the kept ones' as scored, the withheld ones empty but for their reason; the
+    orientation beside each, and a kept trial turned beyond the tolerance flagged."""
+    n = read.withheld.size
+    keep = np.flatnonzero(~read.withheld)
+    if scores is None:  # every trial withheld: nothing was scored
+        scores = Scores(np.empty(0), np.empty(0), np.empty(0), [], *(3 * [None if surfaces is None else np.empty(0)]))
+    reasons = _spread(scores.reasons, keep, n, "")
+    for i in range(n):
+        extra = read.withheld_reasons[i] or read.orientation_reasons[i]
+        reasons[i] = f"{reasons[i]}; {extra}" if reasons[i] and extra else reasons[i] or extra
+    return Scores(_spread(scores.roughness, keep, n), _spread(scores.low, keep, n), _spread(scores.high, keep, n),
+                  reasons, _spread(scores.surface_roughness, keep, n), _spread(scores.surface_low, keep, n),
+                  _spread(scores.surface_high, keep, n), scale=scores.scale,
+                  method=_spread(scores.method, keep, n, ""), surface_method=_spread(scores.surface_method, keep, n, ""),
+                  withheld=read.withheld, orientation_deg=read.orientation_deg, contact_p=read.contact_p,
+                  gated=read.gated)
 
 
 #: How predict names the plain jackknife's interval (model/interval.py), beside the jackknife+'s.
@@ -347,12 +405,26 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
             "(fit one with --condition 1N, 2N or 3N)"
         )
+    from .contact_gate import orientation_reason
+    from .gate_file import model_gate
+
     spectrum = model_spectrum(loaded, override=override)
+    gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
 
     def score_frame(frame: np.ndarray) -> tuple[float, str]:
-        [(row, line)] = list(spectrum.iter_transform_lines([frame]))
+        [reading] = list(spectrum.iter_readings([frame], ridge_period_mm=ridge))
+        if isinstance(reading, InputError):
+            raise reading
+        row, line, described = reading
+        if gate is not None:  # a frame the gate withholds gets no number, as predict's row gets none
+            values = np.array([described[name] for name in gate.names])
+            p = float(gate.p_values(values[None, :])[0])
+            if gate.withholds(values[None, :], p)[0]:
+                return math.nan, f"withheld: {gate.reason(values, p)}"
         X = row[None, :]
-        return float(loaded.predict(X)[0]), str(domain_reasons(loaded, spectrum, [line], X)[0])
+        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X)[0]),
+                               orientation_reason(described["orientation_deg"])) if r]
+        return float(loaded.predict(X)[0]), "; ".join(reasons)
 
     return score_frame
 

@@ -33,6 +33,7 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "pad": "the model's pad",
     "condition": "the model's force condition (1N, 2N, 3N or combined)",
     "model": "the model family",
+    "passes_controls": "whether the model beat its controls for surfaces never seen (fit's check; '' if untested)",
     "roi": "where the line was read, when not the model's ROI",
     "px_per_mm": "the scale the images were read at",
     "roughness_rel_<reference>": "perceived roughness relative to the reference specimen",
@@ -44,13 +45,16 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "surface_pi90_high": "the surface's 90 % prediction interval, upper bound",
     "surface_pi90_method": "how the surface's interval was built",
     "surface_extrapolates": "any press of the surface lies outside the model's domain",
+    "orientation_deg": "the grating lines' angle from the image columns, degrees (flagged beyond +-6)",
     "read_as": "press (read alone) or surface (read with the other presses of its surface)",
-    "extrapolates": "the trial lies outside what the model was trained on",
-    "outside": "how it lies outside ('' where it lies inside)",
+    "contact_p": "the contact-image gate's p-value (empty for a model file without a gate)",
+    "withheld": "no roughness given: not a contact image like the training presses, or unreadable (`outside` says why)",
+    "extrapolates": "the trial lies outside what the model was trained on (every withheld trial does)",
+    "outside": "how it lies outside, or why it is withheld ('' where it lies inside)",
 }
 
 #: Columns with one value for every row: the terminal shows them once, above the table.
-CONSTANT_COLUMNS = ("pad", "condition", "model", "roi", "px_per_mm", "read_as", "pi90_method")
+CONSTANT_COLUMNS = ("pad", "condition", "model", "passes_controls", "roi", "px_per_mm", "read_as", "pi90_method")
 
 _INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "surface_pi90_low", "surface_pi90_high")
 _QUIET = "this press lies inside; other presses of its surface do not (their rows say why)"
@@ -63,6 +67,14 @@ def roughness_column(loaded: FittedModel) -> str:
     reference = loaded.training.get("reference_specimen") if isinstance(loaded.training, dict) else None
     # a name no file may carry (an edited model file) still gives a column that says the value is relative
     return f"roughness_rel_{reference}" if is_safe_name(reference) else "roughness_rel_reference"
+
+
+def controls_verdict(loaded: FittedModel) -> str:
+    """'true' or 'false': whether the model beat its controls for surfaces never seen (fit's nested check); ''
+    where its file does not say (written before the check, or a design too small for it)."""
+    unseen = loaded.training.get("unseen") if isinstance(loaded.training, dict) else None
+    verdict = unseen.get("passes_controls") if isinstance(unseen, dict) else None
+    return "" if not isinstance(verdict, bool) else "true" if verdict else "false"
 
 
 def roi_text(roi) -> str:
@@ -87,24 +99,31 @@ def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Score
     table["pad"] = model_pad(loaded)
     table["condition"] = model_condition(loaded)
     table["model"] = loaded.family
+    table["passes_controls"] = controls_verdict(loaded)
     if override is not None and override.roi is not None:
         table["roi"] = roi_text(override.roi)
     scale = override.px_per_mm if override is not None and override.px_per_mm is not None else None
     table["px_per_mm"] = float(scale if scale is not None else loaded.model_file_.features["spectrum"]["px_per_mm"])
     name = roughness_column(loaded)
     table[name] = np.asarray(scores.roughness, dtype=float)
-    if np.isfinite(scores.low).all():
+    withheld = np.zeros(len(trials), dtype=bool) if scores.withheld is None else scores.withheld
+    if np.isfinite(scores.low[~withheld]).all() and not withheld.all():
         table["pi90_low"], table["pi90_high"] = scores.low, scores.high
         table["pi90_method"] = scores.method
     if scores.surface_roughness is not None:
         table[f"surface_{name}"] = scores.surface_roughness
-        if np.isfinite(scores.surface_low).all():
+        if np.isfinite(scores.surface_low[~withheld]).all() and not withheld.all():
             table["surface_pi90_low"], table["surface_pi90_high"] = scores.surface_low, scores.surface_high
             table["surface_pi90_method"] = scores.surface_method
     if surfaces is not None:  # a surface is flagged when any of its presses is
         flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
         table["surface_extrapolates"] = flagged.astype(bool)
+    if scores.orientation_deg is not None:
+        table["orientation_deg"] = scores.orientation_deg
     table["read_as"] = "press" if surfaces is None else "surface"
+    if scores.withheld is not None:
+        table["contact_p"] = scores.contact_p
+        table["withheld"] = withheld
     table["extrapolates"] = scores.flagged
     table["outside"] = scores.reasons
     if "surface_extrapolates" in table:  # its surface's reason is in the other rows
@@ -114,7 +133,7 @@ def prediction_table(loaded: FittedModel, trials: Sequence[tuple], scores: Score
 
 def _three_digits(values) -> list[str]:
     """Values as text with 3 significant digits (written as is: a float column would print 1.23 as 1.2299...)."""
-    return [f"{float(f'{v:.3g}'):g}" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230, not 1.23e+03
+    return [f"{float(f'{v:.3g}'):g}" if np.isfinite(v) else "" for v in np.asarray(values, dtype=float)]  # 1234 -> 1230
 
 
 def text_table(table: pd.DataFrame) -> pd.DataFrame:
@@ -123,6 +142,9 @@ def text_table(table: pd.DataFrame) -> pd.DataFrame:
     for column in table.columns:
         if column.startswith(("roughness_rel_", "surface_roughness_rel_")) or column in _INTERVAL_COLUMNS:
             text[column] = _three_digits(table[column])
+        elif column in ("orientation_deg", "contact_p"):
+            text[column] = [f"{v:.2g}" if column == "contact_p" and np.isfinite(v) else f"{v:.1f}" if np.isfinite(v)
+                            else "" for v in table[column]]
         elif column == "px_per_mm":  # as written in study.toml or on the command line
             text[column] = [repr(float(v)) for v in table[column]]
         elif table[column].dtype == bool:
@@ -231,7 +253,8 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
 
     Each row holds the trial's roughness relative to the model's reference specimen, its 90 % interval where the
     model file keeps one, and whether (``extrapolates``) and how (``outside``) it lies outside what the model was
-    trained on (:data:`PREDICTION_COLUMNS`); :func:`csv_text` writes it as the CLI does.
+    trained on (:data:`PREDICTION_COLUMNS`; a ``withheld`` row has no roughness); :func:`csv_text` writes it as the CLI
+    does. What the CLI says beside its table comes as a RoughsenseWarning.
 
     Parameters
     ----------
@@ -277,10 +300,57 @@ def predict(model, images: Sequence | None = None, *, study=None, specimens: Seq
     """
     from .predict import SensorOverride
 
+    model, images, study, specimens, images_by_force = _checked_arguments(
+        model, images, study, specimens, images_by_force, same_surface, n_jobs, progress)
+    run = run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
+                         same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
+                         n_jobs=n_jobs, progress=progress)
+    return _warn_as_the_cli(run).table
+
+
+def _checked_arguments(model, images, study, specimens, images_by_force, same_surface, n_jobs, progress):
+    """Each of :func:`predict`'s arguments refused in one line naming it (``_util/arguments.py``); a str where a
+    list is wanted is one path (one specimen). Returns model, images, study, specimens and images_by_force."""
+    from .._util.arguments import callable_argument, flag_argument, jobs_argument, names_argument, path_argument, paths_argument
+
+    if not hasattr(model, "model_file_"):
+        path_argument(model, "model", "a model file or what load_model returned")
+    if study is not None and not hasattr(study, "manifest"):
+        path_argument(study, "study", "a study folder or what read_study returned")
+    images = None if images is None else paths_argument(images, "images")
+    if images_by_force is not None:
+        if not isinstance(images_by_force, Mapping):
+            raise ConfigError(f"images_by_force must be a mapping like {{'1N': [...], '2N': [...]}}, got "
+                              f"{type(images_by_force).__name__}")
+        images_by_force = {str(k): paths_argument(v, f"images_by_force[{k!r}]") for k, v in images_by_force.items()}
+    specimens = None if specimens is None else names_argument(specimens, "specimens")
+    flag_argument(same_surface, "same_surface")
+    jobs_argument(n_jobs)
+    callable_argument(progress)
     _check_one_source(images, images_by_force, study, specimens)
-    return run_prediction(model, images, study=study, specimens=specimens or (), images_by_force=images_by_force,
-                          same_surface=same_surface, override=SensorOverride.parse(roi=roi, px_per_mm=px_per_mm),
-                          n_jobs=n_jobs, progress=progress).table
+    return model, images, study, specimens, images_by_force
+
+
+def _warn_as_the_cli(run: PredictionRun) -> PredictionRun:
+    """What the CLI says beside its table, as warnings of roughsense's own class: a model that fails its controls,
+    a model file without a gate, rows withheld."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from .press_gate import NO_GATE_LINE
+
+    unseen = run.model.training.get("unseen") if isinstance(run.model.training, dict) else None
+    failure = unseen.get("failure") if isinstance(unseen, dict) else None
+    if isinstance(failure, str) and failure:
+        warnings.warn(RoughsenseWarning(failure), stacklevel=3)
+    if not run.scores.gated:
+        warnings.warn(RoughsenseWarning(NO_GATE_LINE), stacklevel=3)
+    count = int(run.scores.withheld.sum()) if run.scores.withheld is not None else 0
+    if count:
+        warnings.warn(RoughsenseWarning(f"{count} of {len(run.scores.withheld)} rows withheld (no roughness: not a "
+                                        "contact image like the model's training presses, or unreadable; the "
+                                        "`outside` column says why)"), stacklevel=3)
+    return run
 
 
 def _check_one_source(images, images_by_force, study, specimens) -> None:

@@ -59,7 +59,7 @@ class Section:
 def sections() -> dict[str, Section]:
     """Every checked section, by its dotted place in the document, parents before children (each module states
     its own; see the module docstring for adding one)."""
-    from . import interval, jackknife_file, modelfile, peak_law_file, pls_file, training_file
+    from . import gate_file, interval, jackknife_file, modelfile, peak_law_file, pls_file, training_file
 
     by_kind = {"if": {"properties": {"kind": {"const": pls_file.KIND}}}, "then": pls_file.SCHEMA,
                "else": peak_law_file.SCHEMA}
@@ -71,6 +71,7 @@ def sections() -> dict[str, Section]:
         "training.unseen": Section(training_file.UNSEEN_SCHEMA, training_file.check_unseen),
         "training.interval": Section(interval.SCHEMA, interval.check_record),
         "training.jackknife_plus": Section(jackknife_file.SCHEMA),
+        f"training.{gate_file.KEY}": Section(gate_file.SCHEMA, gate_file.check),
     }
 
 
@@ -85,7 +86,7 @@ def check_document(document: dict, path: Path | None, *, after_family: bool = Fa
         if refusal is not None:
             raise ModelFileError(refusal, path=path)
         if section.check is not None:
-            section.check(value, document, _failing(where, path))
+            section.check(value, document, failing(where, path))
 
 
 def _by_kind(checks: dict[str, Check]) -> Check:
@@ -97,7 +98,7 @@ def _by_kind(checks: dict[str, Check]) -> Check:
     return check
 
 
-def _failing(where: str, path: Path | None) -> Callable[[str, str], None]:
+def failing(where: str, path: Path | None) -> Callable[[str, str], None]:
     def fail(field: str, message: str) -> None:
         raise ModelFileError(f"{where}.{field}: {message}" if field else f"{where}: {message}", path=path)
 

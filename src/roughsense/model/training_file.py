@@ -84,6 +84,7 @@ SCHEMA = strict({
     "unseen": {"type": "object"},
     "interval": {"type": "object"},
     "jackknife_plus": {"type": "object"},
+    "contact_gate": {"type": "object"},
     "presses": {"type": "object"},
 })
 

@@ -8,6 +8,7 @@ is of a fresh frame.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -84,6 +85,14 @@ class LiveSummary:
     reason: str = ""  # why the last such frame did, when the scorer said (e.g. finer than the sensor resolves)
 
 
+def _latest(score: float, flagged: bool, why: str, escape) -> str:
+    """The latest score as shown: flagged when it extrapolates; a frame the model's gate withheld has no number."""
+    if math.isnan(score):
+        return f"[bold yellow]withheld[/] ({escape(why or 'not a contact image')})"
+    flag = f"  [bold yellow]extrapolates[/] ({escape(why or 'outside the training range')})" if flagged else ""
+    return f"[bold cyan]{score:.3f}[/]{flag}"
+
+
 def render_live(
     scores: Iterable[tuple[float, float] | tuple[float, float, bool | str]],
     *,
@@ -117,9 +126,9 @@ def render_live(
             table.add_row(label, "waiting for the first frame...")
             return table
         rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
-        flag = f"  [bold yellow]extrapolates[/] ({escape(why or 'outside the training range')})" if flagged else ""
-        table.add_row(label, f"[bold cyan]{recent[-1]:.3f}[/]{flag}")
-        table.add_row("last 2 s", f"{min(recent):.3f} .. {max(recent):.3f}")
+        table.add_row(label, _latest(recent[-1], flagged, why, escape))
+        shown = [v for v in recent if not math.isnan(v)]
+        table.add_row("last 2 s", f"{min(shown):.3f} .. {max(shown):.3f}" if shown else "every frame withheld")
         table.add_row("updates", f"{count} ({rate:.1f}/s)")
         return table
 

@@ -5,6 +5,7 @@ Only the rows that are used are converted to gray, and a PNG is decoded only dow
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 
@@ -15,6 +16,7 @@ from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
 from ..io.images import as_image, check_pixels, decode, decode_png_top_rows, png_size, read_bytes, to_gray
 from ..io.sensor_settings import Roi, check_max_pixels, parse_roi, roi_misfit
+from .descriptors import press_descriptors, press_strips
 from .grid import SETTINGS, _normalise, frequency_grid, line_amplitude
 from .settings import SPECTRUM_DEFAULTS
 
@@ -104,6 +106,8 @@ class _Plan:
     freq_per_mm: np.ndarray
     window: str
     max_pixels: int = MAX_PIXELS
+    #: Set on a per-image copy by :meth:`reading`: where the line's read keeps the strips the descriptors need.
+    describe: dict | None = None
 
     @classmethod
     def build(cls, px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window,
@@ -152,7 +156,21 @@ class _Plan:
             )
         line = extract_line(pixels, box, self.rows, name=name, where=where)
         amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
+        if self.describe is not None:  # predict's gate: from the pixels decoded for the line, no second decoding
+            self.describe["strips"] = press_strips(pixels, box, self.rows)
         return _normalise(amplitude, self.freq_per_mm, name, where), line
+
+    def reading(self, image, index: int | None = None, ridge_period_mm: float | None = None):
+        """(spectrum, line, descriptors) of one press, or the :class:`InputError` that refused it: one unreadable
+        image in a batch is that image's reason, never the batch's end (``sensor/descriptors.py``)."""
+        plan = dataclasses.replace(self, describe={})
+        try:
+            spectrum, line = plan.spectrum_and_line(image, index)
+        except InputError as exc:
+            return exc
+        described = press_descriptors(plan.describe["strips"], line, self.px_per_mm, float(self.freq_per_mm[0]),
+                                      float(self.freq_per_mm[-1]), ridge_period_mm)
+        return spectrum, line, described
 
     def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
         """Decode a PNG only down to the last row the line uses (same result, about half the decoding).

@@ -11,6 +11,7 @@ holding only a handful of images in memory. The choices the paper leaves open ar
 """
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable, Iterator, Sequence
 
@@ -189,6 +190,25 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
             (spectrum (n_freqs,), gray line (w,)) per image, in order.
         """
         return self._iter(images, _Plan.spectrum_and_line)
+
+    def iter_readings(self, images: Iterable, ridge_period_mm: float | None = None) -> Iterator:
+        """As :meth:`iter_transform_lines`, with each press's descriptors (``sensor/descriptors.py``): per image
+        ``(spectrum, line, descriptors)``, or the :class:`InputError` that refused it (predict withholds that press
+        and goes on with the others).
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+        ridge_period_mm : float, optional
+            The pad's ridge period (None: a smooth pad).
+
+        Returns
+        -------
+        iterator
+            One tuple or error per image, in order.
+        """
+        return self._iter(images, functools.partial(_Plan.reading, ridge_period_mm=ridge_period_mm))
 
     def _iter(self, images: Iterable, one) -> Iterator:
         plan = self._plan()  # checked at the first image, as before: a generator, like the loop it replaced

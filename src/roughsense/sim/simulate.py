@@ -17,6 +17,7 @@ from .._util import atomic
 from .._util.checks import POSITIVE_INT, check
 from .._util.workers import process_pool, usable_cores
 from ..defaults import ROI
+from ..errors import ConfigError
 from ..io.sensor_settings import SensorSettings
 from ..io.study import COMPLETE_MARKER
 from ..io.writer import StudyWriter
@@ -79,6 +80,14 @@ def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None 
     >>> sorted(p.name for p in (path / "images").iterdir())
     ['smooth_C4_2N_r01.png', 'smooth_R2_2N_r01.png']
     """
+    from .._util.arguments import callable_argument, jobs_argument, path_argument
+
+    path_argument(out, "out", "a folder to write")
+    if config is not None and not isinstance(config, SimulationConfig):
+        raise ConfigError(f"config must be a SimulationConfig, got {type(config).__name__}")
+    if jobs is not None:
+        jobs_argument(jobs, "jobs")
+    callable_argument(progress)
     config = config if config is not None else SimulationConfig()
     if seed is not None:
         config = replace(config, seed=int(seed))
