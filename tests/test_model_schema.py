@@ -340,14 +340,15 @@ def test_every_section_is_a_valid_draft_2020_12_schema_in_its_own_module():
 
     found = schema.sections()
     assert list(found) == ["model", "features", "training", "training.presses", "training.unseen", "training.interval",
-                           "training.jackknife_plus"]
+                           "training.jackknife_plus", "training.contact_gate"]
     for section in found.values():
         Draft202012Validator.check_schema(section.schema)
-    from roughsense.model import interval, jackknife_file, training_file
+    from roughsense.model import gate_file, interval, jackknife_file, training_file
 
     assert found["training.interval"].schema is interval.SCHEMA
     assert found["training.jackknife_plus"].schema is jackknife_file.SCHEMA
     assert found["training.presses"].check is training_file.check_presses
+    assert found["training.contact_gate"].schema is gate_file.SCHEMA
 
 
 def test_a_section_plugged_in_is_checked(tmp_path, monkeypatch):

@@ -40,7 +40,7 @@ def _hostile(study, tmp_path) -> dict[str, np.ndarray]:
     for name, angle, scale in (("rotated 15", 15, 1.0), ("magnified 15 %", 0, 1.15)):
         matrix = cv2.getRotationMatrix2D((w / 2, h / 2), angle, scale)
         frames[name] = cv2.warpAffine(press, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-    skimage = pytest.importorskip("skimage.data")
+    import skimage.data as skimage  # a test dependency (pyproject), its photographs inside the wheel
     frames["photograph"] = cv2.resize(skimage.brick(), (w, h), interpolation=cv2.INTER_AREA)
     paths = {}
     for name, frame in frames.items():
