@@ -1,0 +1,108 @@
+"""The scale check's search: every resolvable scale tried, the largest on which structures of different known periods
+agree chosen, and each line's period read there (the reasoning is ``model/scale_check.py``'s docstring).
+
+An entry is (source in words, period in mm, gray line, mount label); entries of one source are one structure (a
+pad's ridges; the study's gratings of stated period, each line at its own period).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..sensor.period import CHECK_WINDOW, ScaleMeasurement, check_scale
+from ..sensor.prominence import CLEAR_PROMINENCE, LineSpectrum, clear_peaks, scale_grid
+
+
+@dataclass(frozen=True)
+class Found:
+    """The scale the structures agree on (NaN with a ``doubt``: why there is none to trust)."""
+
+    px_per_mm: float
+    doubt: str = ""
+    spectra: dict = field(default_factory=dict, repr=False)
+
+
+def _spectra(entries) -> dict[int, LineSpectrum]:
+    """Each distinct line's spectrum, once (a press of R3 on a ridged pad is read for both structures)."""
+    out: dict[int, LineSpectrum] = {}
+    for _, _, line, _ in entries:
+        if id(line) not in out:
+            out[id(line)] = LineSpectrum.of(line)
+    return out
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of each run of True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+
+
+def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
+    """(candidate mask, score) over ``scales``: a candidate where every structure with lines that resolve it there
+    shows clear peaks in at least MIN_SUPPORT of them, and clear lines of two periods (or of the one period given)
+    agree; the score is the structures' summed shares."""
+    from .scale_check import MIN_SUPPORT
+
+    sources = list(dict.fromkeys(e[0] for e in entries))
+    periods = sorted({e[1] for e in entries})
+    ok = np.ones(scales.size, dtype=bool)
+    score = np.zeros(scales.size)
+    periods_clear = np.zeros((len(periods), scales.size), dtype=bool)
+    for source in sources:
+        clear_sum, resolvable_sum = np.zeros(scales.size), np.zeros(scales.size)
+        for s, period, line, _ in entries:
+            if s != source:
+                continue
+            clear, resolvable = clear_peaks(spectra[id(line)], period, scales)
+            clear_sum += clear
+            resolvable_sum += resolvable
+            periods_clear[periods.index(period)] |= clear
+        share = np.divide(clear_sum, resolvable_sum, out=np.zeros(scales.size), where=resolvable_sum > 0)
+        ok &= (resolvable_sum == 0) | (share >= MIN_SUPPORT)
+        score += share
+    ok &= periods_clear.sum(axis=0) >= min(2, len(periods))
+    return ok, score
+
+
+def search(entries, stated_px_per_mm: float) -> Found:
+    """The largest scale the structures agree on, at the middle of its best-scored plateau (module docstring)."""
+    spectra = _spectra(entries)
+    scales = scale_grid([e[1] for e in entries], [spectra[id(e[2])].line_px for e in entries])
+    ok, score = _support(entries, spectra, scales)
+    runs = _runs(ok)
+    sources = " and ".join(dict.fromkeys(e[0] for e in entries))
+    if not runs:
+        return Found(np.nan, f"no scale puts a clear peak (over {CLEAR_PROMINENCE:g}x the line's noise floor) at "
+                             f"the known period in most presses of {sources}", spectra)
+    start, stop = runs[-1]
+    best = start + np.flatnonzero(score[start:stop] == score[start:stop].max())
+    chosen = float(np.sqrt(scales[best[0]] * scales[best[-1]]))
+    if len({e[1] for e in entries}) == 1:
+        stated = float(stated_px_per_mm)
+        elsewhere = [(a, b) for a, b in runs[:-1] if scales[a] <= stated <= scales[b - 1]]
+        if elsewhere:
+            a, b = elsewhere[0]
+            return Found(np.nan, f"{sources} alone read as well at {np.sqrt(scales[a] * scales[b - 1]):.4g} as at "
+                                 f"{chosen:.4g} px/mm (one known period cannot tell its own peak from another "
+                                 "structure's)", spectra)
+    return Found(chosen, "", spectra)
+
+
+def read_at(entries, px_per_mm: float, spectra: dict | None = None) -> ScaleMeasurement:
+    """Each line's own px/mm within :data:`CHECK_WINDOW` of ``px_per_mm`` (NaN where its peak there is not clear),
+    the mounts labelled."""
+    spectra = spectra if spectra is not None else _spectra(entries)
+    each, mounts = [], []
+    for _, period, line, mount in entries:
+        value = float(check_scale([line], period, px_per_mm, window=CHECK_WINDOW).px_per_mm_each[0])
+        if np.isfinite(value) and _prominence(spectra[id(line)], 1.0 / (period * value)) < CLEAR_PROMINENCE:
+            value = np.nan
+        each.append(value)
+        mounts.append(mount)
+    return ScaleMeasurement(np.nan, np.asarray(each, dtype=np.float64), np.asarray(mounts, dtype=object))
+
+
+def _prominence(spectrum: LineSpectrum, cycles_per_px: float) -> float:
+    step = spectrum.freq_px[1]
+    return float(spectrum.prominence(np.array([cycles_per_px - step]), np.array([cycles_per_px + step]))[0])

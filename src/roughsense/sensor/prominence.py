@@ -1,0 +1,103 @@
+"""How far a line's spectrum stands above its own surroundings at a frequency: the test a scale reading must pass.
+
+A peak's height means nothing alone: a line of noise has a local maximum everywhere, and a photograph's spectrum
+falls as 1/f. So the amplitude at a frequency is compared with the line's *noise floor* there, the median
+amplitude of the DFT bins within a factor :data:`FLOOR_SPAN` either side (the peak's own Hann main lobe, +-2 bins,
+left out). On white noise each DFT bin's amplitude is Rayleigh distributed, whose median is sqrt(2 ln 2) sigma,
+so P(amplitude > k x median) = 2^(-k^2): 1.5e-5 at k = 4, 3e-8 at k = 5. A peak is *clear* at
+:data:`CLEAR_PROMINENCE` (5): a line of noise shows one somewhere in a search over ~1000 bins with probability
+about 3e-5, and the twin's presses show their pad's ridges and their gratings 10-1000x above the floor
+(BENCHMARKS.md, "scale check").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .period import ZOOM, amplitude_scan
+
+#: The noise floor at f is the median amplitude over [f / FLOOR_SPAN, f * FLOOR_SPAN]: wide enough to hold a dozen
+#: bins at the coarsest period a line resolves (5 periods), narrow enough that a 1/f spectrum's slope barely moves it,
+#: and short of a square wave's 3rd harmonic (x3).
+FLOOR_SPAN = 1.6
+#: The floor leaves out this many DFT bins either side of f: a Hann window's main lobe is +-2 bins.
+LOBE_BINS = 3
+#: The fewest bins a floor is taken over (near DC a factor-of-1.6 window holds too few).
+MIN_FLOOR_BINS = 8
+#: A peak this many times its noise floor is clear (module docstring).
+CLEAR_PROMINENCE = 5.0
+
+
+@dataclass(frozen=True)
+class LineSpectrum:
+    """A line's zero-padded amplitude scan (cycles per px) and its noise floor on the same frequencies."""
+
+    freq_px: np.ndarray
+    amplitude: np.ndarray
+    floor: np.ndarray
+    line_px: int
+
+    @classmethod
+    def of(cls, line) -> LineSpectrum:
+        line = np.asarray(line, dtype=np.float64)
+        freq, amplitude = amplitude_scan(line)
+        coarse = amplitude[::ZOOM]  # the plain DFT's bins: independent on noise, unlike the padded ones
+        return cls(freq, amplitude, np.interp(freq, freq[::ZOOM], _floor(coarse)), int(line.size))
+
+    def prominence(self, low_px: np.ndarray, high_px: np.ndarray) -> np.ndarray:
+        """The largest amplitude over floor within each [low, high] (cycles per px); 0 where nothing is searched."""
+        ratio = np.divide(self.amplitude, self.floor, out=np.zeros_like(self.amplitude), where=self.floor > 0)
+        start = np.searchsorted(self.freq_px, low_px, side="left")
+        stop = np.maximum(np.searchsorted(self.freq_px, high_px, side="right"), start + 1)
+        start, stop = np.clip(start, 1, ratio.size - 1), np.clip(stop, 1, ratio.size)
+        best = np.maximum.reduceat(np.append(ratio, 0.0), np.ravel(np.column_stack([start, stop])))[::2]
+        return np.where(start < stop, best, 0.0)
+
+
+def _floor(amplitude: np.ndarray) -> np.ndarray:
+    """Each bin's noise floor (module docstring), taken at log-spaced bins and interpolated between them."""
+    n = amplitude.size
+    bins = np.arange(n)
+    centres = np.unique(np.geomspace(1, n - 1, 96).round().astype(int))
+    floors = []
+    for k in centres:
+        low, high = int(k / FLOOR_SPAN), int(np.ceil(k * FLOOR_SPAN))
+        if high - low < 2 * LOBE_BINS + MIN_FLOOR_BINS:
+            low, high = k - LOBE_BINS - MIN_FLOOR_BINS // 2, k + LOBE_BINS + MIN_FLOOR_BINS // 2
+        window = bins[max(low, 1):min(high, n - 1) + 1]
+        window = window[np.abs(window - k) > LOBE_BINS]
+        floors.append(np.median(amplitude[window]) if window.size else np.nan)
+    floors = np.asarray(floors)
+    ok = np.isfinite(floors)
+    return np.interp(bins, centres[ok], floors[ok]) if ok.any() else np.zeros(n)
+
+
+#: A mount's magnification differs from another's (the twin's bench: 2.2 % SD), so each line's peak is looked for
+#: within this factor either side of where a candidate scale puts it (over 2 SD).
+MOUNT_SPREAD = 1.05
+#: Neighbouring candidate scales differ by this factor: a fifth of the spread, so no peak falls between two.
+SCALE_STEP = 1.01
+
+
+def scale_grid(periods_mm, lines_px) -> np.ndarray:
+    """Every scale (px/mm) at which some line resolves some of the periods: :func:`~.period.resolvable_scales`'s
+    range for each (period, line length), their union, log-spaced by :data:`SCALE_STEP`."""
+    from .period import resolvable_scales
+
+    bounds = np.array([resolvable_scales(int(n), float(p)) for p, n in zip(periods_mm, lines_px)])
+    low, high = float(bounds[:, 0].min()), float(bounds[:, 1].max())
+    return np.geomspace(low, high, max(2, int(np.ceil(np.log(high / low) / np.log(SCALE_STEP))) + 1))
+
+
+def clear_peaks(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(clear, resolvable) at each scale: whether the line shows a clear peak (:data:`CLEAR_PROMINENCE`) within
+    :data:`MOUNT_SPREAD` of where that scale puts ``period_mm``, and whether the line can show that period there."""
+    from .period import MIN_PERIODS_PER_LINE, MIN_PX_PER_PERIOD
+
+    period_px = period_mm * scales
+    resolvable = (period_px >= MIN_PX_PER_PERIOD) & (period_px <= spectrum.line_px / MIN_PERIODS_PER_LINE)
+    frequency = 1.0 / period_px
+    clear = spectrum.prominence(frequency / MOUNT_SPREAD, frequency * MOUNT_SPREAD) >= CLEAR_PROMINENCE
+    return clear & resolvable, resolvable
+
