@@ -16,13 +16,17 @@ def check(folder: Folder) -> None:
 
     The same checks `study`, `fit` and `features` make, which stop at the first problem: study.toml, specimens.csv,
     manifest.csv (every image file is looked for, not decoded) and ratings.csv. A European Excel file
-    (semicolons, decimal commas) is read with a warning. Nothing is written.
+    (semicolons, decimal commas) is read with a warning. Then the scale check every run makes: the stated px_per_mm
+    against the pads' ridges and the gratings of stated period in a few presses of each; a scale they measure
+    otherwise is a problem. Nothing is written.
     """
     from ..errors import InputError
     from ..io.study_check import check_study
 
     result = check_study(folder)
     _check_scale(result)
+    if result.ok:
+        _check_measured_scale(result)
     if not result.ok:
         for line in result.problems.lines():
             typer.echo(line)
@@ -40,6 +44,25 @@ def _check_scale(result) -> None:
     problem = None if sensor is None else scale_misfit(sensor.px_per_mm, sensor.roi)
     if problem is not None:
         result.problems.add(InputError(f"[sensor] {problem}", path=result.root / STUDY_TOML))
+
+
+def _check_measured_scale(result) -> None:
+    """The scale check `study` and `fit` make (``model/scale_check.py``): a stated px_per_mm the images measure
+    otherwise is a problem; one that could not be confirmed is said on stderr (the check passes)."""
+    from ..errors import InputError
+    from ..io.study import STUDY_TOML, read_study
+    from ..model.scale_check import check_study_scale
+
+    try:
+        check = check_study_scale(read_study(result.root))
+    except InputError as exc:  # an image that does not decode: check looks for every file, the scale check reads some
+        result.problems.add(exc)
+        return
+    if check.off:
+        result.problems.add(InputError(f"[sensor] {check.summary()}; measure it with `roughsense calibrate "
+                                       f"{result.root}`", path=result.root / STUDY_TOML))
+    else:
+        typer.echo(f"roughsense: {check.summary()}", err=True)
 
 
 def register(app: typer.Typer) -> None:

@@ -17,12 +17,14 @@ is another of its candidates, the scale is not confirmed rather than corrected. 
 candidate, the check says "scale could not be confirmed" and the stated scale is used.
 
 **Reading.** At the chosen scale each line's period is measured below the DFT's bin within :data:`CHECK_WINDOW`
-(``sensor/period.py``); lines whose peak there is not clear are left out; the median over the rest is the measured
-scale. Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by
-9-13 %, so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of
-the target reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount
-share it), so the limit is never tighter than the 99 % t-interval over the mounts, and fewer than
-:data:`MIN_MOUNTS` mounts do not make a check.
+(``sensor/period.py``), about the stated scale where it lies among the scales the structures agree on, else about
+the scale found; the median over the lines is the measured scale.
+
+Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %, so
+about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the target
+reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount share it), so
+the limit is never tighter than the 99 % t-interval over the mounts, and fewer than :data:`MIN_MOUNTS` mounts do not
+make a check.
 """
 from __future__ import annotations
 
@@ -131,7 +133,7 @@ def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleChec
     found = search(entries, stated)
     if found.doubt:
         return ScaleCheck(stated, sources, None, found.doubt)
-    measurement = read_at(entries, found.px_per_mm, found.spectra)
+    measurement = read_at(entries, found.centre(stated))
     return ScaleCheck(stated, sources, measurement)
 
 

@@ -6,7 +6,7 @@ pad's ridges; the study's gratings of stated period, each line at its own period
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,7 +20,13 @@ class Found:
 
     px_per_mm: float
     doubt: str = ""
-    spectra: dict = field(default_factory=dict, repr=False)
+    low: float = np.nan
+    high: float = np.nan
+
+    def centre(self, stated_px_per_mm: float) -> float:
+        """Where each line's period is read: about the stated scale where it lies among the scales the structures
+        agree on (the reading every run made before this search, unchanged), else about the scale found."""
+        return float(stated_px_per_mm) if self.low <= stated_px_per_mm <= self.high else self.px_per_mm
 
 
 def _spectra(entries) -> dict[int, LineSpectrum]:
@@ -74,35 +80,22 @@ def search(entries, stated_px_per_mm: float) -> Found:
     sources = " and ".join(dict.fromkeys(e[0] for e in entries))
     if not runs:
         return Found(np.nan, f"no scale puts a clear peak (over {CLEAR_PROMINENCE:g}x the line's noise floor) at "
-                             f"the known period in most presses of {sources}", spectra)
+                             f"the known period in most presses of {sources}")
     start, stop = runs[-1]
     best = start + np.flatnonzero(score[start:stop] == score[start:stop].max())
     chosen = float(np.sqrt(scales[best[0]] * scales[best[-1]]))
-    if len({e[1] for e in entries}) == 1:
-        stated = float(stated_px_per_mm)
-        elsewhere = [(a, b) for a, b in runs[:-1] if scales[a] <= stated <= scales[b - 1]]
-        if elsewhere:
-            a, b = elsewhere[0]
-            return Found(np.nan, f"{sources} alone read as well at {np.sqrt(scales[a] * scales[b - 1]):.4g} as at "
-                                 f"{chosen:.4g} px/mm (one known period cannot tell its own peak from another "
-                                 "structure's)", spectra)
-    return Found(chosen, "", spectra)
+    stated = float(stated_px_per_mm)
+    if len({e[1] for e in entries}) == 1 and not scales[start] <= stated <= scales[stop - 1]:
+        where = " or ".join(f"{np.sqrt(scales[a] * scales[b - 1]):.4g}" for a, b in reversed(runs[-3:]))
+        return Found(np.nan, f"{sources} alone show clear peaks at {where} px/mm, not at the stated {stated:g}; one "
+                             "known period cannot tell its own peak from another structure's")
+    return Found(chosen, "", float(scales[start]), float(scales[stop - 1]))
 
 
-def read_at(entries, px_per_mm: float, spectra: dict | None = None) -> ScaleMeasurement:
-    """Each line's own px/mm within :data:`CHECK_WINDOW` of ``px_per_mm`` (NaN where its peak there is not clear),
-    the mounts labelled."""
-    spectra = spectra if spectra is not None else _spectra(entries)
-    each, mounts = [], []
-    for _, period, line, mount in entries:
-        value = float(check_scale([line], period, px_per_mm, window=CHECK_WINDOW).px_per_mm_each[0])
-        if np.isfinite(value) and _prominence(spectra[id(line)], 1.0 / (period * value)) < CLEAR_PROMINENCE:
-            value = np.nan
-        each.append(value)
-        mounts.append(mount)
-    return ScaleMeasurement(np.nan, np.asarray(each, dtype=np.float64), np.asarray(mounts, dtype=object))
-
-
-def _prominence(spectrum: LineSpectrum, cycles_per_px: float) -> float:
-    step = spectrum.freq_px[1]
-    return float(spectrum.prominence(np.array([cycles_per_px - step]), np.array([cycles_per_px + step]))[0])
+def read_at(entries, px_per_mm: float) -> ScaleMeasurement:
+    """Each line's own px/mm within :data:`CHECK_WINDOW` of ``px_per_mm`` (``sensor.period.check_scale``), the mounts
+    labelled."""
+    each = [float(check_scale([line], period, px_per_mm, window=CHECK_WINDOW).px_per_mm_each[0])
+            for _, period, line, _ in entries]
+    mounts = np.asarray([e[3] for e in entries], dtype=object)
+    return ScaleMeasurement(np.nan, np.asarray(each, dtype=np.float64), mounts)
