@@ -5,16 +5,17 @@ each of its presses, and its gratings of stated period (``wavelength_mm`` in spe
 study, and the others). The stated scale is never where the search starts: every scale at which a line resolves
 its period is tried (``sensor/prominence.py``), so a check cannot be talked into agreeing.
 
-**Agreement.** A scale is a candidate where most lines of each structure (:data:`MIN_SUPPORT`) show a clear peak
-(5x the line's noise floor) at the period that scale puts them, and where lines of at least two different periods
-do (a pad's ridges and a grating; gratings of different periods). Noise, photographs and bare background show a
-clear peak at one scale in a few lines at most, never in most lines of two structures at once. A structure's
-harmonics make candidates at the true scale / k (a 3 mm grating's 3rd harmonic sits where a 1 mm period would at a
-third of the scale), never at k times it: that would need a peak below the fundamental, which a periodic image has
-not. So the largest candidate is the scale. One known period alone (a fingerprint model's ridges, read on images of
-unknown gratings) cannot tell its own fundamental from a grating that happens to sit there: where the stated scale
-is another of its candidates, the scale is not confirmed rather than corrected. Then, or where no scale is a
-candidate, the check says "scale could not be confirmed" and the stated scale is used.
+**Agreement.** A scale is a candidate where most lines of one structure (:data:`MIN_SUPPORT`) and a good share of
+every other's (:data:`MIN_SHARE`) show a clear peak (5x the line's noise floor) at the period that scale puts them,
+and where lines of at least two different periods do (a pad's ridges and a grating; gratings of different periods).
+Noise, photographs and bare background show a clear peak at one scale in a few lines at most, never in most lines of
+two structures at once. A structure's harmonics make candidates at the true scale / k (a 3 mm grating's 3rd harmonic
+sits where a 1 mm period would at a third of the scale), never at k times it: that would need a peak below the
+fundamental, which a periodic image has not. So the largest candidate is the scale. One known period alone (a
+fingerprint model's ridges, read on images of unknown gratings) cannot tell its own fundamental from a grating that
+happens to sit there: where the stated scale is another of its candidates, the scale is not confirmed rather than
+corrected. Then, or where no scale is a candidate, the check says "scale could not be confirmed" and the stated scale
+is used.
 
 **Reading.** At the chosen scale each line's period is measured below the DFT's bin within :data:`CHECK_WINDOW`
 (``sensor/period.py``), about the stated scale where it lies among the scales the structures agree on, else about
@@ -43,10 +44,12 @@ CORRECTED = "spectra read at the measured"
 UNCONFIRMED = "scale could not be confirmed"
 #: Mounts showing the known structure below which the scale is said to be unchecked.
 MIN_MOUNTS = 3
-#: The share of a structure's lines that must show a clear peak at a candidate scale: most of them. The twin's
-#: presses at their true scale: every fingerprint press shows its ridges; 60-100 % of gratings show their period on the
-#: fingerprint pad (the ridges outshine them), all of them on the smooth pad (BENCHMARKS.md, "scale check").
+#: The share of one structure's lines that must show a clear peak at a candidate scale: most of them. The twin's
+#: presses at their true scale: every fingerprint press shows its ridges, every smooth-pad press its grating.
 MIN_SUPPORT = 0.5
+#: The share every other structure must show there: on the fingerprint pad the ridges outshine the gratings, whose own
+#: period is clear in 30-100 % of a specimen's presses (BENCHMARKS.md, "scale check").
+MIN_SHARE = 0.25
 
 
 @dataclass(frozen=True)

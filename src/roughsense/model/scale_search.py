@@ -45,14 +45,15 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
-    """(candidate mask, score) over ``scales``: a candidate where every structure with lines that resolve it there
-    shows clear peaks in at least MIN_SUPPORT of them, and clear lines of two periods (or of the one period given)
-    agree; the score is the structures' summed shares."""
-    from .scale_check import MIN_SUPPORT
+    """(candidate mask, score) over ``scales``: a candidate where one structure shows clear peaks in most of its
+    lines that resolve it there (MIN_SUPPORT), every other in at least MIN_SHARE of them, and clear lines of two
+    periods (or of the one period given) agree; the score is the structures' summed shares."""
+    from .scale_check import MIN_SHARE, MIN_SUPPORT
 
     sources = list(dict.fromkeys(e[0] for e in entries))
     periods = sorted({e[1] for e in entries})
     ok = np.ones(scales.size, dtype=bool)
+    most = np.zeros(scales.size, dtype=bool)
     score = np.zeros(scales.size)
     periods_clear = np.zeros((len(periods), scales.size), dtype=bool)
     for source in sources:
@@ -65,9 +66,10 @@ def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
             resolvable_sum += resolvable
             periods_clear[periods.index(period)] |= clear
         share = np.divide(clear_sum, resolvable_sum, out=np.zeros(scales.size), where=resolvable_sum > 0)
-        ok &= (resolvable_sum == 0) | (share >= MIN_SUPPORT)
+        ok &= (resolvable_sum == 0) | (share >= MIN_SHARE)
+        most |= share >= MIN_SUPPORT
         score += share
-    ok &= periods_clear.sum(axis=0) >= min(2, len(periods))
+    ok &= most & (periods_clear.sum(axis=0) >= min(2, len(periods)))
     return ok, score
 
 

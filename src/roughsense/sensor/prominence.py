@@ -101,3 +101,13 @@ def clear_peaks(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) ->
     clear = spectrum.prominence(frequency / MOUNT_SPREAD, frequency * MOUNT_SPREAD) >= CLEAR_PROMINENCE
     return clear & resolvable, resolvable
 
+
+
+def peak_prominence(line, cycles_per_px: float) -> float:
+    """How many times its noise floor the line's amplitude stands within one DFT bin of ``cycles_per_px`` (0 for a
+    NaN frequency): whether a period measured on the line is there at all."""
+    if not np.isfinite(cycles_per_px):
+        return 0.0
+    spectrum = LineSpectrum.of(line)
+    step = 1.0 / spectrum.line_px
+    return float(spectrum.prominence(np.array([cycles_per_px - step]), np.array([cycles_per_px + step]))[0])
