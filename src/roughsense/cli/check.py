@@ -49,14 +49,19 @@ def _check_scale(result) -> None:
 def _check_measured_scale(result) -> None:
     """The scale check `study` and `fit` make (``model/scale_check.py``): a stated px_per_mm the images measure
     otherwise is a problem; one that could not be confirmed is said on stderr (the check passes)."""
-    from ..errors import InputError
+    import warnings
+
+    from ..errors import InputError, RoughsenseError, RoughsenseWarning
     from ..io.study import STUDY_TOML, read_study
-    from ..model.scale_check import check_study_scale
+    from ..model.scale_check import UNCONFIRMED, check_study_scale
 
     try:
-        check = check_study_scale(read_study(result.root))
-    except InputError as exc:  # an image that does not decode: check looks for every file, the scale check reads some
-        result.problems.add(exc)
+        with warnings.catch_warnings():  # the folder's own warnings were said by check_study, once
+            warnings.simplefilter("ignore", RoughsenseWarning)
+            study = read_study(result.root)
+        check = check_study_scale(study)
+    except RoughsenseError as exc:  # check looks for every image, decodes none: one the scale check reads may not
+        typer.echo(f"roughsense: {UNCONFIRMED}: {exc}", err=True)
         return
     if check.off:
         result.problems.add(InputError(f"[sensor] {check.summary()}; measure it with `roughsense calibrate "
