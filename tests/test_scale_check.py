@@ -139,3 +139,33 @@ def test_a_check_that_cannot_confirm_says_so_in_one_line():
     assert not check.checked and not check.off
     assert check.summary() == (f"{UNCONFIRMED}: 0 mount(s) show a fingerprint pad's ridges or a specimen of stated "
                                "period clearly (at least 3 needed); 34.9 px/mm taken as stated")
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_fit_corrects_and_predict_flags_every_row_of_a_study_stated_at_half_or_twice_its_scale(run_cli, tmp_path,
+                                                                                              factor):
+    """The tiny study's gratings are drawn at 20 px/mm; study.toml states 20 x factor. On 390ce82 the check searched
+    +-15 % about the stated scale and agreed with it."""
+    import re
+
+    import pandas as pd
+
+    from tests.test_dataset import make_study
+
+    root = make_study(tmp_path / "tiny", repetitions=3)
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 20.0", f"px_per_mm = {20 * factor}"))
+    model = tmp_path / "m.json"
+    code, _, err = run_cli("fit", "--study", root, "--pad", "fingerprint", "--condition", "2N", "--out", model)
+    assert code == 0, err
+    [line] = [line for line in err.splitlines() if "scale" in line]
+    assert line.startswith("roughsense: warning: scale: measured 20") and "spectra read at the measured 20" in line
+    pred = tmp_path / "p.csv"
+    code, _, err = run_cli("predict", model, "--study", root, "--out", pred)
+    assert code == 0, err
+    [warned] = [line for line in err.splitlines() if "warning: scale: measured" in line]
+    assert f"against the stated {20 * factor:g} px/mm" in warned and "every prediction is flagged 'scale'" in warned
+    table = pd.read_csv(pred)
+    assert table["extrapolates"].all()
+    assert all(re.search(rf"scale: the images measure 20(\.0\d)? px/mm, read at {20 * factor:g} px/mm", r)
+               for r in table["outside"])
