@@ -56,21 +56,24 @@ class LineSpectrum:
 
 
 def _floor(amplitude: np.ndarray) -> np.ndarray:
-    """Each bin's noise floor (module docstring), taken at log-spaced bins and interpolated between them."""
+    """Each bin's noise floor (module docstring), taken at log-spaced bins and interpolated between them; the windows'
+    medians at once (sorted rows, the excluded bins sorted last as +inf)."""
     n = amplitude.size
     bins = np.arange(n)
     centres = np.unique(np.geomspace(1, n - 1, 96).round().astype(int))
-    floors = []
-    for k in centres:
-        low, high = int(k / FLOOR_SPAN), int(np.ceil(k * FLOOR_SPAN))
-        if high - low < 2 * LOBE_BINS + MIN_FLOOR_BINS:
-            low, high = k - LOBE_BINS - MIN_FLOOR_BINS // 2, k + LOBE_BINS + MIN_FLOOR_BINS // 2
-        window = bins[max(low, 1):min(high, n - 1) + 1]
-        window = window[np.abs(window - k) > LOBE_BINS]
-        floors.append(np.median(amplitude[window]) if window.size else np.nan)
-    floors = np.asarray(floors)
-    ok = np.isfinite(floors)
-    return np.interp(bins, centres[ok], floors[ok]) if ok.any() else np.zeros(n)
+    low, high = (centres / FLOOR_SPAN).astype(int), np.ceil(centres * FLOOR_SPAN).astype(int)
+    narrow = high - low < 2 * LOBE_BINS + MIN_FLOOR_BINS
+    low = np.where(narrow, centres - LOBE_BINS - MIN_FLOOR_BINS // 2, low)
+    high = np.where(narrow, centres + LOBE_BINS + MIN_FLOOR_BINS // 2, high)
+    low, high = np.maximum(low, 1), np.minimum(high, n - 1)
+    window = low[:, None] + np.arange(int((high - low).max()) + 1)[None, :]
+    keep = (window <= high[:, None]) & (np.abs(window - centres[:, None]) > LOBE_BINS)
+    values = np.sort(np.where(keep, amplitude[np.minimum(window, n - 1)], np.inf), axis=1)
+    count = keep.sum(axis=1)
+    ok = count > 0
+    rows = np.flatnonzero(ok)
+    middle = 0.5 * (values[rows, (count[ok] - 1) // 2] + values[rows, count[ok] // 2])
+    return np.interp(bins, centres[ok], middle) if ok.any() else np.zeros(n)
 
 
 #: A mount's magnification differs from another's (the twin's bench: 2.2 % SD), so each line's peak is looked for
