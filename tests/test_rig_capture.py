@@ -150,7 +150,7 @@ def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path
     assert code == 0 and "fill in shape and wavelength_mm for C2.5" in stdout
     # the scale is checked after every capture; a folder not yet readable as a study says why, once
     [scale] = [line for line in stderr.splitlines() if "scale" in line]
-    assert scale.startswith("roughsense: scale not checked: ")
+    assert scale.startswith("roughsense: scale could not be confirmed: ")
     assert scale.endswith("specimens.csv, row 3, column 'shape': empty value")
     with pytest.raises(InputError, match=r"specimens.csv, row 3, column 'shape': empty value"):
         read_study(out)

@@ -115,12 +115,12 @@ def _check_scale(out: Path, pad: str) -> None:
 
     from ..errors import RoughsenseError, RoughsenseWarning
     from ..io.study import read_study
-    from ..model.scale_check import check_study_scale
+    from ..model.scale_check import UNCONFIRMED, check_study_scale
 
     try:
         check = check_study_scale(read_study(out), pad=pad)
     except RoughsenseError as exc:  # a folder not yet readable as a study (a specimen without its wavelength)
-        typer.echo(f"roughsense: scale not checked: {exc}", err=True)
+        typer.echo(f"roughsense: {UNCONFIRMED}: {exc}", err=True)
         return
     if check.off:
         warnings.warn(RoughsenseWarning(f"{check.summary()}; measure it with `roughsense calibrate {out}`"),
