@@ -13,9 +13,9 @@ two structures at once. A structure's harmonics make candidates at the true scal
 sits where a 1 mm period would at a third of the scale), never at k times it: that would need a peak below the
 fundamental, which a periodic image has not. So the largest candidate is the scale. One known period alone (a
 fingerprint model's ridges, read on images of unknown gratings) cannot tell its own fundamental from a grating that
-happens to sit there: where the stated scale is another of its candidates, the scale is not confirmed rather than
-corrected. Then, or where no scale is a candidate, the check says "scale could not be confirmed" and the stated scale
-is used.
+happens to sit there: it checks a stated scale inside, or within :data:`~roughsense.sensor.period.CHECK_WINDOW` of,
+its largest candidate, and no other. Otherwise, or where no scale is a candidate, the check says "scale could not be
+confirmed" and the stated scale is used.
 
 **Reading.** At the chosen scale each line's period is measured below the DFT's bin within :data:`CHECK_WINDOW`
 (``sensor/period.py``), about the stated scale where it lies among the scales the structures agree on, else about

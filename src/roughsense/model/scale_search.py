@@ -87,10 +87,13 @@ def search(entries, stated_px_per_mm: float) -> Found:
     best = start + np.flatnonzero(score[start:stop] == score[start:stop].max())
     chosen = float(np.sqrt(scales[best[0]] * scales[best[-1]]))
     stated = float(stated_px_per_mm)
-    if len({e[1] for e in entries}) == 1 and not scales[start] <= stated <= scales[stop - 1]:
+    inside = [scales[a] <= stated <= scales[b - 1] for a, b in runs]
+    near = inside[-1] or (not any(inside) and abs(stated / chosen - 1) <= CHECK_WINDOW)
+    if len({e[1] for e in entries}) == 1 and not near:
         where = " or ".join(f"{np.sqrt(scales[a] * scales[b - 1]):.4g}" for a, b in reversed(runs[-3:]))
-        return Found(np.nan, f"{sources} alone show clear peaks at {where} px/mm, not at the stated {stated:g}; one "
-                             "known period cannot tell its own peak from another structure's")
+        return Found(np.nan, f"{sources} alone show clear peaks at {where} px/mm"
+                             f"{', the stated scale among them' if any(inside) else f', not at the stated {stated:g}'}"
+                             "; one known period can check a scale near the stated one, not find it")
     return Found(chosen, "", float(scales[start]), float(scales[stop - 1]))
 
 
