@@ -107,8 +107,8 @@ def test_study_toml_keeps_its_mode_and_its_byte_order_mark(tiny, run_cli):
     toml = tiny / "study.toml"
     toml.write_bytes(codecs.BOM_UTF8 + toml.read_bytes())
     os.chmod(toml, 0o600)
-    code, _, err = run_cli("check", tiny)
-    assert code == 0, err
+    code, out, err = run_cli("check", tiny)  # read with its BOM: the one problem is the scale calibrate measures
+    assert code == 2 and "against the stated 17 px/mm" in out, out
     code, out, err = run_cli("calibrate", tiny, "--force")
     assert code == 0 and "(was 17)" in out, err
     assert toml.stat().st_mode & 0o777 == 0o600
@@ -118,3 +118,37 @@ def test_study_toml_keeps_its_mode_and_its_byte_order_mark(tiny, run_cli):
 
     assert tomllib.loads(raw.decode("utf-8-sig"))["sensor"]["px_per_mm"] == pytest.approx(20.0, rel=3e-3)
     assert run_cli("check", tiny)[0] == 0
+
+
+def test_a_range_where_only_a_harmonic_agrees_is_refused_and_the_true_scale_is_written(tmp_path, run_cli):
+    """R3 pressed on the 1 mm-ridged pad only (a capture session): at 3x the scale the ridges' period falls on R3's,
+    so --range 100,200 found "104.7 px/mm" on 390ce82. The target and the ridges agree only at 34.9."""
+    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+
+    config = SimulationConfig(pads=("fingerprint",), specimens=("R3",), repetitions=3, seed=11, participants=3,
+                              sessions=2)
+    root = simulate_study(tmp_path / "r3", with_image_size(config, 1920, 170), jobs=1)
+    before = (root / "study.toml").read_bytes()
+    code, _, err = run_cli("calibrate", root, "--range", "100,200", "--force")
+    assert code == 2 and "nothing written" in one_error(err) and (root / "study.toml").read_bytes() == before
+    code, out, err = run_cli("calibrate", root, "--force")
+    assert code == 0, err
+    import tomllib
+
+    written = tomllib.loads((root / "study.toml").read_text())["sensor"]["px_per_mm"]
+    assert written == pytest.approx(34.9, rel=0.03)
+
+
+def test_a_scale_the_target_and_the_ridges_do_not_agree_on_is_refused():
+    """A strong R3 under 1 mm ridges: every press shows a clear peak where the ridges would sit at 3x the scale (R3's
+    own), yet R3 has none at 9 mm there: the search over every scale puts the agreement at the true one."""
+    from roughsense.cli.calibrate import _refuse_disagreeing
+    from roughsense.errors import ConfigError
+    from tests.test_scale_check import grating_line
+
+    lines = [grating_line(3.0, ridge_mm=1.0, grating=0.5, phase=k, seed=k) for k in range(6)]
+    entries = [*(("R3", 3.0, line, str(k // 2)) for k, line in enumerate(lines)),
+               *(("ridges", 1.0, line, str(k // 2)) for k, line in enumerate(lines))]
+    _refuse_disagreeing(entries, 34.9, None)
+    with pytest.raises(ConfigError, match=r"agree on 3[45]\.\d+ px/mm, not on the 104.7 measured within --range 100,200"):
+        _refuse_disagreeing(entries, 104.7, "100,200")

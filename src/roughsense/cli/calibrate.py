@@ -217,6 +217,8 @@ def _refuse_disagreeing(entries, px_per_mm: float, scale_range) -> None:
     period falls on the grating's, and a --range that holds only that is refused."""
     from ..model.scale_search import search
 
+    if len({entry[1] for entry in entries}) < 2:  # one period alone has nothing to agree with: its strongest peak
+        return
     found = search(entries, px_per_mm)
     if found.doubt:
         raise ConfigError(f"the scale could not be confirmed: {found.doubt}; nothing written")
@@ -236,11 +238,12 @@ def _refuse_blank(measured, blank: list, root, what: str) -> None:
         return
     names = [str(p.relative_to(root)) if p.is_relative_to(root) else str(p) for p in blank]
     shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
-    why = f"no clear peak (over {CLEAR_PROMINENCE:g}x the noise floor) of {what}"
+    why = (f"no clear peak (over {CLEAR_PROMINENCE:g}x the noise floor) of the target's period (on a ridged pad, of its "
+           f"ridges) in the presses of {what}")
     if measured.n_mounts < MIN_MOUNTS or len(blank) * 2 > measured.px_per_mm_each.size:
-        raise ConfigError(f"{counted(len(blank), 'press', 'presses')} of {measured.px_per_mm_each.size} show {why}: {shown}; "
-                          "nothing written")
-    typer.echo(f"roughsense: warning: {counted(len(blank), 'press', 'presses')} left out, {why}: {shown}", err=True)
+        raise ConfigError(f"{counted(len(blank), 'press', 'presses')} of {measured.px_per_mm_each.size} show {why}: "
+                          f"{shown}; nothing written")
+    typer.echo(f"roughsense: warning: {counted(len(blank), 'press', 'presses')} left out, with {why}: {shown}", err=True)
 
 
 def register(app: typer.Typer) -> None:

@@ -25,6 +25,9 @@ FLOOR_SPAN = 1.6
 LOBE_BINS = 3
 #: The fewest bins a floor is taken over (near DC a factor-of-1.6 window holds too few).
 MIN_FLOOR_BINS = 8
+#: A peak is the largest amplitude within this many DFT bins either side: a Hann window's first two side lobes (-31 and
+#: -41 dB, at 2.5 and 3.5 bins) of a strong peak would otherwise stand clear of a quiet line's floor.
+PEAK_BINS = 4
 #: A peak this many times its noise floor is clear (module docstring).
 CLEAR_PROMINENCE = 5.0
 
@@ -37,17 +40,24 @@ class LineSpectrum:
     amplitude: np.ndarray
     floor: np.ndarray
     line_px: int
+    #: The largest amplitude within :data:`PEAK_BINS` of each frequency: a peak is the largest of its neighbourhood.
+    dominated: np.ndarray
 
     @classmethod
     def of(cls, line) -> LineSpectrum:
         line = np.asarray(line, dtype=np.float64)
         freq, amplitude = amplitude_scan(line)
+        from scipy.ndimage import maximum_filter1d
+
         coarse = amplitude[::ZOOM]  # the plain DFT's bins: independent on noise, unlike the padded ones
-        return cls(freq, amplitude, np.interp(freq, freq[::ZOOM], _floor(coarse)), int(line.size))
+        return cls(freq, amplitude, np.interp(freq, freq[::ZOOM], _floor(coarse)), int(line.size),
+                   maximum_filter1d(amplitude, size=2 * PEAK_BINS * ZOOM + 1, mode="nearest"))
 
     def prominence(self, low_px: np.ndarray, high_px: np.ndarray) -> np.ndarray:
-        """The largest amplitude over floor within each [low, high] (cycles per px); 0 where nothing is searched."""
+        """The largest amplitude over floor of a peak (:data:`PEAK_BINS`) within each [low, high] (cycles per px); 0
+        where there is none."""
         ratio = np.divide(self.amplitude, self.floor, out=np.zeros_like(self.amplitude), where=self.floor > 0)
+        ratio[self.amplitude < self.dominated] = 0.0  # a strong peak's flanks and side lobes are no peaks of their own
         start = np.searchsorted(self.freq_px, low_px, side="left")
         stop = np.maximum(np.searchsorted(self.freq_px, high_px, side="right"), start + 1)
         start, stop = np.clip(start, 1, ratio.size - 1), np.clip(stop, 1, ratio.size)
