@@ -110,9 +110,13 @@ def _precision(m) -> str:
 
 
 def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tuple]:
-    """(what, period in mm, image paths, the pad's ridge period or None, each image's mount) per pad."""
+    """(what, period in mm, image paths, the pad's ridge period or None, each image's mount, each image's grating
+    period where the target is a pad's ridges and specimens.csv states one, else NaN) per pad."""
     import numpy as np
 
+    from ..model.scale_check import stated_periods
+
+    stated = stated_periods(study) if ridges else {}
     manifest = study.manifest
     if ridges:
         if not study.pad_ridge_period_mm:
@@ -140,7 +144,8 @@ def _targets(study, specimen: str | None, ridges: bool, limit: int) -> list[tupl
         keep = max(1, round(limit * len(rows) / total))
         chosen = rows.iloc[np.unique(np.linspace(0, len(rows) - 1, min(keep, len(rows))).round().astype(int))]
         mounts = [f"{s}/{p}/{r}" for s, p, r in zip(chosen["specimen"], chosen["pad"], chosen["repetition"])]
-        out.append((what, period, [study.root / image for image in chosen["image"]], ridge, mounts))
+        gratings = [stated.get(s, np.nan) if ridges else np.nan for s in chosen["specimen"]]
+        out.append((what, period, [study.root / image for image in chosen["image"]], ridge, mounts, gratings))
     return out
 
 
@@ -183,11 +188,13 @@ def _measure(study, targets, scale_range):
 
     reader = SpatialSpectrum(roi=study.sensor.roi, max_pixels=study.sensor.max_pixels)
     values, mounts, blank, entries = [], [], [], []
-    for what, period, images, ridge, mount in targets:
+    for what, period, images, ridge, mount, gratings in targets:
         lines = [reader.line(image)[0] for image in images]
         entries.extend((what, period, line, label) for line, label in zip(lines, mount))
         if ridge is not None:
             entries.extend((f"the pad's {ridge:g} mm ridges", ridge, line, label) for line, label in zip(lines, mount))
+        entries.extend(("the specimens' periods", g, line, label) for line, label, g in zip(lines, mount, gratings)
+                       if np.isfinite(g))
         each = calibrate_scale(lines, period, px_per_mm_range=scale_range, ridge_period_mm=ridge).px_per_mm_each
         for i, (line, value) in enumerate(zip(lines, each)):
             if not _clear(line, value, period, ridge):
