@@ -6,12 +6,19 @@ pad's ridges; the study's gratings of stated period, each line at its own period
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..sensor.period import CHECK_WINDOW, ScaleMeasurement, check_scale
-from ..sensor.prominence import CLEAR_PROMINENCE, LineSpectrum, clear_peaks, scale_grid
+from ..sensor.prominence import CLEAR_PROMINENCE, LineSpectrum, peak_heights, scale_grid
+
+#: Harmonics make candidates below the true scale, as strong as a square wave's 3rd harmonic is (a third of the
+#: fundamental) or as a pulse train's (nearly as strong), never above it: the largest candidate is taken unless a
+#: smaller one stands out by more than this (log of summed median prominences; a larger one read from another
+#: structure lacks whole structures' strength, e.g. a ridged pad's ridges read at 3x the scale on a 3 mm grating).
+STRENGTH_MARGIN = float(np.log(3.0))
 
 
 @dataclass(frozen=True)
@@ -45,36 +52,40 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
-    """(candidate mask, score) over ``scales``: a candidate where one structure shows clear peaks in most of its
+    """(candidate mask, strength) over ``scales``: a candidate where one structure shows clear peaks in most of its
     lines that resolve it there (MIN_SUPPORT), every other in at least MIN_SHARE of them, and clear lines of two
-    periods (or of the one period given) agree; the score is the structures' summed shares."""
+    periods agree wherever two are resolvable (short lines resolve fewer); the strength is the structures' summed
+    median log prominence (a fundamental stands above the harmonics that alias it)."""
     from .scale_check import MIN_SHARE, MIN_SUPPORT
 
-    sources = list(dict.fromkeys(e[0] for e in entries))
     periods = sorted({e[1] for e in entries})
-    ok = np.ones(scales.size, dtype=bool)
-    most = np.zeros(scales.size, dtype=bool)
-    score = np.zeros(scales.size)
+    ok, most = np.ones(scales.size, dtype=bool), np.zeros(scales.size, dtype=bool)
+    strength = np.zeros(scales.size)
     periods_clear = np.zeros((len(periods), scales.size), dtype=bool)
-    for source in sources:
-        clear_sum, resolvable_sum = np.zeros(scales.size), np.zeros(scales.size)
-        for s, period, line, _ in entries:
-            if s != source:
-                continue
-            clear, resolvable = clear_peaks(spectra[id(line)], period, scales)
-            clear_sum += clear
-            resolvable_sum += resolvable
-            periods_clear[periods.index(period)] |= clear
-        share = np.divide(clear_sum, resolvable_sum, out=np.zeros(scales.size), where=resolvable_sum > 0)
+    periods_resolvable = np.zeros((len(periods), scales.size), dtype=bool)
+    for source in dict.fromkeys(e[0] for e in entries):
+        logs = []
+        for _, period, line, _ in (e for e in entries if e[0] == source):
+            height, resolvable = peak_heights(spectra[id(line)], period, scales)
+            periods_clear[periods.index(period)] |= height >= CLEAR_PROMINENCE
+            periods_resolvable[periods.index(period)] |= resolvable
+            logs.append(np.where(resolvable, np.log(np.maximum(height, 1.0)), np.nan))
+        logs = np.asarray(logs)
+        resolvable_sum = np.isfinite(logs).sum(axis=0)
+        share = np.divide((logs >= np.log(CLEAR_PROMINENCE)).sum(axis=0), resolvable_sum,
+                          out=np.zeros(scales.size), where=resolvable_sum > 0)
         ok &= (resolvable_sum == 0) | (share >= MIN_SHARE)
         most |= share >= MIN_SUPPORT
-        score += share
-    ok &= most & (periods_clear.sum(axis=0) >= min(2, len(periods)))
-    return ok, score
+        with warnings.catch_warnings():  # a scale no line of the structure resolves: all-NaN, no strength
+            warnings.simplefilter("ignore", RuntimeWarning)
+            strength += np.nan_to_num(np.nanmedian(logs, axis=0), nan=0.0)
+    need = np.maximum(np.minimum(2, periods_resolvable.sum(axis=0)), 1)
+    return ok & most & (periods_clear.sum(axis=0) >= need), strength
 
 
 def search(entries, stated_px_per_mm: float) -> Found:
-    """The largest scale the structures agree on, at the middle of its best-scored plateau (module docstring)."""
+    """The largest scale the structures agree on whose strength is within :data:`STRENGTH_MARGIN` of the strongest,
+    at the middle of its strongest plateau (module docstring)."""
     spectra = _spectra(entries)
     scales = scale_grid([e[1] for e in entries], [spectra[id(e[2])].line_px for e in entries])
     ok, score = _support(entries, spectra, scales)
@@ -83,14 +94,17 @@ def search(entries, stated_px_per_mm: float) -> Found:
     if not runs:
         return Found(np.nan, f"no scale puts a clear peak (over {CLEAR_PROMINENCE:g}x the line's noise floor) at "
                              f"the known period in most presses of {sources}")
-    start, stop = runs[-1]
-    best = start + np.flatnonzero(score[start:stop] == score[start:stop].max())
+    peaks = [float(score[a:b].max()) for a, b in runs]
+    top = max(i for i in range(len(runs)) if peaks[i] >= max(peaks) - STRENGTH_MARGIN)
+    start, stop = runs[top]
+    best = start + np.flatnonzero(score[start:stop] == peaks[top])
     chosen = float(np.sqrt(scales[best[0]] * scales[best[-1]]))
     stated = float(stated_px_per_mm)
     inside = [scales[a] <= stated <= scales[b - 1] for a, b in runs]
-    near = inside[-1] or (not any(inside) and abs(stated / chosen - 1) <= CHECK_WINDOW)
+    near = inside[top] or (not any(inside) and abs(stated / chosen - 1) <= CHECK_WINDOW)
     if len({e[1] for e in entries}) == 1 and not near:
-        where = " or ".join(f"{np.sqrt(scales[a] * scales[b - 1]):.4g}" for a, b in reversed(runs[-3:]))
+        strongest = sorted(range(len(runs)), key=lambda i: -peaks[i])[:3]
+        where = " or ".join(f"{np.sqrt(scales[runs[i][0]] * scales[runs[i][1] - 1]):.4g}" for i in strongest)
         return Found(np.nan, f"{sources} alone show clear peaks at {where} px/mm"
                              f"{', the stated scale among them' if any(inside) else f', not at the stated {stated:g}'}"
                              "; one known period can check a scale near the stated one, not find it")

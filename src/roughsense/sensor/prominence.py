@@ -103,17 +103,22 @@ def scale_grid(periods_mm, lines_px) -> np.ndarray:
     return np.geomspace(low, high, max(2, int(np.ceil(np.log(high / low) / np.log(SCALE_STEP))) + 1))
 
 
-def clear_peaks(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(clear, resolvable) at each scale: whether the line shows a clear peak (:data:`CLEAR_PROMINENCE`) within
-    :data:`MOUNT_SPREAD` of where that scale puts ``period_mm``, and whether the line can show that period there."""
+def peak_heights(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(prominence, resolvable) at each scale: the line's highest peak over its floor within :data:`MOUNT_SPREAD` of
+    where that scale puts ``period_mm`` (0 where the line cannot show that period), and whether it can."""
     from .period import MIN_PERIODS_PER_LINE, MIN_PX_PER_PERIOD
 
     period_px = period_mm * scales
     resolvable = (period_px >= MIN_PX_PER_PERIOD) & (period_px <= spectrum.line_px / MIN_PERIODS_PER_LINE)
     frequency = 1.0 / period_px
-    clear = spectrum.prominence(frequency / MOUNT_SPREAD, frequency * MOUNT_SPREAD) >= CLEAR_PROMINENCE
-    return clear & resolvable, resolvable
+    return np.where(resolvable, spectrum.prominence(frequency / MOUNT_SPREAD, frequency * MOUNT_SPREAD), 0.0), resolvable
 
+
+def clear_peaks(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(clear, resolvable) at each scale: whether the line shows a clear peak (:data:`CLEAR_PROMINENCE`) where that
+    scale puts ``period_mm`` (:func:`peak_heights`), and whether the line can show that period there."""
+    height, resolvable = peak_heights(spectrum, period_mm, scales)
+    return height >= CLEAR_PROMINENCE, resolvable
 
 
 def peak_prominence(line, cycles_per_px: float) -> float:
