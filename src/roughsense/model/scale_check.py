@@ -11,11 +11,12 @@ and where lines of at least two different periods do (a pad's ridges and a grati
 Noise, photographs and bare background show a clear peak at one scale in a few lines at most, never in most lines of
 two structures at once. A structure's harmonics make candidates at the true scale / k (a 3 mm grating's 3rd harmonic
 sits where a 1 mm period would at a third of the scale), never at k times it: that would need a peak below the
-fundamental, which a periodic image has not. So the largest candidate is the scale. One known period alone (a
-fingerprint model's ridges, read on images of unknown gratings) cannot tell its own fundamental from a grating that
-happens to sit there: it checks a stated scale inside, or within :data:`~roughsense.sensor.period.CHECK_WINDOW` of,
-its largest candidate, and no other. Otherwise, or where no scale is a candidate, the check says "scale could not be
-confirmed" and the stated scale is used.
+fundamental, which a periodic image has not. So the largest candidate is the scale, unless a smaller one stands out by
+more than :data:`~roughsense.model.scale_search.STRENGTH_MARGIN`. Two periods must agree wherever two are resolvable
+(a short line resolves fewer). One known period alone (a fingerprint model's ridges, read on images of unknown
+gratings) cannot tell its own fundamental from a grating that happens to sit there: it checks a stated scale inside,
+or within :data:`~roughsense.sensor.period.CHECK_WINDOW` of, its largest candidate, and no other. Otherwise, or where
+no scale is a candidate, the check says "scale could not be confirmed" and the stated scale is used.
 
 **Reading.** At the chosen scale each line's period is measured below the DFT's bin within :data:`CHECK_WINDOW`
 (``sensor/period.py``), about the stated scale where it lies among the scales the structures agree on, else about

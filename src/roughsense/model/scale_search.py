@@ -54,7 +54,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
     """(candidate mask, strength) over ``scales``: a candidate where one structure shows clear peaks in most of its
     lines that resolve it there (MIN_SUPPORT), every other in at least MIN_SHARE of them, and clear lines of two
-    periods agree wherever two are resolvable (short lines resolve fewer); the strength is the structures' summed
+    periods (or of the one period given) agree; the strength is the structures' summed
     median log prominence (a fundamental stands above the harmonics that alias it)."""
     from .scale_check import MIN_SHARE, MIN_SUPPORT
 
@@ -62,13 +62,11 @@ def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
     ok, most = np.ones(scales.size, dtype=bool), np.zeros(scales.size, dtype=bool)
     strength = np.zeros(scales.size)
     periods_clear = np.zeros((len(periods), scales.size), dtype=bool)
-    periods_resolvable = np.zeros((len(periods), scales.size), dtype=bool)
     for source in dict.fromkeys(e[0] for e in entries):
         logs = []
         for _, period, line, _ in (e for e in entries if e[0] == source):
             height, resolvable = peak_heights(spectra[id(line)], period, scales)
             periods_clear[periods.index(period)] |= height >= CLEAR_PROMINENCE
-            periods_resolvable[periods.index(period)] |= resolvable
             logs.append(np.where(resolvable, np.log(np.maximum(height, 1.0)), np.nan))
         logs = np.asarray(logs)
         resolvable_sum = np.isfinite(logs).sum(axis=0)
@@ -79,8 +77,7 @@ def _support(entries, spectra, scales) -> tuple[np.ndarray, np.ndarray]:
         with warnings.catch_warnings():  # a scale no line of the structure resolves: all-NaN, no strength
             warnings.simplefilter("ignore", RuntimeWarning)
             strength += np.nan_to_num(np.nanmedian(logs, axis=0), nan=0.0)
-    need = np.maximum(np.minimum(2, periods_resolvable.sum(axis=0)), 1)
-    return ok & most & (periods_clear.sum(axis=0) >= need), strength
+    return ok & most & (periods_clear.sum(axis=0) >= min(2, len(periods))), strength
 
 
 def search(entries, stated_px_per_mm: float) -> Found:

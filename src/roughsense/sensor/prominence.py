@@ -86,6 +86,11 @@ def _floor(amplitude: np.ndarray) -> np.ndarray:
     return np.interp(bins, centres[ok], middle) if ok.any() else np.zeros(n)
 
 
+#: The fewest periods on a line at which the check looks for a peak: half calibrate's 5 (``period.MIN_PERIODS_PER_LINE``,
+#: which keeps a new rig's search clear of the shading), so that a short crop still shows two known periods at the true
+#: scale (a 400 px line at 34.9 px/mm holds 3.8 periods of R3), where agreement needs them. A peak there is still a
+#: peak (the noise floor and :data:`PEAK_BINS` hold at a few bins).
+CHECK_PERIODS_PER_LINE = 2.5
 #: A mount's magnification differs from another's (the twin's bench: 2.2 % SD), so each line's peak is looked for
 #: within this factor either side of where a candidate scale puts it (over 2 SD).
 MOUNT_SPREAD = 1.05
@@ -94,11 +99,12 @@ SCALE_STEP = 1.01
 
 
 def scale_grid(periods_mm, lines_px) -> np.ndarray:
-    """Every scale (px/mm) at which some line resolves some of the periods: :func:`~.period.resolvable_scales`'s
-    range for each (period, line length), their union, log-spaced by :data:`SCALE_STEP`."""
-    from .period import resolvable_scales
+    """Every scale (px/mm) at which some line resolves some of the periods (3 px per period to
+    :data:`CHECK_PERIODS_PER_LINE` periods on the line), their union, log-spaced by :data:`SCALE_STEP`."""
+    from .period import MIN_PX_PER_PERIOD
 
-    bounds = np.array([resolvable_scales(int(n), float(p)) for p, n in zip(periods_mm, lines_px)])
+    bounds = np.array([(MIN_PX_PER_PERIOD / float(p), int(n) / (CHECK_PERIODS_PER_LINE * float(p)))
+                       for p, n in zip(periods_mm, lines_px)])
     low, high = float(bounds[:, 0].min()), float(bounds[:, 1].max())
     return np.geomspace(low, high, max(2, int(np.ceil(np.log(high / low) / np.log(SCALE_STEP))) + 1))
 
@@ -106,10 +112,10 @@ def scale_grid(periods_mm, lines_px) -> np.ndarray:
 def peak_heights(spectrum: LineSpectrum, period_mm: float, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(prominence, resolvable) at each scale: the line's highest peak over its floor within :data:`MOUNT_SPREAD` of
     where that scale puts ``period_mm`` (0 where the line cannot show that period), and whether it can."""
-    from .period import MIN_PERIODS_PER_LINE, MIN_PX_PER_PERIOD
+    from .period import MIN_PX_PER_PERIOD
 
     period_px = period_mm * scales
-    resolvable = (period_px >= MIN_PX_PER_PERIOD) & (period_px <= spectrum.line_px / MIN_PERIODS_PER_LINE)
+    resolvable = (period_px >= MIN_PX_PER_PERIOD) & (period_px <= spectrum.line_px / CHECK_PERIODS_PER_LINE)
     frequency = 1.0 / period_px
     return np.where(resolvable, spectrum.prominence(frequency / MOUNT_SPREAD, frequency * MOUNT_SPREAD), 0.0), resolvable
 
