@@ -169,3 +169,13 @@ def test_fit_corrects_and_predict_flags_every_row_of_a_study_stated_at_half_or_t
     assert table["extrapolates"].all()
     assert all(re.search(rf"scale: the images measure 20(\.0\d)? px/mm, read at {20 * factor:g} px/mm", r)
                for r in table["outside"])
+
+
+def test_a_short_crop_is_not_read_at_a_third_of_its_scale():
+    """400 px lines (11.5 mm at 34.9 px/mm: 5.7 periods of a 2 mm grating, 3.8 of R3, 2.9 of a 4 mm one): at a third
+    of the scale every grating's 3rd harmonic agrees; the true scale must still be the one found (a fuzz study's crop
+    was corrected to 11.7 px/mm by a first version of this search)."""
+    groups = [(source, period, [line[:400] for line in lines], mounts)
+              for source, period, lines, mounts in study_groups(ridge_mm=None)]
+    check = check_study_lines(groups, TRUE)
+    assert check.checked and not check.off and check.measured_px_per_mm == pytest.approx(TRUE, rel=0.02)
