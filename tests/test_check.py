@@ -187,10 +187,29 @@ def test_study_still_stops_at_the_first_problem_with_the_same_message(tmp_path):
 def test_check_of_a_good_folder_is_one_summary_line(tmp_path, run_cli):
     root = make_study(tmp_path / "s")
     code, out, err = run_cli("check", root)
-    assert (code, out, err) == (0, "study OK: 8 images, 4 specimens, 6 ratings\n", "")
+    assert (code, out) == (0, "study OK: 8 images, 4 specimens, 6 ratings\n")
+    # its images are bytes no decoder reads: check looks for them; the scale check, which reads some, says it could not
+    [line] = err.splitlines()
+    assert line.startswith("roughsense: scale could not be confirmed: ") and "images/R3_1.02.png" in line
     code, out, err = run_cli("check", make_study(tmp_path / "euro", write=excel))
     assert code == 0 and out == "study OK: 8 images, 4 specimens, 6 ratings\n"
-    assert len(err.splitlines()) == 3 and all("read as semicolon-separated" in line for line in err.splitlines())
+    assert len(err.splitlines()) == 4 and all("read as semicolon-separated" in line for line in err.splitlines()[:3])
+
+
+def test_check_lists_a_scale_the_images_measure_otherwise_as_a_problem(simulated_tiny, tmp_path, run_cli):
+    """The twin's study at 34.9 px/mm stated as 28, and as 34.9: on 390ce82 check ran no scale check at all."""
+    import shutil
+
+    root = tmp_path / "s"
+    shutil.copytree(simulated_tiny, root)
+    code, out, err = run_cli("check", root)
+    assert code == 0 and "roughsense: scale: measured 3" in err and "against the stated 34.9 px/mm" in err, err
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 34.9", "px_per_mm = 28.0"))
+    code, out, err = run_cli("check", root)
+    [problem] = out.splitlines()
+    assert code == 2 and problem.startswith(f"{toml}: [sensor] scale: measured 3")
+    assert "against the stated 28 px/mm" in problem and f"roughsense calibrate {root}" in problem
 
 
 def test_check_goes_on_past_a_broken_file_and_bounds_the_list(tmp_path, run_cli):

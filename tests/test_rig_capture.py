@@ -150,7 +150,7 @@ def test_second_specimen_extends_the_folder_and_blank_metadata_is_named(tmp_path
     assert code == 0 and "fill in shape and wavelength_mm for C2.5" in stdout
     # the scale is checked after every capture; a folder not yet readable as a study says why, once
     [scale] = [line for line in stderr.splitlines() if "scale" in line]
-    assert scale.startswith("roughsense: scale not checked: ")
+    assert scale.startswith("roughsense: scale could not be confirmed: ")
     assert scale.endswith("specimens.csv, row 3, column 'shape': empty value")
     with pytest.raises(InputError, match=r"specimens.csv, row 3, column 'shape': empty value"):
         read_study(out)
@@ -462,3 +462,19 @@ def test_a_second_capture_into_the_folder_names_the_first(tmp_path, video, run_c
     finally:
         first.communicate(b"\n\n\n", timeout=300)
     assert first.returncode == 0 and len(pd.read_csv(out / "manifest.csv")) == 3 and not lock_path(out).exists()
+
+
+def test_a_new_study_toml_with_the_default_scale_says_so_and_a_stated_one_does_not(tmp_path, video, run_cli, typed):
+    """On 390ce82 capture wrote the paper's 34.9 px/mm into a new rig's study.toml without a word."""
+    typed("", "", "")
+    code, _, err = run_cli(*capture_args(video, tmp_path / "default", "--repetitions", "1"))
+    assert code == 0, err
+    [line] = [line for line in err.splitlines() if "px_per_mm = 34.9" in line]
+    assert line.startswith("roughsense: warning: ") and "not measured on this rig" in line
+    assert f"roughsense calibrate {tmp_path / 'default'}" in line
+    typed("", "", "")
+    code, _, err = run_cli(*capture_args(video, tmp_path / "default", "--repetitions", "2"))
+    assert code == 0 and "not measured on this rig" not in err  # said by the run that wrote it
+    typed("", "", "")
+    code, _, err = run_cli(*capture_args(video, tmp_path / "stated", "--repetitions", "1", "--px-per-mm", "30"))
+    assert code == 0 and "not measured on this rig" not in err, err

@@ -92,8 +92,9 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iterator[IO]:
-    """Open a temporary sibling of ``path``; on clean exit fsync and rename it into place."""
+def atomic_open(path: str | os.PathLike[str], mode: str = "w", *, file_mode: int | None = None, **kwargs) -> Iterator[IO]:
+    """Open a temporary sibling of ``path``; on clean exit fsync and rename it into place. ``file_mode``: the
+    permissions the file gets (a file rewritten in place keeps its own), else the umask's."""
     if mode not in ("w", "wb"):
         raise ValueError("atomic_open only writes whole files ('w' or 'wb')")
     target = Path(path)
@@ -106,7 +107,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iter
         raise RoughsenseError(f"cannot write: {exc.strerror or exc}", path=target) from exc
     tmp = Path(tmp_name)
     try:
-        os.chmod(tmp, _default_file_mode())
+        os.chmod(tmp, _default_file_mode() if file_mode is None else file_mode)
         if "b" in mode:
             handle = os.fdopen(fd, mode)
         else:

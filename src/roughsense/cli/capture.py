@@ -89,7 +89,22 @@ def _run(out: Path, source: str, force_input: str, *, timeout_s: float, discard:
     if result.specimen_incomplete:
         typer.echo(f"note: fill in shape and wavelength_mm for {specimen} in {out / 'specimens.csv'} before the analysis "
                    "(or rerun with --shape and --wavelength-mm)")
+    if result.default_scale:
+        _warn_default_scale(out)
     _check_scale(out, pad)
+
+
+def _warn_default_scale(out: Path) -> None:
+    """A new study.toml with the paper's camera scale, not this rig's: every spectrum is in mm^-1 and depends on it."""
+    import warnings
+
+    from ..errors import RoughsenseWarning
+    from ..io.study import STUDY_TOML
+
+    warnings.warn(RoughsenseWarning(
+        f"{out / STUDY_TOML} states px_per_mm = {defaults.PX_PER_MM:g}, the paper's camera, not measured on this rig: "
+        f"capture a target of known period (the reference R3) and run `roughsense calibrate {out}`, or pass "
+        "--px-per-mm"), stacklevel=2)
 
 
 def _check_scale(out: Path, pad: str) -> None:
@@ -100,12 +115,12 @@ def _check_scale(out: Path, pad: str) -> None:
 
     from ..errors import RoughsenseError, RoughsenseWarning
     from ..io.study import read_study
-    from ..model.scale_check import check_study_scale
+    from ..model.scale_check import UNCONFIRMED, check_study_scale
 
     try:
         check = check_study_scale(read_study(out), pad=pad)
     except RoughsenseError as exc:  # a folder not yet readable as a study (a specimen without its wavelength)
-        typer.echo(f"roughsense: scale not checked: {exc}", err=True)
+        typer.echo(f"roughsense: {UNCONFIRMED}: {exc}", err=True)
         return
     if check.off:
         warnings.warn(RoughsenseWarning(f"{check.summary()}; measure it with `roughsense calibrate {out}`"),

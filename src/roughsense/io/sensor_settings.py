@@ -5,6 +5,7 @@ Part of the folder contract (not of ``sensor/``), so the rig can check its frame
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -122,19 +123,30 @@ def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = Fal
     """Set ``[sensor] px_per_mm`` in a study.toml, keeping every other line, comment and layout (tomlkit), written
     atomically; ``note`` becomes the value's comment (what was measured, and how precisely).
 
-    A scale already stated and different is the user's: replaced only with ``force``. Returns the value replaced
-    (None where there was none).
+    The file keeps its permissions (a 0600 study.toml stays 0600) and its UTF-8 byte-order mark where it has one:
+    ``check`` and every reader accept it (``csv_read.read_text``), and the one value changed is the only byte a user
+    should find changed. A scale already stated and different is the user's: replaced only with ``force``. Returns
+    the value replaced (None where there was none).
     """
+    import codecs
+    import stat
     from pathlib import Path
 
     import tomlkit
 
-    from .._util.atomic import write_text
+    from .._util.atomic import atomic_open
+    from .._util.files import open_regular
     from ..errors import InputError
+    from .study_config import MAX_CONFIG_BYTES
 
     path = Path(toml_path)
+    raw, mode = b"", None
     try:
-        document = tomlkit.parse(path.read_text(encoding="utf-8")) if path.exists() else tomlkit.document()
+        if path.exists():
+            with os.fdopen(open_regular(path), "rb") as handle:
+                raw, mode = handle.read(MAX_CONFIG_BYTES + 1), stat.S_IMODE(os.fstat(handle.fileno()).st_mode)
+        bom = codecs.BOM_UTF8 if raw.startswith(codecs.BOM_UTF8) else b""
+        document = tomlkit.parse(raw[len(bom):].decode("utf-8"))
     except (OSError, UnicodeDecodeError, tomlkit.exceptions.ParseError) as exc:
         raise InputError(f"cannot read it to write px_per_mm ({exc})", path=path) from None
     sensor = document.get("sensor")
@@ -149,5 +161,6 @@ def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = Fal
     item = tomlkit.item(float(round(px_per_mm, 4)))
     item.comment(note)
     sensor["px_per_mm"] = item
-    write_text(path, tomlkit.dumps(document))
+    with atomic_open(path, "wb", file_mode=mode) as handle:
+        handle.write(bom + tomlkit.dumps(document).encode("utf-8"))
     return previous

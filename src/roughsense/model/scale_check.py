@@ -2,15 +2,31 @@
 
 The structure is what the study already holds: a fingerprint pad's own ridges (``[pads.NAME] ridge_period_mm``) in
 each of its presses, and its gratings of stated period (``wavelength_mm`` in specimens.csv: the reference R3 in every
-study, and the others). Each press's period is measured below the DFT's bin (``sensor/period.py``), within +-15 % of where the
-stated scale puts it, and the median over the presses is compared with the stated px/mm.
+study, and the others). The stated scale is never where the search starts: every scale at which a line resolves
+its period is tried (``sensor/prominence.py``), so a check cannot be talked into agreeing.
 
-Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %,
-so about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the
-target reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount
-share it), so the limit is never tighter than the 99 % t-interval over the mounts, and fewer than
-:data:`MIN_MOUNTS` mounts do not make a check. The study's specimens of stated period pool with the ridges: each
-of their mounts is one more reading of the scale.
+**Agreement.** A scale is a candidate where most lines of one structure (:data:`MIN_SUPPORT`) and a good share of
+every other's (:data:`MIN_SHARE`) show a clear peak (5x the line's noise floor) at the period that scale puts them,
+and where lines of at least two different periods do (a pad's ridges and a grating; gratings of different periods).
+Noise, photographs and bare background show a clear peak at one scale in a few lines at most, never in most lines of
+two structures at once. A structure's harmonics make candidates at the true scale / k (a 3 mm grating's 3rd harmonic
+sits where a 1 mm period would at a third of the scale), never at k times it: that would need a peak below the
+fundamental, which a periodic image has not. So the largest candidate is the scale, unless a smaller one stands out by
+more than :data:`~roughsense.model.scale_search.STRENGTH_MARGIN`. Two periods must agree wherever two are resolvable
+(a short line resolves fewer). One known period alone (a fingerprint model's ridges, read on images of unknown
+gratings) cannot tell its own fundamental from a grating that happens to sit there: it checks a stated scale inside,
+or within :data:`~roughsense.sensor.period.CHECK_WINDOW` of, its largest candidate, and no other. Otherwise, or where
+no scale is a candidate, the check says "scale could not be confirmed" and the stated scale is used.
+
+**Reading.** At the chosen scale each line's period is measured below the DFT's bin within :data:`CHECK_WINDOW`
+(``sensor/period.py``), about the stated scale where it lies among the scales the structures agree on, else about
+the scale found; the median over the lines is the measured scale.
+
+Tolerance (:data:`SCALE_TOLERANCE`, 1.5 %): a scale wrong by 10 % shifts the default model's predictions by 9-13 %, so
+about 1 % per 1 % of scale; 1.5 % keeps the silent shift near the 2 % a user should never miss. A mount of the target
+reads its period to the bench's mount-to-mount magnification (the twin's: 2.2 % SD; presses of one mount share it), so
+the limit is never tighter than the 99 % t-interval over the mounts, and fewer than :data:`MIN_MOUNTS` mounts do not
+make a check.
 """
 from __future__ import annotations
 
@@ -19,27 +35,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sensor.period import ScaleMeasurement, check_scale
+from ..sensor.period import ScaleMeasurement
 
 #: Relative difference between measured and stated px/mm beyond which a run corrects or flags (module docstring).
 SCALE_TOLERANCE = 0.015
 #: What a corrected run's line says (the CLI shows such a line as a warning).
 CORRECTED = "spectra read at the measured"
+#: What every check that cannot vouch for the stated scale says, once, on stderr and in the report.
+UNCONFIRMED = "scale could not be confirmed"
 #: Mounts showing the known structure below which the scale is said to be unchecked.
 MIN_MOUNTS = 3
+#: The share of one structure's lines that must show a clear peak at a candidate scale: most of them. The twin's
+#: presses at their true scale: every fingerprint press shows its ridges, every smooth-pad press its grating.
+MIN_SUPPORT = 0.5
+#: The share every other structure must show there: on the fingerprint pad the ridges outshine the gratings, whose own
+#: period is clear in 30-100 % of a specimen's presses (BENCHMARKS.md, "scale check").
+MIN_SHARE = 0.25
 
 
 @dataclass(frozen=True)
 class ScaleCheck:
-    """The stated scale against the one measured from known structure (``sources``: what was measured, in words)."""
+    """The stated scale against the one measured from known structure (``sources``: what was measured, in words;
+    ``doubt``: why the scale could not be confirmed, empty where it was)."""
 
     stated_px_per_mm: float
     sources: tuple[str, ...]
     measurement: ScaleMeasurement | None
+    doubt: str = ""
 
     @property
     def checked(self) -> bool:
-        return self.measurement is not None and self.measurement.n_mounts >= MIN_MOUNTS
+        return not self.doubt and self.measurement is not None and self.measurement.n_mounts >= MIN_MOUNTS
 
     @property
     def measured_px_per_mm(self) -> float:
@@ -69,18 +95,20 @@ class ScaleCheck:
         return self.checked and abs(self.deviation) > self.limit
 
     def summary(self) -> str:
-        """One line: what was measured, from what, against what (or why the scale could not be checked)."""
+        """One line: what was measured, from what, against what (or why the scale could not be confirmed)."""
         if not self.checked:
-            seen = 0 if self.measurement is None else self.measurement.n_mounts
-            what = " or ".join(self.sources) if self.sources else "a fingerprint pad's ridges or a specimen of stated period"
-            return (f"scale not checked: {seen} mount(s) show {what} (at least {MIN_MOUNTS} needed); "
-                    f"{self.stated_px_per_mm:g} px/mm taken as stated")
+            why = self.doubt
+            if not why:
+                seen = 0 if self.measurement is None else self.measurement.n_mounts
+                what = " or ".join(self.sources) if self.sources else ("a fingerprint pad's ridges or a specimen of "
+                                                                       "stated period")
+                why = f"{seen} mount(s) show {what} clearly (at least {MIN_MOUNTS} needed)"
+            return f"{UNCONFIRMED}: {why}; {self.stated_px_per_mm:g} px/mm taken as stated"
         m = self.measurement
         return (f"scale: measured {m.px_per_mm:.4g} px/mm (+-{100 * m.standard_error:.2g} %, {m.n_measured} presses "
                 f"in {m.n_mounts} mounts, "
                 f"from {' and '.join(self.sources)}) against the stated {self.stated_px_per_mm:g} px/mm "
                 f"({100 * self.deviation:+.1f} %; tolerance +-{100 * self.limit:.2g} %)")
-
 
     def correction(self) -> str:
         """The one line a run that corrects its scale prints (and its report keeps)."""
@@ -94,22 +122,23 @@ class ScaleCheck:
 
 
 def check_study_lines(groups: list[tuple], stated_px_per_mm: float) -> ScaleCheck:
-    """The scale check over ``groups`` of (source in words, period in mm, gray lines[, their mount labels]): every
-    line's own px/mm, pooled into one median; a line without a label is a mount of its own."""
-    sources, values, mounts = [], [], []
+    """The scale check over ``groups`` of (source in words, period in mm, gray lines[, their mount labels]): groups of
+    one source are one structure; a line without a label is a mount of its own (module docstring)."""
+    from .scale_search import read_at, search
+
+    entries = []  # (source, period, line, mount)
     for number, (source, period_mm, lines, *labels) in enumerate(groups):
-        if not lines:
-            continue
-        sources.append(source)
-        values.append(check_scale(lines, period_mm, stated_px_per_mm).px_per_mm_each)
-        # a mount read from two structures (a pad's ridges and its grating) is one magnification: labels are shared
         own = labels[0] if labels and labels[0] is not None else [f"{number}: line {i}" for i in range(len(lines))]
-        mounts.extend(str(label) for label in own)
-    if not values:
-        return ScaleCheck(float(stated_px_per_mm), (), None)
-    sources = list(dict.fromkeys(sources))
-    measurement = ScaleMeasurement(math.nan, np.concatenate(values), np.asarray(mounts, dtype=object))
-    return ScaleCheck(float(stated_px_per_mm), tuple(sources), measurement)
+        entries.extend((source, float(period_mm), line, str(label)) for line, label in zip(lines, own))
+    stated = float(stated_px_per_mm)
+    if not entries:
+        return ScaleCheck(stated, (), None)
+    sources = tuple(dict.fromkeys(e[0] for e in entries))
+    found = search(entries, stated)
+    if found.doubt:
+        return ScaleCheck(stated, sources, None, found.doubt)
+    measurement = read_at(entries, found.centre(stated))
+    return ScaleCheck(stated, sources, measurement)
 
 
 #: Presses per known structure (a pad's ridges; each specimen) a study's check reads, spread over its mounts: a

@@ -57,6 +57,8 @@ class CaptureResult:
     already_done: int = 0
     orphans: list[str] = field(default_factory=list)
     specimen_incomplete: bool = False
+    #: This run wrote study.toml with the paper's px_per_mm in place of one measured on this rig (no --px-per-mm).
+    default_scale: bool = False
 
 
 def check_option_name(value: str, option: str) -> str:
@@ -254,6 +256,7 @@ def capture_session(
                                  specimen_incomplete=incomplete))
         for repetition, nominal in steps:
             session.capture(repetition, nominal)
+        session.result.default_scale = folder.is_new and px_per_mm is None and session.writer is not None
         if session.writer is None and specimens_update is not None and not folder.is_new:
             # Nothing left to capture, but --shape/--wavelength-mm completed the specimen's row.
             StudyWriter(root, resume=True, source=CAPTURED).write_specimens(specimens_update)
