@@ -162,10 +162,12 @@ def test_fit_corrects_and_predict_flags_every_row_of_a_study_stated_at_half_or_t
     assert line.startswith("roughsense: warning: scale: measured 20") and "spectra read at the measured 20" in line
     pred = tmp_path / "p.csv"
     code, _, err = run_cli("predict", model, "--study", root, "--out", pred)
-    assert code == 0, err
+    table = pd.read_csv(pred)
+    # read at the wrong scale, some presses look unlike the training presses to the contact-image gate: withheld,
+    # exit status 3; the others are scored and flagged
+    assert code == (3 if table["withheld"].any() else 0), err
     [warned] = [line for line in err.splitlines() if "warning: scale: measured" in line]
     assert f"against the stated {20 * factor:g} px/mm" in warned and "every prediction is flagged 'scale'" in warned
-    table = pd.read_csv(pred)
     assert table["extrapolates"].all()
     assert all(re.search(rf"scale: the images measure 20(\.0\d)? px/mm, read at {20 * factor:g} px/mm", r)
                for r in table["outside"])

@@ -313,8 +313,11 @@ def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
     if scores is None:  # every trial withheld: nothing was scored
         scores = Scores(np.empty(0), np.empty(0), np.empty(0), [], *(3 * [None if surfaces is None else np.empty(0)]))
     reasons = _spread(scores.reasons, keep, n, "")
+    scale = scores.scale.reason() if scores.scale is not None and scores.scale.off else ""
     for i in range(n):
         extra = read.withheld_reasons[i] or read.orientation_reasons[i]
+        if read.withheld[i] and scale:  # every row says the scale is off, a withheld one too
+            extra = f"{extra}; {scale}"
         reasons[i] = f"{reasons[i]}; {extra}" if reasons[i] and extra else reasons[i] or extra
     return Scores(_spread(scores.roughness, keep, n), _spread(scores.low, keep, n), _spread(scores.high, keep, n),
                   reasons, _spread(scores.surface_roughness, keep, n), _spread(scores.surface_low, keep, n),
