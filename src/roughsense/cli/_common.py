@@ -182,7 +182,9 @@ def terminal_table(frame, *, float_format=None) -> str:
     names = [str(c) for c in frame.columns]
     cells = [[float_format(v) if float_format is not None and isinstance(v, float) else str(v) for v in frame.iloc[:, k]]
              for k in range(len(names))]
-    numeric = [all(_is_number(v) for v in column) for column in cells]
+    from ..io.numbers import NUMBER
+
+    numeric = [all(NUMBER.fullmatch(v.strip()) or v.strip().lower() == "nan" for v in column) for column in cells]
     widths = _column_widths(names, cells, numeric, width)
     heads = [_wrapped_header(name, w) for name, w in zip(names, widths)]
     lines = [["" if i >= len(head) else head[i] for head in heads] for i in range(max(map(len, heads)))]
@@ -231,14 +233,6 @@ def _wrapped_header(name: str, width: int) -> list[str]:
 def _cut_start(text: str, width: int) -> str:
     """``text`` within ``width``, its start dropped (a path's end names the file)."""
     return text if len(text) <= width else "\u2026" + text[len(text) - width + 1:]
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def parse_name_list(text: str) -> list[str]:
