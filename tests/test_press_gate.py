@@ -117,7 +117,7 @@ def test_the_figures_docs_quote_are_the_codes():
     """docs/sensor.md and README quote alpha, the orientation tolerance and the exit status: each is the code's."""
     from pathlib import Path
 
-    from roughsense.cli.predict import WITHHELD_EXIT
+    from roughsense.cli._common import WITHHELD_EXIT
     from roughsense.model.contact_gate import ALPHA, ORIENTATION_TOLERANCE_DEG
 
     repo = Path(__file__).resolve().parent.parent
@@ -142,3 +142,37 @@ def test_live_frames_the_gate_withholds_get_no_number(gated_model, simulated_tin
     press = cv2.cvtColor(cv2.imread(str(_presses(simulated_tiny)[0])), cv2.COLOR_BGR2RGB)
     value, _ = score(press)
     assert math.isfinite(value)
+
+
+def test_capture_with_a_model_names_each_press_its_gate_would_withhold(gated_model, simulated_tiny, tmp_path,
+                                                                       run_cli, monkeypatch):
+    """`capture --model`: each press is checked as it is taken; a frame of noise among real presses is named at once,
+    kept in the study (it is what the camera saw), and the run ends with exit status 3."""
+    import io
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    presses = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in _presses(simulated_tiny)[:2]]
+    noise = np.random.default_rng(1).integers(0, 256, presses[0].shape).astype(np.uint8)
+    for i, frame in enumerate([presses[0], noise, presses[1]]):
+        cv2.imwrite(str(frames / f"img_{i:04d}.png"), frame)
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\n"))  # Enter: each force at its nominal value
+    out = tmp_path / "study"
+    code, _, err = run_cli("capture", "--source", str(frames / "img_%04d.png"), "--out", str(out), "--specimen", "R3",
+                           "--pad", "smooth", "--forces-n", "2", "--repetitions", "3", "--px-per-mm", "34.9",
+                           "--model", str(gated_model))
+    named = [line for line in err.splitlines() if line.startswith("roughsense: images/")]
+    assert code == 3, err
+    assert len(named) == 1 and "not a contact image like the training presses" in named[0], err
+    assert "1 press(es) are no contact image" in err and len(pd.read_csv(out / "manifest.csv")) == 3
+
+
+def test_capture_refuses_a_model_without_a_gate_before_the_camera(gated_model, tmp_path, run_cli):
+    from tests.test_gate_file import ungated
+
+    model = tmp_path / "old.json"
+    model.write_bytes(gated_model.read_bytes())
+    code, _, err = run_cli("capture", "--source", str(tmp_path / "none_%04d.png"), "--out", str(tmp_path / "s"),
+                           "--specimen", "R3", "--pad", "smooth", "--model", str(ungated(model)))
+    assert code == 2 and "--model: this model file has no contact-image gate" in err and "old.json" in err
+    assert not (tmp_path / "s").exists()

@@ -19,6 +19,10 @@ from ..errors import ConfigError
 
 T = TypeVar("T")
 
+#: Exit status of a run that finished but withheld some presses (predict's rows the gate or an unreadable image
+#: withheld; capture's presses the model's gate would withhold): the output is written for the others.
+WITHHELD_EXIT = 3
+
 
 def number_option(option: str, *, quantity: str = "", low: float | None = None, high: float | None = None,
                   low_open: bool = False, whole: bool = False, must: str | None = None):

@@ -34,6 +34,9 @@ _FORCES_N = typer.Option(None, "--forces-n", help="Protocol forces in N (default
                          f"{','.join(f'{f:g}' for f in PAPER_FORCES_N)}, or the study's).")
 _SHAPE = typer.Option(
     None, "--shape", help="Specimen shape for specimens.csv (rectangular, circular, sinusoidal, random, other).")
+_MODEL = typer.Option(
+    None, "--model", help="A model file (roughsense fit): each press is checked by its contact-image gate as it is "
+    "taken, and one the model would withhold is named at once (kept; exit status 3 at the end).")
 _DISCARD_OPTION = typer.Option(
     None, "--discard", parser=_DISCARD, help="Stale frames dropped before each capture (default 5 for cameras, 0 for files).")
 
@@ -55,6 +58,7 @@ def register(app: typer.Typer) -> None:
         wavelength_mm: float | None = typer.Option(
             None, "--wavelength-mm", parser=_WAVELENGTH, help="Specimen surface wavelength for specimens.csv."),
         discard: int | None = _DISCARD_OPTION,
+        model: Path | None = _MODEL,
     ) -> None:
         """Capture contact images with measured forces: for each repetition, one image at each force.
 
@@ -65,21 +69,34 @@ def register(app: typer.Typer) -> None:
         session = dict(specimen=specimen, pad=pad, repetitions=repetitions, px_per_mm=px_per_mm, roi=roi,
                        forces_n=parse_float_list(forces_n, name="forces-n") if forces_n is not None else None,
                        shape=shape, wavelength_mm=wavelength_mm)
-        _run(out, source, force_input, timeout_s=timeout_s, discard=discard, session=session)
+        _run(out, source, force_input, timeout_s=timeout_s, discard=discard, session=session, model=model)
 
 
-def _run(out: Path, source: str, force_input: str, *, timeout_s: float, discard: int | None, session: dict) -> None:
+def _press_checker(model: Path | None):
+    """The model's gate, one press at a time (None without --model); a bad model file is refused before the camera
+    or the folder is touched."""
+    if model is None:
+        return None
+    from ..model.modelfile import load_model
+    from ..model.press_gate import press_checker
+
+    return press_checker(load_model(model))
+
+
+def _run(out: Path, source: str, force_input: str, *, timeout_s: float, discard: int | None, session: dict,
+         model: Path | None = None) -> None:
     """Lock the folder, open the camera and the scale, capture, and say what was done."""
     from .._util.lock import output_lock
     from ..rig.camera import open_source
     from ..rig.capture import capture_session
     from ..rig.scale import open_force_input
 
+    inspect = _press_checker(model)
     # The folder's lock first: a second capture is told who is capturing, before it opens the busy camera.
     with output_lock(out, command="capture") as lock, open_source(source, discard=discard) as frames, \
             open_force_input(force_input, timeout_s=timeout_s) as scale:
         try:
-            result = capture_session(out, source=frames, force_input=scale, held=lock, **session)
+            result = capture_session(out, source=frames, force_input=scale, held=lock, inspect=inspect, **session)
         except KeyboardInterrupt:
             print(f"roughsense: capture interrupted; rerun the same command to resume into {out}", file=sys.stderr)
             raise
@@ -92,6 +109,20 @@ def _run(out: Path, source: str, force_input: str, *, timeout_s: float, discard:
     if result.default_scale:
         _warn_default_scale(out)
     _check_scale(out, pad)
+    _exit_if_suspect(result.suspect, model)
+
+
+def _exit_if_suspect(suspect: list[tuple[str, str]], model: Path | None) -> None:
+    """One line per press the model's gate would withhold, and exit status 3 (``_common.WITHHELD_EXIT``)."""
+    from ._common import WITHHELD_EXIT
+
+    if not suspect:
+        return
+    for image, why in suspect:
+        typer.echo(f"roughsense: {image}: {why}", err=True)
+    typer.echo(f"roughsense: {len(suspect)} press(es) are no contact image {model} would read (kept in the study; "
+               f"retake or remove them); exit status {WITHHELD_EXIT}", err=True)
+    raise typer.Exit(WITHHELD_EXIT)
 
 
 def _warn_default_scale(out: Path) -> None:

@@ -125,10 +125,6 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _exit_if_withheld(run.scores)
 
 
-#: ``predict``'s exit status when some rows were withheld (the table is still written for the others).
-WITHHELD_EXIT = 3
-
-
 def _exit_if_withheld(scores) -> None:
     """One line on stderr, and exit status :data:`WITHHELD_EXIT`, when the gate or an unreadable image withheld
     rows; one line when the model file has no gate to apply."""
@@ -136,6 +132,7 @@ def _exit_if_withheld(scores) -> None:
 
     from ..errors import RoughsenseWarning
     from ..model.press_gate import NO_GATE_LINE
+    from ._common import WITHHELD_EXIT
 
     if not scores.gated:
         warnings.warn(RoughsenseWarning(NO_GATE_LINE), stacklevel=2)

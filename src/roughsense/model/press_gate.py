@@ -10,12 +10,13 @@ table and flagged beyond the tolerance.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, ModelFileError
 from .contact_gate import orientation_reason
 from .gate_file import model_gate
 
@@ -100,3 +101,26 @@ def _gate(gate, readings, reasons: list[str], k: int) -> np.ndarray:
             reasons[t] = gate.reason(values[worst], float(trial_p[t]))
     return trial_p
 
+
+
+def press_checker(loaded: FittedModel) -> Callable[[object], str]:
+    """For ``capture --model``: one press at a time as it is taken, why the model's gate would withhold it (at alpha
+    per press) or why it is turned, '' where it passes. The press is read as the model reads it (the model's band,
+    scale and crop), so an operator hears at once that the camera shows no contact image of the model's pad."""
+    from .predict import model_ridge_period_mm, model_spectrum
+
+    gate = model_gate(loaded)
+    if gate is None:
+        raise ModelFileError(f"--model: {NO_GATE_LINE}", path=loaded.path)
+    spectrum = model_spectrum(loaded)
+    ridge_period_mm = model_ridge_period_mm(loaded)
+
+    def check(image) -> str:
+        [reading] = list(spectrum.iter_readings([image], ridge_period_mm=ridge_period_mm))
+        if isinstance(reading, InputError):
+            return f"unreadable: {reading}"
+        reasons = [""]
+        _gate(gate, [reading], reasons, 1)
+        return reasons[0] or orientation_reason(reading[2]["orientation_deg"])
+
+    return check

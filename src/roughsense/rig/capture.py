@@ -59,6 +59,8 @@ class CaptureResult:
     specimen_incomplete: bool = False
     #: This run wrote study.toml with the paper's px_per_mm in place of one measured on this rig (no --px-per-mm).
     default_scale: bool = False
+    #: (image, why) for each press the caller's ``inspect`` found wanting (``capture --model``: the model's gate).
+    suspect: list[tuple[str, str]] = field(default_factory=list)
 
 
 def check_option_name(value: str, option: str) -> str:
@@ -229,6 +231,7 @@ def capture_session(
     log: Callable[[str], None] | None = None,
     clock: Callable[[], datetime] = lambda: datetime.now(UTC),
     held: OutputLock | None = None,
+    inspect: Callable[[np.ndarray], str] | None = None,
 ) -> CaptureResult:
     """Run (or resume) the protocol for one specimen on one pad, writing into the study folder ``root``.
 
@@ -237,6 +240,9 @@ def capture_session(
     is in hand, so a source or scale that fails at once leaves the folder as it was. One writer per folder at a
     time: the run holds the folder's lock, taken here, or ``held``, the lock a caller took already (the command
     line takes it before it opens the camera, so a second capture names the first, not a busy camera).
+    ``inspect(frame)`` says why a press taken is wanting ('' where it is not): the press is kept (it is what the
+    camera saw) and named at once, so the operator can look before the next (the rig knows nothing of the sensor:
+    the command line composes them).
     """
     log = log or (lambda text: print(text, file=sys.stderr, flush=True))
     root = Path(root)
@@ -251,7 +257,7 @@ def capture_session(
         session = _Session(
             root=root, folder=folder, specimens_update=specimens_update, source=source, force_input=force_input,
             specimen=specimen, pad=pad, repetitions=repetitions, log=log, clock=clock,
-            window=force_window(folder.forces_n),
+            window=force_window(folder.forces_n), inspect=inspect,
             result=CaptureResult(root=root, already_done=repetitions * len(forces) - len(steps),
                                  specimen_incomplete=incomplete))
         for repetition, nominal in steps:
@@ -294,6 +300,7 @@ class _Session:
     clock: Callable[[], datetime]
     window: dict[float, tuple[float, float]]
     result: CaptureResult
+    inspect: Callable[[np.ndarray], str] | None = None
     writer: StudyWriter | None = None
 
     def capture(self, repetition: int, nominal: float) -> None:
@@ -317,6 +324,10 @@ class _Session:
         })
         self.result.captured.append(rel)
         self.log(f"  saved {rel} at {force_n:.3f} N")
+        why = self.inspect(frame) if self.inspect is not None else ""
+        if why:
+            self.result.suspect.append((rel, why))
+            self.log(f"  {rel} is no press the model would read ({why}): look at the pad and the specimen")
 
 
 def _check_frame(frame: np.ndarray, sensor: SensorSettings, source: FrameSource) -> None:
