@@ -50,7 +50,7 @@ def test_fit_and_features_take_builtin_with_seed(run_cli, cache, tmp_path, monke
 
 
 @pytest.mark.slow
-def test_study_prints_the_folder_it_used(run_cli, cache, tmp_path, monkeypatch):
+def test_study_prints_the_folder_it_used(run_cli, cache, tmp_path, monkeypatch, quick_figures):
     monkeypatch.chdir(tmp_path)
     code, out, err = run_cli("study", "--study", "builtin", "--seed", SEED, "--out", "r", "--max-components", "2",
                              "--no-loso", "--permutations", "0")  # which folder, not the controls, is checked here

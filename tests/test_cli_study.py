@@ -30,7 +30,7 @@ def study_copy(small_study, tmp_path):
     return shutil.copytree(small_study, tmp_path / "copy")
 
 
-def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeypatch):
+def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeypatch, quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
     code, stdout, err = run_cli("study", "--study", small_study, "--out", out, "--max-components", "4")

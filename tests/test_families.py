@@ -58,14 +58,19 @@ class TrainingMeanFamily(FamilyEngine):
         return np.zeros(len(y), dtype=bool)  # no domain: it never claims to read a spectrum
 
 
-@pytest.fixture
-def third_family(monkeypatch):
+def _add_third_family(monkeypatch) -> families.Family:
     """The registry and its engines with the toy family appended (one Family line, one engine)."""
     toy = families.Family(TOY, "training mean", "^", "#777777", paper=False, chooses_components=False, kind=TOY)
     engines = model_engines.engines
     monkeypatch.setattr(families, "_FAMILIES", (*families.registry(), toy))
     monkeypatch.setattr(model_engines, "engines", lambda: (*engines(), TrainingMeanFamily()))
     return toy
+
+
+@pytest.fixture
+def third_family(monkeypatch):
+    """The toy family beside the others for one test."""
+    return _add_third_family(monkeypatch)
 
 
 def test_the_registry_and_its_engines_list_the_same_families_in_the_same_order():
@@ -99,12 +104,20 @@ def test_the_registry_is_light_and_the_fingerprint_follows_the_engines():
     assert "roughsense.model.engines" not in set(module_closure("roughsense.model.families"))
 
 
-@pytest.fixture
-def with_toy(third_family):
-    study, features = synthetic_study(repetitions=2, pads=("smooth",))
-    analysis = analyse_study(study, features=features, max_components=2, conditions=("1N", "combined"),
+@pytest.fixture(scope="module")
+def toy_analysis():
+    """The study analysed with the toy family beside the others, once for the module (frozen: tests only read it);
+    the registry is patched while it is analysed, and again in each test that reads it (``with_toy``)."""
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        _add_third_family(monkeypatch)
+        study, features = synthetic_study(repetitions=2, pads=("smooth",))
+        return analyse_study(study, features=features, max_components=2, conditions=("1N", "combined"),
                              n_permutations=9, models=("pls", "peak-law", TOY))
-    return analysis
+
+
+@pytest.fixture
+def with_toy(third_family, toy_analysis):
+    return toy_analysis
 
 
 def test_a_third_family_runs_through_the_study_beside_the_others(with_toy):

@@ -375,7 +375,8 @@ def tiny_study(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_study_force_leaves_no_stale_report_file_and_keeps_the_users(tmp_path, run_cli, tiny_study, monkeypatch):
+def test_study_force_leaves_no_stale_report_file_and_keeps_the_users(tmp_path, run_cli, tiny_study, monkeypatch,
+                                                                    quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
     quick = ("--max-components", "2", "--permutations", "0")  # which files the second run leaves, not the controls
@@ -393,7 +394,7 @@ def test_study_force_leaves_no_stale_report_file_and_keeps_the_users(tmp_path, r
 
 
 @pytest.mark.slow
-def test_a_killed_study_blocks_no_rerun(tmp_path, run_cli, tiny_study, monkeypatch):
+def test_a_killed_study_blocks_no_rerun(tmp_path, run_cli, tiny_study, monkeypatch, quick_figures):
     monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "report"
     run = _python(_STUDY, str(tiny_study), str(out))

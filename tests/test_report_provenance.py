@@ -34,8 +34,14 @@ def _analyse(study, features, **options):
                          conditions=("2N", "combined", "3N"), **options)
 
 
-def test_the_results_are_frozen(small_study):
-    results = _analyse(*small_study)
+@pytest.fixture(scope="module")
+def small_analysis(small_study):
+    """``_analyse(*small_study)``, once for the module (frozen: the tests only read it)."""
+    return _analyse(*small_study)
+
+
+def test_the_results_are_frozen(small_analysis):
+    results = small_analysis
     assert isinstance(results, StudyResults)
     for name in ("fits", "controls", "unseen", "headline_condition", "provenance"):
         with pytest.raises(dataclasses.FrozenInstanceError):
@@ -45,7 +51,7 @@ def test_the_results_are_frozen(small_study):
     assert isinstance(results.fits, tuple)
 
 
-def test_the_unseen_summary_is_computed_once_per_run(small_study, monkeypatch, tmp_path):
+def test_the_unseen_summary_is_computed_once_per_run(small_study, monkeypatch, tmp_path, quick_figures):
     """analyse_study computes it, the report's four readers and the console read the stored table."""
     calls = []
     real = unseen_module.unseen_summary
@@ -75,9 +81,9 @@ def test_the_headline_condition_is_combined_else_the_last_analysed():
     assert unseen_module.headline_condition(pd.Series(["2N", "1N", "2N"])) == "2N"
 
 
-def test_the_headline_condition_is_stored_and_quoted(small_study):
+def test_the_headline_condition_is_stored_and_quoted(small_study, small_analysis):
     study, features = small_study
-    with_combined = _analyse(study, features)
+    with_combined = small_analysis
     assert with_combined.headline_condition == "combined"
     assert "nested leave-one-specimen-out, combined;" in console_lines(with_combined)[0]
     singles = analyse_study(study, features=features, max_components=2, n_permutations=0, conditions=("3N", "1N"))
@@ -147,7 +153,8 @@ def test_the_report_and_cli_compare_no_family_name():
     assert run.stdout == ""
 
 
-def test_the_study_command_takes_study_and_echoes_what_the_report_package_words(tmp_path, run_cli, monkeypatch):
+def test_the_study_command_takes_study_and_echoes_what_the_report_package_words(tmp_path, run_cli, monkeypatch,
+                                                                                 quick_figures):
     """``study --study DIR`` (the name fit, predict and features use); the console prints report.answer's lines and the
     page's source is report.provenance's label, for a user's folder (no [simulation] table)."""
     from roughsense.io.study import read_study
