@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import re
 
-from ..io.numbers import NUMBER
-
 #: ``{command: {old spelling: one name}}``.
 ALIASES: dict[str, dict[str, str]] = {
     "study": {"--data": "--study"},
@@ -66,9 +64,17 @@ def force_hint(args: list[str]) -> str:
     for i, word in enumerate(words):
         name, sep, value = word.partition("=")
         given = value if sep else (words[i + 1] if i + 1 < len(words) else "")
-        if name == "--force" and NUMBER.fullmatch(given.split(",")[0].strip()):
+        if name == "--force" and _is_number(given.split(",")[0]):
             return f"; forces are --forces-n (e.g. --forces-n {given})"
     return ""
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _words(args: list[str]) -> tuple[int, list[str]] | None:
