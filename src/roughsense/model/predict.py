@@ -207,30 +207,21 @@ class Scores:
 
 def model_interval(loaded: FittedModel):
     """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
-    trial's). A malformed entry is refused in one line naming the field, never silently dropped."""
-    from .._util.checks import Real, short_repr
-    from ..errors import ModelFileError
-    from .interval import INTERVAL_LEVEL, PredictionInterval
+    trial's). Its fields were checked when the file was loaded (``interval.SCHEMA``, model/schema.py): null is too
+    few residuals for the level (no bound; ``alone_log_halfwidth`` absent or null: not known)."""
+    from .interval import PredictionInterval
 
     stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
     if stored is None:
         return None
-    widths = dict.fromkeys(("trial_log_halfwidth", "surface_log_halfwidth"), math.inf)
-    widths["alone_log_halfwidth"] = math.nan
-    level = stored.get("level") if isinstance(stored, dict) else None
-    if not (Real().accepts(level) and level == INTERVAL_LEVEL):  # every output labels it pi90, "90 % interval"
-        raise ModelFileError(f"training.interval.level must be {INTERVAL_LEVEL} (the level roughsense writes and "
-                             f"labels pi90), got {short_repr(level)}", path=loaded.path)
-    for name in widths:
+
+    def width(name: str, missing: float) -> float:
         value = stored.get(name)
-        if value is None:  # null: too few residuals for the level; absent (alone): written before it existed
-            continue
-        if not Real(0.0, 50.0).accepts(value):
-            raise ModelFileError(f"training.interval.{name} must be a log half-width from 0 to 50 or null, got "
-                                 f"{str(value)[:40]}", path=loaded.path)
-        widths[name] = float(value)
-    interval = PredictionInterval(widths["trial_log_halfwidth"], widths["surface_log_halfwidth"],
-                                  float(stored["level"]), alone_log_halfwidth=widths["alone_log_halfwidth"])
+        return missing if value is None else float(value)
+
+    interval = PredictionInterval(width("trial_log_halfwidth", math.inf), width("surface_log_halfwidth", math.inf),
+                                  float(stored["level"]),
+                                  alone_log_halfwidth=width("alone_log_halfwidth", math.nan))
     return interval if math.isfinite(interval.trial_log_halfwidth) else None
 
 
