@@ -145,7 +145,7 @@ def chunk_run(path: Path, law_cells: int, pls_bytes: int) -> None:
     import resource
 
     from roughsense.analysis import controls
-    from roughsense.model import pls_cv
+    from roughsense.model.pls import cv as pls_cv
 
     jobs = pickle.loads(path.read_bytes())
     controls.LAW_CHUNK_CELLS, pls_cv._BATCH_BYTES = law_cells, pls_bytes
@@ -182,7 +182,7 @@ def kind_run(path: Path) -> None:
     import pickle
 
     from roughsense.analysis import controls
-    from roughsense.model.pls import single_threaded_blas
+    from roughsense.model.pls.simpls import single_threaded_blas
 
     jobs = pickle.loads(path.read_bytes())
     cpu = dict.fromkeys(KINDS, 0.0)

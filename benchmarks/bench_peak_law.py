@@ -106,8 +106,8 @@ def law_settings(study, features, pad: str, condition: str, specimens=None) -> d
 
 
 def pls_loso(X, Y, specimens) -> np.ndarray:
-    """Nested LOSO predictions (B, n) of the paper's PLS for each column of Y, as model.pls_family.loso_nested."""
-    from roughsense.model.pls_cv import nested_group_predictions, pls_cv_many
+    """Nested LOSO predictions (B, n) of the paper's PLS for each column of Y, as model.pls.family.loso_nested."""
+    from roughsense.model.pls.cv import nested_group_predictions, pls_cv_many
 
     held_out = int(pd.Series(specimens).value_counts().max())
     usable = int(min(MAX_COMPONENTS, len(specimens) - held_out - 1, X.shape[1]))
@@ -154,8 +154,8 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     from roughsense.analysis.presses import presses_curve
     from roughsense.model.interval import held_out_coverage
     from roughsense.model.jackknife_plus import nested_check
-    from roughsense.model.peak_law import held_out_flags, peak_law_cv
-    from roughsense.model.peak_law_folds import law_pair_log_predictions, specimen_codes
+    from roughsense.model.peak_law.folds import law_pair_log_predictions, specimen_codes
+    from roughsense.model.peak_law.law import held_out_flags, peak_law_cv
 
     X, meta = dataset.condition_matrix(features, pad, condition)
     y = dataset.targets(meta, perceived)
@@ -236,16 +236,11 @@ def bound_setters(pairs: np.ndarray, log_targets: np.ndarray, names) -> tuple[st
 
 def interval_rows(study, features, perceived, pad: str, condition: str, seed: int) -> dict:
     """The 90 % jackknife+ (the default model) fully nested: a surface's (every press) and one read from 1, 3, 5
-    presses (model/peak_law_folds.py's check, as fit stores and predict applies them), with the specimens it misses
+    presses (model/peak_law/folds.py's check, as fit stores and predict applies them), with the specimens it misses
     and the folds that set its bounds."""
     from roughsense.analysis import dataset
     from roughsense.model.jackknife_plus import nested_check
-    from roughsense.model.peak_law_folds import (
-        law_nested_press_check,
-        law_pair_log_predictions,
-        law_pair_models,
-        specimen_codes,
-    )
+    from roughsense.model.peak_law.folds import law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
 
     X, meta = dataset.condition_matrix(features, pad, condition)
     y = dataset.targets(meta, perceived)
@@ -371,7 +366,7 @@ def speed(repeats: int, peer_targets: int) -> None:
     from sklearn.linear_model import HuberRegressor
 
     from roughsense.analysis import controls, dataset
-    from roughsense.model.peak_law import PeakPowerLaw, peak_features, peak_law_cv
+    from roughsense.model.peak_law.law import PeakPowerLaw, peak_features, peak_law_cv
 
     study, features, perceived = study_of(0)
     X, meta = dataset.condition_matrix(features, "smooth", "combined")

@@ -167,7 +167,7 @@ def band_goal(work: Path, models: dict) -> None:
 def false_flags_goal(work: Path, models: dict, builtin: Path) -> None:
     from roughsense.analysis import dataset
     from roughsense.io.study import read_study
-    from roughsense.model.peak_law import held_out_flags
+    from roughsense.model.peak_law.law import held_out_flags
     from roughsense.sensor.band import band_reading, band_reason
     from roughsense.sensor.spectrum import SpatialSpectrum
 

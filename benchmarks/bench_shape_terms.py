@@ -38,8 +38,8 @@ TERM_SETS = ("period", "law", "period+harmonic", "law+harmonic")
 
 def term_features(X, settings: dict, specimens) -> dict[str, np.ndarray | None]:
     """Each term set's design columns (n, p); None where the harmonic ratio cannot be read on every surface."""
-    from roughsense.model.peak_law import peak_features
-    from roughsense.model.peak_law_folds import specimen_codes
+    from roughsense.model.peak_law.folds import specimen_codes
+    from roughsense.model.peak_law.law import peak_features
     from roughsense.sensor.shape import harmonic_ratio
 
     features = peak_features(X, **settings)
@@ -57,7 +57,7 @@ def term_features(X, settings: dict, specimens) -> dict[str, np.ndarray | None]:
 
 def clipped_cv(design: np.ndarray, log_y: np.ndarray, folds: np.ndarray) -> np.ndarray:
     """Out-of-fold predictions of a Huber fit per fold, each fold's features held to its training range."""
-    from roughsense.model.peak_law import huber_irls
+    from roughsense.model.peak_law.law import huber_irls
 
     names, fold_of = np.unique(folds, return_inverse=True)
     held = fold_of[None, :] == np.arange(names.size)[:, None]
@@ -106,7 +106,7 @@ def _reason_kinds(reasons) -> dict:
 
 def flag_table(seeds) -> pd.DataFrame:
     """Training presses read alone (with and without the presses' scatter), and a shape left out (alone, together)."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     rows = []
     for cell in condition_cells(seeds):

@@ -18,7 +18,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pandas as pd
 
-from roughsense.model.pls_cv import pls_cv
+from roughsense.model.pls.cv import pls_cv
 from roughsense.sensor.spectrum import spatial_spectrum
 from roughsense.sim.panel import paper_perceived
 from roughsense.sim.simulate import SimulationConfig, plan_trials, render_trial

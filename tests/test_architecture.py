@@ -157,7 +157,7 @@ def test_a_sweep_cell_fingerprint_covers_the_twin_and_the_analysis():
     cell = set(module_closure(*ENTRY_POINTS))
     assert set(module_closure("roughsense.sim.simulate")) <= cell
     assert set(module_closure("roughsense.analysis.study_analysis")) <= cell
-    assert {"roughsense.sensor.spectrum", "roughsense.model.pls_cv", "roughsense.paper"} <= cell
+    assert {"roughsense.sensor.spectrum", "roughsense.model.pls.cv", "roughsense.paper"} <= cell
     assert not [m for m in cell if m.startswith(("roughsense.cli", "roughsense.report"))]  # presentation only
 
 

@@ -11,7 +11,7 @@ from roughsense.analysis.claims import CLAIM_COLUMNS, VERDICTS, Evidence, verdic
 from roughsense.analysis.controls import training_mean_predictions
 from roughsense.analysis.metrics import paired_tost, slope_tost
 from roughsense.analysis.study_analysis import analyse_study
-from roughsense.model.pls_cv import pls_cv
+from roughsense.model.pls.cv import pls_cv
 from roughsense.report.tables import claims_table
 
 from .test_study_analysis import FREQ_COLUMNS, synthetic_study

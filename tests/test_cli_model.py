@@ -369,8 +369,8 @@ def null_predictions(y, folds):
 @pytest.mark.parametrize(("condition", "cv"), [("combined", "loso"), ("2N", "loo")])
 def test_fit_peak_law_writes_the_law_fitted_in_python(run_cli, study_dir, data, tmp_path, condition, cv):
     from roughsense.model.modelfile import load_model
-    from roughsense.model.peak_law import PeakPowerLaw
-    from roughsense.model.peak_law_cv import peak_law_cv
+    from roughsense.model.peak_law.cv import peak_law_cv
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     out = tmp_path / "law.json"
     code, stdout, err = fit(run_cli, study_dir, out, "--condition", condition, "--cv", cv, "--model", "Peak-Law")
@@ -412,7 +412,7 @@ def test_fit_peak_law_writes_the_law_fitted_in_python(run_cli, study_dir, data, 
 def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, tmp_path):
     import cv2
 
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
     from roughsense.sensor.spectrum import SpatialSpectrum
     from tests.test_dataset import grating
 
@@ -439,7 +439,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     long_features = law.features(spectra[1:])[0]
     assert np.exp(long_features[0]) < np.exp(law.feature_min_[0])  # its peak is below the lowest trained frequency
     # ... so it is predicted as if at the edge of the law's domain: the law at the clipped features
-    from roughsense.model.peak_domain import domain_margins
+    from roughsense.model.peak_law.domain import domain_margins
 
     low, high = domain_margins(float(np.diff(grid_per_mm())[0]), law.feature_min_, law.feature_max_)
     edge = np.exp(law.intercept_ + np.clip(long_features, low, high) @ law.coef_)

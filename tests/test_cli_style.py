@@ -150,7 +150,7 @@ def test_every_option_default_is_its_homes_value():
     from roughsense.analysis.controls import DEFAULT_PERMUTATIONS, MAX_PERMUTATIONS
     from roughsense.io.images import DEFAULT_MAX_PIXELS
     from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
-    from roughsense.model.pls_cv import DEFAULT_MAX_COMPONENTS
+    from roughsense.model.pls.cv import DEFAULT_MAX_COMPONENTS
     from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
     from roughsense.report.figures import DEFAULT_DPI, FIGURE_FORMATS
     from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM

@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from roughsense.model import peak_law_cv as law_cv
-from roughsense.model import pls_cv as engine
+from roughsense.model.peak_law import cv as law_cv
+from roughsense.model.pls import cv as engine
 
 from .test_peak_law import GRID, specimen_spectra
 from .test_pls import assert_nested_choices_are_inner_refits, spectra

@@ -142,7 +142,7 @@ def test_controls_are_identical_on_one_or_two_threads(small):
 
 def _law_refit_rmse(X, y, folds, law):
     """Pooled CV RMSE of PeakPowerLaw refitted on every training fold (scikit-learn's estimator, one fit per fold)."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     settings = {k: v for k, v in law.items() if k != "surfaces"}
     surfaces = law.get("surfaces")
@@ -160,7 +160,7 @@ def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
     from .test_study_analysis import FREQS
 
     """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
-    from roughsense.model.peak_law import (
+    from roughsense.model.peak_law.law import (
         HUBER_EPSILON,
         domain_margins,
         fit_terms,
@@ -214,8 +214,8 @@ def test_peak_law_permutation_control_matches_refits(small, cv):
 @pytest.mark.parametrize("cv", ["loo", "loso"])
 def test_peak_law_control_in_chunks_of_shufflings_equals_one_batch(small, cv, monkeypatch):
     """Memory bounded by chunks of shufflings (one at a time here) changes no shuffling's RMSE beyond rounding."""
-    from roughsense.model import peak_law_family
-    from roughsense.model.peak_law import peak_law_cv
+    from roughsense.model.peak_law import family as peak_law_family
+    from roughsense.model.peak_law.law import peak_law_cv
 
     from .test_study_analysis import FREQS
 

@@ -100,7 +100,7 @@ def test_the_registry_is_light_and_the_fingerprint_follows_the_engines():
     from roughsense._util.fingerprint import module_closure
 
     closure = set(module_closure("roughsense.analysis.family_fits"))
-    assert {"roughsense.model.engines", "roughsense.model.pls_family", "roughsense.model.peak_law_family"} <= closure
+    assert {"roughsense.model.engines", "roughsense.model.pls.family", "roughsense.model.peak_law.family"} <= closure
     assert "roughsense.model.engines" not in set(module_closure("roughsense.model.families"))
 
 

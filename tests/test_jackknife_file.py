@@ -202,7 +202,7 @@ def test_one_press_gets_a_wider_interval_than_ten_and_held_out_readings_are_cove
     from roughsense.analysis import dataset
     from roughsense.analysis.study_analysis import law_settings
     from roughsense.io.study import read_study
-    from roughsense.model.peak_law_folds import law_nested_press_check, law_pair_models
+    from roughsense.model.peak_law.folds import law_nested_press_check, law_pair_models
 
     study = read_study(fingerprint_1n)
     X, meta = dataset.condition_matrix(dataset.study_features(study), "fingerprint", "1N")
@@ -231,7 +231,7 @@ def test_one_press_gets_a_wider_interval_than_ten_and_held_out_readings_are_cove
 def test_the_nested_press_check_equals_leave_two_out_refits():
     """Issue 35 item 3: a held-out specimen's per-press interval (a press read alone, as predict gives it) is built
     from models fitted without it and each other specimen in turn; equal to refitting PeakPowerLaw on each pair."""
-    from roughsense.model.peak_law_folds import law_nested_press_check, press_groups, specimen_codes
+    from roughsense.model.peak_law.folds import law_nested_press_check, press_groups, specimen_codes
 
     f, X, y, specimens = gratings(n_specimens=10, presses=3, seed=4)
     check = law_nested_press_check(X, y, specimens, 1, 5, freq_per_mm=f, surfaces=specimens)

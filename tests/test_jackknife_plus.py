@@ -62,7 +62,7 @@ def test_the_nested_check_uses_only_models_that_never_saw_the_specimen():
 def test_leave_two_out_fits_equal_refits_of_the_law():
     """Every pair's batched fit predicts as PeakPowerLaw refitted without both specimens (its clipping included)."""
     import roughsense as rs
-    from roughsense.model.peak_law_folds import law_pair_log_predictions
+    from roughsense.model.peak_law.folds import law_pair_log_predictions
 
     rng = np.random.default_rng(2)
     f = rs.frequency_grid()

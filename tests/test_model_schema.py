@@ -96,7 +96,7 @@ def test_predict_refuses_a_string_rate_before_writing_anything(run_cli, tmp_path
 def test_the_press_spread_is_bounded_by_what_a_fit_gives(tmp_path):
     """On 390ce82 a spread of 1000 passed (bound 0-1000) and switched every extrapolation flag off. A press that
     agrees with its surface reads its log frequency within log(1 + 1.5 step / (f0 - step / 2)) / 0.6745 of it."""
-    from roughsense.model.peak_law_file import spread_limits
+    from roughsense.model.peak_law.file import spread_limits
 
     f = rs.frequency_grid()
     step = f[1] - f[0]
@@ -312,7 +312,7 @@ def test_the_pls_section_is_stated_whole(tmp_path, change, expected):
 
 def test_the_law_section_schema_states_what_its_code_checks(tmp_path):
     """The law's own code names a bad field first; its schema holds the same bounds (one home: the module's)."""
-    from roughsense.model import peak_law_file
+    from roughsense.model.peak_law import file as peak_law_file
 
     assert peak_law_file.SCHEMA["properties"]["epsilon"] == {"type": "number", "exclusiveMinimum": 0.0,
                                                              "maximum": 100.0}

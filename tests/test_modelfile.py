@@ -9,7 +9,7 @@ import pytest
 from roughsense import SIMPLS
 from roughsense.errors import InputError, ModelFileError, OutputExistsError
 from roughsense.model import modelfile as mf
-from roughsense.model.pls import MIN_ROUGHNESS
+from roughsense.model.pls.simpls import MIN_ROUGHNESS
 from roughsense.model.predict import score_images
 from roughsense.sensor.spectrum import SpatialSpectrum
 
@@ -67,7 +67,7 @@ def test_round_trip_predicts_bit_identically(saved):
 def test_a_loaded_file_is_the_fitted_estimator(saved, saved_law):
     """load_model gives back each family's own estimator, predicting bit for bit as the one that was saved (the
     PLS file adds its floor); the file's own part rides along in ``model_file_``."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     for (path, model, X), kind in ((saved, SIMPLS), (saved_law, PeakPowerLaw)):
         loaded = mf.load_model(path)
@@ -219,7 +219,7 @@ def test_deeply_nested_json_is_a_damaged_file_not_a_crash(tmp_path):
 @pytest.fixture
 def saved_law(tmp_path):
     """A peak law fitted on gratings of 2-5 mm (roughness a power law of the period), saved and its path."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     rng = np.random.default_rng(3)
     periods = np.repeat([2.0, 2.5, 3.0, 3.5, 4.0, 5.0], 2)
@@ -244,7 +244,7 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     np.testing.assert_array_equal(loaded.extrapolates(new), [False, True])
     np.testing.assert_array_equal(loaded.extrapolates(new), law.extrapolates(new))
     np.testing.assert_allclose(loaded.predict(new), law.predict(new), rtol=1e-12, atol=0)
-    from roughsense.model.peak_domain import domain_margins
+    from roughsense.model.peak_law.domain import domain_margins
 
     low, high = domain_margins(float(np.diff(law.freq_per_mm_)[0]), law.feature_min_, law.feature_max_)
     outside = law.features(new[1:])
@@ -352,7 +352,7 @@ def test_a_law_whose_predictions_would_overflow_is_refused(saved_law):
 
 def test_non_finite_law_fields_are_refused_by_the_field_checks(saved_law):
     """NaN and infinity cannot pass the checksum (canonical JSON refuses them); the field checks refuse them too."""
-    from roughsense.model import peak_law_file
+    from roughsense.model.peak_law import file as peak_law_file
 
     path, _, _ = saved_law
     document = json.loads(path.read_text())
@@ -377,7 +377,7 @@ def test_a_law_that_cannot_be_stored_is_not_written(tmp_path, saved_law):
 def test_a_resigned_law_predicting_beyond_a_ratings_bound_is_refused(tmp_path):
     """Issue 28, item 16: a re-signed peak-law file whose law reaches 9e303 inside its own feature range is refused
     (bounded as PLS files are, 1e6), not loaded to predict it."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     rng = np.random.default_rng(0)
     grid = np.linspace(0.1, 1.0, 45)

@@ -1,4 +1,4 @@
-"""The peak power law (model/peak_law.py), checked against independent truth.
+"""The peak power law (model/peak_law/law.py), checked against independent truth.
 
 Huber's fit against statsmodels' RLM and against least squares; the estimator against scikit-learn's own checks;
 the peak features against images of known period passed through the real sensor (SpatialSpectrum); the batched
@@ -16,8 +16,8 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from roughsense.model.huber_batch import huber_irls
-from roughsense.model.peak_law import PeakPowerLaw
-from roughsense.model.peak_law_cv import peak_law_cv
+from roughsense.model.peak_law.cv import peak_law_cv
+from roughsense.model.peak_law.law import PeakPowerLaw
 from roughsense.model.peak_search import peak_features
 from roughsense.sensor.spectrum import SpatialSpectrum
 
@@ -235,7 +235,7 @@ def test_identical_blocks_read_as_one(seed, ridge):
 def test_extrapolation_is_flagged_and_held_at_the_edge():
     """A period shorter than any trained one: flagged, and predicted as the edge of the law's domain (the kept
     training range widened by its margins) would be: held exactly where it is flagged."""
-    from roughsense.model.peak_domain import domain_margins
+    from roughsense.model.peak_law.domain import domain_margins
 
     X, y, _ = specimen_spectra(seed=4)
     model = PeakPowerLaw(freq_per_mm=GRID).fit(X, y)

@@ -16,7 +16,7 @@ from threadpoolctl import threadpool_limits
 
 from roughsense import SIMPLS, pls_cv
 from roughsense.errors import ConfigError, InputError
-from roughsense.model.pls_cv import PLSCVResult
+from roughsense.model.pls.cv import PLSCVResult
 
 
 def spectra(n_specimens=14, repetitions=10, p=45, noise=0.02, seed=0):
@@ -258,7 +258,7 @@ def test_equals_ikpls_fast_cross_validation():
 def test_nested_choice_is_each_groups_own_inner_cv_from_one_leave_two_out_batch(monkeypatch, drop):
     """Nested LOSO chooses each held-out group's count by a LOSO over the other groups: refitted here group by group,
     while the batch fits each pair of groups left out once (group j's inner fold k is group k's inner fold j)."""
-    from roughsense.model import pls_cv as engine
+    from roughsense.model.pls import cv as engine
 
     X, y, groups = spectra(n_specimens=6, repetitions=3, p=12, noise=0.05, seed=3)
     if drop is not None:
@@ -280,7 +280,7 @@ def test_chunks_of_one_target_share_one_rotation_and_equal_one_batch(monkeypatch
     batch gives, to rounding; docs/pls.md quotes the chunk size the code uses."""
     from pathlib import Path
 
-    from roughsense.model import pls_cv as engine
+    from roughsense.model.pls import cv as engine
 
     docs = (Path(__file__).resolve().parents[1] / "docs" / "pls.md").read_text(encoding="utf-8")
     assert f"({engine._BATCH_BYTES >> 20} MiB of Lanczos vectors)" in docs

@@ -50,9 +50,9 @@ def _gratings(duty: float, periods, presses: int, rng) -> tuple[np.ndarray, np.n
 def test_a_shape_the_law_never_learnt_is_flagged_in_words():
     """Fitted on square gratings only (lands half the period), the law flags narrow-contact gratings of the same
     periods as an unlearnt contact pattern, and PLS's domain, which keeps the law's readout, does too."""
-    from roughsense.model.applicability import fit_domain
-    from roughsense.model.peak_law import PeakPowerLaw
-    from roughsense.model.pls import SIMPLS
+    from roughsense.model.peak_law.law import PeakPowerLaw
+    from roughsense.model.pls.applicability import fit_domain
+    from roughsense.model.pls.simpls import SIMPLS
 
     rng = np.random.default_rng(0)
     periods = (2.5, 3.0, 3.5, 4.0, 4.5, 5.0)

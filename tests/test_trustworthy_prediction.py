@@ -54,9 +54,9 @@ def _cell(study, features, perceived, pad, condition):
 def test_gratings_outside_the_design_are_flagged_by_every_model(paper_design):
     """0.5 mm (no grating in the band), 1 mm (at its edge, on the ridges) and 8 mm (below the trained periods): every
     press is flagged by the peak law and by PLS, on each pad and condition, and the reason is in a user's words."""
-    from roughsense.model.applicability import fit_domain
-    from roughsense.model.peak_law import PeakPowerLaw
-    from roughsense.model.pls import SIMPLS
+    from roughsense.model.peak_law.law import PeakPowerLaw
+    from roughsense.model.pls.applicability import fit_domain
+    from roughsense.model.pls.simpls import SIMPLS
 
     study, features, perceived = paper_design
     for pad in study.pads:
@@ -81,7 +81,7 @@ def test_the_law_flags_a_held_out_specimen_in_fewer_than_a_fifth_of_its_presses(
     """Every specimen's period lies within the others' (each period has a rectangular and a circular grating), so a
     held-out specimen is a surface like the trained ones: the law fitted without it flags < 20 % of its presses.
     The batched flags equal refits of the estimator without each specimen."""
-    from roughsense.model.peak_law import PeakPowerLaw, held_out_flags
+    from roughsense.model.peak_law.law import PeakPowerLaw, held_out_flags
 
     study, features, perceived = paper_design
     for pad in study.pads:
@@ -102,7 +102,7 @@ def test_a_training_press_read_alone_is_flagged_only_where_it_reads_another_peri
     """Issue 35: the law's ranges hold 10-press surfaces; read alone, a training press is flagged only beyond its
     presses' scatter (model/press_spread.py). The smooth pad flags at most 1 % of them; every fingerprint press it
     flags reads a period more than 5 % off its grating's (a misread press: its mounts scatter by about 2 %)."""
-    from roughsense.model.peak_law import PeakPowerLaw
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     study, features, perceived = paper_design
     period_of = dict(zip(study.specimens["specimen"], study.specimens["wavelength_mm"].astype(float)))
@@ -134,7 +134,7 @@ def _presses(period_mm: float, n: int, rng, *, misread: int = 0, grid=None) -> n
 def test_a_surfaces_presses_share_its_period_and_a_misread_press_is_not_kept():
     """Two presses of ten show a shading hump taller than the grating: read alone, they say 7.7 mm; read as presses of
     one surface, all ten say the grating's period, and each keeps its own peak strength there."""
-    from roughsense.model.peak_law import PeakPowerLaw, peak_features
+    from roughsense.model.peak_law.law import PeakPowerLaw, peak_features
 
     rng = np.random.default_rng(3)
     spectra = _presses(3.0, 10, rng, misread=2)
@@ -185,7 +185,7 @@ def test_a_loaded_pls_model_never_predicts_a_value_at_or_below_zero(tmp_path_fac
     """PLS is linear and may give any number; a model file's prediction is held at half the smoothest trained
     roughness and flagged where it was held."""
     from roughsense.model import modelfile as mf
-    from roughsense.model.pls import SIMPLS
+    from roughsense.model.pls.simpls import SIMPLS
 
     from .test_modelfile import spectrum
 

@@ -35,10 +35,10 @@ __getattr__ = lazy_loader.attach(__name__, submod_attrs={
     "model.modelfile": ["load_model"],
     "model.predict_table": ["predict"],
     "sensor.spectrum": ["SpatialSpectrum", "spatial_spectrum", "frequency_grid"],
-    "model.pls": ["SIMPLS"],
-    "model.peak_law": ["PeakPowerLaw", "peak_law_cv"],
+    "model.pls.simpls": ["SIMPLS"],
+    "model.peak_law.law": ["PeakPowerLaw", "peak_law_cv"],
     "analysis.spread": ["SpreadModel"],
-    "model.pls_cv": ["pls_cv", "pls_cv_many"],
+    "model.pls.cv": ["pls_cv", "pls_cv_many"],
     "analysis.metrics": ["overlap"],
     "io.writer": ["StudyWriter"],
 })[0]

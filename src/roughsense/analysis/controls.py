@@ -10,7 +10,7 @@ predicts each training fold's mean; its RMSE under the same CV is the floor any 
 
 Every family faces the same test with the same shufflings, each through its engine's ``permuted_rmse``
 (roughsense.model.family): PLS advances all of them as one batch over one rotation of X
-(:func:`roughsense.model.pls_cv.pls_cv_many`) through the same nested-selection code as the real targets; the peak
+(:func:`roughsense.model.pls.cv.pls_cv_many`) through the same nested-selection code as the real targets; the peak
 power law fits every fold and shuffled target in one batched IRLS, and chooses nothing, so that fit is the whole of
 what is rerun.
 """
@@ -26,9 +26,9 @@ from .._util.checks import Integer, check
 from .._util.workers import thread_map
 from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
-from ..model.peak_law_family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
-from ..model.pls import single_threaded_blas
-from ..model.pls_family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
+from ..model.peak_law.family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
+from ..model.pls.family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
+from ..model.pls.simpls import single_threaded_blas
 from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).

@@ -26,7 +26,7 @@ from scipy import stats
 from ..model.engines import engine
 from ..model.families import paper_family
 from ..model.family import FoldSettings
-from ..model.pls_family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
+from ..model.pls.family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
 from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets
 
 #: The schemes, strictest last, and what each holds out in a user's words.

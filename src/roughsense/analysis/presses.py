@@ -18,8 +18,8 @@ import pandas as pd
 from ..model.engines import engine, engines
 from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
-from ..model.peak_law_family import loso_laws  # noqa: F401 (re-exported for one release)
-from ..model.peak_law_folds import specimen_codes
+from ..model.peak_law.family import loso_laws  # noqa: F401 (re-exported for one release)
+from ..model.peak_law.folds import specimen_codes
 from .controls import fold_mean_predictions
 
 #: Random subsets of a specimen's presses per count.

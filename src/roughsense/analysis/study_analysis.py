@@ -7,7 +7,7 @@ per specimen by RMSE against the perceived geometric mean and by the overlap coe
 
 Beside the paper's PLS, every requested model family (``models``; roughsense.model.families) is
 cross-validated under the same folds and judged the same way: the peak power law
-(roughsense.model.peak_law), built for surfaces never seen in training, has nothing to choose from the
+(roughsense.model.peak_law.law), built for surfaces never seen in training, has nothing to choose from the
 targets, so its out-of-fold predictions are its fit on each training fold.
 """
 from __future__ import annotations

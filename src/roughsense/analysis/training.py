@@ -24,13 +24,13 @@ from ..errors import ConfigError, InputError
 from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model import gate_file
-from ..model.applicability import SpectrumDomain, fit_domain
 from ..model.families import check_model_name, default_family, family, paper_family, registry
 from ..model.modelfile import feature_definition_for
-from ..model.peak_law import PeakPowerLaw, peak_law_cv
-from ..model.peak_law_family import PeakLawFamily
-from ..model.pls import SIMPLS
-from ..model.pls_cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
+from ..model.peak_law.family import PeakLawFamily
+from ..model.peak_law.law import PeakPowerLaw, peak_law_cv
+from ..model.pls.applicability import SpectrumDomain, fit_domain
+from ..model.pls.cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
+from ..model.pls.simpls import SIMPLS
 from ..model.training_file import UNJUDGED
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset

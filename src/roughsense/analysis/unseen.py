@@ -5,7 +5,7 @@ terminal summary lead with it. Every number comes from the LOSO fits and control
 ones are the training mean's per-specimen RMSE (so the model and the null are compared on the same metric) and
 Spearman's rho between each specimen's mean prediction and its perceived roughness; the empirical coverage of the 90 %
 prediction interval on held-out specimens (of a press read alone: the peak law's nested jackknife+,
-model/peak_law_folds.py; PLS's plain jackknife from the others' residuals, model/interval.py; of a surface: the
+model/peak_law/folds.py; PLS's plain jackknife from the others' residuals, model/interval.py; of a surface: the
 plain jackknife and the nested jackknife+);
 and how often the applicability flag fell on a held-out specimen's trials (overall, and its worst specimen).
 """

@@ -6,8 +6,8 @@ the engines can take their names from the registry without a loop of imports.
 from __future__ import annotations
 
 from .families import Family, family
-from .peak_law_family import PeakLawFamily
-from .pls_family import PLSFamily
+from .peak_law.family import PeakLawFamily
+from .pls.family import PLSFamily
 
 
 def engines() -> tuple:

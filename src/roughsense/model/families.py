@@ -1,7 +1,7 @@
 """The model families, chosen by name wherever a model is chosen (``--model``, model files, the ``model`` column).
 
 ``pls`` is the paper's PLS1 (SIMPLS) on the spectral amplitudes: the paper's reproduction and design sweeps use it
-(:data:`PAPER_MODEL`). ``peak-law`` is :class:`roughsense.model.peak_law.PeakPowerLaw`, built to predict surfaces the
+(:data:`PAPER_MODEL`). ``peak-law`` is :class:`roughsense.model.peak_law.law.PeakPowerLaw`, built to predict surfaces the
 model never saw; it passes its controls for unseen surfaces where PLS fails them, so ``fit`` writes it unless told
 otherwise (:data:`DEFAULT_MODEL`). This module imports
 nothing heavy, so the command line can list and check the names without loading scikit-learn: a family's numerics

@@ -86,8 +86,8 @@ class LawFolds:
 
     def log_predict(self, X, surfaces=None) -> np.ndarray:
         """(S, n) each fold's log prediction of each row (rows of one surface share where its peak is read)."""
-        from .peak_law import grid_step, peak_features
-        from .peak_law_folds import fold_log_predictions
+        from .peak_law.folds import fold_log_predictions
+        from .peak_law.law import grid_step, peak_features
 
         freq = np.asarray(self.settings["freq_per_mm"], dtype=np.float64)
         features = peak_features(X, freq, surfaces=surfaces, **{k: v for k, v in self.settings.items()
@@ -196,8 +196,8 @@ def deploy(folds: LawFolds | LinearFolds, X, y, specimens, seed: int) -> Deploye
 
 
 def law_jackknife(X, y, specimens, law: dict, seed: int) -> DeployedJackknife:
-    """The peak law's: its leave-one-specimen-out fits in one batch (model/peak_law_folds.py), as the study's."""
-    from .peak_law_folds import law_fold_models
+    """The peak law's: its leave-one-specimen-out fits in one batch (model/peak_law/folds.py), as the study's."""
+    from .peak_law.folds import law_fold_models
 
     codes, _ = pd.factorize(pd.Series(np.asarray(specimens).astype(str)), sort=False)
     held = codes[None, :] == np.arange(int(codes.max()) + 1)[:, None]
@@ -208,7 +208,7 @@ def law_jackknife(X, y, specimens, law: dict, seed: int) -> DeployedJackknife:
 
 def pls_jackknife(X, y, specimens, n_components: dict, seed: int) -> DeployedJackknife:
     """PLS's: each specimen's fold refitted with the component count its nested LOSO chose (0: the training mean)."""
-    from .pls import SIMPLS
+    from .pls.simpls import SIMPLS
 
     specimens = np.asarray(specimens).astype(str)
     X, y = np.asarray(X, dtype=np.float64), np.asarray(y, dtype=np.float64)
@@ -332,7 +332,7 @@ def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nu
 def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearFolds:
     """The fold models, of the loaded model's own kind and size, each as checked as the deployed model's section."""
     from .families import family
-    from .pls_file import KIND as PLS_KIND
+    from .pls.file import KIND as PLS_KIND
 
     kind = family(loaded.family).kind  # the model's own section kind
     if not isinstance(stored, dict) or stored.get("kind") != kind:
@@ -349,8 +349,8 @@ def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearF
 
 
 def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
-    from .peak_law import domain_margins, grid_step
-    from .peak_law_file import _check_finite_predictions, _check_log_frequencies
+    from .peak_law.file import _check_finite_predictions, _check_log_frequencies
+    from .peak_law.law import domain_margins, grid_step
 
     p, n = loaded.coef_.size, len(names)
     intercept = _numbers(stored.get("intercept"), (n,), "folds.intercept", path)

@@ -1,7 +1,7 @@
 """What a model read from a model file carries beside its fitted numbers, shared by every family's estimator.
 
-``load_model`` returns the family's own fitted estimator (a :class:`~roughsense.model.pls.SIMPLS` or a
-:class:`~roughsense.model.peak_law.PeakPowerLaw`), so a loaded model predicts with the very code that was fitted.
+``load_model`` returns the family's own fitted estimator (a :class:`~roughsense.model.pls.simpls.SIMPLS` or a
+:class:`~roughsense.model.peak_law.law.PeakPowerLaw`), so a loaded model predicts with the very code that was fitted.
 The file adds what the estimator cannot know (where its spectra come from, what it was trained on), kept in
 ``model_file_``; :class:`FromModelFile` gives both families, once, what that makes them answer: their force
 conditions, the path that names them in errors, and a refusal naming the file for spectra of the wrong width.

@@ -2,8 +2,8 @@
 
 A model file is something users send each other, so loading it must never execute anything and must
 refuse, with one clear message naming the file, anything damaged, truncated, edited or from another
-version. This module holds the envelope; each family's section is its own module's (:mod:`.pls_file`,
-:mod:`.peak_law_file`). The document::
+version. This module holds the envelope; each family's section is its own module's (:mod:`.pls.file`,
+:mod:`.peak_law.file`). The document::
 
     {"format": "roughsense-model", "version": 1, "roughsense_version": "...",
      "model":    {"kind": "pls1-simpls", ...} | {"kind": "peak-power-law", ...}  (the family's section),
@@ -34,12 +34,13 @@ from .._util.files import read_regular
 from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
-from . import jackknife_file, peak_law_file, pls_file, schema
-from .applicability import SpectrumDomain
-from .peak_law import PeakPowerLaw
-from .peak_law_file import LoadedPeakLaw  # noqa: F401  re-exported for one release
-from .pls import SIMPLS
-from .pls_file import (  # noqa: F401  re-exported for one release
+from . import jackknife_file, schema
+from .peak_law import file as peak_law_file
+from .peak_law.file import LoadedPeakLaw  # noqa: F401  re-exported for one release
+from .peak_law.law import PeakPowerLaw
+from .pls import file as pls_file
+from .pls.applicability import SpectrumDomain
+from .pls.file import (  # noqa: F401  re-exported for one release
     KIND,
     MAX_COEFFICIENT,
     MAX_X_MEAN,
@@ -47,6 +48,7 @@ from .pls_file import (  # noqa: F401  re-exported for one release
     MIN_ROUGHNESS,
     LoadedModel,
 )
+from .pls.simpls import SIMPLS
 
 FORMAT = "roughsense-model"
 VERSION = 1
@@ -88,7 +90,7 @@ def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, tr
                    domain: SpectrumDomain | None = None, path: Path | None = None) -> dict:
     """The JSON document of a fitted model (see the module docstring), checked as :func:`load_model` will check it.
 
-    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.applicability.fit_domain`); ``path``:
+    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.pls.applicability.fit_domain`); ``path``:
     the file it is for, which a refusal names.
     """
     section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else pls_file.pls_section(model)

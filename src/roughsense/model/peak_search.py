@@ -1,6 +1,6 @@
 """The peak law's features: where a contact spectrum peaks (refined below the grid by a log-parabola), how high,
 and the contact's shape (its second harmonic's ratio), read per press or per surface; and the law's terms and its
-batched Huber fit on them. model/peak_law.py says why the law reads these and no others.
+batched Huber fit on them. model/peak_law/law.py says why the law reads these and no others.
 """
 from __future__ import annotations
 

@@ -59,7 +59,9 @@ class Section:
 def sections() -> dict[str, Section]:
     """Every checked section, by its dotted place in the document, parents before children (each module states
     its own; see the module docstring for adding one)."""
-    from . import gate_file, interval, jackknife_file, modelfile, peak_law_file, pls_file, training_file
+    from . import gate_file, interval, jackknife_file, modelfile, training_file
+    from .peak_law import file as peak_law_file
+    from .pls import file as pls_file
 
     by_kind = {"if": {"properties": {"kind": {"const": pls_file.KIND}}}, "then": pls_file.SCHEMA,
                "else": peak_law_file.SCHEMA}

@@ -24,7 +24,7 @@ from .._util.checks import MAX_SEED
 from ..io.numbers import BOUNDS
 from ..paper import COMBINED, FORCE_CONDITIONS, PAPER_CONDITIONS
 from .families import PEAK_LAW
-from .pls_file import KIND as PLS_KIND
+from .pls.file import KIND as PLS_KIND
 from .schema import integer, number, strict
 
 _RATING = BOUNDS["rating"]

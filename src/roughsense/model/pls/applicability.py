@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sensor.spectrum import grid_step
-from .peak_law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
-from .pls import SIMPLS
-from .press_spread import PressScatter
+from ...sensor.spectrum import grid_step
+from ..peak_law.law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
+from ..press_spread import PressScatter
+from .simpls import SIMPLS
 
 #: Share of held-out training rows inside the limits (the cross-validated percentile).
 DOMAIN_LEVEL = 0.95

@@ -1,15 +1,14 @@
 """The peak law cross-validated, batched: every fold and every target column in one IRLS
-(:func:`peak_law_cv`), equal to refitting :class:`~roughsense.model.peak_law.PeakPowerLaw` on each fold, and
+(:func:`peak_law_cv`), equal to refitting :class:`~roughsense.model.peak_law.law.PeakPowerLaw` on each fold, and
 :func:`law_domain_flags`, the flag a user would have seen for each row had its group never been trained on.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..sensor.spectrum import grid_step
-from .huber_batch import HUBER_EPSILON, distinct_masks, row_classes
-from .peak_domain import LOG_MARGIN, _kept, domain_margins, domain_reasons, kept_range
-from .peak_search import (
+from ...sensor.spectrum import grid_step
+from ..huber_batch import HUBER_EPSILON, distinct_masks, row_classes
+from ..peak_search import (
     AMPLITUDE,
     DEFAULT_EXCLUSION_PER_MM,
     PeakLawConfigError,
@@ -25,7 +24,8 @@ from .peak_search import (
     shape_read,
     surface_codes,
 )
-from .press_spread import PressScatter, robust_spread, trained_presses
+from ..press_spread import PressScatter, robust_spread, trained_presses
+from .domain import LOG_MARGIN, _kept, domain_margins, domain_reasons, kept_range
 
 
 def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .peak_law import (
+from .law import (
     DEFAULT_EXCLUSION_PER_MM,
     HUBER_EPSILON,
     check_grid,
@@ -76,7 +76,7 @@ def law_pair_models(X, y, specimens, **law) -> tuple[np.ndarray, tuple]:
 def law_pair_log_predictions(X, y, specimens, *, models=None, **law) -> np.ndarray:
     """(S, S, S) log mean prediction of each specimen u by the law fitted without specimens t and s ([t, s, u];
     [t, t, u]: without t alone), every pair in one batch (``models``: :func:`law_pair_models`, if at hand)."""
-    from .jackknife_plus import surface_means
+    from ..jackknife_plus import surface_means
 
     codes, names = specimen_codes(specimens)
     pair, (beta, low, high, features) = models or law_pair_models(X, y, specimens, **law)
@@ -107,8 +107,8 @@ def law_nested_press_check(X, y, specimens, count: int, seed: int, *, level: flo
     each s's residual that of its first reading (as a model file keeps one per specimen). ``count`` 1 is a press
     read alone. Per specimen: its readings, the share covered, the median log half-width. ``models``:
     :func:`law_pair_models`, if at hand."""
-    from .interval import INTERVAL_LEVEL
-    from .jackknife_plus import jackknife_plus
+    from ..interval import INTERVAL_LEVEL
+    from ..jackknife_plus import jackknife_plus
 
     codes, names = specimen_codes(specimens)
     n_specimens = names.size

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sensor.shape import duty_cycle
-from .peak_search import AMPLITUDE, FREQUENCY, HARMONIC, PeakLawInputError, PeakReadout, held_features, surface_codes
-from .press_spread import PressScatter
+from ...sensor.shape import duty_cycle
+from ..peak_search import AMPLITUDE, FREQUENCY, HARMONIC, PeakLawInputError, PeakReadout, held_features, surface_codes
+from ..press_spread import PressScatter
 
 #: A training row counts as kept by the Huber fit when its final weight is at least this (|residual| <= 2 epsilon
 #: scale): its features bound the range the law is applied in (:func:`kept_rows`).

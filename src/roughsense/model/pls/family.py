@@ -2,9 +2,9 @@
 
 PLS chooses its component count from the targets, so every held-out prediction is made at a count chosen without
 the held-out data: LOO reads the curve's minimum (the paper's protocol), leave-one-specimen-out nests a second LOSO
-over the other specimens (:func:`roughsense.model.pls_cv.nested_group_predictions`), and the permutation control
-reruns that same choice on every shuffled target in one batch (:func:`roughsense.model.pls_cv.pls_cv_many`).
-Its extras: the applicability flags of each held-out fit (model/applicability.py), stricter held-out schemes with
+over the other specimens (:func:`roughsense.model.pls.cv.nested_group_predictions`), and the permutation control
+reruns that same choice on every shuffled target in one batch (:func:`roughsense.model.pls.cv.pls_cv_many`).
+Its extras: the applicability flags of each held-out fit (model/pls/applicability.py), stricter held-out schemes with
 a nested count per fold, and the jackknife+ fold models. It has no cheap leave-two-out fits, so no nested interval
 check, and reads every press alone.
 """
@@ -15,12 +15,12 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
+from ..families import PLS
+from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
+from ..jackknife_file import pls_jackknife
+from ..peak_law.law import PeakPowerLaw
 from .applicability import nested_domain_flags
-from .families import PLS
-from .family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
-from .jackknife_file import pls_jackknife
-from .peak_law import PeakPowerLaw
-from .pls_cv import nested_group_predictions, pls_cv, pls_cv_many
+from .cv import nested_group_predictions, pls_cv, pls_cv_many
 
 
 def loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max_components: int):
@@ -28,7 +28,7 @@ def loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max_
 
     The outer LOSO run already holds every held-out specimen's prediction at every count, so the nested
     prediction for specimen s is the outer one at the count an inner LOSO over the other specimens picks
-    (:func:`roughsense.model.pls_cv.nested_group_predictions`, which the permutation control reuses).
+    (:func:`roughsense.model.pls.cv.nested_group_predictions`, which the permutation control reuses).
     """
     predictions, counts = nested_group_predictions(X, y[:, None], specimens,
                                                    outer.predictions[None, :, : max_components + 1])
@@ -93,7 +93,7 @@ class PLSFamily(FamilyEngine):
         return permuted_cv_rmse(X, Y, specimens, cv, max_components)
 
     def held_out_flags(self, X, y, specimens, settings, fold) -> np.ndarray:
-        """model/applicability.py's flags, each specimen's model at its nested count (LOO: the chosen one), with
+        """model/pls/applicability.py's flags, each specimen's model at its nested count (LOO: the chosen one), with
         the peak readout of the pad's grid beside the spectrum's shape."""
         law = FoldSettings.of(settings)
         readout = PeakPowerLaw(freq_per_mm=law.freq_per_mm, n_blocks=law.n_blocks,

@@ -1,9 +1,9 @@
-"""The peak power law (:class:`roughsense.model.peak_law.PeakPowerLaw`) as the analysis cross-validates and controls it.
+"""The peak power law (:class:`roughsense.model.peak_law.law.PeakPowerLaw`) as the analysis cross-validates and controls it.
 
 The law chooses nothing from the targets, so its held-out prediction under any folds is its fit on the training
 fold, and every fold and every shuffled target goes through one batched IRLS (:func:`peak_law.peak_law_cv`): the
 permutation control, the stricter schemes' own shufflings, the leave-two-out fits of the nested jackknife+ check
-(model/peak_law_folds.py) and the laws that read a surface from a few of its presses all cost one batch each.
+(model/peak_law/folds.py) and the laws that read a surface from a few of its presses all cost one batch each.
 Its CV curve is two numbers: the training mean's RMSE under the same folds (PLS's 0-component CV, computed as
 PLS computes it) and the law's.
 """
@@ -14,20 +14,14 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from .families import PEAK_LAW
-from .family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
-from .jackknife_file import law_jackknife
-from .jackknife_plus import nested_check
-from .peak_law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
-from .peak_law import held_out_flags as law_domain_flags
-from .peak_law_folds import (
-    law_fold_models,
-    law_nested_press_check,
-    law_pair_log_predictions,
-    law_pair_models,
-    specimen_codes,
-)
-from .pls_cv import pls_cv
+from ..families import PEAK_LAW
+from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
+from ..jackknife_file import law_jackknife
+from ..jackknife_plus import nested_check
+from ..pls.cv import pls_cv
+from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
+from .law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
+from .law import held_out_flags as law_domain_flags
 
 #: The law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
 #: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS

@@ -1,4 +1,4 @@
-"""The arithmetic of model/pls_cv.py's exact cross-validation: every fold's PLS1 run as a Lanczos recurrence in one
+"""The arithmetic of model/pls/cv.py's exact cross-validation: every fold's PLS1 run as a Lanczos recurrence in one
 shared rotation of the data (:class:`_RotatedFolds`, :class:`_FoldLanczos`), or each fold in its own basis when
 many targets share few folds (:func:`_own_basis_predictions`); pls_cv.py chooses between them and batches them.
 """
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pls import PLSConfigError, PLSInputError, svd_rank
+from .simpls import PLSConfigError, PLSInputError, svd_rank
 
 # When the cross-validation's Lanczos recurrence is exhausted: its next-vector norm beta lives on the scale
 # of X'X, and below ~50 eps of its largest eigenvalue it is rounding noise of the products that form it.

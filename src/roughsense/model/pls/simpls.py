@@ -3,7 +3,7 @@
 The paper regresses perceived roughness on spatial spectra with ``plsregress``: X centred but not scaled, y centred,
 SIMPLS (de Jong 1993). :class:`SIMPLS` reproduces that model; one fit holds the coefficients of every component
 count 1..A, so predicting with fewer components needs no refit. Its exact, fast cross-validation is
-:mod:`roughsense.model.pls_cv`.
+:mod:`roughsense.model.pls.cv`.
 """
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._util.checks import POSITIVE_INT, Integer, check
-from ..errors import ConfigError, InputError
-from .families import PLS
-from .loaded import FromModelFile
+from ..._util.checks import POSITIVE_INT, Integer, check
+from ...errors import ConfigError, InputError
+from ..families import PLS
+from ..loaded import FromModelFile
 
 __all__ = ["SIMPLS", "PLSInputError", "PLSConfigError", "linear_predict"]
 

@@ -12,7 +12,7 @@ training surface did not show it), and such a harmonic ratio's range is null (un
 harmonic ratio existed has two of each and loads as a law without it.
 
 ``feature_min``/``feature_max`` are the range of the rows the fit kept and ``clarity_limit`` the least clear peak it
-accepts (:func:`~roughsense.model.peak_law.domain_reasons`); a file written before ``clarity_limit`` existed loads
+accepts (:func:`~roughsense.model.peak_law.law.domain_reasons`); a file written before ``clarity_limit`` existed loads
 without it, and its predictions are then not checked for a clear peak. ``press_scatter`` is the training presses'
 scatter about their surfaces (log frequency, log amplitude, harmonic ratio, clarity) and the presses per trained
 surface (model/press_spread.py), which widen the flag for a surface read from fewer presses; a file without it
@@ -22,7 +22,7 @@ Why each field is bounded. The checksum of a model file is unkeyed, so anyone ca
 field checks are what refuse a file that would predict nonsense. The bounds are loose enough for any law fitted on
 real spectra (log features of a few units, slopes of a few units) and tight enough that every prediction stays a
 finite positive number: a law whose exponent could leave floating point anywhere in its feature box is refused.
-A loaded law is the fitted :class:`~roughsense.model.peak_law.PeakPowerLaw` itself, its fitted attributes set
+A loaded law is the fitted :class:`~roughsense.model.peak_law.law.PeakPowerLaw` itself, its fitted attributes set
 from the section, so it predicts with the estimator's own code.
 """
 from __future__ import annotations
@@ -32,23 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .._util.checks import POSITIVE_INT, Constraint, Real, shown
-from ..errors import ModelFileError
-from ..io.numbers import BOUNDS
-from ..sensor.spectrum import grid_step
-from . import schema
-from .loaded import ModelFileInfo
-from .peak_law import (
-    FEATURE_NAMES,
-    HARMONIC,
-    LOG_MARGIN,
-    PeakPowerLaw,
-    check_grid,
-    domain_margins,
-    search_bins,
-)
-from .peak_search import AGREEMENT_BINS
-from .press_spread import MAD_PER_SD, N_SPREAD, PressScatter
+from ..._util.checks import POSITIVE_INT, Constraint, Real, shown
+from ...errors import ModelFileError
+from ...io.numbers import BOUNDS
+from ...sensor.spectrum import grid_step
+from .. import schema
+from ..loaded import ModelFileInfo
+from ..peak_search import AGREEMENT_BINS
+from ..press_spread import MAD_PER_SD, N_SPREAD, PressScatter
+from .law import FEATURE_NAMES, HARMONIC, LOG_MARGIN, PeakPowerLaw, check_grid, domain_margins, search_bins
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -304,7 +296,7 @@ def _check_finite_predictions(intercept: float, pairs: dict, path: Path | None) 
 
 def peak_domain(section, features: dict, path: Path | None):
     """A PLS file's peak readout domain (``model.applicability.peak``), checked like the law's own fields."""
-    from .applicability import PeakDomain
+    from ..pls.applicability import PeakDomain
 
     where = "model.applicability.peak"
     fields = {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"}

@@ -13,18 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from sklearn.utils.validation import validate_data
 
-from .. import defaults
-from .._util.checks import POSITIVE_INT, check, is_whole_number
-from .pls import (
-    SIMPLS,
-    PLSConfigError,
-    PLSInputError,
-    blas_threads_for,
-    check_target,
-    svd_rank,
-    validate_xy,
-)
-from .pls_cv_engine import (  # noqa: F401  (_FoldLanczos, _RotatedFolds, _diagonal_lanczos: re-exported for one release)
+from ... import defaults
+from ..._util.checks import POSITIVE_INT, check, is_whole_number
+from .cv_engine import (  # noqa: F401  (_FoldLanczos, _RotatedFolds, _diagonal_lanczos: re-exported for one release)
     _KRYLOV_RTOL,
     _check_fold_support,
     _cv_predictions,
@@ -34,6 +25,7 @@ from .pls_cv_engine import (  # noqa: F401  (_FoldLanczos, _RotatedFolds, _diago
     _RotatedFolds,
     _rotation,
 )
+from .simpls import SIMPLS, PLSConfigError, PLSInputError, blas_threads_for, check_target, svd_rank, validate_xy
 
 
 @dataclass(frozen=True)

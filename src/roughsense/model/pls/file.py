@@ -1,5 +1,5 @@
 """The PLS section of a model file (kind ``pls1-simpls``): written from a fitted :class:`SIMPLS`, checked field by
-field and loaded as :class:`LoadedModel`, as model/peak_law_file.py does for the peak law; model/modelfile.py holds
+field and loaded as :class:`LoadedModel`, as model/peak_law/file.py does for the peak law; model/modelfile.py holds
 the envelope (format, version, checksum, feature definition) around either.
 
 The section::
@@ -29,12 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .._util.checks import POSITIVE_INT, Real, short_repr
-from ..errors import ModelFileError
-from . import peak_law_file, schema
+from ..._util.checks import POSITIVE_INT, Real, short_repr
+from ...errors import ModelFileError
+from .. import schema
+from ..loaded import ModelFileInfo
+from ..peak_law import file as peak_law_file
 from .applicability import DOMAIN_LEVEL, SpectrumDomain
-from .loaded import ModelFileInfo
-from .pls import MIN_ROUGHNESS, SIMPLS
+from .simpls import MIN_ROUGHNESS, SIMPLS
 
 KIND = "pls1-simpls"
 _FIELDS = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficients", "intercepts", "pct_var"}
