@@ -154,8 +154,8 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     from roughsense.analysis.presses import presses_curve
     from roughsense.model.interval import held_out_coverage
     from roughsense.model.jackknife_plus import nested_check
+    from roughsense.model.peak_law.cv import law_domain_flags, peak_law_cv
     from roughsense.model.peak_law.folds import law_pair_log_predictions, specimen_codes
-    from roughsense.model.peak_law.law import held_out_flags, peak_law_cv
 
     X, meta = dataset.condition_matrix(features, pad, condition)
     y = dataset.targets(meta, perceived)
@@ -179,7 +179,7 @@ def evaluate_model(study, features, perceived, pad: str, condition: str, seed: i
     for scheme in ("specimen", "period", "shape"):
         folds = scheme_folds(scheme, specimens, shapes, wavelengths)
         law = peak_law_cv(X, both, groups=folds, **settings)
-        flags = pd.Series(held_out_flags(X, y, folds, **settings), index=specimens)
+        flags = pd.Series(law_domain_flags(X, y, folds, **settings), index=specimens)
         contenders = (("peak-law", law), ("pls", pls_loso(X, both, specimens))) if scheme == "specimen" else \
             (("peak-law", law),)
         parts = [("all", np.ones(len(y), bool))] if scheme != "shape" else [(f, folds == f) for f in pd.unique(folds)]
@@ -366,7 +366,9 @@ def speed(repeats: int, peer_targets: int) -> None:
     from sklearn.linear_model import HuberRegressor
 
     from roughsense.analysis import controls, dataset
-    from roughsense.model.peak_law.law import PeakPowerLaw, peak_features, peak_law_cv
+    from roughsense.model.peak_law.cv import peak_law_cv
+    from roughsense.model.peak_law.law import PeakPowerLaw
+    from roughsense.model.peak_search import peak_features
 
     study, features, perceived = study_of(0)
     X, meta = dataset.condition_matrix(features, "smooth", "combined")

@@ -167,7 +167,7 @@ def band_goal(work: Path, models: dict) -> None:
 def false_flags_goal(work: Path, models: dict, builtin: Path) -> None:
     from roughsense.analysis import dataset
     from roughsense.io.study import read_study
-    from roughsense.model.peak_law.law import held_out_flags
+    from roughsense.model.peak_law.cv import law_domain_flags
     from roughsense.sensor.band import band_reading, band_reason
     from roughsense.sensor.spectrum import SpatialSpectrum
 
@@ -188,7 +188,7 @@ def false_flags_goal(work: Path, models: dict, builtin: Path) -> None:
         specimens = meta["specimen"].astype(str).to_numpy()
         freq = dataset.column_frequencies(dataset.frequency_columns(features))
         ridge = study.pad_ridge_period_mm.get(pad)
-        law = held_out_flags(X, y, specimens, freq_per_mm=freq, pad_ridge_period_mm=ridge, surfaces=specimens)
+        law = law_domain_flags(X, y, specimens, freq_per_mm=freq, pad_ridge_period_mm=ridge, surfaces=specimens)
         band = np.array([bool(band_reason(band_reading(reader.line(study.root / image)[0], 34.9, 0.1, 1.0,
                                                        ridge_period_mm=ridge), 0.1, 1.0)) for image in meta["image"]])
         share = pd.Series(law | band).groupby(specimens).mean()

@@ -51,7 +51,7 @@ def _rho(prediction, y, specimens) -> float:
 def candidates(X, settings: dict, specimens) -> dict[str, np.ndarray]:
     """Each candidate's value per row (read on its surface's mean spectrum); see the module docstring."""
     from roughsense.model.peak_law.folds import specimen_codes
-    from roughsense.model.peak_law.law import peak_features
+    from roughsense.model.peak_search import peak_features
     from roughsense.sensor.shape import harmonic_ratio, lobe_height
 
     freq, n_blocks, ridge = settings["freq_per_mm"], settings["n_blocks"], settings["pad_ridge_period_mm"]
@@ -120,7 +120,7 @@ def line_part(seeds, repetitions: int = 4) -> pd.DataFrame:
 def rows_part(seeds) -> pd.DataFrame:
     from roughsense.analysis import dataset
     from roughsense.analysis.presses import presses_curve
-    from roughsense.model.peak_law.law import peak_law_cv
+    from roughsense.model.peak_law.cv import peak_law_cv
     from roughsense.sensor.spectrum import SpatialSpectrum
 
     out = []

@@ -39,7 +39,7 @@ TERM_SETS = ("period", "law", "period+harmonic", "law+harmonic")
 def term_features(X, settings: dict, specimens) -> dict[str, np.ndarray | None]:
     """Each term set's design columns (n, p); None where the harmonic ratio cannot be read on every surface."""
     from roughsense.model.peak_law.folds import specimen_codes
-    from roughsense.model.peak_law.law import peak_features
+    from roughsense.model.peak_search import peak_features
     from roughsense.sensor.shape import harmonic_ratio
 
     features = peak_features(X, **settings)
@@ -57,7 +57,7 @@ def term_features(X, settings: dict, specimens) -> dict[str, np.ndarray | None]:
 
 def clipped_cv(design: np.ndarray, log_y: np.ndarray, folds: np.ndarray) -> np.ndarray:
     """Out-of-fold predictions of a Huber fit per fold, each fold's features held to its training range."""
-    from roughsense.model.peak_law.law import huber_irls
+    from roughsense.model.huber_batch import huber_irls
 
     names, fold_of = np.unique(folds, return_inverse=True)
     held = fold_of[None, :] == np.arange(names.size)[:, None]

@@ -15,6 +15,8 @@ from hypothesis import strategies as st
 
 from roughsense.model.peak_law import cv as law_cv
 from roughsense.model.pls import cv as engine
+from roughsense.model.pls import cv_engine
+from roughsense.model.pls.simpls import PLSConfigError
 
 from .test_peak_law import GRID, specimen_spectra
 from .test_pls import assert_nested_choices_are_inner_refits, spectra
@@ -40,10 +42,10 @@ def test_own_basis_pair_predictions_equal_the_shared_rotations(seed, n_specimens
     held = groups[None, :] == pd.unique(groups)[:, None]
     first, second = np.triu_indices(held.shape[0], k=1)
     pair_rows = [np.flatnonzero(held[j] | held[k]) for j, k in zip(first, second)]
-    Z, sv = engine._rotation(X)
+    Z, sv = cv_engine._rotation(X)
     for rows in pair_rows:
-        plain = engine._cv_predictions(X, Y, np.zeros(rows.size, dtype=np.intp), A, rows, (Z, sv))
-        own = engine._own_basis_predictions(Z, Y, rows[None, :], A, 0.0, np.zeros(1, dtype=int))[0]
+        plain = cv_engine._cv_predictions(X, Y, np.zeros(rows.size, dtype=np.intp), A, rows, (Z, sv))
+        own = cv_engine._own_basis_predictions(Z, Y, rows[None, :], A, 0.0, np.zeros(1, dtype=int))[0]
         np.testing.assert_allclose(own, plain, rtol=1e-9, atol=1e-12)
 
 
@@ -104,6 +106,6 @@ def test_an_exhausted_krylov_space_in_a_folds_own_basis_is_refused_naming_its_fo
     refused as the shared rotation refuses it, naming the run's fold and what it supports."""
     mu = np.tile(np.repeat([4.0, 1.0], 5), (2, 1))  # two runs, folds 5 and 7
     start = np.random.default_rng(0).normal(size=(2, 10))
-    with pytest.raises(engine.PLSConfigError, match=r"in CV fold [57] the Krylov space .* after 2 components") as info:
-        engine._diagonal_lanczos(mu, start, 3, 1e-14 * 16, np.array([5, 7]))
+    with pytest.raises(PLSConfigError, match=r"in CV fold [57] the Krylov space .* after 2 components") as info:
+        cv_engine._diagonal_lanczos(mu, start, 3, 1e-14 * 16, np.array([5, 7]))
     assert info.value.supported == 2

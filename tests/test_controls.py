@@ -160,15 +160,9 @@ def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
     from .test_study_analysis import FREQS
 
     """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
-    from roughsense.model.peak_law.law import (
-        HUBER_EPSILON,
-        domain_margins,
-        fit_terms,
-        kept_range,
-        kept_rows,
-        predict_law,
-        shape_read,
-    )
+    from roughsense.model.huber_batch import HUBER_EPSILON
+    from roughsense.model.peak_law.domain import domain_margins, kept_range, kept_rows, predict_law
+    from roughsense.model.peak_search import fit_terms, shape_read
 
     eps = HUBER_EPSILON if epsilon is None else epsilon
     every = np.ones((1, int(train.sum())), bool)
@@ -215,7 +209,7 @@ def test_peak_law_permutation_control_matches_refits(small, cv):
 def test_peak_law_control_in_chunks_of_shufflings_equals_one_batch(small, cv, monkeypatch):
     """Memory bounded by chunks of shufflings (one at a time here) changes no shuffling's RMSE beyond rounding."""
     from roughsense.model.peak_law import family as peak_law_family
-    from roughsense.model.peak_law.law import peak_law_cv
+    from roughsense.model.peak_law.cv import peak_law_cv
 
     from .test_study_analysis import FREQS
 

@@ -512,7 +512,7 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
         except ModelFileError as exc:
             assert "\n" not in str(exc) and str(path) in str(exc)
         else:
-            assert loaded.n_components >= 1 and loaded.coef_path.shape == (loaded.n_features, loaded.intercept_path.size)
+            assert loaded.n_components >= 1 and loaded.coef_path_.shape == (loaded.n_features, loaded.intercept_path_.size)
             image = sorted((base / "images").glob("*_2N_*.png"))[0]
             try:
                 score = loaded.predict(model_spectrum(loaded).transform([image]))

@@ -9,7 +9,7 @@ from sklearn.cross_decomposition import PLSRegression
 
 from roughsense.analysis.held_out import HELD_OUT_COLUMNS, judged, pls_scheme_predictions, scheme_folds
 from roughsense.analysis.study_analysis import analyse_study, law_settings
-from roughsense.model.peak_law.law import peak_law_cv
+from roughsense.model.peak_law.cv import peak_law_cv
 
 from .test_study_analysis import synthetic_study
 

@@ -428,10 +428,11 @@ def test_a_forged_target_range_is_refused_not_ignored_or_underflowed(tmp_path, s
 
 
 def test_a_sound_target_range_sets_the_floor_at_half_the_smallest(tmp_path):
-    from roughsense.model.modelfile import MIN_ROUGHNESS, load_model
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.pls.simpls import MIN_ROUGHNESS
 
-    assert load_model(_pls_file(tmp_path, {"study": "s", "target_range": [0.3, 2.0]})).floor == 0.15
-    assert load_model(_pls_file(tmp_path, {"study": "s"})).floor == MIN_ROUGHNESS
+    assert load_model(_pls_file(tmp_path, {"study": "s", "target_range": [0.3, 2.0]})).floor_ == 0.15
+    assert load_model(_pls_file(tmp_path, {"study": "s"})).floor_ == MIN_ROUGHNESS
 
 
 @pytest.mark.parametrize("level", [0.5, 0.95, 0.8999, "0.9", True])
@@ -457,7 +458,7 @@ def test_an_applicability_level_other_than_the_limits_one_is_refused(tmp_path, l
 
     with pytest.raises(ModelFileError, match="model.applicability.level must be 0.95"):
         load_model(_pls_file(tmp_path, {"study": "s"}, level=level))
-    assert load_model(_pls_file(tmp_path, {"study": "s"}, level=0.95)).domain is not None
+    assert load_model(_pls_file(tmp_path, {"study": "s"}, level=0.95)).domain_ is not None
 
 
 def _law_file(tmp_path, change) -> Path:

@@ -52,9 +52,9 @@ def test_round_trip_predicts_bit_identically(saved):
     loaded = mf.load_model(path)
     np.testing.assert_array_equal(loaded.linear_predict(X), model.predict(X))
     np.testing.assert_array_equal(loaded.predict(X), np.maximum(model.predict(X), MIN_ROUGHNESS))
-    np.testing.assert_array_equal(loaded.coef_path, model.coef_path_)
-    np.testing.assert_array_equal(loaded.intercept_path, model.intercept_path_)
-    np.testing.assert_array_equal(loaded.x_mean, model.x_mean_)
+    np.testing.assert_array_equal(loaded.coef_path_, model.coef_path_)
+    np.testing.assert_array_equal(loaded.intercept_path_, model.intercept_path_)
+    np.testing.assert_array_equal(loaded.x_mean_, model.x_mean_)
     assert loaded.n_components == 4 and loaded.coef_.shape == (45,)
     assert loaded.intercept_ == model.intercept_
     assert loaded.training == TRAINING and loaded.conditions == ["1N"]

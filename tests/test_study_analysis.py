@@ -262,7 +262,7 @@ def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_an
 def test_peak_law_loo_predictions_are_refits_without_each_trial(analysis_and_inputs):
     """Each trial is predicted by the law refitted without it; where its specimen's peak is comes from the spectra of
     all that specimen's presses (spectra, never ratings: the held-out rating is used nowhere)."""
-    from roughsense.model.peak_law.law import peak_features
+    from roughsense.model.peak_search import peak_features
 
     from .test_controls import _refit_on_features
 

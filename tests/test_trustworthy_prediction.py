@@ -81,13 +81,14 @@ def test_the_law_flags_a_held_out_specimen_in_fewer_than_a_fifth_of_its_presses(
     """Every specimen's period lies within the others' (each period has a rectangular and a circular grating), so a
     held-out specimen is a surface like the trained ones: the law fitted without it flags < 20 % of its presses.
     The batched flags equal refits of the estimator without each specimen."""
-    from roughsense.model.peak_law.law import PeakPowerLaw, held_out_flags
+    from roughsense.model.peak_law.cv import law_domain_flags
+    from roughsense.model.peak_law.law import PeakPowerLaw
 
     study, features, perceived = paper_design
     for pad in study.pads:
         for condition in CONDITIONS:
             X, y, specimens, _, _, law = _cell(study, features, perceived, pad, condition)
-            flags = held_out_flags(X, y, specimens, surfaces=specimens, **law)
+            flags = law_domain_flags(X, y, specimens, surfaces=specimens, **law)
             shares = pd.Series(flags, index=specimens).groupby(level=0).mean()
             assert shares.max() < 0.2, (pad, condition, shares[shares >= 0.2].to_dict())
             if condition == "combined":
@@ -134,7 +135,8 @@ def _presses(period_mm: float, n: int, rng, *, misread: int = 0, grid=None) -> n
 def test_a_surfaces_presses_share_its_period_and_a_misread_press_is_not_kept():
     """Two presses of ten show a shading hump taller than the grating: read alone, they say 7.7 mm; read as presses of
     one surface, all ten say the grating's period, and each keeps its own peak strength there."""
-    from roughsense.model.peak_law.law import PeakPowerLaw, peak_features
+    from roughsense.model.peak_law.law import PeakPowerLaw
+    from roughsense.model.peak_search import peak_features
 
     rng = np.random.default_rng(3)
     spectra = _presses(3.0, 10, rng, misread=2)

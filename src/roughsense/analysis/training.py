@@ -25,12 +25,14 @@ from ..io.sensor_settings import Roi
 from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
 from ..model import gate_file
 from ..model.families import check_model_name, default_family, family, paper_family, registry
+from ..model.folds import FoldConfigError, fold_ids
 from ..model.modelfile import feature_definition_for
+from ..model.peak_law.cv import peak_law_cv
 from ..model.peak_law.family import PeakLawFamily
-from ..model.peak_law.law import PeakPowerLaw, peak_law_cv
+from ..model.peak_law.law import PeakPowerLaw
 from ..model.pls.applicability import SpectrumDomain, fit_domain
-from ..model.pls.cv import PLSConfigError, PLSCVResult, fold_ids, pls_cv
-from ..model.pls.simpls import SIMPLS
+from ..model.pls.cv import PLSCVResult, pls_cv
+from ..model.pls.simpls import SIMPLS, PLSConfigError
 from ..model.training_file import UNJUDGED
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
@@ -292,7 +294,7 @@ def _train_law(law: PeakPowerLaw, X: np.ndarray, y: np.ndarray, meta: pd.DataFra
     try:
         result = cross_validate_law(law, X, y, meta, scheme, seed=seed)
         fitted = law.fit(X, y, surfaces=meta["specimen"].astype(str).to_numpy())
-    except PLSConfigError as exc:
+    except FoldConfigError as exc:
         raise ConfigError(f"{exc.message} ({what})") from None
     except ValueError as exc:
         raise ConfigError(f"the peak law cannot be fitted to {what}: {exc}") from None

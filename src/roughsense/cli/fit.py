@@ -197,7 +197,7 @@ def _shape_range(law) -> str:
     domain as the periods do, so the line that states the domain states them too."""
     import numpy as np
 
-    from ..model.peak_law.law import HARMONIC
+    from ..model.peak_search import HARMONIC
     from ..sensor.shape import duty_cycle
 
     if len(law.feature_min_) <= HARMONIC or not np.isfinite([law.feature_min_[HARMONIC],

@@ -86,8 +86,9 @@ class LawFolds:
 
     def log_predict(self, X, surfaces=None) -> np.ndarray:
         """(S, n) each fold's log prediction of each row (rows of one surface share where its peak is read)."""
+        from ..sensor.grid import grid_step
         from .peak_law.folds import fold_log_predictions
-        from .peak_law.law import grid_step, peak_features
+        from .peak_search import peak_features
 
         freq = np.asarray(self.settings["freq_per_mm"], dtype=np.float64)
         features = peak_features(X, freq, surfaces=surfaces, **{k: v for k, v in self.settings.items()
@@ -349,8 +350,9 @@ def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearF
 
 
 def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
+    from ..sensor.grid import grid_step
+    from .peak_law.domain import domain_margins
     from .peak_law.file import _check_finite_predictions, _check_log_frequencies
-    from .peak_law.law import domain_margins, grid_step
 
     p, n = loaded.coef_.size, len(names)
     intercept = _numbers(stored.get("intercept"), (n,), "folds.intercept", path)

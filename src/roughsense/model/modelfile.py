@@ -36,18 +36,9 @@ from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
 from . import jackknife_file, schema
 from .peak_law import file as peak_law_file
-from .peak_law.file import LoadedPeakLaw  # noqa: F401  re-exported for one release
 from .peak_law.law import PeakPowerLaw
 from .pls import file as pls_file
 from .pls.applicability import SpectrumDomain
-from .pls.file import (  # noqa: F401  re-exported for one release
-    KIND,
-    MAX_COEFFICIENT,
-    MAX_X_MEAN,
-    MAX_Y_MEAN,
-    MIN_ROUGHNESS,
-    LoadedModel,
-)
 from .pls.simpls import SIMPLS
 
 FORMAT = "roughsense-model"
@@ -71,7 +62,6 @@ FEATURES_SCHEMA = schema.strict({
 #: A model of either family, fitted here or loaded from a file: both predict and say whether they extrapolate; a
 #: loaded one also carries its file's part (``model_file_``: features, training).
 FittedModel = SIMPLS | PeakPowerLaw
-AnyModel = FittedModel  # the old name, kept for one release
 
 
 # --------------------------------------------------------------------------- writing

@@ -23,16 +23,6 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from .modelfile import FittedModel, check_features, feature_definition_for
-from .trials import (  # noqa: F401  re-exported for one release
-    check_slot,
-    condition_force_n,
-    forces_in_name,
-    groups_from_flags,
-    groups_from_images,
-    groups_from_study,
-    model_condition,
-    model_pad,
-)
 
 if TYPE_CHECKING:
     from ..io.sensor_settings import Roi

@@ -1,11 +1,12 @@
-"""The peak power law (:class:`roughsense.model.peak_law.law.PeakPowerLaw`) as the analysis cross-validates and controls it.
+"""The peak power law (:class:`roughsense.model.peak_law.law.PeakPowerLaw`) as the analysis cross-validates and
+controls it.
 
 The law chooses nothing from the targets, so its held-out prediction under any folds is its fit on the training
-fold, and every fold and every shuffled target goes through one batched IRLS (:func:`peak_law.peak_law_cv`): the
-permutation control, the stricter schemes' own shufflings, the leave-two-out fits of the nested jackknife+ check
-(model/peak_law/folds.py) and the laws that read a surface from a few of its presses all cost one batch each.
-Its CV curve is two numbers: the training mean's RMSE under the same folds (PLS's 0-component CV, computed as
-PLS computes it) and the law's.
+fold, and every fold and every shuffled target goes through one batched IRLS
+(:func:`~roughsense.model.peak_law.cv.peak_law_cv`): the permutation control, the stricter schemes' own shufflings,
+the leave-two-out fits of the nested jackknife+ check (model/peak_law/folds.py) and the laws that read a surface
+from a few of its presses all cost one batch each. Its CV curve is two numbers: the training mean's RMSE under the
+same folds (model/folds.py, computed as PLS computes its 0-component CV) and the law's.
 """
 from __future__ import annotations
 
@@ -14,14 +15,16 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
+from ...sensor.grid import grid_step
 from ..families import PEAK_LAW
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
+from ..folds import error_curve, fold_ids, training_mean_predictions
 from ..jackknife_file import law_jackknife
 from ..jackknife_plus import nested_check
-from ..pls.cv import pls_cv
+from ..peak_search import held_features, peak_features
+from .cv import law_domain_flags, peak_law_cv
+from .domain import domain_margins
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
-from .law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
-from .law import held_out_flags as law_domain_flags
 
 #: The law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
 #: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS
@@ -67,10 +70,11 @@ class PeakLawFamily(FamilyEngine):
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """Its fit on each training fold predicts the held-out trials; curve = [training mean's RMSE, the law's]."""
-        kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
-        null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
+        y = np.asarray(y, dtype=np.float64)
+        fid, _ = fold_ids(y.size, None, specimens, None) if cv == "loso" else fold_ids(y.size, "loo", None, None)
         law = FoldSettings.of(settings).law()
         out_of_fold = peak_law_cv(X, y, groups=specimens if cv == "loso" else None, **law)[0]
+        null_rmse = error_curve(np.column_stack([training_mean_predictions(y, fid), out_of_fold]), y, fid)[0][0]
         law_rmse = float(np.sqrt(np.mean((out_of_fold - y) ** 2)))
         return FoldResult(out_of_fold, np.array([float(null_rmse), law_rmse]))
 

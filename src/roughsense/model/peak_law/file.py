@@ -12,7 +12,7 @@ training surface did not show it), and such a harmonic ratio's range is null (un
 harmonic ratio existed has two of each and loads as a law without it.
 
 ``feature_min``/``feature_max`` are the range of the rows the fit kept and ``clarity_limit`` the least clear peak it
-accepts (:func:`~roughsense.model.peak_law.law.domain_reasons`); a file written before ``clarity_limit`` existed loads
+accepts (:func:`~roughsense.model.peak_law.domain.domain_reasons`); a file written before ``clarity_limit`` existed loads
 without it, and its predictions are then not checked for a clear peak. ``press_scatter`` is the training presses'
 scatter about their surfaces (log frequency, log amplitude, harmonic ratio, clarity) and the presses per trained
 surface (model/press_spread.py), which widen the flag for a surface read from fewer presses; a file without it
@@ -38,9 +38,10 @@ from ...io.numbers import BOUNDS
 from ...sensor.spectrum import grid_step
 from .. import schema
 from ..loaded import ModelFileInfo
-from ..peak_search import AGREEMENT_BINS
+from ..peak_search import AGREEMENT_BINS, FEATURE_NAMES, HARMONIC, check_grid, search_bins
 from ..press_spread import MAD_PER_SD, N_SPREAD, PressScatter
-from .law import FEATURE_NAMES, HARMONIC, LOG_MARGIN, PeakPowerLaw, check_grid, domain_margins, search_bins
+from .domain import LOG_MARGIN, domain_margins
+from .law import PeakPowerLaw
 
 KIND = "peak-power-law"
 #: Largest magnitude of the law's numbers and of its features' range (log units; real fits are a few units).
@@ -66,10 +67,6 @@ FIELDS = ("kind", "n_features", "n_blocks", "pad_ridge_period_mm", *_SCALARS, *_
 OPTIONAL_FIELDS = ("clarity_limit", "press_scatter")
 #: One number of the training presses' scatter (log units, >= 0; each column's limit is :func:`spread_limits`).
 _SPREAD = Real(0.0)
-
-
-#: A loaded peak-law file is the fitted estimator: the old name, kept for one release.
-LoadedPeakLaw = PeakPowerLaw
 
 
 def _bounded(constraint: Real, *, null: bool = False, **more) -> dict:

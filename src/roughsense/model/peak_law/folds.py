@@ -11,17 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .law import (
-    DEFAULT_EXCLUSION_PER_MM,
-    HUBER_EPSILON,
-    check_grid,
-    domain_margins,
-    fit_terms,
-    fold_kept_ranges,
-    grid_step,
-    held_features,
-    peak_features,
-)
+from ...sensor.grid import grid_step
+from ..huber_batch import HUBER_EPSILON
+from ..peak_search import DEFAULT_EXCLUSION_PER_MM, check_grid, fit_terms, held_features, peak_features
+from .cv import fold_kept_ranges
+from .domain import domain_margins
 
 
 def law_fold_models(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int = 1,

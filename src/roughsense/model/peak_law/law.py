@@ -45,54 +45,30 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ...sensor.spectrum import grid_step
 from ..families import PEAK_LAW as NAME  # the family's name, beside its class
-
-# What the estimator uses; the rest is re-exported for one release (the law's features, domain and cross-validation
-# now have modules of their own: peak_search.py, peak_domain.py, peak_law_cv.py).
-from ..huber_batch import HUBER_EPSILON, distinct_masks, huber_irls, row_classes  # noqa: F401
+from ..huber_batch import HUBER_EPSILON
 from ..loaded import FromModelFile
-from ..peak_search import (  # noqa: F401
-    AGREEMENT_BINS,
-    AMPLITUDE,
+from ..peak_search import (
     DEFAULT_EXCLUSION_PER_MM,
-    FEATURE_NAMES,
-    FREQUENCY,
-    HARMONIC,
-    SETTINGS,
-    SHAPE_SPREAD,
-    PeakLawConfigError,
     PeakLawInputError,
     PeakReadout,
     check_grid,
     check_settings,
     fit_terms,
-    law_terms,
-    peak_features,
     peak_readout,
     press_deviations,
-    search_bins,
     shape_read,
     surface_codes,
 )
 from ..press_spread import PressScatter, robust_spread, trained_presses
-from .cv import fold_kept_ranges, law_domain_flags, peak_law_cv  # noqa: F401
-from .domain import (  # noqa: F401
-    _RANGE_TOL,
-    KEPT_WEIGHT,
+from .domain import (
     LOG_MARGIN,
-    MIN_AGREEMENT,
     _check_positive,
-    _kept,
     domain_margins,
     domain_reasons,
-    held_features,
     kept_range,
     kept_rows,
-    outside_each,
     predict_law,
-    range_reasons,
 )
-
-held_out_flags = law_domain_flags  # re-exported for one release under its old name
 
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.
 _DEFAULT_BAND_PER_MM = (0.1, 1.0)

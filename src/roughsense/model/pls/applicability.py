@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...sensor.spectrum import grid_step
-from ..peak_law.law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
+from ..peak_law.domain import domain_reasons
+from ..peak_law.law import PeakPowerLaw
+from ..peak_search import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakReadout, peak_readout
 from ..press_spread import PressScatter
 from .simpls import SIMPLS
 
@@ -176,5 +178,3 @@ def nested_domain_flags(X: np.ndarray, y: np.ndarray, groups, n_components: dict
         flags[held] = [bool(reason) for reason in domain.reasons(X[held], groups[held])]
     return flags
 
-
-held_out_flags = nested_domain_flags  # re-exported for one release (the old name, shared with two others)

@@ -14,15 +14,13 @@ import numpy as np
 from sklearn.utils.validation import validate_data
 
 from ... import defaults
-from ..._util.checks import POSITIVE_INT, check, is_whole_number
-from .cv_engine import (  # noqa: F401  (_FoldLanczos, _RotatedFolds, _diagonal_lanczos: re-exported for one release)
+from ..._util.checks import POSITIVE_INT, check
+from ..folds import error_curve, fold_ids
+from .cv_engine import (
     _KRYLOV_RTOL,
     _check_fold_support,
     _cv_predictions,
-    _diagonal_lanczos,
-    _FoldLanczos,
     _own_basis_predictions,
-    _RotatedFolds,
     _rotation,
 )
 from .simpls import SIMPLS, PLSConfigError, PLSInputError, blas_threads_for, check_target, svd_rank, validate_xy
@@ -57,31 +55,6 @@ class PLSCVResult:
     @property
     def test_indices(self) -> list[np.ndarray]:
         return [np.flatnonzero(self.folds == f) for f in range(self.n_folds)]
-
-
-def fold_ids(n: int, cv, groups, random_state) -> tuple[np.ndarray, str]:
-    """Fold id per sample, 0..F-1, for LOO, leave-one-group-out or shuffled K-fold."""
-    if groups is not None:
-        groups = np.asarray(groups)
-        if groups.shape != (n,):
-            raise PLSInputError(f"groups has {groups.size} entries for {n} samples")
-        if cv not in (None, "logo", "loso"):
-            raise PLSConfigError(f"groups= gives leave-one-group-out; cv={cv!r} cannot be combined with it")
-        _, ids = np.unique(groups, return_inverse=True)
-        if ids.max() < 1:
-            raise PLSConfigError("leave-one-group-out needs at least 2 groups")
-        return ids.astype(np.intp), "leave-one-group-out"
-    if cv is None or cv == "loo":
-        return np.arange(n, dtype=np.intp), "leave-one-out"
-    if is_whole_number(cv):
-        if not 2 <= cv <= n:
-            raise PLSConfigError(f"K-fold needs 2 <= k <= n_samples={n}, got k={cv}")
-        rng = np.random.default_rng(random_state)
-        ids = np.empty(n, dtype=np.intp)
-        for f, part in enumerate(np.array_split(rng.permutation(n), int(cv))):
-            ids[part] = f
-        return ids, f"{int(cv)}-fold"
-    raise PLSConfigError(f"cv must be 'loo', a whole number of folds, or None with groups=; got {cv!r}")
 
 
 def _component_limit(max_components) -> int:
@@ -145,26 +118,11 @@ def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=
     # The work is many tiny matrix products: BLAS threads only add contention (badly so on a busy machine).
     with blas_threads_for(X):
         pred = _cv_predictions(X, y[:, None], fid, A)[0]
-    rmse, rmse_se, fold_mse = _error_curve(pred, y, fid)
+    rmse, rmse_se, fold_mse = error_curve(pred, y, fid)
     best = int(np.argmin(rmse[1:])) + 1
     one_se = int(np.flatnonzero(rmse[1:] <= rmse[best] + rmse_se[best])[0]) + 1
     return PLSCVResult(rmse=rmse, rmse_se=rmse_se, predictions=pred, best_n_components=best,
                        one_se_n_components=one_se, folds=fid, scheme=scheme, fold_mse=fold_mse)
-
-
-def _error_curve(pred: np.ndarray, y: np.ndarray, fid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """RMSE per component count, its standard error across folds (delta method on the folds' MSEs), and the
-    folds' MSEs (F, A + 1)."""
-    F = int(fid.max()) + 1
-    m = np.bincount(fid, minlength=F)
-    order = np.argsort(fid, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(m)[:-1]])
-    err2 = (pred - y[:, None]) ** 2
-    rmse = np.sqrt(err2.mean(axis=0))
-    fold_mse = np.add.reduceat(err2[order], starts, axis=0) / m[:, None]
-    se_mse = fold_mse.std(axis=0, ddof=1) / np.sqrt(F)  # fold_ids always gives at least 2 folds
-    rmse_se = np.divide(se_mse, 2 * rmse, out=np.zeros_like(rmse), where=rmse > 0)
-    return rmse, rmse_se, fold_mse
 
 
 # A batch of targets is cut into chunks whose Lanczos vectors take at most this many bytes. The steps are memory-bound

@@ -1,6 +1,6 @@
 """The PLS section of a model file (kind ``pls1-simpls``): written from a fitted :class:`SIMPLS`, checked field by
-field and loaded as :class:`LoadedModel`, as model/peak_law/file.py does for the peak law; model/modelfile.py holds
-the envelope (format, version, checksum, feature definition) around either.
+field and loaded as the fitted :class:`SIMPLS` itself, as model/peak_law/file.py does for the peak law;
+model/modelfile.py holds the envelope (format, version, checksum, feature definition) around either.
 
 The section::
 
@@ -44,10 +44,6 @@ _FIELDS = {"kind", "n_components", "n_features", "x_mean", "y_mean", "coefficien
 MAX_COEFFICIENT = 1e6
 MAX_X_MEAN = 1e6
 MAX_Y_MEAN = 1e6
-#: A loaded PLS model file is the fitted estimator: the old name, kept for one release.
-LoadedModel = SIMPLS
-
-
 #: The whole variance, to rounding: no share explained exceeds it.
 _WHOLE = 1.0 + 1e-9
 

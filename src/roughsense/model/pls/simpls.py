@@ -299,16 +299,6 @@ class SIMPLS(FromModelFile, RegressorMixin, BaseEstimator):
             reasons.append("; ".join(parts))
         return reasons
 
-    # LoadedModel's names, kept for one release
-    x_mean = property(lambda self: self.x_mean_)
-    y_mean = property(lambda self: self.y_mean_)
-    coef_path = property(lambda self: self.coef_path_)
-    intercept_path = property(lambda self: self.intercept_path_)
-    pct_var = property(lambda self: self.pct_var_)
-    floor = property(lambda self: self.floor_)
-    domain = property(lambda self: self.domain_)
-    features = property(lambda self: self.model_file_.features)
-
     def _component_index(self, n_components: int | None) -> int:
         A = self.coef_path_.shape[1]
         if n_components is None:
