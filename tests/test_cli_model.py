@@ -439,7 +439,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     long_features = law.features(spectra[1:])[0]
     assert np.exp(long_features[0]) < np.exp(law.feature_min_[0])  # its peak is below the lowest trained frequency
     # ... so it is predicted as if at the edge of the law's domain: the law at the clipped features
-    from roughsense.model.peak_law.domain import domain_margins
+    from roughsense.model.readout_domain import domain_margins
 
     low, high = domain_margins(float(np.diff(grid_per_mm())[0]), law.feature_min_, law.feature_max_)
     edge = np.exp(law.intercept_ + np.clip(long_features, low, high) @ law.coef_)

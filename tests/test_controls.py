@@ -161,8 +161,9 @@ def _refit_on_features(features, y, train, test, epsilon=None, surfaces=None):
 
     """The law refitted on precomputed features (statsmodels-free: the estimator's own IRLS on one fold)."""
     from roughsense.model.huber_batch import HUBER_EPSILON
-    from roughsense.model.peak_law.domain import domain_margins, kept_range, kept_rows, predict_law
+    from roughsense.model.peak_law.domain import predict_law
     from roughsense.model.peak_search import fit_terms, shape_read
+    from roughsense.model.readout_domain import domain_margins, kept_range, kept_rows
 
     eps = HUBER_EPSILON if epsilon is None else epsilon
     every = np.ones((1, int(train.sum())), bool)

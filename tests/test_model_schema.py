@@ -96,7 +96,7 @@ def test_predict_refuses_a_string_rate_before_writing_anything(run_cli, tmp_path
 def test_the_press_spread_is_bounded_by_what_a_fit_gives(tmp_path):
     """On 390ce82 a spread of 1000 passed (bound 0-1000) and switched every extrapolation flag off. A press that
     agrees with its surface reads its log frequency within log(1 + 1.5 step / (f0 - step / 2)) / 0.6745 of it."""
-    from roughsense.model.peak_law.file import spread_limits
+    from roughsense.model.readout_file import spread_limits
 
     f = rs.frequency_grid()
     step = f[1] - f[0]

@@ -244,7 +244,7 @@ def test_peak_law_round_trip_predicts_as_the_fitted_law(saved_law):
     np.testing.assert_array_equal(loaded.extrapolates(new), [False, True])
     np.testing.assert_array_equal(loaded.extrapolates(new), law.extrapolates(new))
     np.testing.assert_allclose(loaded.predict(new), law.predict(new), rtol=1e-12, atol=0)
-    from roughsense.model.peak_law.domain import domain_margins
+    from roughsense.model.readout_domain import domain_margins
 
     low, high = domain_margins(float(np.diff(law.freq_per_mm_)[0]), law.feature_min_, law.feature_max_)
     outside = law.features(new[1:])

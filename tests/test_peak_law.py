@@ -235,7 +235,7 @@ def test_identical_blocks_read_as_one(seed, ridge):
 def test_extrapolation_is_flagged_and_held_at_the_edge():
     """A period shorter than any trained one: flagged, and predicted as the edge of the law's domain (the kept
     training range widened by its margins) would be: held exactly where it is flagged."""
-    from roughsense.model.peak_law.domain import domain_margins
+    from roughsense.model.readout_domain import domain_margins
 
     X, y, _ = specimen_spectra(seed=4)
     model = PeakPowerLaw(freq_per_mm=GRID).fit(X, y)

@@ -351,8 +351,9 @@ def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearF
 
 def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
     from ..sensor.grid import grid_step
-    from .peak_law.domain import domain_margins
-    from .peak_law.file import _check_finite_predictions, _check_log_frequencies
+    from .peak_law.file import _check_finite_predictions
+    from .readout_domain import domain_margins
+    from .readout_file import check_log_frequencies
 
     p, n = loaded.coef_.size, len(names)
     intercept = _numbers(stored.get("intercept"), (n,), "folds.intercept", path)
@@ -364,8 +365,8 @@ def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds
         raise ModelFileError(f"training.{KEY}.folds.feature_min exceeds feature_max: an empty training range", path=path)
     step = grid_step(loaded.freq_per_mm)
     for i in range(n):  # each fold's peak read on the grid, and its exponent finite over its domain, as the law's
-        _check_log_frequencies([low[i, 0], high[i, 0]], loaded.freq_per_mm,
-                               f"training.{KEY}.folds.feature_min[{i}][0] and feature_max[{i}][0]", path)
+        check_log_frequencies([low[i, 0], high[i, 0]], loaded.freq_per_mm,
+                              f"training.{KEY}.folds.feature_min[{i}][0] and feature_max[{i}][0]", path)
         wide_low, wide_high = domain_margins(step, low[i], high[i])
         try:
             _check_finite_predictions(float(intercept[i]), {"coefficients": coefficients[i], "feature_min": wide_low,

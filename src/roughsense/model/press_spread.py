@@ -13,7 +13,7 @@ override, and a press read alone that shows them *should* be flagged. On the twi
 as 1/sqrt(k) (3-press subsets: 0.4-0.65 of one press's robust SD, seeds 0-2). The trained range already holds the
 scatter of surfaces of the trained presses' count K (the median over training surfaces), so a surface of k presses
 scatters beyond it by ``PRESS_Z * spread * sqrt(1/k - 1/K)`` (nothing where k >= K), added in quadrature to the
-surface margins (:func:`~roughsense.model.peak_law.domain.domain_margins`): a row is flagged only beyond both. Only the flag
+surface margins (:func:`~roughsense.model.readout_domain.domain_margins`): a row is flagged only beyond both. Only the flag
 widens: a prediction is still held at the surface domain, since a press's scatter is noise about a trained
 surface, not a new one. A shape that cannot be read only because the period's scatter put its second harmonic past
 the band's end (a 2 mm press read a little short) is not flagged as unreadable either.

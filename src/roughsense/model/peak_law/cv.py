@@ -25,7 +25,7 @@ from ..peak_search import (
     surface_codes,
 )
 from ..press_spread import PressScatter, robust_spread, trained_presses
-from .domain import LOG_MARGIN, _kept, domain_margins, domain_reasons, kept_range
+from ..readout_domain import LOG_MARGIN, _kept, domain_margins, domain_reasons, kept_range
 
 
 def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,

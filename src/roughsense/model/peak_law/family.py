@@ -22,8 +22,8 @@ from ..folds import error_curve, fold_ids, training_mean_predictions
 from ..jackknife_file import law_jackknife
 from ..jackknife_plus import nested_check
 from ..peak_search import held_features, peak_features
+from ..readout_domain import domain_margins
 from .cv import law_domain_flags, peak_law_cv
-from .domain import domain_margins
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
 
 #: The law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working

@@ -14,8 +14,8 @@ import pandas as pd
 from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON
 from ..peak_search import DEFAULT_EXCLUSION_PER_MM, check_grid, fit_terms, held_features, peak_features
+from ..readout_domain import domain_margins
 from .cv import fold_kept_ranges
-from .domain import domain_margins
 
 
 def law_fold_models(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int = 1,

@@ -51,24 +51,11 @@ from ..peak_search import (
     DEFAULT_EXCLUSION_PER_MM,
     PeakLawInputError,
     PeakReadout,
-    check_grid,
     check_settings,
-    fit_terms,
     peak_readout,
-    press_deviations,
-    shape_read,
-    surface_codes,
 )
-from ..press_spread import PressScatter, robust_spread, trained_presses
-from .domain import (
-    LOG_MARGIN,
-    _check_positive,
-    domain_margins,
-    domain_reasons,
-    kept_range,
-    kept_rows,
-    predict_law,
-)
+from ..readout_domain import domain_margins, domain_reasons, fit_readout, readout_grid
+from .domain import _check_positive, predict_law
 
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.
 _DEFAULT_BAND_PER_MM = (0.1, 1.0)
@@ -142,17 +129,7 @@ class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):
         return tags
 
     def _grid(self, n_features: int) -> np.ndarray:
-        blocks = check_settings(n_blocks=self.n_blocks)["n_blocks"]
-        if n_features % blocks:
-            raise PeakLawInputError(f"{n_features} feature(s) cannot be split into {blocks} equal spectra")
-        k_bins = n_features // blocks
-        if self.freq_per_mm is None:
-            return np.linspace(*_DEFAULT_BAND_PER_MM, k_bins)
-        freq = check_grid(self.freq_per_mm)
-        if freq.size != k_bins:
-            raise PeakLawInputError(
-                f"{n_features} feature(s) in {blocks} block(s) do not match the {freq.size}-frequency grid")
-        return freq
+        return readout_grid(n_features, self.freq_per_mm, self.n_blocks, _DEFAULT_BAND_PER_MM)
 
     def _check_params(self) -> None:
         check_settings(pad_ridge_period_mm=self.pad_ridge_period_mm, exclusion_per_mm=self.exclusion_per_mm,
@@ -215,27 +192,11 @@ class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):
         self._check_params()
         X, y = validate_data(self, X, y, y_numeric=True, ensure_min_samples=2)
         _check_positive(X)
-        y = np.asarray(y, dtype=np.float64)
-        if np.any(y <= 0):
-            raise PeakLawInputError(
-                "perceived roughness must be positive (magnitude estimates); the law is fitted in logs")
         self.freq_per_mm_ = self._grid(X.shape[1])
-        readout = self._readout(X, surfaces)
-        features = readout.features
-        beta, scale = fit_terms(features, np.log(y)[None, :], np.ones((1, len(y)), dtype=bool),
-                                epsilon=float(self.epsilon), grouped=surfaces is not None)
-        self.intercept_ = float(beta[0, 0, 0])
-        self.coef_ = beta[0, 0, 1:].copy()
-        self.scale_ = float(scale[0, 0])
-        kept = kept_rows(features, np.log(y), beta[0, 0], self.scale_, float(self.epsilon), surfaces)
-        low, high = kept_range(features, kept[None, None],
-                               shape_read(features, np.ones((1, len(y)), dtype=bool), surfaces is not None))
-        self.feature_min_, self.feature_max_ = low[0, 0], high[0, 0]
-        self.clarity_limit_ = float(readout.clarity[kept].min()) - LOG_MARGIN
-        everything = np.ones((1, len(y)), dtype=bool)
-        self.press_scatter_ = None if surfaces is None else PressScatter(
-            robust_spread(press_deviations(X, readout, **self._reading()), everything)[0],
-            float(trained_presses(surface_codes(surfaces, len(y)), everything)[0]))
+        fit = fit_readout(X, y, **self._reading(), epsilon=float(self.epsilon), surfaces=surfaces)
+        self.intercept_, self.coef_, self.scale_ = fit.intercept, fit.coef, fit.scale
+        self.feature_min_, self.feature_max_ = fit.feature_min, fit.feature_max
+        self.clarity_limit_, self.press_scatter_ = fit.clarity_limit, fit.press_scatter
         return self
 
     def predict(self, X, surfaces=None) -> np.ndarray:

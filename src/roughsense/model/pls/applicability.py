@@ -20,10 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...sensor.spectrum import grid_step
-from ..peak_law.domain import domain_reasons
-from ..peak_law.law import PeakPowerLaw
 from ..peak_search import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakReadout, peak_readout
 from ..press_spread import PressScatter
+from ..readout_domain import READOUT_SETTINGS, ReadoutFit, domain_reasons, fit_readout, readout_grid
 from .simpls import SIMPLS
 
 #: Share of held-out training rows inside the limits (the cross-validated percentile).
@@ -46,11 +45,10 @@ class PeakDomain:
     press_scatter: PressScatter | None = None
 
     @classmethod
-    def of(cls, law: PeakPowerLaw) -> PeakDomain:
-        return cls(np.asarray(law.freq_per_mm_, float), (float(law.feature_min_[0]), float(law.feature_max_[0])),
-                   float(law.clarity_limit_), law.pad_ridge_period_mm, float(law.exclusion_per_mm),
-                   (float(law.feature_min_[HARMONIC]), float(law.feature_max_[HARMONIC])),
-                   law.press_scatter_)
+    def of(cls, fit: ReadoutFit, pad_ridge_period_mm: float | None, exclusion_per_mm: float) -> PeakDomain:
+        return cls(np.asarray(fit.freq_per_mm, float), (float(fit.feature_min[0]), float(fit.feature_max[0])),
+                   float(fit.clarity_limit), pad_ridge_period_mm, float(exclusion_per_mm),
+                   (float(fit.feature_min[HARMONIC]), float(fit.feature_max[HARMONIC])), fit.press_scatter)
 
     def reasons(self, X, n_blocks: int, surfaces=None) -> list[str]:
         readout = peak_readout(X, self.freq_per_mm, n_blocks=n_blocks, pad_ridge_period_mm=self.pad_ridge_period_mm,
@@ -139,10 +137,10 @@ def cross_validated_limits(X: np.ndarray, y: np.ndarray, n_components: int, grou
     return float(np.quantile(t2_all, DOMAIN_LEVEL)), float(np.quantile(q_all, DOMAIN_LEVEL))
 
 
-def fit_domain(model: SIMPLS, X: np.ndarray, y: np.ndarray, groups, law: PeakPowerLaw | None = None
-               ) -> SpectrumDomain:
+def fit_domain(model: SIMPLS, X: np.ndarray, y: np.ndarray, groups, law=None) -> SpectrumDomain:
     """The domain of a PLS model fitted on (X, y), with limits cross-validated over ``groups`` (specimens), and
-    the peak readout of ``law`` (unfitted: it is fitted here on the same trials, surfaces = ``groups``).
+    the peak readout (model/readout_domain.py) fitted here on the same trials, surfaces = ``groups``, with the
+    settings ``law`` names (:data:`READOUT_SETTINGS`: a :class:`ReadoutSettings`, or an unfitted peak law's).
 
     Each limit is the larger of the cross-validated and the in-sample percentile: with few specimens a held-out one
     lies *between* the others, so its T^2 is smaller than the training rows' own (which average the component
@@ -153,14 +151,17 @@ def fit_domain(model: SIMPLS, X: np.ndarray, y: np.ndarray, groups, law: PeakPow
     t2_own, q_own = in_sample.statistics(X)
     peak, n_blocks = None, 1
     if law is not None and np.all(np.asarray(X) >= 0):  # a peak is read from amplitude spectra only
-        peak = PeakDomain.of(law.fit(X, y, surfaces=np.asarray(groups)))
+        settings = {key: getattr(law, key) for key in READOUT_SETTINGS}
+        X = np.asarray(X, dtype=np.float64)
+        settings["freq_per_mm"] = readout_grid(X.shape[1], settings["freq_per_mm"], settings["n_blocks"])
+        fit = fit_readout(X, y, **settings, surfaces=np.asarray(groups))
+        peak = PeakDomain.of(fit, settings["pad_ridge_period_mm"], settings["exclusion_per_mm"])
         n_blocks = int(law.n_blocks)
     return SpectrumDomain.of(model, max(t2_limit, float(np.quantile(t2_own, DOMAIN_LEVEL))),
                              max(q_limit, float(np.quantile(q_own, DOMAIN_LEVEL))), peak, n_blocks)
 
 
-def nested_domain_flags(X: np.ndarray, y: np.ndarray, groups, n_components: dict, law: PeakPowerLaw | None = None
-                        ) -> np.ndarray:
+def nested_domain_flags(X: np.ndarray, y: np.ndarray, groups, n_components: dict, law=None) -> np.ndarray:
     """Whether each row falls outside the domain of the model fitted without its group (its specimen): the
     applicability flag a user would have seen for a surface the model never saw.
 

@@ -18,7 +18,7 @@ import pandas as pd
 from ..families import PLS
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from ..jackknife_file import pls_jackknife
-from ..peak_law.law import PeakPowerLaw
+from ..readout_domain import ReadoutSettings
 from .applicability import nested_domain_flags
 from .cv import nested_group_predictions, pls_cv, pls_cv_many
 
@@ -96,8 +96,7 @@ class PLSFamily(FamilyEngine):
         """model/pls/applicability.py's flags, each specimen's model at its nested count (LOO: the chosen one), with
         the peak readout of the pad's grid beside the spectrum's shape."""
         law = FoldSettings.of(settings)
-        readout = PeakPowerLaw(freq_per_mm=law.freq_per_mm, n_blocks=law.n_blocks,
-                               pad_ridge_period_mm=law.pad_ridge_period_mm)
+        readout = ReadoutSettings(law.freq_per_mm, law.n_blocks, law.pad_ridge_period_mm)
         counts = fold.per_specimen or {str(s): fold.best for s in specimens}
         return nested_domain_flags(X, y, specimens, counts, readout)
 

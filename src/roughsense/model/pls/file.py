@@ -29,12 +29,23 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._util.checks import POSITIVE_INT, Real, short_repr
+from ..._util.checks import POSITIVE_INT, Real, short_repr, shown
 from ...errors import ModelFileError
 from .. import schema
 from ..loaded import ModelFileInfo
-from ..peak_law import file as peak_law_file
-from .applicability import DOMAIN_LEVEL, SpectrumDomain
+from ..peak_search import search_bins
+from ..readout_file import (
+    BOUNDED,
+    CLARITY_LIMIT,
+    EXCLUSION,
+    PAD_PERIOD,
+    PRESS_SCATTER_SCHEMA,
+    bounded,
+    check_log_frequencies,
+    press_scatter,
+    spectrum_grid,
+)
+from .applicability import DOMAIN_LEVEL, PeakDomain, SpectrumDomain
 from .simpls import MIN_ROUGHNESS, SIMPLS
 
 KIND = "pls1-simpls"
@@ -47,6 +58,16 @@ MAX_Y_MEAN = 1e6
 #: The whole variance, to rounding: no share explained exceeds it.
 _WHOLE = 1.0 + 1e-9
 
+
+#: A PLS file's peak readout domain (``model.applicability.peak``), as JSON Schema.
+PEAK_DOMAIN_SCHEMA = schema.strict({
+    "log_frequency_range": {"type": "array", "items": bounded(BOUNDED), "minItems": 2, "maxItems": 2},
+    "clarity_limit": bounded(CLARITY_LIMIT),
+    "pad_ridge_period_mm": bounded(PAD_PERIOD, null=True),
+    "exclusion_per_mm": bounded(EXCLUSION),
+    "harmonic_range": {"type": "array", "items": bounded(BOUNDED, null=True), "minItems": 2, "maxItems": 2},
+    "press_scatter": PRESS_SCATTER_SCHEMA,
+}, required=("log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"))
 
 def _matrix(limit: float | None = None, **more) -> dict:
     return {"type": "array", "items": {"type": "array", "items": schema.number(None if limit is None else -limit, limit)},
@@ -72,7 +93,7 @@ SCHEMA = schema.strict({
         "t2_limit": schema.number(None, MAX_COEFFICIENT, exclusiveMinimum=0.0),
         "q_limit": schema.number(None, MAX_COEFFICIENT, exclusiveMinimum=0.0),
         "level": {"const": DOMAIN_LEVEL},
-        "peak": peak_law_file.PEAK_DOMAIN_SCHEMA,
+        "peak": PEAK_DOMAIN_SCHEMA,
     }, required=("rotations", "loadings", "score_var", "t2_limit", "q_limit", "level")),
 }, required=tuple(sorted(_FIELDS)))
 
@@ -171,7 +192,7 @@ def checked_domain(section, x_mean: np.ndarray, A: int, p: int, features: dict, 
     if np.any(score_var <= 0) or max(np.abs(rotations).max(), np.abs(loadings).max()) > MAX_COEFFICIENT:
         raise ModelFileError("model.applicability holds a non-positive score variance or a value beyond "
                              f"{MAX_COEFFICIENT:g}", path=path)
-    peak = peak_law_file.peak_domain(section["peak"], features, path) if "peak" in section else None
+    peak = peak_domain(section["peak"], features, path) if "peak" in section else None
     return SpectrumDomain(x_mean, rotations.T.copy(), loadings.T.copy(), score_var, float(section["t2_limit"]),
                           float(section["q_limit"]), peak, len(features["conditions"]))
 
@@ -221,3 +242,39 @@ def _array(value, shape: tuple[int, ...], name: str, path: Path | None) -> np.nd
     if not np.all(np.isfinite(array)):
         raise ModelFileError(f"{name} holds a value that is not a finite number", path=path)
     return array
+
+
+def peak_domain(section, features: dict, path: Path | None):
+    """A PLS file's peak readout domain (``model.applicability.peak``), checked like the law's own fields."""
+    where = "model.applicability.peak"
+    fields = {"log_frequency_range", "clarity_limit", "pad_ridge_period_mm", "exclusion_per_mm"}
+    if not isinstance(section, dict) or set(section) - {"harmonic_range", "press_scatter"} != fields:
+        raise ModelFileError(f"{where} must have exactly the fields log_frequency_range, clarity_limit, "
+                             "pad_ridge_period_mm, exclusion_per_mm (and harmonic_range, press_scatter)", path=path)
+    harmonic = section.get("harmonic_range", [None, None])
+    if not isinstance(harmonic, list) or len(harmonic) != 2 or not all(v is None or BOUNDED.accepts(v)
+                                                                       for v in harmonic):
+        raise ModelFileError(f"{where}.harmonic_range must be two numbers or nulls, got {shown(harmonic)}", path=path)
+    harmonic = (-np.inf if harmonic[0] is None else float(harmonic[0]),
+                np.inf if harmonic[1] is None else float(harmonic[1]))
+    span = section["log_frequency_range"]
+    if not isinstance(span, list) or len(span) != 2 or not all(BOUNDED.accepts(v) for v in span) or span[0] > span[1]:
+        raise ModelFileError(f"{where}.log_frequency_range must be two increasing numbers, got {shown(span)}",
+                             path=path)
+    period = section["pad_ridge_period_mm"]
+    if period is not None and not PAD_PERIOD.accepts(period):
+        raise ModelFileError(f"{where}.pad_ridge_period_mm must be {PAD_PERIOD.describe()} or null", path=path)
+    for name in ("clarity_limit", "exclusion_per_mm"):
+        constraint = CLARITY_LIMIT if name == "clarity_limit" else EXCLUSION
+        if not constraint.accepts(section[name]):
+            raise ModelFileError(f"{where}.{name} must be {constraint.describe()}, got {shown(section[name])}",
+                                 path=path)
+    freq = spectrum_grid(features["spectrum"], path)
+    check_log_frequencies(span, freq, f"{where}.log_frequency_range", path)
+    try:
+        search_bins(freq, period, section["exclusion_per_mm"])
+    except ValueError as exc:
+        raise ModelFileError(f"{where}: {exc}", path=path) from None
+    return PeakDomain(freq, (float(span[0]), float(span[1])), float(section["clarity_limit"]),
+                      None if period is None else float(period), float(section["exclusion_per_mm"]), harmonic,
+                      press_scatter(section, where, freq, path))
