@@ -1,6 +1,6 @@
 """The arithmetic of model/pls/cv.py's exact cross-validation: every fold's PLS1 run as a Lanczos recurrence in one
 shared rotation of the data (:class:`_RotatedFolds`, :class:`_FoldLanczos`), or each fold in its own basis when
-many targets share few folds (:func:`_own_basis_predictions`); pls_cv.py chooses between them and batches them.
+many targets share few folds (:func:`_own_basis_predictions`); cv.py chooses between them and batches them.
 """
 from __future__ import annotations
 
