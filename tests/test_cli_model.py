@@ -743,7 +743,7 @@ def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run
     import cv2
 
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import frame_scorer, score_trials
+    from roughsense.model.scoring import frame_scorer, score_trials
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0

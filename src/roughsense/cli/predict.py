@@ -89,8 +89,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
-    from ..model.predict import SensorOverride
-    from ..model.predict_table import refuse_repeats, run_prediction
+    from ..model.predict import run_prediction
+    from ..model.reading import SensorOverride
+    from ..model.trials import refuse_repeats
 
     override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = split_image_flags(images or [])
@@ -120,7 +121,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _echo_extrapolation(loaded, run.scores)
     _warn_plain_interval(loaded)
     _echo_scale(run.scores.scale)
-    _warn_few_presses(loaded.training, run.surfaces, run.n_trials)
+    _warn_few_presses(loaded.training, run.trials.surfaces, len(run.trials.groups))
     _warn_failed_controls(loaded.training)
     _exit_if_withheld(run.scores)
 
@@ -148,7 +149,7 @@ def _warn_plain_interval(loaded) -> None:
     import warnings
 
     from ..errors import RoughsenseWarning
-    from ..model.predict import plain_fallback_line
+    from ..model.model_intervals import plain_fallback_line
 
     line = plain_fallback_line(loaded)
     if line:
@@ -189,7 +190,7 @@ def _echo_extrapolation(loaded, scores) -> None:
     import shutil
     import textwrap
 
-    from ..model.predict import model_interval
+    from ..model.model_intervals import model_interval
 
     def echo(text: str) -> None:
         typer.echo(textwrap.fill(text, width=shutil.get_terminal_size().columns, subsequent_indent="  "))
@@ -308,7 +309,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:
     """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
-    from ..model.predict import frame_scorer
+    from ..model.scoring import frame_scorer
     from ..rig.live import live_scores, render_live
 
     summary = render_live(live_scores(source, frame_scorer(loaded, override), max_frames=max_frames))
