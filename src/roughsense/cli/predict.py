@@ -91,7 +91,6 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     from ..model.modelfile import load_model
     from ..model.predict import run_prediction
     from ..model.reading import SensorOverride
-    from ..model.trials import refuse_repeats
 
     override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = split_image_flags(images or [])
@@ -106,9 +105,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             raise ConfigError("--same-surface groups images given at once; live frames are scored one by one")
         _predict_live(load_model(model), source, max_frames, override)
         return
-    _check_image_sources(given, specimens, study)
-    if same_surface:
-        refuse_repeats([*positional, *(p for paths in by_condition.values() for p in paths)])
+    _check_image_sources(given, specimens, study, surface=[*positional, *(p for paths in by_condition.values()
+                                                                          for p in paths)] if same_surface else None)
     if out is not None:
         check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
@@ -171,7 +169,10 @@ def _echo_scale(check) -> None:
         typer.echo(f"roughsense: {check.summary()}", err=True)
 
 
-def _check_image_sources(given: list[str], specimens, study) -> None:
+def _check_image_sources(given: list[str], specimens, study, *, surface: list | None = None) -> None:
+    """One way of giving images, and (``surface``: the presses of one surface) each press given once."""
+    from ..model.trials import refuse_repeats
+
     if not given:
         raise ConfigError("no images given: pass IMAGE..., --images-1n ... (one flag per force) or --study DIR "
                           "(or --live --source SRC)")
@@ -179,6 +180,8 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError(f"give images one way: {given[0]} or {given[1]}, not both")
     if specimens and study is None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
+    if surface is not None:
+        refuse_repeats(surface)
 
 
 EXTRAPOLATION_WHY = "outside what the model was trained on; the `outside` column says how"
