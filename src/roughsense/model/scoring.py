@@ -131,19 +131,21 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
     keep = np.flatnonzero(~read.withheld)
     scores = None  # every trial withheld: nothing to score
     if keep.size:  # the trials the gate let through, scored as predict always scored a batch
-        kept = None if surfaces is None else np.asarray(surfaces)[keep]
+        kept_surfaces = None if surfaces is None else np.asarray(surfaces)[keep]
         if reference is not None:
             reference = (reference[0], np.asarray(reference[1])[keep])
         X = spectra_to_features(loaded, read.spectra)
-        roughness = loaded.predict(X, surfaces=kept)
-        reasons, scale = trial_reasons(loaded, spectrum, read.lines, X, kept, reference, ridge_period_mm=ridge)
-        surface = None if kept is None else pd.Series(roughness).groupby(pd.Series(kept)).transform("mean").to_numpy()
-        (low, high, method), of_surface = interval_bounds(loaded, X, roughness, kept, surface)
+        roughness = loaded.predict(X, surfaces=kept_surfaces)
+        reasons, scale = trial_reasons(loaded, spectrum, read.lines, X, kept_surfaces, reference,
+                                       ridge_period_mm=ridge)
+        surface = None if kept_surfaces is None else (
+            pd.Series(roughness).groupby(pd.Series(kept_surfaces)).transform("mean").to_numpy())
+        (low, high, method), of_surface = interval_bounds(loaded, X, roughness, kept_surfaces, surface)
         s_low, s_high, s_method = (None, None, None) if of_surface is None else of_surface
         scores = Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale, method=method,
                         surface_method=s_method)
     scored = _with_withheld(scores, read, surfaces)
-    warn_field_of_view(loaded, override, images)  # after scoring: an error there wins
+    warn_field_of_view(loaded, override, images)  # after scoring: a refusal of the batch comes first
     return scored
 
 
