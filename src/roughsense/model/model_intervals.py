@@ -20,26 +20,6 @@ if TYPE_CHECKING:
 PLAIN_METHOD = "jackknife (no coverage guarantee)"
 
 
-def model_interval(loaded: FittedModel):
-    """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
-    trial's). Its fields were checked when the file was loaded (``interval.SCHEMA``, model/schema.py): null is too
-    few residuals for the level (no bound; ``alone_log_halfwidth`` absent or null: not known)."""
-    from .interval import PredictionInterval
-
-    stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
-    if stored is None:
-        return None
-
-    def width(name: str, missing: float) -> float:
-        value = stored.get(name)
-        return missing if value is None else float(value)
-
-    interval = PredictionInterval(width("trial_log_halfwidth", math.inf), width("surface_log_halfwidth", math.inf),
-                                  float(stored["level"]),
-                                  alone_log_halfwidth=width("alone_log_halfwidth", math.nan))
-    return interval if math.isfinite(interval.trial_log_halfwidth) else None
-
-
 def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, surfaces=None, surface=None):
     """Each trial's 90 % bounds and method and, given ``surfaces`` (and ``surface``, each trial's surface's mean),
     its surface's: ``((low, high, method), (s_low, s_high, s_method) or None)``, NaN and None without an interval.
@@ -67,6 +47,26 @@ def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, s
     if plain is None or not math.isfinite(plain.surface_log_halfwidth):
         return trial, (np.full(surface.shape, np.nan), np.full(surface.shape, np.nan), None)
     return trial, (*plain.surface_bounds(surface), [PLAIN_METHOD] * surface.size)
+
+
+def model_interval(loaded: FittedModel):
+    """The model file's prediction interval, or None (a file written before intervals, or too few specimens for a
+    trial's). Its fields were checked when the file was loaded (``interval.SCHEMA``, model/schema.py): null is too
+    few residuals for the level (no bound; ``alone_log_halfwidth`` absent or null: not known)."""
+    from .interval import PredictionInterval
+
+    stored = loaded.training.get("interval") if isinstance(loaded.training, dict) else None
+    if stored is None:
+        return None
+
+    def width(name: str, missing: float) -> float:
+        value = stored.get(name)
+        return missing if value is None else float(value)
+
+    interval = PredictionInterval(width("trial_log_halfwidth", math.inf), width("surface_log_halfwidth", math.inf),
+                                  float(stored["level"]),
+                                  alone_log_halfwidth=width("alone_log_halfwidth", math.nan))
+    return interval if math.isfinite(interval.trial_log_halfwidth) else None
 
 
 def plain_fallback_line(loaded: FittedModel) -> str:

@@ -1,9 +1,9 @@
 """``roughsense.predict``: perceived roughness of images with a model file, one row per trial, as ``roughsense
 predict`` writes it; :func:`run_prediction` is the same call keeping its scores, for the CLI.
 
-The chain reads top-down, each module called from here only: ``model/modelfile.py`` loads the model,
-``model/trials.py`` groups what was given into trials, ``model/scoring.py`` scores them (reading, gating, domain,
-intervals) and ``model/predict_table.py`` makes the table.
+The chain reads top-down, each module calling only those below it (tests/test_predict.py): ``model/modelfile.py``
+loads the model, ``model/trials.py`` groups what was given into trials, ``model/scoring.py`` scores them (reading,
+gating, domain, intervals) and ``model/predict_table.py`` makes the table.
 """
 from __future__ import annotations
 
@@ -21,37 +21,6 @@ if TYPE_CHECKING:
     from .reading import SensorOverride
     from .scoring import Scores
     from .trials import Trials
-
-
-@dataclass(frozen=True)
-class PredictionRun:
-    """What one prediction produced: the table, the scores behind it (the CLI's summary lines read them), the
-    model that made them and the trials it read."""
-
-    table: pd.DataFrame
-    scores: Scores
-    model: FittedModel
-    trials: Trials
-
-
-def run_prediction(model, images: Sequence | None = None, *, study=None, specimens: Sequence[str] = (),
-                   images_by_force: Mapping[str, Sequence] | None = None, same_surface: bool = False,
-                   override: SensorOverride | None = None, n_jobs: int = 1, progress=None,
-                   note: Callable[[str], None] | None = None) -> PredictionRun:
-    """:func:`predict`, keeping the scores; ``note`` hears the one line on which scale a study was read at."""
-    from .modelfile import load_model
-    from .predict_table import prediction_table
-    from .scoring import score_trials
-    from .trials import gather_trials
-
-    loaded = load_model(model) if isinstance(model, (str, os.PathLike)) else model
-    trials = gather_trials(loaded, images, study=study, specimens=specimens, images_by_force=images_by_force,
-                           same_surface=same_surface, override=override)
-    if trials.note and note is not None:
-        note(trials.note)
-    scores = score_trials(loaded, trials.images, n_jobs=n_jobs, progress=progress, override=trials.override,
-                          surfaces=trials.surfaces, reference=trials.reference)
-    return PredictionRun(prediction_table(loaded, trials, scores), scores, loaded, trials)
 
 
 def predict(model, images: Sequence | None = None, *, study=None, specimens: Sequence[str] | None = None,
@@ -139,6 +108,48 @@ def _checked_arguments(model, images, study, specimens, images_by_force, same_su
     return model, images, study, specimens, images_by_force
 
 
+def _check_one_source(images, images_by_force, study, specimens) -> None:
+    """Python's names in the refusal: the CLI has its own options and words for the same mistake."""
+    given = [name for name, used in (("images", images), ("images_by_force", images_by_force),
+                                     ("study", study is not None)) if used]
+    if len(given) != 1:
+        raise ConfigError("give images one way: images, images_by_force or study"
+                          + (f" (got {' and '.join(given)})" if given else ""))
+    if specimens and study is None:
+        raise ConfigError("specimens selects from a study: pass study too")
+
+
+@dataclass(frozen=True)
+class PredictionRun:
+    """What one prediction produced: the table, the scores behind it (the CLI's summary lines read them), the
+    model that made them and the trials it read."""
+
+    table: pd.DataFrame
+    scores: Scores
+    model: FittedModel
+    trials: Trials
+
+
+def run_prediction(model, images: Sequence | None = None, *, study=None, specimens: Sequence[str] = (),
+                   images_by_force: Mapping[str, Sequence] | None = None, same_surface: bool = False,
+                   override: SensorOverride | None = None, n_jobs: int = 1, progress=None,
+                   note: Callable[[str], None] | None = None) -> PredictionRun:
+    """:func:`predict`, keeping the scores; ``note`` hears the one line on which scale a study was read at."""
+    from .modelfile import load_model
+    from .predict_table import prediction_table
+    from .scoring import score_trials
+    from .trials import gather_trials
+
+    loaded = load_model(model) if isinstance(model, (str, os.PathLike)) else model
+    trials = gather_trials(loaded, images, study=study, specimens=specimens, images_by_force=images_by_force,
+                           same_surface=same_surface, override=override)
+    if trials.note and note is not None:
+        note(trials.note)
+    scores = score_trials(loaded, trials.images, n_jobs=n_jobs, progress=progress, override=trials.override,
+                          surfaces=trials.surfaces, reference=trials.reference)
+    return PredictionRun(prediction_table(loaded, trials, scores), scores, loaded, trials)
+
+
 def _warn_as_the_cli(run: PredictionRun) -> PredictionRun:
     """What the CLI says beside its table, as warnings of roughsense's own class: a model that fails its controls,
     a model file without a gate, rows withheld."""
@@ -159,14 +170,3 @@ def _warn_as_the_cli(run: PredictionRun) -> PredictionRun:
                                         "contact image like the model's training presses, or unreadable; the "
                                         "`outside` column says why)"), stacklevel=3)
     return run
-
-
-def _check_one_source(images, images_by_force, study, specimens) -> None:
-    """Python's names in the refusal: the CLI has its own options and words for the same mistake."""
-    given = [name for name, used in (("images", images), ("images_by_force", images_by_force),
-                                     ("study", study is not None)) if used]
-    if len(given) != 1:
-        raise ConfigError("give images one way: images, images_by_force or study"
-                          + (f" (got {' and '.join(given)})" if given else ""))
-    if specimens and study is None:
-        raise ConfigError("specimens selects from a study: pass study too")

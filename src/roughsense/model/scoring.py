@@ -22,59 +22,6 @@ from .modelfile import FittedModel
 from .reading import SensorOverride, model_ridge_period_mm, model_spectrum
 
 
-def group_images(loaded: FittedModel, images: Sequence) -> list[tuple]:
-    """Images grouped into trials: one image each, or one per condition for a combined model."""
-    k = len(loaded.conditions)
-    if len(images) == 0:
-        raise InputError("no images to score")
-    if len(images) % k:
-        raise InputError(
-            f"this model combines {k} forces ({', '.join(loaded.conditions)}): give images in groups of {k}, "
-            f"one per force in that order; got {len(images)} image(s), which is not a multiple of {k}"
-        )
-    return [tuple(images[i : i + k]) for i in range(0, len(images), k)]
-
-
-def spectra_to_features(loaded: FittedModel, spectra: np.ndarray) -> np.ndarray:
-    """(n_images, n_freqs) spectra in trial order -> (n_trials, n_features) model inputs."""
-    from ..sensor.spectrum import combine_forces
-
-    k = len(loaded.conditions)
-    spectra = np.asarray(spectra, dtype=np.float64)
-    return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
-
-
-def image_features(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                   override: SensorOverride | None = None) -> np.ndarray:
-    """The model's inputs, one row per image (per trial of k images for a k-force model).
-
-    ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
-    (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
-    """
-    return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
-
-
-def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                   override: SensorOverride | None = None):
-    """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
-    scale checks read the lines, at no second decoding)."""
-    images = list(images)
-    group_images(loaded, images)  # refuse a wrong count before any decoding
-    spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
-    stream = spectrum.iter_transform_lines(images)
-    if progress is not None:
-        stream = progress(stream, total=len(images), description="spectra")
-    pairs = list(stream)
-    spectra = np.vstack([p[0] for p in pairs]) if pairs else np.empty((0, spectrum.freq_per_mm_.size))
-    return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
-
-
-def score_images(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                 override: SensorOverride | None = None) -> np.ndarray:
-    """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
-    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
-
-
 @dataclass(frozen=True)
 class Scores:
     """Per trial: roughness, its interval (NaN without one) and what lies outside the model's domain ('' if
@@ -149,18 +96,26 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
     return scored
 
 
-def _spread(values, keep: np.ndarray, n: int, fill=math.nan):
-    """Kept trials' values back in their places among ``n`` trials, ``fill`` in the withheld ones."""
-    if values is None:
-        return None
-    if isinstance(values, list):
-        out = [fill] * n
-        for i, v in zip(keep, values):
-            out[i] = v
-        return out
-    out = np.full(n, fill, dtype=float)
-    out[keep] = values
-    return out
+def group_images(loaded: FittedModel, images: Sequence) -> list[tuple]:
+    """Images grouped into trials: one image each, or one per condition for a combined model."""
+    k = len(loaded.conditions)
+    if len(images) == 0:
+        raise InputError("no images to score")
+    if len(images) % k:
+        raise InputError(
+            f"this model combines {k} forces ({', '.join(loaded.conditions)}): give images in groups of {k}, "
+            f"one per force in that order; got {len(images)} image(s), which is not a multiple of {k}"
+        )
+    return [tuple(images[i : i + k]) for i in range(0, len(images), k)]
+
+
+def spectra_to_features(loaded: FittedModel, spectra: np.ndarray) -> np.ndarray:
+    """(n_images, n_freqs) spectra in trial order -> (n_trials, n_features) model inputs."""
+    from ..sensor.spectrum import combine_forces
+
+    k = len(loaded.conditions)
+    spectra = np.asarray(spectra, dtype=np.float64)
+    return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
 
 
 def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
@@ -185,38 +140,18 @@ def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
                   gated=read.gated)
 
 
-def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
-                 ) -> Callable[[np.ndarray], tuple[float, str]]:
-    """Live mode's scorer: one camera frame (an array) -> (roughness, why it lies outside the model's domain, ''
-    where it lies inside: the reason predict gives the same image read alone), the spectrum built once."""
-    if len(loaded.conditions) != 1:
-        raise ConfigError(
-            f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
-            "(fit one with --condition 1N, 2N or 3N)"
-        )
-    from .contact_gate import orientation_reason
-    from .gate_file import model_gate
-    from .outside import domain_reasons
-
-    spectrum = model_spectrum(loaded, override=override)
-    gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
-
-    def score_frame(frame: np.ndarray) -> tuple[float, str]:
-        [reading] = list(spectrum.iter_readings([frame], ridge_period_mm=ridge))
-        if isinstance(reading, InputError):
-            raise reading
-        row, line, described = reading
-        if gate is not None:  # a frame the gate withholds gets no number, as predict's row gets none
-            values = np.array([described[name] for name in gate.names])
-            p = float(gate.p_values(values[None, :])[0])
-            if gate.withholds(values[None, :], p)[0]:
-                return math.nan, f"withheld: {gate.reason(values, p)}"
-        X = row[None, :]
-        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge)[0]),
-                               orientation_reason(described["orientation_deg"])) if r]
-        return float(loaded.predict(X)[0]), "; ".join(reasons)
-
-    return score_frame
+def _spread(values, keep: np.ndarray, n: int, fill=math.nan):
+    """Kept trials' values back in their places among ``n`` trials, ``fill`` in the withheld ones."""
+    if values is None:
+        return None
+    if isinstance(values, list):
+        out = [fill] * n
+        for i, v in zip(keep, values):
+            out[i] = v
+        return out
+    out = np.full(n, fill, dtype=float)
+    out[keep] = values
+    return out
 
 
 #: ``--roi auto`` on images whose field along the line differs from the model's by more than this warns.
@@ -265,3 +200,68 @@ def _first_size(images: Sequence):
         except InputError:
             continue  # unreadable: its row says so
     return None
+
+
+def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
+                 ) -> Callable[[np.ndarray], tuple[float, str]]:
+    """Live mode's scorer: one camera frame (an array) -> (roughness, why it lies outside the model's domain, ''
+    where it lies inside: the reason predict gives the same image read alone), the spectrum built once."""
+    if len(loaded.conditions) != 1:
+        raise ConfigError(
+            f"live scoring needs a single-force model; this one combines {', '.join(loaded.conditions)} "
+            "(fit one with --condition 1N, 2N or 3N)"
+        )
+    from .contact_gate import orientation_reason
+    from .gate_file import model_gate
+    from .outside import domain_reasons
+
+    spectrum = model_spectrum(loaded, override=override)
+    gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
+
+    def score_frame(frame: np.ndarray) -> tuple[float, str]:
+        [reading] = list(spectrum.iter_readings([frame], ridge_period_mm=ridge))
+        if isinstance(reading, InputError):
+            raise reading
+        row, line, described = reading
+        if gate is not None:  # a frame the gate withholds gets no number, as predict's row gets none
+            values = np.array([described[name] for name in gate.names])
+            p = float(gate.p_values(values[None, :])[0])
+            if gate.withholds(values[None, :], p)[0]:
+                return math.nan, f"withheld: {gate.reason(values, p)}"
+        X = row[None, :]
+        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge)[0]),
+                               orientation_reason(described["orientation_deg"])) if r]
+        return float(loaded.predict(X)[0]), "; ".join(reasons)
+
+    return score_frame
+
+
+def score_images(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                 override: SensorOverride | None = None) -> np.ndarray:
+    """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
+    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
+
+
+def image_features(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None) -> np.ndarray:
+    """The model's inputs, one row per image (per trial of k images for a k-force model).
+
+    ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
+    (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
+    """
+    return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
+
+
+def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
+                   override: SensorOverride | None = None):
+    """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
+    scale checks read the lines, at no second decoding)."""
+    images = list(images)
+    group_images(loaded, images)  # refuse a wrong count before any decoding
+    spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
+    stream = spectrum.iter_transform_lines(images)
+    if progress is not None:
+        stream = progress(stream, total=len(images), description="spectra")
+    pairs = list(stream)
+    spectra = np.vstack([p[0] for p in pairs]) if pairs else np.empty((0, spectrum.freq_per_mm_.size))
+    return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
