@@ -33,7 +33,8 @@ def press_table(model: str, folder: Path) -> pd.DataFrame:
     """One row per fingerprint press of ``folder`` at CONDITION: the band reading, the law's reading, the verdicts."""
     from roughsense.analysis.dataset import perceived_roughness
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import image_readings, model_ridge_period_mm
+    from roughsense.model.reading import model_ridge_period_mm
+    from roughsense.model.scoring import image_readings
     from roughsense.sensor.band import DOMINANCE, band_reading
 
     loaded = load_model(model)

@@ -119,7 +119,7 @@ def test_model_files_saved_before_the_redesign_predict_the_same(condition):
     """Files written by roughsense 0.1.0 before the package moved (fit on the example my-study) score alike today."""
     from roughsense.io.study import read_study
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import score_images
+    from roughsense.model.scoring import score_images
     from roughsense.model.trials import groups_from_study
 
     loaded = load_model(LEGACY / f"model_{condition}.json")

@@ -739,11 +739,11 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
 
 def test_a_live_frame_says_why_it_lies_outside_as_predict_says_for_its_image(run_cli, study_dir, tmp_path):
     """Live mode flagged a frame finer than the band as "outside the training range"; it now carries the reason
-    predict gives the same image read alone (model/predict.domain_reasons), to the display and the summary line."""
+    predict gives the same image read alone (model/outside.domain_reasons), to the display and the summary line."""
     import cv2
 
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import frame_scorer, score_trials
+    from roughsense.model.scoring import frame_scorer, score_trials
 
     model = tmp_path / "law.json"
     assert fit(run_cli, study_dir, model, "--condition", "1N", "--model", "peak-law")[0] == 0

@@ -487,7 +487,7 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
 
     from roughsense.errors import ModelFileError, RoughsenseError
     from roughsense.model.modelfile import _digest, load_model
-    from roughsense.model.predict import model_spectrum
+    from roughsense.model.reading import model_spectrum
 
     document = json.loads(json.dumps(model_document))
     places = list(_locations(document))

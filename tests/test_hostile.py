@@ -439,8 +439,8 @@ def test_a_sound_target_range_sets_the_floor_at_half_the_smallest(tmp_path):
 def test_an_interval_level_other_than_the_labelled_one_is_refused(tmp_path, level):
     """36.16: an interval level of 0.5 was still labelled pi90 ("90 % interval")."""
     from roughsense.errors import ModelFileError
+    from roughsense.model.model_intervals import model_interval
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import model_interval
 
     interval = {"level": level, "trial_log_halfwidth": 0.2, "surface_log_halfwidth": 0.1}
     with pytest.raises(ModelFileError, match=r"training.interval.level: expected 0.9 \(the level roughsense writes "

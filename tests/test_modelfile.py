@@ -10,7 +10,7 @@ from roughsense import SIMPLS
 from roughsense.errors import InputError, ModelFileError, OutputExistsError
 from roughsense.model import modelfile as mf
 from roughsense.model.pls.simpls import MIN_ROUGHNESS
-from roughsense.model.predict import score_images
+from roughsense.model.scoring import score_images
 from roughsense.sensor.spectrum import SpatialSpectrum
 
 ROI = (0, 8, 400, 16)

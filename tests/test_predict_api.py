@@ -14,7 +14,8 @@ from roughsense.analysis import dataset
 from roughsense.errors import ConfigError
 from roughsense.io.study import read_study
 from roughsense.model.modelfile import load_model
-from roughsense.model.predict_table import PREDICTION_COLUMNS, csv_text, predict, prediction_table
+from roughsense.model.predict import predict
+from roughsense.model.predict_table import PREDICTION_COLUMNS, csv_text, prediction_table
 from tests.test_dataset import make_study
 
 
@@ -101,7 +102,8 @@ def test_every_column_is_named_in_the_schema(study_dir, models):
 
 def test_the_text_keeps_three_digits_and_says_true_or_false():
     from roughsense.model.loaded import ModelFileInfo
-    from roughsense.model.predict import Scores
+    from roughsense.model.scoring import Scores
+    from roughsense.model.trials import Trials
 
     class Model:
         conditions, family, path = ("1N",), "pls", None
@@ -109,7 +111,7 @@ def test_the_text_keeps_three_digits_and_says_true_or_false():
         model_file_ = ModelFileInfo(None, {"spectrum": {"px_per_mm": 34.9}}, training, "0")
 
     scores = Scores(np.array([1234.5, 0.012345]), np.full(2, np.nan), np.full(2, np.nan), ["", "period 9 mm"])
-    text = csv_text(prediction_table(Model(), [("a.png",), ("b.png",)], scores))
+    text = csv_text(prediction_table(Model(), Trials([("a.png",), ("b.png",)], "smooth", "1N"), scores))
     rows = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
     assert list(rows["roughness_rel_R3"]) == ["1230", "0.0123"]
     assert list(rows["extrapolates"]) == ["false", "true"] and list(rows["px_per_mm"]) == ["34.9", "34.9"]

@@ -133,7 +133,7 @@ def test_live_frames_the_gate_withholds_get_no_number(gated_model, simulated_tin
     import math
 
     from roughsense.model.modelfile import load_model
-    from roughsense.model.predict import frame_scorer
+    from roughsense.model.scoring import frame_scorer
 
     score = frame_scorer(load_model(gated_model))
     noise = np.random.default_rng(3).integers(0, 256, (170, 1920, 3)).astype(np.uint8)

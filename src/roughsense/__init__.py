@@ -11,7 +11,7 @@ From images to perceived roughness, the five calls a newcomer needs:
    controls and the paper's claims.
 4. ``load_model(path)``: a model file that ``roughsense fit`` wrote, validated on load.
 5. ``predict(model, images, study=...)``: a fitted model's table of perceived roughness, interval and flags per
-   trial, as ``roughsense predict`` writes it (``roughsense.model.predict_table.predict``).
+   trial, as ``roughsense predict`` writes it (``roughsense.model.predict.predict``).
 
 Then the estimators (``SpatialSpectrum``: image -> spectrum; ``SIMPLS``; ``PeakPowerLaw``; ``SpreadModel``), the
 functions behind them, ``__version__`` and the errors. Each name has numpydoc sections with a running example, and
@@ -33,7 +33,7 @@ __getattr__ = lazy_loader.attach(__name__, submod_attrs={
     "io.study": ["read_study"],
     "analysis.study_analysis": ["analyse_study"],
     "model.modelfile": ["load_model"],
-    "model.predict_table": ["predict"],
+    "model.predict": ["predict"],
     "sensor.spectrum": ["SpatialSpectrum", "spatial_spectrum", "frequency_grid"],
     "model.pls.simpls": ["SIMPLS"],
     "model.peak_law.law": ["PeakPowerLaw"],

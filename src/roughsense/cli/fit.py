@@ -73,8 +73,8 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     from ..analysis.training import check_training_options, parse_cv, train_model
     from ..io.study import read_study
     from ..model.modelfile import save_model
-    from ..model.predict import SensorOverride
     from ..model.predict_table import roi_text
+    from ..model.reading import SensorOverride
 
     condition = parse_condition(condition)
     family = check_training_options(condition, rule, max_components, model)

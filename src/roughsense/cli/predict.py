@@ -89,8 +89,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     """
     from .._util.atomic import check_can_write
     from ..model.modelfile import load_model
-    from ..model.predict import SensorOverride
-    from ..model.predict_table import refuse_repeats, run_prediction
+    from ..model.predict import run_prediction
+    from ..model.reading import SensorOverride
 
     override = SensorOverride.parse(roi=roi, px_per_mm=px_per_mm)
     positional, by_condition = split_image_flags(images or [])
@@ -105,9 +105,8 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
             raise ConfigError("--same-surface groups images given at once; live frames are scored one by one")
         _predict_live(load_model(model), source, max_frames, override)
         return
-    _check_image_sources(given, specimens, study)
-    if same_surface:
-        refuse_repeats([*positional, *(p for paths in by_condition.values() for p in paths)])
+    _check_image_sources(given, specimens, study, surface=[*positional, *(p for paths in by_condition.values()
+                                                                          for p in paths)] if same_surface else None)
     if out is not None:
         check_can_write(out, force=force, inputs=run_inputs(model, positional, *by_condition.values(), study=study))
     loaded = load_model(model)
@@ -120,7 +119,7 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     _echo_extrapolation(loaded, run.scores)
     _warn_plain_interval(loaded)
     _echo_scale(run.scores.scale)
-    _warn_few_presses(loaded.training, run.surfaces, run.n_trials)
+    _warn_few_presses(loaded.training, run.trials.surfaces, len(run.trials.groups))
     _warn_failed_controls(loaded.training)
     _exit_if_withheld(run.scores)
 
@@ -148,7 +147,7 @@ def _warn_plain_interval(loaded) -> None:
     import warnings
 
     from ..errors import RoughsenseWarning
-    from ..model.predict import plain_fallback_line
+    from ..model.model_intervals import plain_fallback_line
 
     line = plain_fallback_line(loaded)
     if line:
@@ -170,7 +169,10 @@ def _echo_scale(check) -> None:
         typer.echo(f"roughsense: {check.summary()}", err=True)
 
 
-def _check_image_sources(given: list[str], specimens, study) -> None:
+def _check_image_sources(given: list[str], specimens, study, *, surface: list | None = None) -> None:
+    """One way of giving images, and (``surface``: the presses of one surface) each press given once."""
+    from ..model.trials import refuse_repeats
+
     if not given:
         raise ConfigError("no images given: pass IMAGE..., --images-1n ... (one flag per force) or --study DIR "
                           "(or --live --source SRC)")
@@ -178,6 +180,8 @@ def _check_image_sources(given: list[str], specimens, study) -> None:
         raise ConfigError(f"give images one way: {given[0]} or {given[1]}, not both")
     if specimens and study is None:
         raise ConfigError("--specimen selects from a study: add --study DIR")
+    if surface is not None:
+        refuse_repeats(surface)
 
 
 EXTRAPOLATION_WHY = "outside what the model was trained on; the `outside` column says how"
@@ -189,7 +193,7 @@ def _echo_extrapolation(loaded, scores) -> None:
     import shutil
     import textwrap
 
-    from ..model.predict import model_interval
+    from ..model.model_intervals import model_interval
 
     def echo(text: str) -> None:
         typer.echo(textwrap.fill(text, width=shutil.get_terminal_size().columns, subsequent_indent="  "))
@@ -308,7 +312,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:
     """Wire the model's scorer into the rig's live loop (the rig itself knows nothing of models)."""
-    from ..model.predict import frame_scorer
+    from ..model.scoring import frame_scorer
     from ..rig.live import live_scores, render_live
 
     summary = render_live(live_scores(source, frame_scorer(loaded, override), max_frames=max_frames))

@@ -18,9 +18,9 @@ import numpy as np
 
 from ..errors import InputError, ModelFileError
 from .contact_gate import orientation_reason
-from .gate_file import model_gate
 
 if TYPE_CHECKING:
+    from .contact_gate import ContactGate
     from .modelfile import FittedModel
 
 #: A model file without a gate predicts without one, and says so once (a refusal would strand every file written
@@ -44,12 +44,11 @@ class TrialReadings:
     gated: bool
 
 
-def read_trials(loaded: FittedModel, spectrum, images, *, progress=None) -> TrialReadings:
-    """Read every image of ``images`` (trial order, k per trial) and gate its trials."""
-    from .predict import model_ridge_period_mm
-
-    k = len(loaded.conditions)
-    stream = spectrum.iter_readings(images, ridge_period_mm=model_ridge_period_mm(loaded))
+def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate: ContactGate | None,
+                progress=None) -> TrialReadings:
+    """Read every image of ``images`` (trial order, ``k`` per trial) with the model's ``spectrum`` and gate its
+    trials with the model's ``gate`` (None: a file without one, every readable trial kept)."""
+    stream = spectrum.iter_readings(images, ridge_period_mm=ridge_period_mm)
     if progress is not None:
         stream = progress(stream, total=len(images), description="spectra")
     readings = list(stream)
@@ -62,7 +61,6 @@ def read_trials(loaded: FittedModel, spectrum, images, *, progress=None) -> Tria
         if isinstance(reading, InputError) and not reasons[i // k]:
             reasons[i // k] = f"unreadable: {reading}"
     angles = np.array([_mean_angle(readings[t * k:(t + 1) * k]) for t in range(n_trials)])
-    gate = model_gate(loaded)
     p = np.full(n_trials, math.nan)
     if gate is not None:
         p = _gate(gate, readings, reasons, k)
@@ -102,12 +100,12 @@ def _gate(gate, readings, reasons: list[str], k: int) -> np.ndarray:
     return trial_p
 
 
-
 def press_checker(loaded: FittedModel) -> Callable[[object], str]:
     """For ``capture --model``: one press at a time as it is taken, why the model's gate would withhold it (at alpha
     per press) or why it is turned, '' where it passes. The press is read as the model reads it (the model's band,
     scale and crop), so an operator hears at once that the camera shows no contact image of the model's pad."""
-    from .predict import model_ridge_period_mm, model_spectrum
+    from .gate_file import model_gate
+    from .reading import model_ridge_period_mm, model_spectrum
 
     gate = model_gate(loaded)
     if gate is None:

@@ -1,52 +1,72 @@
-"""Grouping images into trials: a combined-force model reads a trial as its 1 N, 2 N and 3 N spectra side by side,
-so images reach a model only in groups whose force slot is known (a study's manifest, one flag per force), and a
-file name or manifest row that says another force than its slot is refused."""
+"""Grouping what predict is given into trials (:func:`gather_trials`): a combined-force model reads a trial as its
+1 N, 2 N and 3 N spectra side by side, so images reach a model only in groups whose force slot is known (a study's
+manifest, one flag per force), and a file name or manifest row that says another force than its slot is refused.
+A study's trials are its specimens' surfaces, read at its own scale, and its gratings' stated periods check it."""
 from __future__ import annotations
 
 import os
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import InputError
+import numpy as np
+
+from ..errors import ConfigError, InputError
 
 if TYPE_CHECKING:
     import pandas as pd
 
     from .modelfile import FittedModel
+    from .reading import SensorOverride
+
 
 _FORCE_TOKEN = re.compile(r"(?:^|[_\-. ])(\d+(?:\.\d+)?)[nN](?=$|[_\-. ])")
 
 
-def condition_force_n(condition: str) -> float:
-    """The nominal force of a condition label ("2.5N" -> 2.5)."""
-    return float(condition[:-1]) if condition.upper().endswith("N") else float("nan")
+@dataclass(frozen=True)
+class Trials:
+    """What predict was given, as its model reads it: each trial's images in the model's condition order, the
+    model's pad and condition, a study's specimen and repetition per trial (None: no study), each trial's surface
+    (None: each press read alone), the override the images are read with, the periods a study states for the scale
+    check (``(what, per-trial period in mm)``) and the note saying which scale a study was read at ('' if none)."""
+
+    groups: list[tuple]
+    pad: str
+    condition: str
+    meta: pd.DataFrame | None = None
+    surfaces: object = None
+    override: SensorOverride | None = None
+    reference: tuple | None = None
+    note: str = ""
+
+    @property
+    def images(self) -> list:
+        """Every image, trial after trial (k per trial for a k-force model)."""
+        return [image for trial in self.groups for image in trial]
 
 
-def forces_in_name(image) -> set[float]:
-    """Forces a file name states as tokens like ``_1N_`` or ``-2.5n.`` (empty if it states none)."""
-    stem = Path(str(image)).stem
-    return {float(m) for m in _FORCE_TOKEN.findall(stem)}
+def gather_trials(loaded: FittedModel, images: Sequence | None = None, *, study=None, specimens: Sequence[str] = (),
+                  images_by_force: Mapping[str, Sequence] | None = None, same_surface: bool = False,
+                  override: SensorOverride | None = None) -> Trials:
+    """The trials of exactly one of ``images`` (a single-force model's), ``images_by_force`` or ``study`` (a study
+    folder or read study: its manifest's trials of the model's pad, ``specimens`` only if given)."""
+    reference, note, meta = None, "", None
+    if study is not None:
+        from ..io.study import read_study
 
-
-def check_slot(image, condition: str, *, path=None, row: int | None = None) -> None:
-    """Refuse an image whose name states forces, none of them the force of the slot it fills."""
-    stated = forces_in_name(image)
-    if stated and condition_force_n(condition) not in stated:
-        said = ", ".join(f"{f:g}N" for f in sorted(stated))
-        raise InputError(f"image {Path(str(image)).name!r} fills the {condition} slot but its name says {said}",
-                         path=path, row=row, column="image" if row is not None else None)
-
-
-def model_pad(loaded: FittedModel) -> str:
-    return str(loaded.training.get("pad", "")) if isinstance(loaded.training, dict) else ""
-
-
-def model_condition(loaded: FittedModel) -> str:
-    """The model's condition: its single force, or "combined"."""
-    training = loaded.training if isinstance(loaded.training, dict) else {}
-    return str(training.get("condition") or (loaded.conditions[0] if len(loaded.conditions) == 1 else "combined"))
+        read = read_study(study) if isinstance(study, (str, os.PathLike)) else study
+        groups, meta = groups_from_study(loaded, read, list(specimens or ()))
+        override, reference, note = study_scale(loaded, read, override, meta)
+    else:
+        if same_surface:
+            refuse_repeats([*(images or ()), *(p for paths in (images_by_force or {}).values() for p in paths)])
+        groups = (groups_from_flags(loaded, images_by_force) if images_by_force
+                  else groups_from_images(loaded, list(images or ())))
+    surfaces = meta["specimen"].astype(str).to_numpy() if meta is not None and "specimen" in meta else (
+        ["surface"] * len(groups) if same_surface else None)
+    return Trials(groups, model_pad(loaded), model_condition(loaded), meta, surfaces, override, reference, note)
 
 
 def groups_from_images(loaded: FittedModel, images: Sequence) -> list[tuple]:
@@ -129,3 +149,71 @@ def groups_from_study(loaded: FittedModel, study, specimens: Sequence[str] = ())
         groups.append(tuple(slots))
         meta.append({"specimen": specimen, "repetition": int(repetition)})
     return groups, pd.DataFrame(meta)
+
+
+def study_scale(loaded: FittedModel, study, override: SensorOverride | None, meta: pd.DataFrame):
+    """A study's images are read at its own study.toml scale unless ``override`` states one; the trials of
+    specimens of stated period are marked for the scale check. Returns (override, reference, the note saying
+    which scale was used, or '')."""
+    from .reading import SensorOverride
+
+    model_px = float(loaded.model_file_.features["spectrum"]["px_per_mm"])
+    note = ""
+    if override is None or override.px_per_mm is None:
+        stated = float(study.sensor.px_per_mm)
+        note = (f"images read at {stated:g} px/mm, the scale in {study.root / 'study.toml'} (the model was fitted at "
+                f"{model_px:g} px/mm)")
+        override = SensorOverride(None if override is None else override.roi, stated)
+    reference = None
+    if "specimen" in meta:
+        from .scale_check import stated_periods
+
+        periods = stated_periods(study)
+        reference = ("the specimens' periods in specimens.csv",
+                     np.array([periods.get(s, np.nan) for s in meta["specimen"].astype(str)]))
+    return override, reference, note
+
+
+def refuse_repeats(images) -> None:
+    """Grouped presses are averaged: one file given twice (by any path) would count as two presses and narrow the
+    surface's interval."""
+    seen: dict[tuple[int, int], str] = {}
+    for image in images:
+        try:
+            info = os.stat(image)
+        except (OSError, TypeError, ValueError):
+            continue  # reading it names the problem (an array has no file)
+        key = (info.st_dev, info.st_ino)
+        if key in seen:
+            raise ConfigError(f"--same-surface: {image} is the same file as {seen[key]}; give each press once")
+        seen[key] = str(image)
+
+
+def check_slot(image, condition: str, *, path=None, row: int | None = None) -> None:
+    """Refuse an image whose name states forces, none of them the force of the slot it fills."""
+    stated = forces_in_name(image)
+    if stated and condition_force_n(condition) not in stated:
+        said = ", ".join(f"{f:g}N" for f in sorted(stated))
+        raise InputError(f"image {Path(str(image)).name!r} fills the {condition} slot but its name says {said}",
+                         path=path, row=row, column="image" if row is not None else None)
+
+
+def forces_in_name(image) -> set[float]:
+    """Forces a file name states as tokens like ``_1N_`` or ``-2.5n.`` (empty if it states none)."""
+    stem = Path(str(image)).stem
+    return {float(m) for m in _FORCE_TOKEN.findall(stem)}
+
+
+def condition_force_n(condition: str) -> float:
+    """The nominal force of a condition label ("2.5N" -> 2.5)."""
+    return float(condition[:-1]) if condition.upper().endswith("N") else float("nan")
+
+
+def model_pad(loaded: FittedModel) -> str:
+    return str(loaded.training.get("pad", "")) if isinstance(loaded.training, dict) else ""
+
+
+def model_condition(loaded: FittedModel) -> str:
+    """The model's condition: its single force, or "combined"."""
+    training = loaded.training if isinstance(loaded.training, dict) else {}
+    return str(training.get("condition") or (loaded.conditions[0] if len(loaded.conditions) == 1 else "combined"))
