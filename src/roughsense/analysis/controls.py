@@ -26,10 +26,8 @@ from .._util.checks import Integer, check
 from .._util.workers import thread_map
 from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
-from ..model.peak_law_family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls import single_threaded_blas
-from ..model.pls_family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
-from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
+from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = defaults.PERMUTATIONS
@@ -73,9 +71,6 @@ def permuted_targets(y: np.ndarray, specimens: Sequence, permutations: np.ndarra
     return values[permutations][:, codes].T
 
 
-_cv_rmse = cv_rmse  # the pooled RMSE, as every family's permuted_rmse computes it
-
-
 def fold_mean_predictions(y: np.ndarray, folds: Sequence) -> np.ndarray:
     """The null model's out-of-fold predictions under any folds: each trial gets the mean target of its training
     fold (every trial whose fold label differs from its own). The one home of the training-mean model."""
@@ -108,8 +103,8 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
     """
     specimens = np.asarray(specimens).astype(str)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
-    rmse = float(_cv_rmse(predictions, y))
-    # cv_rmse[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
+    rmse = float(cv_rmse(predictions, y))  # the pooled RMSE, as every family's permuted_rmse computes it
+    # curve[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
     null_rmse = float(fit.curve[0])
     n_permutations = int(permutations.shape[0])
     if n_permutations:

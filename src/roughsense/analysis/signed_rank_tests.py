@@ -10,23 +10,23 @@ import pandas as pd
 from .. import paper
 from ..model.families import family
 from .metrics import compare_conditions, signed_rank
-from .results import CV_SCHEMES, StudyResults
+from .results import CV_SCHEMES, CrossValidation
 
 
-def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.DataFrame:
+def signed_rank_tests(cross_validation: CrossValidation, conditions: Sequence[str]) -> pd.DataFrame:
     """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
 
     Of the paper's PLS only (tests.csv has no model column): these are the paper's own comparisons.
     """
     frames = []
     for cv in CV_SCHEMES:
-        if not any(f.cv == cv and family(f.model).paper for f in analysis.fits):
+        if not any(f.cv == cv and family(f.model).paper for f in cross_validation.fits):
             continue
-        results = analysis.results(cv)
+        results = cross_validation.results(cv)
         paper_rows = results["model"].map(lambda name: family(name).paper).astype(bool)
         results = results[paper_rows].drop(columns="model")  # the paper's model, as the paper tested
         singles = [c for c in conditions if c != paper.COMBINED]
-        for pad in analysis.pads:
+        for pad in cross_validation.pads:
             if paper.COMBINED not in conditions or not singles:
                 break
             by_condition = {
@@ -37,7 +37,7 @@ def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.D
             table["comparison"] = f"{pad}: " + table["comparison"].astype(str)
             table["cv"] = cv
             frames.append(table)
-        pads = analysis.pads
+        pads = cross_validation.pads
         if len(pads) == 2:
             first, second = sorted(pads, key=lambda p: (p != paper.SMOOTH_PAD, p))
             rows = []
