@@ -28,7 +28,8 @@ from ..model.families import paper_family
 from ..model.family import FoldSettings
 from .controls import fold_mean_predictions, permutation_p, permuted_targets
 from .metrics import ALPHA
-from .results import StudyFacts
+from .presses import presses_analysis, presses_needed_by_curve
+from .results import Controls, RunSettings, StricterSchemes, StudyFacts
 
 #: The schemes, strictest last, and what each holds out in a user's words.
 SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
@@ -73,6 +74,14 @@ def judged(prediction: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: 
     for shape, values in log_bias.groupby(per["shape"], sort=False):
         row[f"log_bias_{shape}"] = float(values.mean())
     return row
+
+
+def stricter_schemes(facts: StudyFacts, run: RunSettings, controls: Controls, jobs) -> StricterSchemes:
+    """The study's stage of stricter schemes: a period and a shape left out (this module), and presses per surface
+    (presses.py), from the LOSO fits among the controls' ``jobs``."""
+    held_out = held_out_analysis(facts, controls.controls, jobs, run.max_components)
+    presses = presses_analysis(jobs, run.seed)
+    return StricterSchemes(held_out, presses, presses_needed_by_curve(presses))
 
 
 def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_components: int) -> pd.DataFrame:

@@ -11,13 +11,16 @@ hold. Where the data came from (:class:`Provenance`) is decided here once, from 
 about it is worded in one place (roughsense.report.provenance)."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import Literal
 
 import numpy as np
 import pandas as pd
 
+from .. import paper
 from ..model.families import PAPER_MODEL
+from . import dataset
 from .family_fits import FamilyFit
 from .metrics import shape_summary
 
@@ -73,6 +76,51 @@ class StudyFacts:
     provenance: Provenance
     paper_pads: tuple[str, ...]
     paper_note: str
+
+    @classmethod
+    def of(cls, study, perceived: pd.DataFrame, features: pd.DataFrame, conditions: tuple[str, ...]) -> StudyFacts:
+        """The facts of a read study folder (roughsense.io.study.Study) with its targets (``perceived``) and spectra
+        (``features``); the ``conditions`` analysed decide whether the paper's values describe it."""
+        freq_columns = dataset.frequency_columns(features)
+        mean_spectra = dataset.plain_names(
+            features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index())
+        paper_pads, paper_note = paper_comparability(
+            study.specimen_names, study.pads, conditions, study.reference_specimen)
+        specimens = study.specimens
+        wavelengths = pd.to_numeric(specimens.get("wavelength_mm", pd.Series(np.nan, index=specimens.index)),
+                                    errors="coerce")
+        return cls(study_name=study.name, reference_specimen=study.reference_specimen, perceived=perceived,
+                   shapes=dict(zip(specimens["specimen"], specimens["shape"])),
+                   wavelengths=dict(zip(specimens["specimen"], wavelengths)),
+                   freq_per_mm=dataset.column_frequencies(freq_columns), mean_spectra=mean_spectra,
+                   provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note)
+
+
+def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
+                        reference_specimen: str) -> tuple[tuple[str, ...], str]:
+    """The pads whose results may stand beside the paper's, and one note on why the others may not.
+
+    The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
+    with R3 as the reference; beside any other design they would read as a comparison that is not one.
+    """
+    paper_specimens = list(paper.PAPER_SPECIMENS)
+    problems = []
+    if set(specimens) != set(paper_specimens):
+        problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
+                        f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
+    if list(conditions) != list(paper.PAPER_CONDITIONS):
+        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(paper.PAPER_CONDITIONS)}")
+    if reference_specimen != paper.REFERENCE_SPECIMEN:
+        problems.append(f"its reference is {reference_specimen}, the paper's {paper.REFERENCE_SPECIMEN}")
+    if problems:
+        return (), "The paper's values are not shown: " + "; ".join(problems) + "."
+    matching = tuple(p for p in pads if p in paper.PAPER_PADS)
+    others = [p for p in pads if p not in paper.PAPER_PADS]
+    note = ""
+    if others:
+        note = (f"The paper's values are not shown for the {', '.join(others)} pad(s): the paper tested only the "
+                f"{' and '.join(paper.PAPER_PADS)} pads.")
+    return matching, note
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The paper's own comparisons (Wilcoxon signed-rank on per-specimen RMSE) and whether its values describe a study.
+"""The paper's own comparisons (Wilcoxon signed-rank on per-specimen RMSE).
 
 Of the paper's PLS only: tests.csv has no model column, because these are the comparisons the paper made."""
 from __future__ import annotations
@@ -55,30 +55,3 @@ def signed_rank_tests(cross_validation: CrossValidation, conditions: Sequence[st
     tests = pd.concat(frames, ignore_index=True)
     front = ["comparison", "statistic", "p", "p_adjusted", "cv"]
     return tests[front + [c for c in tests.columns if c not in front]]
-
-
-def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
-                        reference_specimen: str) -> tuple[tuple[str, ...], str]:
-    """The pads whose results may stand beside the paper's, and one note on why the others may not.
-
-    The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
-    with R3 as the reference; beside any other design they would read as a comparison that is not one.
-    """
-    paper_specimens = list(paper.PAPER_SPECIMENS)
-    problems = []
-    if set(specimens) != set(paper_specimens):
-        problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
-                        f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
-    if list(conditions) != list(paper.PAPER_CONDITIONS):
-        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(paper.PAPER_CONDITIONS)}")
-    if reference_specimen != paper.REFERENCE_SPECIMEN:
-        problems.append(f"its reference is {reference_specimen}, the paper's {paper.REFERENCE_SPECIMEN}")
-    if problems:
-        return (), "The paper's values are not shown: " + "; ".join(problems) + "."
-    matching = tuple(p for p in pads if p in paper.PAPER_PADS)
-    others = [p for p in pads if p not in paper.PAPER_PADS]
-    note = ""
-    if others:
-        note = (f"The paper's values are not shown for the {', '.join(others)} pad(s): the paper tested only the "
-                f"{' and '.join(paper.PAPER_PADS)} pads.")
-    return matching, note

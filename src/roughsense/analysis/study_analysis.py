@@ -14,34 +14,30 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-import numpy as np
 import pandas as pd
 
 from .. import defaults, paper
 from ..errors import ConfigError, InputError
-from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
+from ..io.study import RATINGS_CSV, Study
+from ..model.families import MODEL_FAMILIES, check_model_name
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
 from .family_fits import FamilyFit, fit_all, law_settings
-from .held_out import held_out_analysis
-from .presses import presses_analysis, presses_needed_by_curve
+from .held_out import stricter_schemes
 from .results import (
     CV_SCHEMES,
     Controls,
     CrossValidation,
     PaperComparisons,
-    Provenance,
     RunSettings,
     StricterSchemes,
     StudyFacts,
     StudyResults,
-    UnseenSurfaces,
 )
-from .signed_rank_tests import paper_comparability, signed_rank_tests
+from .signed_rank_tests import signed_rank_tests
 from .spread import paper_predictive
-from .unseen import headline_condition, unseen_summary, unsure_specimens
+from .unseen import unseen_surfaces
 
 
 def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = defaults.MAX_COMPONENTS,
@@ -91,16 +87,16 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     perceived = _perceived_by_enough_people(study)
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
-    _check_repetitions(features, study)
+    dataset.check_repetitions(features, study)
     run = RunSettings(tuple(conditions), tuple(cv_schemes), max_components, int(seed), n_permutations)
-    facts = _study_facts(study, perceived, features, run.conditions)
+    facts = StudyFacts.of(study, perceived, features, run.conditions)
     cross_validation, jobs = _fit_every_condition(facts, run, models, features, study, combined_forces, progress)
     controls = _controls_table(jobs, run.seed, n_jobs, progress)
-    schemes = _stricter(facts, run, controls, jobs) if stricter else StricterSchemes.skipped()
+    schemes = stricter_schemes(facts, run, controls, jobs) if stricter else StricterSchemes.skipped()
     paper = PaperComparisons(signed_rank_tests(cross_validation, run.conditions),
                              evaluate_claims(facts, cross_validation, controls.controls), paper_predictive())
-    return StudyResults.assemble(facts, run, cross_validation, controls, schemes, paper,
-                                 _unseen_surfaces(facts, run, cross_validation, controls))
+    unseen = unseen_surfaces(facts, run, cross_validation, controls)
+    return StudyResults.assemble(facts, run, cross_validation, controls, schemes, paper, unseen)
 
 
 def _controls_table(jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> Controls:
@@ -109,23 +105,6 @@ def _controls_table(jobs: list[tuple], seed: int, n_jobs: int, progress: Callabl
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
     controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
     return Controls(controls)
-
-
-def _stricter(facts: StudyFacts, run: RunSettings, controls: Controls, jobs: list[tuple]) -> StricterSchemes:
-    """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
-    held_out = held_out_analysis(facts, controls.controls, jobs, run.max_components)
-    presses = presses_analysis(jobs, run.seed)
-    return StricterSchemes(held_out, presses, presses_needed_by_curve(presses))
-
-
-def _unseen_surfaces(facts: StudyFacts, run: RunSettings, cross_validation: CrossValidation,
-                     controls: Controls) -> UnseenSurfaces:
-    """Surfaces never seen (unseen.py): the summary table, its condition, and the default family's least sure."""
-    models = cross_validation.models
-    unsure_model = DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]
-    return UnseenSurfaces(unseen_summary(facts, cross_validation, controls.controls),
-                          headline_condition(run.conditions),
-                          unsure_specimens(facts.perceived, cross_validation, unsure_model))
 
 
 def _check_arguments(study, n_jobs, progress) -> None:
@@ -161,41 +140,6 @@ def _perceived_by_enough_people(study: Study) -> pd.DataFrame:
             "the analysis compares predictions with the spread across participants (SD, OVL), so every specimen "
             "needs ratings from at least 2", path=study.root / RATINGS_CSV)
     return perceived
-
-
-def _check_repetitions(features: pd.DataFrame, study: Study) -> None:
-    """Cross-validation needs at least 2 images of each specimen on each pad at each force."""
-    counts = features.groupby(["pad", "specimen", "condition"]).size()
-    if counts.min() < 2:
-        (pad, specimen, condition) = counts.idxmin()
-        raise InputError(
-            f"too few repetitions for cross-validation: {specimen} on the {pad} pad at {condition} has {counts.min()}",
-            path=study.root / MANIFEST_CSV,
-        )
-
-
-def _study_facts(study: Study, perceived: pd.DataFrame, features: pd.DataFrame,
-                 conditions: tuple[str, ...]) -> StudyFacts:
-    """The analysis's record of the study (targets, shapes, mean spectra, provenance), before any model is fitted;
-    ``conditions`` decide whether the paper's values describe it."""
-    freq_columns = dataset.frequency_columns(features)
-    mean_spectra = dataset.plain_names(
-        features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index())
-    paper_pads, paper_note = paper_comparability(
-        study.specimen_names, study.pads, conditions, study.reference_specimen)
-    return StudyFacts(
-        study_name=study.name,
-        reference_specimen=study.reference_specimen,
-        perceived=perceived,
-        shapes=dict(zip(study.specimens["specimen"], study.specimens["shape"])),
-        wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
-            "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
-        freq_per_mm=dataset.column_frequencies(freq_columns),
-        mean_spectra=mean_spectra,
-        provenance=Provenance.of(study),
-        paper_pads=paper_pads,
-        paper_note=paper_note,
-    )
 
 
 def _fit_every_condition(facts: StudyFacts, run: RunSettings, models: tuple[str, ...], features: pd.DataFrame,

@@ -17,11 +17,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import PAPER_MODEL
+from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..model.interval import held_out_coverage
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
-from .results import CrossValidation, StudyFacts
+from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenSurfaces
 
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
@@ -185,3 +185,14 @@ def unsure_specimens(perceived: pd.DataFrame, cross_validation: CrossValidation,
     table = table.sort_values(["pad", "flagged_share", "covered", "width"], ascending=[True, False, True, False],
                               kind="stable")
     return table.groupby("pad", sort=False).head(per_pad).drop(columns="width").reset_index(drop=True)
+
+
+def unseen_surfaces(facts: StudyFacts, run: RunSettings, cross_validation: CrossValidation,
+                    controls: Controls) -> UnseenSurfaces:
+    """The study's stage of surfaces never seen: the summary table, the condition it quotes, and the specimens the
+    default family (else the first fitted) is least sure of."""
+    models = cross_validation.models
+    unsure_model = DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]
+    return UnseenSurfaces(unseen_summary(facts, cross_validation, controls.controls),
+                          headline_condition(run.conditions),
+                          unsure_specimens(facts.perceived, cross_validation, unsure_model))
