@@ -61,7 +61,6 @@ def test_the_unseen_summary_is_computed_once_per_run(small_study, monkeypatch, t
         return real(*stages)
 
     monkeypatch.setattr(unseen_module, "unseen_summary", counting)
-    monkeypatch.setattr("roughsense.analysis.study_analysis.unseen_summary", counting)
     results = _analyse(*small_study)
     write_report(results, tmp_path / "report")
     lines = console_lines(results)
@@ -71,7 +70,7 @@ def test_the_unseen_summary_is_computed_once_per_run(small_study, monkeypatch, t
     callers = subprocess.run(["grep", "-rn", "unseen_summary(", str(SRC)], capture_output=True, text=True).stdout
     calls_in_code = [line for line in callers.splitlines() if "def unseen_summary" not in line and '"""' not in line
                      and "``" not in line]
-    assert [line.split(":")[0].removeprefix(str(SRC)) for line in calls_in_code] == ["/analysis/study_analysis.py"]
+    assert [line.split(":")[0].removeprefix(str(SRC)) for line in calls_in_code] == ["/analysis/unseen.py"]
 
 
 def test_the_headline_condition_is_combined_else_the_last_analysed():
