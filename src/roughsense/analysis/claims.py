@@ -23,7 +23,7 @@ import math
 
 import pandas as pd
 
-from ..model.families import family, registry
+from ..model.families import registry
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .claim_tests import (
     ClaimTest,
@@ -40,8 +40,8 @@ from .claim_tests import (
     _sd_flat,
     _smooth_beats_fingerprint,
 )
-from .controls import training_mean_predictions
-from .metrics import ALPHA, specimen_table
+from .controls import training_mean_results
+from .metrics import ALPHA
 from .results import CrossValidation, StudyFacts
 
 #: claims.csv: the original columns first, then (only added, never reordered) the evidence behind each verdict.
@@ -166,29 +166,6 @@ def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[frame["model"].isin(paper)].drop(columns="model").reset_index(drop=True)
 
 
-def training_mean_results(perceived: pd.DataFrame, cross_validation: CrossValidation, cv: str) -> pd.DataFrame:
-    """The per-specimen table (pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl, rmse) of the model
-    that predicts each training fold's mean, on the same trials and folds as the PLS fits of ``cv``.
-
-    A claim the training mean also meets cannot tell a model from no model.
-    """
-    frames = []
-    gmean = perceived.set_index("specimen")["gmean"]
-    for fit in cross_validation.fits:
-        if fit.cv != cv or not family(fit.model).paper:
-            continue
-        trials = fit.predictions[["specimen"]].copy()
-        y = trials["specimen"].map(gmean).to_numpy(dtype=float)
-        trials["prediction"] = training_mean_predictions(y, trials["specimen"].astype(str).to_numpy(), cv)
-        # Every trial of a specimen gets the same prediction, so the SD is 0 under either ddof.
-        table = specimen_table(trials, perceived, pred_sd_ddof=0)
-        table.insert(0, "pad", fit.pad)
-        table.insert(1, "condition", fit.condition)
-        frames.append(table)
-    columns = ["pad", "condition", "specimen", "gmean", "sd", "pred_mean", "pred_sd", "ovl", "rmse", "n_predictions"]
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
-
-
 def _basis(claim: ClaimTest, simulation: dict | None) -> str:
     if simulation is None:
         return "finding"
@@ -202,13 +179,14 @@ def _basis(claim: ClaimTest, simulation: dict | None) -> str:
     return "finding on simulated data"
 
 
-def _scheme_claims(perceived: pd.DataFrame, cross_validation: CrossValidation, cv: str,
+def _scheme_claims(perceived: pd.DataFrame, cross_validation: CrossValidation, paper_fits: list, cv: str,
                    controls: pd.DataFrame) -> list[ClaimTest]:
-    """Every sensor claim of one CV scheme, on the PLS fits and the training mean under the same folds."""
+    """Every sensor claim of one CV scheme, on the PLS fits (``paper_fits``) and the training mean under the same
+    folds."""
     pads = cross_validation.pads
     people = perceived[["specimen", "gmean", "sd"]]
     results = _of_pls(cross_validation.results(cv)).merge(people, on="specimen", how="left")
-    null = training_mean_results(perceived, cross_validation, cv)
+    null = training_mean_results(perceived, paper_fits, cv)
     rows = []
     for pad in pads:
         rows += [_combined_beats_singles(results, pad, cv), _combined_lowest_mean(results, pad, cv)]
@@ -228,14 +206,17 @@ def evaluate_claims(facts: StudyFacts, cross_validation: CrossValidation, contro
 
     Of the paper's PLS model only: the other families' rows of the results and controls are left out.
     """
-    fits = cross_validation.fits
-    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv and family(f.model).paper for f in fits)]
+    paper = {f.name for f in registry() if f.paper}
+    paper_fits = [f for f in cross_validation.fits if f.model in paper]
+    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv for f in paper_fits)]
     controls = _of_pls(controls)
     if controls is None or controls.empty:
         controls = pd.DataFrame(columns=["pad", "condition", "cv", "passes"])
-    tested = _rating_claims(facts.perceived, facts.shapes, facts.wavelengths)
+    tested = []
     for cv in schemes:
-        tested += _scheme_claims(facts.perceived, cross_validation, cv, controls)
+        tested += _scheme_claims(facts.perceived, cross_validation, paper_fits, cv, controls)
+    # The ratings' claims last here; the table's rows are ordered by claim and scheme below.
+    tested += _rating_claims(facts.perceived, facts.shapes, facts.wavelengths)
     rows = [_claim_row(claim, controls, facts.provenance.settings) for claim in tested]
     order = {key: i for i, key in enumerate(CLAIMS)}
     frame = pd.DataFrame(rows)

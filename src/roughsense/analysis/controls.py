@@ -27,7 +27,7 @@ from .._util.workers import thread_map
 from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.pls import single_threaded_blas
-from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA
+from .metrics import ALPHA, specimen_table  # a model passes the permutation control when p < ALPHA
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = defaults.PERMUTATIONS
@@ -87,6 +87,29 @@ def training_mean_predictions(y: np.ndarray, specimens: Sequence, cv: str) -> np
     0-component column (``predictions[:, 0]``), so a claim can be checked against it trial by trial.
     """
     return fold_mean_predictions(y, np.arange(len(y)) if cv == "loo" else specimens)
+
+
+def training_mean_results(perceived: pd.DataFrame, fits: Sequence, cv: str) -> pd.DataFrame:
+    """The per-specimen table (pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl, rmse) of the model
+    that predicts each training fold's mean, on the same trials and folds as the ``fits`` (FamilyFit) of ``cv``.
+
+    A claim the training mean also meets cannot tell a model from no model.
+    """
+    frames = []
+    gmean = perceived.set_index("specimen")["gmean"]
+    for fit in fits:
+        if fit.cv != cv:
+            continue
+        trials = fit.predictions[["specimen"]].copy()
+        y = trials["specimen"].map(gmean).to_numpy(dtype=float)
+        trials["prediction"] = training_mean_predictions(y, trials["specimen"].astype(str).to_numpy(), cv)
+        # Every trial of a specimen gets the same prediction, so the SD is 0 under either ddof.
+        table = specimen_table(trials, perceived, pred_sd_ddof=0)
+        table.insert(0, "pad", fit.pad)
+        table.insert(1, "condition", fit.condition)
+        frames.append(table)
+    columns = ["pad", "condition", "specimen", "gmean", "sd", "pred_mean", "pred_sd", "ovl", "rmse", "n_predictions"]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
 
 
 def permutation_p(rmse: float, permuted: np.ndarray) -> float:
