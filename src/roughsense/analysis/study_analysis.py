@@ -64,8 +64,9 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     Returns
     -------
     StudyResults
-        Frozen, every table computed once: ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``,
-        ``presses``, ``unseen``, ``headline_condition`` and ``provenance``: what the report renders.
+        Frozen, assembled once from the stages' records (roughsense.analysis.results), every table computed once:
+        ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``, ``presses``, ``unseen``,
+        ``headline_condition`` and ``provenance``: what the report renders.
 
     Examples
     --------
@@ -93,10 +94,10 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     cross_validation, jobs = _fit_every_condition(facts, run, models, features, study, combined_forces, progress)
     controls = _controls_table(jobs, run.seed, n_jobs, progress)
     schemes = stricter_schemes(facts, run, controls, jobs) if stricter else StricterSchemes.skipped()
-    paper = PaperComparisons(signed_rank_tests(cross_validation, run.conditions),
-                             evaluate_claims(facts, cross_validation, controls.controls), paper_predictive())
+    comparisons = PaperComparisons(signed_rank_tests(cross_validation, run.conditions),
+                                   evaluate_claims(facts, cross_validation, controls.controls), paper_predictive())
     unseen = unseen_surfaces(facts, run, cross_validation, controls)
-    return StudyResults.assemble(facts, run, cross_validation, controls, schemes, paper, unseen)
+    return StudyResults.assemble(facts, run, cross_validation, controls, schemes, comparisons, unseen)
 
 
 def _controls_table(jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> Controls:
