@@ -96,6 +96,7 @@ def main() -> None:
     args = parser.parse_args()
     from roughsense.analysis import controls
     from roughsense.analysis.family_fits import family_fit
+    from roughsense.model.pls_family import permuted_cv_rmse
 
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")
@@ -123,11 +124,11 @@ def main() -> None:
             per_model[(pad, condition, cv)] = time.perf_counter() - started
             if (pad, condition) == ("smooth", "combined"):
                 Y = controls.permuted_targets(y, specimens, perms[: args.sklearn_permutations])
-                A = int(fit.cv_rmse.size - 1)
+                A = int(fit.curve.size - 1)
                 started = time.perf_counter()
                 theirs = [sklearn_permuted_rmse(X, Y[:, b], specimens, cv, A) for b in range(Y.shape[1])]
                 peer = (time.perf_counter() - started) / Y.shape[1]
-                ours = controls.permuted_cv_rmse(X, Y, specimens, cv, A)
+                ours = permuted_cv_rmse(X, Y, specimens, cv, A)
                 agree = np.max(np.abs(np.asarray(theirs) - ours))
                 mine = per_model[(pad, condition, cv)] / B
                 print(f"{pad} {condition} {cv.upper():4}: ours {1000 * mine:7.1f} ms/shuffling (batched, {B}), "

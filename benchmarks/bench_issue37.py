@@ -12,7 +12,7 @@
   peak law, each LOO and nested LOSO; 8 models each), this checkout and ``--peer-src`` alternated in fresh processes.
 
 - Chunks (``--chunks``): the controls alone (``run_controls``, 2 threads, the built-in study's 32 jobs) in fresh
-  processes for chunk sizes of the law's shufflings (``controls.LAW_CHUNK_CELLS``) and of PLS's targets
+  processes for chunk sizes of the law's shufflings (``peak_law_family.LAW_CHUNK_CELLS``) and of PLS's targets
   (``pls_cv._BATCH_BYTES``): CPU and peak RSS above the process's own before the controls.
 
 Stage times are the CLI's own stage lines (``roughsense: controls, ... done in 12.3 s``; a stage under 2 s prints
@@ -145,10 +145,10 @@ def chunk_run(path: Path, law_cells: int, pls_bytes: int) -> None:
     import resource
 
     from roughsense.analysis import controls
-    from roughsense.model.pls import cv as pls_cv
+    from roughsense.model import peak_law_family, pls_cv
 
     jobs = pickle.loads(path.read_bytes())
-    controls.LAW_CHUNK_CELLS, pls_cv._BATCH_BYTES = law_cells, pls_bytes
+    peak_law_family.LAW_CHUNK_CELLS, pls_cv._BATCH_BYTES = law_cells, pls_bytes
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     started = time.process_time()
     controls.run_controls(jobs, n_jobs=2)

@@ -7,7 +7,8 @@ import pytest
 from scipy import stats
 
 from roughsense.analysis import claims as _claims
-from roughsense.analysis.claims import CLAIM_COLUMNS, VERDICTS, Evidence, verdict
+from roughsense.analysis.claim_tests import Evidence
+from roughsense.analysis.claims import CLAIM_COLUMNS, VERDICTS, verdict
 from roughsense.analysis.controls import training_mean_predictions
 from roughsense.analysis.metrics import paired_tost, slope_tost
 from roughsense.analysis.study_analysis import analyse_study
@@ -138,7 +139,7 @@ def test_on_a_simulated_study_rating_claims_are_labelled_properties_of_the_simul
     study, features = synthetic_study(repetitions=2, seed=2, pads=("smooth",))
     study.extra = {"simulation": {"seed": 4, "simulator": "roughsense.sim"}}
     simulated = analyse_study(study, features=features, max_components=2, n_permutations=0, cv_schemes=("loo",))
-    assert simulated.simulated and simulated.simulation["seed"] == 4
+    assert simulated.provenance.kind == "simulated" and simulated.provenance.settings["seed"] == 4
     basis = simulated.claims.set_index(["key", "cv"])["basis"]
     assert basis[("ratings_rise", "none")].startswith("property of the simulator")
     assert "tuned" in basis[("rmse_below_sd", "loo")]

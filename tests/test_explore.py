@@ -140,7 +140,7 @@ def test_cell_equals_simulate_then_study(tmp_path):
     for fit in analysis.fits:
         row = summary[(summary.condition == fit.condition) & (summary.cv == fit.cv)].iloc[0]
         assert row["rmse"] == pytest.approx(fit.table["rmse"].mean(), rel=2e-2)
-        assert row["cv_rmse"] == pytest.approx(fit.cv_rmse[fit.best_n_components], rel=2e-2)
+        assert row["cv_rmse"] == pytest.approx(fit.curve[fit.best_n_components], rel=2e-2)
     assert set(summary["condition"]) == {"1N", "2N", "3N", "combined"} and set(summary["cv"]) == {"loo", "loso"}
     assert set(summary["model"]) == set(per_specimen["model"]) == {"pls"}
     assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL
@@ -471,7 +471,7 @@ def test_model_axis_rows_equal_the_study_analysis_of_each_model(two_model_cell):
     for fit in alone.fits:
         row = law.loc[(fit.condition, fit.cv)]
         assert row["rmse"] == fit.table["rmse"].mean() and row["n_components"] == 1
-        assert row["cv_rmse"] == fit.cv_rmse[1]
+        assert row["cv_rmse"] == fit.curve[1]
         mine = per_specimen[(per_specimen["model"] == "peak-law") & (per_specimen["condition"] == fit.condition)
                             & (per_specimen["cv"] == fit.cv)].set_index("specimen")
         theirs = fit.table.set_index("specimen")
@@ -594,7 +594,7 @@ def test_null_rmse_from_the_stored_targets_is_the_analysis_training_mean(two_mod
         g = rows["gmean"].to_numpy()
         k, reps = g.size, cell.repetitions  # per-specimen nulls, pooled over equal row counts: cv_rmse[0]
         pred = (g.sum() - g) / (k - 1) if fit.cv == "loso" else (reps * g.sum() - g) / (reps * k - 1)
-        assert np.sqrt(np.mean((pred - g) ** 2)) == pytest.approx(fit.cv_rmse[0], rel=1e-9)
+        assert np.sqrt(np.mean((pred - g) ** 2)) == pytest.approx(fit.curve[0], rel=1e-9)
         assert ours.loc[(cell.id, fit.pad, fit.condition, fit.cv, "pls")] == pytest.approx(np.abs(pred - g).mean())
         if fit.cv == "loso":
             assert ours.loc[(cell.id, fit.pad, fit.condition, fit.cv, "pls")] == pytest.approx(

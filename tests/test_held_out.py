@@ -7,9 +7,11 @@ import pandas as pd
 import pytest
 from sklearn.cross_decomposition import PLSRegression
 
-from roughsense.analysis.held_out import HELD_OUT_COLUMNS, judged, pls_scheme_predictions, scheme_folds
-from roughsense.analysis.study_analysis import analyse_study, law_settings
-from roughsense.model.peak_law.cv import peak_law_cv
+from roughsense.analysis.family_fits import law_settings
+from roughsense.analysis.held_out import HELD_OUT_COLUMNS, judged, scheme_folds
+from roughsense.analysis.study_analysis import analyse_study
+from roughsense.model.peak_law import peak_law_cv
+from roughsense.model.pls_family import pls_scheme_predictions
 
 from .test_study_analysis import synthetic_study
 
@@ -91,7 +93,7 @@ def test_the_study_reports_every_scheme_and_its_period_rows_are_the_law_refitted
     assert list(table.columns[: len(HELD_OUT_COLUMNS)]) == HELD_OUT_COLUMNS
     assert set(table["scheme"]) == {"specimen", "period", "shape"}
     # The specimen rows are the study's own LOSO numbers.
-    unseen = result.unseen_summary().set_index(["model", "pad", "condition"])
+    unseen = result.unseen.set_index(["model", "pad", "condition"])
     for row in table[table.scheme == "specimen"].itertuples():
         assert row.rmse == pytest.approx(unseen.loc[(row.model, row.pad, row.condition), "rmse"])
         assert row.n_folds == result.perceived.shape[0]
@@ -115,7 +117,7 @@ def test_the_study_quotes_the_nested_jackknife_plus_and_its_misses(analysis):
     from roughsense.analysis.unseen import unsure_specimens
 
     result, _, _ = analysis
-    unseen = result.unseen_summary()
+    unseen = result.unseen
     law = unseen[unseen.model == "peak-law"].iloc[0]
     fit = result.condition_fit(law.pad, law.condition, "loso", "peak-law")
     check = fit.interval_check
@@ -123,7 +125,7 @@ def test_the_study_quotes_the_nested_jackknife_plus_and_its_misses(analysis):
     missed = check[~check["covered"]]
     assert [part.split(" ")[0] for part in law.jackknife_plus_misses.split("; ") if part] == list(missed["specimen"])
     assert np.isnan(unseen[unseen.model == "pls"]["jackknife_plus_coverage"]).all()  # PLS has no leave-two-out fits
-    unsure = unsure_specimens(result, "peak-law", per_pad=14)
+    unsure = unsure_specimens(result.perceived, result, "peak-law", per_pad=14)
     for row in unsure[unsure.pad == law.pad].itertuples():
         mine = check.set_index("specimen").loc[row.specimen]
         assert row.covered == mine["covered"] and row.pi90_low == pytest.approx(mine["pi90_low"])
@@ -140,7 +142,7 @@ def test_presses_per_surface_reach_the_loso_error_with_every_press_and_predict_s
     result, _, _ = analysis
     presses = result.presses
     assert set(presses["model"]) == {"peak-law"} and list(presses["n_presses"].unique()) == [1, 3]  # 3 repetitions
-    unseen = result.unseen_summary().set_index(["model", "pad", "condition"])
+    unseen = result.unseen.set_index(["model", "pad", "condition"])
     for row in presses[presses["n_presses"] == 3].itertuples():  # every press: the study's LOSO surface means
         fit = result.condition_fit(row.pad, row.condition, "loso", "peak-law")
         means = fit.predictions.groupby("specimen")["prediction"].mean()

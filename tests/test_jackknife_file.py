@@ -200,7 +200,7 @@ def test_one_press_gets_a_wider_interval_than_ten_and_held_out_readings_are_cove
     """Issue 35: the interval widens when a surface is read from fewer presses, and held out (each specimen's
     interval from models that never saw it, leave-two-out) it covers about 90 % at 1 and at 10 presses."""
     from roughsense.analysis import dataset
-    from roughsense.analysis.study_analysis import law_settings
+    from roughsense.analysis.family_fits import law_settings
     from roughsense.io.study import read_study
     from roughsense.model.peak_law.folds import law_nested_press_check, law_pair_models
 

@@ -56,23 +56,21 @@ def test_the_unseen_summary_is_computed_once_per_run(small_study, monkeypatch, t
     calls = []
     real = unseen_module.unseen_summary
 
-    def counting(analysis):
+    def counting(*stages):
         calls.append(1)
-        return real(analysis)
+        return real(*stages)
 
     monkeypatch.setattr(unseen_module, "unseen_summary", counting)
-    monkeypatch.setattr("roughsense.analysis.study_analysis.unseen_summary", counting)
     results = _analyse(*small_study)
     write_report(results, tmp_path / "report")
     lines = console_lines(results)
     assert len(calls) == 1
-    assert results.unseen_summary() is results.unseen
     assert set(results.unseen["model"]) == {"pls", "peak-law"} and len(results.unseen) == 2 * 3  # families x conditions
     assert any("combined" in line for line in lines[:1])
     callers = subprocess.run(["grep", "-rn", "unseen_summary(", str(SRC)], capture_output=True, text=True).stdout
     calls_in_code = [line for line in callers.splitlines() if "def unseen_summary" not in line and '"""' not in line
                      and "``" not in line]
-    assert [line.split(":")[0].removeprefix(str(SRC)) for line in calls_in_code] == ["/analysis/study_analysis.py"]
+    assert [line.split(":")[0].removeprefix(str(SRC)) for line in calls_in_code] == ["/analysis/unseen.py"]
 
 
 def test_the_headline_condition_is_combined_else_the_last_analysed():

@@ -91,7 +91,7 @@ def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
     got = fit.predictions.merge(rows[["specimen", "repetition"]].assign(expected=expected), on=["specimen", "repetition"])
     np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-6, atol=1e-9)
     # The chosen count is the argmin of the CV curve over 1..max.
-    assert fit.best_n_components == 1 + int(np.argmin(fit.cv_rmse[1:]))
+    assert fit.best_n_components == 1 + int(np.argmin(fit.curve[1:]))
 
 
 def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inputs):
@@ -253,9 +253,9 @@ def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_an
     got = fit.predictions.merge(keys.assign(expected=expected), on=["specimen", "repetition"])
     assert len(got) == len(y)
     np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-9, atol=1e-12)
-    assert fit.cv_rmse[1] == pytest.approx(np.sqrt(np.mean((expected - y) ** 2)), rel=1e-9)
+    assert fit.curve[1] == pytest.approx(np.sqrt(np.mean((expected - y) ** 2)), rel=1e-9)
     # Index 0 is the training mean under the same folds: PLS's 0-component LOSO, the same number.
-    assert fit.cv_rmse[0] == analysis.condition_fit("fingerprint", "combined", "loso").cv_rmse[0]
+    assert fit.curve[0] == analysis.condition_fit("fingerprint", "combined", "loso").curve[0]
     assert (fit.best_n_components, fit.one_se_n_components, fit.nested_n_components) == (1, 1, {})
 
 
@@ -279,7 +279,7 @@ def test_peak_law_loo_predictions_are_refits_without_each_trial(analysis_and_inp
 
 def test_unseen_summary_follows_its_definitions(analysis_and_inputs):
     analysis, _, _ = analysis_and_inputs
-    unseen = analysis.unseen_summary().set_index(["model", "pad", "condition"])
+    unseen = analysis.unseen.set_index(["model", "pad", "condition"])
     assert len(unseen) == 2 * 2 * 4
     loso = analysis.results("loso")
     controls = analysis.controls[analysis.controls.cv == "loso"].set_index(["model", "pad", "condition"])

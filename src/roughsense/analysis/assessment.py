@@ -24,6 +24,7 @@ from ..model.jackknife_file import DeployedJackknife
 from ..model.training_file import FAILS
 from . import controls as _controls
 from .family_fits import family_fit
+from .metrics import ALPHA
 from .unseen import null_specimen_rmse
 
 
@@ -50,9 +51,9 @@ class UnseenAssessment:
         if not self.pooled_rmse < self.null_pooled_rmse:
             problems.append(f"no better than the training mean (pooled RMSE {self.pooled_rmse:.3f} vs "
                             f"{self.null_pooled_rmse:.3f})")
-        if self.n_permutations and not self.permutation_p < _controls.ALPHA:
+        if self.n_permutations and not self.permutation_p < ALPHA:
             problems.append(f"not better than shuffled targets (permutation p = {self.permutation_p:.3f} >= "
-                            f"{_controls.ALPHA:g}, {self.n_permutations} shufflings)")
+                            f"{ALPHA:g}, {self.n_permutations} shufflings)")
         if not problems:
             return ""
         verdict = ("Its predictions for new surfaces are no better than guessing" if len(problems) == 2 else

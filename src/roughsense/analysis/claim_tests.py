@@ -18,8 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from ..paper import COMBINED, FINGERPRINT_PAD, FORCE_CONDITIONS, SMOOTH_PAD
-from .controls import ALPHA
-from .metrics import compare_conditions, paired_tost, signed_rank, slope_tost
+from .metrics import ALPHA, compare_conditions, paired_tost, signed_rank, slope_tost
 
 #: Equivalence margin for a difference in mean OVL (a 0..1 scale), chosen before looking at any result: a tenth
 #: of the scale, below the between-specimen SD of OVL in the paper's Tables 2 and 5 (0.13-0.19), and over twice

@@ -23,13 +23,9 @@ import math
 
 import pandas as pd
 
-from ..model.families import family, registry
+from ..model.families import registry
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
-from .claim_tests import (  # noqa: F401 (the claim tests, re-exported: the claims' readers import them here)
-    LOW_OVL_SPECIMENS,
-    OVL_MARGIN,
-    SD_RATIO_PER_DOUBLING,
-    SD_SLOPE_MARGIN,
+from .claim_tests import (
     ClaimTest,
     Evidence,
     _aligns,
@@ -44,8 +40,9 @@ from .claim_tests import (  # noqa: F401 (the claim tests, re-exported: the clai
     _sd_flat,
     _smooth_beats_fingerprint,
 )
-from .controls import ALPHA, training_mean_predictions
-from .metrics import specimen_table
+from .controls import training_mean_results
+from .metrics import ALPHA
+from .results import CrossValidation, StudyFacts
 
 #: claims.csv: the original columns first, then (only added, never reordered) the evidence behind each verdict.
 CLAIM_COLUMNS = ["claim", "pad", "cv", "statistic", "p", "verdict", "rule", "detail", "paper", "basis", "key",
@@ -169,29 +166,6 @@ def _of_pls(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[frame["model"].isin(paper)].drop(columns="model").reset_index(drop=True)
 
 
-def training_mean_results(analysis, cv: str) -> pd.DataFrame:
-    """The per-specimen table (pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl, rmse) of the model
-    that predicts each training fold's mean, on the same trials and folds as the PLS fits of ``cv``.
-
-    A claim the training mean also meets cannot tell a model from no model.
-    """
-    frames = []
-    gmean = analysis.perceived.set_index("specimen")["gmean"]
-    for fit in analysis.fits:
-        if fit.cv != cv or not family(fit.model).paper:
-            continue
-        trials = fit.predictions[["specimen"]].copy()
-        y = trials["specimen"].map(gmean).to_numpy(dtype=float)
-        trials["prediction"] = training_mean_predictions(y, trials["specimen"].astype(str).to_numpy(), cv)
-        # Every trial of a specimen gets the same prediction, so the SD is 0 under either ddof.
-        table = specimen_table(trials, analysis.perceived, pred_sd_ddof=0)
-        table.insert(0, "pad", fit.pad)
-        table.insert(1, "condition", fit.condition)
-        frames.append(table)
-    columns = ["pad", "condition", "specimen", "gmean", "sd", "pred_mean", "pred_sd", "ovl", "rmse", "n_predictions"]
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
-
-
 def _basis(claim: ClaimTest, simulation: dict | None) -> str:
     if simulation is None:
         return "finding"
@@ -205,12 +179,14 @@ def _basis(claim: ClaimTest, simulation: dict | None) -> str:
     return "finding on simulated data"
 
 
-def _scheme_claims(analysis, cv: str, controls: pd.DataFrame) -> list[ClaimTest]:
-    """Every sensor claim of one CV scheme, on the PLS fits and the training mean under the same folds."""
-    pads = analysis.pads
-    people = analysis.perceived[["specimen", "gmean", "sd"]]
-    results = _of_pls(analysis.results(cv)).merge(people, on="specimen", how="left")
-    null = training_mean_results(analysis, cv)
+def _scheme_claims(perceived: pd.DataFrame, cross_validation: CrossValidation, paper_fits: list, cv: str,
+                   controls: pd.DataFrame) -> list[ClaimTest]:
+    """Every sensor claim of one CV scheme, on the PLS fits (``paper_fits``) and the training mean under the same
+    folds."""
+    pads = cross_validation.pads
+    people = perceived[["specimen", "gmean", "sd"]]
+    results = _of_pls(cross_validation.results(cv)).merge(people, on="specimen", how="left")
+    null = training_mean_results(perceived, paper_fits, cv)
     rows = []
     for pad in pads:
         rows += [_combined_beats_singles(results, pad, cv), _combined_lowest_mean(results, pad, cv)]
@@ -224,19 +200,24 @@ def _scheme_claims(analysis, cv: str, controls: pd.DataFrame) -> list[ClaimTest]
     return rows
 
 
-def evaluate_claims(analysis, wavelengths: dict | None = None) -> pd.DataFrame:
-    """Every claim for every pad and CV scheme of ``analysis`` (a StudyAnalysis), as a table (CLAIM_COLUMNS).
+def evaluate_claims(facts: StudyFacts, cross_validation: CrossValidation, controls: pd.DataFrame) -> pd.DataFrame:
+    """Every claim for every pad and CV scheme of a study's fits, as a table (CLAIM_COLUMNS): the ratings' claims from
+    ``facts``, the sensor's from ``cross_validation`` with ``controls`` (controls.csv) as their premise.
 
     Of the paper's PLS model only: the other families' rows of the results and controls are left out.
     """
-    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv and family(f.model).paper for f in analysis.fits)]
-    controls = _of_pls(analysis.controls)
+    paper = {f.name for f in registry() if f.paper}
+    paper_fits = [f for f in cross_validation.fits if f.model in paper]
+    schemes = [cv for cv in ("loo", "loso") if any(f.cv == cv for f in paper_fits)]
+    controls = _of_pls(controls)
     if controls is None or controls.empty:
         controls = pd.DataFrame(columns=["pad", "condition", "cv", "passes"])
-    tested = _rating_claims(analysis.perceived, analysis.shapes, wavelengths or analysis.wavelengths)
+    tested = []
     for cv in schemes:
-        tested += _scheme_claims(analysis, cv, controls)
-    rows = [_claim_row(claim, controls, analysis.simulation) for claim in tested]
+        tested += _scheme_claims(facts.perceived, cross_validation, paper_fits, cv, controls)
+    # The ratings' claims last here; the table's rows are ordered by claim and scheme below.
+    tested += _rating_claims(facts.perceived, facts.shapes, facts.wavelengths)
+    rows = [_claim_row(claim, controls, facts.provenance.settings) for claim in tested]
     order = {key: i for i, key in enumerate(CLAIMS)}
     frame = pd.DataFrame(rows)
     frame["_order"] = frame["key"].map(order)

@@ -26,10 +26,8 @@ from .._util.checks import Integer, check
 from .._util.workers import thread_map
 from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
-from ..model.peak_law.family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
-from ..model.pls.family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
-from ..model.pls.simpls import single_threaded_blas
-from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
+from ..model.pls import single_threaded_blas
+from .metrics import ALPHA, specimen_table  # a model passes the permutation control when p < ALPHA
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
 DEFAULT_PERMUTATIONS = defaults.PERMUTATIONS
@@ -73,9 +71,6 @@ def permuted_targets(y: np.ndarray, specimens: Sequence, permutations: np.ndarra
     return values[permutations][:, codes].T
 
 
-_cv_rmse = cv_rmse  # the pooled RMSE, as every family's permuted_rmse computes it
-
-
 def fold_mean_predictions(y: np.ndarray, folds: Sequence) -> np.ndarray:
     """The null model's out-of-fold predictions under any folds: each trial gets the mean target of its training
     fold (every trial whose fold label differs from its own). The one home of the training-mean model."""
@@ -94,6 +89,29 @@ def training_mean_predictions(y: np.ndarray, specimens: Sequence, cv: str) -> np
     return fold_mean_predictions(y, np.arange(len(y)) if cv == "loo" else specimens)
 
 
+def training_mean_results(perceived: pd.DataFrame, fits: Sequence, cv: str) -> pd.DataFrame:
+    """The per-specimen table (pad, condition, specimen, gmean, sd, pred_mean, pred_sd, ovl, rmse) of the model
+    that predicts each training fold's mean, on the same trials and folds as the ``fits`` (FamilyFit) of ``cv``.
+
+    A claim the training mean also meets cannot tell a model from no model.
+    """
+    frames = []
+    gmean = perceived.set_index("specimen")["gmean"]
+    for fit in fits:
+        if fit.cv != cv:
+            continue
+        trials = fit.predictions[["specimen"]].copy()
+        y = trials["specimen"].map(gmean).to_numpy(dtype=float)
+        trials["prediction"] = training_mean_predictions(y, trials["specimen"].astype(str).to_numpy(), cv)
+        # Every trial of a specimen gets the same prediction, so the SD is 0 under either ddof.
+        table = specimen_table(trials, perceived, pred_sd_ddof=0)
+        table.insert(0, "pad", fit.pad)
+        table.insert(1, "condition", fit.condition)
+        frames.append(table)
+    columns = ["pad", "condition", "specimen", "gmean", "sd", "pred_mean", "pred_sd", "ovl", "rmse", "n_predictions"]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
+
+
 def permutation_p(rmse: float, permuted: np.ndarray) -> float:
     """(1 + shufflings at least as good) / (1 + shufflings); ``rmse`` computed as the shuffled ones, so ties count."""
     return float((1 + np.sum(permuted <= rmse * (1 + 1e-12))) / (1 + permuted.size))
@@ -108,8 +126,8 @@ def control_row(fit, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, permut
     """
     specimens = np.asarray(specimens).astype(str)
     predictions = fit.predictions["prediction"].to_numpy(dtype=float)
-    rmse = float(_cv_rmse(predictions, y))
-    # cv_rmse[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
+    rmse = float(cv_rmse(predictions, y))  # the pooled RMSE, as every family's permuted_rmse computes it
+    # curve[0] is the training-fold mean under the same folds: the null model (LOSO: nothing to choose).
     null_rmse = float(fit.curve[0])
     n_permutations = int(permutations.shape[0])
     if n_permutations:

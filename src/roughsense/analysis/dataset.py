@@ -81,6 +81,17 @@ def study_features(
     return pd.concat([study.manifest.reset_index(drop=True), spectra.reset_index(drop=True)], axis=1)
 
 
+def check_repetitions(features: pd.DataFrame, study: Study) -> None:
+    """Cross-validation needs at least 2 images of each specimen on each pad at each force."""
+    counts = features.groupby(["pad", "specimen", "condition"]).size()
+    if counts.min() < 2:
+        (pad, specimen, condition) = counts.idxmin()
+        raise InputError(
+            f"too few repetitions for cross-validation: {specimen} on the {pad} pad at {condition} has {counts.min()}",
+            path=study.root / MANIFEST_CSV,
+        )
+
+
 def frequency_columns(features: pd.DataFrame) -> list[str]:
     """The spectrum columns (those :func:`spectrum_columns` named), in order."""
     return [c for c in features.columns if isinstance(c, str) and c.startswith(SPECTRUM_PREFIX)]

@@ -52,11 +52,6 @@ class FamilyFit:
     interval_check: pd.DataFrame | None = None
 
     @property
-    def cv_rmse(self) -> np.ndarray:
-        """The CV curve under its old name."""
-        return self.curve
-
-    @property
     def best_n_components(self) -> int:
         return self.best
 
@@ -72,10 +67,6 @@ class FamilyFit:
         """The fit's cross-validation as its family's engine returned it."""
         return FoldResult(self.predictions["prediction"].to_numpy(dtype=float), self.curve, self.best, self.one_se,
                           self.per_specimen)
-
-
-#: The fit record under its old name (re-exported for one release).
-ConditionFit = FamilyFit
 
 
 def _usable_components(n_train: int, n_features: int, max_components: int) -> int:

@@ -26,8 +26,10 @@ from scipy import stats
 from ..model.engines import engine
 from ..model.families import paper_family
 from ..model.family import FoldSettings
-from ..model.pls.family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
-from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets
+from .controls import fold_mean_predictions, permutation_p, permuted_targets
+from .metrics import ALPHA
+from .presses import presses_analysis, presses_needed_by_curve
+from .results import Controls, RunSettings, StricterSchemes, StudyFacts
 
 #: The schemes, strictest last, and what each holds out in a user's words.
 SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
@@ -74,17 +76,26 @@ def judged(prediction: np.ndarray, y: np.ndarray, specimens: np.ndarray, folds: 
     return row
 
 
-def held_out_analysis(analysis, jobs) -> pd.DataFrame:
+def stricter_schemes(facts: StudyFacts, run: RunSettings, controls: Controls, jobs) -> StricterSchemes:
+    """The study's stage of stricter schemes: a period and a shape left out (this module), and presses per surface
+    (presses.py), from the LOSO fits among the controls' ``jobs``."""
+    held_out = held_out_analysis(facts, controls.controls, jobs, run.max_components)
+    presses = presses_analysis(jobs, run.seed)
+    return StricterSchemes(held_out, presses, presses_needed_by_curve(presses))
+
+
+def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_components: int) -> pd.DataFrame:
     """The held-out table of a study: every LOSO fit among the controls' ``jobs`` (fit, X, y, specimens,
-    shufflings, law) under every scheme, run after the controls so the LOSO rows quote their permutation p."""
+    shufflings, law) under every scheme, run after the controls so the LOSO rows quote their permutation p
+    (``controls``: controls.csv). ``facts`` give each specimen's period and shape."""
     rows = []
     for fit, X, y, specimens, permutations, law in jobs:
         if fit.cv != "loso":
             continue
         shuffled = permuted_targets(y, specimens, permutations) if len(permutations) else None
         for scheme in SCHEMES:
-            folds = scheme_folds(scheme, specimens, analysis.shapes, analysis.wavelengths)
-            scored = _scheme_predictions(fit, scheme, folds, X, y, specimens, shuffled, law, analysis)
+            folds = scheme_folds(scheme, specimens, facts.shapes, facts.wavelengths)
+            scored = _scheme_predictions(fit, scheme, folds, X, y, specimens, shuffled, law, controls, max_components)
             if scored is None:
                 continue
             prediction, p, n_perm, flags = scored
@@ -95,7 +106,7 @@ def held_out_analysis(analysis, jobs) -> pd.DataFrame:
                 chosen = np.ones(len(y), bool) if mask is None else mask
                 row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
                        "held_out": held, "n_folds": int(pd.Series(folds).nunique()),
-                       **judged(prediction, y, specimens, folds, analysis.shapes, analysis.reference_specimen, chosen),
+                       **judged(prediction, y, specimens, folds, facts.shapes, facts.reference_specimen, chosen),
                        "permutation_p": p, "n_permutations": n_perm,
                        "flagged_share": float(np.mean(flags[chosen])) if flags is not None else float("nan")}
                 row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
@@ -103,19 +114,19 @@ def held_out_analysis(analysis, jobs) -> pd.DataFrame:
     return held_out_table(rows)
 
 
-def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law: dict, analysis):
+def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law: dict, controls: pd.DataFrame,
+                        max_components: int):
     """(predictions, permutation p, shufflings, held-out flags) of one fit under one scheme; None where the scheme
     cannot be formed or the family has none."""
     if folds is None:
         return None
     if scheme == "specimen":  # the study's own LOSO fit and its control
-        control = _control(analysis.controls, fit)
+        control = _control(controls, fit)
         p, n_perm = (float("nan"), 0) if control is None else (float(control["permutation_p"]),
                                                               int(control["n_permutations"]))
         return fit.predictions["prediction"].to_numpy(dtype=float), p, n_perm, fit.held_out_flags
     targets = y[:, None] if shuffled is None else np.column_stack([y, shuffled])
-    scored = engine(fit.model).scheme_predictions(X, targets, specimens, folds, FoldSettings.of(law),
-                                                  analysis.max_components)
+    scored = engine(fit.model).scheme_predictions(X, targets, specimens, folds, FoldSettings.of(law), max_components)
     if scored is None:
         return None
     every, flags = scored

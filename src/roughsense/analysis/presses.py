@@ -18,8 +18,7 @@ import pandas as pd
 from ..model.engines import engine, engines
 from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
-from ..model.peak_law.family import loso_laws  # noqa: F401 (re-exported for one release)
-from ..model.peak_law.folds import specimen_codes
+from ..model.peak_law_folds import specimen_codes
 from .controls import fold_mean_predictions
 
 #: Random subsets of a specimen's presses per count.
@@ -73,12 +72,12 @@ def presses_needed(curve: pd.DataFrame) -> int | None:
     return int(good["n_presses"].min())
 
 
-def presses_analysis(analysis, jobs) -> pd.DataFrame:
+def presses_analysis(jobs, seed: int) -> pd.DataFrame:
     """The study's table (PRESS_COLUMNS) over the LOSO fits among the controls' jobs of every family that reads a
-    surface from its presses together."""
+    surface from its presses together, each count's subsets drawn from ``seed``."""
     frames = []
     for fit, X, y, specimens, _, law in jobs:
-        curve = presses_curve(X, y, specimens, law, analysis.seed, model=fit.model) if fit.cv == "loso" else None
+        curve = presses_curve(X, y, specimens, law, seed, model=fit.model) if fit.cv == "loso" else None
         if curve is None:
             continue
         curve.insert(0, "model", fit.model)

@@ -1,4 +1,4 @@
-"""The paper's own comparisons (Wilcoxon signed-rank on per-specimen RMSE) and whether its values describe a study.
+"""The paper's own comparisons (Wilcoxon signed-rank on per-specimen RMSE).
 
 Of the paper's PLS only: tests.csv has no model column, because these are the comparisons the paper made."""
 from __future__ import annotations
@@ -10,23 +10,23 @@ import pandas as pd
 from .. import paper
 from ..model.families import family
 from .metrics import compare_conditions, signed_rank
-from .results import CV_SCHEMES, StudyResults
+from .results import CV_SCHEMES, CrossValidation
 
 
-def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.DataFrame:
+def signed_rank_tests(cross_validation: CrossValidation, conditions: Sequence[str]) -> pd.DataFrame:
     """Combined vs each single force per pad (Bonferroni x3), and smooth vs fingerprint on the combined condition.
 
     Of the paper's PLS only (tests.csv has no model column): these are the paper's own comparisons.
     """
     frames = []
     for cv in CV_SCHEMES:
-        if not any(f.cv == cv and family(f.model).paper for f in analysis.fits):
+        if not any(f.cv == cv and family(f.model).paper for f in cross_validation.fits):
             continue
-        results = analysis.results(cv)
+        results = cross_validation.results(cv)
         paper_rows = results["model"].map(lambda name: family(name).paper).astype(bool)
         results = results[paper_rows].drop(columns="model")  # the paper's model, as the paper tested
         singles = [c for c in conditions if c != paper.COMBINED]
-        for pad in analysis.pads:
+        for pad in cross_validation.pads:
             if paper.COMBINED not in conditions or not singles:
                 break
             by_condition = {
@@ -37,7 +37,7 @@ def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.D
             table["comparison"] = f"{pad}: " + table["comparison"].astype(str)
             table["cv"] = cv
             frames.append(table)
-        pads = analysis.pads
+        pads = cross_validation.pads
         if len(pads) == 2:
             first, second = sorted(pads, key=lambda p: (p != paper.SMOOTH_PAD, p))
             rows = []
@@ -55,30 +55,3 @@ def signed_rank_tests(analysis: StudyResults, conditions: Sequence[str]) -> pd.D
     tests = pd.concat(frames, ignore_index=True)
     front = ["comparison", "statistic", "p", "p_adjusted", "cv"]
     return tests[front + [c for c in tests.columns if c not in front]]
-
-
-def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
-                        reference_specimen: str) -> tuple[tuple[str, ...], str]:
-    """The pads whose results may stand beside the paper's, and one note on why the others may not.
-
-    The paper's numbers describe its 14 specimens, its two pads, its three forces and their combination,
-    with R3 as the reference; beside any other design they would read as a comparison that is not one.
-    """
-    paper_specimens = list(paper.PAPER_SPECIMENS)
-    problems = []
-    if set(specimens) != set(paper_specimens):
-        problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
-                        f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
-    if list(conditions) != list(paper.PAPER_CONDITIONS):
-        problems.append(f"its conditions ({', '.join(conditions)}) are not the paper's {', '.join(paper.PAPER_CONDITIONS)}")
-    if reference_specimen != paper.REFERENCE_SPECIMEN:
-        problems.append(f"its reference is {reference_specimen}, the paper's {paper.REFERENCE_SPECIMEN}")
-    if problems:
-        return (), "The paper's values are not shown: " + "; ".join(problems) + "."
-    matching = tuple(p for p in pads if p in paper.PAPER_PADS)
-    others = [p for p in pads if p not in paper.PAPER_PADS]
-    note = ""
-    if others:
-        note = (f"The paper's values are not shown for the {', '.join(others)} pad(s): the paper tested only the "
-                f"{' and '.join(paper.PAPER_PADS)} pads.")
-    return matching, note

@@ -13,25 +13,31 @@ targets, so its out-of-fold predictions are its fit on each training fold.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 
-import numpy as np
 import pandas as pd
 
 from .. import defaults, paper
 from ..errors import ConfigError, InputError
-from ..io.study import MANIFEST_CSV, RATINGS_CSV, Study
-from ..model.families import DEFAULT_MODEL, MODEL_FAMILIES, check_model_name
+from ..io.study import RATINGS_CSV, Study
+from ..model.families import MODEL_FAMILIES, check_model_name
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
-from .family_fits import ConditionFit, fit_all, law_settings
-from .held_out import held_out_analysis
-from .presses import presses_analysis, presses_needed_by_curve
-from .results import CV_SCHEMES, RESULT_COLUMNS, Provenance, StudyAnalysis, StudyResults  # noqa: F401 (re-exported for one release)
-from .signed_rank_tests import paper_comparability, signed_rank_tests
+from .family_fits import FamilyFit, fit_all, law_settings
+from .held_out import stricter_schemes
+from .results import (
+    CV_SCHEMES,
+    Controls,
+    CrossValidation,
+    PaperComparisons,
+    RunSettings,
+    StricterSchemes,
+    StudyFacts,
+    StudyResults,
+)
+from .signed_rank_tests import signed_rank_tests
 from .spread import paper_predictive
-from .unseen import headline_condition, unseen_summary, unsure_specimens
+from .unseen import unseen_surfaces
 
 
 def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_components: int = defaults.MAX_COMPONENTS,
@@ -58,8 +64,9 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     Returns
     -------
     StudyResults
-        Frozen, every table computed once: ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``,
-        ``presses``, ``unseen``, ``headline_condition`` and ``provenance``: what the report renders.
+        Frozen, assembled once from the stages' records (roughsense.analysis.results), every table computed once:
+        ``results("loo"|"loso")``, ``controls``, ``claims``, ``held_out``, ``presses``, ``unseen``,
+        ``headline_condition`` and ``provenance``: what the report renders.
 
     Examples
     --------
@@ -81,32 +88,24 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     perceived = _perceived_by_enough_people(study)
     if features is None:
         features = dataset.study_features(study, n_jobs=n_jobs, progress=progress)
-    _check_repetitions(features, study)
-    record = _study_record(study, perceived, features, models=models, conditions=tuple(conditions),
-                           cv_schemes=tuple(cv_schemes), max_components=max_components, seed=int(seed),
-                           n_permutations=n_permutations)
-    fits, control_jobs = _fit_every_condition(record, features, study, combined_forces, progress)
-    record = replace(record, fits=fits)
-    record = replace(record, controls=_controls_table(control_jobs, record.seed, n_jobs, progress))
-    held_out, presses = _stricter(record, control_jobs) if stricter else (pd.DataFrame(),) * 2
-    record = replace(record, held_out=held_out, presses=presses, presses_needed=presses_needed_by_curve(presses),
-                     tests=signed_rank_tests(record, conditions), paper_predictive=paper_predictive())
-    record = replace(record, claims=evaluate_claims(record))
-    record = replace(record, unseen=unseen_summary(record), headline_condition=headline_condition(conditions))
-    return replace(record, unsure=unsure_specimens(record, DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]))
+    dataset.check_repetitions(features, study)
+    run = RunSettings(tuple(conditions), tuple(cv_schemes), max_components, int(seed), n_permutations)
+    facts = StudyFacts.of(study, perceived, features, run.conditions)
+    cross_validation, jobs = _fit_every_condition(facts, run, models, features, study, combined_forces, progress)
+    controls = _controls_table(jobs, run.seed, n_jobs, progress)
+    schemes = stricter_schemes(facts, run, controls, jobs) if stricter else StricterSchemes.skipped()
+    comparisons = PaperComparisons(signed_rank_tests(cross_validation, run.conditions),
+                                   evaluate_claims(facts, cross_validation, controls.controls), paper_predictive())
+    unseen = unseen_surfaces(facts, run, cross_validation, controls)
+    return StudyResults.assemble(facts, run, cross_validation, controls, schemes, comparisons, unseen)
 
 
-def _controls_table(control_jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> pd.DataFrame:
+def _controls_table(jobs: list[tuple], seed: int, n_jobs: int, progress: Callable | None) -> Controls:
     """controls.csv: every fit against the training mean and the shuffled targets (controls.py)."""
-    controls = _controls.run_controls(control_jobs, n_jobs=n_jobs, progress=progress)
+    controls = _controls.run_controls(jobs, n_jobs=n_jobs, progress=progress)
     # The shufflings are default_rng(seed)'s: rerun with it to get them back. "model" stays the last column.
     controls.insert(len(_controls.CONTROL_COLUMNS), "seed", int(seed))
-    return controls
-
-
-def _stricter(analysis: StudyResults, control_jobs: list[tuple]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """A period and a shape left out (held_out.py), and presses per surface (presses.py), from the LOSO fits."""
-    return held_out_analysis(analysis, control_jobs), presses_analysis(analysis, control_jobs)
+    return Controls(controls)
 
 
 def _check_arguments(study, n_jobs, progress) -> None:
@@ -144,67 +143,31 @@ def _perceived_by_enough_people(study: Study) -> pd.DataFrame:
     return perceived
 
 
-def _check_repetitions(features: pd.DataFrame, study: Study) -> None:
-    """Cross-validation needs at least 2 images of each specimen on each pad at each force."""
-    counts = features.groupby(["pad", "specimen", "condition"]).size()
-    if counts.min() < 2:
-        (pad, specimen, condition) = counts.idxmin()
-        raise InputError(
-            f"too few repetitions for cross-validation: {specimen} on the {pad} pad at {condition} has {counts.min()}",
-            path=study.root / MANIFEST_CSV,
-        )
-
-
-def _study_record(study: Study, perceived: pd.DataFrame, features: pd.DataFrame, **run) -> StudyResults:
-    """The analysis's record of the study (targets, shapes, mean spectra, provenance) and of what is run (``run``:
-    models, conditions, CV schemes, max_components, seed, n_permutations), before any model is fitted."""
-    freq_columns = dataset.frequency_columns(features)
-    mean_spectra = dataset.plain_names(
-        features.groupby(["pad", "specimen", "condition"], sort=False)[freq_columns].mean().reset_index())
-    paper_pads, paper_note = paper_comparability(
-        study.specimen_names, study.pads, run["conditions"], study.reference_specimen)
-    return StudyResults(
-        study_name=study.name,
-        reference_specimen=study.reference_specimen,
-        perceived=perceived,
-        shapes=dict(zip(study.specimens["specimen"], study.specimens["shape"])),
-        freq_per_mm=dataset.column_frequencies(freq_columns),
-        mean_spectra=mean_spectra,
-        provenance=Provenance.of(study),
-        paper_pads=paper_pads,
-        paper_note=paper_note,
-        wavelengths=dict(zip(study.specimens["specimen"], pd.to_numeric(study.specimens.get(
-            "wavelength_mm", pd.Series(np.nan, index=study.specimens.index)), errors="coerce"))),
-        **run,
-    )
-
-
-def _fit_every_condition(record: StudyResults, features: pd.DataFrame, study: Study,
-                         combined_forces: Sequence[str] | None,
-                         progress: Callable | None) -> tuple[tuple[ConditionFit, ...], list[tuple]]:
+def _fit_every_condition(facts: StudyFacts, run: RunSettings, models: tuple[str, ...], features: pd.DataFrame,
+                         study: Study, combined_forces: Sequence[str] | None,
+                         progress: Callable | None) -> tuple[CrossValidation, list[tuple]]:
     """Cross-validate each (pad, condition, cv) and model: the fits, and the controls' jobs.
 
     X, y and the shufflings are built once per pad and condition and shared by both CV schemes, every model and
     the controls (so every model faces the same shuffled targets). Jobs come back grouped by model, as the tables.
     """
-    jobs = [(pad, condition, cv) for pad in study.pads for condition in record.conditions for cv in record.cv_schemes]
+    jobs = [(pad, condition, cv) for pad in study.pads for condition in run.conditions for cv in run.cv_schemes]
     if progress:
         jobs = progress(jobs, total=len(jobs), description="cross-validating")
     matrices: dict[tuple[str, str], tuple] = {}
-    fits: list[ConditionFit] = []
+    fits: list[FamilyFit] = []
     control_jobs: list[tuple] = []
     for pad, condition, cv in jobs:
         if (pad, condition) not in matrices:
             X, meta = dataset.condition_matrix(features, pad, condition, combined_forces=combined_forces)
-            y = dataset.targets(meta, record.perceived, path=study.root / RATINGS_CSV)
+            y = dataset.targets(meta, facts.perceived, path=study.root / RATINGS_CSV)
             specimens = meta["specimen"].astype(str).to_numpy()
-            permutations = _controls.specimen_permutations(len(pd.unique(specimens)), record.n_permutations,
-                                                           record.seed)
-            law = law_settings(X, record.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
+            permutations = _controls.specimen_permutations(len(pd.unique(specimens)), run.n_permutations, run.seed)
+            law = law_settings(X, facts.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
             matrices[(pad, condition)] = (X, y, meta, specimens, permutations, law)
         X, y, meta, specimens, permutations, law = matrices[(pad, condition)]
-        for fit in fit_all(record.models, X, y, meta, record.perceived, pad, condition, cv, law,
-                           max_components=record.max_components, seed=record.seed):
+        for fit in fit_all(models, X, y, meta, facts.perceived, pad, condition, cv, law,
+                           max_components=run.max_components, seed=run.seed):
             fits.append(fit)
             control_jobs.append((fit, X, y, specimens, permutations, law))
-    return tuple(fits), sorted(control_jobs, key=lambda job: record.models.index(job[0].model))
+    return CrossValidation(models, tuple(fits)), sorted(control_jobs, key=lambda job: models.index(job[0].model))

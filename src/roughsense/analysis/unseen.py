@@ -17,10 +17,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import PAPER_MODEL
+from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..model.interval import held_out_coverage
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
+from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenSurfaces
 
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
@@ -108,26 +109,27 @@ def _flag_shares(fit) -> dict:
             "flagged_max_specimen": str(shares.idxmax())}
 
 
-def unseen_summary(analysis) -> pd.DataFrame:
-    """One row per model x pad x condition of the nested LOSO fits (UNSEEN_COLUMNS); empty without LOSO.
+def unseen_summary(facts: StudyFacts, cross_validation: CrossValidation, controls: pd.DataFrame) -> pd.DataFrame:
+    """One row per model x pad x condition of the nested LOSO fits (UNSEEN_COLUMNS), with their ``controls``
+    (controls.csv); empty without LOSO.
 
     rmse / null_rmse: mean over specimens (the reference included) of the per-specimen RMSE of the model and of
     the training mean; cv_rmse / null_cv_rmse: the same pooled over trials (what the permutation test compares);
     spearman_*: over the rated specimens (the reference, 1 by definition, left out).
     """
     rows = []
-    for fit in analysis.ordered_fits():
+    for fit in cross_validation.ordered_fits():
         if fit.cv != "loso":
             continue
         prediction = fit.predictions["prediction"].to_numpy(dtype=float)
-        target = fit.predictions["specimen"].map(analysis.perceived.set_index("specimen")["gmean"]).to_numpy(float)
-        rho, p, n_rated = _spearman(fit.table, analysis.reference_specimen)
+        target = fit.predictions["specimen"].map(facts.perceived.set_index("specimen")["gmean"]).to_numpy(float)
+        rho, p, n_rated = _spearman(fit.table, facts.reference_specimen)
         rows.append({
             "model": fit.model, "pad": fit.pad, "condition": fit.condition,
             "rmse": float(fit.table["rmse"].mean()),
-            "null_rmse": float(null_specimen_rmse(fit.predictions, analysis.perceived).mean()),
-            "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.cv_rmse[0]),
-            **_control(analysis.controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
+            "null_rmse": float(null_specimen_rmse(fit.predictions, facts.perceived).mean()),
+            "cv_rmse": float(np.sqrt(np.mean((prediction - target) ** 2))), "null_cv_rmse": float(fit.curve[0]),
+            **_control(controls, fit), "spearman_rho": rho, "spearman_p": p, "n_rated": n_rated,
             **_coverage(fit, prediction, target, fit.predictions["specimen"].to_numpy()), **_jackknife_plus(fit),
             **_flag_shares(fit),
         })
@@ -138,7 +140,8 @@ UNSURE_COLUMNS = ["model", "pad", "condition", "specimen", "perceived", "predict
                   "covered", "missed_by", "flagged_share"]
 
 
-def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
+def unsure_specimens(perceived: pd.DataFrame, cross_validation: CrossValidation, model: str, *,
+                     per_pad: int = 5) -> pd.DataFrame:
     """The held-out specimens a model is least sure of, per pad (combined condition, or the last): those whose
     presses its applicability check flagged, then those its 90 % interval missed, then the widest intervals.
 
@@ -148,16 +151,16 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
     """
     from ..model.interval import held_out_floors, held_out_halfwidths, log_residuals
 
-    fits = [f for f in analysis.ordered_fits() if f.cv == "loso" and f.model == model]
+    fits = [f for f in cross_validation.ordered_fits() if f.cv == "loso" and f.model == model]
     if not fits:
         return pd.DataFrame(columns=UNSURE_COLUMNS)
     condition = headline_condition(dict.fromkeys(f.condition for f in fits))
-    perceived = analysis.perceived.set_index("specimen")["gmean"]
+    gmean = perceived.set_index("specimen")["gmean"]
     rows = []
     for fit in (f for f in fits if f.condition == condition):
         specimens = fit.predictions["specimen"].to_numpy()
         prediction = fit.predictions["prediction"].to_numpy(dtype=float)
-        target = fit.predictions["specimen"].map(perceived).to_numpy(dtype=float)
+        target = fit.predictions["specimen"].map(gmean).to_numpy(dtype=float)
         floors = held_out_floors(target, specimens)
         _, surface = log_residuals(prediction, target, specimens, floors)
         halfwidths = held_out_halfwidths(surface)
@@ -167,7 +170,7 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
             mine = specimens == name
             mean = float(np.maximum(prediction[mine], floors[mine]).mean())
             row = {"model": model, "pad": fit.pad, "condition": condition, "specimen": str(name),
-                   "perceived": float(perceived[name]), "prediction": mean,
+                   "perceived": float(gmean[name]), "prediction": mean,
                    "pi90_low": mean * np.exp(-halfwidths[i]), "pi90_high": mean * np.exp(halfwidths[i]),
                    "covered": bool(abs(surface[i]) <= halfwidths[i]), "missed_by": np.exp(abs(surface[i]) - halfwidths[i]),
                    "flagged_share": float(np.mean(flags[mine]))}
@@ -182,3 +185,14 @@ def unsure_specimens(analysis, model: str, *, per_pad: int = 5) -> pd.DataFrame:
     table = table.sort_values(["pad", "flagged_share", "covered", "width"], ascending=[True, False, True, False],
                               kind="stable")
     return table.groupby("pad", sort=False).head(per_pad).drop(columns="width").reset_index(drop=True)
+
+
+def unseen_surfaces(facts: StudyFacts, run: RunSettings, cross_validation: CrossValidation,
+                    controls: Controls) -> UnseenSurfaces:
+    """The study's stage of surfaces never seen: the summary table, the condition it quotes, and the specimens the
+    default family (else the first fitted) is least sure of."""
+    models = cross_validation.models
+    unsure_model = DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]
+    return UnseenSurfaces(unseen_summary(facts, cross_validation, controls.controls),
+                          headline_condition(run.conditions),
+                          unsure_specimens(facts.perceived, cross_validation, unsure_model))

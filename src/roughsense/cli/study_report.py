@@ -94,7 +94,8 @@ def _analyse(staging, *, study: str | None, out: Path, seed: int, max_components
     from .._util import cache
     from .._util.text import counted
     from ..analysis import dataset
-    from ..analysis.study_analysis import CV_SCHEMES, analyse_study
+    from ..analysis.results import CV_SCHEMES
+    from ..analysis.study_analysis import analyse_study
     from ..errors import RoughsenseWarning
     from ..report import write_report_files
     from ..report.answer import console_lines

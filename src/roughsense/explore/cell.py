@@ -151,7 +151,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
             "cell": cell.id, "seed": cell.seed, "pad": fit.pad, "condition": fit.condition, "cv": fit.cv,
             "n_components": int(fit.best_n_components),
             "rmse": float(table["rmse"].mean()), "ovl": float(rated["ovl"].mean()),
-            "cv_rmse": float(fit.cv_rmse[fit.best_n_components]),
+            "cv_rmse": float(fit.curve[fit.best_n_components]),
             "rmse_sd": float(table["rmse"].std(ddof=1)) if len(table) > 1 else math.nan,
             "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
             "n_specimens": int(len(table)),

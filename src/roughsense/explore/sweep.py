@@ -17,7 +17,7 @@ from .. import defaults
 from .._util.checks import POSITIVE, POSITIVE_INT, SEED, Constraint, Described, Integer, Options, given, short_repr
 from .._util.files import open_regular
 from ..analysis.magnitude_estimation import MAX_PARTICIPANTS, MAX_SESSIONS
-from ..analysis.study_analysis import CV_SCHEMES
+from ..analysis.results import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
