@@ -14,3 +14,10 @@ max_components = {max_components}
 [axes]
 pad = ["smooth"]
 """
+
+
+def big_sweep(tmp_path, seeds: int):
+    """``small_sweep`` of ``seeds`` seeds (so as many cells), written to ``tmp_path/sweep.toml``."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(small_sweep(range(seeds), max_components=4))
+    return path

@@ -7,7 +7,9 @@ import os
 import pytest
 
 from roughsense._util import atomic
-from roughsense.errors import RoughsenseError
+from roughsense.errors import OutputExistsError, RoughsenseError
+from tests.as_user import as_nobody, needs_root
+from tests.commands import dead_pid
 
 
 def refuse_rename(monkeypatch):
@@ -87,3 +89,48 @@ def test_a_model_file_whose_rename_is_refused_is_named(tmp_path, monkeypatch):
     with pytest.raises(RoughsenseError) as info:
         mf.save_model(target, model, feature_definition=definition, training={})
     assert str(info.value) == f"{target}: cannot write: Operation not permitted"
+
+
+@needs_root
+@pytest.mark.parametrize("kind", ["link", "folder"])
+def test_a_retired_folder_planted_by_another_user_is_refused_not_put_back(shared, tmp_path, kind):
+    """36.1: a link ``.rep3.roughsense-retired-<dead PID>-abc`` to a private folder became the report folder."""
+    private = tmp_path / "private"
+    private.mkdir(mode=0o700)
+    (private / "results.csv").write_text("mine")
+    planted = shared / f".rep3{atomic.RETIRED_TAG}{dead_pid()}-abc"
+    plant = (lambda: os.symlink(private, planted)) if kind == "link" else (lambda: os.mkdir(planted))
+    assert as_nobody(plant) == "ok"
+    with pytest.raises(OutputExistsError) as info, atomic.staged_folder(shared / "rep3") as staging:
+        (staging / "results.csv").write_text("report")
+    message = str(info.value)
+    reason = "is a symbolic link, not a folder" if kind == "link" else "belongs to another user"
+    assert reason in message and f"delete {planted}" in message
+    assert not (shared / "rep3").exists() and os.path.lexists(planted)
+    assert (private / "results.csv").read_text() == "mine" and (private.stat().st_mode & 0o777) == 0o700
+
+
+def test_a_leftover_that_is_not_a_real_folder_is_never_followed(tmp_path):
+    """36.1 (the rule): a leftover's name on a link, even one's own, is refused: lstat decides, not the link's target."""
+    private = tmp_path / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    parent = tmp_path / "shared"
+    parent.mkdir()
+    planted = parent / f".out{atomic.PARTIAL_TAG}{dead_pid()}-abcd"
+    planted.symlink_to(private)
+    with pytest.raises(OutputExistsError, match="is a symbolic link, not a folder"):
+        atomic.clean_leftovers(parent / "out")
+    assert (private / "a.csv").read_text() == "mine" and planted.is_symlink()
+
+
+@needs_root
+def test_an_output_link_made_by_another_user_is_not_followed(shared, tmp_path):
+    """36.1 (the rule): ``--out S/rep3`` where another user made rep3 a link to the victim's folder."""
+    private = tmp_path / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    assert as_nobody(lambda: os.symlink(private, shared / "rep3")) == "ok"
+    with pytest.raises(OutputExistsError, match="symbolic link made by another user"):
+        atomic.FolderSwap(shared / "rep3")
+    assert (private / "a.csv").read_text() == "mine"

@@ -6,12 +6,14 @@ from __future__ import annotations
 import os
 import shutil
 import warnings
+from pathlib import Path
 
 import pytest
 
 from roughsense._util import atomic
 from roughsense._util.cache import KEY_FILE, cached_folder, folder_entry, key_files, made_here
 from roughsense.errors import RoughsenseWarning
+from tests.as_user import as_nobody, needs_root
 
 STEM = "simulated-study-seed3"
 
@@ -190,3 +192,52 @@ def test_a_link_of_another_user_at_an_old_entry_with_a_partial_beside_it(cache, 
     (partial / KEY_FILE).write_text(f"{STEM}-v0\n")
     entry, _ = get("v1", build)
     assert calls == [entry] and (cache / f"{STEM}-v0").is_symlink() and (tmp_path / "theirs" / "study.toml").exists()
+
+
+def _poison(root: Path, key: str) -> None:
+    """Write a well-formed, correctly checksummed entry under ``key``, as anyone who can write ``root`` can."""
+    import hashlib
+
+    (root / "features").mkdir(parents=True, exist_ok=True)
+    body = b"image,f\na.png,999\n"
+    (root / "features" / f"{key}.csv").write_bytes(body + b"#sha256=" + hashlib.sha256(body).hexdigest().encode()
+                                                   + b"\n")
+
+
+def _cached(monkeypatch, root: Path):
+    import pandas as pd
+
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(root))
+    monkeypatch.setattr(cache, "_BYPASS_SAID", set())
+    with pytest.warns(Warning) as caught:
+        first = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+        second = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+    return first, second, [str(w.message) for w in caught]
+
+
+@needs_root
+def test_a_cache_made_by_another_user_is_bypassed_with_one_warning(shared, monkeypatch):
+    """36.4: another user created the shared cache folder and planted an entry: study reported its numbers."""
+    root = shared / "cache"
+    assert as_nobody(lambda: (root.mkdir(mode=0o755), _poison(root, "k" * 24))) == "ok"
+    (frame, cached), (again, cached_again), said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached and again["f"].tolist() == [1.0] and not cached_again
+    assert len(said) == 1 and "belongs to another user" in said[0] and str(root) in said[0]
+
+
+def test_a_cache_others_can_write_is_bypassed_and_a_new_one_is_private(tmp_path, monkeypatch):
+    """36.4 (the rule): a group- or world-writable cache is not read; a cache roughsense creates is 0700."""
+    root = tmp_path / "cache"
+    root.mkdir()
+    os.chmod(root, 0o777)
+    _poison(root, "k" * 24)
+    (frame, cached), _, said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached
+    assert len(said) == 1 and "can be written by other users" in said[0]
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "fresh"))
+    assert cache.usable_cache_dir() == tmp_path / "fresh"
+    assert (tmp_path / "fresh").stat().st_mode & 0o777 == 0o700

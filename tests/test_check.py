@@ -2,6 +2,7 @@
 every problem of a study folder at once (while `study` keeps stopping at the first, with the same message)."""
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -10,6 +11,8 @@ import pytest
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.study import read_study
+from tests.as_user import as_nobody, needs_root
+from tests.commands import error_line
 
 SPECIMENS = [("R2", "rectangular", 2.0), ("R3", "rectangular", 3.0), ("R4", "rectangular", 4.0),
              ("S05", "sinusoidal", 0.5)]
@@ -229,3 +232,60 @@ def test_check_goes_on_past_a_broken_file_and_bounds_the_list(tmp_path, run_cli)
 def test_check_refuses_a_missing_folder_in_one_line(tmp_path, run_cli):
     code, out, err = run_cli("check", tmp_path / "nope")
     assert (code, out) == (2, "") and err == f"roughsense: error: {tmp_path / 'nope'}: study folder not found\n"
+
+
+def test_check_names_a_fifo_in_the_manifest(run_cli, tmp_path):
+    """36.6: a FIFO in a manifest was reported as "not found"."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    first = sorted((root / "images").iterdir())[0]
+    first.unlink()
+    os.mkfifo(first)
+    code, out, err = run_cli("check", root)
+    assert code == 2 and f"image file is a FIFO (named pipe), not a regular image file; give the image file itself: " \
+        f"images/{first.name}" in out + err
+
+
+@needs_root
+def test_check_refuses_an_image_the_user_cannot_read(shared):
+    """Also seen: `check` said "study OK" for an image the user cannot read (chmod 000)."""
+    import contextlib
+    import io
+
+    from roughsense.cli import main
+
+    from .test_dataset import make_study
+
+    root = make_study(shared / "study", pads=("smooth",), repetitions=1)
+    for path in [root, *root.rglob("*")]:
+        os.chmod(path, 0o755 if path.is_dir() else 0o644)
+    first = sorted((root / "images").iterdir())[0]
+    os.chmod(first, 0)
+
+    def check_as_nobody() -> str:
+        text = io.StringIO()
+        with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
+            code = main(["check", str(root)])
+        return f"{code}\n{text.getvalue()}"
+
+    said = as_nobody(check_as_nobody)
+    assert said.startswith("2\n") and f"image file cannot be read (permission denied): images/{first.name}" in said
+
+
+def test_two_decimal_commas_are_two_problems_not_four_or_a_pandas_error(run_cli, tmp_path):
+    """Also seen: a decimal-comma row was reported twice, the second time as a raw pandas "C error"; and "run
+    `roughsense check` again" omitted the folder."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    lines = (root / "manifest.csv").read_text().splitlines()
+    lines[1] = lines[1].replace(".", ",", 1)  # force 1,0116...: one field too many
+    lines[3] = lines[3].replace(".", ",", 1) + ",5"  # images/x,png and a trailing value: two too many
+    (root / "manifest.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli("check", root)
+    listed = out.splitlines()
+    assert code == 2 and len(listed) == 2, out
+    assert listed[0].startswith(f"{root / 'manifest.csv'}, row 2: 6 fields but the header has 5")
+    assert listed[1].startswith(f"{root / 'manifest.csv'}, row 4: 7 fields but the header has 5")
+    assert error_line(err).endswith(f"2 problems (listed above); fix them and run `roughsense check {root}` again")

@@ -13,6 +13,7 @@ from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
 from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid, spatial_spectrum
+from tests.commands import error_line, grating_png
 
 PX_PER_MM = 34.9
 
@@ -253,3 +254,15 @@ def test_plot_draws_one_images_line_and_spectrum(run_cli, tmp_path, images):
                         (["--plot", tmp_path / "p.jpg", images[0]], "must end in .png, .svg or .pdf")):
         code, _, err = run_cli("features", "--out", tmp_path / "g.csv", *bad)
         assert code == 2 and needle in err and err.count("\n") == 1 and not (tmp_path / "g.csv").exists()
+
+
+@pytest.mark.parametrize("plot_is", ["the image", "--out"])
+def test_features_plot_never_replaces_an_input_or_another_output(run_cli, tmp_path, plot_is):
+    """36.2: ``features in.png -o x.csv --force --plot in.png`` replaced the image with the plot."""
+    image = grating_png(tmp_path / "in.png")
+    before = image.read_bytes()
+    plot = {"the image": image, "--out": tmp_path / "x.png"}[plot_is]
+    out = tmp_path / ("x.png" if plot_is == "--out" else "x.csv")
+    code, _, err = run_cli("features", image, "-o", out, "--force", "--plot", plot)
+    assert code == 2 and "--plot" in error_line(err) and "choose another path" in err
+    assert image.read_bytes() == before and not out.exists()

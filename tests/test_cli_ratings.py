@@ -6,6 +6,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from tests.commands import error_line
+
 
 def fill(schedule_path, out_path, *, drop=None, seed=0):
     """Play the experimenter: type a rating into every row (optionally leave some blank)."""
@@ -174,3 +176,24 @@ def test_ratings_reads_european_excel_with_one_warning_and_hints_a_case_slip(tmp
     assert code == 2
     assert err == (f"roughsense: error: {slip}, row 6, column 'specimen': unknown specimen 'r2' "
                    "(expected one of C2, R2, R3; did you mean 'R2'?)\n")
+
+
+def test_ratings_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3: ``ratings --specimens FILE -o FILE --force`` replaced the specimens table with the summary."""
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,3\n")
+    ratings = tmp_path / "ratings.csv"
+    ratings.write_text("participant,session,specimen,rating\nP01,1,R2,0.5\nP02,1,R2,0.7\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("ratings", ratings, "--specimens", specimens, "-o", specimens, "--force")
+    assert code == 2 and "an input of this run" in error_line(err) and specimens.read_bytes() == before
+
+
+def test_protocol_sheet_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3 (the rule): protocol's --sheet is checked against --specimens too, not only --out."""
+    specimens = tmp_path / "specimens.md"
+    specimens.write_text("specimen,shape,wavelength_mm\nS1,sinusoidal,1\nS2,sinusoidal,2\nS3,sinusoidal,3\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("protocol", "--seed", 0, "--specimens", specimens, "--reference", "S2",
+                           "--out", tmp_path / "s.csv", "--sheet", specimens, "--force")
+    assert code == 2 and "--sheet" in error_line(err) and specimens.read_bytes() == before

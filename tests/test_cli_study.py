@@ -9,6 +9,7 @@ import pytest
 
 from roughsense.report.tables import permutation_p_text
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from tests.commands import error_line
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
 
@@ -201,3 +202,9 @@ def test_study_writes_its_figures_in_the_format_and_resolution_asked(run_cli, sm
         code, _, err = run_cli("study", "--study", small_study, "--out", tmp_path / "bad", *bad)
         assert code == 2 and needle in err and err.count("\n") == 1 and "Traceback" not in err
         assert not (tmp_path / "bad").exists()
+
+
+def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_path):
+    """Also seen: ``study --study missing`` suggested running check on the missing folder."""
+    code, _, err = run_cli("study", "--study", tmp_path / "missing", "--out", tmp_path / "rep")
+    assert code == 2 and error_line(err) == f"roughsense: error: {tmp_path / 'missing'}: study folder not found"

@@ -133,7 +133,7 @@ def test_no_output_may_be_an_image_the_manifest_lists_outside_images(run_cli, tm
     """36.2/36.3's rule, "every path a run writes is checked against every path it reads": the inputs of --study
     were its four tables and images/, so `features --study S -o S/raw/x.png --force` replaced a study image that
     the manifest lists at raw/x.png (manifest paths are relative to the folder, anywhere in it)."""
-    from .test_hostile import LEGACY_MODEL, error_line
+    from .commands import LEGACY_MODEL, error_line
 
     root, image = _study_with_an_image_outside_images(tmp_path)
     before = image.read_bytes()
@@ -156,7 +156,7 @@ def test_a_stop_while_features_draws_its_plot_leaves_no_csv_behind(run_cli, tmp_
     from roughsense._util import interrupt
     from roughsense.report import figures
 
-    from .test_hostile import grating_png
+    from .commands import grating_png
 
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     interrupt.install()

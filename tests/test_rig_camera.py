@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 
 import cv2
 import numpy as np
@@ -112,3 +113,13 @@ def test_a_run_of_damaged_frames_refuses_the_source(tmp_path, monkeypatch):
         with pytest.raises(InputError, match=rf"{camera.MAX_DAMAGED_FRAMES} frames in a row decoded with errors, "
                                              rf"up to frame {camera.MAX_DAMAGED_FRAMES}"):
             source.read_fresh()
+
+
+def test_a_fifo_as_a_video_source_is_refused_at_once(tmp_path):
+    """36.6 (the rule, the rig): OpenCV would block opening a FIFO given as a video file."""
+    from roughsense.errors import InputError
+    from roughsense.rig.camera import open_source
+
+    os.mkfifo(tmp_path / "run.avi")
+    with pytest.raises(InputError, match="is a FIFO \\(named pipe\\), not a regular video file"):
+        open_source(tmp_path / "run.avi")

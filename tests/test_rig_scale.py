@@ -21,6 +21,7 @@ from roughsense.rig.scale import (
     parse_scale_line,
     parse_typed_force,
 )
+from tests.commands import HANG_GUARD_S
 
 G = 9.80665  # standard gravity, CGPM 1901 (exact by definition)
 
@@ -305,3 +306,35 @@ def test_a_typed_force_with_a_unit_takes_every_spelling_a_number_may_have(typed,
 def test_a_typed_force_with_a_unit_is_refused_with_the_numbers_hint(typed, hint):
     with pytest.raises(_Retry, match=hint):
         parse_typed_force(typed, 2.0)
+
+
+def test_ctrl_c_at_an_operators_prompt_stops_at_once(signals):
+    """36.5 (the rule, where a run waits on a person): a prompt is no safe point that ever comes, so a signal there
+    stops the run at once, as Python's own Ctrl-C did, rather than after the operator answers."""
+    import io
+    import signal
+    import threading
+    import time
+
+    from roughsense.rig.scale import ManualForce
+
+    read, write = os.pipe()
+    stdin = os.fdopen(read, "r")
+    done = threading.Event()
+
+    def press_ctrl_c() -> None:
+        time.sleep(0.2)  # whether it lands before or during the wait, the outcome is the same
+        os.kill(os.getpid(), signal.SIGINT)
+        if not done.wait(HANG_GUARD_S):  # on a regression: an answer ends the wait, and the test fails on its value
+            os.write(write, b"2\n")
+
+    helper = threading.Thread(target=press_ctrl_c, daemon=True)
+    helper.start()
+    try:
+        with pytest.raises(signals.Interrupted):
+            ManualForce(stdin=stdin, prompt_out=io.StringIO()).read_force(2.0, low_n=1.5, high_n=2.5)
+    finally:
+        done.set()
+        helper.join()
+        stdin.close()
+        os.close(write)
