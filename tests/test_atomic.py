@@ -134,3 +134,36 @@ def test_an_output_link_made_by_another_user_is_not_followed(shared, tmp_path):
     with pytest.raises(OutputExistsError, match="symbolic link made by another user"):
         atomic.FolderSwap(shared / "rep3")
     assert (private / "a.csv").read_text() == "mine"
+
+
+def _study_with_an_image_outside_images(tmp_path):
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    first = sorted((root / "images").iterdir())[0]
+    (root / "raw").mkdir()
+    moved = root / "raw" / first.name
+    first.rename(moved)
+    manifest = root / "manifest.csv"
+    manifest.write_text(manifest.read_text().replace(f"images/{first.name}", f"raw/{first.name}"))
+    return root, moved
+
+
+@pytest.mark.parametrize("command", ["features", "predict", "fit", "study"])
+def test_no_output_may_be_an_image_the_manifest_lists_outside_images(run_cli, tmp_path, command):
+    """36.2/36.3's rule, "every path a run writes is checked against every path it reads": the inputs of --study
+    were its four tables and images/, so `features --study S -o S/raw/x.png --force` replaced a study image that
+    the manifest lists at raw/x.png (manifest paths are relative to the folder, anywhere in it)."""
+    from .commands import LEGACY_MODEL, error_line
+
+    root, image = _study_with_an_image_outside_images(tmp_path)
+    before = image.read_bytes()
+    out = image.parent if command == "study" else image
+    args = {"features": ["features", "--study", root, "-o", out],
+            "predict": ["predict", LEGACY_MODEL, "--study", root, "-o", out],
+            "fit": ["fit", "--study", root, "--pad", "smooth", "--condition", "2N", "-o", out],
+            "study": ["study", "--study", root, "--out", out]}[command]
+    code, _, err = run_cli(*args, "--force")
+    assert code == 2 and image.read_bytes() == before
+    line = error_line(err)
+    assert line.startswith(f"roughsense: error: --out {out} is ") and f"{image}; choose another path" in line

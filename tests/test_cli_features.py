@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -266,3 +267,33 @@ def test_features_plot_never_replaces_an_input_or_another_output(run_cli, tmp_pa
     code, _, err = run_cli("features", image, "-o", out, "--force", "--plot", plot)
     assert code == 2 and "--plot" in error_line(err) and "choose another path" in err
     assert image.read_bytes() == before and not out.exists()
+
+
+def test_a_stop_while_features_draws_its_plot_leaves_no_csv_behind(run_cli, tmp_path, monkeypatch):
+    """36.5's "never commits after it" for a run of several outputs: features wrote its CSV and grid file, then drew
+    --plot, so a SIGTERM (or a failure) while drawing left the CSV without the plot it was asked for."""
+    import signal
+
+    from roughsense._util import interrupt
+    from roughsense.report import figures
+
+    from .commands import grating_png
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    interrupt.install()
+    real = figures.figure_bytes
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives while the figure is drawn
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(figures, "figure_bytes", signalled)
+    image = grating_png(tmp_path / "in.png")
+    try:
+        code, _, err = run_cli("features", image, "-o", tmp_path / "x.csv", "--plot", tmp_path / "plot.png")
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)
+        interrupt._received.clear()
+    assert code == 143 and err == "roughsense: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
+from tests.commands import HANG_GUARD_S
 
 from .videos import decoded_frames, write_damaged_video, write_video
 
@@ -123,3 +126,35 @@ def test_a_fifo_as_a_video_source_is_refused_at_once(tmp_path):
     os.mkfifo(tmp_path / "run.avi")
     with pytest.raises(InputError, match="is a FIFO \\(named pipe\\), not a regular video file"):
         open_source(tmp_path / "run.avi")
+
+
+def _frames(folder, count: int) -> str:
+    rng = np.random.default_rng(0)
+    for i in range(count):
+        cv2.imwrite(str(folder / f"img_{i:03d}.png"), rng.integers(0, 255, (40, 60, 3), dtype=np.uint8))
+    return str(folder / "img_%03d.png")
+
+
+@pytest.mark.parametrize("where", [0, 2])
+def test_a_fifo_in_an_image_sequence_is_refused_not_waited_on(tmp_path, where):
+    """36.6 for --source PATTERN (predict --live, capture): a FIFO among the sequence's files hung OpenCV's read,
+    the first one before a frame was shown, a later one mid-run."""
+    pattern = _frames(tmp_path, 4)
+    fifo = tmp_path / f"img_{where:03d}.png"
+    fifo.unlink()
+    os.mkfifo(fifo)
+    code = ("import sys\nfrom roughsense.errors import InputError\nfrom roughsense.rig.camera import open_source\n"
+            "try:\n    print(len(list(open_source(sys.argv[1]))))\nexcept InputError as exc:\n    print(exc)\n")
+    done = subprocess.run([sys.executable, "-c", code, pattern], capture_output=True, text=True,
+                          timeout=HANG_GUARD_S)
+    assert done.stdout.strip() == f"{fifo}: is a FIFO (named pipe), not a regular image file; give the image file itself"
+
+
+def test_an_image_sequence_of_regular_files_still_reads_every_frame(tmp_path):
+    from roughsense.rig.camera import open_source
+
+    pattern = _frames(tmp_path, 5)
+    with open_source(pattern) as source:
+        frames = list(source)
+    assert len(frames) == 5
+    np.testing.assert_array_equal(frames[3], cv2.imread(pattern % 3)[:, :, ::-1])

@@ -54,3 +54,23 @@ def test_a_sweep_name_is_one_printable_line_of_bounded_length(tmp_path, name):
     path.write_text(text)
     with pytest.raises(ConfigError, match=f"at most {MAX_NAME_CHARS} printable characters"):
         read_sweep(path)
+
+
+def test_a_sweep_of_few_but_long_cells_needs_yes_too(tmp_path):
+    """36.11: the confirmation counted cells only, and a cell may render 20,000 frames: 30 cells of 19,500 frames
+    (about 2.6 core-hours, more than 1000 paper-sized cells) started with no estimate."""
+    from roughsense.errors import ConfigError
+    from roughsense.explore.sweep import CELL_SECONDS_PER_FRAME, CONFIRM_CELLS, check_size_confirmed, read_sweep
+
+    path = tmp_path / "sweep.toml"
+    path.write_text(f"[sweep]\nseeds = {list(range(30))}\nrepetitions = 1300\n"
+                    "specimens = ['R2', 'R3', 'R4', 'C3', 'rect:1.5']\nimage_size_px = [480, 160]\n[axes]\npad = ['smooth']\n")
+    sweep = read_sweep(path)
+    hours = 30 * 5 * 3 * 1300 * CELL_SECONDS_PER_FRAME / 3600
+    assert len(sweep.cells) == 30 and hours > CONFIRM_CELLS * 420 * CELL_SECONDS_PER_FRAME / 3600
+    with pytest.raises(ConfigError) as info:
+        check_size_confirmed(sweep, yes=False, workers=2)
+    assert str(info.value) == (f"{path}: 30 cells, about {hours:.1f} core-hours ({hours / 2:.1f} h on 2 workers): a sweep "
+                               "of more than 1.9 core-hours (as long as 1000 paper-sized cells) runs only with --yes")
+    estimate = f"30 cells, about {hours:.1f} core-hours ({hours / 2:.1f} h on 2 workers)"
+    assert check_size_confirmed(sweep, yes=True, workers=2) == estimate
