@@ -31,3 +31,26 @@ def error_line(err: str) -> str:
     lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0]
+
+
+def one_error(run_cli, *args) -> str:
+    code, _, err = run_cli(*args)
+    assert code == 2 and "Traceback" not in err, err
+    lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def check_output(run_cli, root) -> str:
+    """What `roughsense check` prints of a folder it refuses (one line per problem)."""
+    code, out, err = run_cli("check", root)
+    assert code == 2 and "Traceback" not in err, err
+    return out + err
+
+
+def manifest_lines(root) -> list[str]:
+    return (root / "manifest.csv").read_text().splitlines()
+
+
+def write_lines(path, lines) -> None:
+    path.write_text("\n".join(lines) + "\n")

@@ -117,3 +117,27 @@ def signals():
     for number, handler in saved.items():
         signal.signal(number, handler)
     interrupt._received.clear()
+
+
+@pytest.fixture(scope="session")
+def tiny_smooth(tmp_path_factory):
+    """A tiny study folder (``make_study``: smooth pad, 2 repetitions), built once per run and read-only after."""
+    from .test_dataset import make_study
+
+    return make_study(tmp_path_factory.mktemp("tiny") / "study", pads=("smooth",), repetitions=2)
+
+
+@pytest.fixture()
+def tiny_copy(tiny_smooth, tmp_path):
+    """A copy of ``tiny_smooth`` the test may damage."""
+    return shutil.copytree(tiny_smooth, tmp_path / "study")
+
+
+@pytest.fixture(scope="session")
+def tiny_model_2n(tiny_smooth, tmp_path_factory):
+    """The model ``fit`` makes of ``tiny_smooth`` at 2 N (the PLS family)."""
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("model") / "m.json"
+    assert main(["fit", "--study", str(tiny_smooth), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    return path

@@ -21,3 +21,16 @@ def big_sweep(tmp_path, seeds: int):
     path = tmp_path / "sweep.toml"
     path.write_text(small_sweep(range(seeds), max_components=4))
     return path
+
+
+#: A sweep file with a seed and a specimen spec to fill in (``SWEEP.format(seed=0, spec='"R4"')``).
+SWEEP = """
+[sweep]
+seeds = [{seed}]
+repetitions = 2
+specimens = ["R2", "R3", {spec}]
+image_size_px = [480, 160]
+max_components = 4
+[axes]
+pad = ["smooth"]
+"""

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 
 import pytest
 
 from roughsense._util import atomic
 from roughsense.errors import OutputExistsError, RoughsenseError
 from tests.as_user import as_nobody, needs_root
-from tests.commands import dead_pid
+from tests.commands import dead_pid, one_error
 
 
 def refuse_rename(monkeypatch):
@@ -167,3 +168,33 @@ def test_no_output_may_be_an_image_the_manifest_lists_outside_images(run_cli, tm
     assert code == 2 and image.read_bytes() == before
     line = error_line(err)
     assert line.startswith(f"roughsense: error: --out {out} is ") and f"{image}; choose another path" in line
+
+
+def test_an_output_that_is_an_input_is_refused_even_with_force(run_cli, tiny_copy, tmp_path, tiny_model_2n):
+    """28.15: `ratings r.csv --out r.csv --force` replaced the raw ratings; fit and predict destroyed their inputs."""
+    model = tmp_path / "m.json"
+    shutil.copy(tiny_model_2n, model)
+    image = next((tiny_copy / "images").iterdir())
+    cases = [
+        (["ratings", tiny_copy / "ratings.csv", "--out", tiny_copy / "ratings.csv"], tiny_copy / "ratings.csv"),
+        (["fit", "--study", tiny_copy, "--pad", "smooth", "--condition", "2N", "--out", tiny_copy / "manifest.csv"],
+         tiny_copy / "manifest.csv"),
+        (["predict", model, image, "--out", model], model),
+        (["predict", model, image, "--out", image], image),
+        (["predict", model, "--study", tiny_copy, "--out", tiny_copy / "images" / "x.csv"], tiny_copy / "images"),
+        (["features", image, "--out", image], image),
+        (["features", "--study", tiny_copy, "--out", tiny_copy / "specimens.csv"], tiny_copy / "specimens.csv"),
+        (["protocol", "--seed", "1", "--specimens", tiny_copy / "specimens.csv", "--out", tiny_copy / "specimens.csv"],
+         tiny_copy / "specimens.csv"),
+        (["study", "--study", tiny_copy, "--out", tiny_copy], tiny_copy),
+    ]
+    for args, victim in cases:
+        before = victim.read_bytes() if victim.is_file() else None
+        line = one_error(run_cli, *args, "--force")
+        assert "--force does not change this" in line and "--out" in line, line
+        if before is not None:
+            assert victim.read_bytes() == before, args
+    link = tmp_path / "link.json"
+    link.hardlink_to(model)  # the same file under another name
+    line = one_error(run_cli, "predict", model, image, "--out", link, "--force")
+    assert f"is an input of this run {model}" in line

@@ -12,7 +12,7 @@ from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.study import read_study
 from tests.as_user import as_nobody, needs_root
-from tests.commands import error_line
+from tests.commands import check_output, error_line, manifest_lines, write_lines
 
 SPECIMENS = [("R2", "rectangular", 2.0), ("R3", "rectangular", 3.0), ("R4", "rectangular", 4.0),
              ("S05", "sinusoidal", 0.5)]
@@ -289,3 +289,27 @@ def test_two_decimal_commas_are_two_problems_not_four_or_a_pandas_error(run_cli,
     assert listed[0].startswith(f"{root / 'manifest.csv'}, row 2: 6 fields but the header has 5")
     assert listed[1].startswith(f"{root / 'manifest.csv'}, row 4: 7 fields but the header has 5")
     assert error_line(err).endswith(f"2 problems (listed above); fix them and run `roughsense check {root}` again")
+
+
+def test_check_lists_every_row_of_the_wrong_width(run_cli, tiny_copy):
+    lines = manifest_lines(tiny_copy)
+    lines[1] += ","
+    lines[3] = lines[3].rsplit(",", 1)[0]
+    write_lines(tiny_copy / "manifest.csv", lines)
+    code, out, err = run_cli("check", tiny_copy)
+    assert code == 2
+    text = out + err
+    assert "row 2: 6 fields but the header has 5" in text and "row 4: 4 fields but the header has 5" in text
+
+
+def test_check_lists_every_file_name_too_long(run_cli, tiny_copy):
+    """28.16: `check` stopped at the first "File name too long" instead of listing every row."""
+    lines = manifest_lines(tiny_copy)
+    for k, letter in ((1, "x"), (3, "y")):
+        fields = lines[k].split(",")
+        fields[0] = f"images/{letter * 300}.png"
+        lines[k] = ",".join(fields)
+    write_lines(tiny_copy / "manifest.csv", lines)
+    text = check_output(run_cli, tiny_copy)
+    for row in (2, 4):
+        assert f"manifest.csv, row {row}, column 'image': image file cannot be looked up (File name too long)" in text

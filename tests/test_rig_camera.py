@@ -12,7 +12,7 @@ import pytest
 
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
-from tests.commands import HANG_GUARD_S
+from tests.commands import HANG_GUARD_S, one_error
 
 from .videos import decoded_frames, write_damaged_video, write_video
 
@@ -158,3 +158,31 @@ def test_an_image_sequence_of_regular_files_still_reads_every_frame(tmp_path):
         frames = list(source)
     assert len(frames) == 5
     np.testing.assert_array_equal(frames[3], cv2.imread(pattern % 3)[:, :, ::-1])
+
+
+def png_claiming(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` px (its data is empty: never decoded here)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+
+
+def test_live_and_capture_refuse_a_frame_above_max_pixels_before_decoding(run_cli, tmp_path, tiny_model_2n):
+    """28.13: a 16000 x 15000 PNG peaked at 1.9 GB (predict --live) and 3.2 GB (capture, which wrote it)."""
+    big = tmp_path / "big.png"
+    big.write_bytes(png_claiming(16000, 15000))
+    pattern = tmp_path / "frames"
+    pattern.mkdir()
+    (pattern / "f_0000.png").write_bytes(png_claiming(16000, 15000))
+    for source in (big, pattern / "f_%04d.png"):
+        line = one_error(run_cli, "predict", tiny_model_2n, "--live", "--source", source, "--max-frames", "1")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        line = one_error(run_cli, "capture", "--source", source, "--out", tmp_path / "captured", "--specimen", "R2",
+                         "--pad", "smooth")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        assert not (tmp_path / "captured").exists()

@@ -478,3 +478,21 @@ def test_a_new_study_toml_with_the_default_scale_says_so_and_a_stated_one_does_n
     typed("", "", "")
     code, _, err = run_cli(*capture_args(video, tmp_path / "stated", "--repetitions", "1", "--px-per-mm", "30"))
     assert code == 0 and "not measured on this rig" not in err, err
+
+
+def test_a_frame_above_the_studys_max_pixels_is_not_written(tiny_smooth):
+    import numpy as np
+
+    from roughsense.io.sensor_settings import SensorSettings
+    from roughsense.rig.camera import open_source
+    from roughsense.rig.capture import _check_frame
+
+    image = next((tiny_smooth / "images").iterdir())
+    with pytest.raises(InputError, match=r"frames? is 600 ?x ?64 px|image is 600 x 64 px"):
+        open_source(image, max_pixels=1000)
+    with open_source(image) as frames:
+        frame = frames.read_fresh()
+    with pytest.raises(InputError, match="above the study's \\[sensor\\] max_pixels of 0.001 Mpx; nothing of it was written"):
+        _check_frame(frame, SensorSettings(max_pixels=1000), frames)
+    _check_frame(frame, SensorSettings(roi=(0, 0, 600, 64)), frames)
+    assert np.asarray(frame).shape == (64, 600, 3)

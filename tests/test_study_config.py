@@ -6,6 +6,7 @@ import shutil
 import pytest
 
 from roughsense.errors import InputError
+from roughsense.io.study import read_study
 from roughsense.io.study_config import MAX_CONFIG_DEPTH, nesting_depth, read_config
 
 
@@ -50,3 +51,25 @@ def test_check_refuses_a_deeply_nested_study_toml_in_one_line(run_cli, simulated
     assert code == 2 and "Traceback" not in text
     lines = [line for line in text.splitlines() if "nested too deeply" in line]
     assert len(lines) == 1 and "study.toml" in lines[0]
+
+
+def test_a_multiline_string_does_not_hide_a_toml_spelling(tiny_copy):
+    """28.5: after a multi-line string holding \\\""" the old pattern lost track: px_per_mm = 3_49 read as 349."""
+    toml = tiny_copy / "study.toml"
+    text = toml.read_text()
+    assert "px_per_mm = 20.0" in text
+    toml.write_text(text.replace("[study]\n", '[study]\nnote = """a \\""" px_per_mm = 1 """\n')
+                    .replace("px_per_mm = 20.0", "px_per_mm = 2_0") + '# a comment quoting """\n')
+    with pytest.raises(InputError, match=r"line \d+: '2_0' is not a number as roughsense reads one \(no '_' between digits"):
+        read_study(tiny_copy)
+
+
+def test_valid_toml_with_number_like_text_is_accepted(tiny_copy):
+    """28.5: ``1_000`` inside a string and a key named ``inf`` were refused as numbers."""
+    toml = tiny_copy / "study.toml"
+    text = toml.read_text()
+    toml.write_text(text.replace('name = "tiny"', "name = \"batch 1_000 0x10 inf\"\n# a comment 1_0\ninf = 1.0")
+                    + "\n[pads.inf]\nridge_period_mm = 1.5\n[pads.'1_000']\nridge_period_mm = 2e0\n")
+    with pytest.warns(Warning, match="unknown key 'inf' in \\[study\\] ignored"):  # a warning, not a refusal
+        study_ = read_study(tiny_copy)
+    assert study_.name == "batch 1_000 0x10 inf" and study_.pad_ridge_period_mm == {"inf": 1.5, "1_000": 2.0}

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.commands import error_line
-from tests.sweeps import big_sweep
+from tests.commands import error_line, one_error
+from tests.sweeps import SWEEP, big_sweep
 
 
 def test_a_sweep_beyond_the_confirmation_size_shows_its_estimate_and_needs_yes(run_cli, tmp_path, monkeypatch):
@@ -74,3 +74,11 @@ def test_a_sweep_of_few_but_long_cells_needs_yes_too(tmp_path):
                                "of more than 1.9 core-hours (as long as 1000 paper-sized cells) runs only with --yes")
     estimate = f"30 cells, about {hours:.1f} core-hours ({hours / 2:.1f} h on 2 workers)"
     assert check_size_confirmed(sweep, yes=True, workers=2) == estimate
+
+
+def test_a_sweep_file_is_held_to_the_same_rule(run_cli, tmp_path):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('[sweep]\nname = """x \\""" max_components = 1 """\n' + SWEEP.format(seed=0, spec='"R4"')
+                     .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4") + '# """\n')
+    line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
+    assert "'0x4' is not a number as roughsense reads one" in line
