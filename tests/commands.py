@@ -8,6 +8,7 @@ from pathlib import Path
 
 ROUGHSENSE = str(Path(sys.executable).with_name("roughsense"))
 LEGACY_MODEL = Path(__file__).parent / "data" / "legacy_models" / "model_2N.json"
+HUGE = 5_000_000  # a 5 MB cell stands in for the 100 MB one of the report: the same path, a fast test
 HANG_GUARD_S = 300  # not a timing check: on e1630a3 these runs never end, and the suite must
 
 
@@ -54,3 +55,12 @@ def manifest_lines(root) -> list[str]:
 
 def write_lines(path, lines) -> None:
     path.write_text("\n".join(lines) + "\n")
+
+
+def refusal_line(code: int, err: str) -> str:
+    """The one ``roughsense: error:`` line of a refused run, every stderr line being roughsense's own."""
+    assert code == 2, err[:2000]
+    assert "Traceback" not in err and all(line.startswith("roughsense: ") for line in err.splitlines()), err[:2000]
+    lines = [line for line in err.splitlines() if line.startswith("roughsense: error: ")]
+    assert len(lines) == 1, err[:2000]
+    return lines[0]

@@ -23,11 +23,11 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "roughsense"))
 #: ``--dist loadfile --no-loadscope-reorder``) a file runs whole on one worker in collection order, so a long file
 #: collected last kept one worker busy alone at the end; started first, the short files fill in around them.
 LONGEST_FILES = ("test_report.py", "test_explore.py", "test_tutorial.py",
-                 "test_trustworthy_prediction.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
+                 "test_peak_domain.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
                  "test_interrupted.py", "test_cli_study.py", "test_input_contract.py", "test_cli_model.py",
                  "test_api_docs.py", "test_fuzz.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
                  "test_jackknife_file.py", "test_scale_band.py", "test_families.py", "test_cli_builtin.py",
-                 "test_sim_pixels.py", "test_controls.py", "test_pls.py", "test_noise.py")
+                 "test_sim_pixels.py", "test_controls.py", "test_pls.py")
 
 
 def pytest_collection_modifyitems(items) -> None:

@@ -5,12 +5,13 @@ import errno
 import os
 import shutil
 
+import pandas as pd
 import pytest
 
 from roughsense._util import atomic
 from roughsense.errors import OutputExistsError, RoughsenseError
 from tests.as_user import as_nobody, needs_root
-from tests.commands import dead_pid, one_error
+from tests.commands import dead_pid, one_error, refusal_line
 
 
 def refuse_rename(monkeypatch):
@@ -198,3 +199,77 @@ def test_an_output_that_is_an_input_is_refused_even_with_force(run_cli, tiny_cop
     link.hardlink_to(model)  # the same file under another name
     line = one_error(run_cli, "predict", model, image, "--out", link, "--force")
     assert f"is an input of this run {model}" in line
+
+
+def test_a_full_disk_names_the_file_being_written(tmp_path, monkeypatch):
+    from roughsense._util import atomic
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.os, "fsync", full)
+    target = tmp_path / "out" / "summary.csv"
+    with pytest.raises(RoughsenseError) as info:
+        atomic.write_text(target, "a,b\n1,2\n")
+    assert str(info.value) == f"{target}: cannot write: No space left on device"
+    assert not target.exists() and list(target.parent.iterdir()) == []  # no temporary left behind
+
+
+def test_a_full_disk_is_one_line_from_the_cli(run_cli, tmp_path, monkeypatch):
+    from roughsense._util import atomic
+
+    real_open = atomic.os.fdopen
+
+    class Full:
+        def __init__(self, handle):
+            self.handle = handle
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.handle.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def __getattr__(self, name):
+            return getattr(self.handle, name)
+
+    monkeypatch.setattr(atomic.os, "fdopen", lambda *a, **k: Full(real_open(*a, **k)))
+    ratings = tmp_path / "ratings.csv"
+    pd.DataFrame({"participant": ["P01", "P01"], "session": [1, 1], "specimen": ["R2", "R4"],
+                  "rating": ["1.0", "0.5"]}).to_csv(ratings, index=False)
+    out = tmp_path / "agg.csv"
+    code, _, err = run_cli("ratings", ratings, "--out", out)
+    assert refusal_line(code, err) == f"roughsense: error: {out}: cannot write: No space left on device"
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.csv"
+    with pytest.raises(ZeroDivisionError):
+        with atomic.atomic_open(target) as handle:
+            handle.write("partial")
+            1 / 0
+    assert list(tmp_path.iterdir()) == []
+    atomic.write_text(target, "whole\n")
+    assert target.read_text() == "whole\n"
+
+
+def test_check_can_write_refuses_existing_without_force(tmp_path):
+    target = tmp_path / "model.json"
+    target.write_text("{}")
+    with pytest.raises(OutputExistsError):
+        atomic.check_can_write(target)
+    assert atomic.check_can_write(target, force=True) == target
+
+
+def test_atomic_files_get_the_usual_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        path = atomic.write_text(tmp_path / "shared.csv", "a\n")
+    finally:
+        os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o644

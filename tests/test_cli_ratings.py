@@ -1,12 +1,14 @@
 """``roughsense protocol`` and ``roughsense ratings`` end to end, including every bad-input path."""
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
 
-from tests.commands import error_line
+from tests.commands import HUGE, error_line, refusal_line
 
 
 def fill(schedule_path, out_path, *, drop=None, seed=0):
@@ -197,3 +199,24 @@ def test_protocol_sheet_never_replaces_its_specimens_table(run_cli, tmp_path):
     code, _, err = run_cli("protocol", "--seed", 0, "--specimens", specimens, "--reference", "S2",
                            "--out", tmp_path / "s.csv", "--sheet", specimens, "--force")
     assert code == 2 and "--sheet" in error_line(err) and specimens.read_bytes() == before
+
+
+def test_a_huge_rating_cell_is_one_short_line_in_bounded_memory(run_cli, tmp_path):
+    ratings = tmp_path / "ratings.csv"
+    pd.DataFrame({"participant": ["P01", "P01"], "session": [1, 1], "specimen": ["R2", "R4"],
+                  "rating": ["9" * HUGE + "x", "1.0"]}).to_csv(ratings, index=False)
+    tracemalloc.start()
+    try:
+        code, _, err = run_cli("ratings", ratings, "--out", tmp_path / "agg.csv")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    line = refusal_line(code, err)
+    assert line.startswith(f"roughsense: error: {ratings}, row 2, column 'rating': not a number: '999")
+    assert len(err) < 1000
+    assert peak < 40 * HUGE  # escaping a cell character by character took ~16 bytes a character on top of reading it
+
+
+def test_a_huge_option_value_is_one_short_line(run_cli, tmp_path):
+    code, _, err = run_cli("ratings", tmp_path / "r.csv", "--out", tmp_path / "o.csv", "--reference", "R" * 100_000)
+    assert len(refusal_line(code, err)) < 600

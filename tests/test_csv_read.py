@@ -2,13 +2,18 @@
 quoted headers, a column named twice, size and width bounds, the encoding."""
 from __future__ import annotations
 
+import numpy as np
+import pandas as pd
 import pytest
 
-from roughsense.errors import InputError
+from roughsense.errors import ConfigError, InputError
 from roughsense.io import tables
 from roughsense.io.problems import Problems
+from roughsense.io.sensor_settings import SensorSettings, parse_roi
 from roughsense.io.study import load_study, read_study
+from roughsense.io.tables import read_table
 from tests.commands import check_output, manifest_lines, write_lines
+from tests.studies import write_minimal_study
 
 
 def test_a_decimal_comma_before_a_blank_optional_column_is_refused(tiny_copy):
@@ -82,3 +87,61 @@ def test_a_wide_encoding_is_named(tiny_copy, encoding, name):
     load_study(tiny_copy, problems=problems)
     messages = problems.lines()
     assert any(f"ratings.csv: is {name} text, not UTF-8; save it as UTF-8" in m for m in messages), messages
+
+
+def test_read_table_names_the_line_of_a_bad_value(tmp_path):
+    path = tmp_path / "ratings.csv"
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\nP1,2,R2,abc\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and info.value.column == "rating"
+
+
+def test_manifest_with_trailing_commas_reads_as_without(tmp_path):
+    write_minimal_study(tmp_path / "s")
+    plain = read_study(tmp_path / "s")
+    for name in ("manifest.csv", "specimens.csv"):
+        path = tmp_path / "s" / name
+        path.write_text("".join(line + ",\n" for line in path.read_text().splitlines()))
+    commas = read_study(tmp_path / "s")
+    pd.testing.assert_frame_equal(commas.manifest, plain.manifest)
+    pd.testing.assert_frame_equal(commas.specimens, plain.specimens)
+    assert list(commas.manifest["image"]) == ["images/R2.png", "images/R3.png"]
+
+
+def test_manifest_row_with_an_extra_value_names_its_line(tmp_path):
+    write_minimal_study(tmp_path / "s")
+    manifest = tmp_path / "s" / "manifest.csv"
+    lines = manifest.read_text().splitlines()
+    lines[2] += ",smooth"  # one row too long: pandas would have shifted it under the header
+    manifest.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as info:
+        read_study(tmp_path / "s")
+    assert info.value.path == manifest and info.value.row == 3
+    assert info.value.message == "6 fields but the header has 5 (extra value 'smooth')"
+
+
+def test_number_errors_quote_the_cell_not_numpy(tmp_path):
+    path = tmp_path / "specimens.csv"
+    path.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,inf\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["specimen", "shape", "wavelength_mm"], positive=["wavelength_mm"])
+    assert info.value.message == "not a finite number: 'inf'" and info.value.row == 3
+    with pytest.raises(ConfigError, match=r"px_per_mm must be a positive number, got inf$"):
+        SensorSettings(px_per_mm=np.float64("inf"))
+    with pytest.raises(ConfigError, match=r"got 0,0,-1,5$"):
+        parse_roi([np.int64(0), np.int64(0), np.int64(-1), np.int64(5)])
+
+
+def test_blank_lines_keep_line_numbers_honest(tmp_path):
+    path = tmp_path / "ratings.csv"
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\n\nP1,2,R2,abc\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and "blank line" in str(info.value)
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\nP1,2,R2,abc\n\n\n")
+    with pytest.raises(InputError) as info:
+        read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])
+    assert info.value.row == 3 and info.value.column == "rating"  # trailing blank lines are ignored
+    path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\n\n")
+    assert len(read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])) == 1
