@@ -7,11 +7,14 @@ import shutil
 
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from roughsense._util import atomic
 from roughsense.errors import OutputExistsError, RoughsenseError
 from tests.as_user import as_nobody, needs_root
 from tests.commands import dead_pid, one_error, refusal_line
+from tests.fuzzing import EXAMPLES, FUZZ
 
 
 def refuse_rename(monkeypatch):
@@ -273,3 +276,78 @@ def test_atomic_files_get_the_usual_permissions(tmp_path):
     finally:
         os.umask(umask)
     assert path.stat().st_mode & 0o777 == 0o644
+
+
+PLANTS = ("own folder", "file", "link to folder", "link to nothing", "fifo")
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(plant=st.sampled_from(PLANTS), tag=st.sampled_from(("partial", "retired")), target_exists=st.booleans())
+def test_a_leftover_is_used_only_when_it_is_the_users_own_folder(tmp_path_factory, plant, tag, target_exists):
+    """36.1: whatever sits under a leftover's name, only a real folder of the user's is put back or deleted; anything
+    else is refused by name, and what a link points to is never touched."""
+    from roughsense._util import atomic
+    from roughsense.errors import OutputExistsError
+
+    root = tmp_path_factory.mktemp("plant")
+    private = root / "private"
+    private.mkdir()
+    (private / "a.csv").write_text("mine")
+    out = root / "out"
+    if target_exists:
+        out.mkdir()
+        (out / "a.csv").write_text("current")
+    child = os.fork()
+    if child == 0:  # pragma: no cover - a PID that is surely dead once waited for
+        os._exit(0)
+    os.waitpid(child, 0)
+    name = root / f".out{atomic.PARTIAL_TAG if tag == 'partial' else atomic.RETIRED_TAG}{child}-abcd"
+    if plant == "own folder":
+        name.mkdir()
+        (name / "a.csv").write_text("leftover")
+    elif plant == "file":
+        name.write_text("x")
+    elif plant == "fifo":
+        os.mkfifo(name)
+    else:
+        name.symlink_to(private if plant == "link to folder" else root / "nothing")
+    try:
+        atomic.clean_leftovers(out)
+        refused = None
+    except OutputExistsError as exc:
+        refused = str(exc)
+    assert (refused is None) == (plant == "own folder"), (plant, refused)
+    if refused is not None:
+        assert f"delete {name}" in refused and os.path.lexists(name)
+    else:
+        assert not os.path.lexists(name)
+        expected = b"current" if target_exists else (b"leftover" if tag == "retired" else None)
+        assert (out / "a.csv").read_bytes() == expected if expected else not out.exists()
+    assert (private / "a.csv").read_text() == "mine" and sorted(os.listdir(private)) == ["a.csv"]
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(spelling=st.sampled_from(("same", "dot", "link", "hard link", "parent dots")),
+       which=st.sampled_from(("--out", "--plot")))
+def test_an_output_spelled_as_any_input_is_refused_whatever_force_says(tmp_path_factory, spelling, which):
+    """36.2 (the rule): an output is refused when it names an input by any spelling (./x, a/../x, a link, a hard
+    link), --force or not."""
+    from roughsense._util.atomic import check_outputs
+    from roughsense.errors import ConfigError
+
+    root = tmp_path_factory.mktemp("spell")
+    (root / "sub").mkdir()
+    image = root / "in.png"
+    image.write_bytes(b"x")
+    other = {"same": image, "dot": root / "." / "in.png", "parent dots": root / "sub" / ".." / "in.png",
+             "link": root / "link.png", "hard link": root / "hard.png"}[spelling]
+    if spelling == "link":
+        other.symlink_to(image)
+    elif spelling == "hard link":
+        os.link(image, other)
+    outputs = {"--out": root / "x.csv", "--plot": None, which: other}
+    with pytest.raises(ConfigError, match=f"{which} .* (an input of this run|is also)"):
+        check_outputs(outputs, force=True, inputs=[image])
+    assert image.read_bytes() == b"x"

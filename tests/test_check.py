@@ -7,12 +7,15 @@ import warnings
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.study import read_study
 from tests.as_user import as_nobody, needs_root
 from tests.commands import check_output, error_line, manifest_lines, write_lines
+from tests.fuzzing import EXAMPLES, FUZZ
 
 SPECIMENS = [("R2", "rectangular", 2.0), ("R3", "rectangular", 3.0), ("R4", "rectangular", 4.0),
              ("S05", "sinusoidal", 0.5)]
@@ -313,3 +316,26 @@ def test_check_lists_every_file_name_too_long(run_cli, tiny_copy):
     text = check_output(run_cli, tiny_copy)
     for row in (2, 4):
         assert f"manifest.csv, row {row}, column 'image': image file cannot be looked up (File name too long)" in text
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(100, EXAMPLES))
+@given(header=st.integers(1, 4), rows=st.lists(st.lists(st.sampled_from(["1", "", "x"]), min_size=0, max_size=6).map(
+    lambda r: ["1", *r]), min_size=1, max_size=5))
+def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
+    """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
+    the rows after it are still read: no pandas "C error"."""
+    from roughsense.io.problems import Problems
+    from roughsense.io.tables import read_table
+
+    path = tmp_path_factory.mktemp("widths36") / "t.csv"
+    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
+    problems = Problems()
+    read_table(path, [f"c{i}" for i in range(header)], numeric=["c0"], problems=problems)
+    messages = [one.message for one in problems.items]
+    assert not any("readable CSV" in m for m in messages), messages
+    wrong = [i + 2 for i, r in enumerate(rows) if len(r) != header]
+    width_rows = [one.row for one in problems.items if "fields but the header has" in one.message]
+    assert width_rows == wrong
+    assert len({one.row for one in problems.items if one.row in wrong}) == len(wrong)  # one problem per such row
+    assert all(one.column is None for one in problems.items if one.row in wrong)

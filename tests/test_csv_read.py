@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError, InputError
 from roughsense.io import tables
@@ -13,6 +15,7 @@ from roughsense.io.sensor_settings import SensorSettings, parse_roi
 from roughsense.io.study import load_study, read_study
 from roughsense.io.tables import read_table
 from tests.commands import check_output, manifest_lines, write_lines
+from tests.fuzzing import EXAMPLES, FUZZ
 from tests.studies import write_minimal_study
 
 
@@ -145,3 +148,23 @@ def test_blank_lines_keep_line_numbers_honest(tmp_path):
     assert info.value.row == 3 and info.value.column == "rating"  # trailing blank lines are ignored
     path.write_text("participant,session,specimen,rating\nP1,1,R2,0.5\n\n")
     assert len(read_table(path, ["participant", "session", "specimen", "rating"], positive=["rating"])) == 1
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(100, EXAMPLES))
+@given(header=st.integers(1, 5), rows=st.lists(st.lists(st.sampled_from(["1", ""]), min_size=0, max_size=6).map(
+    lambda r: ["1", *r]), min_size=1, max_size=5))
+def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, header, rows):
+    """Issue 28.3: blanks count; a row wider or narrower than the header is refused, never shifted or padded."""
+    from roughsense.errors import InputError
+    from roughsense.io.tables import read_table
+
+    path = tmp_path_factory.mktemp("widths") / "t.csv"
+    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
+    try:
+        read_table(path, [])
+        read = True
+    except InputError as exc:
+        read = False
+        assert "fields but the header has" in exc.message, exc.message
+    assert read == all(len(r) == header for r in rows), (header, rows)

@@ -2,6 +2,10 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.fuzzing import EXAMPLES, FUZZ
 
 
 @pytest.mark.parametrize("size_in", [(15.0, 9.0), (8.0, 5.6), (25.2, 12.0)])
@@ -56,3 +60,24 @@ def test_the_dpi_help_states_the_budget_in_force(run_cli):
 
     code, out, _ = run_cli("study", "--help")
     assert code == 0 and f"within {MAX_FIGURE_PIXELS / 1e6:g} Mpx" in " ".join(out.split())
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(width_in=st.floats(0.5, 40.0), height_in=st.floats(0.5, 40.0), dpi=st.integers(30, 1200))
+def test_every_accepted_dpi_stays_within_a_figures_pixel_budget(width_in, height_in, dpi):
+    """36.10: for every figure size and every --dpi accepted, a figure is rendered within MAX_FIGURE_PIXELS, and at
+    the dpi asked whenever that fits."""
+    import warnings
+
+    import matplotlib.pyplot as plt
+
+    from roughsense.report.figures import MAX_FIGURE_PIXELS, figure_dpi
+
+    fig = plt.figure(figsize=(width_in, height_in))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        used = figure_dpi(fig, dpi)
+    plt.close(fig)
+    assert width_in * height_in * used**2 <= MAX_FIGURE_PIXELS * (1 + 1e-9)
+    assert used == dpi or width_in * height_in * dpi**2 > MAX_FIGURE_PIXELS

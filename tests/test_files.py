@@ -5,8 +5,11 @@ import os
 import subprocess
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tests.commands import HANG_GUARD_S, LEGACY_MODEL, ROUGHSENSE, error_line, grating_png
+from tests.fuzzing import EXAMPLES, FUZZ
 
 
 @pytest.mark.parametrize("command", ["predict", "features", "predict-model"])
@@ -32,3 +35,48 @@ def test_a_link_to_a_device_is_named_as_a_device(run_cli, tmp_path):
     code, _, err = run_cli("features", link, "-o", tmp_path / "x.csv")
     assert code == 2 and error_line(err).endswith(f"{link}: is a device, not a regular image file; give the image "
                                                   "file itself")
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
+@given(kind=st.sampled_from(("regular", "empty", "folder", "fifo", "link to fifo", "device", "socket")),
+       reader=st.sampled_from(("image", "table", "model", "sweep")))
+def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, reader):
+    """36.6: images, tables, model and sweep files are read only as regular files; a FIFO, a device or a socket is
+    one error naming its type, at once (a FIFO without a writer would block an ordinary open)."""
+    import socket
+
+    from roughsense.errors import RoughsenseError
+    from roughsense.explore.sweep import read_sweep
+    from roughsense.io.images import read_image
+    from roughsense.io.tables import read_table
+    from roughsense.model.modelfile import load_model
+
+    root = tmp_path_factory.mktemp("kinds")
+    path = root / "thing"
+    keep = None
+    if kind in ("regular", "empty"):
+        path.write_bytes(b"" if kind == "empty" else b"c0\n1\n")
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "link to fifo":
+        os.mkfifo(root / "pipe")
+        path.symlink_to(root / "pipe")
+    elif kind == "device":
+        path.symlink_to("/dev/null")
+    else:
+        keep = socket.socket(socket.AF_UNIX)
+        keep.bind(str(path))
+    read = {"image": read_image, "table": lambda p: read_table(p, []), "model": load_model, "sweep": read_sweep}[reader]
+    try:
+        read(path)
+    except RoughsenseError as exc:
+        if kind not in ("regular", "empty"):
+            words = {"folder": "a folder", "fifo": "FIFO", "link to fifo": "FIFO", "device": "a device",
+                     "socket": "a socket"}[kind]
+            assert words in str(exc), str(exc)
+    finally:
+        if keep is not None:
+            keep.close()

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError
@@ -14,6 +14,7 @@ from roughsense.sim.optics import Camera, Lighting, render
 from roughsense.sim.pads import make_pad
 from roughsense.sim.specimens import PRESETS, parse_specimen
 from tests.commands import one_error
+from tests.fuzzing import EXAMPLES, FUZZ, NUMBER_CHARS
 from tests.sweeps import SWEEP
 
 
@@ -140,3 +141,25 @@ def test_a_specimen_spec_is_read_by_the_number_parser(run_cli, tmp_path, spec, m
     sweep.write_text(SWEEP.format(seed=0, spec=f'"{spec}"'))
     line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
     assert message in line and str(sweep) in line
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), min_size=1, max_size=8))
+def test_a_specimen_spec_reads_its_numbers_as_every_reader_does(text):
+    """Issue 28.4: a spec's number is what parse_number reads (no 1_5 as 15 mm), or the spec is refused."""
+    from roughsense.errors import ConfigError
+    from roughsense.io.numbers import NumberError, parse_number
+    from roughsense.sim.specimens import parse_specimen
+
+    try:
+        expected = float(parse_number(text))
+    except NumberError:
+        expected = None
+    try:
+        got = parse_specimen(f"rect:{text}").wavelength_mm
+    except ConfigError:
+        got = None
+    assert got is None or got == expected, (text, got, expected)
+    if expected is None:
+        assert got is None

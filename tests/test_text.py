@@ -4,8 +4,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tests.commands import LEGACY_MODEL, grating_png
+from tests.fuzzing import EXAMPLES, FUZZ
 
 FORMULAS = ["=HYPERLINK(\"evil\")", "+cmd", "-2+3", "@SUM(A1)", "\t=1"]
 
@@ -39,3 +42,27 @@ def test_spreadsheet_safety_leaves_numbers_and_plain_text_alone():
     assert safe["image"].tolist() == ["a.png", "'=1+1", "'-x", "'\r@y"]
     assert safe["low"].tolist() == frame["low"].tolist() and safe["value"].tolist() == [1.0, -2.0, 3.0, 4.0]
     assert spreadsheet_safe(frame.iloc[:1]) is not None and frame["image"].tolist()[1] == "=1+1"  # no side effect
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(60, EXAMPLES))
+@given(values=st.lists(st.one_of(st.text(max_size=12), st.sampled_from(["=1+1", "-2", "+x", "@a", "\t=", "-", "'=x"])),
+                       min_size=1, max_size=8))
+def test_no_text_cell_a_spreadsheet_would_run_survives_spreadsheet_safe(values):
+    """36.12: after spreadsheet_safe, a text cell starts with = + - @ TAB or CR only if it is a number (or a lone
+    sign); every other cell is unchanged, and a second pass changes nothing more."""
+    import pandas as pd
+
+    from roughsense._util.text import spreadsheet_safe
+
+    frame = pd.DataFrame({"image": values})
+    once = spreadsheet_safe(frame)["image"].tolist()
+    for before, after in zip(values, once):
+        risky = len(before) > 1 and before.startswith(("=", "+", "-", "@", "\t", "\r"))
+        try:
+            float(before)
+            number = True
+        except ValueError:
+            number = False
+        assert after == (f"'{before}" if risky and not number else before)
+    assert spreadsheet_safe(pd.DataFrame({"image": once}))["image"].tolist() == once
