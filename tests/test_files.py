@@ -80,3 +80,24 @@ def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, r
     finally:
         if keep is not None:
             keep.close()
+
+
+def test_a_files_kind_is_named_from_its_mode_and_only_a_regular_files_bytes_are_read(tmp_path):
+    """The kind in words is lstat's, never the link target's; read_regular returns the file's bytes, up to a limit."""
+    import stat
+
+    from roughsense._util.files import foreign_reason, kind_of, read_regular
+    from roughsense.errors import InputError
+
+    regular = tmp_path / "a.csv"
+    regular.write_bytes(b"x,y\n1,2\n")
+    os.mkfifo(tmp_path / "pipe")
+    (tmp_path / "link").symlink_to(regular)
+    assert kind_of(os.lstat(tmp_path / "pipe").st_mode) == "a FIFO (named pipe)"
+    assert kind_of(os.lstat(tmp_path / "link").st_mode) == "a symbolic link"
+    assert kind_of(os.lstat(tmp_path).st_mode) == "a folder" and kind_of(stat.S_IFREG) == "a file"
+    assert foreign_reason(regular, folder=False) is None and foreign_reason(tmp_path / "gone", folder=True) is None
+    assert foreign_reason(tmp_path / "link", folder=False) == "is a symbolic link, not a file"
+    assert read_regular(regular) == b"x,y\n1,2\n" and read_regular(regular, limit=3) == b"x,y"
+    with pytest.raises(InputError, match="is a FIFO \\(named pipe\\), not a regular table; give the table itself"):
+        read_regular(tmp_path / "pipe", what="table")

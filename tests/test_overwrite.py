@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from tests.commands import HANG_GUARD_S
 
 
@@ -23,3 +25,25 @@ def test_simulate_force_over_a_folder_whose_manifest_is_a_fifo_does_not_hang(tmp
     done = subprocess.run([*args, "--force"], capture_output=True, text=True, env=env, timeout=HANG_GUARD_S)
     assert done.returncode == 0 and "Traceback" not in done.stderr
     assert manifest.is_file() and manifest.read_text().startswith("image,specimen,pad,force_n")
+
+
+def test_only_an_interrupted_simulation_or_an_empty_folder_is_replaced_without_force(tmp_path):
+    """What check_overwritable lets a simulation replace: told by study.toml's [simulation] table and the marker."""
+    from roughsense.errors import OutputExistsError
+    from roughsense.sim.overwrite import check_overwritable, is_complete_simulation, is_simulated_study
+
+    root = tmp_path / "s"
+    (root / "images").mkdir(parents=True)
+    check_overwritable(root, force=False)  # an empty images/ is an empty folder
+    (root / "study.toml").write_text('[study]\nname = "mine"\n')
+    assert not is_simulated_study(root)
+    with pytest.raises(OutputExistsError, match="is not a simulated study"):
+        check_overwritable(root, force=True)
+    (root / "study.toml").write_text('[study]\nname = "sim"\n[simulation]\nseed = 0\n')
+    assert is_simulated_study(root) and not is_complete_simulation(root)
+    check_overwritable(root, force=False)  # interrupted: replaced without --force
+    (root / ".simulation-complete").touch()
+    assert is_complete_simulation(root)
+    with pytest.raises(OutputExistsError, match="folder exists and is not empty"):
+        check_overwritable(root, force=False)
+    check_overwritable(root, force=True)
