@@ -168,3 +168,21 @@ def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, head
         read = False
         assert "fields but the header has" in exc.message, exc.message
     assert read == all(len(r) == header for r in rows), (header, rows)
+
+
+def test_the_reader_drops_a_bom_and_names_a_mixed_separator_and_a_names_case(tmp_path):
+    """io/csv_read.py's own helpers: UTF-8 text without its BOM; absent columns told the separator fix; an unknown
+    name that is a known one in another case named as the slip it is, on its file line (row 0 is line 2)."""
+    from roughsense.io.csv_read import csv_line, missing_columns, read_text, refuse_unknown
+
+    path = tmp_path / "ratings.csv"
+    path.write_bytes("\ufeffspecimen;rating\nR2;0.5\n".encode())
+    assert read_text(path) == "specimen;rating\nR2;0.5\n"
+    error = missing_columns(["specimen", "rating"], ["specimen;rating"], path)
+    assert error.message == ("missing column(s) specimen, rating; found specimen;rating; the header mixes ',' and ';' "
+                             "separators: use one throughout, e.g. save it as CSV UTF-8 (comma delimited)")
+    frame = pd.DataFrame({"specimen": ["R2", "r4", "R3"]})
+    with pytest.raises(InputError) as info:
+        refuse_unknown(frame, "specimen", {"R2", "R3", "R4"}, path, hint="specimens.csv lists them")
+    assert info.value.row == csv_line(1) == 3 and info.value.column == "specimen"
+    assert info.value.message == "unknown specimen 'r4' (specimens.csv lists them; did you mean 'R4'?)"
