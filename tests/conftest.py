@@ -22,7 +22,7 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "roughsense"))
 #: The test files that take longest, longest first (BENCHMARKS.md, the suite). Under ``make test`` (pytest-xdist,
 #: ``--dist loadfile --no-loadscope-reorder``) a file runs whole on one worker in collection order, so a long file
 #: collected last kept one worker busy alone at the end; started first, the short files fill in around them.
-LONGEST_FILES = ("test_report.py", "test_explore.py", "test_tutorial.py",
+LONGEST_FILES = ("test_report.py", "test_explore.py", "test_runner.py", "test_tutorial.py",
                  "test_peak_domain.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
                  "test_interrupted.py", "test_cli_study.py", "test_input_contract.py", "test_cli_model.py",
                  "test_api_docs.py", "test_damaged_studies.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
