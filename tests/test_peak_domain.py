@@ -1,4 +1,4 @@
-"""The models' applicability flags (model/peak_domain.py for the law, model/applicability.py for PLS): a grating
+"""The models' applicability flags (the peak law's domain, and PLS's applicability beside it): a grating
 outside the design is flagged, a held-out specimen and a training press read alone seldom are.
 
 The flag tests run on the built-in study's design (the paper's 14 specimens, both pads, the three forces, 10

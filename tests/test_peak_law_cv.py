@@ -1,4 +1,4 @@
-"""model/peak_law_cv.py: the law's leave-one-out fits a surface's interchangeable folds once, to the same bits as
+"""The peak law's cross-validation: the law's leave-one-out fits a surface's interchangeable folds once, to the same bits as
 fitting every fold."""
 from __future__ import annotations
 

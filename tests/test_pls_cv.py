@@ -1,4 +1,4 @@
-"""model/pls_cv.py: the permutation control's shortcuts against the plain paths, and against SIMPLS refitted fold by
+"""PLS's exact cross-validation: the permutation control's shortcuts against the plain paths, and against SIMPLS refitted fold by
 fold.
 
 Nested leave-one-specimen-out with many shuffled targets fits each pair of specimens left out in that pair's own basis
