@@ -96,7 +96,7 @@ def main() -> None:
     args = parser.parse_args()
     from roughsense.analysis import controls
     from roughsense.analysis.family_fits import family_fit
-    from roughsense.model.pls_family import permuted_cv_rmse
+    from roughsense.model.pls.family import permuted_cv_rmse
 
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"load average {os.getloadavg()[0]:.1f} at start")

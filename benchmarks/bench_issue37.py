@@ -145,7 +145,8 @@ def chunk_run(path: Path, law_cells: int, pls_bytes: int) -> None:
     import resource
 
     from roughsense.analysis import controls
-    from roughsense.model import peak_law_family, pls_cv
+    from roughsense.model.peak_law import family as peak_law_family
+    from roughsense.model.pls import cv as pls_cv
 
     jobs = pickle.loads(path.read_bytes())
     peak_law_family.LAW_CHUNK_CELLS, pls_cv._BATCH_BYTES = law_cells, pls_bytes

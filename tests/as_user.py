@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 
+import pytest
+
 #: The user id (and group id) of Debian's nobody.
 NOBODY = 65534
 
@@ -28,3 +30,8 @@ def as_nobody(action) -> str:
     os.waitpid(pid, 0)
     with os.fdopen(read, "rb") as handle:
         return handle.read().decode()
+
+
+#: Acting as another user needs root (CI runs as root; a developer's run skips those tests).
+AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
+needs_root = pytest.mark.skipif(not AS_ROOT, reason="acting as another user needs root")

@@ -3,6 +3,9 @@ simulated studies several modules read."""
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -19,12 +22,12 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "roughsense"))
 #: The test files that take longest, longest first (BENCHMARKS.md, the suite). Under ``make test`` (pytest-xdist,
 #: ``--dist loadfile --no-loadscope-reorder``) a file runs whole on one worker in collection order, so a long file
 #: collected last kept one worker busy alone at the end; started first, the short files fill in around them.
-LONGEST_FILES = ("test_report.py", "test_explore.py", "test_hostile.py", "test_tutorial.py",
-                 "test_trustworthy_prediction.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
+LONGEST_FILES = ("test_report.py", "test_explore.py", "test_runner.py", "test_tutorial.py",
+                 "test_peak_domain.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
                  "test_interrupted.py", "test_cli_study.py", "test_input_contract.py", "test_cli_model.py",
-                 "test_api_docs.py", "test_fuzz.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
+                 "test_api_docs.py", "test_damaged_studies.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
                  "test_jackknife_file.py", "test_scale_band.py", "test_families.py", "test_cli_builtin.py",
-                 "test_sim_pixels.py", "test_controls.py", "test_pls.py", "test_noise.py")
+                 "test_sim_pixels.py", "test_controls.py", "test_pls.py")
 
 
 def pytest_collection_modifyitems(items) -> None:
@@ -89,3 +92,52 @@ def simulated_tiny(shared_build):
     config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=7, participants=3,
                               sessions=2)
     return shared_build("tiny-seed7", lambda folder: simulate_study(folder, with_image_size(config, 1920, 170), jobs=1))
+
+
+@pytest.fixture()
+def shared():
+    """A folder every user may write, as /tmp is (pytest's tmp_path is root's alone)."""
+    folder = Path(tempfile.mkdtemp(prefix="roughsense-shared-", dir="/tmp"))
+    os.chmod(folder, 0o1777)
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture()
+def signals():
+    """The CLI's handlers (as ``run()`` installs them), Python's restored after the test."""
+    import signal
+
+    from roughsense._util import interrupt
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal, even if pytest runs in the
+    interrupt.install()  # background (SIGINT inherited ignored, and kept so by install(): tests/foreground.py)
+    yield interrupt
+    for number, handler in saved.items():
+        signal.signal(number, handler)
+    interrupt._received.clear()
+
+
+@pytest.fixture(scope="session")
+def tiny_smooth(tmp_path_factory):
+    """A tiny study folder (``make_study``: smooth pad, 2 repetitions), built once per run and read-only after."""
+    from .test_dataset import make_study
+
+    return make_study(tmp_path_factory.mktemp("tiny") / "study", pads=("smooth",), repetitions=2)
+
+
+@pytest.fixture()
+def tiny_copy(tiny_smooth, tmp_path):
+    """A copy of ``tiny_smooth`` the test may damage."""
+    return shutil.copytree(tiny_smooth, tmp_path / "study")
+
+
+@pytest.fixture(scope="session")
+def tiny_model_2n(tiny_smooth, tmp_path_factory):
+    """The model ``fit`` makes of ``tiny_smooth`` at 2 N (the PLS family)."""
+    from roughsense.cli import main
+
+    path = tmp_path_factory.mktemp("model") / "m.json"
+    assert main(["fit", "--study", str(tiny_smooth), "--pad", "smooth", "--condition", "2N", "--out", str(path)]) == 0
+    return path

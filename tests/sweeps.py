@@ -14,3 +14,23 @@ max_components = {max_components}
 [axes]
 pad = ["smooth"]
 """
+
+
+def big_sweep(tmp_path, seeds: int):
+    """``small_sweep`` of ``seeds`` seeds (so as many cells), written to ``tmp_path/sweep.toml``."""
+    path = tmp_path / "sweep.toml"
+    path.write_text(small_sweep(range(seeds), max_components=4))
+    return path
+
+
+#: A sweep file with a seed and a specimen spec to fill in (``SWEEP.format(seed=0, spec='"R4"')``).
+SWEEP = """
+[sweep]
+seeds = [{seed}]
+repetitions = 2
+specimens = ["R2", "R3", {spec}]
+image_size_px = [480, 160]
+max_components = 4
+[axes]
+pad = ["smooth"]
+"""

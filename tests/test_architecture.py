@@ -177,3 +177,26 @@ def test_a_fingerprint_changes_with_any_module_it_covers(tmp_path, monkeypatch):
     writer.write_text(writer.read_text() + "\n# changed\n")
     after = fingerprint.code_fingerprint.__wrapped__(*entry)
     assert before != after
+
+
+#: The share of src modules a test imports by their own dotted path (issue 45: tests find their modules).
+MIN_OWN_PATH_SHARE = 0.85
+
+
+def _imported_by_own_path(module: str, text: str) -> bool:
+    """``import roughsense.x.y``, ``from roughsense.x.y import ...`` or ``from roughsense.x import y``."""
+    parent, _, leaf = module.rpartition(".")
+    return bool(re.search(rf"\b(?:import|from)\s+{re.escape(module)}\b", text) or re.search(
+        rf"\bfrom\s+{re.escape(parent)}\s+import\s+(?:\([^)]*\b{leaf}\b|[^\n]*\b{leaf}\b)", text))
+
+
+def test_most_modules_are_imported_by_their_own_path_in_a_test():
+    """A test that reaches a module through a re-export, or only through the CLI, leaves it unfound: its tests are
+    not beside its path. At least 85 % of the modules (``__init__`` aside) must be imported by their own path."""
+    modules = [".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts) for path in _modules()
+               if path.name != "__init__.py"]
+    text = "\n".join(path.read_text(encoding="utf-8") for path in Path(__file__).parent.rglob("*.py"))
+    missing = [module for module in modules if not _imported_by_own_path(module, text)]
+    share = 1 - len(missing) / len(modules)
+    assert share >= MIN_OWN_PATH_SHARE, f"{share:.1%} of {len(modules)} modules; not imported by their own path: " \
+                                        + ", ".join(missing)

@@ -6,12 +6,14 @@ from __future__ import annotations
 import os
 import shutil
 import warnings
+from pathlib import Path
 
 import pytest
 
 from roughsense._util import atomic
 from roughsense._util.cache import KEY_FILE, cached_folder, folder_entry, key_files, made_here
 from roughsense.errors import RoughsenseWarning
+from tests.as_user import AS_ROOT, NOBODY, as_nobody, needs_root
 
 STEM = "simulated-study-seed3"
 
@@ -190,3 +192,98 @@ def test_a_link_of_another_user_at_an_old_entry_with_a_partial_beside_it(cache, 
     (partial / KEY_FILE).write_text(f"{STEM}-v0\n")
     entry, _ = get("v1", build)
     assert calls == [entry] and (cache / f"{STEM}-v0").is_symlink() and (tmp_path / "theirs" / "study.toml").exists()
+
+
+def _poison(root: Path, key: str) -> None:
+    """Write a well-formed, correctly checksummed entry under ``key``, as anyone who can write ``root`` can."""
+    import hashlib
+
+    (root / "features").mkdir(parents=True, exist_ok=True)
+    body = b"image,f\na.png,999\n"
+    (root / "features" / f"{key}.csv").write_bytes(body + b"#sha256=" + hashlib.sha256(body).hexdigest().encode()
+                                                   + b"\n")
+
+
+def _cached(monkeypatch, root: Path):
+    import pandas as pd
+
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(root))
+    monkeypatch.setattr(cache, "_BYPASS_SAID", set())
+    with pytest.warns(Warning) as caught:
+        first = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+        second = cache.cached_frame("k" * 24, lambda: pd.DataFrame({"image": ["a.png"], "f": [1.0]}))
+    return first, second, [str(w.message) for w in caught]
+
+
+@needs_root
+def test_a_cache_made_by_another_user_is_bypassed_with_one_warning(shared, monkeypatch):
+    """36.4: another user created the shared cache folder and planted an entry: study reported its numbers."""
+    root = shared / "cache"
+    assert as_nobody(lambda: (root.mkdir(mode=0o755), _poison(root, "k" * 24))) == "ok"
+    (frame, cached), (again, cached_again), said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached and again["f"].tolist() == [1.0] and not cached_again
+    assert len(said) == 1 and "belongs to another user" in said[0] and str(root) in said[0]
+
+
+def test_a_cache_others_can_write_is_bypassed_and_a_new_one_is_private(tmp_path, monkeypatch):
+    """36.4 (the rule): a group- or world-writable cache is not read; a cache roughsense creates is 0700."""
+    root = tmp_path / "cache"
+    root.mkdir()
+    os.chmod(root, 0o777)
+    _poison(root, "k" * 24)
+    (frame, cached), _, said = _cached(monkeypatch, root)
+    assert frame["f"].tolist() == [1.0] and not cached
+    assert len(said) == 1 and "can be written by other users" in said[0]
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "fresh"))
+    assert cache.usable_cache_dir() == tmp_path / "fresh"
+    assert (tmp_path / "fresh").stat().st_mode & 0o777 == 0o700
+
+
+@pytest.mark.skipif(not AS_ROOT, reason="a file of another user's needs root to make")
+def test_a_cache_entry_swapped_after_its_check_is_not_trusted(tmp_path, monkeypatch):
+    """36.4, the window the lstat checks leave: an entry that another user swaps in between ``foreign_reason``'s
+    lstat and the read (through a cache root whose parent they can write) was read as results."""
+    import pandas as pd
+
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    mine, theirs = pd.DataFrame({"image": ["a.png"], "x": [1.0]}), pd.DataFrame({"image": ["a.png"], "x": [99.0]})
+    cache.cached_frame("other", lambda: theirs)  # a well-formed entry, its checksum right, to plant as "mine"
+    root = cache.usable_cache_dir()
+    planted = tmp_path / "planted.csv"
+    planted.write_bytes((root / "features" / "other.csv").read_bytes())
+    os.chown(planted, NOBODY, NOBODY)
+    cache.cached_frame("mine", lambda: mine)
+    checked = cache.foreign_reason
+
+    def check_then_swap(path, *, folder):
+        reason = checked(path, folder=folder)
+        if not folder and path.name == "mine.csv":
+            os.replace(planted, path)  # the swap lands just after the check
+        return reason
+
+    monkeypatch.setattr(cache, "foreign_reason", check_then_swap)
+    frame, was_cached = cache.cached_frame("mine", lambda: mine)
+    assert not was_cached and frame["x"].tolist() == [1.0]
+
+
+def test_a_cache_in_a_folder_others_may_write_without_the_sticky_bit_is_bypassed(tmp_path, monkeypatch):
+    """36.4: the cache folder was checked, not the folder it lies in; where others may write that one (a shared
+    project folder, mode 0777), they can rename the cache away and put their own in its place between two looks
+    (the built-in study then built into, and read from, their folder)."""
+    from roughsense._util import cache
+    from roughsense.errors import RoughsenseWarning
+
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(shared / "cache"))
+    with pytest.warns(RoughsenseWarning, match=f"lies in {shared}, which other users can write without the sticky"):
+        assert cache.usable_cache_dir() is None
+    os.chmod(shared, 0o1777)  # as /tmp: only an entry's owner may rename it
+    assert cache.usable_cache_dir() == shared / "cache"

@@ -2,14 +2,20 @@
 every problem of a study folder at once (while `study` keeps stopping at the first, with the same message)."""
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.study import read_study
+from tests.as_user import as_nobody, needs_root
+from tests.commands import check_output, error_line, manifest_lines, write_lines
+from tests.fuzzing import EXAMPLES, FUZZ
 
 SPECIMENS = [("R2", "rectangular", 2.0), ("R3", "rectangular", 3.0), ("R4", "rectangular", 4.0),
              ("S05", "sinusoidal", 0.5)]
@@ -229,3 +235,107 @@ def test_check_goes_on_past_a_broken_file_and_bounds_the_list(tmp_path, run_cli)
 def test_check_refuses_a_missing_folder_in_one_line(tmp_path, run_cli):
     code, out, err = run_cli("check", tmp_path / "nope")
     assert (code, out) == (2, "") and err == f"roughsense: error: {tmp_path / 'nope'}: study folder not found\n"
+
+
+def test_check_names_a_fifo_in_the_manifest(run_cli, tmp_path):
+    """36.6: a FIFO in a manifest was reported as "not found"."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    first = sorted((root / "images").iterdir())[0]
+    first.unlink()
+    os.mkfifo(first)
+    code, out, err = run_cli("check", root)
+    assert code == 2 and f"image file is a FIFO (named pipe), not a regular image file; give the image file itself: " \
+        f"images/{first.name}" in out + err
+
+
+@needs_root
+def test_check_refuses_an_image_the_user_cannot_read(shared):
+    """Also seen: `check` said "study OK" for an image the user cannot read (chmod 000)."""
+    import contextlib
+    import io
+
+    from roughsense.cli import main
+
+    from .test_dataset import make_study
+
+    root = make_study(shared / "study", pads=("smooth",), repetitions=1)
+    for path in [root, *root.rglob("*")]:
+        os.chmod(path, 0o755 if path.is_dir() else 0o644)
+    first = sorted((root / "images").iterdir())[0]
+    os.chmod(first, 0)
+
+    def check_as_nobody() -> str:
+        text = io.StringIO()
+        with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
+            code = main(["check", str(root)])
+        return f"{code}\n{text.getvalue()}"
+
+    said = as_nobody(check_as_nobody)
+    assert said.startswith("2\n") and f"image file cannot be read (permission denied): images/{first.name}" in said
+
+
+def test_two_decimal_commas_are_two_problems_not_four_or_a_pandas_error(run_cli, tmp_path):
+    """Also seen: a decimal-comma row was reported twice, the second time as a raw pandas "C error"; and "run
+    `roughsense check` again" omitted the folder."""
+    from .test_dataset import make_study
+
+    root = make_study(tmp_path / "study", pads=("smooth",), repetitions=1)
+    lines = (root / "manifest.csv").read_text().splitlines()
+    lines[1] = lines[1].replace(".", ",", 1)  # force 1,0116...: one field too many
+    lines[3] = lines[3].replace(".", ",", 1) + ",5"  # images/x,png and a trailing value: two too many
+    (root / "manifest.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli("check", root)
+    listed = out.splitlines()
+    assert code == 2 and len(listed) == 2, out
+    assert listed[0].startswith(f"{root / 'manifest.csv'}, row 2: 6 fields but the header has 5")
+    assert listed[1].startswith(f"{root / 'manifest.csv'}, row 4: 7 fields but the header has 5")
+    assert error_line(err).endswith(f"2 problems (listed above); fix them and run `roughsense check {root}` again")
+
+
+def test_check_lists_every_row_of_the_wrong_width(run_cli, tiny_copy):
+    lines = manifest_lines(tiny_copy)
+    lines[1] += ","
+    lines[3] = lines[3].rsplit(",", 1)[0]
+    write_lines(tiny_copy / "manifest.csv", lines)
+    code, out, err = run_cli("check", tiny_copy)
+    assert code == 2
+    text = out + err
+    assert "row 2: 6 fields but the header has 5" in text and "row 4: 4 fields but the header has 5" in text
+
+
+def test_check_lists_every_file_name_too_long(run_cli, tiny_copy):
+    """28.16: `check` stopped at the first "File name too long" instead of listing every row."""
+    lines = manifest_lines(tiny_copy)
+    for k, letter in ((1, "x"), (3, "y")):
+        fields = lines[k].split(",")
+        fields[0] = f"images/{letter * 300}.png"
+        lines[k] = ",".join(fields)
+    write_lines(tiny_copy / "manifest.csv", lines)
+    text = check_output(run_cli, tiny_copy)
+    for row in (2, 4):
+        assert f"manifest.csv, row {row}, column 'image': image file cannot be looked up (File name too long)" in text
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(100, EXAMPLES))
+@given(header=st.integers(1, 4), rows=st.lists(st.lists(st.sampled_from(["1", "", "x"]), min_size=0, max_size=6).map(
+    lambda r: ["1", *r]), min_size=1, max_size=5))
+def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
+    """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
+    the rows after it are still read: no pandas "C error"."""
+    from roughsense.io.problems import Problems
+    from roughsense.io.tables import read_table
+
+    path = tmp_path_factory.mktemp("widths36") / "t.csv"
+    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
+    problems = Problems()
+    read_table(path, [f"c{i}" for i in range(header)], numeric=["c0"], problems=problems)
+    messages = [one.message for one in problems.items]
+    assert not any("readable CSV" in m for m in messages), messages
+    wrong = [i + 2 for i, r in enumerate(rows) if len(r) != header]
+    width_rows = [one.row for one in problems.items if "fields but the header has" in one.message]
+    assert width_rows == wrong
+    assert len({one.row for one in problems.items if one.row in wrong}) == len(wrong)  # one problem per such row
+    assert all(one.column is None for one in problems.items if one.row in wrong)

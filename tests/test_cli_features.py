@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -13,6 +14,7 @@ from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
 from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid, spatial_spectrum
+from tests.commands import error_line, grating_png
 
 PX_PER_MM = 34.9
 
@@ -253,3 +255,45 @@ def test_plot_draws_one_images_line_and_spectrum(run_cli, tmp_path, images):
                         (["--plot", tmp_path / "p.jpg", images[0]], "must end in .png, .svg or .pdf")):
         code, _, err = run_cli("features", "--out", tmp_path / "g.csv", *bad)
         assert code == 2 and needle in err and err.count("\n") == 1 and not (tmp_path / "g.csv").exists()
+
+
+@pytest.mark.parametrize("plot_is", ["the image", "--out"])
+def test_features_plot_never_replaces_an_input_or_another_output(run_cli, tmp_path, plot_is):
+    """36.2: ``features in.png -o x.csv --force --plot in.png`` replaced the image with the plot."""
+    image = grating_png(tmp_path / "in.png")
+    before = image.read_bytes()
+    plot = {"the image": image, "--out": tmp_path / "x.png"}[plot_is]
+    out = tmp_path / ("x.png" if plot_is == "--out" else "x.csv")
+    code, _, err = run_cli("features", image, "-o", out, "--force", "--plot", plot)
+    assert code == 2 and "--plot" in error_line(err) and "choose another path" in err
+    assert image.read_bytes() == before and not out.exists()
+
+
+def test_a_stop_while_features_draws_its_plot_leaves_no_csv_behind(run_cli, tmp_path, monkeypatch):
+    """36.5's "never commits after it" for a run of several outputs: features wrote its CSV and grid file, then drew
+    --plot, so a SIGTERM (or a failure) while drawing left the CSV without the plot it was asked for."""
+    import signal
+
+    from roughsense._util import interrupt
+    from roughsense.report import figures
+
+    from .commands import grating_png
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    interrupt.install()
+    real = figures.figure_bytes
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives while the figure is drawn
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(figures, "figure_bytes", signalled)
+    image = grating_png(tmp_path / "in.png")
+    try:
+        code, _, err = run_cli("features", image, "-o", tmp_path / "x.csv", "--plot", tmp_path / "plot.png")
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)
+        interrupt._received.clear()
+    assert code == 143 and err == "roughsense: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]

@@ -6,6 +6,7 @@ import pytest
 
 from roughsense.cli.predict import no_interval_line
 from roughsense.model.interval import conformal_halfwidth
+from tests.commands import LEGACY_MODEL, error_line, grating_png
 
 
 def test_too_few_specimens_is_named_as_the_cause_and_refitting_is_not_advised():
@@ -54,3 +55,12 @@ def test_tables_fit_the_terminal_without_a_continuation(monkeypatch, columns):
     wide = terminal_table(frame.drop(columns="outside"))
     if columns >= 132:
         assert frame["image"][2] in wide  # room enough: nothing folded
+
+
+def test_same_surface_refuses_one_image_given_twice(run_cli, tmp_path):
+    """Also seen: ``--same-surface`` with one image twice counted 2 trials (a narrower surface interval)."""
+    image = grating_png(tmp_path / "a.png")
+    (tmp_path / "link.png").symlink_to(image)
+    code, _, err = run_cli("predict", LEGACY_MODEL, image, tmp_path / "link.png", "--same-surface")
+    assert code == 2 and error_line(err) == (f"roughsense: error: --same-surface: {tmp_path / 'link.png'} is the same "
+                                             f"file as {image}; give each press once")

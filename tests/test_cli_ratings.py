@@ -1,10 +1,14 @@
 """``roughsense protocol`` and ``roughsense ratings`` end to end, including every bad-input path."""
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
+
+from tests.commands import HUGE, error_line, refusal_line
 
 
 def fill(schedule_path, out_path, *, drop=None, seed=0):
@@ -174,3 +178,45 @@ def test_ratings_reads_european_excel_with_one_warning_and_hints_a_case_slip(tmp
     assert code == 2
     assert err == (f"roughsense: error: {slip}, row 6, column 'specimen': unknown specimen 'r2' "
                    "(expected one of C2, R2, R3; did you mean 'R2'?)\n")
+
+
+def test_ratings_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3: ``ratings --specimens FILE -o FILE --force`` replaced the specimens table with the summary."""
+    specimens = tmp_path / "specimens.csv"
+    specimens.write_text("specimen,shape,wavelength_mm\nR2,rectangular,2\nR3,rectangular,3\n")
+    ratings = tmp_path / "ratings.csv"
+    ratings.write_text("participant,session,specimen,rating\nP01,1,R2,0.5\nP02,1,R2,0.7\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("ratings", ratings, "--specimens", specimens, "-o", specimens, "--force")
+    assert code == 2 and "an input of this run" in error_line(err) and specimens.read_bytes() == before
+
+
+def test_protocol_sheet_never_replaces_its_specimens_table(run_cli, tmp_path):
+    """36.3 (the rule): protocol's --sheet is checked against --specimens too, not only --out."""
+    specimens = tmp_path / "specimens.md"
+    specimens.write_text("specimen,shape,wavelength_mm\nS1,sinusoidal,1\nS2,sinusoidal,2\nS3,sinusoidal,3\n")
+    before = specimens.read_bytes()
+    code, _, err = run_cli("protocol", "--seed", 0, "--specimens", specimens, "--reference", "S2",
+                           "--out", tmp_path / "s.csv", "--sheet", specimens, "--force")
+    assert code == 2 and "--sheet" in error_line(err) and specimens.read_bytes() == before
+
+
+def test_a_huge_rating_cell_is_one_short_line_in_bounded_memory(run_cli, tmp_path):
+    ratings = tmp_path / "ratings.csv"
+    pd.DataFrame({"participant": ["P01", "P01"], "session": [1, 1], "specimen": ["R2", "R4"],
+                  "rating": ["9" * HUGE + "x", "1.0"]}).to_csv(ratings, index=False)
+    tracemalloc.start()
+    try:
+        code, _, err = run_cli("ratings", ratings, "--out", tmp_path / "agg.csv")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    line = refusal_line(code, err)
+    assert line.startswith(f"roughsense: error: {ratings}, row 2, column 'rating': not a number: '999")
+    assert len(err) < 1000
+    assert peak < 40 * HUGE  # escaping a cell character by character took ~16 bytes a character on top of reading it
+
+
+def test_a_huge_option_value_is_one_short_line(run_cli, tmp_path):
+    code, _, err = run_cli("ratings", tmp_path / "r.csv", "--out", tmp_path / "o.csv", "--reference", "R" * 100_000)
+    assert len(refusal_line(code, err)) < 600

@@ -9,6 +9,7 @@ import pytest
 
 from roughsense.report.tables import permutation_p_text
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from tests.commands import HUGE, error_line, refusal_line
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
 
@@ -201,3 +202,38 @@ def test_study_writes_its_figures_in_the_format_and_resolution_asked(run_cli, sm
         code, _, err = run_cli("study", "--study", small_study, "--out", tmp_path / "bad", *bad)
         assert code == 2 and needle in err and err.count("\n") == 1 and "Traceback" not in err
         assert not (tmp_path / "bad").exists()
+
+
+def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_path):
+    """Also seen: ``study --study missing`` suggested running check on the missing folder."""
+    code, _, err = run_cli("study", "--study", tmp_path / "missing", "--out", tmp_path / "rep")
+    assert code == 2 and error_line(err) == f"roughsense: error: {tmp_path / 'missing'}: study folder not found"
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "R4"), repetitions=1, seed=5, participants=3,
+                              sessions=2)
+    return simulate_study(tmp_path_factory.mktemp("noise") / "study", with_image_size(config, 1920, 170), jobs=1)
+
+
+def test_a_huge_image_path_in_the_manifest_is_one_short_line(run_cli, study, tmp_path):
+    root = shutil.copytree(study, tmp_path / "study")
+    manifest = pd.read_csv(root / "manifest.csv", dtype=str, keep_default_na=False)
+    manifest.loc[0, "image"] = "images/" + "a" * HUGE + ".png"
+    manifest.to_csv(root / "manifest.csv", index=False)
+    code, _, err = run_cli("study", "--study", root, "--out", tmp_path / "report")
+    assert str(root) in refusal_line(code, err)
+    assert len(err) < 2000
+
+
+def test_a_camera_scale_below_nyquist_names_study_toml_and_the_key(run_cli, study, tmp_path):
+    root = shutil.copytree(study, tmp_path / "study")
+    toml = root / "study.toml"
+    toml.write_text(toml.read_text().replace("px_per_mm = 34.9\n", "px_per_mm = 1.5\n", 1))
+    code, _, err = run_cli("study", "--study", root, "--out", tmp_path / "report")
+    assert refusal_line(code, err) == (
+        f"roughsense: error: {toml}: [sensor] px_per_mm 1.5 is too coarse: its Nyquist frequency 0.75 mm^-1 is not "
+        "above the band's f_max 1 mm^-1 (it must be above 2 px/mm)")

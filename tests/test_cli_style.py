@@ -6,7 +6,11 @@ import json
 import os
 import subprocess
 import sys
+import warnings
+from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 import typer.main
 
@@ -204,3 +208,39 @@ def test_every_numeric_option_reads_numbers_as_a_csv_cell_is_read(run_cli, tmp_p
     code, _, err = run_cli(*args)
     assert option in _one_line_error(code, err)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_library_warning_is_one_line_of_ours_without_source(run_cli, tmp_path, monkeypatch):
+    """Any warning a library raises during a command (numpy here) is one ``roughsense: warning:`` line."""
+    import roughsense.analysis.magnitude_estimation as analysis
+
+    aggregate = analysis.aggregate_ratings
+
+    def noisy(*args, **kwargs):
+        np.log(np.zeros(1))  # RuntimeWarning: divide by zero encountered in log
+        return aggregate(*args, **kwargs)
+
+    monkeypatch.setattr(analysis, "aggregate_ratings", noisy)
+    ratings = tmp_path / "ratings.csv"
+    pd.DataFrame({"participant": ["P01", "P01"], "session": [1, 1], "specimen": ["R2", "R4"],
+                  "rating": ["1.0", "0.5"]}).to_csv(ratings, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        code, _, err = run_cli("ratings", ratings, "--out", tmp_path / "agg.csv")
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if "RuntimeWarning" in line]
+    assert lines == [line for line in lines if line.startswith("roughsense: warning: RuntimeWarning: divide by zero")]
+    assert len(lines) == 1 and "np.log" not in err and f"{Path(__file__).name}:" in lines[0]
+
+
+def test_cli_error_is_one_line_exit_2(run_cli, tmp_path):
+    from roughsense.cli import app
+
+    @app.command("_boom", hidden=True)
+    def _boom() -> None:
+        raise InputError("bad thing", path=tmp_path / "x.csv", row=2)
+
+    code, out, err = run_cli("_boom")
+    assert code == 2
+    assert err.strip().count("\n") == 0 and "x.csv, row 2: bad thing" in err
+    assert "Traceback" not in err

@@ -10,7 +10,7 @@ from roughsense import pls_cv, pls_cv_many
 from roughsense.analysis import controls, dataset
 from roughsense.analysis.metrics import ALPHA
 from roughsense.analysis.study_analysis import analyse_study
-from roughsense.model.pls_family import permuted_cv_rmse
+from roughsense.model.pls.family import permuted_cv_rmse
 
 from .test_study_analysis import _regression_data, synthetic_study
 

@@ -10,8 +10,8 @@ from sklearn.cross_decomposition import PLSRegression
 from roughsense.analysis.family_fits import law_settings
 from roughsense.analysis.held_out import HELD_OUT_COLUMNS, judged, scheme_folds
 from roughsense.analysis.study_analysis import analyse_study
-from roughsense.model.peak_law import peak_law_cv
-from roughsense.model.pls_family import pls_scheme_predictions
+from roughsense.model.peak_law.cv import peak_law_cv
+from roughsense.model.pls.family import pls_scheme_predictions
 
 from .test_study_analysis import synthetic_study
 

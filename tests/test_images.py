@@ -43,3 +43,22 @@ def test_the_cli_refuses_a_stack_in_one_line(run_cli, tmp_path):
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and "stack.tif" in lines[0] and "several pages" in lines[0], err
     assert not (tmp_path / "f.csv").exists()
+
+
+def test_a_jpeg_exif_orientation_does_not_rotate_the_pixels(tmp_path):
+    """Also seen: a JPEG with EXIF orientation 6 was rotated while the same pixels in a PNG (eXIf chunk) were not."""
+    import numpy as np
+    from PIL import Image
+
+    from roughsense.io.images import read_image
+
+    rng = np.random.default_rng(0)
+    pixels = np.repeat(np.repeat(rng.integers(0, 256, (12, 20), dtype=np.uint8), 8, axis=0), 8, axis=1)  # 96 x 160
+    exif = Image.Exif()
+    exif[0x0112] = 6  # rotate 90 degrees clockwise to display
+    Image.fromarray(pixels).save(tmp_path / "a.jpg", quality=100, exif=exif)
+    Image.fromarray(pixels).save(tmp_path / "a.png", exif=exif)
+    jpeg, png = read_image(tmp_path / "a.jpg"), read_image(tmp_path / "a.png")
+    assert jpeg.shape == png.shape == pixels.shape
+    np.testing.assert_array_equal(png, pixels)
+    assert np.abs(jpeg.astype(int) - pixels).mean() < 2  # the same picture, to JPEG's loss

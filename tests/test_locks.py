@@ -24,6 +24,7 @@ from hypothesis import strategies as hs
 from roughsense._util import atomic
 from roughsense._util import lock as lock_module
 from roughsense._util.lock import OutputBusyError, lock_path, output_lock
+from tests.commands import HANG_GUARD_S
 
 from .sweeps import small_sweep
 from .test_input_contract import one_error
@@ -304,3 +305,43 @@ def test_another_user_in_a_shared_folder_is_told_who_holds_it_and_takes_over_a_d
         holder.kill()
         holder.wait()
         shutil.rmtree(shared, ignore_errors=True)
+
+
+@pytest.mark.parametrize("planted", ["record-fifo", "record-link-to-fifo", "flock-link", "flock-fifo"])
+def test_a_planted_lock_file_is_refused_by_name_without_waiting(tmp_path, planted):
+    """36.7: a FIFO as ``.NAME.roughsense-lock`` hung the run (and left a 0666 .flock); a symlinked .flock was
+    refused with "Too many levels of symbolic links", naming neither the file nor the fix."""
+    from roughsense._util.lock import OutputLock, lock_path
+    from roughsense.errors import RoughsenseError
+
+    out = tmp_path / "out"
+    record = lock_path(out)
+    flock = record.with_name(record.name + atomic.FLOCK_SUFFIX)
+    target = {"record-fifo": record, "record-link-to-fifo": record, "flock-link": flock, "flock-fifo": flock}[planted]
+    if planted.endswith("link"):
+        target.symlink_to(tmp_path / "elsewhere")
+    elif planted.endswith("link-to-fifo"):
+        os.mkfifo(tmp_path / "pipe")
+        target.symlink_to(tmp_path / "pipe")
+    else:
+        os.mkfifo(target)
+    # on e1630a3 the record's FIFO blocks here forever: a thread keeps the suite from hanging with it
+    import threading
+
+    outcome: list[BaseException | None] = []
+
+    def take() -> None:
+        try:
+            with OutputLock(out, command="test"):
+                outcome.append(None)
+        except BaseException as exc:
+            outcome.append(exc)
+
+    worker = threading.Thread(target=take, daemon=True)
+    worker.start()
+    worker.join(HANG_GUARD_S)
+    assert outcome and isinstance(outcome[0], RoughsenseError), outcome
+    message = str(outcome[0])
+    assert f"the lock file {target} is" in message and "delete it" in message
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert flock.name not in left or planted.startswith("flock")  # nothing of ours left behind

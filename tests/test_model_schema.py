@@ -421,3 +421,129 @@ def test_a_top_level_section_plugged_in_is_optional_and_checked(tmp_path, monkey
     assert mf.load_model(forged(tmp_path, lambda d: d.update(gate={"limit": 0.5}), name="ok.json"))
     assert refusal(forged(tmp_path, lambda d: d.update(gate={"limit": -1}))) == \
         "gate.limit: expected a number from 0 to 1, got -1"
+
+
+def _pls_file(tmp_path, training: dict, **section):
+    import json
+
+    import numpy as np
+
+    from roughsense import SIMPLS
+    from roughsense.model import modelfile as mf
+    from roughsense.sensor.spectrum import SpatialSpectrum
+
+    rng = np.random.default_rng(0)
+    X = rng.random((30, 45))
+    model = SIMPLS(3).fit(X, X @ rng.standard_normal(45) + 5.0)
+    path = tmp_path / "model.json"
+    definition = mf.feature_definition_for(SpatialSpectrum(px_per_mm=20.0, roi=(0, 8, 400, 16)).fit(), ["1N"])
+    mf.save_model(path, model, feature_definition=definition, training={}, force=True)
+    document = json.loads(path.read_text())
+    document["training"] = training  # forged after writing: save_model refuses to write what loading refuses
+    if section:
+        document["model"]["applicability"] = {"rotations": np.eye(3, 45).tolist(), "loadings": np.eye(3, 45).tolist(),
+                                              "score_var": [1.0, 1.0, 1.0], "t2_limit": 9.0, "q_limit": 1.0,
+                                              **section}
+    document["sha256"] = mf._digest(document)
+    path.write_text(json.dumps(document))
+    return path
+
+
+@pytest.mark.parametrize("stored", [[5e-324, 2.0], [-1.0, 2.0], [0.0, 2.0], [2.0, 1.0], "garbled", [1.0], [1.0, 1e9]])
+def test_a_forged_target_range_is_refused_not_ignored_or_underflowed(tmp_path, stored):
+    """36.9: ``target_range [5e-324, ...]`` made PLS's floor underflow (roughness 0, interval 0..0); a negative or
+    garbled one was silently ignored."""
+    from roughsense.errors import ModelFileError
+    from roughsense.model.modelfile import load_model
+
+    path = _pls_file(tmp_path, {"study": "s", "target_range": stored})
+    with pytest.raises(ModelFileError, match=r"training.target_range"):
+        load_model(path)
+
+
+def test_a_sound_target_range_sets_the_floor_at_half_the_smallest(tmp_path):
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.pls.simpls import MIN_ROUGHNESS
+
+    assert load_model(_pls_file(tmp_path, {"study": "s", "target_range": [0.3, 2.0]})).floor_ == 0.15
+    assert load_model(_pls_file(tmp_path, {"study": "s"})).floor_ == MIN_ROUGHNESS
+
+
+@pytest.mark.parametrize("level", [0.5, 0.95, 0.8999, "0.9", True])
+def test_an_interval_level_other_than_the_labelled_one_is_refused(tmp_path, level):
+    """36.16: an interval level of 0.5 was still labelled pi90 ("90 % interval")."""
+    from roughsense.errors import ModelFileError
+    from roughsense.model.model_intervals import model_interval
+    from roughsense.model.modelfile import load_model
+
+    interval = {"level": level, "trial_log_halfwidth": 0.2, "surface_log_halfwidth": 0.1}
+    with pytest.raises(ModelFileError, match=r"training.interval.level: expected 0.9 \(the level roughsense writes "
+                                             r"and labels pi90\)"):  # on loading (issue 44), not first on predicting
+        load_model(_pls_file(tmp_path, {"study": "s", "interval": interval}))
+    interval["level"] = 0.9
+    assert model_interval(load_model(_pls_file(tmp_path, {"study": "s", "interval": interval}))).level == 0.9
+
+
+@pytest.mark.parametrize("level", [0.5, 1e5, 0.9])
+def test_an_applicability_level_other_than_the_limits_one_is_refused(tmp_path, level):
+    """36.16: nonsense applicability.level values were accepted."""
+    from roughsense.errors import ModelFileError
+    from roughsense.model.modelfile import load_model
+
+    with pytest.raises(ModelFileError, match="model.applicability.level must be 0.95"):
+        load_model(_pls_file(tmp_path, {"study": "s"}, level=level))
+    assert load_model(_pls_file(tmp_path, {"study": "s"}, level=0.95)).domain_ is not None
+
+
+def _law_file(tmp_path, change) -> Path:
+    import json
+
+    import numpy as np
+
+    import roughsense as rs
+    from roughsense.model import modelfile as mf
+
+    freq = rs.frequency_grid()
+    periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    X = np.exp(-((freq - 1 / periods[:, None]) / 0.05) ** 2) + 0.01
+    law = rs.PeakPowerLaw().fit(X, (periods / 3) ** 0.9)
+    path = tmp_path / "law.json"
+    features = {"spectrum": rs.SpatialSpectrum().feature_definition(), "conditions": ["2N"]}
+    mf.save_model(path, law, feature_definition=features, training={"study": "gratings"}, force=True)
+    document = json.loads(path.read_text())
+    change(document["model"])
+    document["sha256"] = mf._digest(document)
+    path.write_text(json.dumps(document))
+    return path
+
+
+@pytest.mark.parametrize("box", [(-1000.0, 1000.0), (-700.0, -1.0), (-1.6, 3.0)])
+def test_a_forged_peak_law_feature_box_is_refused_in_one_error_without_warnings(tmp_path, box):
+    """36.14: a huge feature box was refused only after two RuntimeWarning lines (exp overflow, division by 0)."""
+    import warnings
+
+    from roughsense.errors import ModelFileError
+    from roughsense.model.modelfile import load_model
+
+    def forge(model):
+        model["feature_min"][0], model["feature_max"][0] = box
+
+    path = _law_file(tmp_path, forge)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ModelFileError, match=r"log peak frequency\) must lie within the grid"):
+            load_model(path)
+
+
+@pytest.mark.parametrize("limit", [1e3, -900.0, 51.0])
+def test_a_nonsense_clarity_limit_is_refused(tmp_path, limit):
+    """36.16: nonsense clarity_limit values were accepted (1e3 flags every spectrum, -900 none)."""
+    from roughsense.errors import ModelFileError
+    from roughsense.model.modelfile import load_model
+
+    def forge(model):
+        model["clarity_limit"] = limit
+
+    with pytest.raises(ModelFileError, match="model.clarity_limit must be"):
+        load_model(_law_file(tmp_path, forge))
+    assert load_model(_law_file(tmp_path, lambda model: None)).clarity_limit_ is not None

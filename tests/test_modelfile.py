@@ -5,6 +5,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from roughsense import SIMPLS
 from roughsense.errors import InputError, ModelFileError, OutputExistsError
@@ -393,3 +395,29 @@ def test_a_resigned_law_predicting_beyond_a_ratings_bound_is_refused(tmp_path):
     rewrite(path, inflate)
     with pytest.raises(mf.ModelFileError, match="within 1e-6 to 1e6"):
         mf.load_model(path)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), shift=st.floats(-50, 50))
+def test_a_loaded_pls_model_never_predicts_a_value_at_or_below_zero(tmp_path_factory, seed, shift):
+    """PLS is linear and may give any number; a model file's prediction is held at half the smoothest trained
+    roughness and flagged where it was held."""
+    from roughsense.model import modelfile as mf
+    from roughsense.model.pls.simpls import SIMPLS
+
+    from .test_modelfile import spectrum
+
+    rng = np.random.default_rng(seed)
+    X, y = rng.random((12, 45)), rng.uniform(0.5, 2.0, 12)
+    model = SIMPLS(n_components=2).fit(X, y)
+    training = {"target_range": [float(y.min()), float(y.max())], "reference_specimen": "R3"}
+    document = mf.model_document(model, feature_definition=mf.feature_definition_for(spectrum(), ["1N"]),
+                                 training=training)
+    loaded = mf.model_from_document(document)
+    new = X + shift * rng.random(X.shape)
+    predicted = loaded.predict(new)
+    assert np.all(predicted >= 0.5 * y.min() - 1e-12) and np.all(predicted > 0)
+    held = model.predict(new) < 0.5 * y.min()
+    reasons = loaded.applicability(new)
+    assert [("held at" in reason) for reason in reasons] == list(held)
+    assert np.all(loaded.extrapolates(new)[held])

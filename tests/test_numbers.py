@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+import shutil
 
 import pytest
 from hypothesis import given, settings
@@ -17,6 +18,7 @@ from roughsense.io.numbers import BOUNDS, NumberError, parse_number
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.sensor_settings import parse_roi
 from roughsense.io.tables import read_table
+from tests.fuzzing import EXAMPLES, FUZZ, NUMBER_CHARS
 
 ACCEPTED = {"2": 2.0, "-0.5": -0.5, "+3": 3.0, ".5": 0.5, "5.": 5.0, "1e-3": 1e-3, "2.5E+2": 250.0, " 7 ": 7.0,
             "\t1.25": 1.25}
@@ -253,3 +255,48 @@ def test_the_fragments_keep_the_grammars_rules():
     assert numbers.COMMA_NUMBER.fullmatch("-,5e3") and not numbers.COMMA_NUMBER.fullmatch("2,")
     assert scale._READING.match("ST,+ 12.5 g") and not scale._READING.match("1e3 g")  # a display has no exponent
     assert numbers.NUMBER_WITH_UNIT.fullmatch("2\u00a0\u041d")  # any script's letter is a unit
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), max_size=10))
+def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
+    """A cell, a ratings cell and a command-line option take exactly the spellings parse_number takes, with the
+    same value: no reader falls back to float() (which takes '1_0' and '\u0661') or to pandas' own parser."""
+    import pandas as pd
+    import typer
+
+    from roughsense.cli._common import number_option
+    from roughsense.errors import ConfigError, InputError
+    from roughsense.io.numbers import NumberError, parse_number
+    from roughsense.io.ratings_file import validate_ratings
+    from roughsense.io.tables import read_table
+
+    cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case
+    if not cell:
+        return
+    try:
+        expected = parse_number(cell)
+    except NumberError:
+        expected = None
+    folder = tmp_path_factory.mktemp("numbers")
+    table = folder / "t.csv"
+    table.write_text(f"name,value\na,{cell}\n", encoding="utf-8")
+    try:
+        read = float(read_table(table, ["name", "value"], numeric=["value"])["value"].iloc[0])
+    except InputError:
+        read = None
+    assert read == expected or (read is None and expected is None), (cell, read, expected)
+    try:
+        option = number_option("--x")(cell)
+    except (typer.BadParameter, ConfigError):
+        option = None
+    assert option == expected, (cell, option, expected)
+    frame = pd.DataFrame({"participant": ["P1"], "session": ["1"], "specimen": ["R2"], "rating": [cell]})
+    try:
+        rating = float(validate_ratings(frame)["rating"].iloc[0])
+    except InputError:
+        rating = None
+    in_bounds = expected is not None and 1e-6 <= expected <= 1e6
+    assert rating == (expected if in_bounds else None), (cell, rating, expected)
+    shutil.rmtree(folder, ignore_errors=True)

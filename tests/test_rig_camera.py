@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import contextlib
+import os
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -9,6 +12,7 @@ import pytest
 
 from roughsense.errors import InputError, RoughsenseWarning
 from roughsense.rig.camera import DEVICE_DISCARD, FrameSource, _describe, open_source
+from tests.commands import HANG_GUARD_S, one_error
 
 from .videos import decoded_frames, write_damaged_video, write_video
 
@@ -112,3 +116,73 @@ def test_a_run_of_damaged_frames_refuses_the_source(tmp_path, monkeypatch):
         with pytest.raises(InputError, match=rf"{camera.MAX_DAMAGED_FRAMES} frames in a row decoded with errors, "
                                              rf"up to frame {camera.MAX_DAMAGED_FRAMES}"):
             source.read_fresh()
+
+
+def test_a_fifo_as_a_video_source_is_refused_at_once(tmp_path):
+    """36.6 (the rule, the rig): OpenCV would block opening a FIFO given as a video file."""
+    from roughsense.errors import InputError
+    from roughsense.rig.camera import open_source
+
+    os.mkfifo(tmp_path / "run.avi")
+    with pytest.raises(InputError, match="is a FIFO \\(named pipe\\), not a regular video file"):
+        open_source(tmp_path / "run.avi")
+
+
+def _frames(folder, count: int) -> str:
+    rng = np.random.default_rng(0)
+    for i in range(count):
+        cv2.imwrite(str(folder / f"img_{i:03d}.png"), rng.integers(0, 255, (40, 60, 3), dtype=np.uint8))
+    return str(folder / "img_%03d.png")
+
+
+@pytest.mark.parametrize("where", [0, 2])
+def test_a_fifo_in_an_image_sequence_is_refused_not_waited_on(tmp_path, where):
+    """36.6 for --source PATTERN (predict --live, capture): a FIFO among the sequence's files hung OpenCV's read,
+    the first one before a frame was shown, a later one mid-run."""
+    pattern = _frames(tmp_path, 4)
+    fifo = tmp_path / f"img_{where:03d}.png"
+    fifo.unlink()
+    os.mkfifo(fifo)
+    code = ("import sys\nfrom roughsense.errors import InputError\nfrom roughsense.rig.camera import open_source\n"
+            "try:\n    print(len(list(open_source(sys.argv[1]))))\nexcept InputError as exc:\n    print(exc)\n")
+    done = subprocess.run([sys.executable, "-c", code, pattern], capture_output=True, text=True,
+                          timeout=HANG_GUARD_S)
+    assert done.stdout.strip() == f"{fifo}: is a FIFO (named pipe), not a regular image file; give the image file itself"
+
+
+def test_an_image_sequence_of_regular_files_still_reads_every_frame(tmp_path):
+    from roughsense.rig.camera import open_source
+
+    pattern = _frames(tmp_path, 5)
+    with open_source(pattern) as source:
+        frames = list(source)
+    assert len(frames) == 5
+    np.testing.assert_array_equal(frames[3], cv2.imread(pattern % 3)[:, :, ::-1])
+
+
+def png_claiming(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` px (its data is empty: never decoded here)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+
+
+def test_live_and_capture_refuse_a_frame_above_max_pixels_before_decoding(run_cli, tmp_path, tiny_model_2n):
+    """28.13: a 16000 x 15000 PNG peaked at 1.9 GB (predict --live) and 3.2 GB (capture, which wrote it)."""
+    big = tmp_path / "big.png"
+    big.write_bytes(png_claiming(16000, 15000))
+    pattern = tmp_path / "frames"
+    pattern.mkdir()
+    (pattern / "f_0000.png").write_bytes(png_claiming(16000, 15000))
+    for source in (big, pattern / "f_%04d.png"):
+        line = one_error(run_cli, "predict", tiny_model_2n, "--live", "--source", source, "--max-frames", "1")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        line = one_error(run_cli, "capture", "--source", source, "--out", tmp_path / "captured", "--specimen", "R2",
+                         "--pad", "smooth")
+        assert "image is 16000 x 15000 px (240 Mpx), above the limit of 100 Mpx" in line
+        assert not (tmp_path / "captured").exists()

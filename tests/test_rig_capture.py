@@ -22,7 +22,7 @@ from roughsense.io.writer import StudyWriter
 from roughsense.rig.capture import image_name, plan_steps
 from roughsense.sensor.spectrum import resolve_roi
 
-from .videos import decoded_frames, write_video
+from .videos import decoded_frames, write_damaged_video, write_video
 
 G = 9.80665
 
@@ -478,3 +478,51 @@ def test_a_new_study_toml_with_the_default_scale_says_so_and_a_stated_one_does_n
     typed("", "", "")
     code, _, err = run_cli(*capture_args(video, tmp_path / "stated", "--repetitions", "1", "--px-per-mm", "30"))
     assert code == 0 and "not measured on this rig" not in err, err
+
+
+def test_a_frame_above_the_studys_max_pixels_is_not_written(tiny_smooth):
+    import numpy as np
+
+    from roughsense.io.sensor_settings import SensorSettings
+    from roughsense.rig.camera import open_source
+    from roughsense.rig.capture import _check_frame
+
+    image = next((tiny_smooth / "images").iterdir())
+    with pytest.raises(InputError, match=r"frames? is 600 ?x ?64 px|image is 600 x 64 px"):
+        open_source(image, max_pixels=1000)
+    with open_source(image) as frames:
+        frame = frames.read_fresh()
+    with pytest.raises(InputError, match="above the study's \\[sensor\\] max_pixels of 0.001 Mpx; nothing of it was written"):
+        _check_frame(frame, SensorSettings(max_pixels=1000), frames)
+    _check_frame(frame, SensorSettings(roi=(0, 0, 600, 64)), frames)
+    assert np.asarray(frame).shape == (64, 600, 3)
+
+
+def grating_capture_args(video, out):
+    return ("capture", "--source", video, "--out", out, "--specimen", "R3", "--pad", "fp", "--roi", "auto",
+            "--shape", "rectangular", "--wavelength-mm", "3", "--repetitions", "1")
+
+
+def test_capture_skips_a_damaged_frame_with_one_warning_and_no_ffmpeg_lines(tmp_path, monkeypatch, capfd):
+    import io
+
+    from roughsense.cli import main
+    from roughsense.io.study import read_study
+
+    video = write_damaged_video(tmp_path / "camera.avi", frame=1)
+    clean = decoded_frames(write_video(tmp_path / "clean.avi"))
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\n"))
+    code = main([str(a) for a in grating_capture_args(video, tmp_path / "study")])
+    err = capfd.readouterr().err  # at the file descriptor: ffmpeg writes to fd 2 directly, below Python
+    assert code == 0, err
+    assert "[mjpeg @" not in err and "Traceback" not in err
+    warned = [line for line in err.splitlines() if "decoded with errors" in line]
+    assert len(warned) == 1 and warned[0].endswith("); skipped"), err
+    assert warned[0].startswith(f"roughsense: warning: {video}: frame 2 decoded with errors (mjpeg: error ")
+    loaded = read_study(tmp_path / "study")
+    assert len(loaded.manifest) == 3
+    # the frames kept are the file's 1st, 3rd and 4th: the damaged 2nd is not among the data
+    import cv2
+
+    for path, want in zip(loaded.image_paths, (clean[0], clean[2], clean[3])):
+        np.testing.assert_array_equal(cv2.imread(str(path))[:, :, ::-1], want)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import os
 
 import numpy as np
 import pytest
@@ -108,3 +109,23 @@ def test_render_live_shows_why_a_value_extrapolates():
     assert summary.extrapolated == 1 and summary.reason == why  # the last reason given, kept for the summary line
     summary = render_live(iter([(100.0, 1.5, ""), (100.1, 1.75, why)]), console=console, label="roughness")
     assert summary.extrapolated == 1 and f"1.750  extrapolates ({why})" in buffer.getvalue()  # markup escaped
+
+
+@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_ends_a_live_display_as_its_normal_end_and_sigterm_stops_the_run(signals, signum):
+    """36.5: live scoring ends with Ctrl-C (its summary is the result); a SIGTERM there still stops the run."""
+    import io
+    import signal
+
+    from rich.console import Console
+
+    from roughsense.rig.live import render_live
+
+    def frames():
+        for i in range(10**9):
+            if i == 3:
+                os.kill(os.getpid(), getattr(signal, signum))
+            yield float(i), 1.0 + i
+    summary = render_live(frames(), console=Console(file=io.StringIO()))
+    assert summary.updates == 3 and summary.last_score == 3.0
+    assert signals.requested() == (None if signum == "SIGINT" else signal.SIGTERM)

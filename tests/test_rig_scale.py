@@ -7,9 +7,11 @@ import os
 import threading
 import time
 
+import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as hs
+from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError, InputError
 from roughsense.rig.scale import (
@@ -21,6 +23,7 @@ from roughsense.rig.scale import (
     parse_scale_line,
     parse_typed_force,
 )
+from tests.commands import HANG_GUARD_S
 
 G = 9.80665  # standard gravity, CGPM 1901 (exact by definition)
 
@@ -305,3 +308,88 @@ def test_a_typed_force_with_a_unit_takes_every_spelling_a_number_may_have(typed,
 def test_a_typed_force_with_a_unit_is_refused_with_the_numbers_hint(typed, hint):
     with pytest.raises(_Retry, match=hint):
         parse_typed_force(typed, 2.0)
+
+
+def test_ctrl_c_at_an_operators_prompt_stops_at_once(signals):
+    """36.5 (the rule, where a run waits on a person): a prompt is no safe point that ever comes, so a signal there
+    stops the run at once, as Python's own Ctrl-C did, rather than after the operator answers."""
+    import io
+    import signal
+    import threading
+    import time
+
+    from roughsense.rig.scale import ManualForce
+
+    read, write = os.pipe()
+    stdin = os.fdopen(read, "r")
+    done = threading.Event()
+
+    def press_ctrl_c() -> None:
+        time.sleep(0.2)  # whether it lands before or during the wait, the outcome is the same
+        os.kill(os.getpid(), signal.SIGINT)
+        if not done.wait(HANG_GUARD_S):  # on a regression: an answer ends the wait, and the test fails on its value
+            os.write(write, b"2\n")
+
+    helper = threading.Thread(target=press_ctrl_c, daemon=True)
+    helper.start()
+    try:
+        with pytest.raises(signals.Interrupted):
+            ManualForce(stdin=stdin, prompt_out=io.StringIO()).read_force(2.0, low_n=1.5, high_n=2.5)
+    finally:
+        done.set()
+        helper.join()
+        stdin.close()
+        os.close(write)
+
+
+class _StreamingPort:
+    """A serial port that hands out ``chunks`` (in reads of at most ``size`` bytes), then streams digits forever."""
+
+    def __init__(self, chunks: list[bytes]) -> None:
+        self.pending = b"".join(chunks)
+
+    in_waiting = 7
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+    def read(self, size: int = 1) -> bytes:
+        if not self.pending:
+            return b"0" * size  # never a line end, never silent: the case a per-read timeout cannot end
+        piece, self.pending = self.pending[:size], self.pending[size:]
+        return piece
+
+
+@pytest.mark.slow
+@settings(max_examples=40, deadline=None)
+@given(chunks=st.lists(st.one_of(st.binary(max_size=300), st.sampled_from([b"\r\n", b"\r", b"\n", b"ST,+00204.0 g",
+                                                                            b"US,+1 kg", b"+1e400 g"])), max_size=30))
+def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
+    """On the reader's own clock (a fake one, a millisecond per look): no wall-clock bound, which a loaded
+    machine would break, yet a read that ignored its deadline would never end or read past it."""
+    import types
+    from unittest import mock
+
+    from roughsense.errors import InputError
+    from roughsense.rig import scale as scale_module
+
+    clock = types.SimpleNamespace(now=0.0)
+
+    def monotonic() -> float:
+        clock.now += 0.001
+        return clock.now
+
+    port = _StreamingPort(chunks)
+    reads = []
+    port_read = port.read
+    port.read = lambda size=1: reads.append(size) or port_read(size)
+    scale = scale_module.SerialScale.__new__(scale_module.SerialScale)  # the reader without a real port
+    scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, port, OSError
+    with mock.patch.object(scale_module, "time", types.SimpleNamespace(monotonic=monotonic)):
+        try:
+            reading = scale.read_stable()
+        except InputError as exc:
+            assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
+        else:
+            assert np.isfinite(reading.force_n) and reading.stable
+    assert len(reads) <= 50  # one read per look at the clock, none after its 0.05 s

@@ -419,3 +419,24 @@ def test_spectrum_from_png_file_equals_spectrum_from_array(tmp_path):
     for rows in (1, 9):
         kwargs = dict(px_per_mm=20.0, roi=(0, 30, 400, 40), rows=rows)
         np.testing.assert_array_equal(spatial_spectrum(path, **kwargs), spatial_spectrum(rgb, **kwargs))
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf")])
+@pytest.mark.parametrize("where", [(0, 0), (599, 999), (10, 500)])
+def test_one_non_finite_pixel_outside_the_crop_does_not_move_the_auto_band(bad, where):
+    """36.8: a float TIFF with NaN at (0, 0) moved the band (1.29 -> 1.25, unflagged): the crop must be the clean
+    image's, and its spectrum identical."""
+    import numpy as np
+
+    from roughsense.sensor.spectrum import resolve_roi, spatial_spectrum
+
+    rng = np.random.default_rng(0)
+    clean = 0.3 + 0.01 * rng.normal(size=(600, 1000))
+    x_px = np.arange(1000)
+    clean[400:520] += 0.2 * np.sin(2 * np.pi * x_px / (2.5 * 34.9))  # the one textured band
+    dirty = clean.copy()
+    dirty[where] = bad
+    assert resolve_roi("auto", dirty) == resolve_roi("auto", clean)
+    x, y, w, h = resolve_roi("auto", clean)
+    assert 370 <= y <= 400 and y + h >= 520
+    np.testing.assert_array_equal(spatial_spectrum(dirty, roi="auto"), spatial_spectrum(clean, roi="auto"))

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -179,3 +180,20 @@ def test_a_batch_needs_positive_pressures(pressures):
     x = _grid(3.0, 256)
     with pytest.raises(ConfigError, match="positive"):
         contact.solve_periodic_many(0.01 * np.cos(2 * math.pi * x / 3.0), 3.0, pressures, E_STAR)
+
+
+@pytest.mark.parametrize("modulus_pa", [1e-300, 1e308])
+def test_an_absurd_pad_modulus_raises_no_numpy_warning(modulus_pa):
+    """A grating pressed by a pad of absurd stiffness: one error of ours (or a solution), never numpy's warnings."""
+    from roughsense.sim.contact import ContactNotConverged, solve_periodic_many
+
+    x = np.linspace(0.0, 4.0, 400, endpoint=False)
+    height = np.where(x % 2.0 < 1.0, 0.5, 0.0)  # rect:2 mm, 0.5 mm deep
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any numpy RuntimeWarning fails the test
+        try:
+            solve_periodic_many(height, 4.0, [2622.0], modulus_pa)
+        except ContactNotConverged as exc:
+            assert f"overflowed at iteration 1: a contact modulus of {modulus_pa:g} Pa" in str(exc)
+        else:
+            assert modulus_pa > 1  # an infinitely stiff pad is a solution: only the soft one overflows

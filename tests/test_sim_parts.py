@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError
@@ -13,6 +13,9 @@ from roughsense.paper import PAPER_SPECIMENS
 from roughsense.sim.optics import Camera, Lighting, render
 from roughsense.sim.pads import make_pad
 from roughsense.sim.specimens import PRESETS, parse_specimen
+from tests.commands import one_error
+from tests.fuzzing import EXAMPLES, FUZZ, NUMBER_CHARS
+from tests.sweeps import SWEEP
 
 
 def test_paper_presets():
@@ -121,3 +124,42 @@ def test_random_grating_has_the_stated_gaussian_autocorrelation(correlation_mm):
     assert at(correlation_mm) == pytest.approx(math.exp(-1), abs=0.04)
     assert at(correlation_mm / 2) == pytest.approx(math.exp(-0.25), abs=0.04)
     assert at(2 * correlation_mm) == pytest.approx(math.exp(-4), abs=0.04)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("rect:1_5", "not a number: '1_5' (no '_' between digits: write 15)"),
+    ("rand:1.5:0.2:1_0", "the seed is not a number: '1_0'"),
+    ("sin:3:\u0661", "(write the digits 0-9)"),
+    ("rand:1.5:0.2:9223372036854775808", "the seed must be at most 9223372036854775807"),
+])
+def test_a_specimen_spec_is_read_by_the_number_parser(run_cli, tmp_path, spec, message):
+    """28.4: ``rect:1_5`` simulated a 15 mm grating (float() reads digit groups); the seed of rand: is bounded."""
+    line = one_error(run_cli, "simulate", "--out", tmp_path / "s", "--specimens", f"R3,{spec}", "--pads", "smooth")
+    assert f"specimen '{spec}'" in line and message in line
+    assert not (tmp_path / "s").exists()
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP.format(seed=0, spec=f'"{spec}"'))
+    line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
+    assert message in line and str(sweep) in line
+
+
+@pytest.mark.slow
+@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
+@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), min_size=1, max_size=8))
+def test_a_specimen_spec_reads_its_numbers_as_every_reader_does(text):
+    """Issue 28.4: a spec's number is what parse_number reads (no 1_5 as 15 mm), or the spec is refused."""
+    from roughsense.errors import ConfigError
+    from roughsense.io.numbers import NumberError, parse_number
+    from roughsense.sim.specimens import parse_specimen
+
+    try:
+        expected = float(parse_number(text))
+    except NumberError:
+        expected = None
+    try:
+        got = parse_specimen(f"rect:{text}").wavelength_mm
+    except ConfigError:
+        got = None
+    assert got is None or got == expected, (text, got, expected)
+    if expected is None:
+        assert got is None

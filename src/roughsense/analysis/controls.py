@@ -26,7 +26,7 @@ from .._util.checks import Integer, check
 from .._util.workers import thread_map
 from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
-from ..model.pls import single_threaded_blas
+from ..model.pls.simpls import single_threaded_blas
 from .metrics import ALPHA, specimen_table  # a model passes the permutation control when p < ALPHA
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).

@@ -1,14 +1,9 @@
-"""User-facing verdicts name what was held out ("a grating left out of training"), as the fit line and the report's
-section do, not "surfaces it never saw" (issue 35's held-out schemes leave out a grating, a period or a shape)."""
+"""analysis/assessment.py: a verdict on the unseen-surface controls names what was held out (a grating left out
+of training), not "surfaces it never saw"."""
 from __future__ import annotations
-
-from types import SimpleNamespace
-
-import pandas as pd
 
 from roughsense.analysis.assessment import UnseenAssessment
 from roughsense.model.interval import PredictionInterval
-from roughsense.report.answer import answer_lines
 
 
 def test_a_failed_control_names_the_grating_left_out():
@@ -19,9 +14,3 @@ def test_a_failed_control_names_the_grating_left_out():
         "this model FAILS its controls for a grating left out of training (nested leave-one-specimen-out): no better "
         "than the training mean (pooled RMSE 0.400 vs 0.380); not better than shuffled targets (permutation p = 0.120 "
         ">= 0.05, 199 shufflings). Its predictions for new surfaces are no better than guessing")
-
-
-def test_a_report_without_loso_says_what_it_cannot_answer():
-    analysis = SimpleNamespace(unseen=pd.DataFrame())
-    (line,) = answer_lines(analysis)
-    assert "predicts a surface left out of training." in line and "never" not in line

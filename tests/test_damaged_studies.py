@@ -1,4 +1,5 @@
-"""Fuzzing the CLI with damaged study folders (issue 10): whatever the input, the outcome is boring.
+"""The CLI's input contract on damaged study folders and edited model files (issue 10), fuzzed: whatever the input,
+the outcome is boring.
 
 A small valid study (4 specimens x 2 repetitions x 3 forces, 400 x 30 px images, built once per module with the
 simulator) is copied per example and mutated by hypothesis: CSV cells, headers and rows, encodings, study.toml values
@@ -24,15 +25,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from roughsense.model.peak_law.file import OPTIONAL_FIELDS
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
-
-pytestmark = pytest.mark.slow  # in CI all the same (`make test` runs every test); about 20-40 s in all
+from tests.fuzzing import EXAMPLES, FUZZ
 
 CSV_FILES = ("manifest.csv", "specimens.csv", "ratings.csv")
+
 
 HOSTILE_CELLS = [
     "", " ", "nan", "NaN", "inf", "-inf", "-1", "0", "0.0", "1e308", "1e-320", "true", "True", "99999999999999999999",
@@ -43,14 +44,19 @@ HOSTILE_CELLS = [
     "1_0", "\u0661", "\u0663.\u0665", "0x10", "1e6", "1e-7", " 2 ", "2.01 N", "0,5", "+.5", "5.",  # issue 22: spellings
     "0104", "007", "-01", "00", "2,0104",  # issue 28: leading zeros of a decimal comma's split
 ]
-#: Issue 28: headers a user may write: quoted (R's write.csv), named by a number, a spectrum column's mark, twice.
+
+
 HOSTILE_HEADERS = ['"force_n"', '"nominal_force_n"', "nominal_force_n", "0.1", "3", "nan", "Infinity", "0.0795",
                    "spectrum@0.1", "force_n", "rating", "image", "timestamp", " repetition "]
+
+
 TOML_VALUES = [
     "true", "false", "0", "-1", "1e308", "nan", "inf", "-inf", '"center"', '"auto"', '"1,2,3,4"', '""', "[]", "[true, 2, 3]",
     "[1, 2, 3]", "[0, 0, 1900, 150]", "[0, 10, 400, 10]", "[1e308, 1, 1]", "[[1]]", "{a = 1}", '"../x"', '"R2"',
     '"a/../../b"', "1", "34.9", "2", "100", "100000000000000000000", '"x"', "[0, 10, 400, 1000]", '"3"', "0.5", "[2.0]",
 ]
+
+
 TOML_KEYS = {
     "study": ("name", "reference_specimen", "nme"),
     "sensor": ("px_per_mm", "roi", "max_pixels", "roi_typo"),
@@ -58,6 +64,8 @@ TOML_KEYS = {
     "simulation": ("seed", "anything"),
     "other": ("x",),
 }
+
+
 RENAMES = ["R2", "a/b", "../R2", ".R2", "R 2", "R2:3", "r2", "C2", "x" * 70, "R2\\x", "Ŕ2", "R2.", "-R2", "2"]
 
 
@@ -82,9 +90,6 @@ def base(tmp_path_factory):
     toml = root / "study.toml"
     toml.write_text(toml.read_text().replace('roi = "center"', "roi = [0, 10, 400, 10]"))
     return root
-
-
-# --------------------------------------------------------------------------- mutations
 
 
 def _rows(path: Path) -> list[list[str]]:
@@ -275,8 +280,13 @@ def rename_everywhere(column, old, new):
 
 cells = st.one_of(st.sampled_from(HOSTILE_CELLS), st.text(max_size=8), st.integers(-(10**22), 10**22).map(str),
                   st.floats().map(repr))
+
+
 blobs = st.one_of(st.binary(max_size=40), st.sampled_from([BOMB, b"\x00" * 20, "é".encode("latin-1"), b"\xff\xfe"]))
+
+
 fractions = st.floats(0, 1)
+
 
 mutations = st.one_of(
     st.builds(set_cell, st.sampled_from(CSV_FILES), st.integers(0, 40), st.integers(0, 10), cells),
@@ -300,10 +310,6 @@ mutations = st.one_of(
     st.builds(rename_everywhere, st.sampled_from(["pad", "specimen", "participant"]),
               st.sampled_from(["smooth", "R2", "P01"]), st.sampled_from(RENAMES)),
 )
-
-
-
-# --------------------------------------------------------------------------- running and judging
 
 
 @pytest.fixture
@@ -396,16 +402,6 @@ def run_example(run_cli, base: Path, changes, command: str, monkeypatch, model: 
         assert outside == [], f"{command} changed {outside} outside --out (exit {code}: {err})"
 
 
-#: ROUGHSENSE_FUZZ_EXAMPLES=2000 (and ROUGHSENSE_FUZZ_RANDOM=1 for fresh examples each run) explores far more
-#: than CI does; the CI budget is the default.
-EXAMPLES = int(os.environ.get("ROUGHSENSE_FUZZ_EXAMPLES", "70"))
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=not os.environ.get("ROUGHSENSE_FUZZ_RANDOM"),
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow,
-                                       HealthCheck.data_too_large])
-
-
-#: A library warning reaching the user would print Python's two-line format: make any such warning fail the
-#: example (as an internal error); roughsense's own warnings are one line by design and stay warnings.
 NO_RAW_WARNINGS = pytest.mark.filterwarnings("error", "default::roughsense.errors.RoughsenseWarning")
 
 
@@ -420,6 +416,7 @@ def combined_model(base, tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 @NO_RAW_WARNINGS
 @FUZZ
 @given(changes=st.lists(mutations, min_size=1, max_size=3),
@@ -428,6 +425,7 @@ def test_damaged_study_folders_give_boring_outcomes(run_cli, base, combined_mode
     run_example(run_cli, base, changes, command, monkeypatch, combined_model)
 
 
+@pytest.mark.slow
 @NO_RAW_WARNINGS
 @settings(FUZZ, max_examples=max(8, EXAMPLES // 10))
 @given(changes=st.lists(mutations, min_size=1, max_size=2))
@@ -435,6 +433,7 @@ def test_the_study_command_on_damaged_folders_is_boring(run_cli, base, monkeypat
     run_example(run_cli, base, changes, "study", monkeypatch)
 
 
+@pytest.mark.slow
 @NO_RAW_WARNINGS
 def test_the_undamaged_base_passes_every_command(run_cli, base, combined_model, monkeypatch, quick_figures):
     """The fuzz starts from a folder every command accepts (else it would only ever test refusals)."""
@@ -446,8 +445,6 @@ def test_the_undamaged_base_passes_every_command(run_cli, base, combined_model, 
             assert_boring(code, err)
             assert not [line for line in err.splitlines() if line.startswith("roughsense: warning:")], err
 
-
-# --------------------------------------------------------------------------- model files
 
 json_values = st.recursive(
     st.one_of(st.none(), st.booleans(), st.integers(-(10**20), 10**20), st.floats(allow_nan=False, allow_infinity=False),
@@ -477,6 +474,7 @@ def _locations(node, prefix=()):
         yield from _locations(child, prefix + (key,))
 
 
+@pytest.mark.slow
 @NO_RAW_WARNINGS
 @settings(FUZZ, max_examples=max(60, EXAMPLES))
 @given(data=st.data(), resign=st.booleans(), delete=st.booleans())
@@ -524,62 +522,9 @@ def test_edited_model_files_load_or_are_refused_in_one_message(base, model_docum
         shutil.rmtree(path.parent, ignore_errors=True)
 
 
-# --------------------------------------------------------------------------- one number parser (issue 22)
-
-#: Characters numbers are (mis)written with: digits of three scripts, separators, signs, exponents, words.
-NUMBER_CHARS = "0123456789+-.eE_ ,\t\u0661\u0967\uff11\u00a0xXinfaNty%"
-
-
-@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
-@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), max_size=10))
-def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
-    """A cell, a ratings cell and a command-line option take exactly the spellings parse_number takes, with the
-    same value: no reader falls back to float() (which takes '1_0' and '\u0661') or to pandas' own parser."""
-    import pandas as pd
-    import typer
-
-    from roughsense.cli._common import number_option
-    from roughsense.errors import ConfigError, InputError
-    from roughsense.io.numbers import NumberError, parse_number
-    from roughsense.io.ratings_file import validate_ratings
-    from roughsense.io.tables import read_table
-
-    cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case
-    if not cell:
-        return
-    try:
-        expected = parse_number(cell)
-    except NumberError:
-        expected = None
-    folder = tmp_path_factory.mktemp("numbers")
-    table = folder / "t.csv"
-    table.write_text(f"name,value\na,{cell}\n", encoding="utf-8")
-    try:
-        read = float(read_table(table, ["name", "value"], numeric=["value"])["value"].iloc[0])
-    except InputError:
-        read = None
-    assert read == expected or (read is None and expected is None), (cell, read, expected)
-    try:
-        option = number_option("--x")(cell)
-    except (typer.BadParameter, ConfigError):
-        option = None
-    assert option == expected, (cell, option, expected)
-    frame = pd.DataFrame({"participant": ["P1"], "session": ["1"], "specimen": ["R2"], "rating": [cell]})
-    try:
-        rating = float(validate_ratings(frame)["rating"].iloc[0])
-    except InputError:
-        rating = None
-    in_bounds = expected is not None and 1e-6 <= expected <= 1e6
-    assert rating == (expected if in_bounds else None), (cell, rating, expected)
-    shutil.rmtree(folder, ignore_errors=True)
-
-
-# --------------------------------------------------------------------------- peak-law model files
-
-#: Values no field of a peak-law section accepts (NaN and the infinities also break the canonical JSON, so the
-#: checksum cannot be recomputed for them: they are refused either way).
 ALWAYS_REFUSED = [float("nan"), float("inf"), float("-inf"), 1e308, True, "1"]
-#: Values some fields accept: -1 is a fine slope or feature bound, null a smooth pad's ridge period.
+
+
 SOMETIMES_ACCEPTED = [-1, None]
 
 
@@ -611,6 +556,7 @@ def law_edits(draw, section: dict):
     return where, replacement, replacement in ALWAYS_REFUSED or replacement is None and field != "pad_ridge_period_mm"
 
 
+@pytest.mark.slow
 @NO_RAW_WARNINGS
 @settings(FUZZ, max_examples=max(60, EXAMPLES))
 @given(data=st.data())
@@ -651,385 +597,3 @@ def test_edited_peak_law_files_are_refused_by_their_field_checks(run_cli, base, 
             assert np.all(np.isfinite(pd.read_csv(out).filter(like="roughness_rel_").iloc[:, 0].to_numpy(dtype=float)))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-
-
-# --------------------------------------------------------------------------- a scale's bytes (issue 22, item 11)
-
-
-class _StreamingPort:
-    """A serial port that hands out ``chunks`` (in reads of at most ``size`` bytes), then streams digits forever."""
-
-    def __init__(self, chunks: list[bytes]) -> None:
-        self.pending = b"".join(chunks)
-
-    in_waiting = 7
-
-    def reset_input_buffer(self) -> None:
-        pass
-
-    def read(self, size: int = 1) -> bytes:
-        if not self.pending:
-            return b"0" * size  # never a line end, never silent: the case a per-read timeout cannot end
-        piece, self.pending = self.pending[:size], self.pending[size:]
-        return piece
-
-
-@settings(max_examples=40, deadline=None)
-@given(chunks=st.lists(st.one_of(st.binary(max_size=300), st.sampled_from([b"\r\n", b"\r", b"\n", b"ST,+00204.0 g",
-                                                                            b"US,+1 kg", b"+1e400 g"])), max_size=30))
-def test_whatever_a_scale_sends_the_read_ends_within_its_timeout(chunks):
-    """On the reader's own clock (a fake one, a millisecond per look): no wall-clock bound, which a loaded
-    machine would break, yet a read that ignored its deadline would never end or read past it."""
-    import types
-    from unittest import mock
-
-    from roughsense.errors import InputError
-    from roughsense.rig import scale as scale_module
-
-    clock = types.SimpleNamespace(now=0.0)
-
-    def monotonic() -> float:
-        clock.now += 0.001
-        return clock.now
-
-    port = _StreamingPort(chunks)
-    reads = []
-    port_read = port.read
-    port.read = lambda size=1: reads.append(size) or port_read(size)
-    scale = scale_module.SerialScale.__new__(scale_module.SerialScale)  # the reader without a real port
-    scale.name, scale.timeout_s, scale._port, scale._serial_error = "COM9", 0.05, port, OSError
-    with mock.patch.object(scale_module, "time", types.SimpleNamespace(monotonic=monotonic)):
-        try:
-            reading = scale.read_stable()
-        except InputError as exc:
-            assert str(exc).startswith("COM9: ") and len(str(exc)) < 300
-        else:
-            assert np.isfinite(reading.force_n) and reading.stable
-    assert len(reads) <= 50  # one read per look at the clock, none after its 0.05 s
-
-
-# --------------------------------------------------------------------------- issue 28: the new rules as properties
-
-#: TOML number spellings: those a CSV cell may use, and TOML's own (digit groups, bases, inf, nan).
-TOML_NUMBERS = ["1", "-2", "+3", "1.5", "1e3", "0.5", "2E-1", "1_000", "0x10", "0o7", "0b1", "inf", "-inf", "nan",
-                "+nan", "1_0.5", "1e1_0"]
-#: Characters of strings and keys that look like numbers, or end strings early to a pattern: quotes, backslashes.
-TOML_TEXT = st.text(alphabet=st.sampled_from(list("ax1_0 ='\"\\\n#[]inf")), max_size=12)
-
-
-def _foreign(spelling: str) -> bool:
-    bare = spelling.lstrip("+-")
-    return "_" in bare or bare[:2] in ("0x", "0o", "0b") or bare in ("inf", "nan")
-
-
-@st.composite
-def toml_strings(draw) -> str:
-    """A TOML string of any of the four kinds holding ``TOML_TEXT``; quotes escaped at random where allowed."""
-    text = draw(TOML_TEXT)
-    kind = draw(st.sampled_from(["basic", "multi", "literal", "multi_literal"]))
-    if kind == "literal" and "'" not in text and "\n" not in text:
-        return f"'{text}'"
-    if kind == "multi_literal" and "\'\'\'" not in text and not text.endswith("'"):
-        return f"\'\'\'{text}\'\'\'"
-    out, run = [], 0
-    for ch in text:
-        if ch == "\\":
-            out.append("\\\\")
-            run = 0
-        elif ch == '"' and kind == "multi" and run < 2 and not draw(st.booleans()):
-            out.append('"')  # up to two unescaped quotes inside a multi-line string
-            run += 1
-        elif ch == '"':
-            out.append('\\"')
-            run = 0
-        elif ch == "\n" and kind != "multi":
-            out.append("\\n")
-            run = 0
-        else:
-            out.append(ch)
-            run = 0
-    body = "".join(out)
-    if kind == "multi":
-        return '"""' + body + ('\\"' if body.endswith('"') else "") + '"""'
-    return f'"{body}"'
-
-
-@settings(FUZZ, max_examples=max(300, EXAMPLES * 4))
-@given(data=st.data())
-def test_the_toml_spelling_check_sees_values_only(data):
-    """A TOML number is refused iff it is spelled as no CSV cell may be; strings, keys and comments never are."""
-    import tomllib
-
-    from roughsense.io.numbers import toml_spelling_problem
-
-    lines, spellings = ["[t]"], []
-    for k in range(data.draw(st.integers(1, 5))):
-        key = data.draw(st.sampled_from(["a", "inf", "nan", "1_000", "0x10", f"k{k}", '"q.1_0"', "'x = 0x1'"]))
-        values = data.draw(st.lists(st.one_of(st.sampled_from(TOML_NUMBERS), toml_strings()), min_size=1, max_size=3))
-        spellings += [v for v in values if v in TOML_NUMBERS]
-        value = values[0] if len(values) == 1 else "[" + ", ".join(values) + "]"
-        comment = data.draw(st.sampled_from(["", " # 1_0 0x2", " #"]))
-        lines.append(f"{key}{k} = {value}{comment}" if not key.startswith(("'", '"')) else f"{key[:-1]}{k}{key[-1]} = {value}")
-    text = "\n".join(lines) + "\n"
-    try:
-        tomllib.loads(text)
-    except tomllib.TOMLDecodeError:
-        event("not TOML")
-        return
-    problem = toml_spelling_problem(text)
-    foreign = [s for s in spellings if _foreign(s)]
-    assert (problem is not None) == bool(foreign), (text, problem)
-    if problem is not None:
-        assert any(repr(s) in problem for s in foreign), (text, problem)
-
-
-@settings(FUZZ, max_examples=max(100, EXAMPLES))
-@given(header=st.integers(1, 5), rows=st.lists(st.lists(st.sampled_from(["1", ""]), min_size=0, max_size=6).map(
-    lambda r: ["1", *r]), min_size=1, max_size=5))
-def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, header, rows):
-    """Issue 28.3: blanks count; a row wider or narrower than the header is refused, never shifted or padded."""
-    from roughsense.errors import InputError
-    from roughsense.io.tables import read_table
-
-    path = tmp_path_factory.mktemp("widths") / "t.csv"
-    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
-    try:
-        read_table(path, [])
-        read = True
-    except InputError as exc:
-        read = False
-        assert "fields but the header has" in exc.message, exc.message
-    assert read == all(len(r) == header for r in rows), (header, rows)
-
-
-@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
-@given(text=st.text(alphabet=st.sampled_from(NUMBER_CHARS), min_size=1, max_size=8))
-def test_a_specimen_spec_reads_its_numbers_as_every_reader_does(text):
-    """Issue 28.4: a spec's number is what parse_number reads (no 1_5 as 15 mm), or the spec is refused."""
-    from roughsense.errors import ConfigError
-    from roughsense.io.numbers import NumberError, parse_number
-    from roughsense.sim.specimens import parse_specimen
-
-    try:
-        expected = float(parse_number(text))
-    except NumberError:
-        expected = None
-    try:
-        got = parse_specimen(f"rect:{text}").wavelength_mm
-    except ConfigError:
-        got = None
-    assert got is None or got == expected, (text, got, expected)
-    if expected is None:
-        assert got is None
-
-
-@settings(FUZZ, max_examples=max(200, EXAMPLES * 3))
-@given(seed=st.one_of(st.integers(-5, 5), st.integers(2**63 - 3, 2**63 + 3), st.integers(0, 2**80)),
-       zeros=st.integers(0, 2))
-def test_every_seed_reader_bounds_a_seed_alike(seed, zeros):
-    """Issue 28.14: a seed is a whole number from 0 to 2**63 - 1 (and written without leading zeros) everywhere."""
-    import typer
-
-    from roughsense._util.checks import MAX_SEED, SEED
-    from roughsense.cli._common import number_option
-    from roughsense.errors import ConfigError
-    from roughsense.sim.specimens import parse_specimen
-
-    text = "0" * zeros + str(seed)
-    valid = 0 <= seed <= MAX_SEED and (zeros == 0 or text == "0")
-    try:
-        option = number_option("--seed", quantity="seed")(text)
-    except (typer.BadParameter, ConfigError):
-        option = None
-    assert (option == seed) if valid else option is None, (text, option)
-    try:
-        spec = parse_specimen(f"rand:1.5:0.2:{text}").seed
-    except ConfigError:
-        spec = None
-    assert (spec == seed) if valid else spec is None, (text, spec)
-    assert SEED.accepts(seed) == (0 <= seed <= MAX_SEED)
-
-
-# --------------------------------------------------------------------------- issue 36: the fourth hardening pass's rules
-
-
-@settings(FUZZ, max_examples=max(100, EXAMPLES))
-@given(header=st.integers(1, 4), rows=st.lists(st.lists(st.sampled_from(["1", "", "x"]), min_size=0, max_size=6).map(
-    lambda r: ["1", *r]), min_size=1, max_size=5))
-def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
-    """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
-    the rows after it are still read: no pandas "C error"."""
-    from roughsense.io.problems import Problems
-    from roughsense.io.tables import read_table
-
-    path = tmp_path_factory.mktemp("widths36") / "t.csv"
-    path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
-    problems = Problems()
-    read_table(path, [f"c{i}" for i in range(header)], numeric=["c0"], problems=problems)
-    messages = [one.message for one in problems.items]
-    assert not any("readable CSV" in m for m in messages), messages
-    wrong = [i + 2 for i, r in enumerate(rows) if len(r) != header]
-    width_rows = [one.row for one in problems.items if "fields but the header has" in one.message]
-    assert width_rows == wrong
-    assert len({one.row for one in problems.items if one.row in wrong}) == len(wrong)  # one problem per such row
-    assert all(one.column is None for one in problems.items if one.row in wrong)
-
-
-PLANTS = ("own folder", "file", "link to folder", "link to nothing", "fifo")
-
-
-@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
-@given(plant=st.sampled_from(PLANTS), tag=st.sampled_from(("partial", "retired")), target_exists=st.booleans())
-def test_a_leftover_is_used_only_when_it_is_the_users_own_folder(tmp_path_factory, plant, tag, target_exists):
-    """36.1: whatever sits under a leftover's name, only a real folder of the user's is put back or deleted; anything
-    else is refused by name, and what a link points to is never touched."""
-    from roughsense._util import atomic
-    from roughsense.errors import OutputExistsError
-
-    root = tmp_path_factory.mktemp("plant")
-    private = root / "private"
-    private.mkdir()
-    (private / "a.csv").write_text("mine")
-    out = root / "out"
-    if target_exists:
-        out.mkdir()
-        (out / "a.csv").write_text("current")
-    child = os.fork()
-    if child == 0:  # pragma: no cover - a PID that is surely dead once waited for
-        os._exit(0)
-    os.waitpid(child, 0)
-    name = root / f".out{atomic.PARTIAL_TAG if tag == 'partial' else atomic.RETIRED_TAG}{child}-abcd"
-    if plant == "own folder":
-        name.mkdir()
-        (name / "a.csv").write_text("leftover")
-    elif plant == "file":
-        name.write_text("x")
-    elif plant == "fifo":
-        os.mkfifo(name)
-    else:
-        name.symlink_to(private if plant == "link to folder" else root / "nothing")
-    try:
-        atomic.clean_leftovers(out)
-        refused = None
-    except OutputExistsError as exc:
-        refused = str(exc)
-    assert (refused is None) == (plant == "own folder"), (plant, refused)
-    if refused is not None:
-        assert f"delete {name}" in refused and os.path.lexists(name)
-    else:
-        assert not os.path.lexists(name)
-        expected = b"current" if target_exists else (b"leftover" if tag == "retired" else None)
-        assert (out / "a.csv").read_bytes() == expected if expected else not out.exists()
-    assert (private / "a.csv").read_text() == "mine" and sorted(os.listdir(private)) == ["a.csv"]
-
-
-@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
-@given(kind=st.sampled_from(("regular", "empty", "folder", "fifo", "link to fifo", "device", "socket")),
-       reader=st.sampled_from(("image", "table", "model", "sweep")))
-def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, reader):
-    """36.6: images, tables, model and sweep files are read only as regular files; a FIFO, a device or a socket is
-    one error naming its type, at once (a FIFO without a writer would block an ordinary open)."""
-    import socket
-
-    from roughsense.errors import RoughsenseError
-    from roughsense.explore.sweep import read_sweep
-    from roughsense.io.images import read_image
-    from roughsense.io.tables import read_table
-    from roughsense.model.modelfile import load_model
-
-    root = tmp_path_factory.mktemp("kinds")
-    path = root / "thing"
-    keep = None
-    if kind in ("regular", "empty"):
-        path.write_bytes(b"" if kind == "empty" else b"c0\n1\n")
-    elif kind == "folder":
-        path.mkdir()
-    elif kind == "fifo":
-        os.mkfifo(path)
-    elif kind == "link to fifo":
-        os.mkfifo(root / "pipe")
-        path.symlink_to(root / "pipe")
-    elif kind == "device":
-        path.symlink_to("/dev/null")
-    else:
-        keep = socket.socket(socket.AF_UNIX)
-        keep.bind(str(path))
-    read = {"image": read_image, "table": lambda p: read_table(p, []), "model": load_model, "sweep": read_sweep}[reader]
-    try:
-        read(path)
-    except RoughsenseError as exc:
-        if kind not in ("regular", "empty"):
-            words = {"folder": "a folder", "fifo": "FIFO", "link to fifo": "FIFO", "device": "a device",
-                     "socket": "a socket"}[kind]
-            assert words in str(exc), str(exc)
-    finally:
-        if keep is not None:
-            keep.close()
-
-
-@settings(FUZZ, max_examples=max(60, EXAMPLES))
-@given(values=st.lists(st.one_of(st.text(max_size=12), st.sampled_from(["=1+1", "-2", "+x", "@a", "\t=", "-", "'=x"])),
-                       min_size=1, max_size=8))
-def test_no_text_cell_a_spreadsheet_would_run_survives_spreadsheet_safe(values):
-    """36.12: after spreadsheet_safe, a text cell starts with = + - @ TAB or CR only if it is a number (or a lone
-    sign); every other cell is unchanged, and a second pass changes nothing more."""
-    import pandas as pd
-
-    from roughsense._util.text import spreadsheet_safe
-
-    frame = pd.DataFrame({"image": values})
-    once = spreadsheet_safe(frame)["image"].tolist()
-    for before, after in zip(values, once):
-        risky = len(before) > 1 and before.startswith(("=", "+", "-", "@", "\t", "\r"))
-        try:
-            float(before)
-            number = True
-        except ValueError:
-            number = False
-        assert after == (f"'{before}" if risky and not number else before)
-    assert spreadsheet_safe(pd.DataFrame({"image": once}))["image"].tolist() == once
-
-
-@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
-@given(width_in=st.floats(0.5, 40.0), height_in=st.floats(0.5, 40.0), dpi=st.integers(30, 1200))
-def test_every_accepted_dpi_stays_within_a_figures_pixel_budget(width_in, height_in, dpi):
-    """36.10: for every figure size and every --dpi accepted, a figure is rendered within MAX_FIGURE_PIXELS, and at
-    the dpi asked whenever that fits."""
-    import warnings
-
-    import matplotlib.pyplot as plt
-
-    from roughsense.report.figures import MAX_FIGURE_PIXELS, figure_dpi
-
-    fig = plt.figure(figsize=(width_in, height_in))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        used = figure_dpi(fig, dpi)
-    plt.close(fig)
-    assert width_in * height_in * used**2 <= MAX_FIGURE_PIXELS * (1 + 1e-9)
-    assert used == dpi or width_in * height_in * dpi**2 > MAX_FIGURE_PIXELS
-
-
-@settings(FUZZ, max_examples=max(40, EXAMPLES // 2))
-@given(spelling=st.sampled_from(("same", "dot", "link", "hard link", "parent dots")),
-       which=st.sampled_from(("--out", "--plot")))
-def test_an_output_spelled_as_any_input_is_refused_whatever_force_says(tmp_path_factory, spelling, which):
-    """36.2 (the rule): an output is refused when it names an input by any spelling (./x, a/../x, a link, a hard
-    link), --force or not."""
-    from roughsense._util.atomic import check_outputs
-    from roughsense.errors import ConfigError
-
-    root = tmp_path_factory.mktemp("spell")
-    (root / "sub").mkdir()
-    image = root / "in.png"
-    image.write_bytes(b"x")
-    other = {"same": image, "dot": root / "." / "in.png", "parent dots": root / "sub" / ".." / "in.png",
-             "link": root / "link.png", "hard link": root / "hard.png"}[spelling]
-    if spelling == "link":
-        other.symlink_to(image)
-    elif spelling == "hard link":
-        os.link(image, other)
-    outputs = {"--out": root / "x.csv", "--plot": None, which: other}
-    with pytest.raises(ConfigError, match=f"{which} .* (an input of this run|is also)"):
-        check_outputs(outputs, force=True, inputs=[image])
-    assert image.read_bytes() == b"x"

@@ -1,10 +1,9 @@
-"""The permutation control's shortcuts against the plain paths, and against SIMPLS refitted fold by fold.
+"""PLS's exact cross-validation: the permutation control's shortcuts against the plain paths, and against SIMPLS refitted fold by
+fold.
 
 Nested leave-one-specimen-out with many shuffled targets fits each pair of specimens left out in that pair's own basis
 (``pls_cv._own_basis_pair_choices``): the same Krylov spaces as the shared rotation's downdated operator, so the same
-predictions to rounding and the same choices. The peak law's leave-one-out fits a surface's interchangeable folds once
-(``peak_law_cv``): the same bits as fitting every fold.
-"""
+predictions to rounding and the same choices."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,21 +12,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from roughsense.model.peak_law import cv as law_cv
 from roughsense.model.pls import cv as engine
 from roughsense.model.pls import cv_engine
 from roughsense.model.pls.simpls import PLSConfigError
+from tests.targets import shuffled_targets
 
-from .test_peak_law import GRID, specimen_spectra
 from .test_pls import assert_nested_choices_are_inner_refits, spectra
-
-
-def _shuffled(y: np.ndarray, groups: np.ndarray, n_targets: int, seed: int) -> np.ndarray:
-    """The real target and shufflings of it across groups (every member of a group keeps one shared value)."""
-    names, first, codes = np.unique(groups, return_index=True, return_inverse=True)
-    values = y[first]
-    rng = np.random.default_rng(seed)
-    return np.column_stack([y] + [rng.permutation(values)[codes] for _ in range(n_targets - 1)])
 
 
 @settings(max_examples=12, deadline=None)
@@ -37,7 +27,7 @@ def test_own_basis_pair_predictions_equal_the_shared_rotations(seed, n_specimens
     X, y, groups = spectra(n_specimens=n_specimens, repetitions=repetitions, p=p, noise=0.05, seed=seed)
     if drop:  # one group a press short: pairs of two sizes
         X, y, groups = X[1:], y[1:], groups[1:]
-    Y = _shuffled(y, groups, 9, seed)
+    Y = shuffled_targets(y, groups, 9, seed)
     A = 3
     held = groups[None, :] == pd.unique(groups)[:, None]
     first, second = np.triu_indices(held.shape[0], k=1)
@@ -54,7 +44,7 @@ def test_nested_choices_with_many_targets_equal_simpls_refitted_per_group():
     chooses, and the nested predictions are the outer run's at that count."""
     X, y, groups = spectra(n_specimens=6, repetitions=3, p=12, noise=0.05, seed=3)
     X, y, groups = np.delete(X, 4, axis=0), np.delete(y, 4), np.delete(groups, 4)
-    Y = _shuffled(y, groups, 10, seed=1)
+    Y = shuffled_targets(y, groups, 10, seed=1)
     assert Y.shape[1] >= engine._OWN_BASIS_MIN_TARGETS
     outer = engine.pls_cv_many(X, Y, max_components=3, groups=groups).predictions
     nested, chosen = engine.nested_group_predictions(X, Y, groups, outer)
@@ -63,7 +53,7 @@ def test_nested_choices_with_many_targets_equal_simpls_refitted_per_group():
 
 def test_own_basis_choices_equal_the_shared_rotations_on_spectra(monkeypatch):
     X, y, groups = spectra(n_specimens=8, repetitions=4, p=30, seed=5)
-    Y = _shuffled(y, groups, 12, seed=2)
+    Y = shuffled_targets(y, groups, 12, seed=2)
     outer = engine.pls_cv_many(X, Y, max_components=6, groups=groups).predictions
     own = engine.nested_group_predictions(X, Y, groups, outer)
     monkeypatch.setattr(engine, "_OWN_BASIS_MIN_TARGETS", Y.shape[1] + 1)
@@ -72,33 +62,16 @@ def test_own_basis_choices_equal_the_shared_rotations_on_spectra(monkeypatch):
     np.testing.assert_array_equal(own[0], shared[0])
 
 
-@pytest.mark.parametrize("n_blocks, ridge", [(1, None), (3, 1.0)])
-def test_law_loo_fits_each_surfaces_folds_once_and_equals_every_fold_fitted(monkeypatch, n_blocks, ridge):
-    X, y, groups = specimen_spectra(n_specimens=6, repetitions=3, n_blocks=n_blocks, seed=4)
-    Y = _shuffled(np.repeat(y[::3], 3), groups, 6, seed=3)  # one value per surface, as the control's shufflings
-    settings = {"freq_per_mm": GRID, "n_blocks": n_blocks, "pad_ridge_period_mm": ridge, "surfaces": groups}
-    masks = []
-    original = law_cv.fit_terms
-    monkeypatch.setattr(law_cv, "fit_terms", lambda f, t, train, **k: masks.append(len(train)) or original(f, t, train, **k))
-    once = law_cv.peak_law_cv(X, Y, **settings)
-    assert masks == [6]  # one fit per surface's presses, not one per press
-    monkeypatch.setattr(law_cv, "row_classes", lambda rows: np.arange(len(rows)))  # no two rows interchangeable
-    every = law_cv.peak_law_cv(X, Y, **settings)
-    assert masks[-1] == len(y)
-    np.testing.assert_array_equal(once, every)
-
-
 @pytest.mark.parametrize("drop", [False, True])
 def test_many_targets_leave_one_group_out_in_each_folds_basis_equals_one_cv_per_target(drop):
     X, y, groups = spectra(n_specimens=7, repetitions=4, p=25, noise=0.05, seed=8)
     if drop:  # folds of two sizes
         X, y, groups = X[1:], y[1:], groups[1:]
-    Y = _shuffled(y, groups, 10, seed=4)
+    Y = shuffled_targets(y, groups, 10, seed=4)
     batch = engine.pls_cv_many(X, Y, max_components=6, groups=groups)
     for b in range(Y.shape[1]):
         single = engine.pls_cv(X, Y[:, b], max_components=6, groups=groups)
         np.testing.assert_allclose(batch.predictions[b], single.predictions, rtol=1e-9, atol=1e-12)
-
 
 
 def test_an_exhausted_krylov_space_in_a_folds_own_basis_is_refused_naming_its_fold():
