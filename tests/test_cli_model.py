@@ -771,7 +771,7 @@ def test_the_domain_line_of_a_law_that_reads_the_shape_states_its_contact_patter
     contact"); fit's line stating the domain said only the periods. A law that reads no shape says none."""
     from types import SimpleNamespace
 
-    from roughsense.cli.fit import _shape_range
+    from roughsense.model.peak_law.training import _shape_range
     from roughsense.sensor.shape import duty_cycle
 
     shaped = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, -3.8]), feature_max_=np.array([-0.7, 3.0, -0.3]))

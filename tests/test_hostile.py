@@ -428,7 +428,8 @@ def test_a_forged_target_range_is_refused_not_ignored_or_underflowed(tmp_path, s
 
 
 def test_a_sound_target_range_sets_the_floor_at_half_the_smallest(tmp_path):
-    from roughsense.model.modelfile import MIN_ROUGHNESS, load_model
+    from roughsense.model.modelfile import load_model
+    from roughsense.model.pls.simpls import MIN_ROUGHNESS
 
     assert load_model(_pls_file(tmp_path, {"study": "s", "target_range": [0.3, 2.0]})).floor == 0.15
     assert load_model(_pls_file(tmp_path, {"study": "s"})).floor == MIN_ROUGHNESS

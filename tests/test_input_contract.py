@@ -730,7 +730,7 @@ def test_a_resigned_model_file_with_extreme_numbers_is_refused(run_cli, base, mo
 
 
 def test_a_fitted_model_is_far_inside_the_model_file_bounds(model_document):
-    from roughsense.model.modelfile import MAX_COEFFICIENT, MAX_X_MEAN
+    from roughsense.model.pls.file import MAX_COEFFICIENT, MAX_X_MEAN
 
     model = model_document["model"]
     assert np.abs(model["coefficients"]).max() < MAX_COEFFICIENT / 1000

@@ -23,7 +23,7 @@ import math
 
 import pandas as pd
 
-from ..model.families import family, registry
+from ..model.registry import family, registry
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .claim_tests import (  # noqa: F401 (the claim tests, re-exported: the claims' readers import them here)
     LOW_OVL_SPECIMENS,

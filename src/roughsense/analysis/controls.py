@@ -24,7 +24,7 @@ import pandas as pd
 from .. import defaults
 from .._util.checks import Integer, check
 from .._util.workers import thread_map
-from ..model.engines import engine
+from ..model.registry import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.peak_law.family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls.family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
@@ -39,7 +39,7 @@ MAX_PERMUTATIONS = defaults.MAX_PERMUTATIONS
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
-#: The model family of a row (roughsense.model.families); the last column of controls.csv.
+#: The model family of a row (roughsense.model.registry); the last column of controls.csv.
 MODEL_COLUMN = "model"
 
 

@@ -23,8 +23,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.engines import engine
-from ..model.families import paper_family
+from ..model.registry import engine, paper_family
 from ..model.family import FoldSettings
 from ..model.pls.family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
 from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..model.engines import engine, engines
+from ..model.registry import engine, engines
 from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
 from ..model.peak_law.family import loso_laws  # noqa: F401 (re-exported for one release)

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .. import defaults
-from ..model.families import PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from .family_fits import ConditionFit
 from .metrics import shape_summary
 

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from ..model.interval import held_out_coverage
 from ..paper import COMBINED
 from .controls import fold_mean_predictions

@@ -5,7 +5,10 @@ fold, and every fold and every shuffled target goes through one batched IRLS (:f
 permutation control, the stricter schemes' own shufflings, the leave-two-out fits of the nested jackknife+ check
 (model/peak_law/folds.py) and the laws that read a surface from a few of its presses all cost one batch each.
 Its CV curve is two numbers: the training mean's RMSE under the same folds (PLS's 0-component CV, computed as
-PLS computes it) and the law's.
+PLS computes it) and the law's, whose out-of-fold predictions are the one CV of the law ``fit`` runs too
+(:func:`roughsense.model.peak_law.training.law_out_of_fold`). The rest of its life is its modules': ``fit``'s
+training (model/peak_law/training.py), its model-file section (model/peak_law/file.py) and its jackknife+ folds
+(model/peak_law/jackknife.py).
 """
 from __future__ import annotations
 
@@ -14,10 +17,11 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from ..families import PEAK_LAW
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
-from ..jackknife_file import law_jackknife
 from ..jackknife_plus import nested_check
+from ..registry import PEAK_LAW
+from . import file, training
+from .jackknife import FOLD_SCHEMA, law_jackknife, load_law_folds
 from ..pls.cv import pls_cv
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
 from .law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
@@ -63,14 +67,19 @@ class PeakLawFamily(FamilyEngine):
     """The peak power law: one law, nothing chosen, every fold and shuffling in one batch."""
 
     name: ClassVar[str] = PEAK_LAW
+    kind: ClassVar[str] = file.KIND
+    section_schema: ClassVar[dict] = file.SCHEMA
+    training_schema: ClassVar[dict] = training.TRAINING_SCHEMA
+    fold_schema: ClassVar[dict] = FOLD_SCHEMA
+    ridge_period_place: ClassVar[str | None] = "pad_ridge_period_mm"
     reads_surfaces: ClassVar[bool] = True
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """Its fit on each training fold predicts the held-out trials; curve = [training mean's RMSE, the law's]."""
         kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
         null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
-        law = FoldSettings.of(settings).law()
-        out_of_fold = peak_law_cv(X, y, groups=specimens if cv == "loso" else None, **law)[0]
+        folds = specimens if cv == "loso" else np.arange(len(y))
+        out_of_fold = training.law_out_of_fold(X, y, folds, FoldSettings.of(settings))
         law_rmse = float(np.sqrt(np.mean((out_of_fold - y) ** 2)))
         return FoldResult(out_of_fold, np.array([float(null_rmse), law_rmse]))
 
@@ -117,3 +126,25 @@ class PeakLawFamily(FamilyEngine):
 
     def jackknife(self, X, y, specimens, settings, fold, seed):
         return None if settings is None else law_jackknife(X, y, specimens, FoldSettings.of(settings).law(), seed)
+
+    def train(self, data):
+        return training.train_law(data)
+
+    def fit_report(self, trained):
+        return training.law_report(trained)
+
+    def section(self, model) -> dict:
+        return file.law_section(model)
+
+    def check_fields(self, section, path):
+        return file.check_fields(section, path)
+
+    def load(self, section, features, *, training, roughsense_version, path):
+        return file.loaded_law(section, features, training=training, roughsense_version=roughsense_version, path=path)
+
+    def check_written(self, section, features, training) -> None:
+        """As loading it would (its fields are the writer's own: no field check first)."""
+        self.load(section, features, training=training, roughsense_version="", path=None)
+
+    def load_folds(self, stored, loaded, names, path):
+        return load_law_folds(stored, loaded, names, path)

@@ -44,7 +44,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ...sensor.spectrum import grid_step
-from ..families import PEAK_LAW as NAME  # the family's name, beside its class
+from ..registry import PEAK_LAW as NAME  # the family's name, beside its class
 
 # What the estimator uses; the rest is re-exported for one release (the law's features, domain and cross-validation
 # now have modules of their own: peak_search.py, peak_domain.py, peak_law_cv.py).

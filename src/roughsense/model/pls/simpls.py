@@ -16,7 +16,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..._util.checks import POSITIVE_INT, Integer, check
 from ...errors import ConfigError, InputError
-from ..families import PLS
+from ..registry import PLS
 from ..loaded import FromModelFile
 
 __all__ = ["SIMPLS", "PLSInputError", "PLSConfigError", "linear_predict"]
