@@ -24,11 +24,11 @@ import pandas as pd
 from .. import defaults
 from .._util.checks import Integer, check
 from .._util.workers import thread_map
-from ..model.registry import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.peak_law.family import LAW_CHUNK_CELLS, permuted_law_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls.family import permuted_cv_rmse  # noqa: F401 (re-exported for one release)
 from ..model.pls.simpls import single_threaded_blas
+from ..model.registry import engine
 from .metrics import ALPHA  # a model passes the permutation control when p < ALPHA (claims.py reads it here)
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).

@@ -15,8 +15,8 @@ import pandas as pd
 
 from .. import defaults
 from ..errors import InputError
-from ..model.registry import engine, family, paper_family
 from ..model.family import FoldResult, FoldSettings
+from ..model.registry import engine, family, paper_family
 from .metrics import specimen_table
 from .spread import predictive_ovl
 

@@ -23,9 +23,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.registry import engine, paper_family
 from ..model.family import FoldSettings
 from ..model.pls.family import pls_scheme_predictions  # noqa: F401 (re-exported for one release)
+from ..model.registry import engine, paper_family
 from .controls import ALPHA, fold_mean_predictions, permutation_p, permuted_targets
 
 #: The schemes, strictest last, and what each holds out in a user's words.

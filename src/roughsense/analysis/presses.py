@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..model.registry import engine, engines
 from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
 from ..model.peak_law.family import loso_laws  # noqa: F401 (re-exported for one release)
 from ..model.peak_law.folds import specimen_codes
+from ..model.registry import engine, engines
 from .controls import fold_mean_predictions
 
 #: Random subsets of a specimen's presses per count.

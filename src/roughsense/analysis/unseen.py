@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.registry import PAPER_MODEL
 from ..model.interval import held_out_coverage
+from ..model.registry import PAPER_MODEL
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
 

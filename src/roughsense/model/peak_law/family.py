@@ -19,11 +19,11 @@ import pandas as pd
 
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from ..jackknife_plus import nested_check
+from ..pls.cv import pls_cv
 from ..registry import PEAK_LAW
 from . import file, training
-from .jackknife import FOLD_SCHEMA, law_jackknife, load_law_folds
-from ..pls.cv import pls_cv
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
+from .jackknife import FOLD_SCHEMA, law_jackknife, load_law_folds
 from .law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
 from .law import held_out_flags as law_domain_flags
 

@@ -44,7 +44,6 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ...sensor.spectrum import grid_step
-from ..registry import PEAK_LAW as NAME  # the family's name, beside its class
 
 # What the estimator uses; the rest is re-exported for one release (the law's features, domain and cross-validation
 # now have modules of their own: peak_search.py, peak_domain.py, peak_law_cv.py).
@@ -74,6 +73,7 @@ from ..peak_search import (  # noqa: F401
     surface_codes,
 )
 from ..press_spread import PressScatter, robust_spread, trained_presses
+from ..registry import PEAK_LAW as NAME  # the family's name, beside its class
 from .cv import fold_kept_ranges, law_domain_flags, peak_law_cv  # noqa: F401
 from .domain import (  # noqa: F401
     _RANGE_TOL,

@@ -1,10 +1,10 @@
-"""The PLS section of a model file (kind ``pls1-simpls``): written from a fitted :class:`SIMPLS`, checked field by
+"""The PLS section of a model file (of kind :data:`KIND`): written from a fitted :class:`SIMPLS`, checked field by
 field and loaded as :class:`LoadedModel`, as model/peak_law/file.py does for the peak law; model/modelfile.py holds
 the envelope (format, version, checksum, feature definition) around either.
 
 The section::
 
-    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
+    {"kind": KIND, "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
      "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]],
      "applicability": {"rotations": [[p] x A], "loadings": [[p] x A], "score_var": [A],
                        "t2_limit": t, "q_limit": q, "level": 0.95}   (optional: see below)}
