@@ -21,11 +21,12 @@ from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from ..jackknife_plus import nested_check
 from ..pls.cv import pls_cv
 from ..registry import PEAK_LAW
-from . import file, training
+from . import file
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
 from .jackknife import FOLD_SCHEMA, law_jackknife, load_law_folds
 from .law import domain_margins, grid_step, held_features, peak_features, peak_law_cv
 from .law import held_out_flags as law_domain_flags
+from .training import TRAINING_SCHEMA, law_out_of_fold, law_report, train_law
 
 #: The law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
 #: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS
@@ -69,7 +70,7 @@ class PeakLawFamily(FamilyEngine):
     name: ClassVar[str] = PEAK_LAW
     kind: ClassVar[str] = file.KIND
     section_schema: ClassVar[dict] = file.SCHEMA
-    training_schema: ClassVar[dict] = training.TRAINING_SCHEMA
+    training_schema: ClassVar[dict] = TRAINING_SCHEMA
     fold_schema: ClassVar[dict] = FOLD_SCHEMA
     ridge_period_place: ClassVar[str | None] = "pad_ridge_period_mm"
     reads_surfaces: ClassVar[bool] = True
@@ -79,7 +80,7 @@ class PeakLawFamily(FamilyEngine):
         kwargs = {"groups": specimens} if cv == "loso" else {"cv": "loo"}
         null_rmse = float(pls_cv(X, y, max_components=1, cap=True, **kwargs).rmse[0])
         folds = specimens if cv == "loso" else np.arange(len(y))
-        out_of_fold = training.law_out_of_fold(X, y, folds, FoldSettings.of(settings))
+        out_of_fold = law_out_of_fold(X, y, folds, FoldSettings.of(settings))
         law_rmse = float(np.sqrt(np.mean((out_of_fold - y) ** 2)))
         return FoldResult(out_of_fold, np.array([float(null_rmse), law_rmse]))
 
@@ -128,10 +129,10 @@ class PeakLawFamily(FamilyEngine):
         return None if settings is None else law_jackknife(X, y, specimens, FoldSettings.of(settings).law(), seed)
 
     def train(self, data):
-        return training.train_law(data)
+        return train_law(data)
 
     def fit_report(self, trained):
-        return training.law_report(trained)
+        return law_report(trained)
 
     def section(self, model) -> dict:
         return file.law_section(model)

@@ -19,10 +19,11 @@ import pandas as pd
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from ..peak_law.law import PeakPowerLaw
 from ..registry import PLS
-from . import file, training
+from . import file
 from .applicability import nested_domain_flags
 from .cv import nested_group_predictions, pls_cv, pls_cv_many
 from .jackknife import FOLD_SCHEMA, load_linear_folds, pls_jackknife
+from .training import TRAINING_SCHEMA, check_pls_options, check_pls_training, pls_report, train_pls
 
 
 def loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max_components: int):
@@ -80,7 +81,7 @@ class PLSFamily(FamilyEngine):
     name: ClassVar[str] = PLS
     kind: ClassVar[str] = file.KIND
     section_schema: ClassVar[dict] = file.SCHEMA
-    training_schema: ClassVar[dict] = training.TRAINING_SCHEMA
+    training_schema: ClassVar[dict] = TRAINING_SCHEMA
     fold_schema: ClassVar[dict] = FOLD_SCHEMA
     ridge_period_place: ClassVar[str | None] = "applicability.peak.pad_ridge_period_mm"
 
@@ -121,13 +122,13 @@ class PLSFamily(FamilyEngine):
         return pls_jackknife(X, y, specimens, fold.per_specimen, seed)
 
     def check_options(self, options) -> None:
-        training.check_pls_options(options)
+        check_pls_options(options)
 
     def train(self, data):
-        return training.train_pls(data)
+        return train_pls(data)
 
     def fit_report(self, trained):
-        return training.pls_report(trained)
+        return pls_report(trained)
 
     def section(self, model) -> dict:
         return file.pls_section(model)
@@ -144,8 +145,8 @@ class PLSFamily(FamilyEngine):
     def check_section(self, section, document, fail) -> None:
         file.check_section(section, document, fail)
 
-    def check_training(self, training_record, section, fail) -> None:
-        training.check_pls_training(training_record, section, fail)
+    def check_training(self, training, section, fail) -> None:
+        check_pls_training(training, section, fail)
 
     def load_folds(self, stored, loaded, names, path):
         return load_linear_folds(stored, loaded, names, path)
