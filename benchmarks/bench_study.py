@@ -119,7 +119,7 @@ def model_cost(cache: Path, repeats: int, jobs: int = 2) -> dict[tuple[str, ...]
     from roughsense.analysis.study_analysis import analyse_study
     from roughsense.cli._studies import builtin_study
     from roughsense.io.study import read_study
-    from roughsense.model.families import MODEL_FAMILIES, PLS
+    from roughsense.model.registry import MODEL_FAMILIES, PLS
 
     study = read_study(builtin_study(0, jobs), require_ratings=True)
     definition = dataset.spectrum_for(study).feature_definition()

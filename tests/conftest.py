@@ -26,7 +26,7 @@ LONGEST_FILES = ("test_report.py", "test_explore.py", "test_runner.py", "test_tu
                  "test_peak_domain.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
                  "test_interrupted.py", "test_cli_study.py", "test_input_contract.py", "test_cli_model.py",
                  "test_api_docs.py", "test_damaged_studies.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
-                 "test_jackknife_file.py", "test_scale_band.py", "test_families.py", "test_cli_builtin.py",
+                 "test_jackknife_file.py", "test_scale_band.py", "test_family_life.py", "test_cli_builtin.py",
                  "test_sim_pixels.py", "test_controls.py", "test_pls.py")
 
 

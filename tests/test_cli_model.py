@@ -658,7 +658,7 @@ def test_fit_refuses_a_study_whose_images_are_all_the_same(run_cli, study_dir, t
 def test_a_pls_model_no_better_than_the_training_mean_is_refused():
     """The CV curve decides: when every component count predicts held-out trials worse than the training mean,
     the spectra carry nothing about the ratings, and fit writes no model (a study of noise spectra)."""
-    from roughsense.analysis.training import _refuse_no_better_than_mean
+    from roughsense.model.pls.training import _refuse_no_better_than_mean
 
     rng = np.random.default_rng(4)
     X, y = rng.random((24, 30)), rng.random(24)  # independent: nothing to learn
@@ -771,7 +771,7 @@ def test_the_domain_line_of_a_law_that_reads_the_shape_states_its_contact_patter
     contact"); fit's line stating the domain said only the periods. A law that reads no shape says none."""
     from types import SimpleNamespace
 
-    from roughsense.cli.fit import _shape_range
+    from roughsense.model.peak_law.training import _shape_range
     from roughsense.sensor.shape import duty_cycle
 
     shaped = SimpleNamespace(feature_min_=np.array([-1.6, 1.4, -3.8]), feature_max_=np.array([-0.7, 3.0, -0.3]))

@@ -12,15 +12,11 @@ from hypothesis import strategies as st
 
 import roughsense as rs
 from roughsense.errors import ModelFileError
-from roughsense.model.jackknife_file import (
-    KEY,
-    deployed_jackknife,
-    law_jackknife,
-    pls_jackknife,
-    press_counts,
-)
+from roughsense.model.jackknife_file import KEY, deployed_jackknife, press_counts
 from roughsense.model.jackknife_plus import jackknife_plus
 from roughsense.model.modelfile import _digest, load_model, save_model
+from roughsense.model.peak_law.jackknife import law_jackknife
+from roughsense.model.pls.jackknife import pls_jackknife
 
 
 def gratings(n_specimens: int = 11, presses: int = 4, seed: int = 2):

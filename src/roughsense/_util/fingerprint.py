@@ -1,18 +1,22 @@
 """A hash of the source a result depends on, found by following imports, so caches never outlive their code.
 
 A cached study or a sweep cell is keyed on the code that computed it. Listing those modules by hand goes stale
-the first time a module moves; following the imports (in function bodies too) from the entry point cannot.
+the first time a module moves; following the imports (in function bodies too, and the dotted paths of modules
+imported later, as the registry names its families' engines) from the entry point cannot.
 """
 from __future__ import annotations
 
 import ast
 import hashlib
+import re
 from functools import cache
 from pathlib import Path
 
 ROOT_PACKAGE = "roughsense"
 
 
+#: A module named by dotted path to be imported later ("roughsense.model.pls.family:PLSFamily"): a dependency too.
+_LAZY = re.compile(rf"{ROOT_PACKAGE}(\.\w+)+:\w+")
 #: The installed package's folder: modules are found as files, without importing (or running) any of them.
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
@@ -61,6 +65,8 @@ def _imported(module: str, path: Path) -> set[str]:
                 target = node.module or ""
             found.add(target)
             found.update(f"{target}.{alias.name}" for alias in node.names)  # a submodule imported by name
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and _LAZY.fullmatch(node.value):
+            found.add(node.value.partition(":")[0])  # imported when first asked for (the registry's engines)
     closed: set[str] = set()
     for name in found:
         parts = name.split(".")

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..model.engines import engine
 from ..model.family import FoldSettings
 from ..model.interval import PredictionInterval
 from ..model.jackknife_file import KEY as JACKKNIFE_KEY
 from ..model.jackknife_file import DeployedJackknife
+from ..model.registry import engine
 from ..model.training_file import FAILS
 from . import controls as _controls
 from .family_fits import family_fit

@@ -23,7 +23,7 @@ import math
 
 import pandas as pd
 
-from ..model.families import registry
+from ..model.registry import registry
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .claim_tests import (
     ClaimTest,

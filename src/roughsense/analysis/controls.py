@@ -24,9 +24,9 @@ import pandas as pd
 from .. import defaults
 from .._util.checks import Integer, check
 from .._util.workers import thread_map
-from ..model.engines import engine
 from ..model.family import FoldSettings, cv_rmse
 from ..model.pls.simpls import single_threaded_blas
+from ..model.registry import engine
 from .metrics import ALPHA, specimen_table  # a model passes the permutation control when p < ALPHA
 
 #: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
@@ -37,7 +37,7 @@ MAX_PERMUTATIONS = defaults.MAX_PERMUTATIONS
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
-#: The model family of a row (roughsense.model.families); the last column of controls.csv.
+#: The model family of a row (roughsense.model.registry); the last column of controls.csv.
 MODEL_COLUMN = "model"
 
 

@@ -15,9 +15,8 @@ import pandas as pd
 
 from .. import defaults
 from ..errors import InputError
-from ..model.engines import engine
-from ..model.families import family, paper_family
 from ..model.family import FoldResult, FoldSettings
+from ..model.registry import engine, family, paper_family
 from .metrics import specimen_table
 from .spread import predictive_ovl
 
@@ -32,7 +31,7 @@ class FamilyFit:
     ``curve``: index 0 the training mean's RMSE under the same folds, then the family's own (PLS: one per
     component count; a family that chooses nothing: one). ``best``/``one_se``: the index the family's prediction
     is read at; ``per_specimen``: a nested choice per held-out specimen (PLS's LOSO: no choice ever sees the
-    specimen it predicts), else empty. ``model`` names the family (roughsense.model.families).
+    specimen it predicts), else empty. ``model`` names the family (roughsense.model.registry).
     """
 
     pad: str
@@ -118,9 +117,9 @@ def _cross_validated(model: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFram
                      law, max_components: int) -> FoldResult:
     """The family's engine under ``cv``, after refusing a design too small for it (in words naming the pad)."""
     specimens = meta["specimen"].astype(str).to_numpy()
-    chooses = family(model).chooses_components
-    usable = _check_cv_size(X, y, specimens, pad, condition, cv, max_components if chooses else 1)
-    return engine(model).cross_validate(X, y, specimens, cv, FoldSettings.of(law), usable)
+    numerics = engine(model)
+    usable = _check_cv_size(X, y, specimens, pad, condition, cv, numerics.largest_count(max_components))
+    return numerics.cross_validate(X, y, specimens, cv, FoldSettings.of(law), usable)
 
 
 def _record(model: str, fold: FoldResult, meta: pd.DataFrame, perceived: pd.DataFrame, pad: str, condition: str,

@@ -23,9 +23,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.engines import engine
-from ..model.families import paper_family
 from ..model.family import FoldSettings
+from ..model.registry import engine, paper_family
 from .controls import fold_mean_predictions, permutation_p, permuted_targets
 from .metrics import ALPHA
 from .presses import presses_analysis, presses_needed_by_curve

@@ -15,10 +15,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..model.engines import engine, engines
 from ..model.family import FoldSettings
 from ..model.jackknife_file import PRESS_COUNTS  # the counts reported, as a model file keeps its residuals
 from ..model.peak_law.folds import specimen_codes
+from ..model.registry import engine, engines
 from .controls import fold_mean_predictions
 
 #: Random subsets of a specimen's presses per count.

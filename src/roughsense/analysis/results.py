@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .. import paper
-from ..model.families import PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from . import dataset
 from .family_fits import FamilyFit
 from .metrics import shape_summary

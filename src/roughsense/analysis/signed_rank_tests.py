@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from .. import paper
-from ..model.families import family
+from ..model.registry import family
 from .metrics import compare_conditions, signed_rank
 from .results import CV_SCHEMES, CrossValidation
 

@@ -5,7 +5,7 @@ cross-validation (LOO as in the paper, and leave-one-specimen-out as the honest 
 specimen never seen in training), keeps the out-of-fold predictions at that count, and judges them
 per specimen by RMSE against the perceived geometric mean and by the overlap coefficient.
 
-Beside the paper's PLS, every requested model family (``models``; roughsense.model.families) is
+Beside the paper's PLS, every requested model family (``models``; roughsense.model.registry) is
 cross-validated under the same folds and judged the same way: the peak power law
 (roughsense.model.peak_law.law), built for surfaces never seen in training, has nothing to choose from the
 targets, so its out-of-fold predictions are its fit on each training fold.
@@ -19,7 +19,7 @@ import pandas as pd
 from .. import defaults, paper
 from ..errors import ConfigError, InputError
 from ..io.study import RATINGS_CSV, Study
-from ..model.families import MODEL_FAMILIES, check_model_name
+from ..model.registry import MODEL_FAMILIES, check_model_name
 from . import controls as _controls
 from . import dataset
 from .claims import evaluate_claims
@@ -57,7 +57,7 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
         period and a shape left out, and presses per surface (``held_out``, ``presses``; a sweep cell skips them).
     n_permutations, seed, models
         Specimen-level shufflings of the permutation control and their seed; the families fitted under the same
-        folds and controls (names in roughsense.model.families; claims and signed-rank tests are the paper's).
+        folds and controls (names in roughsense.model.registry; claims and signed-rank tests are the paper's).
     n_jobs, progress : int, callable
         Threads computing the features; a wrapper of long loops (e.g. a progress bar).
 

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..model.families import DEFAULT_MODEL, PAPER_MODEL
 from ..model.interval import held_out_coverage
+from ..model.registry import DEFAULT_MODEL, PAPER_MODEL
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
 from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenSurfaces

@@ -10,7 +10,7 @@ import typer
 
 from .. import defaults
 from .._util.text import counted
-from ..model.families import DEFAULT_MODEL
+from ..model.registry import DEFAULT_MODEL
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
@@ -88,7 +88,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
                           model=family, roi=None if override is None else override.roi)
     save_model(out, trained.model, feature_definition=trained.feature_definition,
-               training={**trained.training, "scale_check": scale}, force=force, domain=trained.domain)
+               training={**trained.training, "scale_check": scale}, force=force)
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
                f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
     if override is not None:
@@ -167,44 +167,15 @@ def _warn_failed_controls(training) -> None:
 
 
 def _echo_cv(trained) -> None:
-    """PLS: the CV curve and the chosen count. The peak law: its CV RMSE beside the training mean's, and the law."""
-    import numpy as np
-
-    from ..analysis.training import curve_table, law_table
-    from ..model.families import family
+    """The family's CV table and its lines (PLS: the curve and the chosen count; the peak law: its CV beside the
+    training mean's, and the law)."""
+    from ..model.registry import engine
     from ._common import terminal_table
 
-    result, number = trained.cv, (lambda v: f"{v:.5f}")
-    if family(trained.family).chooses_components:
-        chosen = trained.n_components
-        typer.echo(terminal_table(curve_table(result, chosen), float_format=number))
-        typer.echo(f"chosen: {counted(chosen, 'component')} (CV RMSE {result.rmse[chosen]:.5f}; "
-                   f"min at {result.best_n_components}, one-SE rule {result.one_se_n_components})")
-        return
-    law = trained.model
-    typer.echo(terminal_table(law_table(result), float_format=number))
-    typer.echo(f"peak law: CV RMSE {result.rmse[1]:.5f} (training mean {result.rmse[0]:.5f}); "
-               f"log(roughness) = {law.intercept_:.4f} {law.coef_[0]:+.4f} log(peak frequency, mm^-1)"
-               + (f" {law.coef_[2]:+.4f} log(second-harmonic ratio)" if law.coef_[2] else
-                  " (the contact's shape not read on every training surface: no shape term)"))
-    low, high = np.exp(law.feature_min_[0]), np.exp(law.feature_max_[0])
-    typer.echo(f"trained on spectral peaks at {low:.3f}-{high:.3f} mm^-1 (periods {1 / high:.2f}-{1 / low:.2f} mm)"
-               f"{_shape_range(law)}; a surface outside that range is flagged as extrapolating when predicted")
-
-
-def _shape_range(law) -> str:
-    """The contact patterns a law that reads the shape was trained on ('' where it reads none): they bound its
-    domain as the periods do, so the line that states the domain states them too."""
-    import numpy as np
-
-    from ..model.peak_search import HARMONIC
-    from ..sensor.shape import duty_cycle
-
-    if len(law.feature_min_) <= HARMONIC or not np.isfinite([law.feature_min_[HARMONIC],
-                                                              law.feature_max_[HARMONIC]]).all():
-        return ""
-    return (f" and contact patterns {duty_cycle(law.feature_max_[HARMONIC]):.2f}-"
-            f"{duty_cycle(law.feature_min_[HARMONIC]):.2f} of the period in contact")
+    table, lines = engine(trained.family).fit_report(trained)
+    typer.echo(terminal_table(table, float_format=lambda v: f"{v:.5f}"))
+    for line in lines:
+        typer.echo(line)
 
 
 def parse_condition(text: str) -> str:

@@ -3,7 +3,7 @@ model/predict_table.py); it registers nothing."""
 from __future__ import annotations
 
 # re-exported for one release
-from .fit import _shape_range, _warn_failed_controls, fit, parse_condition  # noqa: F401
+from .fit import _warn_failed_controls, fit, parse_condition  # noqa: F401
 from .image_flags import split_image_flags as _split_image_flags  # noqa: F401
 from .predict import EXTRAPOLATION_WHY, few_presses_line, predict  # noqa: F401
 

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.metrics import mean_interval
-from ..model.families import names
+from ..model.registry import names
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
 from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN

@@ -21,8 +21,8 @@ from ..analysis.results import CV_SCHEMES
 from ..errors import ConfigError
 from ..io.numbers import toml_spelling_problem
 from ..io.protocol import MAX_REPETITION, check_force
-from ..model.families import check_model_name
-from ..model.families import names as family_names
+from ..model.registry import check_model_name
+from ..model.registry import names as family_names
 from ..paper import (
     PAPER_FORCES_N,
     PAPER_PARTICIPANTS,

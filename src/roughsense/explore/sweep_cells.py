@@ -17,7 +17,7 @@ from pathlib import Path
 from .. import defaults
 from ..analysis.magnitude_estimation import schedule_size_problem
 from ..errors import ConfigError
-from ..model.families import paper_family
+from ..model.registry import paper_family
 from ..paper import PAPER_SPECIMENS, SMOOTH_PAD
 from ..sim.limits import panel_problem
 

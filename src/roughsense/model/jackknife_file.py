@@ -19,16 +19,16 @@ the 14 folds: the worst held-out specimen sets the width (docs/peak_law.md).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
 
 from .._util.checks import Real, short_repr
 from ..errors import ModelFileError
-from .interval import INTERVAL_LEVEL, held_out_floors
+from .interval import INTERVAL_LEVEL
 from .jackknife_plus import jackknife_plus, ranks, surface_means
 from .schema import integer, number, strict
 
@@ -41,9 +41,9 @@ PRESS_COUNTS = (1, 3, 5, 10)
 MAX_LOG_RESIDUAL = 50.0
 MAX_FOLD_VALUE = 1e6
 _RESIDUALS = "log(perceived) - log(predicted) of each specimen by the model fitted without it"
-_FOLD_ARRAY = {"type": "array", "minItems": 1}
-#: The model file's ``training.jackknife_plus`` (:meth:`DeployedJackknife.to_dict`), checked by model/schema.py;
-#: the shapes, and that the folds bracket the model they travel with, by :func:`deployed_jackknife` on loading.
+#: The model file's ``training.jackknife_plus`` (:meth:`DeployedJackknife.to_dict`), checked by model/schema.py with
+#: the families' folds (:func:`jackknife_schema`); the shapes, and that the folds bracket the model they travel with,
+#: by :func:`deployed_jackknife` on loading.
 SCHEMA = strict({
     "method": {"const": METHOD},
     "level": {"const": INTERVAL_LEVEL, "description": f"{INTERVAL_LEVEL} (the level predict labels pi90)"},
@@ -52,10 +52,36 @@ SCHEMA = strict({
     "log_residuals": {"type": "array", "items": {"type": "array", "items": number(-MAX_LOG_RESIDUAL,
                                                                                     MAX_LOG_RESIDUAL)}},
     "residuals": {"const": _RESIDUALS},
-    "folds": strict({"kind": {"enum": ["peak-power-law", "pls1-simpls"]}, "intercept": _FOLD_ARRAY,
-                     "coefficients": _FOLD_ARRAY, "feature_min": _FOLD_ARRAY, "feature_max": _FOLD_ARRAY,
-                     "intercepts": _FOLD_ARRAY, "floors": _FOLD_ARRAY}, required=("kind",)),
+    "folds": {"type": "object"},
 }, required=("method", "level", "specimens", "presses", "log_residuals", "folds"))
+
+
+def jackknife_schema(families) -> dict:
+    """:data:`SCHEMA` with ``folds`` of any registered family's kind, holding only the fields the families' folds
+    have (each family's ``fold_schema``; their shapes are its loader's to check)."""
+    fields = {"kind": {"enum": sorted(family.kind for family in families)}}
+    for family in families:
+        fields.update(family.fold_schema)
+    return {**SCHEMA, "properties": {**SCHEMA["properties"], "folds": strict(fields, required=("kind",))}}
+
+
+class Folds(Protocol):
+    """A family's fold models (its ``jackknife``, its ``load_folds``): each specimen's model fitted without it."""
+
+    kind: str
+
+    def log_predict(self, X, surfaces=None) -> np.ndarray:
+        """(S, n) each fold's log prediction of each row (rows of one surface read together)."""
+        ...
+
+    def to_dict(self) -> dict:
+        """The model file's ``folds`` entry (``{"kind": its family's kind, ...}``)."""
+        ...
+
+    def bracket(self, loaded) -> tuple[np.ndarray, np.ndarray | float, str]:
+        """Where the folds must lie around the model they travel with: the folds' values (S, points), the model's
+        (points,) there, and where that is, as a refusal names it."""
+        ...
 
 
 def press_counts(presses_per_specimen) -> tuple[int, ...]:
@@ -73,62 +99,10 @@ def press_subsets(codes: np.ndarray, counts, seed: int) -> list[np.ndarray]:
 
 
 @dataclass(frozen=True)
-class LawFolds:
-    """The peak law fitted without each specimen: intercept and slopes (S, p + 1) and kept range (S, p), read with
-    the deployed law's settings (grid, blocks, pad ridges), which the model file holds once."""
-
-    beta: np.ndarray
-    low: np.ndarray
-    high: np.ndarray
-    settings: dict
-
-    kind = "peak-power-law"
-
-    def log_predict(self, X, surfaces=None) -> np.ndarray:
-        """(S, n) each fold's log prediction of each row (rows of one surface share where its peak is read)."""
-        from ..sensor.grid import grid_step
-        from .peak_law.folds import fold_log_predictions
-        from .peak_search import peak_features
-
-        freq = np.asarray(self.settings["freq_per_mm"], dtype=np.float64)
-        features = peak_features(X, freq, surfaces=surfaces, **{k: v for k, v in self.settings.items()
-                                                              if k in ("n_blocks", "pad_ridge_period_mm",
-                                                                       "exclusion_per_mm")})
-        return fold_log_predictions(features, self.beta, self.low, self.high, grid_step(freq))
-
-    def to_dict(self) -> dict:
-        def bound(values):
-            return [[float(v) if math.isfinite(v) else None for v in row] for row in values]
-
-        return {"kind": self.kind, "intercept": self.beta[:, 0].tolist(), "coefficients": self.beta[:, 1:].tolist(),
-                "feature_min": bound(self.low), "feature_max": bound(self.high)}
-
-
-@dataclass(frozen=True)
-class LinearFolds:
-    """PLS fitted without each specimen (its nested component count): coefficients (S, p), intercepts and floors
-    (S,): half the smallest rating that fold trained on, as a loaded PLS file holds its predictions."""
-
-    coefficients: np.ndarray
-    intercepts: np.ndarray
-    floors: np.ndarray
-
-    kind = "pls1-simpls"
-
-    def log_predict(self, X, surfaces=None) -> np.ndarray:
-        linear = np.asarray(X, dtype=np.float64) @ self.coefficients.T + self.intercepts
-        return np.log(np.maximum(linear, self.floors)).T
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "coefficients": self.coefficients.tolist(), "intercepts": self.intercepts.tolist(),
-                "floors": self.floors.tolist()}
-
-
-@dataclass(frozen=True)
 class DeployedJackknife:
     """Fold models and residuals by presses: the jackknife+ interval of any new surface (:meth:`intervals`)."""
 
-    folds: LawFolds | LinearFolds
+    folds: Folds
     specimens: tuple[str, ...]
     counts: tuple[int, ...]
     log_residuals: np.ndarray  # (K, S): log(perceived) - log(fold prediction), a specimen read from counts[k] presses
@@ -182,7 +156,7 @@ class DeployedJackknife:
                 "residuals": _RESIDUALS, "folds": self.folds.to_dict()}
 
 
-def deploy(folds: LawFolds | LinearFolds, X, y, specimens, seed: int) -> DeployedJackknife:
+def deploy(folds: Folds, X, y, specimens, seed: int) -> DeployedJackknife:
     """Each specimen's residual under the model that left it out, read from each kept count of presses."""
     codes, names = pd.factorize(pd.Series(np.asarray(specimens).astype(str)), sort=False)
     log_targets = np.log(pd.Series(np.asarray(y, dtype=np.float64)).groupby(codes).first().to_numpy())
@@ -194,37 +168,6 @@ def deploy(folds: LawFolds | LinearFolds, X, y, specimens, seed: int) -> Deploye
         own = np.exp(folds.log_predict(X[rows], owner)[owner, np.arange(rows.size)])  # each row by its own fold
         residuals.append(log_targets - np.log(np.bincount(owner, weights=own) / np.bincount(owner)))
     return DeployedJackknife(folds, tuple(map(str, names)), counts, np.array(residuals))
-
-
-def law_jackknife(X, y, specimens, law: dict, seed: int) -> DeployedJackknife:
-    """The peak law's: its leave-one-specimen-out fits in one batch (model/peak_law/folds.py), as the study's."""
-    from .peak_law.folds import law_fold_models
-
-    codes, _ = pd.factorize(pd.Series(np.asarray(specimens).astype(str)), sort=False)
-    held = codes[None, :] == np.arange(int(codes.max()) + 1)[:, None]
-    settings = {k: v for k, v in law.items() if k != "surfaces"}
-    beta, low, high, _ = law_fold_models(X, y, ~held, surfaces=specimens, **settings)
-    return deploy(LawFolds(beta, low, high, settings), X, y, specimens, seed)
-
-
-def pls_jackknife(X, y, specimens, n_components: dict, seed: int) -> DeployedJackknife:
-    """PLS's: each specimen's fold refitted with the component count its nested LOSO chose (0: the training mean)."""
-    from .pls.simpls import SIMPLS
-
-    specimens = np.asarray(specimens).astype(str)
-    X, y = np.asarray(X, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    names = pd.unique(pd.Series(specimens))
-    coefficients, intercepts = np.zeros((names.size, X.shape[1])), np.empty(names.size)
-    for i, name in enumerate(names):
-        train = specimens != name
-        count = int(n_components.get(str(name), 0))
-        if count < 1:
-            intercepts[i] = float(y[train].mean())
-            continue
-        fitted = SIMPLS(n_components=count).fit(X[train], y[train])
-        coefficients[i], intercepts[i] = fitted.coef_, fitted.intercept_
-    floors = pd.Series(held_out_floors(y, specimens)).groupby(pd.factorize(pd.Series(specimens))[0]).first()
-    return deploy(LinearFolds(coefficients, intercepts, floors.to_numpy()), X, y, specimens, seed)
 
 
 # --------------------------------------------------------------------------- reading a model file's entry
@@ -253,7 +196,7 @@ def deployed_jackknife(loaded) -> DeployedJackknife | None:
     if not (isinstance(counts, list) and counts and all(type(k) is int and k >= 1 for k in counts)
             and counts == sorted(set(counts))):
         fail("presses", "increasing whole numbers of presses", counts)
-    residuals = _numbers(stored.get("log_residuals"), (len(counts), len(names)), "log_residuals", path)
+    residuals = fold_numbers(stored.get("log_residuals"), (len(counts), len(names)), "log_residuals", path)
     if np.abs(residuals).max() > MAX_LOG_RESIDUAL:
         fail("log_residuals", f"log residuals within +-{MAX_LOG_RESIDUAL:g}", float(np.abs(residuals).max()))
     trained = training.get("specimens")
@@ -266,29 +209,13 @@ def deployed_jackknife(loaded) -> DeployedJackknife | None:
     return DeployedJackknife(folds, tuple(names), tuple(counts), residuals, float(stored["level"]))
 
 
-def _check_bracket(folds: LawFolds | LinearFolds, loaded, path: Path | None) -> None:
+def _check_bracket(folds: Folds, loaded, path: Path | None) -> None:
     """The folds bracket the model they travel with: each is the model refitted without one specimen, so where the
-    model is anchored (PLS: its training centroid, where it predicts the mean rating; the law: the centre and
-    corners of its trained feature box) their predictions lie around the model's. Their spread, on either side,
-    allows for folds whose nested CV chose another component count; folds that all agree (spread 0) must agree
+    model is anchored (its family's ``bracket``: PLS's training centroid, where it predicts the mean rating; the law's
+    centre and corners of its trained feature box) their predictions lie around the model's. Their spread, on either
+    side, allows for folds whose nested CV chose another component count; folds that all agree (spread 0) must agree
     with the model. A file whose folds do not is refused: its interval could exclude its own prediction."""
-    if isinstance(folds, LinearFolds):
-        x_mean = np.asarray(loaded.x_mean_, dtype=np.float64)
-        around, model = folds.coefficients @ x_mean + folds.intercepts, float(loaded.y_mean_)
-        where = "at the training centroid (model.x_mean), where the model predicts model.y_mean"
-    else:
-        used = np.flatnonzero(np.asarray(loaded.coef_) != 0)  # their ranges are finite (checked on loading)
-        low, high = np.asarray(loaded.feature_min_), np.asarray(loaded.feature_max_)
-        centre = np.where(np.isfinite(low) & np.isfinite(high), 0.5 * (low + high), 0.0)
-        points = [centre]
-        for corner in _corners(centre.size, used):
-            point = centre.copy()
-            point[used] = np.where(corner[used], high[used], low[used])
-            points.append(point)
-        points = np.array(points)
-        around = folds.beta[:, :1] + folds.beta[:, 1:] @ points.T  # (S, points): log roughness
-        model = loaded.intercept_ + points @ np.asarray(loaded.coef_)
-        where = "over the trained feature box (log roughness at its centre and corners)"
+    around, model, where = folds.bracket(loaded)
     low, high = np.min(around, axis=0), np.max(around, axis=0)
     slack = (high - low) + 1e-9 * (1.0 + np.abs(model))
     if np.any(model < low - slack) or np.any(model > high + slack):
@@ -298,18 +225,9 @@ def _check_bracket(folds: LawFolds | LinearFolds, loaded, path: Path | None) -> 
                                                               else ""), path=path)
 
 
-def _corners(width: int, used: np.ndarray) -> list[np.ndarray]:
-    """Every combination of low (False) and high (True) ends over the ``used`` features (``width`` in all)."""
-    corners = []
-    for code in range(2 ** used.size):
-        corner = np.zeros(width, dtype=bool)
-        corner[used] = [(code >> i) & 1 == 1 for i in range(used.size)]
-        corners.append(corner)
-    return corners
-
-
-def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nulls: bool = False) -> np.ndarray:
-    """A nested list of numbers of ``shape`` (nulls read as NaN where allowed), finite, within MAX_FOLD_VALUE."""
+def fold_numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nulls: bool = False) -> np.ndarray:
+    """A fold entry's ``field``: a nested list of numbers of ``shape`` (nulls read as NaN where allowed), finite,
+    within MAX_FOLD_VALUE; refused in one line naming ``training.jackknife_plus.<field>``."""
     def number(v) -> bool:
         return type(v) in (int, float) or (nulls and v is None)
 
@@ -330,49 +248,16 @@ def _numbers(value, shape: tuple[int, ...], field: str, path: Path | None, *, nu
     return array
 
 
-def _folds(stored, loaded, names: list, path: Path | None) -> LawFolds | LinearFolds:
-    """The fold models, of the loaded model's own kind and size, each as checked as the deployed model's section."""
-    from .families import family
-    from .pls.file import KIND as PLS_KIND
+def _folds(stored, loaded, names: list, path: Path | None) -> Folds:
+    """The fold models, of the loaded model's own kind and size, each as checked as the deployed model's section
+    (by its family: model/registry.py)."""
+    from .registry import engine
 
-    kind = family(loaded.family).kind  # the model's own section kind
-    if not isinstance(stored, dict) or stored.get("kind") != kind:
-        raise ModelFileError(f"training.{KEY}.folds must be an object of kind {kind!r} (the model's own)", path=path)
-    n = len(names)
-    if kind == PLS_KIND:
-        coefficients = _numbers(stored.get("coefficients"), (n, loaded.n_features), "folds.coefficients", path)
-        intercepts = _numbers(stored.get("intercepts"), (n,), "folds.intercepts", path)
-        floors = _numbers(stored.get("floors"), (n,), "folds.floors", path)
-        if np.any(floors <= 0):
-            raise ModelFileError(f"training.{KEY}.folds.floors must be positive (a floor on roughness)", path=path)
-        return LinearFolds(coefficients, intercepts, floors)
-    return _law_folds(stored, loaded, names, path)
-
-
-def _law_folds(stored: dict, loaded, names: list, path: Path | None) -> LawFolds:
-    from ..sensor.grid import grid_step
-    from .peak_law.file import _check_finite_predictions
-    from .readout_domain import domain_margins
-    from .readout_file import check_log_frequencies
-
-    p, n = loaded.coef_.size, len(names)
-    intercept = _numbers(stored.get("intercept"), (n,), "folds.intercept", path)
-    coefficients = _numbers(stored.get("coefficients"), (n, p), "folds.coefficients", path)
-    low = _numbers(stored.get("feature_min"), (n, p), "folds.feature_min", path, nulls=True)
-    high = _numbers(stored.get("feature_max"), (n, p), "folds.feature_max", path, nulls=True)
-    low, high = np.where(np.isnan(low), -np.inf, low), np.where(np.isnan(high), np.inf, high)
-    if np.any(low > high):
-        raise ModelFileError(f"training.{KEY}.folds.feature_min exceeds feature_max: an empty training range", path=path)
-    step = grid_step(loaded.freq_per_mm)
-    for i in range(n):  # each fold's peak read on the grid, and its exponent finite over its domain, as the law's
-        check_log_frequencies([low[i, 0], high[i, 0]], loaded.freq_per_mm,
-                              f"training.{KEY}.folds.feature_min[{i}][0] and feature_max[{i}][0]", path)
-        wide_low, wide_high = domain_margins(step, low[i], high[i])
-        try:
-            _check_finite_predictions(float(intercept[i]), {"coefficients": coefficients[i], "feature_min": wide_low,
-                                                            "feature_max": wide_high}, path)
-        except ModelFileError as exc:
-            raise ModelFileError(f"training.{KEY}.folds, fold {i + 1} ({names[i]}): {exc.message}", path=path) from None
-    settings = {"freq_per_mm": loaded.freq_per_mm, "n_blocks": loaded.n_blocks,
-                "pad_ridge_period_mm": loaded.pad_ridge_period_mm, "exclusion_per_mm": loaded.exclusion_per_mm}
-    return LawFolds(np.column_stack([intercept, coefficients]), low, high, settings)
+    family = engine(loaded.family)
+    if not isinstance(stored, dict) or stored.get("kind") != family.kind:
+        raise ModelFileError(f"training.{KEY}.folds must be an object of kind {family.kind!r} (the model's own)",
+                             path=path)
+    folds = family.load_folds(stored, loaded, names, path)
+    if folds is None:
+        raise ModelFileError(f"training.{KEY}: the {loaded.family} family keeps no jackknife+ folds", path=path)
+    return folds

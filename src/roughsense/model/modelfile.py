@@ -2,11 +2,11 @@
 
 A model file is something users send each other, so loading it must never execute anything and must
 refuse, with one clear message naming the file, anything damaged, truncated, edited or from another
-version. This module holds the envelope; each family's section is its own module's (:mod:`.pls.file`,
-:mod:`.peak_law.file`). The document::
+version. This module holds the envelope; the ``model`` section is its family's to write, check and load (the
+registry's family of that ``kind``: model/registry.py). The document::
 
     {"format": "roughsense-model", "version": 1, "roughsense_version": "...",
-     "model":    {"kind": "pls1-simpls", ...} | {"kind": "peak-power-law", ...}  (the family's section),
+     "model":    {"kind": <the family's kind>, ...}  (the family's section),
      "features": {"spectrum": <SpatialSpectrum.feature_definition()>, "conditions": ["1N"] | ["1N","2N","3N"]},
      "training": {study, pad, condition, cv, cv_rmse, best_n_components, ...},
      "sha256":   hex digest of the canonical JSON of everything above}
@@ -35,11 +35,8 @@ from ..errors import InputError, ModelFileError
 from ..io.numbers import BOUNDS
 from ..sensor.settings import MAX_N_FREQS
 from . import jackknife_file, schema
-from .peak_law import file as peak_law_file
-from .peak_law.law import PeakPowerLaw
-from .pls import file as pls_file
-from .pls.applicability import SpectrumDomain
-from .pls.simpls import SIMPLS
+from .loaded import FromModelFile
+from .registry import engine, engine_of_kind, kinds, names
 
 FORMAT = "roughsense-model"
 VERSION = 1
@@ -59,9 +56,9 @@ FEATURES_SCHEMA = schema.strict({
                                                                        f"{BOUNDS['px_per_mm'].high:g} px/mm")}},
     "conditions": {"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1, "uniqueItems": True},
 }, required=("spectrum", "conditions"))
-#: A model of either family, fitted here or loaded from a file: both predict and say whether they extrapolate; a
-#: loaded one also carries its file's part (``model_file_``: features, training).
-FittedModel = SIMPLS | PeakPowerLaw
+#: A model of any registered family, fitted here or loaded from a file: each predicts and says whether it
+#: extrapolates; a loaded one also carries its file's part (``model_file_``: features, training).
+FittedModel = FromModelFile
 
 
 # --------------------------------------------------------------------------- writing
@@ -76,26 +73,15 @@ def _digest(document: dict) -> str:
     return hashlib.sha256(_canonical(body)).hexdigest()
 
 
-def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, training: dict,
-                   domain: SpectrumDomain | None = None, path: Path | None = None) -> dict:
+def model_document(model: FittedModel, *, feature_definition: dict, training: dict, path: Path | None = None) -> dict:
     """The JSON document of a fitted model (see the module docstring), checked as :func:`load_model` will check it.
 
-    ``domain``: a PLS model's applicability domain (:func:`roughsense.model.pls.applicability.fit_domain`); ``path``:
-    the file it is for, which a refusal names.
+    ``path``: the file it is for, which a refusal names.
     """
-    section = peak_law_file.law_section(model) if isinstance(model, PeakPowerLaw) else pls_file.pls_section(model)
-    if domain is not None:
-        section["applicability"] = domain.to_dict()
-        pls_file.checked_domain(section["applicability"], np.asarray(section["x_mean"]), section["n_components"],
-                                section["n_features"],
-                                _check_feature_definition(feature_definition, section["n_features"], None),
-                                None)  # as loading will
+    family = _family_of(model)
+    section = family.section(model)
     features = _check_feature_definition(feature_definition, section["n_features"], None)
-    if section["kind"] == peak_law_file.KIND:  # refuse now what load_model would refuse later
-        peak_law_file.loaded_law(section, features, training=training, roughsense_version=_version(), path=None)
-    else:
-        pls_file.check_bounds(np.asarray(section["x_mean"]), section["y_mean"], np.asarray(section["coefficients"]),
-                              np.asarray(section["intercepts"]), None)
+    family.check_written(section, features, training)  # refuse now what load_model would refuse later
     document = {
         "format": FORMAT,
         "version": VERSION,
@@ -112,12 +98,19 @@ def model_document(model: SIMPLS | PeakPowerLaw, *, feature_definition: dict, tr
     return document
 
 
-def save_model(path: str | os.PathLike[str], model: SIMPLS | PeakPowerLaw, *, feature_definition: dict,
-               training: dict, force: bool = False, domain: SpectrumDomain | None = None) -> Path:
+def _family_of(model):
+    """The registry's engine of the model's family (``model.family``), or a refusal naming what it is."""
+    name = getattr(model, "family", None)
+    if name not in names():
+        raise ModelFileError(f"cannot save a {type(model).__name__}: not a model of a registered family")
+    return engine(name)
+
+
+def save_model(path: str | os.PathLike[str], model: FittedModel, *, feature_definition: dict,
+               training: dict, force: bool = False) -> Path:
     """Write the model file atomically; an existing file is replaced only with ``force``."""
     target = atomic.check_can_write(path, force=force)
-    document = model_document(model, feature_definition=feature_definition, training=training, domain=domain,
-                              path=target)
+    document = model_document(model, feature_definition=feature_definition, training=training, path=target)
     text = json.dumps(document, indent=1, allow_nan=False) + "\n"
     return atomic.write_text(target, text)
 
@@ -144,10 +137,10 @@ def load_model(path: str | os.PathLike[str]) -> FittedModel:
 
     Returns
     -------
-    SIMPLS or PeakPowerLaw
-        The fitted estimator (PLS or the peak law), ready to ``predict`` spectra computed as its file's feature
-        definition says (``model_file_.features``), and to say which it extrapolates (``applicability``);
-        ``model_file_.training`` holds what it was fitted on.
+    FittedModel
+        The fitted estimator of its family (PLS's SIMPLS, the PeakPowerLaw), ready to ``predict`` spectra computed
+        as its file's feature definition says (``model_file_.features``), and to say which it extrapolates
+        (``applicability``); ``model_file_.training`` holds what it was fitted on.
 
     Examples
     --------
@@ -219,16 +212,16 @@ def model_from_document(document, *, path: Path | None = None) -> FittedModel:
     if not isinstance(training, dict):
         fail("\"training\" must be an object")
     _check_target_range(training.get("target_range", None), path)
-    family = {peak_law_file.KIND: peak_law_file, pls_file.KIND: pls_file}.get(model.get("kind"))
+    family = engine_of_kind(model.get("kind"))
     if family is None:
-        fail(f"model kind {short_repr(model.get('kind'))} is not supported (expected {pls_file.KIND!r} or "
-             f"{peak_law_file.KIND!r})")
+        fail(f"model kind {short_repr(model.get('kind'))} is not supported (expected "
+             f"{' or '.join(repr(kind) for kind in kinds())})")
     n_features = family.check_fields(model, path)
     features = _check_feature_definition(document["features"], n_features, path)
     schema.check_document(document, path)
     _check_spectrum(features["spectrum"], path)
-    load = peak_law_file.loaded_law if family is peak_law_file else pls_file.loaded_pls
-    loaded = load(model, features, training=training, roughsense_version=document["roughsense_version"], path=path)
+    loaded = family.load(model, features, training=training, roughsense_version=document["roughsense_version"],
+                         path=path)
     schema.check_document(document, path, after_family=True)
     jackknife_file.deployed_jackknife(loaded)  # its folds and residuals, checked against the model now
     return loaded

@@ -60,19 +60,18 @@ def sections() -> dict[str, Section]:
     """Every checked section, by its dotted place in the document, parents before children (each module states
     its own; see the module docstring for adding one)."""
     from . import gate_file, interval, jackknife_file, modelfile, training_file
-    from .peak_law import file as peak_law_file
-    from .pls import file as pls_file
+    from .registry import engines
 
-    by_kind = {"if": {"properties": {"kind": {"const": pls_file.KIND}}}, "then": pls_file.SCHEMA,
-               "else": peak_law_file.SCHEMA}
+    families = engines()
     return {
-        "model": Section(by_kind, _by_kind({pls_file.KIND: pls_file.check_section}), after_family=True),
+        "model": Section(_by_kind_schema(families), _by_kind({f.kind: f.check_section for f in families}),
+                         after_family=True),
         "features": Section(modelfile.FEATURES_SCHEMA),
-        "training": Section(training_file.SCHEMA, training_file.check),
+        "training": Section(training_file.training_schema(families), training_file.check),
         "training.presses": Section(training_file.PRESSES_SCHEMA, training_file.check_presses),
         "training.unseen": Section(training_file.UNSEEN_SCHEMA, training_file.check_unseen),
         "training.interval": Section(interval.SCHEMA, interval.check_record),
-        "training.jackknife_plus": Section(jackknife_file.SCHEMA),
+        "training.jackknife_plus": Section(jackknife_file.jackknife_schema(families)),
         f"training.{gate_file.KEY}": Section(gate_file.SCHEMA, gate_file.check),
     }
 
@@ -89,6 +88,15 @@ def check_document(document: dict, path: Path | None, *, after_family: bool = Fa
             raise ModelFileError(refusal, path=path)
         if section.check is not None:
             section.check(value, document, failing(where, path))
+
+
+def _by_kind_schema(families) -> dict:
+    """The ``model`` section's schema: the registered family's of its ``kind`` (the last family's for any other
+    kind, which loading has refused before this is checked)."""
+    node = families[-1].section_schema
+    for family in reversed(families[:-1]):
+        node = {"if": {"properties": {"kind": {"const": family.kind}}}, "then": family.section_schema, "else": node}
+    return node
 
 
 def _by_kind(checks: dict[str, Check]) -> Check:

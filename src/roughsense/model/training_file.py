@@ -2,12 +2,15 @@
 analysis/training.py records it, stated as JSON Schema (model/schema.py) and checked against the rest of the file.
 
 Every key is optional (a model saved from Python may record as little as ``{}``), but one that is there has its
-known type and bounds, and no other key is accepted. The facts that relate fields are checked beside the schema:
+known type and bounds, and no other key is accepted: the fields every family writes are stated here, those a family
+adds by the family (its ``training_schema``, model/registry.py). The facts that relate fields are checked beside
+the schema:
 
 - ``condition`` and ``pad`` agree with the features: a condition's spectra are its force's (``combined``: all
   three, side by side), and the pad's ``pad_ridge_period_mm`` is the one the model leaves out of its peak search
   (a fingerprint model relabelled as smooth keeps its ridge exclusion, so the two would disagree);
-- the counts agree: ``n_components`` is the model's, the CV curve has one value per count tried;
+- the family's own facts (its ``check_training``; PLS: ``n_components`` is the model's, the CV curve has one value
+  per count tried);
 - ``presses.needed`` is one of the press counts it was measured at, and beats the training mean there;
 - ``unseen``'s verdict agrees with its numbers: ``passes_controls`` is true exactly when ``failure`` is empty,
   and a permutation p-value is one a count of shufflings gives.
@@ -23,8 +26,7 @@ from .. import defaults
 from .._util.checks import MAX_SEED
 from ..io.numbers import BOUNDS
 from ..paper import COMBINED, FORCE_CONDITIONS, PAPER_CONDITIONS
-from .families import PEAK_LAW
-from .pls.file import KIND as PLS_KIND
+from .registry import engine_of_kind
 from .schema import integer, number, strict
 
 _RATING = BOUNDS["rating"]
@@ -71,15 +73,8 @@ SCHEMA = strict({
                   "description": "center, auto or [x, y, w, h]"},
     "target_range": {"type": "array", "items": number(_RATING.low, _RATING.high), "minItems": 2, "maxItems": 2},
     "pad_ridge_period_mm": number(_RIDGE.low, _RIDGE.high, null=True),
-    "rule": {"enum": ["min", "1se"]},
-    "max_components": integer(1, None),
     "cv_rmse": {"type": "array", "items": _RMSE, "minItems": 1},
     "cv_rmse_se": {"type": "array", "items": _RMSE, "minItems": 1},
-    "best_n_components": integer(0, None),
-    "one_se_n_components": integer(0, None),
-    "n_components": integer(1, None),
-    "model": {"const": PEAK_LAW},
-    "cv_models": _STRINGS,
     "scale_check": {"type": "string"},
     "unseen": {"type": "object"},
     "interval": {"type": "object"},
@@ -87,6 +82,14 @@ SCHEMA = strict({
     "contact_gate": {"type": "object"},
     "presses": {"type": "object"},
 })
+
+
+def training_schema(families) -> dict:
+    """:data:`SCHEMA` with the fields each registered family adds to the record (its ``training_schema``)."""
+    fields = dict(SCHEMA["properties"])
+    for family in families:
+        fields.update(family.training_schema)
+    return {**SCHEMA, "properties": fields}
 
 
 def check(training: dict, document: dict, fail) -> None:
@@ -101,38 +104,25 @@ def check(training: dict, document: dict, fail) -> None:
     if target is not None and target[0] > target[1]:
         fail("target_range", f"must be [smallest, largest] of the ratings trained on, got {target}")
     model = document.get("model", {})
-    if "pad_ridge_period_mm" in training:
-        _check_pad(training, model, fail)
-    if model.get("kind") == PLS_KIND:
-        _check_counts(training, model, fail)
+    family = engine_of_kind(model.get("kind"))
+    if family is not None and family.ridge_period_place is not None and "pad_ridge_period_mm" in training:
+        _check_pad(training, model, family.ridge_period_place, fail)
+    if family is not None:
+        family.check_training(training, model, fail)
     for name in ("cv_rmse_se",):
         if name in training and "cv_rmse" in training and len(training[name]) != len(training["cv_rmse"]):
             fail(name, f"has {len(training[name])} values, but cv_rmse has {len(training['cv_rmse'])}")
 
 
-def _check_pad(training: dict, model: dict, fail) -> None:
-    """The pad's ridge period as the study stated it is the one the model leaves out of its peak search."""
-    stated = training["pad_ridge_period_mm"]
-    held = model.get("pad_ridge_period_mm", "absent") if model.get("kind") != PLS_KIND else \
-        model.get("applicability", {}).get("peak", {}).get("pad_ridge_period_mm", "absent")
+def _check_pad(training: dict, model: dict, place: str, fail) -> None:
+    """The pad's ridge period as the study stated it is the one the model leaves out of its peak search (held at
+    ``place`` in its section, as its family says)."""
+    stated, held = training["pad_ridge_period_mm"], model
+    for key in place.split("."):
+        held = held.get(key, "absent") if isinstance(held, dict) else "absent"
     if held != "absent" and held != stated:
-        where = "model.pad_ridge_period_mm" if model.get("kind") != PLS_KIND else \
-            "model.applicability.peak.pad_ridge_period_mm"
         fail("pad_ridge_period_mm", f"is {stated} for pad {training.get('pad', '')!r}, but the model's peak search "
-                                    f"leaves out the ridges of {where} = {held}")
-
-
-def _check_counts(training: dict, model: dict, fail) -> None:
-    """A PLS record's component counts: the model's, within the curve it chose them from."""
-    if "n_components" in training and training["n_components"] != model.get("n_components"):
-        fail("n_components", f"is {training['n_components']}, but the model has {model.get('n_components')}")
-    tried = len(training["cv_rmse"]) - 1 if "cv_rmse" in training else None
-    if tried is not None and "max_components" in training and tried != training["max_components"]:
-        fail("cv_rmse", f"has {tried + 1} values, but max_components {training['max_components']} gives "
-                        f"{training['max_components'] + 1}")
-    for name in ("best_n_components", "one_se_n_components", "n_components"):
-        if tried is not None and training.get(name, 0) > tried:
-            fail(name, f"is {training[name]}, beyond the {tried} components cross-validated")
+                                    f"leaves out the ridges of model.{place} = {held}")
 
 
 def check_presses(presses: dict, document: dict, fail) -> None:

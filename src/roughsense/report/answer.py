@@ -14,7 +14,7 @@ import pandas as pd
 
 from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
-from ..model.families import DEFAULT_MODEL, PAPER_MODEL
+from ..model.registry import DEFAULT_MODEL, PAPER_MODEL
 from . import provenance as source
 from .control_tables import permutation_p_text
 from .paper_tables import is_paper_model, model_title

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pandas as pd
 
 from .. import paper as published
-from ..model.families import PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from ..paper import COMBINED
 from .paper_tables import FLAG, _cell, _num, _quiet_nanmean, is_paper_model
 

@@ -15,7 +15,7 @@ import pandas as pd
 from matplotlib.ticker import MaxNLocator
 
 from .. import defaults, paper
-from ..model.families import registry
+from ..model.registry import registry
 from ..paper import COMBINED
 
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")

@@ -32,7 +32,7 @@ from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
 from ..errors import PASS_FORCE, OutputExistsError
 from ..io.names import check_name
-from ..model.families import PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
 from .answer import answer_lines, answer_table

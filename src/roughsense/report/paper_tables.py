@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .. import paper as published
-from ..model.families import PAPER_MODEL, registry
+from ..model.registry import PAPER_MODEL, registry
 from ..paper import COMBINED, FINGERPRINT_PAD
 
 CONDITION_TITLES = {"1N": "Dataset 1 N", "2N": "Dataset 2 N", "3N": "Dataset 3 N", COMBINED: "Dataset combination"}

@@ -1,12 +1,14 @@
-"""The peak power law (:class:`roughsense.model.peak_law.law.PeakPowerLaw`) as the analysis cross-validates and
-controls it.
+"""The peak power law (:class:`roughsense.model.peak_law.law.PeakPowerLaw`) as the analysis cross-validates and controls it.
 
 The law chooses nothing from the targets, so its held-out prediction under any folds is its fit on the training
 fold, and every fold and every shuffled target goes through one batched IRLS
 (:func:`~roughsense.model.peak_law.cv.peak_law_cv`): the permutation control, the stricter schemes' own shufflings,
 the leave-two-out fits of the nested jackknife+ check (model/peak_law/folds.py) and the laws that read a surface
 from a few of its presses all cost one batch each. Its CV curve is two numbers: the training mean's RMSE under the
-same folds (model/folds.py, computed as PLS computes its 0-component CV) and the law's.
+same folds (model/folds.py, computed as PLS computes its 0-component CV) and the law's, whose out-of-fold
+predictions are the one CV of the law ``fit`` runs too (:func:`roughsense.model.peak_law.training.law_out_of_fold`).
+The rest of its life is its modules': ``fit``'s training (model/peak_law/training.py), its model-file section
+(model/peak_law/file.py) and its jackknife+ folds (model/peak_law/jackknife.py).
 """
 from __future__ import annotations
 
@@ -16,15 +18,17 @@ import numpy as np
 import pandas as pd
 
 from ...sensor.grid import grid_step
-from ..families import PEAK_LAW
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
 from ..folds import error_curve, fold_ids, training_mean_predictions
-from ..jackknife_file import law_jackknife
 from ..jackknife_plus import nested_check
 from ..peak_search import held_features, peak_features
 from ..readout_domain import domain_margins
+from ..registry import PEAK_LAW
+from . import file
 from .cv import law_domain_flags, peak_law_cv
 from .folds import law_fold_models, law_nested_press_check, law_pair_log_predictions, law_pair_models, specimen_codes
+from .jackknife import FOLD_SCHEMA, law_jackknife, load_law_folds
+from .training import TRAINING_SCHEMA, law_out_of_fold, law_report, train_law
 
 #: The law's shufflings run in chunks of about this many cells (folds fitted x shufflings x presses) a working
 #: array: 4 MiB of float64 (the built-in study's 199 shufflings in one chunk), whatever the number of presses. Its IRLS
@@ -66,14 +70,19 @@ class PeakLawFamily(FamilyEngine):
     """The peak power law: one law, nothing chosen, every fold and shuffling in one batch."""
 
     name: ClassVar[str] = PEAK_LAW
+    kind: ClassVar[str] = file.KIND
+    section_schema: ClassVar[dict] = file.SCHEMA
+    training_schema: ClassVar[dict] = TRAINING_SCHEMA
+    fold_schema: ClassVar[dict] = FOLD_SCHEMA
+    ridge_period_place: ClassVar[str | None] = "pad_ridge_period_mm"
     reads_surfaces: ClassVar[bool] = True
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """Its fit on each training fold predicts the held-out trials; curve = [training mean's RMSE, the law's]."""
         y = np.asarray(y, dtype=np.float64)
         fid, _ = fold_ids(y.size, None, specimens, None) if cv == "loso" else fold_ids(y.size, "loo", None, None)
-        law = FoldSettings.of(settings).law()
-        out_of_fold = peak_law_cv(X, y, groups=specimens if cv == "loso" else None, **law)[0]
+        folds = specimens if cv == "loso" else np.arange(len(y))
+        out_of_fold = law_out_of_fold(X, y, folds, FoldSettings.of(settings))
         null_rmse = error_curve(np.column_stack([training_mean_predictions(y, fid), out_of_fold]), y, fid)[0][0]
         law_rmse = float(np.sqrt(np.mean((out_of_fold - y) ** 2)))
         return FoldResult(out_of_fold, np.array([float(null_rmse), law_rmse]))
@@ -121,3 +130,25 @@ class PeakLawFamily(FamilyEngine):
 
     def jackknife(self, X, y, specimens, settings, fold, seed):
         return None if settings is None else law_jackknife(X, y, specimens, FoldSettings.of(settings).law(), seed)
+
+    def train(self, data):
+        return train_law(data)
+
+    def fit_report(self, trained):
+        return law_report(trained)
+
+    def section(self, model) -> dict:
+        return file.law_section(model)
+
+    def check_fields(self, section, path):
+        return file.check_fields(section, path)
+
+    def load(self, section, features, *, training, roughsense_version, path):
+        return file.loaded_law(section, features, training=training, roughsense_version=roughsense_version, path=path)
+
+    def check_written(self, section, features, training) -> None:
+        """As loading it would (its fields are the writer's own: no field check first)."""
+        self.load(section, features, training=training, roughsense_version="", path=None)
+
+    def load_folds(self, stored, loaded, names, path):
+        return load_law_folds(stored, loaded, names, path)

@@ -1,8 +1,8 @@
-"""Peak-law model files: the ``"peak-power-law"`` model section, written from a fitted law and checked on reading.
+"""Peak-law model files: the model section of kind :data:`KIND`, written from a fitted law and checked on reading.
 
 The section beside the document's ``features`` (whose spectrum holds the frequency grid the peak is read on)::
 
-    {"kind": "peak-power-law", "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
+    {"kind": KIND, "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
      "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2, b3], "scale": s,
      "feature_min": [3], "feature_max": [3], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude",
      "log_second_harmonic_ratio"], "clarity_limit": c, "press_scatter": {"spread": [4], "trained_presses": k}}

@@ -44,7 +44,6 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ...sensor.spectrum import grid_step
-from ..families import PEAK_LAW as NAME  # the family's name, beside its class
 from ..huber_batch import HUBER_EPSILON
 from ..loaded import FromModelFile
 from ..peak_search import (
@@ -55,6 +54,7 @@ from ..peak_search import (
     peak_readout,
 )
 from ..readout_domain import domain_margins, domain_reasons, fit_readout, readout_grid
+from ..registry import PEAK_LAW as NAME  # the family's name, beside its class
 from .domain import _check_positive, predict_law
 
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.

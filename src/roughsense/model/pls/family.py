@@ -6,7 +6,8 @@ over the other specimens (:func:`roughsense.model.pls.cv.nested_group_prediction
 reruns that same choice on every shuffled target in one batch (:func:`roughsense.model.pls.cv.pls_cv_many`).
 Its extras: the applicability flags of each held-out fit (model/pls/applicability.py), stricter held-out schemes with
 a nested count per fold, and the jackknife+ fold models. It has no cheap leave-two-out fits, so no nested interval
-check, and reads every press alone.
+check, and reads every press alone. The rest of its life is its modules': ``fit``'s CV and record
+(model/pls/training.py), its model-file section (model/pls/file.py) and its jackknife+ folds (model/pls/jackknife.py).
 """
 from __future__ import annotations
 
@@ -15,12 +16,14 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from ..families import PLS
 from ..family import FamilyEngine, FoldResult, FoldSettings, cv_rmse
-from ..jackknife_file import pls_jackknife
 from ..readout_domain import ReadoutSettings
+from ..registry import PLS
+from . import file
 from .applicability import nested_domain_flags
 from .cv import nested_group_predictions, pls_cv, pls_cv_many
+from .jackknife import FOLD_SCHEMA, load_linear_folds, pls_jackknife
+from .training import TRAINING_SCHEMA, check_pls_options, check_pls_training, pls_report, train_pls
 
 
 def loso_nested(X: np.ndarray, y: np.ndarray, specimens: np.ndarray, outer, max_components: int):
@@ -76,6 +79,11 @@ class PLSFamily(FamilyEngine):
     """PLS1 by SIMPLS with its component count chosen by cross-validation (nested under LOSO)."""
 
     name: ClassVar[str] = PLS
+    kind: ClassVar[str] = file.KIND
+    section_schema: ClassVar[dict] = file.SCHEMA
+    training_schema: ClassVar[dict] = TRAINING_SCHEMA
+    fold_schema: ClassVar[dict] = FOLD_SCHEMA
+    ridge_period_place: ClassVar[str | None] = "applicability.peak.pad_ridge_period_mm"
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """LOO at the curve's minimum, or nested LOSO; ``max_components`` is what the folds support."""
@@ -88,6 +96,9 @@ class PLSFamily(FamilyEngine):
             out_of_fold, per_specimen = loso_nested(X, y, specimens, result, result.max_components)
         return FoldResult(out_of_fold, np.asarray(result.rmse, float), int(result.best_n_components),
                           int(result.one_se_n_components), per_specimen)
+
+    def largest_count(self, max_components: int) -> int:
+        return max_components
 
     def permuted_rmse(self, X, Y, specimens, cv, settings, max_components) -> np.ndarray:
         return permuted_cv_rmse(X, Y, specimens, cv, max_components)
@@ -108,3 +119,33 @@ class PLSFamily(FamilyEngine):
 
     def jackknife(self, X, y, specimens, settings, fold, seed):
         return pls_jackknife(X, y, specimens, fold.per_specimen, seed)
+
+    def check_options(self, options) -> None:
+        check_pls_options(options)
+
+    def train(self, data):
+        return train_pls(data)
+
+    def fit_report(self, trained):
+        return pls_report(trained)
+
+    def section(self, model) -> dict:
+        return file.pls_section(model)
+
+    def check_fields(self, section, path):
+        return file.check_fields(section, path)
+
+    def load(self, section, features, *, training, roughsense_version, path):
+        return file.loaded_pls(section, features, training=training, roughsense_version=roughsense_version, path=path)
+
+    def check_written(self, section, features, training) -> None:
+        file.check_written(section, features)
+
+    def check_section(self, section, document, fail) -> None:
+        file.check_section(section, document, fail)
+
+    def check_training(self, training, section, fail) -> None:
+        check_pls_training(training, section, fail)
+
+    def load_folds(self, stored, loaded, names, path):
+        return load_linear_folds(stored, loaded, names, path)

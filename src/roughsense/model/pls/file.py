@@ -1,10 +1,10 @@
-"""The PLS section of a model file (kind ``pls1-simpls``): written from a fitted :class:`SIMPLS`, checked field by
+"""The PLS section of a model file (of kind :data:`KIND`): written from a fitted :class:`SIMPLS`, checked field by
 field and loaded as the fitted :class:`SIMPLS` itself, as model/peak_law/file.py does for the peak law;
 model/modelfile.py holds the envelope (format, version, checksum, feature definition) around either.
 
 The section::
 
-    {"kind": "pls1-simpls", "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
+    {"kind": KIND, "n_components": A, "n_features": p, "x_mean": [p], "y_mean": y,
      "coefficients": [[p] for k = 1..A], "intercepts": [A], "pct_var": [[A], [A]],
      "applicability": {"rotations": [[p] x A], "loadings": [[p] x A], "score_var": [A],
                        "t2_limit": t, "q_limit": q, "level": 0.95}   (optional: see below)}
@@ -110,7 +110,8 @@ def _floats(values) -> list:
 
 
 def pls_section(model: SIMPLS) -> dict:
-    """The section of a fitted :class:`SIMPLS` (every component count's coefficients: the file predicts with all)."""
+    """The section of a fitted :class:`SIMPLS` (every component count's coefficients: the file predicts with all), and
+    its applicability domain (``domain_``, model/pls/applicability.py) where it has one."""
     if not hasattr(model, "coef_path_"):
         raise ModelFileError("the model is not fitted")
     p, A = model.coef_path_.shape
@@ -123,7 +124,18 @@ def pls_section(model: SIMPLS) -> dict:
         "coefficients": _floats(model.coef_path_.T),
         "intercepts": _floats(model.intercept_path_),
         "pct_var": _floats(model.pct_var_),
+        **({} if getattr(model, "domain_", None) is None else {"applicability": model.domain_.to_dict()}),
     }
+
+
+def check_written(section: dict, features: dict) -> None:
+    """Before a file is written: its domain and bounds as loading checks them (what it would refuse later)."""
+    x_mean = np.asarray(section["x_mean"])
+    if "applicability" in section:
+        checked_domain(section["applicability"], x_mean, section["n_components"], section["n_features"], features,
+                       None)
+    check_bounds(x_mean, section["y_mean"], np.asarray(section["coefficients"]), np.asarray(section["intercepts"]),
+                 None)
 
 
 def check_fields(section: dict, path: Path | None) -> int:

@@ -16,8 +16,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..._util.checks import POSITIVE_INT, Integer, check
 from ...errors import ConfigError, InputError
-from ..families import PLS
 from ..loaded import FromModelFile
+from ..registry import PLS
 
 __all__ = ["SIMPLS", "PLSInputError", "PLSConfigError", "linear_predict"]
 
