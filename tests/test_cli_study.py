@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense.report.tables import permutation_p_text
+from roughsense.report.control_tables import permutation_p_text
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 
 SPECIMENS = ("R2", "R3", "C3", "C5")

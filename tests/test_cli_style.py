@@ -148,24 +148,24 @@ def test_every_option_default_is_its_homes_value():
     """The options show roughsense.defaults' values, and the layers use the same ones (one home, no copies)."""
     from roughsense import defaults
     from roughsense.analysis.controls import DEFAULT_PERMUTATIONS, MAX_PERMUTATIONS
-    from roughsense.io.images import DEFAULT_MAX_PIXELS
-    from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
+    from roughsense.io.sensor_settings import SensorSettings
     from roughsense.model.pls_cv import DEFAULT_MAX_COMPONENTS
     from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
-    from roughsense.report.figures import DEFAULT_DPI, FIGURE_FORMATS
-    from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM
+    from roughsense.sim.config import SimulationConfig
 
     seeds = {name: _default(name, "seed") for name, c in _commands().items() if any(p.name == "seed" for p in c.params)}
     assert {"study", "fit", "features", "simulate", "protocol"} <= set(seeds)
     assert set(seeds.values()) == {defaults.SEED}
     assert _default("study", "permutations") == defaults.PERMUTATIONS == DEFAULT_PERMUTATIONS == 199
     assert _default("study", "max_components") == defaults.MAX_COMPONENTS == DEFAULT_MAX_COMPONENTS
-    assert _default("study", "dpi") == _default("explore", "dpi") == defaults.DPI == DEFAULT_DPI
-    assert defaults.FIGURE_FORMATS == FIGURE_FORMATS and defaults.MAX_PERMUTATIONS == MAX_PERMUTATIONS
-    assert _default("simulate", "fingerprint_period_mm") == defaults.FINGERPRINT_PERIOD_MM == DEFAULT_FINGERPRINT_PERIOD_MM
-    assert _default("simulate", "ridge_height_mm") == defaults.RIDGE_HEIGHT_MM == DEFAULT_RIDGE_HEIGHT_MM
-    assert (defaults.PX_PER_MM, defaults.ROI, defaults.CENTER_CROP_PX, defaults.MAX_PIXELS) == (
-        DEFAULT_PX_PER_MM, DEFAULT_ROI, CENTER_CROP_PX, DEFAULT_MAX_PIXELS)
+    assert _default("study", "dpi") == _default("explore", "dpi") == defaults.DPI
+    assert defaults.MAX_PERMUTATIONS == MAX_PERMUTATIONS
+    simulated = SimulationConfig()
+    assert _default("simulate", "fingerprint_period_mm") == defaults.FINGERPRINT_PERIOD_MM == simulated.fingerprint_period_mm
+    assert _default("simulate", "ridge_height_mm") == defaults.RIDGE_HEIGHT_MM == simulated.ridge_height_mm
+    assert _default("simulate", "seed") == simulated.seed
+    sensor = SensorSettings()
+    assert (sensor.px_per_mm, sensor.roi, sensor.max_pixels) == (defaults.PX_PER_MM, defaults.ROI, defaults.MAX_PIXELS)
     assert _default("simulate", "repetitions") == _default("capture", "repetitions") == PAPER_REPETITIONS
     assert [float(f) for f in _default("simulate", "forces_n").split(",")] == list(PAPER_FORCES_N)
     assert (_default("protocol", "participants"), _default("protocol", "sessions")) == (PAPER_PARTICIPANTS, PAPER_SESSIONS)

@@ -82,14 +82,14 @@ def test_the_readme_quotes_the_predictive_ovl_of_the_papers_own_predictions():
 
 
 def test_the_readme_quotes_the_defaults_and_the_recorded_size():
+    from roughsense import defaults
     from roughsense.analysis.controls import DEFAULT_PERMUTATIONS
-    from roughsense.io.images import DEFAULT_MAX_PIXELS
 
     readme = _prose(REPO / "README.md")
     (shufflings,) = _quoted(readme, r"(\d+) seeded shufflings by default", "README.md")
     assert int(shufflings) == DEFAULT_PERMUTATIONS
     (pixels,) = _quoted(readme, r"max_pixels = (\d+)", "README.md")
-    assert int(pixels) == DEFAULT_MAX_PIXELS
+    assert int(pixels) == defaults.MAX_PIXELS
     (gigabytes,) = _quoted(readme, r"840 images, about (\d\.\d) GB", "README.md")
     (megabytes,) = re.findall(r"(\d+) MB", _benchmark_row("| first run: simulated study on disk"))[:1]
     assert _agrees(gigabytes, float(megabytes) / 1000)

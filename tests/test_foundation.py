@@ -7,10 +7,10 @@ import pytest
 
 from roughsense._util import atomic
 from roughsense.errors import ConfigError, InputError, OutputExistsError, RoughsenseError
+from roughsense.io.csv_read import read_table
 from roughsense.io.protocol import assign_nominal_forces
 from roughsense.io.sensor_settings import SensorSettings, parse_roi
 from roughsense.io.study import read_study
-from roughsense.io.tables import read_table
 from roughsense.io.writer import StudyWriter
 
 

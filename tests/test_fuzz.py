@@ -540,9 +540,9 @@ def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
 
     from roughsense.cli._common import number_option
     from roughsense.errors import ConfigError, InputError
+    from roughsense.io.csv_read import read_table
     from roughsense.io.numbers import NumberError, parse_number
     from roughsense.io.ratings_file import validate_ratings
-    from roughsense.io.tables import read_table
 
     cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case
     if not cell:
@@ -789,7 +789,7 @@ def test_the_toml_spelling_check_sees_values_only(data):
 def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, header, rows):
     """Issue 28.3: blanks count; a row wider or narrower than the header is refused, never shifted or padded."""
     from roughsense.errors import InputError
-    from roughsense.io.tables import read_table
+    from roughsense.io.csv_read import read_table
 
     path = tmp_path_factory.mktemp("widths") / "t.csv"
     path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
@@ -859,8 +859,8 @@ def test_every_seed_reader_bounds_a_seed_alike(seed, zeros):
 def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
     """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
     the rows after it are still read: no pandas "C error"."""
+    from roughsense.io.csv_read import read_table
     from roughsense.io.problems import Problems
-    from roughsense.io.tables import read_table
 
     path = tmp_path_factory.mktemp("widths36") / "t.csv"
     path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")
@@ -933,8 +933,8 @@ def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, r
 
     from roughsense.errors import RoughsenseError
     from roughsense.explore.sweep import read_sweep
+    from roughsense.io.csv_read import read_table
     from roughsense.io.images import read_image
-    from roughsense.io.tables import read_table
     from roughsense.model.modelfile import load_model
 
     root = tmp_path_factory.mktemp("kinds")

@@ -7,7 +7,7 @@ import shutil
 import pytest
 
 from roughsense.errors import InputError
-from roughsense.io import tables
+from roughsense.io import csv_read
 from roughsense.io.problems import Problems
 from roughsense.io.study import load_study, read_study
 
@@ -123,13 +123,13 @@ def test_a_csv_too_large_or_too_wide_is_refused_before_it_is_read(run_cli, study
     """28.12: 2 million columns took 97 s and 3.7 GB; a 6 GB sparse ratings.csv ran `check` out of memory."""
     ratings = study / "ratings.csv"
     with ratings.open("r+b") as handle:
-        handle.truncate(tables.MAX_CSV_BYTES + 1)  # sparse: costs no disk
+        handle.truncate(csv_read.MAX_CSV_BYTES + 1)  # sparse: costs no disk
     line = check_output(run_cli, study)
     assert f"{ratings}: is larger than 100 MB; refusing to read it" in line
     manifest = study / "manifest.csv"
     manifest.write_text(",".join(f"c{i}" for i in range(200_000)) + "\n")
     line = check_output(run_cli, study)
-    assert f"{manifest}: has 200000 columns; a study file has at most {tables.MAX_CSV_COLUMNS}" in line
+    assert f"{manifest}: has 200000 columns; a study file has at most {csv_read.MAX_CSV_COLUMNS}" in line
 
 
 # --------------------------------------------------------------------------- 16. the encoding is named

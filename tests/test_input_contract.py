@@ -22,7 +22,7 @@ from roughsense.io.images import header_size
 from roughsense.io.names import NAME_MAX_CHARS, check_name, is_safe_name
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.study import read_config, read_study
-from roughsense.io.tables import dump_toml
+from roughsense.io.toml_write import dump_toml
 from roughsense.io.writer import StudyWriter
 from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
 

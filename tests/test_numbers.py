@@ -13,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from roughsense.errors import InputError
+from roughsense.io.csv_read import read_table
 from roughsense.io.numbers import BOUNDS, NumberError, parse_number
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.sensor_settings import parse_roi
-from roughsense.io.tables import read_table
 
 ACCEPTED = {"2": 2.0, "-0.5": -0.5, "+3": 3.0, ".5": 0.5, "5.": 5.0, "1e-3": 1e-3, "2.5E+2": 250.0, " 7 ": 7.0,
             "\t1.25": 1.25}
@@ -170,7 +170,7 @@ def test_study_toml_numbers_are_spelled_as_a_csv_cell(tmp_path, old, new, token)
     """TOML's parser turns 1_0, 0x2 and inf into numbers before any reader sees them; the text is checked first."""
     from roughsense.errors import InputError
     from roughsense.io.study import read_config
-    from roughsense.io.tables import dump_toml
+    from roughsense.io.toml_write import dump_toml
 
     text = dump_toml({"study": {"name": "s"}, "sensor": {"px_per_mm": 34.9}, "protocol": {"forces_n": [1.0, 2.0, 3.0]}})
     assert old in text

@@ -11,9 +11,9 @@ import pandas as pd
 from .._util.checks import Integer, Real, check, short_repr
 from ..errors import ConfigError, InputError
 from ..paper import PAPER_FORCES_N
+from .csv_read import csv_line
 from .numbers import BOUNDS
 from .problems import Problems, flag
-from .tables import csv_line
 
 DEFAULT_FORCES_N = PAPER_FORCES_N
 

@@ -14,19 +14,12 @@ import numpy as np
 from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
 from ..errors import PASS_FORCE, ConfigError
-from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
+from .images import MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
-DEFAULT_PX_PER_MM = defaults.PX_PER_MM  # the paper's camera: 349 px/cm (section 2.1)
-#: Where the contact band is when a study does not say: the paper's centred crop (:data:`CENTER_CROP_PX`).
-DEFAULT_ROI = defaults.ROI
-
-
-#: What roi="center" means: a 1900 x 150 px (width, height) crop centred on the frame -- the paper's crop of
-#: its 1920 x 1080 camera. Part of the study contract, so the rig can check frames without the sensor code.
-CENTER_CROP_PX = defaults.CENTER_CROP_PX
-
-
+#: A study that does not say takes the paper's camera scale (349 px/cm, section 2.1) and roi="center":
+#: ``defaults.CENTER_CROP_PX`` (width, height) centred on the frame, the paper's crop of its 1920 x 1080 camera.
+#: Part of the study contract, so the rig can check frames without the sensor code.
 Roi = str | tuple[int, int, int, int]
 
 
@@ -34,9 +27,9 @@ Roi = str | tuple[int, int, int, int]
 class SensorSettings:
     """How images of this study are turned into lines: camera scale and where the contact band is."""
 
-    px_per_mm: float = DEFAULT_PX_PER_MM
-    roi: Roi = DEFAULT_ROI
-    max_pixels: int = DEFAULT_MAX_PIXELS
+    px_per_mm: float = defaults.PX_PER_MM
+    roi: Roi = defaults.ROI
+    max_pixels: int = defaults.MAX_PIXELS
 
     def __post_init__(self) -> None:
         check(self.px_per_mm, POSITIVE, name="px_per_mm", must="a positive number")
@@ -50,7 +43,7 @@ class SensorSettings:
 
 def check_max_pixels(value: object, *, option: str = "max_pixels") -> int:
     """A pixel limit: a whole number of pixels from 1 to :data:`~.images.MAX_PIXELS_LIMIT` (default
-    :data:`DEFAULT_MAX_PIXELS`)."""
+    :data:`roughsense.defaults.MAX_PIXELS`)."""
     if not (is_number(value) and math.isfinite(value) and value == int(value) and 1 <= value <= MAX_PIXELS_LIMIT):
         raise ConfigError(f"{option} must be a whole number of pixels from 1 to {MAX_PIXELS_LIMIT} (OpenCV decodes "
                           f"no larger image), got {value!r}")
@@ -105,7 +98,7 @@ def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     """
     roi = parse_roi(roi)
     if roi == "center":
-        crop_w, crop_h = CENTER_CROP_PX
+        crop_w, crop_h = defaults.CENTER_CROP_PX
         if width_px < crop_w or height_px < crop_h:
             return f"smaller than the {crop_w}x{crop_h} px centre crop of roi 'center'"
         return None

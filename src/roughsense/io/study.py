@@ -34,14 +34,7 @@ from .problems import Problems, attempt, flag, report, same_but_case
 from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
 from .ratings_file import read_ratings_table
 from .sensor_settings import SensorSettings
-from .study_config import CONFIG_KEYS as CONFIG_KEYS  # re-exported for one release
-from .study_config import MAX_CONFIG_BYTES as MAX_CONFIG_BYTES  # re-exported for one release
-from .study_config import MAX_RIDGE_PERIOD_MM as MAX_RIDGE_PERIOD_MM  # re-exported for one release
-from .study_config import MIN_RIDGE_PERIOD_MM as MIN_RIDGE_PERIOD_MM  # re-exported for one release
-from .study_config import NO_SCALE as NO_SCALE  # re-exported for one release
-from .study_config import PAD_KEYS as PAD_KEYS  # re-exported for one release
 from .study_config import pad_ridge_periods, read_config, sensor_from_config
-from .study_config import shadowed_key as shadowed_key  # re-exported for one release
 
 #: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"

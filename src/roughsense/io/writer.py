@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from .._util import atomic
 from .._util.files import open_regular, read_regular
 from ..errors import PASS_FORCE, InputError, OutputExistsError
 from ..paper import REFERENCE_SPECIMEN
-from .images import DEFAULT_MAX_PIXELS
 from .protocol import DEFAULT_FORCES_N
 from .sensor_settings import SensorSettings
 from .study import (
@@ -34,7 +34,7 @@ from .study import (
     SPECIMENS_CSV,
     STUDY_TOML,
 )
-from .tables import dump_toml
+from .toml_write import dump_toml
 
 SIMULATED, CAPTURED = "simulated", "captured"
 CAPTURE_TIME_COLUMN = "timestamp"  # the rig's manifest column: the moment each real frame was taken
@@ -177,7 +177,7 @@ class StudyWriter:
         tables: dict[str, Mapping[str, object]] = {
             "study": {"name": name, "reference_specimen": reference_specimen},
             "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi,
-                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != DEFAULT_MAX_PIXELS else {})},
+                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != defaults.MAX_PIXELS else {})},
             "protocol": {"forces_n": [float(f) for f in forces_n]},
         }
         tables.update(extra or {})

@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 
+from .. import defaults
 from .._util.checks import POSITIVE, SEED, Described, Integer, check_params
 from ..errors import ConfigError
 from ..io.protocol import check_force, check_repetitions
@@ -15,7 +16,7 @@ from ..paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER
 from .bench import BenchNoise
 from .limits import pad_problem, panel_problem, specimen_problem
 from .optics import Camera
-from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, Pad, make_pad
+from .pads import PAD_NAMES, Pad, make_pad
 from .panel import check_ratings_from
 from .plan import check_nominal_force_labels
 from .specimens import Specimen, parse_specimen
@@ -42,9 +43,9 @@ class SimulationConfig:
     specimens: tuple[str, ...] = PAPER_SPECIMENS
     forces_n: tuple[float, ...] = PAPER_FORCES_N
     repetitions: int = PAPER_REPETITIONS
-    seed: int = 0
-    fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM
-    ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM
+    seed: int = defaults.SEED
+    fingerprint_period_mm: float = defaults.FINGERPRINT_PERIOD_MM
+    ridge_height_mm: float = defaults.RIDGE_HEIGHT_MM
     participants: int = PAPER_PARTICIPANTS
     sessions: int = PAPER_SESSIONS
     name: str = "simulated"

@@ -14,8 +14,8 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.special import log_ndtr, ndtr, ndtri
 
+from .. import defaults
 from ..errors import ConfigError
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
 
 WIDTH_PX = 1920
 HEIGHT_PX = 1080
@@ -32,7 +32,7 @@ class Camera:
     # each side. A camera's sensor window (AOI) would write the same frame; the paper's centred 1900 x 150 crop of
     # it is the crop of the full frame (docs/simulator.md, "Frames on disk").
     stored_height_px: int = 320
-    px_per_mm: float = DEFAULT_PX_PER_MM
+    px_per_mm: float = defaults.PX_PER_MM
     contact_width_mm: float = 10.0  # the specimen's width, seen foreshortened at 45 degrees
     band_edge_px: float = 6.0  # softness of the band's upper and lower edges
     wavelength_mm: float = 550e-6  # the light's (mid-visible) wavelength in vacuum
