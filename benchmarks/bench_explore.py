@@ -99,7 +99,7 @@ def bench_workers(cells: int, repetitions: int) -> None:
         timings, running = {}, {}
         for workers in (1, 2):
             started = time.perf_counter()
-            outcome = run_sweep(sweep, tmp / f"out{workers}", workers=workers)
+            outcome = run_sweep(sweep, tmp / f"out{workers}", n_jobs=workers)
             timings[workers] = time.perf_counter() - started
             assert outcome.computed == cells and not outcome.failures
             # The same sweep on a cluster that is already up (as with --scheduler): the sweeping alone.

@@ -1,6 +1,6 @@
 """Study folders named on the command line: a path, or ``builtin`` for the simulated paper study.
 
-``builtin`` is a reserved word wherever a study folder is accepted (``--study``, and ``study``'s old ``--data``): it
+``builtin`` is a reserved word wherever a study folder is accepted (``--study``): it
 names the paper's study as the digital twin simulates it with ``--seed``, generated once into the cache and reused.
 A real folder called ``builtin`` is reached as ``./builtin`` (any path with a separator is a path).
 """
