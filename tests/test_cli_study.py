@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from roughsense.report.control_tables import permutation_p_text
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
 

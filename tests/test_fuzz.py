@@ -28,7 +28,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from roughsense.model.peak_law_file import OPTIONAL_FIELDS
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 pytestmark = pytest.mark.slow  # in CI all the same (`make test` runs every test); about 20-40 s in all
 

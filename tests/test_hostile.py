@@ -372,7 +372,7 @@ def test_one_non_finite_pixel_outside_the_crop_does_not_move_the_auto_band(bad, 
     image's, and its spectrum identical."""
     import numpy as np
 
-    from roughsense.sensor.spectrum import resolve_roi, spatial_spectrum
+    from roughsense.sensor.line import resolve_roi, spatial_spectrum
 
     rng = np.random.default_rng(0)
     clean = 0.3 + 0.01 * rng.normal(size=(600, 1000))

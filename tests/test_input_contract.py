@@ -24,7 +24,8 @@ from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.study import read_config, read_study
 from roughsense.io.toml_write import dump_toml
 from roughsense.io.writer import StudyWriter
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 FORCES_TOML = "forces_n = [\n    1.0,\n    2.0,\n    3.0,\n]"  # the writer's study.toml (tomli-w: an item a line)
 

@@ -31,7 +31,8 @@ def error_line(code: int, err: str) -> str:
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "R4"), repetitions=1, seed=5, participants=3,
                               sessions=2)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roughsense.sensor.grid import frequency_grid
+from roughsense.sensor.line import spatial_spectrum
 from roughsense.sensor.shape import duty_cycle, harmonic_ratio
-from roughsense.sensor.spectrum import frequency_grid, spatial_spectrum
 
 PX_PER_MM = 34.9
 

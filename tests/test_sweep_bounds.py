@@ -233,7 +233,7 @@ def test_a_sweep_file_above_the_size_limit_is_refused_unparsed(tmp_path, run_cli
 
 
 def test_the_bounds_themselves_are_accepted(tmp_path):
-    from roughsense.explore.sweep import MAX_CELLS
+    from roughsense.explore.sweep_cells import MAX_CELLS
 
     text = TINY.replace("seeds = [0]", f"seeds = {list(range(MAX_CELLS // 2))}").replace(
         'pad = ["smooth"]', 'pad = ["smooth"]\nfield_length_mm = [55.0, 55.05]')  # 1922 and 1924 px: two frames

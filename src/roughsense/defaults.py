@@ -22,6 +22,10 @@ ROI = "center"
 #: The simulated fingerprint pad's ridges.
 FINGERPRINT_PERIOD_MM = 1.0
 RIDGE_HEIGHT_MM = 0.2
+#: The simulated panel's ratings: the paper's values for its presets, the finger model for anything else.
+RATINGS_FROM = "paper"
+#: Rows of each simulated frame stored, centred on the sensor (0: whole frames).
+STORED_HEIGHT_PX = 320
 #: The report figures' formats and resolution.
 FIGURE_FORMATS = ("png", "svg", "pdf")
 DPI = 110

@@ -25,13 +25,16 @@ from ..io.protocol import assign_nominal_forces, nominal_force_label
 from ..io.sensor_settings import SensorSettings
 from ..io.study import Study
 from ..paper import REFERENCE_SPECIMEN
-from ..sensor.spectrum import SpatialSpectrum, resolve_roi
+from ..sensor.line import resolve_roi
+from ..sensor.spectrum import SpatialSpectrum
+from ..sim.config import SimulationConfig, ridge_periods
+from ..sim.frames import render_trial
 from ..sim.manifest import trial_manifest
 from ..sim.optics import Camera
-from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
+from ..sim.plan import plan_trials
 from .allocator import relax_frozen_malloc_thresholds
 from .cell_panel import panel_ratings
-from .sweep import MODEL_KEY, Cell
+from .sweep_cells import MODEL_KEY, Cell
 
 RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",
                   "rmse_sd", "ovl_sd", "n_specimens"]

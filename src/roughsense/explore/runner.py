@@ -38,7 +38,8 @@ from .._util.workers import usable_cores
 from ..errors import ConfigError, RoughsenseWarning
 from .cell import run_cell
 from .store import ResultStore
-from .sweep import Cell, Sweep
+from .sweep import Sweep
+from .sweep_cells import Cell
 
 CONNECT_TIMEOUT_S = 5
 #: How long a scheduler address has to complete a client's connection: a Dask scheduler does in milliseconds.

@@ -5,7 +5,6 @@ Part of the folder contract (not of ``sensor/``), so the rig can check its frame
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -13,7 +12,7 @@ import numpy as np
 
 from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
-from ..errors import PASS_FORCE, ConfigError
+from ..errors import ConfigError
 from .images import MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
@@ -93,7 +92,7 @@ def _roi_text(value: object) -> str:
 def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     """Why a ``width_px`` x ``height_px`` frame cannot yield this ROI's crop, or None if it can.
 
-    The one size rule: :func:`roughsense.sensor.spectrum.resolve_roi` refuses a crop with it, and a source
+    The one size rule: :func:`roughsense.sensor.line.resolve_roi` refuses a crop with it, and a source
     checks its frames with it before recording a session the analysis would refuse.
     """
     roi = parse_roi(roi)
@@ -110,50 +109,3 @@ def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     if x + w > width_px or y + h > height_px:
         return f"ROI {x},{y},{w},{h} reaches outside it"
     return None
-
-
-def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = False) -> float | None:
-    """Set ``[sensor] px_per_mm`` in a study.toml, keeping every other line, comment and layout (tomlkit), written
-    atomically; ``note`` becomes the value's comment (what was measured, and how precisely).
-
-    The file keeps its permissions (a 0600 study.toml stays 0600) and its UTF-8 byte-order mark where it has one:
-    ``check`` and every reader accept it (``csv_read.read_text``), and the one value changed is the only byte a user
-    should find changed. A scale already stated and different is the user's: replaced only with ``force``. Returns
-    the value replaced (None where there was none).
-    """
-    import codecs
-    import stat
-    from pathlib import Path
-
-    import tomlkit
-
-    from .._util.atomic import atomic_open
-    from .._util.files import open_regular
-    from ..errors import InputError
-    from .study_config import MAX_CONFIG_BYTES
-
-    path = Path(toml_path)
-    raw, mode = b"", None
-    try:
-        if path.exists():
-            with os.fdopen(open_regular(path), "rb") as handle:
-                raw, mode = handle.read(MAX_CONFIG_BYTES + 1), stat.S_IMODE(os.fstat(handle.fileno()).st_mode)
-        bom = codecs.BOM_UTF8 if raw.startswith(codecs.BOM_UTF8) else b""
-        document = tomlkit.parse(raw[len(bom):].decode("utf-8"))
-    except (OSError, UnicodeDecodeError, tomlkit.exceptions.ParseError) as exc:
-        raise InputError(f"cannot read it to write px_per_mm ({exc})", path=path) from None
-    sensor = document.get("sensor")
-    if sensor is None:
-        sensor = tomlkit.table()
-        document["sensor"] = sensor
-    old = sensor.get("px_per_mm")
-    previous = float(old) if is_number(old) else None
-    if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
-        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); {PASS_FORCE} to replace it with "
-                          f"the measured {px_per_mm:.5g}")
-    item = tomlkit.item(float(round(px_per_mm, 4)))
-    item.comment(note)
-    sensor["px_per_mm"] = item
-    with atomic_open(path, "wb", file_mode=mode) as handle:
-        handle.write(bom + tomlkit.dumps(document).encode("utf-8"))
-    return previous

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sensor.spectrum import grid_step
+from ..sensor.grid import grid_step
 from .peak_law import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakPowerLaw, PeakReadout, domain_reasons, peak_readout
 from .pls import SIMPLS
 from .press_spread import PressScatter

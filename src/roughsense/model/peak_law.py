@@ -43,7 +43,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ..sensor.spectrum import grid_step
+from ..sensor.grid import grid_step
 from .families import PEAK_LAW as NAME  # the family's name, beside its class
 
 # What the estimator uses; the rest is re-exported for one release (the law's features, domain and cross-validation

@@ -35,7 +35,7 @@ import numpy as np
 from .._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ..errors import ModelFileError
 from ..io.numbers import BOUNDS
-from ..sensor.spectrum import grid_step
+from ..sensor.grid import grid_step
 from . import schema
 from .loaded import ModelFileInfo
 from .peak_law import (

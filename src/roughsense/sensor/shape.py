@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .spectrum import grid_step
+from .grid import grid_step
 
 
 def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
