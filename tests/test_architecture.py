@@ -95,6 +95,8 @@ def test_every_file_path_a_text_cites_exists():
     """A cited path under docs, tests, src, or a package folder (sim, io, ...) exists: a move cannot leave one behind."""
     dangling = []
     for path in _text_files():
+        if path.name == "CHANGELOG.md":  # a record of its day: it names the files of each issue, moved since or not
+            continue
         for match in _CITED_PATH.finditer(path.read_text(encoding="utf-8", errors="replace")):
             cited = match.group(1)
             if not any((base / cited).exists() for base in (REPO, PACKAGE)):
@@ -136,7 +138,8 @@ def test_the_simulated_study_cache_covers_every_module_a_simulation_loads(tmp_pa
     script = (
         "import sys\n"
         "from roughsense.sim.optics import Camera\n"
-        "from roughsense.sim.simulate import SimulationConfig, simulate_study\n"
+        "from roughsense.sim.config import SimulationConfig\n"
+        "from roughsense.sim.simulate import simulate_study\n"
         "config = SimulationConfig(pads=('smooth',), specimens=('R2',), forces_n=(1.0,), repetitions=1, seed=1,\n"
         "                          camera=Camera(width_px=400, height_px=300))\n"
         f"simulate_study({str(tmp_path / 's')!r}, config=config, jobs=1)\n"
