@@ -31,7 +31,6 @@ from ..paper import (
     REFERENCE_SPECIMEN,
     SMOOTH_PAD,
 )
-from ..sensor.settings import SPECTRUM_DEFAULTS
 from ..sim.limits import pad_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
 from ..sim.pads import PAD_NAMES, YOUNG_PA
@@ -51,7 +50,7 @@ from .sweep_cells import (
     forces_label,
 )
 
-MIN_FIELD_MM = 1.0 / SPECTRUM_DEFAULTS.f_min_per_mm  # a shorter line cannot resolve the spectrum's lowest frequency
+MIN_FIELD_MM = 1.0 / defaults.F_MIN_PER_MM  # a shorter line cannot resolve the spectrum's lowest frequency
 #: A sweep file is a few kB of settings and lists; a megabyte is no sweep anyone wrote by hand.
 MAX_SWEEP_BYTES = 1_000_000
 #: Longest sweep name: it titles the report page.

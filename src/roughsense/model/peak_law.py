@@ -43,6 +43,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .. import defaults
 from ..sensor.grid import grid_step
 from .families import PEAK_LAW as NAME  # the family's name, beside its class
 
@@ -95,7 +96,7 @@ from .press_spread import PressScatter, robust_spread, trained_presses
 held_out_flags = law_domain_flags  # re-exported for one release under its old name
 
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.
-_DEFAULT_BAND_PER_MM = (0.1, 1.0)
+_DEFAULT_BAND_PER_MM = (defaults.F_MIN_PER_MM, defaults.F_MAX_PER_MM)
 
 
 class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):

@@ -18,6 +18,7 @@ from collections.abc import Iterable, Iterator, Sequence
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from .. import defaults
 from .._util.checks import POSITIVE_INT, AnyOf, Described, Integer, check
 from .._util.workers import thread_map, usable_cores
 from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
@@ -25,7 +26,6 @@ from ..errors import ConfigError, InputError
 from ..io.images import GRAY_WEIGHTS_RGB, as_image
 from ..io.sensor_settings import Roi
 from .line import _Plan, extract_line, resolve_roi
-from .settings import SPECTRUM_DEFAULTS
 
 __all__ = ["SpatialSpectrum", "combine_forces"]
 
@@ -82,12 +82,12 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         self,
         px_per_mm: float = PX_PER_MM,
         roi: Roi = ROI,
-        rows: int = SPECTRUM_DEFAULTS.rows,
-        f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-        f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-        n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
+        rows: int = defaults.ROWS,
+        f_min_per_mm: float = defaults.F_MIN_PER_MM,
+        f_max_per_mm: float = defaults.F_MAX_PER_MM,
+        n_freqs: int = defaults.N_FREQS,
         n_jobs: int = 1,
-        window: str = SPECTRUM_DEFAULTS.window,
+        window: str = defaults.WINDOW,
         max_pixels: int = MAX_PIXELS,
     ) -> None:
         self.max_pixels = max_pixels
