@@ -21,8 +21,7 @@ from .. import defaults
 from .._util import atomic
 from .._util.files import open_regular, read_regular
 from ..errors import PASS_FORCE, InputError, OutputExistsError
-from ..paper import REFERENCE_SPECIMEN
-from .protocol import DEFAULT_FORCES_N
+from ..paper import PAPER_FORCES_N, REFERENCE_SPECIMEN
 from .sensor_settings import SensorSettings
 from .study import (
     COMPLETE_MARKER,
@@ -150,7 +149,7 @@ class StudyWriter:
         name: str,
         reference_specimen: str = REFERENCE_SPECIMEN,
         sensor: SensorSettings = SensorSettings(),
-        forces_n: Sequence[float] = DEFAULT_FORCES_N,
+        forces_n: Sequence[float] = PAPER_FORCES_N,
         extra: Mapping[str, Mapping[str, object]] | None = None,
     ) -> Path:
         """Write ``study.toml``.

@@ -2,7 +2,7 @@
 
 A gray line becomes a spectrum here: remove its mean, taper it, take the amplitude of its DFT at each grid frequency
 and normalise to unit area over mm^-1. The settings' constraints live here too, for the grid and the single-image
-plan (:mod:`.line`) both check against them. :mod:`.spectrum` re-exports the public names.
+plan (:mod:`.line`) both check against them.
 """
 from __future__ import annotations
 
