@@ -15,13 +15,12 @@ if TYPE_CHECKING:
     from .simulate import SimulationRun, simulate_study
 
 
+_HOME = {"SimulationConfig": "config", "SimulationRun": "simulate", "simulate_study": "simulate"}
+
+
 def __getattr__(name: str):
-    if name == "SimulationConfig":
-        from .config import SimulationConfig
+    if name in _HOME:
+        import importlib
 
-        return SimulationConfig
-    if name in __all__:
-        from . import simulate
-
-        return getattr(simulate, name)
+        return getattr(importlib.import_module(f".{_HOME[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
