@@ -287,7 +287,7 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
         (("--repetitions", "0"), "--repetitions must be a whole number from 1"),
         (("--shape", "wavy"), "--shape 'wavy'"),
         (("--forces-from", "usb"), "--forces-from must be 'manual' or 'serial:PORT[:BAUD]'"),
-        (("--forces", "1,x"), "--forces: 'x' is not a number"),  # the old spelling, named as typed
+        (("--forces", "1,x"), "capture: --forces is now --forces-n"),  # the old spelling, refused naming the new
     ],
 )
 def test_bad_options(tmp_path, video, run_cli, typed, args, message):

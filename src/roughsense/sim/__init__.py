@@ -15,12 +15,14 @@ if TYPE_CHECKING:
     from .simulate import SimulationRun, simulate_study
 
 
-_HOME = {"SimulationConfig": "config", "SimulationRun": "simulate", "simulate_study": "simulate"}
-
-
 def __getattr__(name: str):
-    if name in _HOME:
-        import importlib
+    """Each name from the module that defines it, imported by name (code fingerprints follow these imports)."""
+    if name == "SimulationConfig":
+        from .config import SimulationConfig
 
-        return getattr(importlib.import_module(f".{_HOME[name]}", __name__), name)
+        return SimulationConfig
+    if name in __all__:
+        from . import simulate
+
+        return getattr(simulate, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
