@@ -73,7 +73,7 @@ def bench_cell(repetitions: int, repeats: int, skip_files: bool, pad: str = "smo
                         str(repetitions), "--jobs", "1"], check=True, env=env, stdout=subprocess.DEVNULL)
         simulated = time.perf_counter() - started
         # --permutations 0: the cell runs no permutation controls either, so both paths do the same analysis
-        subprocess.run([*cli, "study", "--data", str(tmp / "study"), "--out", str(tmp / "report"), "--jobs", "1",
+        subprocess.run([*cli, "study", "--study", str(tmp / "study"), "--out", str(tmp / "report"), "--jobs", "1",
                         "--permutations", "0"],
                        check=True, env=env, stdout=subprocess.DEVNULL)
         files_s = time.perf_counter() - started

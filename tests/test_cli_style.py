@@ -195,7 +195,7 @@ def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path)
     (["protocol", "--seed", "1", "--participants", "1_0"], "--participants"),
     (["protocol", "--seed", "١", "--out", "x.csv"], "--seed"),
     (["protocol", "--seed", "1", "--sessions", "inf"], "--sessions"),
-    (["explore", "sweep.toml", "--out", "o", "--workers", "2_0"], "--workers"),  # the old spelling of --jobs, named as typed
+    (["explore", "sweep.toml", "--out", "o", "--jobs", "2_0"], "--jobs"),
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--timeout-s", "nan"], "--timeout-s"),
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--discard", "2.5"], "--discard"),
 ])

@@ -631,7 +631,7 @@ def test_a_sweep_beyond_the_confirmation_size_shows_its_estimate_and_needs_yes(r
     assert not (tmp_path / "out").exists()
     ran = []
     monkeypatch.setattr("roughsense.explore.runner.run_sweep", lambda *a, **k: ran.append(a) or 1 / 0)
-    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--workers", 1, "--yes")
+    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--jobs", 1, "--yes")
     assert ran and f"roughsense: {sweep_module.CONFIRM_CELLS + 1} cells, about {hours:.1f} core-hours" in err
 
 
@@ -661,7 +661,7 @@ def test_ctrl_c_during_explore_is_one_interrupted_line_and_no_dask_traceback(tmp
 
     sweep = _big_sweep(tmp_path, 60)
     out = tmp_path / "out"
-    run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--workers", "1"],
+    run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--jobs", "1"],
                            stderr=subprocess.PIPE, text=True, start_new_session=True,
                            preexec_fn=sigint_as_in_a_terminal,  # a terminal's job, however pytest was started
                            env={**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")})
