@@ -73,7 +73,7 @@ def bench_cell(repetitions: int, repeats: int, skip_files: bool, pad: str = "smo
                         str(repetitions), "--jobs", "1"], check=True, env=env, stdout=subprocess.DEVNULL)
         simulated = time.perf_counter() - started
         # --permutations 0: the cell runs no permutation controls either, so both paths do the same analysis
-        subprocess.run([*cli, "study", "--data", str(tmp / "study"), "--out", str(tmp / "report"), "--jobs", "1",
+        subprocess.run([*cli, "study", "--study", str(tmp / "study"), "--out", str(tmp / "report"), "--jobs", "1",
                         "--permutations", "0"],
                        check=True, env=env, stdout=subprocess.DEVNULL)
         files_s = time.perf_counter() - started
@@ -99,7 +99,7 @@ def bench_workers(cells: int, repetitions: int) -> None:
         timings, running = {}, {}
         for workers in (1, 2):
             started = time.perf_counter()
-            outcome = run_sweep(sweep, tmp / f"out{workers}", workers=workers)
+            outcome = run_sweep(sweep, tmp / f"out{workers}", n_jobs=workers)
             timings[workers] = time.perf_counter() - started
             assert outcome.computed == cells and not outcome.failures
             # The same sweep on a cluster that is already up (as with --scheduler): the sweeping alone.

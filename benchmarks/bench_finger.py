@@ -19,7 +19,9 @@ def main() -> None:
 
     from roughsense.sim import finger as finger_model
     from roughsense.sim.bench import BenchNoise
-    from roughsense.sim.simulate import SimulationConfig, plan_trials, trial_line
+    from roughsense.sim.config import SimulationConfig
+    from roughsense.sim.frames import trial_line
+    from roughsense.sim.plan import plan_trials
     from roughsense.sim.specimens import parse_specimen
 
     quiet = SimulationConfig(pads=("smooth",), forces_n=(2.0,), repetitions=1, bench=BenchNoise().scaled(0.0))

@@ -22,7 +22,8 @@ from pathlib import Path
 
 
 def _study(folder: Path) -> Path:
-    from roughsense.sim.simulate import SimulationConfig, simulate_study
+    from roughsense.sim.config import SimulationConfig
+    from roughsense.sim.simulate import simulate_study
 
     simulate_study(folder, SimulationConfig(repetitions=2, seed=3), jobs=2)
     return folder

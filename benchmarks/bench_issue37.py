@@ -49,7 +49,7 @@ def study(out: Path, permutations: int, *, src: Path | None = None, data: Path |
     if cache is not None:
         env["ROUGHSENSE_CACHE_DIR"] = str(cache)
     command = [sys.executable, "-m", "roughsense.cli", "study", "--out", str(out), "--force",
-               "--permutations", str(permutations)] + ([] if data is None else ["--data", str(data)])
+               "--permutations", str(permutations)] + ([] if data is None else ["--study", str(data)])
     started = time.perf_counter()
     process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     _, status, usage = os.wait4(process.pid, 0)

@@ -49,7 +49,7 @@ def make_clip(path: Path, fourcc: str, n_frames: int, rng: np.random.Generator) 
 def make_scorer(rng: np.random.Generator):
     """Feature extraction + linear model, as `predict --live` will do it."""
     try:
-        from roughsense.sensor.spectrum import spatial_spectrum
+        from roughsense.sensor.line import spatial_spectrum
     except ImportError:  # the sensor module is not there: time crop + gray + FFT by hand
         spatial_spectrum = None
     coef = rng.normal(0, 0.1, 45)

@@ -43,7 +43,7 @@ def run(*args, check: bool = True) -> subprocess.CompletedProcess:
 def simulate(out: Path, *, seed: int, px_per_mm: float = 34.9, stated_px_per_mm: float | None = None,
              specimens=None, repetitions: int = 3, forces=(1.0, 2.0, 3.0), steady: bool = False) -> Path:
     """A twin study at ``px_per_mm`` (its study.toml stating ``stated_px_per_mm`` if given), reused if present."""
-    from roughsense.io.sensor_settings import write_px_per_mm
+    from roughsense.io.study_config import write_px_per_mm
     from roughsense.sim.config import SimulationConfig
     from roughsense.sim.simulate import simulate_study
 

@@ -32,8 +32,9 @@ import cv2
 import numpy as np
 
 from roughsense.sensor.band import band_reading
+from roughsense.sensor.line import _Plan
 from roughsense.sensor.period import check_scale
-from roughsense.sensor.spectrum import SpatialSpectrum, _Plan
+from roughsense.sensor.spectrum import SpatialSpectrum
 
 PX_PER_MM = 34.9
 

@@ -79,9 +79,11 @@ def bench_solver(repeats: int) -> None:
 def bench_stages(repeats: int) -> None:
     import cv2
 
+    from roughsense.sim.config import SimulationConfig
+    from roughsense.sim.frames import trial_line
     from roughsense.sim.optics import render
-    from roughsense.sim.plan import rng
-    from roughsense.sim.simulate import SimulationConfig, plan_trials, png_params, trial_line
+    from roughsense.sim.plan import plan_trials, rng
+    from roughsense.sim.png import png_params
 
     config = SimulationConfig(specimens=("R4.5", "C3"), repetitions=1)
     pads, specimens = config.validate()
@@ -112,8 +114,9 @@ def bench_stages(repeats: int) -> None:
 def bench_full(jobs: int, repeats: int, frames: str = "stored") -> tuple[float, float, int]:
     """Median and best wall time of the default study, and its images' size on disk (bytes)."""
     from roughsense.sim import png, simulate
+    from roughsense.sim.config import SimulationConfig
 
-    config = simulate.SimulationConfig()
+    config = SimulationConfig()
     saved = png.png_params
     if frames == "whole":  # as before issue 12: whole frames, OpenCV's default PNG (workers fork and inherit this)
         config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, stored_height_px=0))

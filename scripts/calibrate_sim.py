@@ -19,9 +19,11 @@ import numpy as np
 import pandas as pd
 
 from roughsense.model.pls.cv import pls_cv
-from roughsense.sensor.spectrum import spatial_spectrum
+from roughsense.sensor.line import spatial_spectrum
+from roughsense.sim.config import SimulationConfig
+from roughsense.sim.frames import render_trial
 from roughsense.sim.panel import paper_perceived
-from roughsense.sim.simulate import SimulationConfig, plan_trials, render_trial
+from roughsense.sim.plan import plan_trials
 
 
 def _features(trial):

@@ -16,8 +16,10 @@ import dataclasses
 import numpy as np
 
 from roughsense.sim.bench import BenchNoise
+from roughsense.sim.config import SimulationConfig
+from roughsense.sim.frames import trial_line
 from roughsense.sim.optics import Camera, apparent_contact_fraction
-from roughsense.sim.simulate import SimulationConfig, plan_trials, trial_line
+from roughsense.sim.plan import plan_trials
 
 SPECIMENS = ("C2", "C3", "C4", "C5", "R2", "R3", "R4", "R5")
 

@@ -18,7 +18,8 @@ import cv2
 import numpy as np
 import pandas as pd
 
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "roughsense" / "data" / "examples" / "my-study"
 SPECIMENS = ("R2", "R3", "R4", "R5", "C3")

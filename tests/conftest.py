@@ -87,7 +87,8 @@ def shared_build(tmp_path_factory):
 def simulated_tiny(shared_build):
     """A small simulated study at the paper's scale (34.9 px/mm, 1920 x 170 frames; smooth pad, R2, R3, C4, two
     repetitions, seed 7), shared by every module that reads one: copy it before changing anything in it."""
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "C4"), repetitions=2, seed=7, participants=3,
                               sessions=2)

@@ -1,45 +1,52 @@
-"""Old option spellings (cli/_aliases.py) parse as their one name, never show in --help, and leave ``--`` alone."""
+"""Old option spellings (cli/_aliases.py) are refused in one line naming the new name, never show in --help, and
+leave ``--`` alone."""
 from __future__ import annotations
 
 import re
-import warnings
 
 import pytest
 import typer.main
 
 from roughsense.cli import _command, app
-from roughsense.cli._aliases import ALIASES, RENAMED, apply_aliases, force_hint, in_users_words, said_twice
-from roughsense.errors import ConfigError
+from roughsense.cli._aliases import RENAMED, force_hint, renamed_refusal, said_twice
 
-#: Each alias with a command line that parses without running anything (the required options given), and a value.
+#: Each old spelling with a command line that parses without running anything (the required options given), and a
+#: value.
 CASES = [
     ("simulate", "--forces", ["--out", "s"], "1.5,2.5"),
     ("capture", "--forces", ["--source", "0", "--out", "s", "--specimen", "R3", "--pad", "smooth"], "2,4"),
+    ("capture", "--force-input", ["--source", "0", "--out", "s", "--specimen", "R3", "--pad", "smooth"], "f.csv"),
     ("explore", "--workers", ["sweep.toml", "--out", "o"], "3"),
     ("study", "--data", ["--out", "r"], "my-study"),
 ]
 
 
 def _parsed(argv: list[str]) -> dict:
-    """The parameters click hands the command's function, after main()'s rewriting of the old spellings."""
-    args = apply_aliases(argv)
-    command = _command().commands[args[0]]
-    with command.make_context(args[0], args[1:]) as ctx:
+    """The parameters click hands the command's function."""
+    command = _command().commands[argv[0]]
+    with command.make_context(argv[0], argv[1:]) as ctx:
         return dict(ctx.params)
 
 
 def test_the_table_holds_exactly_the_cases_tested():
-    assert {(command, old) for command, table in ALIASES.items() for old in table} == {(c, o) for c, o, _, _ in CASES}
+    assert {(command, old) for command, table in RENAMED.items() for old in table} == {(c, o) for c, o, _, _ in CASES}
 
 
 @pytest.mark.parametrize("command, old, required, value", CASES)
-def test_an_old_spelling_parses_to_the_same_parameters_as_its_one_name(command, old, required, value):
-    new = ALIASES[command][old]
-    by_new = _parsed([command, *required, new, value])
-    assert _parsed([command, *required, old, value]) == by_new
-    assert _parsed([command, *required, f"{old}={value}"]) == by_new
-    assert _parsed([command, *required]) != by_new  # the value given is not the default: the option was read
-    parameter = {"--forces-n": "forces_n", "--jobs": "jobs", "--study": "study"}[new]
+def test_an_old_spelling_is_refused_in_one_line_naming_its_new_name(run_cli, tmp_path, monkeypatch, command, old,
+                                                                      required, value):
+    """Nothing was released, so no old spelling is read as its new name: each is refused, exit 2, nothing made."""
+    monkeypatch.chdir(tmp_path)
+    new = RENAMED[command][old]
+    for typed in ([old, value], [f"{old}={value}"]):
+        code, out, err = run_cli(command, *required, *typed)
+        lines = err.strip().splitlines()
+        assert code == 2 and out == "" and len(lines) == 1, err
+        assert lines[0] == f"roughsense: error: {command}: {old} is now {new}; see 'roughsense {command} --help'"
+    assert list(tmp_path.iterdir()) == []
+    by_new = _parsed([command, *required, new, value])  # the new name reads the value
+    assert _parsed([command, *required]) != by_new
+    parameter = next(p.name for p in _command().commands[command].params if new in p.opts)
     assert str(by_new[parameter]) == value
 
 
@@ -47,31 +54,32 @@ def test_an_old_spelling_parses_to_the_same_parameters_as_its_one_name(command, 
 def test_no_old_spelling_shows_in_any_help(run_cli, name):
     code, out, _ = run_cli(*([] if name is None else [name]), "--help")
     assert code == 0
-    for old in {old for table in ALIASES.values() for old in table}:
+    for old in {old for table in RENAMED.values() for old in table}:
         assert re.search(rf"{re.escape(old)}(?![\w-])", out) is None, (name, old)
 
 
 def test_no_command_declares_an_old_spelling():
-    """Hidden by construction: the aliases are no options of any command, so they cannot reach a signature."""
+    """Hidden by construction: the old spellings are no options of any command, so they cannot reach a signature."""
     declared = {opt for command in _command().commands.values() for p in command.params for opt in p.opts}
-    assert declared & {old for table in ALIASES.values() for old in table} == set()
-    assert {new for table in ALIASES.values() for new in table.values()} <= declared
+    assert declared & {old for table in RENAMED.values() for old in table} == set()
+    assert {new for table in RENAMED.values() for new in table.values()} <= declared
 
 
-def test_tokens_after_a_double_dash_and_before_the_command_stay_as_typed():
-    argv = ["--debug", "explore", "--workers", "2", "--workers=3", "--", "--workers", "--forces"]
-    assert apply_aliases(argv) == ["--debug", "explore", "--jobs", "2", "--jobs=3", "--", "--workers", "--forces"]
-    assert apply_aliases(["fit", "--forces", "2"]) == ["fit", "--forces", "2"]  # no alias on that command
-    assert apply_aliases(["simulate", "--forces-n", "2", "--force"]) == ["simulate", "--forces-n", "2", "--force"]
-    assert apply_aliases([]) == []
+def test_only_the_commands_words_before_a_double_dash_are_refused():
+    assert renamed_refusal(["--debug", "explore", "s.toml", "--", "--workers", "--forces"]) == ""
+    assert "--workers is now --jobs" in renamed_refusal(["--debug", "explore", "--workers", "2", "--", "x"])
+    assert renamed_refusal(["fit", "--forces", "2"]) == ""  # no such old spelling on that command
+    assert renamed_refusal(["simulate", "--forces-n", "2", "--force"]) == ""
+    assert renamed_refusal(["--forces", "simulate"]) == ""  # before the command: roughsense's, not the command's
+    assert renamed_refusal([]) == ""
 
 
 def test_old_spellings_run_through_main(run_cli, tmp_path):
-    """The whole path a user takes: the error about the value names the option's one name."""
+    """The whole path a user takes: refused before the value is read, so the line names the new option only."""
     code, _, err = run_cli("simulate", "--out", tmp_path / "s", "--forces", "2,x")
-    assert code == 2 and "--forces: 'x' is not a number" in err
+    assert code == 2 and "simulate: --forces is now --forces-n" in err and "not a number" not in err
     code, _, err = run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "o", "--workers=0")
-    assert code == 2 and "--workers must be from 1" in err and "--jobs" not in err  # the option the user typed
+    assert code == 2 and "explore: --workers is now --jobs" in err and "absent.toml" not in err
     assert not (tmp_path / "s").exists() and not (tmp_path / "o").exists()
 
 
@@ -93,27 +101,23 @@ def test_no_hint_without_a_number_or_on_a_command_without_forces():
     assert force_hint(["simulate", "--out", "s", "--", "--force", "2"]) == ""
 
 
-def test_run_sweep_reads_workers_as_n_jobs_with_a_future_warning(tmp_path):
-    """The Python keyword's old name: the same bound check as ``n_jobs`` (refused before any folder is made)."""
+def test_run_sweep_takes_n_jobs_only(tmp_path):
+    """``workers=``, the Python keyword's old name, is no keyword at all: Python's own TypeError names it."""
+    from roughsense.errors import ConfigError
     from roughsense.explore.runner import run_sweep
 
-    with pytest.raises(ConfigError, match="--jobs must be from 1") as by_new:
+    with pytest.raises(ConfigError, match="--jobs must be from 1"):
         run_sweep(None, tmp_path / "out", n_jobs=100_000)
-    with pytest.warns(FutureWarning, match="n_jobs"), pytest.raises(ConfigError) as by_old:
-        run_sweep(None, tmp_path / "out", workers=100_000)
-    assert str(by_old.value) == str(by_new.value)
-    with warnings.catch_warnings(), pytest.raises(ConfigError, match="not both"):
-        warnings.simplefilter("error")
-        run_sweep(None, tmp_path / "out", n_jobs=1, workers=1)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'workers'"):
+        run_sweep(None, tmp_path / "out", workers=1)
     assert not (tmp_path / "out").exists()
 
 
 #: An option said twice: under its old and new names, or the same spelling (long, ``=``, short, attached) twice.
 TWICE = [
-    (["study", "--data", "A", "--study", "B"], "'--data A' and '--study B'"),
-    (["study", "--study=B", "--data=A"], "'--study=B' and '--data=A'"),
-    (["simulate", "--forces", "1", "--forces-n", "2,3", "--out", "s"], "'--forces 1' and '--forces-n 2,3'"),
-    (["explore", "s.toml", "--out", "o", "--workers", "2", "-j3"], "'--workers 2' and '-j3'"),
+    (["study", "--study", "A", "--study=B"], "'--study A' and '--study=B'"),
+    (["simulate", "--forces-n", "1", "--forces-n", "2,3", "--out", "s"], "'--forces-n 1' and '--forces-n 2,3'"),
+    (["explore", "s.toml", "--out", "o", "--jobs", "2", "-j3"], "'--jobs 2' and '-j3'"),
     (["explore", "s.toml", "-j", "2", "--jobs=3", "--out", "o"], "'-j 2' and '--jobs=3'"),
     (["simulate", "--seed", "1", "--seed=2", "--out", "s"], "'--seed 1' and '--seed=2'"),
     (["simulate", "-o", "s", "--out", "t"], "'-o s' and '--out t'"),
@@ -152,9 +156,28 @@ def test_a_repeatable_option_may_be_given_again():
     assert "--seed" in said_twice(["c", "--seed", "1", "--tag", "a", "--seed", "2"], {"c": command})
 
 
-def test_a_message_names_the_spelling_typed():
-    assert in_users_words("--jobs must be at least 1; --jobs-x and x--jobs stay", {"--jobs": "--workers"}) == \
-        "--workers must be at least 1; --jobs-x and x--jobs stay"
+#: An option said under its old and its new name: the old spelling is refused first, naming the new one.
+OLD_AND_NEW = [
+    (["study", "--data", "A", "--study", "B"], "study: --data is now --study"),
+    (["study", "--study=B", "--data=A"], "study: --data is now --study"),
+    (["simulate", "--forces", "1", "--forces-n", "2,3", "--out", "s"], "simulate: --forces is now --forces-n"),
+    (["explore", "s.toml", "--out", "o", "--workers", "2", "-j3"], "explore: --workers is now --jobs"),
+]
+
+
+@pytest.mark.parametrize("argv, named", OLD_AND_NEW)
+def test_an_option_said_by_its_old_and_new_names_is_refused_for_the_old(run_cli, tmp_path, monkeypatch, argv, named):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli(*argv)
+    lines = err.strip().splitlines()
+    assert code == 2 and out == "" and len(lines) == 1 and named in lines[0], err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_message_names_the_option_as_declared(run_cli, tmp_path):
+    """No spelling is rewritten any more, so an error about an option names it as the command declares it."""
+    code, _, err = run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "o", "--jobs=0")
+    assert code == 2 and "--jobs must be from 1" in err and "--workers" not in err
 
 
 @pytest.mark.parametrize("command, old", [(c, o) for c, table in RENAMED.items() for o in table])

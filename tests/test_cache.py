@@ -171,7 +171,8 @@ def test_builtin_study_passes_the_key_to_the_simulator(cache, monkeypatch):
 
 
 def test_simulate_study_writes_its_markers_into_the_study(tmp_path):
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = with_image_size(SimulationConfig(pads=("smooth",), specimens=("R2",), forces_n=(2.0,), repetitions=1,
                                               participants=2, sessions=1), 400, 60)

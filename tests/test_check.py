@@ -325,8 +325,8 @@ def test_check_lists_every_file_name_too_long(run_cli, tiny_copy):
 def test_check_lists_each_row_of_a_wrong_width_once_and_never_a_parser_error(tmp_path_factory, header, rows):
     """36, Also seen: collecting, every row of the wrong width is one problem (its cells are not reported again) and
     the rows after it are still read: no pandas "C error"."""
+    from roughsense.io.csv_read import read_table
     from roughsense.io.problems import Problems
-    from roughsense.io.tables import read_table
 
     path = tmp_path_factory.mktemp("widths36") / "t.csv"
     path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")

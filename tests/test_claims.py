@@ -13,7 +13,7 @@ from roughsense.analysis.controls import training_mean_predictions
 from roughsense.analysis.metrics import paired_tost, slope_tost
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.model.pls.cv import pls_cv
-from roughsense.report.tables import claims_table
+from roughsense.report.control_tables import claims_table
 
 from .test_study_analysis import FREQ_COLUMNS, synthetic_study
 
@@ -386,7 +386,7 @@ def test_the_report_names_the_failed_control_and_states_the_rule(mixed_analysis)
 def test_claim_ps_print_as_bounds_never_0_and_the_training_means_rho_is_explained(analysis):
     """The permutation claim's p names its shufflings at the floor; a p that underflowed to 0 prints as a bound;
     the training mean's rho in the alignment claim says what it means."""
-    from roughsense.report.tables import permutation_p_text
+    from roughsense.report.control_tables import permutation_p_text
 
     table = claims_table(analysis.claims, None, analysis.controls)
     p_column = table["columns"].index("p")

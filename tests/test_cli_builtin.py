@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from roughsense.cli._studies import builtin_study_path
-from roughsense.sim.simulate import COMPLETE_MARKER
+from roughsense.io.study import COMPLETE_MARKER
 
 SEED = 7
 

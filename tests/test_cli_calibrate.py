@@ -123,7 +123,8 @@ def test_study_toml_keeps_its_mode_and_its_byte_order_mark(tiny, run_cli):
 def test_a_range_where_only_a_harmonic_agrees_is_refused_and_the_true_scale_is_written(tmp_path, run_cli):
     """R3 pressed on the 1 mm-ridged pad only (a capture session): at 3x the scale the ridges' period falls on R3's,
     so --range 100,200 found "104.7 px/mm" on 390ce82. The target and the ridges agree only at 34.9."""
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("fingerprint",), specimens=("R3",), repetitions=3, seed=11, participants=3,
                               sessions=2)

@@ -13,7 +13,9 @@ import pytest
 from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
-from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid, spatial_spectrum
+from roughsense.sensor.grid import frequency_grid
+from roughsense.sensor.line import spatial_spectrum
+from roughsense.sensor.spectrum import SpatialSpectrum
 from tests.commands import error_line, grating_png
 
 PX_PER_MM = 34.9

@@ -15,7 +15,7 @@ import pytest
 
 import roughsense
 from roughsense.cli import _command
-from roughsense.cli._aliases import ALIASES, RENAMED
+from roughsense.cli._aliases import RENAMED
 from roughsense.cli._common import PIXEL_LIMIT_ADVICE
 
 SRC = Path(roughsense.__file__).parent
@@ -59,7 +59,7 @@ def test_the_search_finds_the_suggestions_it_is_about():
 
 def test_every_option_a_message_names_is_an_option_of_some_command():
     declared = set().union(*_declared().values()) | GLOBAL
-    old = {o for table in (*ALIASES.values(), *RENAMED.values()) for o in table}  # named to refuse or map them
+    old = {o for table in RENAMED.values() for o in table}  # named to refuse them
     unknown = sorted({(where, option) for where, _, option in _suggested()
                       if option not in declared | old and not IMAGE_SLOTS.fullmatch(option)})
     assert unknown == []

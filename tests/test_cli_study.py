@@ -7,8 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from roughsense.report.tables import permutation_p_text
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.report.control_tables import permutation_p_text
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 from tests.commands import HUGE, error_line, refusal_line
 
 SPECIMENS = ("R2", "R3", "C3", "C5")
@@ -212,7 +213,8 @@ def test_study_on_a_missing_folder_does_not_suggest_checking_it(run_cli, tmp_pat
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "R4"), repetitions=1, seed=5, participants=3,
                               sessions=2)

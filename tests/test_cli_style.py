@@ -102,7 +102,7 @@ def test_jobs_is_one_option_with_one_default_on_every_command():
 
 
 def test_jobs_omitted_is_every_usable_core_and_zero_is_refused(run_cli):
-    from roughsense.cli._common import usable_cores
+    from roughsense._util.workers import usable_cores
 
     expected = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     assert usable_cores() == expected
@@ -152,24 +152,24 @@ def test_every_option_default_is_its_homes_value():
     """The options show roughsense.defaults' values, and the layers use the same ones (one home, no copies)."""
     from roughsense import defaults
     from roughsense.analysis.controls import DEFAULT_PERMUTATIONS, MAX_PERMUTATIONS
-    from roughsense.io.images import DEFAULT_MAX_PIXELS
-    from roughsense.io.sensor_settings import CENTER_CROP_PX, DEFAULT_PX_PER_MM, DEFAULT_ROI
+    from roughsense.io.sensor_settings import SensorSettings
     from roughsense.model.pls.cv import DEFAULT_MAX_COMPONENTS
     from roughsense.paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS
-    from roughsense.report.figures import DEFAULT_DPI, FIGURE_FORMATS
-    from roughsense.sim.pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM
+    from roughsense.sim.config import SimulationConfig
 
     seeds = {name: _default(name, "seed") for name, c in _commands().items() if any(p.name == "seed" for p in c.params)}
     assert {"study", "fit", "features", "simulate", "protocol"} <= set(seeds)
     assert set(seeds.values()) == {defaults.SEED}
     assert _default("study", "permutations") == defaults.PERMUTATIONS == DEFAULT_PERMUTATIONS == 199
     assert _default("study", "max_components") == defaults.MAX_COMPONENTS == DEFAULT_MAX_COMPONENTS
-    assert _default("study", "dpi") == _default("explore", "dpi") == defaults.DPI == DEFAULT_DPI
-    assert defaults.FIGURE_FORMATS == FIGURE_FORMATS and defaults.MAX_PERMUTATIONS == MAX_PERMUTATIONS
-    assert _default("simulate", "fingerprint_period_mm") == defaults.FINGERPRINT_PERIOD_MM == DEFAULT_FINGERPRINT_PERIOD_MM
-    assert _default("simulate", "ridge_height_mm") == defaults.RIDGE_HEIGHT_MM == DEFAULT_RIDGE_HEIGHT_MM
-    assert (defaults.PX_PER_MM, defaults.ROI, defaults.CENTER_CROP_PX, defaults.MAX_PIXELS) == (
-        DEFAULT_PX_PER_MM, DEFAULT_ROI, CENTER_CROP_PX, DEFAULT_MAX_PIXELS)
+    assert _default("study", "dpi") == _default("explore", "dpi") == defaults.DPI
+    assert defaults.MAX_PERMUTATIONS == MAX_PERMUTATIONS
+    simulated = SimulationConfig()
+    assert _default("simulate", "fingerprint_period_mm") == defaults.FINGERPRINT_PERIOD_MM == simulated.fingerprint_period_mm
+    assert _default("simulate", "ridge_height_mm") == defaults.RIDGE_HEIGHT_MM == simulated.ridge_height_mm
+    assert _default("simulate", "seed") == simulated.seed
+    sensor = SensorSettings()
+    assert (sensor.px_per_mm, sensor.roi, sensor.max_pixels) == (defaults.PX_PER_MM, defaults.ROI, defaults.MAX_PIXELS)
     assert _default("simulate", "repetitions") == _default("capture", "repetitions") == PAPER_REPETITIONS
     assert [float(f) for f in _default("simulate", "forces_n").split(",")] == list(PAPER_FORCES_N)
     assert (_default("protocol", "participants"), _default("protocol", "sessions")) == (PAPER_PARTICIPANTS, PAPER_SESSIONS)
@@ -186,7 +186,7 @@ def test_options_that_default_to_the_studys_value_name_the_fallback_in_their_hel
 
 
 def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path):
-    from roughsense.cli._common import MAX_JOBS_PER_CORE, usable_cores
+    from roughsense._util.workers import MAX_JOBS_PER_CORE, usable_cores
 
     too_many = MAX_JOBS_PER_CORE * usable_cores() + 1
     code, _, err = run_cli("simulate", "--out", tmp_path / "s", "--jobs", str(too_many))
@@ -199,7 +199,7 @@ def test_jobs_beyond_four_per_core_is_refused_before_any_work(run_cli, tmp_path)
     (["protocol", "--seed", "1", "--participants", "1_0"], "--participants"),
     (["protocol", "--seed", "١", "--out", "x.csv"], "--seed"),
     (["protocol", "--seed", "1", "--sessions", "inf"], "--sessions"),
-    (["explore", "sweep.toml", "--out", "o", "--workers", "2_0"], "--workers"),  # the old spelling of --jobs, named as typed
+    (["explore", "sweep.toml", "--out", "o", "--jobs", "2_0"], "--jobs"),
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--timeout-s", "nan"], "--timeout-s"),
     (["capture", "--source", "x", "--out", "o", "--specimen", "R3", "--pad", "p", "--discard", "2.5"], "--discard"),
 ])

@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from roughsense.errors import ConfigError, InputError
-from roughsense.io import tables
+from roughsense.io import csv_read
+from roughsense.io.csv_read import read_table
 from roughsense.io.problems import Problems
 from roughsense.io.sensor_settings import SensorSettings, parse_roi
 from roughsense.io.study import load_study, read_study
-from roughsense.io.tables import read_table
 from tests.commands import check_output, manifest_lines, write_lines
 from tests.fuzzing import EXAMPLES, FUZZ
 from tests.studies import write_minimal_study
@@ -72,13 +72,13 @@ def test_a_csv_too_large_or_too_wide_is_refused_before_it_is_read(run_cli, tiny_
     """28.12: 2 million columns took 97 s and 3.7 GB; a 6 GB sparse ratings.csv ran `check` out of memory."""
     ratings = tiny_copy / "ratings.csv"
     with ratings.open("r+b") as handle:
-        handle.truncate(tables.MAX_CSV_BYTES + 1)  # sparse: costs no disk
+        handle.truncate(csv_read.MAX_CSV_BYTES + 1)  # sparse: costs no disk
     line = check_output(run_cli, tiny_copy)
     assert f"{ratings}: is larger than 100 MB; refusing to read it" in line
     manifest = tiny_copy / "manifest.csv"
     manifest.write_text(",".join(f"c{i}" for i in range(200_000)) + "\n")
     line = check_output(run_cli, tiny_copy)
-    assert f"{manifest}: has 200000 columns; a study file has at most {tables.MAX_CSV_COLUMNS}" in line
+    assert f"{manifest}: has 200000 columns; a study file has at most {csv_read.MAX_CSV_COLUMNS}" in line
 
 
 @pytest.mark.parametrize("encoding, name", [("utf-16-le", "UTF-16LE (no byte-order mark)"), ("utf-16", "UTF-16"),
@@ -157,7 +157,7 @@ def test_blank_lines_keep_line_numbers_honest(tmp_path):
 def test_a_row_is_read_iff_its_field_count_is_the_headers(tmp_path_factory, header, rows):
     """Issue 28.3: blanks count; a row wider or narrower than the header is refused, never shifted or padded."""
     from roughsense.errors import InputError
-    from roughsense.io.tables import read_table
+    from roughsense.io.csv_read import read_table
 
     path = tmp_path_factory.mktemp("widths") / "t.csv"
     path.write_text("\n".join([",".join(f"c{i}" for i in range(header)), *(",".join(r) for r in rows)]) + "\n")

@@ -29,7 +29,8 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from roughsense.model.peak_law.file import OPTIONAL_FIELDS
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 from tests.fuzzing import EXAMPLES, FUZZ
 
 CSV_FILES = ("manifest.csv", "specimens.csv", "ratings.csv")

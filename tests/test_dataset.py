@@ -12,7 +12,8 @@ from roughsense.errors import InputError
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.study import read_study
 from roughsense.io.writer import StudyWriter
-from roughsense.sensor.spectrum import SpatialSpectrum, frequency_grid
+from roughsense.sensor.grid import frequency_grid
+from roughsense.sensor.spectrum import SpatialSpectrum
 
 PX_PER_MM = 20.0
 ROI = (0, 16, 600, 32)

@@ -82,14 +82,14 @@ def test_the_readme_quotes_the_predictive_ovl_of_the_papers_own_predictions():
 
 
 def test_the_readme_quotes_the_defaults_and_the_recorded_size():
+    from roughsense import defaults
     from roughsense.analysis.controls import DEFAULT_PERMUTATIONS
-    from roughsense.io.images import DEFAULT_MAX_PIXELS
 
     readme = _prose(REPO / "README.md")
     (shufflings,) = _quoted(readme, r"(\d+) seeded shufflings by default", "README.md")
     assert int(shufflings) == DEFAULT_PERMUTATIONS
     (pixels,) = _quoted(readme, r"max_pixels = (\d+)", "README.md")
-    assert int(pixels) == DEFAULT_MAX_PIXELS
+    assert int(pixels) == defaults.MAX_PIXELS
     (gigabytes,) = _quoted(readme, r"840 images, about (\d\.\d) GB", "README.md")
     (megabytes,) = re.findall(r"(\d+) MB", _benchmark_row("| first run: simulated study on disk"))[:1]
     assert _agrees(gigabytes, float(megabytes) / 1000)
@@ -104,7 +104,7 @@ def test_the_rig_page_quotes_the_recorded_live_rate():
 def test_the_sensor_page_quotes_the_untapered_leakage():
     """docs/sensor.md: without a window a lateral shift moves the features by up to N % of the peak, over soft-edged
     gratings of 2-5 mm (the Hann window's < 1 % is tests/test_sensor.py's, for any shift and period)."""
-    from roughsense.sensor.spectrum import spatial_spectrum
+    from roughsense.sensor.line import spatial_spectrum
 
     (percent,) = _quoted(_prose(REPO / "docs" / "sensor.md"), r"by up to \*\*(\d+) % of the peak\*\*", "docs/sensor.md")
 

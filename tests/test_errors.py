@@ -50,7 +50,7 @@ def test_every_refusal_to_overwrite_names_the_cli_option_and_the_python_keyword(
     """One wording, errors.PASS_FORCE: a Python caller is told ``force=True``, not only the CLI's ``--force``."""
     from roughsense import sim
     from roughsense.errors import PASS_FORCE
-    from roughsense.io.sensor_settings import write_px_per_mm
+    from roughsense.io.study_config import write_px_per_mm
 
     assert PASS_FORCE == "pass --force (force=True in Python)"
     root = tmp_path / "s"

@@ -26,6 +26,9 @@ from roughsense.io.study import read_study
 from roughsense.sensor.spectrum import SpatialSpectrum
 from roughsense.sim import contact
 from roughsense.sim import simulate as sim
+from roughsense.sim.config import SimulationConfig
+from roughsense.sim.frames import render_trial, trial_line
+from roughsense.sim.plan import plan_trials
 from roughsense.sim.specimens import parse_specimen
 
 from . import explore_tasks
@@ -53,15 +56,15 @@ def _sweep_file(tmp_path: Path, text: str = TINY, name: str = "sweep.toml") -> P
 
 
 def test_rendered_rows_are_the_whole_frames_rows():
-    config = sim.SimulationConfig(pads=("fingerprint",), specimens=("R2", "C3"), repetitions=2, forces_n=(1.0, 3.0))
+    config = SimulationConfig(pads=("fingerprint",), specimens=("R2", "C3"), repetitions=2, forces_n=(1.0, 3.0))
     pads, specimens = config.validate()
-    trials = sim.plan_trials(config, pads, specimens)
+    trials = plan_trials(config, pads, specimens)
     assert any(t.mount.spots for t in trials)  # spots cross the window's edges too
     for trial in trials:
-        full, fraction = sim.render_trial(trial)
+        full, fraction = render_trial(trial)
         height = trial.camera.frame_height_px
         for rows in ((0, 1), (height // 2 - 5, height // 2 + 10), (height - 20, height)):
-            part, same = sim.render_trial(trial, rows=rows)
+            part, same = render_trial(trial, rows=rows)
             assert np.array_equal(part, full[rows[0]:rows[1]]) and same == fraction
 
 
@@ -88,9 +91,9 @@ def test_warm_started_contact_equals_the_cold_solution():
 
 
 def test_a_warm_start_that_cycles_restarts_cold(monkeypatch):
-    config = sim.SimulationConfig(pads=("smooth",), specimens=("C3",), repetitions=1, forces_n=(2.0,))
+    config = SimulationConfig(pads=("smooth",), specimens=("C3",), repetitions=1, forces_n=(2.0,))
     pads, specimens = config.validate()
-    trial = sim.plan_trials(config, pads, specimens)[0]
+    trial = plan_trials(config, pads, specimens)[0]
     solve = contact.solve_periodic
 
     def cycling(*args, initial_pressure_pa=None, **kwargs):
@@ -100,9 +103,9 @@ def test_a_warm_start_that_cycles_restarts_cold(monkeypatch):
 
     monkeypatch.setattr(contact, "solve_periodic", cycling)
     warm: dict = {}
-    line, fraction = sim.trial_line(trial, warm=warm)
+    line, fraction = trial_line(trial, warm=warm)
     assert warm  # solutions kept for the next trial
-    cold_line, cold_fraction = sim.trial_line(trial)
+    cold_line, cold_fraction = trial_line(trial)
     assert np.array_equal(line, cold_line) and fraction == cold_fraction
 
 
@@ -150,7 +153,7 @@ def test_a_design_in_memory_equals_its_simulated_folder_read_back(tmp_path):
     """explore.cell.design_features, cold, on the camera's full frame and both pads: the very table (manifest columns
     and spectra) and perceived roughness that simulate + read_study + study_features give (tests use it as a
     faster way to the same study)."""
-    config = sim.SimulationConfig(specimens=("R3", "C4", "rect:8"), forces_n=(1.0, 3.0), repetitions=1, seed=3)
+    config = SimulationConfig(specimens=("R3", "C4", "rect:8"), forces_n=(1.0, 3.0), repetitions=1, seed=3)
     study = read_study(sim.simulate_study(tmp_path / "study", config, jobs=1), require_ratings=True)
     folder = study_features(study)
     memory_study, memory = explore_cell.design_features(config, warm_start=False)
@@ -706,7 +709,7 @@ def test_a_sweep_with_every_cell_finished_starts_no_cluster(tmp_path, monkeypatc
 def _fake_rows(cell):
     """Rows shaped as cell_rows' (every column, one row per condition x CV x model), with made-up numbers: the store
     checks what a file is, not what a cell computes."""
-    from roughsense.explore.sweep import MODEL_KEY
+    from roughsense.explore.sweep_cells import MODEL_KEY
 
     keys = [(c, v, m) for c in ("1N", "2N", "3N", "combined") for v in cell.cv for m in cell.models]
     summary = pd.DataFrame([{

@@ -48,8 +48,8 @@ def test_only_regular_files_are_read_and_nothing_waits(tmp_path_factory, kind, r
 
     from roughsense.errors import RoughsenseError
     from roughsense.explore.sweep import read_sweep
+    from roughsense.io.csv_read import read_table
     from roughsense.io.images import read_image
-    from roughsense.io.tables import read_table
     from roughsense.model.modelfile import load_model
 
     root = tmp_path_factory.mktemp("kinds")

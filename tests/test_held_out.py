@@ -137,7 +137,7 @@ def test_the_study_quotes_the_nested_jackknife_plus_and_its_misses(analysis):
 def test_presses_per_surface_reach_the_loso_error_with_every_press_and_predict_says_when_too_few(analysis):
     """Read from all its presses, a held-out surface's error is LOSO's own; predict's line names the presses needed."""
     from roughsense.analysis.presses import presses_needed
-    from roughsense.cli.model import few_presses_line
+    from roughsense.cli.predict import few_presses_line
 
     result, _, _ = analysis
     presses = result.presses

@@ -21,10 +21,12 @@ from roughsense.errors import InputError
 from roughsense.io.images import header_size
 from roughsense.io.names import NAME_MAX_CHARS, check_name, is_safe_name
 from roughsense.io.sensor_settings import SensorSettings
-from roughsense.io.study import read_config, read_study
-from roughsense.io.tables import dump_toml
+from roughsense.io.study import read_study
+from roughsense.io.study_config import read_config
+from roughsense.io.toml_write import dump_toml
 from roughsense.io.writer import StudyWriter
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 FORCES_TOML = "forces_n = [\n    1.0,\n    2.0,\n    3.0,\n]"  # the writer's study.toml (tomli-w: an item a line)
 
@@ -743,7 +745,8 @@ def test_a_fitted_model_is_far_inside_the_model_file_bounds(model_document):
 def test_a_synthetic_declaration_must_say_where_the_images_came_from(tmp_path):
     """Issue 30: [study] synthetic marks a folder of synthetic images (the shipped example); it must be text."""
     from roughsense.errors import InputError
-    from roughsense.io.study import _read_settings, read_config
+    from roughsense.io.study import _read_settings
+    from roughsense.io.study_config import read_config
 
     (tmp_path / "study.toml").write_text('[study]\nsynthetic = 1\n')
     assert read_config(tmp_path / "study.toml")["study"]["synthetic"] == 1

@@ -20,8 +20,9 @@ from roughsense._util import atomic
 from roughsense._util.lock import lock_path
 from roughsense.errors import InputError, OutputExistsError
 from roughsense.io.study import COMPLETE_MARKER, read_study
+from roughsense.sim.config import SimulationConfig
 from roughsense.sim.optics import Camera
-from roughsense.sim.simulate import SimulationConfig, simulate_study
+from roughsense.sim.simulate import simulate_study
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 LINUX = sys.platform.startswith("linux")
@@ -153,7 +154,8 @@ def _python(code: str, *args: str) -> subprocess.Popen:
 
 _SIMULATE = """
 import sys
-from roughsense.sim.simulate import SimulationConfig, simulate_study
+from roughsense.sim.config import SimulationConfig
+from roughsense.sim.simulate import simulate_study
 from roughsense.sim.optics import Camera
 config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3"), forces_n=(1.0, 2.0), repetitions=int(sys.argv[3]),
                           seed=int(sys.argv[2]), camera=Camera(width_px=400, height_px=300), participants=3, sessions=1)

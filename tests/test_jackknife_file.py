@@ -184,7 +184,8 @@ def fingerprint_1n(shared_build):
     """A small simulated study: the fingerprint pad at 1 N (where one press reads a surface worst), the paper's 14
     gratings, 10 presses each, its ratings (seed 11, 1920 x 170 frames)."""
     from roughsense.paper import PAPER_SPECIMENS
-    from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+    from roughsense.sim.config import SimulationConfig, with_image_size
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("fingerprint",), specimens=PAPER_SPECIMENS, forces_n=(1.0,), repetitions=10,
                               seed=11, participants=3, sessions=2)

@@ -14,10 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from roughsense.errors import InputError
+from roughsense.io.csv_read import read_table
 from roughsense.io.numbers import BOUNDS, NumberError, parse_number
 from roughsense.io.ratings_file import read_ratings
 from roughsense.io.sensor_settings import parse_roi
-from roughsense.io.tables import read_table
 from tests.fuzzing import EXAMPLES, FUZZ, NUMBER_CHARS
 
 ACCEPTED = {"2": 2.0, "-0.5": -0.5, "+3": 3.0, ".5": 0.5, "5.": 5.0, "1e-3": 1e-3, "2.5E+2": 250.0, " 7 ": 7.0,
@@ -171,8 +171,8 @@ def test_command_line_numbers_are_finite_and_bounded(run_cli, tmp_path, args, me
 def test_study_toml_numbers_are_spelled_as_a_csv_cell(tmp_path, old, new, token):
     """TOML's parser turns 1_0, 0x2 and inf into numbers before any reader sees them; the text is checked first."""
     from roughsense.errors import InputError
-    from roughsense.io.study import read_config
-    from roughsense.io.tables import dump_toml
+    from roughsense.io.study_config import read_config
+    from roughsense.io.toml_write import dump_toml
 
     text = dump_toml({"study": {"name": "s"}, "sensor": {"px_per_mm": 34.9}, "protocol": {"forces_n": [1.0, 2.0, 3.0]}})
     assert old in text
@@ -268,9 +268,9 @@ def test_every_number_reader_accepts_the_same_spellings(tmp_path_factory, text):
 
     from roughsense.cli._common import number_option
     from roughsense.errors import ConfigError, InputError
+    from roughsense.io.csv_read import read_table
     from roughsense.io.numbers import NumberError, parse_number
     from roughsense.io.ratings_file import validate_ratings
-    from roughsense.io.tables import read_table
 
     cell = text.replace(",", ";").strip()  # a comma would split the CSV cell; blank cells are a reader's own case
     if not cell:

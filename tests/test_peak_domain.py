@@ -25,7 +25,7 @@ def paper_design():
     those of the same study simulated to a folder and read back (tests/test_explore.py checks the two paths)."""
     from roughsense.analysis import dataset
     from roughsense.explore.cell import design_features
-    from roughsense.sim.simulate import SimulationConfig
+    from roughsense.sim.config import SimulationConfig
 
     config = SimulationConfig(specimens=(*paper.PAPER_SPECIMENS, *ODD), repetitions=10, seed=0)
     study, features = design_features(config, warm_start=False)

@@ -320,7 +320,7 @@ def test_models_failing_their_controls_are_flagged_in_the_tables(report_dir):
         title = f"Root mean squared error (RMSE), {row.pad} pad, {row.cv.upper()}"
         title += "" if row.model == "pls" else f", {row.model} model"  # the paper's titles for its PLS
         header = {c[0].removesuffix(" †"): c[0].endswith("†") for c in parser.tables[title][0]}
-        from roughsense.report.tables import CONDITION_TITLES
+        from roughsense.report.paper_tables import CONDITION_TITLES
 
         assert header[CONDITION_TITLES[row.condition]] == (not row.passes), (title, row.condition)
 
@@ -486,10 +486,16 @@ def test_a_png_is_trimmed_to_its_ink_and_a_figure_drawn_past_its_edge_is_kept_wh
 
 
 def test_the_cli_figure_options_match_the_report():
-    from roughsense.cli import _common
-    from roughsense.report import figures
+    """--dpi's default is the report's: both read roughsense.defaults, neither keeps a copy."""
+    import inspect
 
-    assert _common.FIGURE_FORMATS == figures.FIGURE_FORMATS and _common.DEFAULT_DPI == figures.DEFAULT_DPI
+    from roughsense import defaults
+    from roughsense.cli import _common
+    from roughsense.report import figures, html
+
+    assert inspect.signature(figures.figure_bytes).parameters["dpi"].default == defaults.DPI
+    assert html.FigureStyle().dpi == defaults.DPI
+    assert not {"FIGURE_FORMATS", "DEFAULT_DPI"} & (set(vars(_common)) | set(vars(figures)))
 
 
 @pytest.mark.browser
@@ -599,7 +605,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
                                          headline_condition="combined"))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
                                    "press(es) per surface")
-    from roughsense.report.tables import _jackknife_text
+    from roughsense.report.unseen_tables import _jackknife_text
 
     row = {"jackknife_plus_coverage": 1.0, "jackknife_plus_median_factor": float("inf"), "jackknife_plus_misses": ""}
     assert _jackknife_text(row) == "none (too few specimens)"

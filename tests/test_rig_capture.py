@@ -20,7 +20,7 @@ from roughsense.io.sensor_settings import roi_misfit
 from roughsense.io.study import read_study
 from roughsense.io.writer import StudyWriter
 from roughsense.rig.capture import image_name, plan_steps
-from roughsense.sensor.spectrum import resolve_roi
+from roughsense.sensor.line import resolve_roi
 
 from .videos import decoded_frames, write_damaged_video, write_video
 
@@ -287,7 +287,7 @@ def test_silent_serial_port(tmp_path, video, run_cli, monkeypatch):
         (("--repetitions", "0"), "--repetitions must be a whole number from 1"),
         (("--shape", "wavy"), "--shape 'wavy'"),
         (("--forces-from", "usb"), "--forces-from must be 'manual' or 'serial:PORT[:BAUD]'"),
-        (("--forces", "1,x"), "--forces: 'x' is not a number"),  # the old spelling, named as typed
+        (("--forces", "1,x"), "capture: --forces is now --forces-n"),  # the old spelling, refused naming the new
     ],
 )
 def test_bad_options(tmp_path, video, run_cli, typed, args, message):
@@ -400,8 +400,9 @@ def test_study_roi_rule_agrees_with_the_sensor(roi, width, height):
 
 
 def _simulated(tmp_path):
+    from roughsense.sim.config import SimulationConfig
     from roughsense.sim.optics import Camera
-    from roughsense.sim.simulate import SimulationConfig, simulate_study
+    from roughsense.sim.simulate import simulate_study
 
     config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3"), forces_n=(1.0, 2.0), repetitions=1,
                               camera=Camera(width_px=400, height_px=300), participants=3, sessions=1)

@@ -23,7 +23,7 @@ def test_ctrl_c_during_explore_is_one_interrupted_line_and_no_dask_traceback(tmp
 
     sweep = big_sweep(tmp_path, 60)
     out = tmp_path / "out"
-    run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--workers", "1"],
+    run = subprocess.Popen([ROUGHSENSE, "explore", str(sweep), "--out", str(out), "--jobs", "1"],
                            stderr=subprocess.PIPE, text=True, start_new_session=True,
                            preexec_fn=sigint_as_in_a_terminal,  # a terminal's job, however pytest was started
                            env={**os.environ, "ROUGHSENSE_CACHE_DIR": str(tmp_path / "cache")})

@@ -262,8 +262,7 @@ def test_a_weaker_outside_structure_is_named_only_where_a_family_flags_the_press
                                                ((True, False, False, True), "peak-law")])
 def test_console_and_report_give_one_verdict_on_which_model_to_use(passes, model):
     """The console's "Which model to use" line and the report's first screen state the same family, or both none."""
-    from roughsense.cli.study_report import which_model_line
-    from roughsense.report.answer import NO_MODEL, _use_line, recommended_model
+    from roughsense.report.answer import NO_MODEL, _use_line, recommended_model, which_model_line
 
     unseen = pd.DataFrame({"model": ["peak-law", "pls", "peak-law", "pls"], "pad": ["smooth", "smooth", "fp", "fp"],
                            "condition": "combined", "rmse": 0.2, "null_rmse": 0.3, "pi90_coverage_trials": np.nan,

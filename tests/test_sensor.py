@@ -18,14 +18,9 @@ from sklearn.pipeline import Pipeline
 import roughsense
 from roughsense.errors import ConfigError, InputError
 from roughsense.io.images import GRAY_WEIGHTS_RGB, to_gray
-from roughsense.sensor.spectrum import (
-    SpatialSpectrum,
-    combine_forces,
-    frequency_grid,
-    line_amplitude,
-    resolve_roi,
-    spatial_spectrum,
-)
+from roughsense.sensor.grid import frequency_grid, line_amplitude
+from roughsense.sensor.line import resolve_roi, spatial_spectrum
+from roughsense.sensor.spectrum import SpatialSpectrum, combine_forces
 
 PX_PER_MM = 34.9
 SAMPLES = Path(roughsense.__file__).parent / "data" / "samples"
@@ -407,7 +402,7 @@ def test_png_top_rows_decode_equals_full_decode(tmp_path, channels):
 def test_spectrum_from_png_file_equals_spectrum_from_array(tmp_path):
     import cv2
 
-    from roughsense.sensor.spectrum import spatial_spectrum
+    from roughsense.sensor.line import spatial_spectrum
 
     rng = np.random.default_rng(7)
     x_mm = np.arange(400) / 20.0
@@ -428,7 +423,7 @@ def test_one_non_finite_pixel_outside_the_crop_does_not_move_the_auto_band(bad, 
     image's, and its spectrum identical."""
     import numpy as np
 
-    from roughsense.sensor.spectrum import resolve_roi, spatial_spectrum
+    from roughsense.sensor.line import resolve_roi, spatial_spectrum
 
     rng = np.random.default_rng(0)
     clean = 0.3 + 0.01 * rng.normal(size=(600, 1000))

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roughsense.sensor.grid import frequency_grid
+from roughsense.sensor.line import spatial_spectrum
 from roughsense.sensor.shape import duty_cycle, harmonic_ratio
-from roughsense.sensor.spectrum import frequency_grid, spatial_spectrum
 
 PX_PER_MM = 34.9
 
@@ -67,3 +68,16 @@ def test_a_shape_the_law_never_learnt_is_flagged_in_words():
     assert not any(law.applicability(X, surfaces=surfaces))  # the trained shape is inside
     domain = fit_domain(SIMPLS(n_components=2).fit(X, y), X, y, surfaces, PeakPowerLaw(freq_per_mm=freq))
     assert all("narrower ridges" in r for r in domain.reasons(narrow, narrow_names))
+
+
+def test_the_ridge_exclusion_is_the_bands():
+    """One half-width around the pad's ridges is left out everywhere the sensor reads a peak (sensor/band.py's)."""
+    import inspect
+
+    from roughsense.sensor.band import RIDGE_EXCLUSION_PER_MM
+    from roughsense.sensor.shape import harmonic_ratio, readable
+
+    for function in (readable, harmonic_ratio):
+        assert inspect.signature(function).parameters["exclusion_per_mm"].default is RIDGE_EXCLUSION_PER_MM
+    freq = np.linspace(0.1, 1.0, 46)  # ridges of 1 mm: 1.0 mm^-1; a step of 0.02
+    assert list(readable(freq, [0.88, 0.92], pad_ridge_period_mm=1.0)) == [True, False]

@@ -171,7 +171,7 @@ def _mixed(run_cli, monkeypatch, tmp_path):
 
 
 def test_simulate_force_never_deletes_captured_frames(run_cli, tmp_path, monkeypatch):
-    from roughsense.sim.simulate import simulation_owned
+    from roughsense.sim.overwrite import simulation_owned
 
     sim, frames = _mixed(run_cli, monkeypatch, tmp_path)
     before = _tree(sim)

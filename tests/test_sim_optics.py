@@ -10,8 +10,10 @@ from scipy import integrate, stats
 
 from roughsense.errors import ConfigError
 from roughsense.sim.bench import BenchNoise
+from roughsense.sim.config import SimulationConfig
+from roughsense.sim.frames import trial_line
 from roughsense.sim.optics import Camera, apparent_contact_fraction
-from roughsense.sim.simulate import SimulationConfig, plan_trials, trial_line
+from roughsense.sim.plan import plan_trials
 
 
 def test_evanescent_decay_length_is_the_frustrated_reflection_formula():
@@ -85,7 +87,7 @@ def test_apparent_contact_matches_the_solvers_contact():
 
 
 def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
-    from roughsense.sensor.spectrum import resolve_roi
+    from roughsense.sensor.line import resolve_roi
     from roughsense.sim.optics import Lighting, render
 
     clean = dict(read_noise_dn=0.0, shot_noise_gain=0.0)
@@ -114,9 +116,9 @@ def test_stored_frame_is_the_centred_rows_of_the_whole_sensor_frame():
 def test_stored_png_is_lossless_and_the_sensor_reads_it_like_the_frame(tmp_path):
     from roughsense.io.images import read_image
     from roughsense.io.study import read_study
-    from roughsense.sensor.spectrum import spatial_spectrum
+    from roughsense.sensor.line import spatial_spectrum
     from roughsense.sim import simulate_study
-    from roughsense.sim.simulate import render_trial
+    from roughsense.sim.frames import render_trial
 
     config = SimulationConfig(pads=("fingerprint",), specimens=("C3",), forces_n=(2.0,), repetitions=1, seed=7,
                               camera=Camera(width_px=1920))

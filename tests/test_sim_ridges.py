@@ -5,7 +5,8 @@ import numpy as np
 import pandas as pd
 
 from roughsense.sensor.spectrum import SpatialSpectrum
-from roughsense.sim.simulate import SimulationConfig, simulate_study, with_image_size
+from roughsense.sim.config import SimulationConfig, with_image_size
+from roughsense.sim.simulate import simulate_study
 
 
 def test_fingerprint_ridges_add_a_peak_at_their_own_frequency(tmp_path):

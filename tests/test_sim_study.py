@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from roughsense.errors import ConfigError, OutputExistsError
-from roughsense.io.study import read_study
+from roughsense.io.study import COMPLETE_MARKER, read_study
 from roughsense.sim import SimulationConfig, SimulationRun, simulate_study
 from roughsense.sim.bench import BenchNoise
 from roughsense.sim.optics import Camera
-from roughsense.sim.simulate import COMPLETE_MARKER
 
 SMALL = Camera(width_px=400, height_px=300)
 
@@ -183,7 +182,7 @@ def test_numeric_options_are_checked_even_when_no_pad_uses_them(tmp_path, change
 
 def test_every_ridge_of_a_long_domain_gets_its_own_height_error():
     from roughsense.sim.bench import MAX_RIDGES, draw_mount
-    from roughsense.sim.simulate import plan_trials
+    from roughsense.sim.plan import plan_trials
     from roughsense.sim.trial_contact import ridges_in_domain
 
     config = _config(pads=("fingerprint",), specimens=("rand:1:0.1",), forces_n=(1.0,), fingerprint_period_mm=0.2)

@@ -23,7 +23,7 @@ def test_a_sweep_beyond_the_confirmation_size_shows_its_estimate_and_needs_yes(r
     assert not (tmp_path / "out").exists()
     ran = []
     monkeypatch.setattr("roughsense.explore.runner.run_sweep", lambda *a, **k: ran.append(a) or 1 / 0)
-    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--workers", 1, "--yes")
+    code, _, err = run_cli("explore", path, "--out", tmp_path / "out", "--jobs", 1, "--yes")
     assert ran and f"roughsense: {sweep_module.CONFIRM_CELLS + 1} cells, about {hours:.1f} core-hours" in err
 
 

@@ -151,12 +151,12 @@ def test_the_client_that_will_not_close_is_a_warning_not_a_traceback():
 def test_workers_beyond_the_bound_are_refused_before_any_work(tmp_path, run_cli, monkeypatch):
     monkeypatch.setattr(runner, "default_workers", lambda: 2)  # the bound is 4 per usable core
     for workers in ("100000", "9", "0"):
-        line = _one_error(run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "out", "--workers", workers),
-                          "--workers", "from 1 to 8")  # the old spelling of --jobs, named as typed
+        line = _one_error(run_cli("explore", tmp_path / "absent.toml", "--out", tmp_path / "out", "--jobs", workers),
+                          "--jobs", "from 1 to 8")
         assert "absent.toml" not in line  # refused before the sweep file is even read
     assert not (tmp_path / "out").exists()
-    with pytest.raises(Exception, match="--jobs must be from 1 to 8"), pytest.warns(FutureWarning):
-        run_sweep(read_sweep(_sweep_file(tmp_path)), tmp_path / "out", workers=100000)
+    with pytest.raises(Exception, match="--jobs must be from 1 to 8"):
+        run_sweep(read_sweep(_sweep_file(tmp_path)), tmp_path / "out", n_jobs=100000)
     assert not (tmp_path / "out").exists()
 
 
@@ -233,7 +233,7 @@ def test_a_sweep_file_above_the_size_limit_is_refused_unparsed(tmp_path, run_cli
 
 
 def test_the_bounds_themselves_are_accepted(tmp_path):
-    from roughsense.explore.sweep import MAX_CELLS
+    from roughsense.explore.sweep_cells import MAX_CELLS
 
     text = TINY.replace("seeds = [0]", f"seeds = {list(range(MAX_CELLS // 2))}").replace(
         'pad = ["smooth"]', 'pad = ["smooth"]\nfield_length_mm = [55.0, 55.05]')  # 1922 and 1924 px: two frames
@@ -289,7 +289,7 @@ def test_local_workers_keep_their_scratch_space_under_out_and_remove_it(tmp_path
               "from roughsense.explore.runner import run_sweep\n"
               "from roughsense.explore.sweep import read_sweep\n"
               "from tests.test_sweep_bounds import no_op_cell\n"
-              f"outcome = run_sweep(read_sweep({str(_sweep_file(tmp_path))!r}), {str(out)!r}, workers=1, "
+              f"outcome = run_sweep(read_sweep({str(_sweep_file(tmp_path))!r}), {str(out)!r}, n_jobs=1, "
               "task=no_op_cell)\n"
               "print(len(outcome.failures))\n")
     root = Path(__file__).parents[1]

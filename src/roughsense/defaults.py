@@ -22,6 +22,17 @@ ROI = "center"
 #: The simulated fingerprint pad's ridges.
 FINGERPRINT_PERIOD_MM = 1.0
 RIDGE_HEIGHT_MM = 0.2
+#: The simulated panel's ratings: the paper's values for its presets, the finger model for anything else.
+RATINGS_FROM = "paper"
+#: Rows of each simulated frame stored, centred on the sensor (0: whole frames).
+STORED_HEIGHT_PX = 320
+#: The spectrum (paper section 3.2): the band 0.1-1.0 mm^-1 at 45 evenly spaced frequencies, from one image row
+#: (the paper reads one), with a Hann taper (the band's edges leak less; "none" is the paper's literal choice).
+F_MIN_PER_MM = 0.1
+F_MAX_PER_MM = 1.0
+N_FREQS = 45
+ROWS = 1
+WINDOW = "hann"
 #: The report figures' formats and resolution.
 FIGURE_FORMATS = ("png", "svg", "pdf")
 DPI = 110

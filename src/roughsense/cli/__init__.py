@@ -18,7 +18,7 @@ import typer
 
 from .._util import interrupt
 from ..errors import RoughsenseError, one_line
-from ._aliases import apply_aliases, command_index, force_hint, in_users_words, renamed_refusal, renamings, said_twice
+from ._aliases import command_index, force_hint, renamed_refusal, said_twice
 from ._common import close_line, limit_advice
 
 app = typer.Typer(
@@ -91,12 +91,12 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 def _fail(message: str) -> int:
     close_line()
-    print(f"roughsense: error: {one_line(in_users_words(message, _state.get('typed', {})))}", file=sys.stderr)
+    print(f"roughsense: error: {one_line(message)}", file=sys.stderr)
     return 2
 
 
 def _said_once(args: list[str], group) -> str:
-    """One line when the command line says an option twice or by a spelling renamed before release, else ""."""
+    """One line when the command line says an option by its old spelling or twice, else ""."""
     return renamed_refusal(args) or said_twice(args, getattr(group, "commands", {}))
 
 
@@ -150,8 +150,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return its exit code (tests call this directly).
 
     click's usage errors (a bad option, a missing argument) and everything the library raises surface here and
-    are turned into one line; ``--help`` and ``--version`` return 0. An option's old spelling is read as its one
-    name, an option is said once, and an error names the spelling typed (cli/_aliases.py).
+    are turned into one line; ``--help`` and ``--version`` return 0. An option's old spelling is refused naming its
+    new name, and an option is said once (cli/_aliases.py).
     """
     args, debug = _take_debug(list(sys.argv[1:] if argv is None else argv))
     if debug:
@@ -161,8 +161,6 @@ def main(argv: list[str] | None = None) -> int:
     if refusal:
         _state["debug"] = bool(os.environ.get("ROUGHSENSE_DEBUG"))
         return _fail(refusal)
-    _state["typed"] = renamings(args)  # an error about an option names the spelling typed (--workers, not --jobs)
-    args = apply_aliases(args)
     warnings.showwarning = _show_warning
     try:
         with warnings.catch_warnings():  # the main thread, around the whole run: workers never touch the filters

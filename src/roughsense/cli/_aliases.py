@@ -1,29 +1,20 @@
-"""Old option spellings, kept for one release: each is rewritten to its one name before the command line is parsed.
+"""Old option spellings, refused in one line naming the new name: nothing was released, so none is an alias.
 
-One concept has one option name on every command (``--study``, ``--forces-n``, ``--jobs``); an older spelling still
-works, but no command declares it, so it never shows in ``--help`` and adds nothing to a command's signature. The
-table is the whole mechanism: CHANGELOG.md lists the same pairs. A spelling renamed before any release is no alias:
-it is refused, naming its new name (:data:`RENAMED`).
+One concept has one option name on every command (``--study``, ``--forces-n``, ``--jobs``). An older spelling is
+declared by no command, so it never shows in ``--help``; typed, it is refused before the command line is parsed
+(:func:`renamed_refusal`), exit 2, naming its new name. The table is the whole mechanism.
 
-An option is said once (:func:`said_twice`): given twice, or under its old and its new name, the command line is
-refused in one line naming both spellings as typed -- the last one would otherwise win unsaid. And an error about an
-option names it as the user typed it (:func:`in_users_words`): ``--workers 0`` is answered about ``--workers``.
+An option is said once (:func:`said_twice`): given twice, the command line is refused in one line naming both
+spellings as typed -- the last one would otherwise win unsaid.
 """
 from __future__ import annotations
 
-import re
-
-#: ``{command: {old spelling: one name}}``.
-ALIASES: dict[str, dict[str, str]] = {
+#: ``{command: {old spelling: its one name}}``: refused, naming the new name.
+RENAMED: dict[str, dict[str, str]] = {
     "study": {"--data": "--study"},
     "simulate": {"--forces": "--forces-n"},
-    "capture": {"--forces": "--forces-n"},
+    "capture": {"--forces": "--forces-n", "--force-input": "--forces-from"},
     "explore": {"--workers": "--jobs"},
-}
-
-#: ``{command: {spelling renamed before any release: its one name}}``: refused, naming the new name (no alias).
-RENAMED: dict[str, dict[str, str]] = {
-    "capture": {"--force-input": "--forces-from"},
 }
 
 #: Commands whose forces are ``--forces-n``: there, ``--force 2`` is a force typed as the overwrite flag.
@@ -34,23 +25,6 @@ def command_index(args: list[str]) -> int | None:
     """Where the command's name is: the first word that is no option (roughsense's own options take no value)."""
     end = args.index("--") if "--" in args else len(args)
     return next((i for i in range(end) if not args[i].startswith("-")), None)
-
-
-def _spelled(token: str, table: dict[str, str]) -> str:
-    name, sep, value = token.partition("=")
-    new = table.get(name)
-    return token if new is None else f"{new}{sep}{value}"
-
-
-def apply_aliases(args: list[str]) -> list[str]:
-    """``args`` with every old spelling after the command's name (``--opt`` and ``--opt=value``) replaced by its one
-    name; what follows ``--`` is an argument, never an option, and stays as typed."""
-    at = command_index(args)
-    table = ALIASES.get(args[at]) if at is not None else None
-    if not table:
-        return list(args)
-    end = args.index("--") if "--" in args else len(args)
-    return [*args[:at + 1], *(_spelled(a, table) for a in args[at + 1:end]), *args[end:]]
 
 
 def force_hint(args: list[str]) -> str:
@@ -87,7 +61,8 @@ def _words(args: list[str]) -> tuple[int, list[str]] | None:
 
 
 def renamed_refusal(args: list[str]) -> str:
-    """"COMMAND: --old is now --new" when a spelling of :data:`RENAMED` is typed, else ""."""
+    """"COMMAND: --old is now --new" when a spelling of :data:`RENAMED` is typed after the command's name (as
+    ``--old`` or ``--old=value``), else "". What follows ``--`` is an argument, never an option."""
     found = _words(args)
     table = RENAMED.get(args[found[0]], {}) if found else {}
     for word in found[1] if table else []:
@@ -97,31 +72,16 @@ def renamed_refusal(args: list[str]) -> str:
     return ""
 
 
-def renamings(args: list[str]) -> dict[str, str]:
-    """``{one name: old spelling}`` for each old spelling typed on the command line (before ``--``)."""
-    found = _words(args)
-    table = ALIASES.get(args[found[0]], {}) if found else {}
-    return {table[name]: name for name in (w.partition("=")[0] for w in (found[1] if found else [])) if name in table}
-
-
-def in_users_words(message: str, renamed: dict[str, str]) -> str:
-    """``message`` with each option's one name replaced by the old spelling the user typed for it."""
-    for new, old in renamed.items():
-        message = re.sub(rf"(?<![\w-]){re.escape(new)}(?![\w-])", old, message)
-    return message
-
-
 def _takes(param) -> int:
     """How many words a click option takes after its name: 0 for a flag or a counter."""
     return 0 if getattr(param, "is_flag", False) or getattr(param, "count", False) else max(1, param.nargs)
 
 
-def _option_words(command, words: list[str], table: dict[str, str]) -> list[tuple[object, str]]:
+def _option_words(command, words: list[str]) -> list[tuple[object, str]]:
     """``(click parameter, as typed)`` for each option of ``command`` in ``words``: ``--opt value``, ``--opt=value``,
     ``-o value``, ``-ovalue`` and grouped short flags (``-ab``). A word that is no option of the command (an
     argument, or a mistake click reports) is passed over; the value of an option is never read as an option."""
     params = {opt: p for p in command.params for opt in (*p.opts, *p.secondary_opts)}
-    params.update({old: params[new] for old, new in table.items() if new in params})
     found, i = [], 0
     while i < len(words):
         word = words[i]
@@ -145,7 +105,7 @@ def _option_words(command, words: list[str], table: dict[str, str]) -> list[tupl
 
 
 def said_twice(args: list[str], commands: dict) -> str:
-    """One line when an option of the command is given twice (under any of its spellings, old or new), else "".
+    """One line when an option of the command is given twice (under any of its spellings), else "".
 
     Options declared ``multiple`` (repeatable by design) may be given again."""
     found = _words(args)
@@ -154,7 +114,7 @@ def said_twice(args: list[str], commands: dict) -> str:
         return ""
     name = args[found[0]]
     seen: dict[str, str] = {}
-    for param, typed in _option_words(command, found[1], ALIASES.get(name, {})):
+    for param, typed in _option_words(command, found[1]):
         if getattr(param, "multiple", False):
             continue
         if param.name in seen:

@@ -94,13 +94,13 @@ def _manifest_images(root: Path) -> list[Path]:
     import csv
 
     from ..errors import RoughsenseError
-    from ..io.tables import MAX_CSV_BYTES, read_text
+    from ..io.csv_read import MAX_CSV_BYTES, read_text
 
     try:
         lines = read_text(root / "manifest.csv", max_bytes=MAX_CSV_BYTES).splitlines()
     except RoughsenseError:
         return []
-    delimiter = ";" if lines and ";" in lines[0] and "," not in lines[0] else ","  # as io.tables reads it
+    delimiter = ";" if lines and ";" in lines[0] and "," not in lines[0] else ","  # as io.csv_read reads it
     try:  # a cell past csv's field limit (a forged path) is the study reader's to report, in its own words
         rows = list(csv.reader(lines, delimiter=delimiter, skipinitialspace=True))
     except csv.Error:
@@ -128,11 +128,6 @@ JOBS_HELP = ("How much to run at once: images decoded, trials simulated, models 
 Jobs = Annotated[int | None, typer.Option(
     "--jobs", "-j", show_default=False, callback=_every_core, parser=number_option("--jobs", whole=True),
     help=JOBS_HELP)]
-
-
-#: The report figures' formats and default resolution; their home is roughsense.defaults.
-FIGURE_FORMATS = defaults.FIGURE_FORMATS  # re-exported for one release
-DEFAULT_DPI = defaults.DPI  # re-exported for one release
 
 
 def check_figure_format(text: str) -> str:

@@ -1,6 +1,6 @@
 """Study folders named on the command line: a path, or ``builtin`` for the simulated paper study.
 
-``builtin`` is a reserved word wherever a study folder is accepted (``--study``, and ``study``'s old ``--data``): it
+``builtin`` is a reserved word wherever a study folder is accepted (``--study``): it
 names the paper's study as the digital twin simulates it with ``--seed``, generated once into the cache and reused.
 A real folder called ``builtin`` is reached as ``./builtin`` (any path with a separator is a path).
 """
@@ -55,13 +55,14 @@ def builtin_study(seed: int, jobs: int | None = None) -> Path:
     """
     from .._util.cache import cached_folder
     from ..sim import simulate as sim
+    from ..sim.overwrite import is_complete_simulation
 
     def simulate(root: Path, key_files: dict[str, str]) -> None:
         print(f"roughsense: simulating the paper's study (seed {seed}) into {root}; first use only, "
               "later runs reuse it", file=sys.stderr, flush=True)
         sim.simulate_study(root, seed=seed, jobs=jobs, force=True, progress=progress, markers=key_files)
 
-    return cached_folder(_stem(seed), simulator_fingerprint(), simulate, is_complete=sim.is_complete_simulation)
+    return cached_folder(_stem(seed), simulator_fingerprint(), simulate, is_complete=is_complete_simulation)
 
 
 def resolve_study(value: str | os.PathLike[str], *, seed: int, jobs: int | None = None) -> Path:

@@ -70,10 +70,10 @@ def calibrate(folder: Folder, specimen: Specimen = None, ridges: Ridges = False,
 
 def _refuse_unfit(m, study, scale_range) -> None:
     """A scale no press measured, or one the study reader would refuse (``SensorSettings``' bounds, a band the scale
-    cannot resolve: ``sensor.spectrum.scale_misfit``), is never written."""
+    cannot resolve: ``sensor.line.scale_misfit``), is never written."""
     from ..io.sensor_settings import SensorSettings
     from ..io.study import STUDY_TOML
-    from ..sensor.spectrum import scale_misfit
+    from ..sensor.line import scale_misfit
 
     if m.n_measured == 0:
         searched = "the scales searched" if scale_range is None else f"--range {scale_range}"
@@ -90,8 +90,8 @@ def _refuse_unfit(m, study, scale_range) -> None:
 
 
 def _write(study, m, what: str, force: bool) -> None:
-    from ..io.sensor_settings import write_px_per_mm
     from ..io.study import STUDY_TOML
+    from ..io.study_config import write_px_per_mm
 
     if m.n_mounts < MIN_MOUNTS:
         raise ConfigError(f"{m.n_mounts} mount(s) of the target cannot say how precise the scale is: nothing written; "

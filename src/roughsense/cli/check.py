@@ -43,7 +43,7 @@ def _check_scale(result) -> None:
     """An implausible scale is a problem: one the sensor's band cannot be measured at (``sensor.scale_misfit``)."""
     from ..errors import InputError
     from ..io.study import STUDY_TOML
-    from ..sensor.spectrum import scale_misfit
+    from ..sensor.line import scale_misfit
 
     sensor = result.sensor
     problem = None if sensor is None else scale_misfit(sensor.px_per_mm, sensor.roi)

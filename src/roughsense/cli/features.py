@@ -8,7 +8,7 @@ import typer
 
 from .. import defaults
 from ..errors import ConfigError
-from ..sensor.settings import MAX_N_FREQS, SPECTRUM_DEFAULTS
+from ..sensor.settings import MAX_N_FREQS
 from ._common import Jobs, number_option, parse_float_list, progress, run_inputs
 from ._studies import STUDY_METAVAR, resolve_study
 
@@ -50,7 +50,7 @@ NFreqs = Annotated[int, typer.Option(
     "--n-freqs", parser=number_option("--n-freqs", low=2, high=MAX_N_FREQS, whole=True),
     help=f"Number of evenly spaced frequencies in the band (2 to {MAX_N_FREQS}).")]
 Window = Annotated[str, typer.Option(
-    "--window", help=f"Taper before the DFT: '{SPECTRUM_DEFAULTS.window}' (default) or 'none' (the paper's literal choice).")]
+    "--window", help=f"Taper before the DFT: '{defaults.WINDOW}' (default) or 'none' (the paper's literal choice).")]
 MaxPixels = Annotated[int | None, typer.Option(
     "--max-pixels", show_default=False, parser=number_option("--max-pixels", whole=True),
     help="Refuse images whose header claims more pixels (width x height) than this, before decoding. "
@@ -61,9 +61,9 @@ def features(
     out: FeaturesOut, images: Images = None, study: StudyDir = None,
     seed: Annotated[int, typer.Option("--seed", parser=number_option("--seed", quantity="seed"),
                                       help="Seed of --study builtin.")] = defaults.SEED,
-    px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = SPECTRUM_DEFAULTS.rows,
-    band: Band = f"{SPECTRUM_DEFAULTS.f_min_per_mm:g},{SPECTRUM_DEFAULTS.f_max_per_mm:.1f}",
-    n_freqs: NFreqs = SPECTRUM_DEFAULTS.n_freqs, window: Window = SPECTRUM_DEFAULTS.window,
+    px_per_mm: PxPerMm = None, roi: Roi = None, rows: Rows = defaults.ROWS,
+    band: Band = f"{defaults.F_MIN_PER_MM:g},{defaults.F_MAX_PER_MM:.1f}",
+    n_freqs: NFreqs = defaults.N_FREQS, window: Window = defaults.WINDOW,
     jobs: Jobs = None,
     force: Annotated[bool, typer.Option(
         "--force", help="Replace FEATURES.csv, its grid file and the --plot file if they exist (never an input).")] = False,

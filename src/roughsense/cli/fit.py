@@ -131,7 +131,7 @@ def _echo_unseen(unseen) -> None:
 
 def _p_text(p: float, n_permutations: int) -> str:
     """A permutation p as the report states it (never 0: at its floor, a bound naming the shufflings)."""
-    from ..report.tables import permutation_p_text
+    from ..report.control_tables import permutation_p_text
 
     text = permutation_p_text(p, n_permutations, at_most="<=")
     return text if text.startswith("<=") or text == "—" else f"= {text}"

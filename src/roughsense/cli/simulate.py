@@ -54,8 +54,8 @@ def simulate(
     out: Out, seed: Seed = defaults.SEED, pads: Pads = f"{SMOOTH_PAD},{FINGERPRINT_PAD}",
     specimens: Specimens = ",".join(PAPER_SPECIMENS), forces_n: ForcesN = ",".join(f"{f:g}" for f in PAPER_FORCES_N),
     repetitions: Repetitions = PAPER_REPETITIONS, fingerprint_period_mm: Period = defaults.FINGERPRINT_PERIOD_MM,
-    ridge_height_mm: RidgeHeight = defaults.RIDGE_HEIGHT_MM,
-    ratings_from: RatingsFrom = "paper", stored_height_px: StoredHeight = 320, jobs: Jobs = None, force: Force = False,
+    ridge_height_mm: RidgeHeight = defaults.RIDGE_HEIGHT_MM, ratings_from: RatingsFrom = defaults.RATINGS_FROM,
+    stored_height_px: StoredHeight = defaults.STORED_HEIGHT_PX, jobs: Jobs = None, force: Force = False,
 ) -> None:
     """Simulate the paper's experiment (rig, specimens, pads and participants) and write a study folder.
 

@@ -11,22 +11,10 @@ from pathlib import Path
 import typer
 
 from .. import defaults
-from ._common import DEFAULT_DPI, Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
+from ._common import Dpi, FigureFormat, Jobs, check_figure_format, number_option, progress, run_inputs, stage
 from ._studies import STUDY_METAVAR, builtin_study, checked_scale, echo_scale, is_builtin, resolve_study
 
 ORDER = 5
-DEFAULT_SEED = defaults.SEED  # re-exported for one release
-_MOVED = ("which_model_line", "unseen_lines")  # to roughsense.report.answer
-
-
-def __getattr__(name: str):
-    """The console's lines moved to the report package; re-exported for one release (imported on first use, so
-    ``--help`` stays light)."""
-    if name in _MOVED:
-        from ..report import answer
-
-        return getattr(answer, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def register(app: typer.Typer) -> None:
@@ -55,7 +43,7 @@ def register(app: typer.Typer) -> None:
             help="Specimen-level shufflings per model for the permutation control "
             f"(0: skip it; at least 199 for p-values to 0.005; at most {defaults.MAX_PERMUTATIONS})."),
         figure_format: FigureFormat = "png",
-        dpi: Dpi = DEFAULT_DPI,
+        dpi: Dpi = defaults.DPI,
     ) -> None:
         """Reproduce the paper's analysis on a study folder and write a report.
 

@@ -17,20 +17,24 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from ..analysis.dataset import spectrum_columns
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
 from ..io.protocol import assign_nominal_forces, nominal_force_label
-from ..io.sensor_settings import CENTER_CROP_PX, SensorSettings
+from ..io.sensor_settings import SensorSettings
 from ..io.study import Study
 from ..paper import REFERENCE_SPECIMEN
-from ..sensor.spectrum import SpatialSpectrum, resolve_roi
+from ..sensor.line import resolve_roi
+from ..sensor.spectrum import SpatialSpectrum
+from ..sim.config import SimulationConfig, ridge_periods
+from ..sim.frames import render_trial
 from ..sim.manifest import trial_manifest
 from ..sim.optics import Camera
-from ..sim.simulate import SimulationConfig, plan_trials, render_trial, ridge_periods
+from ..sim.plan import plan_trials
 from .allocator import relax_frozen_malloc_thresholds
 from .cell_panel import panel_ratings
-from .sweep import MODEL_KEY, Cell
+from .sweep_cells import MODEL_KEY, Cell
 
 RESULT_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "n_components", "rmse", "ovl", "ovl_predictive", "cv_rmse",
                   "rmse_sd", "ovl_sd", "n_specimens"]
@@ -40,7 +44,7 @@ SPECIMEN_COLUMNS = ["cell", "seed", "pad", "condition", "cv", "specimen", "shape
 
 def sensor_roi(width_px: int, height_px: int):
     """The paper's centre crop where the frame holds it, else the largest centred crop of that shape that fits."""
-    crop_w, crop_h = CENTER_CROP_PX
+    crop_w, crop_h = defaults.CENTER_CROP_PX
     if width_px >= crop_w and height_px >= crop_h:
         return "center"
     w, h = min(crop_w, width_px), min(crop_h, height_px)

@@ -7,14 +7,15 @@ from __future__ import annotations
 
 import pandas as pd
 
+from .. import defaults
 from ..io.ratings_file import validate_ratings
 from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, REFERENCE_SPECIMEN
 from ..sim.panel import PANEL_SPAWN_KEY, simulate_panel
 from ..sim.specimens import Specimen
 
 
-def panel_ratings(specimens: list[Specimen], seed: int, *, ratings_from: str = "paper", participants: int = PAPER_PARTICIPANTS,
-                  sessions: int = PAPER_SESSIONS) -> pd.DataFrame:
+def panel_ratings(specimens: list[Specimen], seed: int, *, ratings_from: str = defaults.RATINGS_FROM,
+                  participants: int = PAPER_PARTICIPANTS, sessions: int = PAPER_SESSIONS) -> pd.DataFrame:
     """ratings.csv rows of the simulated panel for these specimens, drawn from ``seed``, checked as a file's are."""
     panel = simulate_panel(list(specimens), seed, spawn_key=PANEL_SPAWN_KEY, participants=participants,
                            sessions=sessions, reference=REFERENCE_SPECIMEN, ratings_from=ratings_from)

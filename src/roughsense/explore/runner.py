@@ -38,7 +38,8 @@ from .._util.workers import usable_cores
 from ..errors import ConfigError, RoughsenseWarning
 from .cell import run_cell
 from .store import ResultStore
-from .sweep import Cell, Sweep
+from .sweep import Sweep
+from .sweep_cells import Cell
 
 CONNECT_TIMEOUT_S = 5
 #: How long a scheduler address has to complete a client's connection: a Dask scheduler does in milliseconds.
@@ -241,13 +242,12 @@ def _failure(cell: Cell, error: str) -> dict:
 
 def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, n_jobs: int | None = None,
               scheduler: str | None = None, force: bool = False,
-              progress: Callable | None = None, task: Callable = run_cell, workers: int | None = None) -> SweepOutcome:
+              progress: Callable | None = None, task: Callable = run_cell) -> SweepOutcome:
     """Compute every unfinished cell of ``sweep`` into ``out``; ``progress(iterable, total=, description=)`` may
     wrap the stream of finished cells (the CLI's bar). Failing cells are recorded, never raised. ``task`` computes
     one cell (an importable function; tests replace it). ``n_jobs`` is ``--jobs``: local worker processes, or batch
-    jobs with a job queue; ``workers`` is its old name, accepted for one release."""
+    jobs with a job queue."""
     started = time.perf_counter()
-    n_jobs = _renamed_workers(n_jobs, workers)
     check_options(n_jobs, scheduler)
     store = ResultStore(out, sweep, force=force)  # refuses a wrong folder before any cluster starts
     done = store.finished()  # the files already there: another sweep's are never its cells, so prepare() can wait
@@ -269,18 +269,6 @@ def run_sweep(sweep: Sweep, out: str | os.PathLike[str], *, n_jobs: int | None =
             shutil.rmtree(scratch, ignore_errors=True)
     outcome.seconds = time.perf_counter() - started
     return outcome
-
-
-def _renamed_workers(n_jobs: int | None, workers: int | None) -> int | None:
-    """``run_sweep(workers=)``, the old name of ``n_jobs`` (one name with the CLI's ``--jobs``): still read, with a
-    FutureWarning, for one release."""
-    if workers is None:
-        return n_jobs
-    if n_jobs is not None:
-        raise ConfigError("give n_jobs or workers (its old name), not both")
-    warnings.warn("run_sweep(workers=) is now n_jobs= (the CLI's --jobs); workers= goes in the next release",
-                  FutureWarning, stacklevel=3)
-    return workers
 
 
 def _temporary_directory(scratch: Path | None):

@@ -31,7 +31,8 @@ from .._util import atomic
 from .._util.checks import short_repr, shown
 from ..errors import PASS_FORCE, OutputExistsError, RoughsenseWarning
 from .cell import RESULT_COLUMNS, SPECIMEN_COLUMNS, result_keys
-from .sweep import COLUMN_KINDS, MODEL_KEY, Cell, Sweep
+from .sweep import COLUMN_KINDS, Sweep
+from .sweep_cells import MODEL_KEY, Cell
 
 SWEEP_COPY = "sweep.toml"
 RESULTS_DIR = "results"

@@ -20,7 +20,8 @@ from ..analysis.metrics import mean_interval
 from ..model.registry import names
 from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 from .paired import MIN_SEEDS, Paired, judge, level, null_rmse, paired, too_few
-from .sweep import COLUMN_KINDS, FINGERPRINT_ONLY, MODEL_KEY, PAPER_DESIGN
+from .sweep import COLUMN_KINDS, DEFAULTS
+from .sweep_cells import FINGERPRINT_ONLY, MODEL_KEY
 
 DESIGN = list(COLUMN_KINDS)
 METRICS = ("rmse", "ovl")
@@ -281,7 +282,7 @@ def _fingerprint_question(results: pd.DataFrame, anchor: dict | None, cv: str) -
     has = (results["pad"] == SMOOTH_PAD).any() and (results["fingerprint_period_mm"] == 0.5).any()
     if not has or anchor is None:
         return uncovered
-    ridge = anchor["ridge_height_mm"] if anchor["pad"] == FINGERPRINT_PAD else PAPER_DESIGN["ridge_height_mm"]
+    ridge = anchor["ridge_height_mm"] if anchor["pad"] == FINGERPRINT_PAD else DEFAULTS["ridge_height_mm"]
     nan = math.nan
     designs = [("smooth", _with(anchor, pad=SMOOTH_PAD, fingerprint_period_mm=nan, ridge_height_mm=nan)),
                ("fingerprint, 1.0 mm", _with(anchor, pad=FINGERPRINT_PAD, fingerprint_period_mm=1.0, ridge_height_mm=ridge)),

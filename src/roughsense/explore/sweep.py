@@ -31,15 +31,12 @@ from ..paper import (
     REFERENCE_SPECIMEN,
     SMOOTH_PAD,
 )
-from ..sensor.settings import SPECTRUM_DEFAULTS
 from ..sim.limits import pad_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
 from ..sim.pads import PAD_NAMES, YOUNG_PA
 from ..sim.panel import RATINGS_FROM
 from ..sim.specimens import parse_specimen
-from .sweep_cells import (  # noqa: F401 (the grid's cells, re-exported: the sweep's readers import them here)
-    FINGERPRINT_ONLY,
-    MAX_CELL_FRAMES,
+from .sweep_cells import (
     MAX_CELLS,
     MODEL_KEY,
     PAPER_ONLY,
@@ -53,7 +50,7 @@ from .sweep_cells import (  # noqa: F401 (the grid's cells, re-exported: the swe
     forces_label,
 )
 
-MIN_FIELD_MM = 1.0 / SPECTRUM_DEFAULTS.f_min_per_mm  # a shorter line cannot resolve the spectrum's lowest frequency
+MIN_FIELD_MM = 1.0 / defaults.F_MIN_PER_MM  # a shorter line cannot resolve the spectrum's lowest frequency
 #: A sweep file is a few kB of settings and lists; a megabyte is no sweep anyone wrote by hand.
 MAX_SWEEP_BYTES = 1_000_000
 #: Longest sweep name: it titles the report page.
@@ -66,18 +63,15 @@ CELL_SECONDS_PER_FRAME = 6.7 / 420
 #: ... and so does one of fewer cells whose estimate exceeds that of CONFIRM_CELLS paper-sized cells (420 frames each):
 #: a cell may render up to MAX_CELL_FRAMES, so 999 cells can be 50 times the hours of 1000.
 CONFIRM_CORE_HOURS = CONFIRM_CELLS * 420 * CELL_SECONDS_PER_FRAME / 3600
-PAPER_DESIGN = {  # the paper's rig, the baseline the questions are asked against
-    "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
-    "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": round(WIDTH_PX / defaults.PX_PER_MM, 3), "forces_n": "1,2,3",
-}
 #: Design parameters: every one may be a single value in [sweep] or a list of values in [axes].
 DESIGN_KEYS = ("pad", "fingerprint_period_mm", "ridge_height_mm", "pad_modulus_mpa", "field_length_mm", "forces_n",
                "specimens", "repetitions", "ratings_from")
 SETTING_KEYS = ("name", "seeds", "max_components", "participants", "sessions", "image_size_px", "cv")
+#: A design parameter the sweep file does not set: the paper's rig, each value read from its home.
 DEFAULTS = {
     "pad": SMOOTH_PAD, "fingerprint_period_mm": defaults.FINGERPRINT_PERIOD_MM, "ridge_height_mm": defaults.RIDGE_HEIGHT_MM,
     "pad_modulus_mpa": YOUNG_PA / 1e6, "field_length_mm": None, "forces_n": PAPER_FORCES_N,
-    "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": "paper",
+    "specimens": "paper", "repetitions": PAPER_REPETITIONS, "ratings_from": defaults.RATINGS_FROM,
 }
 #: Column type of each design parameter in the results (strings for lists, NaN where a value does not apply).
 COLUMN_KINDS = {"pad": "str", "fingerprint_period_mm": "float", "ridge_height_mm": "float",

@@ -27,7 +27,8 @@ from .summary import (
     side_by_side,
     with_null,
 )
-from .sweep import MODEL_KEY, Sweep
+from .sweep import Sweep
+from .sweep_cells import MODEL_KEY
 
 SUMMARY_CSV = "summary.csv"
 

@@ -27,8 +27,8 @@ GRAY_WEIGHTS_RGB = (0.298936021293775, 0.587043074451121, 0.114020904255103)
 
 #: Largest image read, in pixels (width x height): a header claiming more is refused before decoding, so a
 #: small file that inflates to gigabytes (a "decompression bomb") cannot exhaust memory. 100 Mpx is above
-#: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it.
-DEFAULT_MAX_PIXELS = defaults.MAX_PIXELS
+#: every camera a bench uses (the paper's is 2 Mpx); ``[sensor] max_pixels`` in study.toml changes it. Its home is
+#: :data:`roughsense.defaults.MAX_PIXELS`.
 #: The highest pixel limit a study or option may set: OpenCV's decoders refuse images above 2**30 pixels anyway,
 #: so a larger limit (``max_pixels = 1e300``) would only promise what no read can keep.
 MAX_PIXELS_LIMIT = 2**30
@@ -90,7 +90,7 @@ def max_file_bytes(max_pixels: int) -> int:
     return 8 * int(max_pixels) + (16 << 20)
 
 
-def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+def read_bytes(path: str | os.PathLike[str], *, max_pixels: int = defaults.MAX_PIXELS) -> np.ndarray:
     """The file's bytes, with the usual failures turned into one InputError naming the file."""
     path = Path(path)
     try:
@@ -252,7 +252,7 @@ def decode_png_top_rows(data: np.ndarray, stop_row: int) -> np.ndarray | None:
     return pixels[:, :, :3] if pixels.ndim == 3 else pixels
 
 
-def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+def read_image(path: str | os.PathLike[str], *, max_pixels: int = defaults.MAX_PIXELS) -> np.ndarray:
     """Decode an image file to (H, W) gray or (H, W, 3) RGB in its own dtype (uint8, uint16 or float).
 
     The RGB array is a reversed-channel view of OpenCV's BGR buffer: no copy of the full frame.
@@ -261,7 +261,7 @@ def read_image(path: str | os.PathLike[str], *, max_pixels: int = DEFAULT_MAX_PI
 
 
 def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,
-           max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+           max_pixels: int = defaults.MAX_PIXELS) -> np.ndarray:
     """Decode a whole encoded image with OpenCV (any format, 8 or 16 bit), after :func:`check_pixels`.
 
     The pixels as the sensor stored them: an EXIF orientation is ignored (OpenCV applies a JPEG's, not a PNG's), so
@@ -282,7 +282,7 @@ def decode(data: np.ndarray, path: str | os.PathLike[str] | None = None, *,
     return image
 
 
-def as_image(image, *, name: str | None = None, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+def as_image(image, *, name: str | None = None, max_pixels: int = defaults.MAX_PIXELS) -> np.ndarray:
     """Accept a path or an array and return a decoded (H, W) or (H, W, 3) array; arrays are checked, not copied."""
     if isinstance(image, (str, os.PathLike)):
         return read_image(image, max_pixels=max_pixels)

@@ -9,8 +9,8 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import InputError
+from .csv_read import csv_line
 from .problems import Problems, flag
-from .tables import csv_line
 
 #: Longest name (see :func:`check_name`): file names built from two names and a suffix stay far below the
 #: 255-byte limit of common file systems.

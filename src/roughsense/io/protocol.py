@@ -10,13 +10,9 @@ import pandas as pd
 
 from .._util.checks import Integer, Real, check, short_repr
 from ..errors import ConfigError, InputError
-from ..paper import PAPER_FORCES_N
+from .csv_read import csv_line
 from .numbers import BOUNDS
 from .problems import Problems, flag
-from .tables import csv_line
-
-DEFAULT_FORCES_N = PAPER_FORCES_N
-
 
 #: Largest force accepted anywhere (manifest readings, protocol forces, --forces-n): stated in :data:`.numbers.BOUNDS`.
 #: A fingertip presses with a few newtons (the paper: 1-3 N); 100 N on a 50 x 10 mm specimen is 0.2 MPa.

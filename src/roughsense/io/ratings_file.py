@@ -16,10 +16,10 @@ import pandas as pd
 
 from ..errors import InputError
 from ..paper import REFERENCE_SPECIMEN
+from .csv_read import MAX_CSV_BYTES, csv_line, missing_columns, read_table, read_text, refuse_unknown
 from .names import check_name_column
 from .numbers import NumberError, parse_number
 from .problems import Problems, flag
-from .tables import MAX_CSV_BYTES, csv_line, missing_columns, read_table, read_text, refuse_unknown
 
 RATING_COLUMNS = ("participant", "session", "specimen", "rating")
 KEY_COLUMNS = ("participant", "session", "specimen")

@@ -5,7 +5,6 @@ Part of the folder contract (not of ``sensor/``), so the rig can check its frame
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -13,20 +12,13 @@ import numpy as np
 
 from .. import defaults
 from .._util.checks import POSITIVE, check, is_number
-from ..errors import PASS_FORCE, ConfigError
-from .images import DEFAULT_MAX_PIXELS, MAX_PIXELS_LIMIT
+from ..errors import ConfigError
+from .images import MAX_PIXELS_LIMIT
 from .numbers import NumberError, parse_number
 
-DEFAULT_PX_PER_MM = defaults.PX_PER_MM  # the paper's camera: 349 px/cm (section 2.1)
-#: Where the contact band is when a study does not say: the paper's centred crop (:data:`CENTER_CROP_PX`).
-DEFAULT_ROI = defaults.ROI
-
-
-#: What roi="center" means: a 1900 x 150 px (width, height) crop centred on the frame -- the paper's crop of
-#: its 1920 x 1080 camera. Part of the study contract, so the rig can check frames without the sensor code.
-CENTER_CROP_PX = defaults.CENTER_CROP_PX
-
-
+#: A study that does not say takes the paper's camera scale (349 px/cm, section 2.1) and roi="center":
+#: ``defaults.CENTER_CROP_PX`` (width, height) centred on the frame, the paper's crop of its 1920 x 1080 camera.
+#: Part of the study contract, so the rig can check frames without the sensor code.
 Roi = str | tuple[int, int, int, int]
 
 
@@ -34,9 +26,9 @@ Roi = str | tuple[int, int, int, int]
 class SensorSettings:
     """How images of this study are turned into lines: camera scale and where the contact band is."""
 
-    px_per_mm: float = DEFAULT_PX_PER_MM
-    roi: Roi = DEFAULT_ROI
-    max_pixels: int = DEFAULT_MAX_PIXELS
+    px_per_mm: float = defaults.PX_PER_MM
+    roi: Roi = defaults.ROI
+    max_pixels: int = defaults.MAX_PIXELS
 
     def __post_init__(self) -> None:
         check(self.px_per_mm, POSITIVE, name="px_per_mm", must="a positive number")
@@ -50,7 +42,7 @@ class SensorSettings:
 
 def check_max_pixels(value: object, *, option: str = "max_pixels") -> int:
     """A pixel limit: a whole number of pixels from 1 to :data:`~.images.MAX_PIXELS_LIMIT` (default
-    :data:`DEFAULT_MAX_PIXELS`)."""
+    :data:`roughsense.defaults.MAX_PIXELS`)."""
     if not (is_number(value) and math.isfinite(value) and value == int(value) and 1 <= value <= MAX_PIXELS_LIMIT):
         raise ConfigError(f"{option} must be a whole number of pixels from 1 to {MAX_PIXELS_LIMIT} (OpenCV decodes "
                           f"no larger image), got {value!r}")
@@ -100,12 +92,12 @@ def _roi_text(value: object) -> str:
 def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     """Why a ``width_px`` x ``height_px`` frame cannot yield this ROI's crop, or None if it can.
 
-    The one size rule: :func:`roughsense.sensor.spectrum.resolve_roi` refuses a crop with it, and a source
+    The one size rule: :func:`roughsense.sensor.line.resolve_roi` refuses a crop with it, and a source
     checks its frames with it before recording a session the analysis would refuse.
     """
     roi = parse_roi(roi)
     if roi == "center":
-        crop_w, crop_h = CENTER_CROP_PX
+        crop_w, crop_h = defaults.CENTER_CROP_PX
         if width_px < crop_w or height_px < crop_h:
             return f"smaller than the {crop_w}x{crop_h} px centre crop of roi 'center'"
         return None
@@ -117,50 +109,3 @@ def roi_misfit(roi: Roi, width_px: int, height_px: int) -> str | None:
     if x + w > width_px or y + h > height_px:
         return f"ROI {x},{y},{w},{h} reaches outside it"
     return None
-
-
-def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = False) -> float | None:
-    """Set ``[sensor] px_per_mm`` in a study.toml, keeping every other line, comment and layout (tomlkit), written
-    atomically; ``note`` becomes the value's comment (what was measured, and how precisely).
-
-    The file keeps its permissions (a 0600 study.toml stays 0600) and its UTF-8 byte-order mark where it has one:
-    ``check`` and every reader accept it (``csv_read.read_text``), and the one value changed is the only byte a user
-    should find changed. A scale already stated and different is the user's: replaced only with ``force``. Returns
-    the value replaced (None where there was none).
-    """
-    import codecs
-    import stat
-    from pathlib import Path
-
-    import tomlkit
-
-    from .._util.atomic import atomic_open
-    from .._util.files import open_regular
-    from ..errors import InputError
-    from .study_config import MAX_CONFIG_BYTES
-
-    path = Path(toml_path)
-    raw, mode = b"", None
-    try:
-        if path.exists():
-            with os.fdopen(open_regular(path), "rb") as handle:
-                raw, mode = handle.read(MAX_CONFIG_BYTES + 1), stat.S_IMODE(os.fstat(handle.fileno()).st_mode)
-        bom = codecs.BOM_UTF8 if raw.startswith(codecs.BOM_UTF8) else b""
-        document = tomlkit.parse(raw[len(bom):].decode("utf-8"))
-    except (OSError, UnicodeDecodeError, tomlkit.exceptions.ParseError) as exc:
-        raise InputError(f"cannot read it to write px_per_mm ({exc})", path=path) from None
-    sensor = document.get("sensor")
-    if sensor is None:
-        sensor = tomlkit.table()
-        document["sensor"] = sensor
-    old = sensor.get("px_per_mm")
-    previous = float(old) if is_number(old) else None
-    if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
-        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); {PASS_FORCE} to replace it with "
-                          f"the measured {px_per_mm:.5g}")
-    item = tomlkit.item(float(round(px_per_mm, 4)))
-    item.comment(note)
-    sensor["px_per_mm"] = item
-    with atomic_open(path, "wb", file_mode=mode) as handle:
-        handle.write(bom + tomlkit.dumps(document).encode("utf-8"))
-    return previous

@@ -27,21 +27,14 @@ import pandas as pd
 from .._util.checks import short_repr
 from .._util.files import open_regular
 from ..errors import InputError, RoughsenseWarning
-from ..paper import REFERENCE_SPECIMEN
+from ..paper import PAPER_FORCES_N, REFERENCE_SPECIMEN
 from .csv_read import csv_line, read_table, refuse_unknown
 from .names import check_name, check_name_column
 from .problems import Problems, attempt, flag, report, same_but_case
-from .protocol import DEFAULT_FORCES_N, MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
+from .protocol import MAX_FORCE_N, MAX_REPETITION, assign_nominal_forces, parse_forces
 from .ratings_file import read_ratings_table
 from .sensor_settings import SensorSettings
-from .study_config import CONFIG_KEYS as CONFIG_KEYS  # re-exported for one release
-from .study_config import MAX_CONFIG_BYTES as MAX_CONFIG_BYTES  # re-exported for one release
-from .study_config import MAX_RIDGE_PERIOD_MM as MAX_RIDGE_PERIOD_MM  # re-exported for one release
-from .study_config import MIN_RIDGE_PERIOD_MM as MIN_RIDGE_PERIOD_MM  # re-exported for one release
-from .study_config import NO_SCALE as NO_SCALE  # re-exported for one release
-from .study_config import PAD_KEYS as PAD_KEYS  # re-exported for one release
 from .study_config import pad_ridge_periods, read_config, sensor_from_config
-from .study_config import shadowed_key as shadowed_key  # re-exported for one release
 
 #: The files and folder of the study folder contract.
 STUDY_TOML = "study.toml"
@@ -273,7 +266,7 @@ def _read_settings(root: Path, problems: Problems | None) -> dict:
     attempt(problems, check_simulation_complete, root, config)
     ridges = attempt(problems, pad_ridge_periods, config, toml_path)  # before any CSV is read
     sensor = attempt(problems, sensor_from_config, config, toml_path, strict=problems is not None)
-    forces_n = attempt(problems, parse_forces, config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)),
+    forces_n = attempt(problems, parse_forces, config.get("protocol", {}).get("forces_n", list(PAPER_FORCES_N)),
                        path=toml_path)
     study_cfg = config.get("study", {})
     synthetic = study_cfg.get("synthetic")

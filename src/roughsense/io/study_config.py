@@ -11,9 +11,9 @@ import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
-from .._util.checks import short_repr
+from .._util.checks import is_number, short_repr
 from ..defaults import MAX_PIXELS, PX_PER_MM, ROI
-from ..errors import ConfigError, InputError, RoughsenseWarning
+from ..errors import PASS_FORCE, ConfigError, InputError, RoughsenseWarning
 from .csv_read import read_text
 from .names import check_name
 from .numbers import BOUNDS, toml_spelling_problem
@@ -162,3 +162,48 @@ def pad_ridge_periods(config: Mapping, path: Path) -> dict[str, float]:
             except ConfigError as exc:
                 raise InputError(exc.message, path=path) from None
     return periods
+
+
+def write_px_per_mm(toml_path, px_per_mm: float, *, note: str, force: bool = False) -> float | None:
+    """Set ``[sensor] px_per_mm`` in a study.toml, keeping every other line, comment and layout (tomlkit), written
+    atomically; ``note`` becomes the value's comment (what was measured, and how precisely).
+
+    The file keeps its permissions (a 0600 study.toml stays 0600) and its UTF-8 byte-order mark where it has one:
+    ``check`` and every reader accept it (``csv_read.read_text``), and the one value changed is the only byte a user
+    should find changed. A scale already stated and different is the user's: replaced only with ``force``. Returns
+    the value replaced (None where there was none).
+    """
+    import codecs
+    import stat
+    from pathlib import Path
+
+    import tomlkit
+
+    from .._util.atomic import atomic_open
+    from .._util.files import open_regular
+
+    path = Path(toml_path)
+    raw, mode = b"", None
+    try:
+        if path.exists():
+            with os.fdopen(open_regular(path), "rb") as handle:
+                raw, mode = handle.read(MAX_CONFIG_BYTES + 1), stat.S_IMODE(os.fstat(handle.fileno()).st_mode)
+        bom = codecs.BOM_UTF8 if raw.startswith(codecs.BOM_UTF8) else b""
+        document = tomlkit.parse(raw[len(bom):].decode("utf-8"))
+    except (OSError, UnicodeDecodeError, tomlkit.exceptions.ParseError) as exc:
+        raise InputError(f"cannot read it to write px_per_mm ({exc})", path=path) from None
+    sensor = document.get("sensor")
+    if sensor is None:
+        sensor = tomlkit.table()
+        document["sensor"] = sensor
+    old = sensor.get("px_per_mm")
+    previous = float(old) if is_number(old) else None
+    if old is not None and not force and (previous is None or abs(previous - px_per_mm) > 1e-12 * px_per_mm):
+        raise ConfigError(f"{path}: [sensor] px_per_mm is already {old!s} (yours); {PASS_FORCE} to replace it with "
+                          f"the measured {px_per_mm:.5g}")
+    item = tomlkit.item(float(round(px_per_mm, 4)))
+    item.comment(note)
+    sensor["px_per_mm"] = item
+    with atomic_open(path, "wb", file_mode=mode) as handle:
+        handle.write(bom + tomlkit.dumps(document).encode("utf-8"))
+    return previous

@@ -17,12 +17,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from .._util import atomic
 from .._util.files import open_regular, read_regular
 from ..errors import PASS_FORCE, InputError, OutputExistsError
-from ..paper import REFERENCE_SPECIMEN
-from .images import DEFAULT_MAX_PIXELS
-from .protocol import DEFAULT_FORCES_N
+from ..paper import PAPER_FORCES_N, REFERENCE_SPECIMEN
 from .sensor_settings import SensorSettings
 from .study import (
     COMPLETE_MARKER,
@@ -34,7 +33,7 @@ from .study import (
     SPECIMENS_CSV,
     STUDY_TOML,
 )
-from .tables import dump_toml
+from .toml_write import dump_toml
 
 SIMULATED, CAPTURED = "simulated", "captured"
 CAPTURE_TIME_COLUMN = "timestamp"  # the rig's manifest column: the moment each real frame was taken
@@ -150,7 +149,7 @@ class StudyWriter:
         name: str,
         reference_specimen: str = REFERENCE_SPECIMEN,
         sensor: SensorSettings = SensorSettings(),
-        forces_n: Sequence[float] = DEFAULT_FORCES_N,
+        forces_n: Sequence[float] = PAPER_FORCES_N,
         extra: Mapping[str, Mapping[str, object]] | None = None,
     ) -> Path:
         """Write ``study.toml``.
@@ -177,7 +176,7 @@ class StudyWriter:
         tables: dict[str, Mapping[str, object]] = {
             "study": {"name": name, "reference_specimen": reference_specimen},
             "sensor": {"px_per_mm": float(sensor.px_per_mm), "roi": roi,
-                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != DEFAULT_MAX_PIXELS else {})},
+                       **({"max_pixels": sensor.max_pixels} if sensor.max_pixels != defaults.MAX_PIXELS else {})},
             "protocol": {"forces_n": [float(f) for f in forces_n]},
         }
         tables.update(extra or {})

@@ -10,8 +10,8 @@ import numpy as np
 
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
+from ..sensor.grid import grid_step
 from ..sensor.shape import harmonic_ratio
-from ..sensor.spectrum import grid_step
 from .huber_batch import HUBER_EPSILON, huber_irls
 from .press_spread import deviations
 

@@ -15,7 +15,7 @@ import numpy as np
 from .._util.checks import Real, shown
 from ..errors import ModelFileError
 from ..io.numbers import BOUNDS
-from ..sensor.spectrum import grid_step
+from ..sensor.grid import grid_step
 from . import schema
 from .peak_search import AGREEMENT_BINS, check_grid
 from .press_spread import MAD_PER_SD, N_SPREAD, PressScatter

@@ -113,8 +113,8 @@ def groups_from_study(loaded: FittedModel, study, specimens: Sequence[str] = ())
     """
     import pandas as pd
 
+    from ..io.csv_read import csv_line
     from ..io.study import MANIFEST_CSV
-    from ..io.tables import csv_line
 
     manifest_path = study.root / MANIFEST_CSV
     manifest = study.manifest.reset_index(drop=True)

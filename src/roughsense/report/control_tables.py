@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from .. import defaults
 from .. import paper as published
 from ..model.registry import PAPER_MODEL
 from ..paper import COMBINED
@@ -149,7 +150,8 @@ def controls_report_table(controls: pd.DataFrame) -> dict:
                     "whole CV, the choice of the number of components included, is rerun; p = "
                     "(1 + shufflings at least as good) / (1 + shufflings). A LOO model that does no better on shuffled "
                     "targets is recognising specimens, not reading roughness. With n shufflings the smallest attainable p is "
-                    "1/(n + 1), so p < 0.05 needs at least 20 (the default is 199). The peak law faces the same test with "
+                    f"1/(n + 1), so p < 0.05 needs at least 20 (the default is {defaults.PERMUTATIONS}). The peak law faces "
+                    "the same test with "
                     "the same shufflings (it chooses nothing from the targets, so its fit on each fold is all that is "
                     "rerun)."),
         "columns": ["Model", "Pad", "Condition", "CV", "CV RMSE", "Training mean RMSE", "Shuffled: median RMSE",

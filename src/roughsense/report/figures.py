@@ -21,9 +21,6 @@ from ..paper import COMBINED
 SHAPE_ORDER = ("rectangular", "circular", "sinusoidal", "random", "other")
 
 
-#: The formats a report's figures can be written in, and the resolution of their raster parts (dots per inch).
-FIGURE_FORMATS = defaults.FIGURE_FORMATS
-DEFAULT_DPI = defaults.DPI
 #: Each format's timestamp and tool entries left out, so a rerun gives the same bytes.
 _NO_STAMP = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None},
              "pdf": {"CreationDate": None, "Creator": None, "Producer": None}}
@@ -51,7 +48,7 @@ def figure_dpi(figure, dpi: int) -> float:
     return fits
 
 
-def figure_bytes(figure, figure_format: str = "png", *, dpi: int = DEFAULT_DPI, close: bool = True) -> bytes:
+def figure_bytes(figure, figure_format: str = "png", *, dpi: int = defaults.DPI, close: bool = True) -> bytes:
     """Render a figure as PNG, SVG or PDF bytes (no timestamps: reruns give the same bytes), closing it unless told;
     within :data:`MAX_FIGURE_PIXELS`, so memory and time are bounded for every ``dpi`` accepted.
 

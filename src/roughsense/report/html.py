@@ -24,7 +24,7 @@ from typing import NamedTuple
 import jinja2
 import pandas as pd
 
-from .. import __version__, paper
+from .. import __version__, defaults, paper
 from .._util import atomic, interrupt
 from .._util.text import spreadsheet_safe
 from .._util.workers import process_pool, results_in_order, stop_pool
@@ -65,7 +65,7 @@ class FigureStyle:
     """
 
     figure_format: str = "png"
-    dpi: int = figures.DEFAULT_DPI
+    dpi: int = defaults.DPI
 
 
 def report_owned(rel: Path) -> bool:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import pandas as pd
 
 from ..errors import ConfigError, InputError
-from ..io.tables import csv_line
+from ..io.csv_read import csv_line
 from ..paper import REFERENCE_SPECIMEN
 
 _HTML_SHEET = """<!DOCTYPE html>

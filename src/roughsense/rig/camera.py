@@ -22,9 +22,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .. import defaults
 from .._util.files import kind_of, open_regular
 from ..errors import ConfigError, InputError, RoughsenseWarning
-from ..io.images import DEFAULT_MAX_PIXELS, header_size
+from ..io.images import header_size
 
 #: Frames dropped before a capture on a live device: V4L2 queues 4 buffers by default, plus the one in flight.
 DEVICE_DISCARD = 5
@@ -88,7 +89,7 @@ def _describe(spec: str | int) -> tuple[str | int, bool]:
 class FrameSource:
     """One open video source. Use as a context manager; frames are (H, W, 3) uint8 RGB."""
 
-    def __init__(self, spec: str | int, *, discard: int | None = None, max_pixels: int = DEFAULT_MAX_PIXELS) -> None:
+    def __init__(self, spec: str | int, *, discard: int | None = None, max_pixels: int = defaults.MAX_PIXELS) -> None:
         target, self.is_device = _describe(spec)
         self.name = str(spec)
         self.max_pixels = int(max_pixels)
@@ -265,7 +266,7 @@ def _to_rgb(frame: np.ndarray) -> np.ndarray:
 
 
 def open_source(spec: str | int | os.PathLike[str], *, discard: int | None = None,
-                max_pixels: int = DEFAULT_MAX_PIXELS) -> FrameSource:
+                max_pixels: int = defaults.MAX_PIXELS) -> FrameSource:
     """Open ``spec``: "0" (camera index), "/dev/video2", "rtsp://...", "run.avi" or "frames/img_%04d.png"."""
     return FrameSource(os.fspath(spec) if isinstance(spec, os.PathLike) else spec, discard=discard,
                        max_pixels=max_pixels)

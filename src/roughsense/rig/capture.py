@@ -23,12 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from .._util.checks import POSITIVE, check
 from .._util.lock import OutputLock, lock_path, output_lock
 from ..errors import ConfigError, InputError, OutputExistsError
+from ..io.csv_read import csv_line, read_table
 from ..io.names import NAME_RULE, check_name, is_safe_name
-from ..io.protocol import DEFAULT_FORCES_N, check_force, check_repetitions, nominal_force_label, parse_forces
-from ..io.sensor_settings import DEFAULT_PX_PER_MM, DEFAULT_ROI, SensorSettings, parse_roi, roi_misfit
+from ..io.protocol import check_force, check_repetitions, nominal_force_label, parse_forces
+from ..io.sensor_settings import SensorSettings, parse_roi, roi_misfit
 from ..io.study import (
     IMAGES_DIR,
     MANIFEST_CSV,
@@ -40,8 +42,8 @@ from ..io.study import (
     read_manifest,
     sensor_from_config,
 )
-from ..io.tables import csv_line, read_table
 from ..io.writer import CAPTURED, StudyWriter, refuse_simulated
+from ..paper import PAPER_FORCES_N
 from .camera import FrameSource
 from .scale import ForceInput
 
@@ -109,14 +111,14 @@ def _inspect(root: Path, forces_n, px_per_mm, roi) -> _Folder:
         if root.is_dir() and not _is_blank(root):
             raise OutputExistsError("folder is not empty and has no study.toml; capture into a new folder or a study folder",
                                     path=root)
-        forces = tuple(float(f) for f in (forces_n or DEFAULT_FORCES_N))
-        sensor = SensorSettings(px_per_mm=DEFAULT_PX_PER_MM if px_per_mm is None else px_per_mm,
-                                   roi=DEFAULT_ROI if roi is None else roi)
+        forces = tuple(float(f) for f in (forces_n or PAPER_FORCES_N))
+        sensor = SensorSettings(px_per_mm=defaults.PX_PER_MM if px_per_mm is None else px_per_mm,
+                                   roi=defaults.ROI if roi is None else roi)
         _check_forces(forces)
         return _Folder(root, True, forces, sensor, pd.DataFrame(columns=RIG_COLUMNS), None)
 
     config = read_config(toml_path)
-    stored_forces = parse_forces(config.get("protocol", {}).get("forces_n", list(DEFAULT_FORCES_N)), path=toml_path)
+    stored_forces = parse_forces(config.get("protocol", {}).get("forces_n", list(PAPER_FORCES_N)), path=toml_path)
     sensor = sensor_from_config(config, toml_path)
     if forces_n is not None and tuple(sorted(map(float, forces_n))) != tuple(sorted(stored_forces)):
         raise ConfigError(

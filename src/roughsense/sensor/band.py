@@ -29,8 +29,9 @@ COARSEST_FACTOR = 2.0
 #: Zero-padding of the scan: a period to a quarter bin, refined by a parabola through the log amplitudes (the
 #: verdict needs it to a few %; the scale check refines its own to 1e-4).
 BAND_ZOOM = 4
-#: Half-width (mm^-1) around the pad's ridge frequency and its odd harmonics left out: the peak law's own exclusion
-#: (model/peak_law/law.py ``DEFAULT_EXCLUSION_PER_MM``; the same reasoning, written here as the sensor's).
+#: Half-width (mm^-1) around the pad's ridge frequency and its odd harmonics left out: the Hann main lobe of a 54 mm
+#: line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands. The contact's
+#: shape (:mod:`.shape`) and the peak law's search leave out the same.
 RIDGE_EXCLUSION_PER_MM = 0.1
 RIDGE_HARMONICS = (1, 3, 5, 7)
 #: How many times stronger than the band's own strongest peak the outside peak must be for the press to lie outside.

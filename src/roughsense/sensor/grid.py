@@ -2,7 +2,7 @@
 
 A gray line becomes a spectrum here: remove its mean, taper it, take the amplitude of its DFT at each grid frequency
 and normalise to unit area over mm^-1. The settings' constraints live here too, for the grid and the single-image
-plan (:mod:`.line`) both check against them. :mod:`.spectrum` re-exports the public names.
+plan (:mod:`.line`) both check against them.
 """
 from __future__ import annotations
 
@@ -10,9 +10,10 @@ from functools import lru_cache
 
 import numpy as np
 
+from .. import defaults
 from .._util.checks import POSITIVE, Described, Integer, Options, check_params
 from ..errors import ConfigError, InputError
-from .settings import MAX_N_FREQS, SPECTRUM_DEFAULTS, WINDOWS
+from .settings import MAX_N_FREQS, WINDOWS
 
 _FREQUENCY = Described(POSITIVE, "a positive number (mm^-1)")
 #: The settings and what each must be (scikit-learn's ``_parameter_constraints``, in roughsense's vocabulary); the
@@ -28,9 +29,9 @@ SETTINGS = {
 
 
 def frequency_grid(
-    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
+    f_min_per_mm: float = defaults.F_MIN_PER_MM,
+    f_max_per_mm: float = defaults.F_MAX_PER_MM,
+    n_freqs: int = defaults.N_FREQS,
 ) -> np.ndarray:
     """Evenly spaced spatial frequencies in mm^-1, both ends included (the paper: 45 over 0.1-1.0).
 
@@ -91,7 +92,7 @@ def _dft_basis(width_px: int, px_per_mm: float, freqs: tuple[float, ...], window
     return basis
 
 
-def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = SPECTRUM_DEFAULTS.window) -> np.ndarray:
+def line_amplitude(line, *, px_per_mm: float, freq_per_mm, window: str = defaults.WINDOW) -> np.ndarray:
     """Amplitude spectrum of one gray-level line at the given frequencies, before normalisation.
 
     The mean is removed first, so brightness offsets and the DC leakage into the band vanish.

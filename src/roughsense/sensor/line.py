@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import defaults
 from .._util.checks import check_params
 from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
@@ -18,7 +19,6 @@ from ..io.images import as_image, check_pixels, decode, decode_png_top_rows, png
 from ..io.sensor_settings import Roi, check_max_pixels, parse_roi, roi_misfit
 from .descriptors import press_descriptors, press_strips
 from .grid import SETTINGS, _normalise, frequency_grid, line_amplitude
-from .settings import SPECTRUM_DEFAULTS
 
 #: ``auto`` looks at every 2nd row and every 4th column: the band is ~150 rows tall and its texture spans
 #: many pixels, so 1/8 of the frame locates it to a row while costing a few % of decoding.
@@ -81,8 +81,8 @@ def extract_line(pixels: np.ndarray, box: tuple[int, int, int, int], rows: int, 
     return line
 
 
-def scale_misfit(px_per_mm: float, roi: Roi, *, f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-                 f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm) -> str | None:
+def scale_misfit(px_per_mm: float, roi: Roi, *, f_min_per_mm: float = defaults.F_MIN_PER_MM,
+                 f_max_per_mm: float = defaults.F_MAX_PER_MM) -> str | None:
     """Why a camera scale cannot measure the band with this crop (None if it can): f_max at or above the Nyquist
     frequency, or a line (the crop's width; at most the centre crop's for 'auto') shorter than 1/f_min. What
     ``roughsense check`` calls an implausible scale; ``_Plan`` refuses the first and every image the second."""
@@ -196,11 +196,11 @@ def spatial_spectrum(
     *,
     px_per_mm: float = PX_PER_MM,
     roi: Roi = ROI,
-    rows: int = SPECTRUM_DEFAULTS.rows,
-    f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-    f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-    n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
-    window: str = SPECTRUM_DEFAULTS.window,
+    rows: int = defaults.ROWS,
+    f_min_per_mm: float = defaults.F_MIN_PER_MM,
+    f_max_per_mm: float = defaults.F_MAX_PER_MM,
+    n_freqs: int = defaults.N_FREQS,
+    window: str = defaults.WINDOW,
 ) -> np.ndarray:
     """Normalised amplitude spectrum (n_freqs,) of one contact image (path or array) on the frequency grid.
 

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .spectrum import grid_step
+from .band import RIDGE_EXCLUSION_PER_MM
+from .grid import grid_step
 
 
 def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
@@ -50,7 +51,7 @@ def lobe_height(log_spectra, freq_per_mm, near_per_mm) -> np.ndarray:
 
 
 def readable(freq_per_mm, at_per_mm, pad_ridge_period_mm: float | None = None,
-             exclusion_per_mm: float = 0.1) -> np.ndarray:
+             exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM) -> np.ndarray:
     """Whether each frequency lies in the band (one grid step of slack: a peak is read to about half a step, and
     its second harmonic doubles that, so a 2 mm grating's may read just past 1.0 mm^-1 and still sits on the last
     bin) and farther than
@@ -66,7 +67,7 @@ def readable(freq_per_mm, at_per_mm, pad_ridge_period_mm: float | None = None,
 
 
 def harmonic_ratio(log_spectra, freq_per_mm, fundamental_per_mm, pad_ridge_period_mm: float | None = None,
-                   exclusion_per_mm: float = 0.1) -> np.ndarray:
+                   exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM) -> np.ndarray:
     """log A(2 f0) - log A(f0) of each row (``log_spectra`` (n, K) on the grid, ``fundamental_per_mm`` (n,));
     NaN where 2 f0 cannot be read (outside the band, or on the pad's ridges, :func:`readable`)."""
     f0 = np.asarray(fundamental_per_mm, dtype=np.float64)

@@ -5,7 +5,7 @@ remove the line mean -> Hann window -> amplitude of the DFT evaluated exactly at
 of spatial frequencies (mm^-1) -> normalise to unit trapezoid area over mm^-1.
 
 The image-to-line steps and the one-image function are :mod:`.line`'s, the grid and the DFT :mod:`.grid`'s; this
-module is the sensor's public face and re-exports them. Decoding is the floor, and
+module is the transformer over many images. Decoding is the floor, and
 :meth:`SpatialSpectrum.iter_transform` overlaps it over threads (:func:`roughsense._util.workers.thread_map`) while
 holding only a handful of images in memory. The choices the paper leaves open are explained in docs/sensor.md.
 """
@@ -18,26 +18,16 @@ from collections.abc import Iterable, Iterator, Sequence
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from .. import defaults
 from .._util.checks import POSITIVE_INT, AnyOf, Described, Integer, check
 from .._util.workers import thread_map, usable_cores
 from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
 from ..io.images import GRAY_WEIGHTS_RGB, as_image
 from ..io.sensor_settings import Roi
-from .grid import frequency_grid, line_amplitude
-from .grid import grid_step as grid_step  # the sensor's public face: peak_law, applicability and shape import it here
-from .line import _Plan, extract_line, resolve_roi, spatial_spectrum
-from .line import scale_misfit as scale_misfit  # the sensor's public face: roughsense check imports it here
-from .settings import SPECTRUM_DEFAULTS
+from .line import _Plan, extract_line, resolve_roi
 
-__all__ = [
-    "SpatialSpectrum",
-    "combine_forces",
-    "frequency_grid",
-    "line_amplitude",
-    "resolve_roi",
-    "spatial_spectrum",
-]
+__all__ = ["SpatialSpectrum", "combine_forces"]
 
 FEATURE_VERSION = 1
 N_JOBS = Described(AnyOf(POSITIVE_INT, Integer(-1, -1)), "a positive whole number or -1")
@@ -69,7 +59,7 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
     Parameters
     ----------
     px_per_mm, roi, rows, f_min_per_mm, f_max_per_mm, n_freqs, window
-        As :func:`spatial_spectrum`.
+        As :func:`.line.spatial_spectrum`.
     n_jobs : int
         Threads decoding images (``-1``: every core).
     max_pixels : int
@@ -92,12 +82,12 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         self,
         px_per_mm: float = PX_PER_MM,
         roi: Roi = ROI,
-        rows: int = SPECTRUM_DEFAULTS.rows,
-        f_min_per_mm: float = SPECTRUM_DEFAULTS.f_min_per_mm,
-        f_max_per_mm: float = SPECTRUM_DEFAULTS.f_max_per_mm,
-        n_freqs: int = SPECTRUM_DEFAULTS.n_freqs,
+        rows: int = defaults.ROWS,
+        f_min_per_mm: float = defaults.F_MIN_PER_MM,
+        f_max_per_mm: float = defaults.F_MAX_PER_MM,
+        n_freqs: int = defaults.N_FREQS,
         n_jobs: int = 1,
-        window: str = SPECTRUM_DEFAULTS.window,
+        window: str = defaults.WINDOW,
         max_pixels: int = MAX_PIXELS,
     ) -> None:
         self.max_pixels = max_pixels

@@ -11,10 +11,16 @@ from typing import TYPE_CHECKING
 __all__ = ["SimulationConfig", "SimulationRun", "simulate_study"]
 
 if TYPE_CHECKING:
-    from .simulate import SimulationConfig, SimulationRun, simulate_study
+    from .config import SimulationConfig
+    from .simulate import SimulationRun, simulate_study
 
 
 def __getattr__(name: str):
+    """Each name from the module that defines it, imported by name (code fingerprints follow these imports)."""
+    if name == "SimulationConfig":
+        from .config import SimulationConfig
+
+        return SimulationConfig
     if name in __all__:
         from . import simulate
 

@@ -8,16 +8,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 
+from .. import defaults
 from .._util.checks import POSITIVE, SEED, Described, Integer, check_params
 from ..errors import ConfigError
-from ..io.protocol import check_force, check_repetitions
+from ..io.protocol import check_force, check_repetitions, nominal_force_label
 from ..paper import PAPER_FORCES_N, PAPER_PARTICIPANTS, PAPER_REPETITIONS, PAPER_SESSIONS, PAPER_SPECIMENS
 from .bench import BenchNoise
 from .limits import pad_problem, panel_problem, specimen_problem
 from .optics import Camera
-from .pads import DEFAULT_FINGERPRINT_PERIOD_MM, DEFAULT_RIDGE_HEIGHT_MM, PAD_NAMES, Pad, make_pad
+from .pads import PAD_NAMES, Pad, make_pad
 from .panel import check_ratings_from
-from .plan import check_nominal_force_labels
 from .specimens import Specimen, parse_specimen
 
 _MM = Described(POSITIVE, "a positive number of mm")
@@ -34,6 +34,25 @@ OPTION_NAMES = {"fingerprint_period_mm": "--fingerprint-period-mm", "ridge_heigh
                 "seed": "--seed"}
 
 
+def force_key(force_n: float) -> int:
+    """A force's part of the seed keys (micronewtons)."""
+    return int(round(force_n * 1e6))
+
+
+def check_nominal_force_labels(forces_n: Sequence[float]) -> None:
+    """Two forces that share an image name or a seed key would overwrite each other's images (or draws)."""
+    for what, label in (("image name", nominal_force_label), ("seed key", force_key)):
+        seen: dict[object, float] = {}
+        for f in forces_n:
+            if label(f) in seen:
+                other = seen[label(f)]
+                if other == f:
+                    raise ConfigError(f"--forces-n: {f:g} N is listed twice")
+                raise ConfigError(f"--forces-n: {other!r} N and {f!r} N are too close to tell apart (both give the "
+                                  f"{what} {label(f)!r}); give forces that differ in their first six significant digits")
+            seen[label(f)] = f
+
+
 @dataclass(frozen=True)
 class SimulationConfig:
     """Everything that defines a simulated study. Defaults are the paper's full study (840 images)."""
@@ -42,13 +61,13 @@ class SimulationConfig:
     specimens: tuple[str, ...] = PAPER_SPECIMENS
     forces_n: tuple[float, ...] = PAPER_FORCES_N
     repetitions: int = PAPER_REPETITIONS
-    seed: int = 0
-    fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM
-    ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM
+    seed: int = defaults.SEED
+    fingerprint_period_mm: float = defaults.FINGERPRINT_PERIOD_MM
+    ridge_height_mm: float = defaults.RIDGE_HEIGHT_MM
     participants: int = PAPER_PARTICIPANTS
     sessions: int = PAPER_SESSIONS
     name: str = "simulated"
-    ratings_from: str = "paper"  # "paper": the paper's values for its presets, the finger model otherwise; "physics"
+    ratings_from: str = defaults.RATINGS_FROM  # "paper" (presets: the paper's values, else the finger); "physics"
     camera: Camera = field(default_factory=Camera)
     bench: BenchNoise = field(default_factory=BenchNoise)
 

@@ -14,8 +14,8 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.special import log_ndtr, ndtr, ndtri
 
+from .. import defaults
 from ..errors import ConfigError
-from ..io.sensor_settings import DEFAULT_PX_PER_MM
 
 WIDTH_PX = 1920
 HEIGHT_PX = 1080
@@ -31,8 +31,8 @@ class Camera:
     # Rows kept per stored frame, centred on the sensor (0: all): the band (247 px) plus 3 SD of its placement on
     # each side. A camera's sensor window (AOI) would write the same frame; the paper's centred 1900 x 150 crop of
     # it is the crop of the full frame (docs/simulator.md, "Frames on disk").
-    stored_height_px: int = 320
-    px_per_mm: float = DEFAULT_PX_PER_MM
+    stored_height_px: int = defaults.STORED_HEIGHT_PX
+    px_per_mm: float = defaults.PX_PER_MM
     contact_width_mm: float = 10.0  # the specimen's width, seen foreshortened at 45 degrees
     band_edge_px: float = 6.0  # softness of the band's upper and lower edges
     wavelength_mm: float = 550e-6  # the light's (mid-visible) wavelength in vacuum

@@ -13,8 +13,6 @@ from ..paper import FINGERPRINT_PAD, SMOOTH_PAD
 
 YOUNG_PA = 0.17e6  # PVC plastisol, paper section 2.2
 POISSON = 0.49  # nearly incompressible rubber-like solid; not in the paper, chosen (docs/simulator.md)
-DEFAULT_FINGERPRINT_PERIOD_MM = defaults.FINGERPRINT_PERIOD_MM  # 0.5 mm ridges + 0.5 mm grooves (paper section 2.2)
-DEFAULT_RIDGE_HEIGHT_MM = defaults.RIDGE_HEIGHT_MM  # not in the paper; chosen, see docs/simulator.md
 RIDGE_EDGE_MM = 0.05  # rounding of the moulded ridge edges (Gaussian sigma); a printed mould has no sharp corners
 PAD_NAMES = (SMOOTH_PAD, FINGERPRINT_PAD)
 
@@ -77,8 +75,8 @@ class Pad:
                 "young_pa": self.young_pa, "poisson": self.poisson}
 
 
-def make_pad(name: str, *, fingerprint_period_mm: float = DEFAULT_FINGERPRINT_PERIOD_MM,
-             ridge_height_mm: float = DEFAULT_RIDGE_HEIGHT_MM) -> Pad:
+def make_pad(name: str, *, fingerprint_period_mm: float = defaults.FINGERPRINT_PERIOD_MM,
+             ridge_height_mm: float = defaults.RIDGE_HEIGHT_MM) -> Pad:
     """``smooth`` or ``fingerprint`` (with a configurable ridge period and height)."""
     key = name.strip().lower()
     if key == SMOOTH_PAD:

@@ -21,8 +21,9 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from .._util.checks import Options, check
-from ..paper import REFERENCE_SPECIMEN, perceived_roughness
+from ..paper import PAPER_PARTICIPANTS, PAPER_SESSIONS, REFERENCE_SPECIMEN, perceived_roughness
 from . import finger
 from .specimens import Specimen
 
@@ -59,7 +60,7 @@ def check_ratings_from(ratings_from: str) -> str:
     return check(ratings_from, Options(RATINGS_FROM), name="--ratings-from", must=f"one of {', '.join(RATINGS_FROM)}")
 
 
-def percept(specimen: Specimen, *, ratings_from: str = "paper", sessions: int = 3) -> Percept:
+def percept(specimen: Specimen, *, ratings_from: str = defaults.RATINGS_FROM, sessions: int = PAPER_SESSIONS) -> Percept:
     """Expected aggregated rating and its spread across participants for one specimen.
 
     ``ratings_from="paper"``: the paper's value for its rated presets, the finger model for anything else;
@@ -136,9 +137,10 @@ def draw_people(seed: int, spawn_key: tuple[int, ...], participants: int) -> tup
     return psych.scale_sd * z[:, 0], np.exp(psych.exponent_sd * z[:, 1] - 0.5 * psych.exponent_sd**2)
 
 
-def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = 10, sessions: int = 3,
+def simulate_panel(specimens: list[Specimen], seed: int, *, participants: int = PAPER_PARTICIPANTS,
+                   sessions: int = PAPER_SESSIONS,
                    reference: str = REFERENCE_SPECIMEN, spawn_key: tuple[int, ...] = (),
-                   ratings_from: str = "paper") -> pd.DataFrame:
+                   ratings_from: str = defaults.RATINGS_FROM) -> pd.DataFrame:
     """ratings.csv rows: every participant rates every specimen but the reference in each session.
 
     ``ratings_from`` chooses the source per specimen as :func:`percept` does. Each specimen's draws come from its

@@ -9,7 +9,6 @@ from __future__ import annotations
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,13 +16,11 @@ from ..errors import ConfigError
 from ..io.names import check_name
 from ..io.protocol import nominal_force_label
 from .bench import Exposure, Mount, draw_exposure, draw_mount
+from .config import SimulationConfig, force_key
 from .optics import Camera
 from .pads import Pad
 from .specimens import Specimen
 from .trial_contact import ridges_in_domain
-
-if TYPE_CHECKING:
-    from .config import SimulationConfig
 
 
 @dataclass(frozen=True)
@@ -44,25 +41,6 @@ class Trial:
 
 def _key(text: str) -> int:
     return zlib.crc32(text.encode("utf-8"))
-
-
-def force_key(force_n: float) -> int:
-    """A force's part of the seed keys (micronewtons)."""
-    return int(round(force_n * 1e6))
-
-
-def check_nominal_force_labels(forces_n: Sequence[float]) -> None:
-    """Two forces that share an image name or a seed key would overwrite each other's images (or draws)."""
-    for what, label in (("image name", nominal_force_label), ("seed key", force_key)):
-        seen: dict[object, float] = {}
-        for f in forces_n:
-            if label(f) in seen:
-                other = seen[label(f)]
-                if other == f:
-                    raise ConfigError(f"--forces-n: {f:g} N is listed twice")
-                raise ConfigError(f"--forces-n: {other!r} N and {f!r} N are too close to tell apart (both give the "
-                                  f"{what} {label(f)!r}); give forces that differ in their first six significant digits")
-            seen[label(f)] = f
 
 
 def check_unique_images(trials: Sequence[Trial]) -> None:

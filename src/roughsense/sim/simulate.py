@@ -2,7 +2,7 @@
 
 The run checks every option (:mod:`.config`), plans the trials and their seeds (:mod:`.plan`), refuses a folder it
 may not replace (:mod:`.overwrite`), renders and writes the frames in worker processes (:mod:`.frames`, :mod:`.png`)
-and swaps the finished folder in. The names callers import from here are re-exported from those modules.
+and swaps the finished folder in.
 """
 from __future__ import annotations
 
@@ -22,19 +22,14 @@ from ..io.sensor_settings import SensorSettings
 from ..io.study import COMPLETE_MARKER
 from ..io.writer import StudyWriter
 from ..paper import REFERENCE_SPECIMEN
-from .config import SimulationConfig, ridge_periods, with_image_size
-from .frames import render_trial, trial_line
+from .config import SimulationConfig, ridge_periods
 from .manifest import trial_manifest
-from .overwrite import check_overwritable, is_complete_simulation, is_simulated_study, simulation_owned
+from .overwrite import check_overwritable, simulation_owned
 from .panel import PANEL_SPAWN_KEY, percept, simulate_panel
-from .plan import Trial, check_unique_images, force_key, mount_groups, plan_trials
-from .png import png_params, write_mount
+from .plan import check_unique_images, mount_groups, plan_trials
+from .png import write_mount
 
-__all__ = [
-    "COMPLETE_MARKER", "SimulationConfig", "SimulationRun", "Trial", "check_overwritable", "force_key",
-    "is_complete_simulation", "is_simulated_study", "plan_trials", "png_params", "render_trial", "ridge_periods",
-    "simulate_study", "simulation_owned", "trial_line", "with_image_size",
-]
+__all__ = ["SimulationRun", "simulate_study"]
 
 
 def simulate_study(out: str | os.PathLike[str], config: SimulationConfig | None = None, *,

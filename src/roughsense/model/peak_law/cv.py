@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...sensor.spectrum import grid_step
+from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON, distinct_masks, row_classes
 from ..peak_search import (
     AMPLITUDE,

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..._util.checks import POSITIVE_INT, Constraint, Real, shown
 from ...errors import ModelFileError
-from ...sensor.spectrum import grid_step
+from ...sensor.grid import grid_step
 from .. import schema
 from ..loaded import ModelFileInfo
 from ..peak_search import FEATURE_NAMES, HARMONIC, search_bins

@@ -43,7 +43,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ...sensor.spectrum import grid_step
+from ... import defaults
+from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON
 from ..loaded import FromModelFile
 from ..peak_search import (
@@ -58,7 +59,7 @@ from ..registry import PEAK_LAW as NAME  # the family's name, beside its class
 from .domain import _check_positive, predict_law
 
 #: The paper's band when a caller gives no grid: n evenly spaced frequencies over 0.1-1.0 mm^-1.
-_DEFAULT_BAND_PER_MM = (0.1, 1.0)
+_DEFAULT_BAND_PER_MM = (defaults.F_MIN_PER_MM, defaults.F_MAX_PER_MM)
 
 
 class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):

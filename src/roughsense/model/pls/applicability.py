@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...sensor.spectrum import grid_step
+from ...sensor.grid import grid_step
 from ..peak_search import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakReadout, peak_readout
 from ..press_spread import PressScatter
 from ..readout_domain import READOUT_SETTINGS, ReadoutFit, domain_reasons, fit_readout, readout_grid
