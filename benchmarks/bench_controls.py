@@ -94,6 +94,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="fresh study runs per setting (median)")
     parser.add_argument("--sklearn-permutations", type=int, default=2)
     args = parser.parse_args()
+    from roughsense import defaults
     from roughsense.analysis import controls
     from roughsense.analysis.family_fits import family_fit
     from roughsense.model.pls.family import permuted_cv_rmse
@@ -105,14 +106,14 @@ def main() -> None:
     with_controls, without = [], []
     for _ in range(args.repeats):
         without.append(run_study(scratch / "off", 0))
-        with_controls.append(run_study(scratch / "on", controls.DEFAULT_PERMUTATIONS))
+        with_controls.append(run_study(scratch / "on", defaults.PERMUTATIONS))
     off, on = (statistics.median(w for w, _ in without), statistics.median(w for w, _ in with_controls))
     off_cpu, on_cpu = (statistics.median(c for _, c in without), statistics.median(c for _, c in with_controls))
     print(f"warm study, no controls:            {off:6.1f} s wall, {off_cpu:6.1f} s CPU (median of {args.repeats})")
     print(f"warm study, 199 shufflings x 16:    {on:6.1f} s wall, {on_cpu:6.1f} s CPU")
     print(f"overhead of the controls:           {on - off:6.1f} s wall, {on_cpu - off_cpu:6.1f} s CPU (bar: 30 s wall)")
 
-    B = controls.DEFAULT_PERMUTATIONS
+    B = defaults.PERMUTATIONS
     per_model = {}
     for pad, condition, X, y, meta, perceived in study_matrices():
         specimens = meta["specimen"].astype(str).to_numpy()

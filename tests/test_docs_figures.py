@@ -83,11 +83,10 @@ def test_the_readme_quotes_the_predictive_ovl_of_the_papers_own_predictions():
 
 def test_the_readme_quotes_the_defaults_and_the_recorded_size():
     from roughsense import defaults
-    from roughsense.analysis.controls import DEFAULT_PERMUTATIONS
 
     readme = _prose(REPO / "README.md")
     (shufflings,) = _quoted(readme, r"(\d+) seeded shufflings by default", "README.md")
-    assert int(shufflings) == DEFAULT_PERMUTATIONS
+    assert int(shufflings) == defaults.PERMUTATIONS
     (pixels,) = _quoted(readme, r"max_pixels = (\d+)", "README.md")
     assert int(pixels) == defaults.MAX_PIXELS
     (gigabytes,) = _quoted(readme, r"840 images, about (\d\.\d) GB", "README.md")

@@ -11,7 +11,8 @@ SEED = 0
 MAX_COMPONENTS = 20
 #: Specimen-level shufflings of the permutation control: p-values down to 0.005.
 PERMUTATIONS = 199
-#: The most shufflings allowed (they are held in memory at once).
+#: The most shufflings allowed: their targets are held at once, one column per shuffling (10^9 of them ran out of
+#: memory after half a minute), so more is refused before any work.
 MAX_PERMUTATIONS = 10_000
 #: An image with more pixels is refused before it is decoded.
 MAX_PIXELS = 100_000_000

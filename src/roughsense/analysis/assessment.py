@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import defaults
 from ..model.family import FoldSettings
 from ..model.interval import PredictionInterval
 from ..model.jackknife_file import KEY as JACKKNIFE_KEY
@@ -82,7 +83,7 @@ class UnseenAssessment:
 
 def assess_unseen(family: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, perceived: pd.DataFrame, *,
                   pad: str, condition: str, law: dict | None, max_components: int, seed: int,
-                  n_permutations: int = _controls.DEFAULT_PERMUTATIONS) -> UnseenAssessment:
+                  n_permutations: int = defaults.PERMUTATIONS) -> UnseenAssessment:
     """Nested LOSO of ``family`` on one pad x condition, its controls and its interval (the study's arithmetic)."""
     fit = family_fit(family, X, y, meta, perceived, pad, condition, "loso", law=law, max_components=max_components)
     specimens = meta["specimen"].astype(str).to_numpy()

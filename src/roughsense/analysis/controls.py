@@ -29,11 +29,6 @@ from ..model.pls.simpls import single_threaded_blas
 from ..model.registry import engine
 from .metrics import ALPHA, specimen_table  # a model passes the permutation control when p < ALPHA
 
-#: At least 199 shufflings (p-values in steps of 1/200; the smallest is 0.005).
-DEFAULT_PERMUTATIONS = defaults.PERMUTATIONS
-#: At most this many (p-values to 1e-4): the shufflings' targets are held at once, one column per shuffling, and
-#: 10^9 of them ran out of memory after half a minute; more is refused before any work.
-MAX_PERMUTATIONS = defaults.MAX_PERMUTATIONS
 CONTROL_COLUMNS = ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p", "n_permutations",
                    "n_components", "permuted_rmse_median", "permuted_rmse_min", "beats_null",
                    "beats_permutation", "passes"]  # then analyse_study's "seed", then MODEL_COLUMN
@@ -42,9 +37,9 @@ MODEL_COLUMN = "model"
 
 
 def check_permutations(n_permutations: int) -> int:
-    """The number of shufflings, refused unless a whole number from 0 to :data:`MAX_PERMUTATIONS`."""
-    return check(n_permutations, Integer(0, MAX_PERMUTATIONS), name="permutations",
-                 must=f"a whole number from 0 to {MAX_PERMUTATIONS}")
+    """The number of shufflings, refused unless a whole number from 0 to ``defaults.MAX_PERMUTATIONS``."""
+    return check(n_permutations, Integer(0, defaults.MAX_PERMUTATIONS), name="permutations",
+                 must=f"a whole number from 0 to {defaults.MAX_PERMUTATIONS}")
 
 
 def specimen_permutations(n_specimens: int, n_permutations: int, seed: int) -> np.ndarray:

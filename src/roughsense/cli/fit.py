@@ -15,7 +15,6 @@ from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
 ORDER = 20
-_CROP_W, _CROP_H = defaults.CENTER_CROP_PX
 
 StudyDir = Annotated[str, typer.Option(
     "--study", metavar=STUDY_METAVAR,
@@ -46,8 +45,8 @@ FitSeed = Annotated[int, typer.Option(
          "residuals of 1-, 3- and 5-press surfaces, and --study builtin.")]
 FitRoi = Annotated[str | None, typer.Option(
     "--roi", show_default=False,
-    help=f"Crop where the line is read: 'center' ({_CROP_W}x{_CROP_H} px centred, as in the paper), 'auto' (the "
-         f"{_CROP_H}-row band "
+    help=f"Crop where the line is read: 'center' ({defaults.CENTER_CROP_PX[0]}x{defaults.CENTER_CROP_PX[1]} px "
+         f"centred, as in the paper), 'auto' (the {defaults.CENTER_CROP_PX[1]}-row band "
          "with the most horizontal texture) or X,Y,W,H in px. Default: the study's [sensor] roi. Stored in the "
          "model file, so predict reads its images the same way.")]
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from .._util.checks import POSITIVE, POSITIVE_INT, AnyOf, Described, check_params
 from ..errors import ConfigError, InputError
+from ..sensor.band import RIDGE_EXCLUSION_PER_MM
 from ..sensor.grid import grid_step
 from ..sensor.shape import harmonic_ratio
 from .huber_batch import HUBER_EPSILON, huber_irls
@@ -25,9 +26,6 @@ FREQUENCY, AMPLITUDE, HARMONIC = 0, 1, 2
 #: A square grating's ratio lies near -4 and a semi-cylinder's near -1 on the twin; within one shape they spread
 #: by under 0.6 (seeds 0-2), so 1 separates "one shape" from "several".
 SHAPE_SPREAD = 1.0
-#: Half-width (mm^-1) of the band around the pad's ridge frequency left out of the peak search: the Hann main lobe of
-#: a 54 mm line is +-0.037 mm^-1, widened for the bench's magnification jitter and the ridges' sidebands.
-DEFAULT_EXCLUSION_PER_MM = 0.1
 #: A press agrees with its surface's peak when its own peak lies within this many grid bins of it.
 AGREEMENT_BINS = 1.5
 #: The law's settings and what each must be (scikit-learn's ``_parameter_constraints``, in roughsense's vocabulary).
@@ -89,7 +87,7 @@ def _check_spectra(spectra: np.ndarray) -> None:
 
 
 def peak_features(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
-                  exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, surfaces=None) -> np.ndarray:
+                  exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM, surfaces=None) -> np.ndarray:
     """(n, 3) log peak frequency (mm^-1), log peak amplitude and log second-harmonic ratio (NaN where it cannot be
     read, sensor/shape.py) of each row's spectrum.
 
@@ -125,7 +123,7 @@ class PeakReadout:
 
 
 def peak_readout(spectra, freq_per_mm, *, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
-                 exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, surfaces=None) -> PeakReadout:
+                 exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM, surfaces=None) -> PeakReadout:
     """:func:`peak_features` with the clarity and agreement of each row's surface (:class:`PeakReadout`)."""
     freq = check_grid(freq_per_mm, min_bins=1)  # the estimator's default grid may be coarser than 3 bins
     n_blocks = check_settings(n_blocks=n_blocks, pad_ridge_period_mm=pad_ridge_period_mm,

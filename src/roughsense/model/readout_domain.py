@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sensor.band import RIDGE_EXCLUSION_PER_MM
 from ..sensor.shape import duty_cycle
 from .huber_batch import HUBER_EPSILON
 from .peak_search import (
     AMPLITUDE,
-    DEFAULT_EXCLUSION_PER_MM,
     FREQUENCY,
     HARMONIC,
     PeakLawInputError,
@@ -189,7 +189,7 @@ class ReadoutSettings:
     freq_per_mm: np.ndarray
     n_blocks: int = 1
     pad_ridge_period_mm: float | None = None
-    exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM
+    exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM
     epsilon: float = HUBER_EPSILON
 
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...sensor.band import RIDGE_EXCLUSION_PER_MM
 from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON, distinct_masks, row_classes
 from ..peak_search import (
     AMPLITUDE,
-    DEFAULT_EXCLUSION_PER_MM,
     PeakLawConfigError,
     PeakLawInputError,
     PeakReadout,
@@ -29,7 +29,7 @@ from ..readout_domain import LOG_MARGIN, _kept, domain_margins, domain_reasons, 
 
 
 def peak_law_cv(X, Y, *, groups=None, freq_per_mm, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
-                exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
+                exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
                 surfaces=None) -> np.ndarray:
     """Out-of-fold predictions (B, n) of the law for each target column of ``Y``, equal to refitting
     :class:`PeakPowerLaw` on every training fold (to rounding): the features are computed once and all folds and
@@ -138,7 +138,7 @@ def fold_kept_ranges(features: np.ndarray, log_targets: np.ndarray, train: np.nd
 
 
 def law_domain_flags(X, y, groups, *, freq_per_mm, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
-                   exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
+                   exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON,
                    surfaces=None) -> np.ndarray:
     """Whether each row lies outside the domain of the law fitted without its group (:func:`domain_reasons`):
     the flag a user would have seen for a surface the law never saw. Equal to refitting on every fold."""

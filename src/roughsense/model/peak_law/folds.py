@@ -11,15 +11,16 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ...sensor.band import RIDGE_EXCLUSION_PER_MM
 from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON
-from ..peak_search import DEFAULT_EXCLUSION_PER_MM, check_grid, fit_terms, held_features, peak_features
+from ..peak_search import check_grid, fit_terms, held_features, peak_features
 from ..readout_domain import domain_margins
 from .cv import fold_kept_ranges
 
 
 def law_fold_models(X, y, train: np.ndarray, *, freq_per_mm, n_blocks: int = 1,
-                    pad_ridge_period_mm: float | None = None, exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM,
+                    pad_ridge_period_mm: float | None = None, exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM,
                     epsilon: float = HUBER_EPSILON, surfaces=None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                                            np.ndarray]:
     """The law fitted on each training mask of ``train`` (F, n): coefficients (F, p + 1), the kept training range

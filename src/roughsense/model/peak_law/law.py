@@ -44,11 +44,11 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ... import defaults
+from ...sensor.band import RIDGE_EXCLUSION_PER_MM
 from ...sensor.grid import grid_step
 from ..huber_batch import HUBER_EPSILON
 from ..loaded import FromModelFile
 from ..peak_search import (
-    DEFAULT_EXCLUSION_PER_MM,
     PeakLawInputError,
     PeakReadout,
     check_settings,
@@ -115,7 +115,7 @@ class PeakPowerLaw(FromModelFile, RegressorMixin, BaseEstimator):
     family: ClassVar[str] = NAME
 
     def __init__(self, freq_per_mm=None, n_blocks: int = 1, pad_ridge_period_mm: float | None = None,
-                 exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON) -> None:
+                 exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM, epsilon: float = HUBER_EPSILON) -> None:
         self.freq_per_mm = freq_per_mm
         self.n_blocks = n_blocks
         self.pad_ridge_period_mm = pad_ridge_period_mm

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...sensor.band import RIDGE_EXCLUSION_PER_MM
 from ...sensor.grid import grid_step
-from ..peak_search import DEFAULT_EXCLUSION_PER_MM, HARMONIC, PeakReadout, peak_readout
+from ..peak_search import HARMONIC, PeakReadout, peak_readout
 from ..press_spread import PressScatter
 from ..readout_domain import READOUT_SETTINGS, ReadoutFit, domain_reasons, fit_readout, readout_grid
 from .simpls import SIMPLS
@@ -37,7 +38,7 @@ class PeakDomain:
     log_frequency_range: tuple[float, float]
     clarity_limit: float
     pad_ridge_period_mm: float | None = None
-    exclusion_per_mm: float = DEFAULT_EXCLUSION_PER_MM
+    exclusion_per_mm: float = RIDGE_EXCLUSION_PER_MM
     #: The trained surfaces' second-harmonic log ratios (the contact's shape, sensor/shape.py); unbounded where
     #: the law could not read it on every training surface.
     harmonic_range: tuple[float, float] = (-np.inf, np.inf)

@@ -63,11 +63,7 @@ def _component_limit(max_components) -> int:
                  must="a positive whole number")
 
 
-#: Largest component count cross-validated when the caller names none (fewer where the data support fewer).
-DEFAULT_MAX_COMPONENTS = defaults.MAX_COMPONENTS
-
-
-def pls_cv(X, y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
+def pls_cv(X, y, max_components: int = defaults.MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
            cap: bool = False) -> PLSCVResult:
     """Out-of-fold predictions of PLS1 (SIMPLS) with 0..max_components components, exact and batched: equal, to
     rounding, to refitting :class:`SIMPLS` on every training fold.
@@ -160,7 +156,7 @@ class PLSCVBatch:
         return np.argmin(self.rmse[:, 1:], axis=1) + 1
 
 
-def pls_cv_many(X, Y, max_components: int = DEFAULT_MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
+def pls_cv_many(X, Y, max_components: int = defaults.MAX_COMPONENTS, cv="loo", groups=None, random_state=None, *,
                 cap: bool = False) -> PLSCVBatch:
     """:func:`pls_cv` for many targets at once (the columns of Y), e.g. a permutation test's: only X'y depends on
     the target, so all share one rotation of X and run as one batch, several times faster than B calls and equal
