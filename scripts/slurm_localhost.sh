@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A one-node SLURM cluster on this machine, for tests/test_slurm.py (run by .ci/run): Debian's slurm-wlm and munge,
+# A one-node SLURM cluster on this machine, for tests/explore/test_slurm.py (run by .ci/run): Debian's slurm-wlm and munge,
 # slurmctld and slurmd on localhost, the node named by `hostname`. Root, no systemd needed.
 #
 #   scripts/slurm_localhost.sh install   apt-get install slurm-wlm and munge (if sbatch is missing)

@@ -19,21 +19,31 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "roughsense"))
 
+#: The tests folder; LONGEST_FILES are paths from the folder above it (the repository's root).
+TESTS = Path(__file__).parent
+
 #: The test files that take longest, longest first (BENCHMARKS.md, the suite). Under ``make test`` (pytest-xdist,
 #: ``--dist loadfile --no-loadscope-reorder``) a file runs whole on one worker in collection order, so a long file
 #: collected last kept one worker busy alone at the end; started first, the short files fill in around them.
-LONGEST_FILES = ("test_report.py", "test_explore.py", "test_runner.py", "test_tutorial.py",
-                 "test_peak_domain.py", "test_claims.py", "test_study_analysis.py", "test_sweep_bounds.py",
-                 "test_interrupted.py", "test_cli_study.py", "test_input_contract.py", "test_cli_model.py",
-                 "test_api_docs.py", "test_damaged_studies.py", "test_report_provenance.py", "test_workers.py", "test_locks.py",
-                 "test_jackknife_file.py", "test_scale_band.py", "test_family_life.py", "test_cli_builtin.py",
-                 "test_sim_pixels.py", "test_controls.py", "test_pls.py")
+LONGEST_FILES = ("tests/report/test_report.py", "tests/explore/test_explore.py", "tests/explore/test_runner.py",
+                 "tests/test_tutorial.py", "tests/model/peak_law/test_domain.py", "tests/analysis/test_claims.py",
+                 "tests/analysis/test_study_analysis.py", "tests/explore/test_sweep_bounds.py",
+                 "tests/cli/test_interrupted.py", "tests/cli/test_study.py", "tests/cli/test_input_contract.py",
+                 "tests/cli/test_fit.py", "tests/test_api_docs.py", "tests/cli/test_damaged_studies.py",
+                 "tests/report/test_provenance.py", "tests/_util/test_workers.py", "tests/_util/test_lock.py",
+                 "tests/model/test_jackknife_file.py", "tests/sensor/test_band.py", "tests/model/test_registry.py",
+                 "tests/cli/test_studies.py", "tests/sim/test_frames.py", "tests/analysis/test_controls.py",
+                 "tests/model/pls/test_simpls.py")
 
 
 def pytest_collection_modifyitems(items) -> None:
     """The longest files first; every file's own tests keep their order."""
     rank = {name: i for i, name in enumerate(LONGEST_FILES)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep collection order
+
+    def key(item) -> int:
+        return rank.get(item.path.relative_to(TESTS.parent).as_posix(), len(rank))
+
+    items.sort(key=key)  # stable: the rest keep collection order
 
 
 @pytest.fixture
@@ -123,7 +133,7 @@ def signals():
 @pytest.fixture(scope="session")
 def tiny_smooth(tmp_path_factory):
     """A tiny study folder (``make_study``: smooth pad, 2 repetitions), built once per run and read-only after."""
-    from .test_dataset import make_study
+    from tests.analysis.test_dataset import make_study
 
     return make_study(tmp_path_factory.mktemp("tiny") / "study", pads=("smooth",), repetitions=2)
 

@@ -102,7 +102,7 @@ def test_the_rig_page_quotes_the_recorded_live_rate():
 
 def test_the_sensor_page_quotes_the_untapered_leakage():
     """docs/sensor.md: without a window a lateral shift moves the features by up to N % of the peak, over soft-edged
-    gratings of 2-5 mm (the Hann window's < 1 % is tests/test_sensor.py's, for any shift and period)."""
+    gratings of 2-5 mm (the Hann window's < 1 % is tests/sensor/test_spectrum.py's, for any shift and period)."""
     from roughsense.sensor.line import spatial_spectrum
 
     (percent,) = _quoted(_prose(REPO / "docs" / "sensor.md"), r"by up to \*\*(\d+) % of the peak\*\*", "docs/sensor.md")

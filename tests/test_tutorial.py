@@ -20,8 +20,7 @@ import pandas as pd
 import pytest
 
 import roughsense
-
-from .forkserver import fork_server
+from tests.forkserver import fork_server
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"

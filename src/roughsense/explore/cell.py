@@ -4,7 +4,7 @@ Nothing is written. Frames are rendered only down to the row the sensor reads (b
 whole frame) and each trial's contact levels start from the last solution of the same surfaces; the spectra come from
 the sensor's own code on a frame of the camera's full size, and the analysis is :func:`analysis.study_analysis.analyse_study`
 on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
-contact solver's tolerance; tests/test_explore.py checks it). Every model family the cell asks for is fitted on the
+contact solver's tolerance; tests/explore/test_explore.py checks it). Every model family the cell asks for is fitted on the
 same spectra (one simulation), and each result row names its family in the ``model`` column.
 """
 from __future__ import annotations

@@ -143,7 +143,7 @@ def null_rmse(specimens: pd.DataFrame, reference_rows: int | None = None) -> pd.
     mount, the ``repetitions`` column, or ``reference_rows``), so its rows are rebuilt and predicted by the analysis's
     own training-mean model (analysis.controls.training_mean_predictions: LOSO leaves out the specimen, LOO the
     row). Each specimen's rows share one target and one prediction, so its RMSE is their distance; the mean over
-    specimens is on the same footing as a cell's ``rmse`` (tests/test_explore.py checks it against the analysis).
+    specimens is on the same footing as a cell's ``rmse`` (tests/explore/test_explore.py checks it against the analysis).
     """
     keys = ["cell", "pad", "condition", "cv", "model"]
     out = {}

@@ -6,7 +6,7 @@ problems of 140 rows). Held all at once, their working arrays grow with folds x 
 number of presses under leave-one-out: 250 MiB a model at 140 presses, 1 GiB at 280); advanced in chunks of a bounded
 number of cells they stay in cache-sized arrays whatever the study's size. Each problem keeps its own convergence
 test, so a chunk, like a batch, gives every problem exactly the iterations a fit of that problem alone takes, and the
-chunking changes nothing but the rounding of BLAS products (~1e-13; tests/test_peak_law.py checks a batch against
+chunking changes nothing but the rounding of BLAS products (~1e-13; tests/model/peak_law/test_law.py checks a batch against
 each problem fitted on its own).
 
 Many of those problems are one problem. Rows with the same features and the same target in every target column are

@@ -19,7 +19,7 @@ The check is fully nested: each held-out specimen t gets the jackknife+ interval
 only, each of whose residuals comes from a model fitted without t *and* s (leave-two-out), so no model that builds
 t's interval ever saw t. MAPIE's CrossConformalRegressor implements CV+ with group folds, but it takes its quantiles
 over rows (presses here) and passes fit parameters unsliced (the peak law's ``surfaces``), so it gives neither the
-specimen-level guarantee nor our estimator's folds; tests/test_jackknife_plus.py checks this module's arithmetic
+specimen-level guarantee nor our estimator's folds; tests/model/test_jackknife_plus.py checks this module's arithmetic
 against MAPIE's jackknife+ on one row per specimen, where the two coincide.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """``roughsense.predict``: perceived roughness of images with a model file, one row per trial, as ``roughsense
 predict`` writes it; :func:`run_prediction` is the same call keeping its scores, for the CLI.
 
-The chain reads top-down, each module calling only those below it (tests/test_predict.py): ``model/modelfile.py``
+The chain reads top-down, each module calling only those below it (tests/model/test_predict.py): ``model/modelfile.py``
 loads the model, ``model/trials.py`` groups what was given into trials, ``model/scoring.py`` scores them (reading,
 gating, domain, intervals) and ``model/predict_table.py`` makes the table.
 """

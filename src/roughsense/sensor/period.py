@@ -6,7 +6,7 @@ the reference specimen, a fingerprint pad's ridges) tells it: its period in pixe
 The line is mean-removed and Hann-tapered (as the spectrum's line is), its amplitude spectrum is scanned on an
 FFT zero-padded :data:`ZOOM` times, and the strongest peak in the searched range is refined by maximising the
 windowed DTFT's amplitude itself (a bounded scalar search over +-1 padded bin). The refinement has no
-interpolation bias: a pure sinusoid of many cycles reads its own frequency to 1e-4 (tests/test_scale_band.py).
+interpolation bias: a pure sinusoid of many cycles reads its own frequency to 1e-4 (tests/sensor/test_band.py).
 """
 from __future__ import annotations
 

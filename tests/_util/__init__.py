@@ -1,0 +1,1 @@
+"""Tests of roughsense._util, beside its modules' paths."""

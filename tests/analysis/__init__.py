@@ -1,0 +1,1 @@
+"""Tests of roughsense.analysis, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.cli, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.explore, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.io, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.model, beside its modules' paths."""

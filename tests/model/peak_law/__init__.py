@@ -1,0 +1,1 @@
+"""Tests of roughsense.model.peak_law, beside its modules' paths."""

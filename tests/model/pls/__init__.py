@@ -1,0 +1,1 @@
+"""Tests of roughsense.model.pls, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.report, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.rig, beside its modules' paths."""

@@ -1,0 +1,1 @@
+"""Tests of roughsense.sensor, beside its modules' paths."""

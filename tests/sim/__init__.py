@@ -1,0 +1,1 @@
+"""Tests of roughsense.sim, beside its modules' paths."""
