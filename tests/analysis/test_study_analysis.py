@@ -86,12 +86,12 @@ def test_loo_predictions_match_sklearn_refits(analysis_and_inputs):
     expected = np.empty(len(y))
     for i in range(len(y)):
         keep = np.arange(len(y)) != i
-        model = PLSRegression(n_components=fit.best_n_components, scale=False).fit(X[keep], y[keep])
+        model = PLSRegression(n_components=fit.best, scale=False).fit(X[keep], y[keep])
         expected[i] = model.predict(X[i : i + 1]).ravel()[0]
     got = fit.predictions.merge(rows[["specimen", "repetition"]].assign(expected=expected), on=["specimen", "repetition"])
     np.testing.assert_allclose(got["prediction"], got["expected"], rtol=1e-6, atol=1e-9)
     # The chosen count is the argmin of the CV curve over 1..max.
-    assert fit.best_n_components == 1 + int(np.argmin(fit.curve[1:]))
+    assert fit.best == 1 + int(np.argmin(fit.curve[1:]))
 
 
 def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inputs):
@@ -110,12 +110,12 @@ def test_loso_never_trains_or_chooses_on_the_held_out_specimen(analysis_and_inpu
             model = PLSRegression(n_components=k, scale=False).fit(Xr[~test], yr[~test])
             inner_sse[k] += np.sum((model.predict(Xr[test]).ravel() - yr[test]) ** 2)
     k_expected = 1 + int(np.argmin(inner_sse[1:]))
-    assert fit.nested_n_components["C4"] == k_expected
+    assert fit.per_specimen["C4"] == k_expected
     model = PLSRegression(n_components=k_expected, scale=False).fit(Xr, yr)
     expected = model.predict(X[held]).ravel()
     got = fit.predictions[fit.predictions.specimen == "C4"].sort_values("repetition")["prediction"].to_numpy()
     np.testing.assert_allclose(got, expected[np.argsort(rows.loc[held, "repetition"].to_numpy())], rtol=1e-6)
-    assert set(fit.nested_n_components) == set(np.unique(specimens))
+    assert set(fit.per_specimen) == set(np.unique(specimens))
 
 
 def test_per_specimen_rmse_and_ovl_follow_their_definitions(analysis_and_inputs):
@@ -256,7 +256,7 @@ def test_peak_law_loso_predictions_are_refits_on_the_other_specimens(analysis_an
     assert fit.curve[1] == pytest.approx(np.sqrt(np.mean((expected - y) ** 2)), rel=1e-9)
     # Index 0 is the training mean under the same folds: PLS's 0-component LOSO, the same number.
     assert fit.curve[0] == analysis.condition_fit("fingerprint", "combined", "loso").curve[0]
-    assert (fit.best_n_components, fit.one_se_n_components, fit.nested_n_components) == (1, 1, {})
+    assert (fit.best, fit.one_se, fit.per_specimen) == (1, 1, {})
 
 
 def test_peak_law_loo_predictions_are_refits_without_each_trial(analysis_and_inputs):

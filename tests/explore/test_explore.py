@@ -142,7 +142,7 @@ def test_cell_equals_simulate_then_study(tmp_path):
     for fit in analysis.fits:
         row = summary[(summary.condition == fit.condition) & (summary.cv == fit.cv)].iloc[0]
         assert row["rmse"] == pytest.approx(fit.table["rmse"].mean(), rel=2e-2)
-        assert row["cv_rmse"] == pytest.approx(fit.curve[fit.best_n_components], rel=2e-2)
+        assert row["cv_rmse"] == pytest.approx(fit.curve[fit.best], rel=2e-2)
     assert set(summary["condition"]) == {"1N", "2N", "3N", "combined"} and set(summary["cv"]) == {"loo", "loso"}
     assert set(summary["model"]) == set(per_specimen["model"]) == {"pls"}
     assert len(per_specimen) == 8 * 5 and per_specimen["ovl"].isna().sum() == 8  # R3 has no OVL

@@ -50,18 +50,6 @@ class FamilyFit:
     #: ``interval_check``); None for a family without cheap leave-two-out fits.
     interval_check: pd.DataFrame | None = None
 
-    @property
-    def best_n_components(self) -> int:
-        return self.best
-
-    @property
-    def one_se_n_components(self) -> int:
-        return self.one_se
-
-    @property
-    def nested_n_components(self) -> dict[str, int]:
-        return self.per_specimen
-
     def fold(self) -> FoldResult:
         """The fit's cross-validation as its family's engine returned it."""
         return FoldResult(self.predictions["prediction"].to_numpy(dtype=float), self.curve, self.best, self.one_se,

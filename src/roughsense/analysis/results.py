@@ -180,7 +180,7 @@ class CrossValidation:
             frame.insert(0, "pad", item.pad)
             frame.insert(1, "condition", item.condition)
             frame.insert(2, "cv", item.cv)
-            frame["n_components"] = [item.nested_n_components.get(str(s), item.best_n_components)
+            frame["n_components"] = [item.per_specimen.get(str(s), item.best)
                                      for s in frame["specimen"]]
             frame["model"] = item.model
             frames.append(frame)
@@ -197,8 +197,8 @@ class CrossValidation:
 
     def chosen_components(self) -> pd.DataFrame:
         return pd.DataFrame([
-            {"pad": f.pad, "condition": f.condition, "cv": f.cv, "best_n_components": f.best_n_components,
-             "one_se_n_components": f.one_se_n_components, "cv_rmse": float(f.curve[f.best_n_components]),
+            {"pad": f.pad, "condition": f.condition, "cv": f.cv, "best_n_components": f.best,
+             "one_se_n_components": f.one_se, "cv_rmse": float(f.curve[f.best]),
              "model": f.model}
             for f in self.ordered_fits()
         ])

@@ -153,9 +153,9 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
         rated = table[table["specimen"] != study.reference_specimen]
         summary.append({
             "cell": cell.id, "seed": cell.seed, "pad": fit.pad, "condition": fit.condition, "cv": fit.cv,
-            "n_components": int(fit.best_n_components),
+            "n_components": int(fit.best),
             "rmse": float(table["rmse"].mean()), "ovl": float(rated["ovl"].mean()),
-            "cv_rmse": float(fit.curve[fit.best_n_components]),
+            "cv_rmse": float(fit.curve[fit.best]),
             "rmse_sd": float(table["rmse"].std(ddof=1)) if len(table) > 1 else math.nan,
             "ovl_sd": float(rated["ovl"].std(ddof=1)) if len(rated) > 1 else math.nan,
             "n_specimens": int(len(table)),
@@ -167,7 +167,7 @@ def cell_rows(cell: Cell) -> tuple[pd.DataFrame, pd.DataFrame]:
                 "cell": cell.id, "seed": cell.seed, "pad": fit.pad, "condition": fit.condition, "cv": fit.cv,
                 "specimen": row.specimen, "shape": shapes.get(row.specimen, "other"),
                 "wavelength_mm": float(wavelengths.get(row.specimen, math.nan)),
-                "n_components": int(fit.nested_n_components.get(str(row.specimen), fit.best_n_components)),
+                "n_components": int(fit.per_specimen.get(str(row.specimen), fit.best)),
                 "gmean": row.gmean, "sd": row.sd, "pred_mean": row.pred_mean, "pred_sd": row.pred_sd,
                 "rmse": row.rmse, "ovl": row.ovl,
                 "ovl_predictive": float(row.ovl_predictive),

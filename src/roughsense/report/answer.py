@@ -154,7 +154,7 @@ def console_lines(analysis) -> list[str]:
     loo = analysis.results("loo")
     loo = loo[loo["model"].map(is_paper_model).astype(bool)]
     for (pad, condition), group in loo.groupby(["pad", "condition"], sort=False):
-        count = analysis.condition_fit(pad, condition, "loo", PAPER_MODEL).best_n_components
+        count = analysis.condition_fit(pad, condition, "loo", PAPER_MODEL).best
         lines.append(f"{pad:>12} {condition:>9}: mean RMSE {group['rmse'].mean():.3f}, mean OVL "
                      f"{group['ovl'].mean():.3f}, {counted(count, 'component')} ({PAPER_MODEL}, LOO)")
     return lines

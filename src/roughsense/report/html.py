@@ -183,7 +183,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         unsure=unseen_tables.unsure_table(analysis.unsure),
         components=paper_tables.components_table(
             paper_chosen.drop(columns="model"),
-            {(f.pad, f.condition): f.nested_n_components for f in analysis.fits
+            {(f.pad, f.condition): f.per_specimen for f in analysis.fits
              if f.cv == "loso" and is_paper_model(f.model)},
             paper_pads,
         ),
