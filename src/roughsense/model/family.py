@@ -28,25 +28,33 @@ import pandas as pd
 
 #: The keywords a family's settings pass on to the peak law's kernels, in the order they always had.
 SETTING_KEYS = ("freq_per_mm", "n_blocks", "pad_ridge_period_mm", "surfaces")
+#: The keywords that carry each row's contact measures (never passed to the peak law's kernels).
+CONTACT_KEYS = ("contact", "contact_names")
 
 
 @dataclass(frozen=True, eq=False)
 class FoldSettings:
     """What a pad x condition fixes for every family's folds: the frequency grid, how many spectra a row holds,
     the pad's ridge period (left out of a peak search) and each row's surface (its specimen: presses of one surface
-    share where its peak is read). A PLS fit needs none of it; a peak readout needs all of it."""
+    share where its peak is read). A PLS fit needs none of it; a peak readout needs all of it.
+
+    ``contact`` (n, len(``contact_names``)) holds each row's contact measures read from its images
+    (``sensor/contact_geometry.py``), force block by force block as the spectra are, each column named
+    ``MEASURE@CONDITION`` (``groove_mm@1N``); a family that reads the contact (``reads_contact``) reads them here."""
 
     freq_per_mm: np.ndarray
     n_blocks: int = 1
     pad_ridge_period_mm: float | None = None
     surfaces: np.ndarray | None = None
+    contact: np.ndarray | None = None
+    contact_names: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, settings: FoldSettings | Mapping | None) -> FoldSettings | None:
         """The settings from the keyword dict the analysis has always passed (``law_settings``), or as given."""
         if settings is None or isinstance(settings, FoldSettings):
             return settings
-        return cls(**{key: settings[key] for key in SETTING_KEYS if key in settings})
+        return cls(**{key: settings[key] for key in (*SETTING_KEYS, *CONTACT_KEYS) if key in settings})
 
     def law(self) -> dict:
         """The peak law's keywords (peak_law_cv, held_out_flags, law_fold_models ...), in their usual order."""
@@ -131,6 +139,9 @@ class FamilyEngine(Protocol):
     #: Whether a surface's presses are read together (a press alone reads differently): the model file's interval
     #: then also covers a press read without its surface.
     reads_surfaces: ClassVar[bool] = False
+    #: Whether it reads each row's contact measures (``FoldSettings.contact``; at predict time, the loaded model's
+    #: ``predict(X, surfaces=None, contact=None)``) rather than, or beside, the spectra.
+    reads_contact: ClassVar[bool] = False
 
     def cross_validate(self, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, cv: str,
                        settings: FoldSettings | None, max_components: int) -> FoldResult:
