@@ -22,6 +22,8 @@ TRIAL_KEYS = ("specimen", "pad", "repetition")
 #: columns are found by this mark, never by parsing headers: a manifest column named ``0.1`` or ``nan`` stays a
 #: manifest column. Files written for people (``features``, the report) use the bare frequency (:func:`plain_names`).
 SPECTRUM_PREFIX = "spectrum@"
+#: The mark on a contact-measure column (``contact@groove_mm``: sensor/contact_geometry.py's measures of each image).
+CONTACT_PREFIX = "contact@"
 
 
 def spectrum_columns(freq_per_mm) -> list[str]:
@@ -181,6 +183,31 @@ def _combined_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, forces: li
     from ..sensor.spectrum import combine_forces
 
     return combine_forces(blocks), meta
+
+
+def contact_columns(features: pd.DataFrame) -> list[str]:
+    """The contact-measure columns (``contact@NAME``), in order; none in a table made without them."""
+    return [c for c in features.columns if isinstance(c, str) and c.startswith(CONTACT_PREFIX)]
+
+
+def condition_contact(features: pd.DataFrame, meta: pd.DataFrame, condition: str,
+                      combined_forces: Sequence[str] | None = None) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """Each row of :func:`condition_matrix`'s ``meta``: its images' contact measures, force block by force block as
+    its spectra (``groove_mm@1N``, ...), and their names; (None, ()) where the table holds no contact measures.
+
+    The rows are found by image, so they line up with the spectra whatever order the table is in."""
+    columns = contact_columns(features)
+    if not columns:
+        return None, ()
+    by_image = features.set_index(features["image"].astype(str))[columns]
+    if condition == COMBINED:
+        forces = list(combined_forces) if combined_forces is not None else list(FORCE_CONDITIONS)
+        images = [(f, meta[f"image_{f}"]) for f in forces]
+    else:
+        images = [(condition, meta["image"])]
+    blocks = [by_image.loc[column.astype(str).to_numpy()].to_numpy(np.float64) for _, column in images]
+    names = tuple(f"{c[len(CONTACT_PREFIX):]}@{force}" for force, _ in images for c in columns)
+    return np.hstack(blocks), names
 
 
 def _force_order(label: str) -> float:

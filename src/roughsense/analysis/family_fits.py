@@ -90,15 +90,18 @@ def _judged(predictions: pd.DataFrame, perceived: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([table, predictive_ovl(table, perceived)], axis=1)
 
 
-def law_settings(X: np.ndarray, freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None, specimens=None) -> dict:
+def law_settings(X: np.ndarray, freq_per_mm: np.ndarray, pad_ridge_period_mm: float | None, specimens=None,
+                 contact: np.ndarray | None = None, contact_names: Sequence[str] = ()) -> dict:
     """The families' settings for one pad x condition (:class:`FoldSettings`, as the keyword dict peak_law_cv
-    takes): the grid, how many spectra a row holds, the pad's ridges, and the surface of each row (its specimen: a
-    specimen's presses share where its peak is, docs/peak_law.md)."""
+    takes, with each row's contact measures beside): the grid, how many spectra a row holds, the pad's ridges, the
+    surface of each row (its specimen: a specimen's presses share where its peak is, docs/peak_law.md) and its
+    contact measures (``dataset.condition_contact``)."""
     freq = np.asarray(freq_per_mm, dtype=float)
     if freq.size == 0 or X.shape[1] % freq.size:
         raise InputError(f"{X.shape[1]} features are not whole spectra of the {freq.size}-frequency grid")
     return FoldSettings(freq, X.shape[1] // freq.size, pad_ridge_period_mm,
-                        None if specimens is None else np.asarray(specimens).astype(str)).law()
+                        None if specimens is None else np.asarray(specimens).astype(str),
+                        contact, tuple(contact_names)).keywords()
 
 
 def _cross_validated(model: str, X: np.ndarray, y: np.ndarray, meta: pd.DataFrame, pad: str, condition: str, cv: str,

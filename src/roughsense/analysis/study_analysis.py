@@ -163,7 +163,8 @@ def _fit_every_condition(facts: StudyFacts, run: RunSettings, models: tuple[str,
             y = dataset.targets(meta, facts.perceived, path=study.root / RATINGS_CSV)
             specimens = meta["specimen"].astype(str).to_numpy()
             permutations = _controls.specimen_permutations(len(pd.unique(specimens)), run.n_permutations, run.seed)
-            law = law_settings(X, facts.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens)
+            contact = dataset.condition_contact(features, meta, condition, combined_forces)
+            law = law_settings(X, facts.freq_per_mm, study.pad_ridge_period_mm.get(pad), specimens, *contact)
             matrices[(pad, condition)] = (X, y, meta, specimens, permutations, law)
         X, y, meta, specimens, permutations, law = matrices[(pad, condition)]
         for fit in fit_all(models, X, y, meta, facts.perceived, pad, condition, cv, law,

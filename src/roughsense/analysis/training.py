@@ -98,8 +98,9 @@ def _family_options(name: str, given: dict) -> dict:
 
 
 def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
-                  progress: Callable | None = None) -> tuple[np.ndarray, np.ndarray, pd.DataFrame]:
-    """X, y and their trials (specimen, repetition, images) for one pad and condition; only those images are read."""
+                  progress: Callable | None = None) -> tuple[np.ndarray, np.ndarray, pd.DataFrame, tuple]:
+    """X, y, their trials (specimen, repetition, images) and their contact measures (``condition_contact``: the
+    array and its names) for one pad and condition; only those images are read."""
     manifest_path = study.root / MANIFEST_CSV
     if pad not in study.pads:
         raise InputError(f"no images of pad {pad!r} (pads in the study: {', '.join(study.pads)})", path=manifest_path)
@@ -113,7 +114,7 @@ def training_data(study: Study, pad: str, condition: str, *, n_jobs: int = 1,
     features = dataset.study_features(subset, n_jobs=n_jobs, progress=progress)
     X, meta = dataset.condition_matrix(features, pad, condition, source=manifest_path)
     y = dataset.targets(meta, dataset.perceived_roughness(study), path=study.root / RATINGS_CSV)
-    return X, y, meta
+    return X, y, meta, dataset.condition_contact(features, meta, condition)
 
 
 def training_gate(study: Study, pad: str, condition: str, *, seed: int, n_jobs: int = 1,
@@ -157,7 +158,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     study_roi = study.sensor.roi
     if roi is not None:
         study = dataclasses.replace(study, sensor=dataclasses.replace(study.sensor, roi=roi))
-    X, y, meta = training_data(study, pad, condition, n_jobs=n_jobs, progress=progress)
+    X, y, meta, (contact, contact_names) = training_data(study, pad, condition, n_jobs=n_jobs, progress=progress)
     spectrum = dataset.spectrum_for(study)
     definition = feature_definition_for(spectrum, dataset.conditions_of(condition))
     training = {
@@ -180,7 +181,7 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     training.update(training_gate(study, pad, condition, seed=seed, n_jobs=n_jobs, progress=progress))
     specimens = meta["specimen"].astype(str).to_numpy()
     settings = FoldSettings(np.asarray(spectrum.freq_per_mm_), len(definition["conditions"]),
-                            study.pad_ridge_period_mm.get(pad), specimens)
+                            study.pad_ridge_period_mm.get(pad), specimens, contact, contact_names)
     options = _family_options(name, {"rule": rule, "max_components": max_components})
     groups = meta["specimen"].to_numpy()
     try:  # the folds of ``cv``, the same for every family (the seed shuffles K folds as PLS's own CV does)
@@ -202,7 +203,7 @@ def _judged(trained: TrainedModel, X: np.ndarray, y: np.ndarray, meta: pd.DataFr
     added to its record (a design too small to judge says so)."""
     training, name = trained.training, trained.family
     pad, condition = training["pad"], training["condition"]
-    law = settings.law()
+    law = settings.keywords()
     try:
         unseen = assess_unseen(name, X, y, meta, dataset.perceived_roughness(study), pad=pad, condition=condition,
                                law=law, max_components=max_components or defaults.MAX_COMPONENTS, seed=seed)

@@ -56,6 +56,13 @@ class FoldSettings:
             return settings
         return cls(**{key: settings[key] for key in (*SETTING_KEYS, *CONTACT_KEYS) if key in settings})
 
+    def keywords(self) -> dict:
+        """Every setting as the keyword dict the analysis passes around (:meth:`of` reads it back): the peak law's,
+        then the contact measures where the rows have them."""
+        if self.contact is None:
+            return self.law()
+        return {**self.law(), "contact": self.contact, "contact_names": self.contact_names}
+
     def law(self) -> dict:
         """The peak law's keywords (peak_law_cv, held_out_flags, law_fold_models ...), in their usual order."""
         return {key: getattr(self, key) for key in SETTING_KEYS}
@@ -139,8 +146,9 @@ class FamilyEngine(Protocol):
     #: Whether a surface's presses are read together (a press alone reads differently): the model file's interval
     #: then also covers a press read without its surface.
     reads_surfaces: ClassVar[bool] = False
-    #: Whether it reads each row's contact measures (``FoldSettings.contact``; at predict time, the loaded model's
-    #: ``predict(X, surfaces=None, contact=None)``) rather than, or beside, the spectra.
+    #: Whether it reads each row's contact measures (``FoldSettings.contact``) rather than, or beside, the spectra.
+    #: Its loaded model then takes X = [spectra | contact measures]: the measures of the file's ``contact_names``
+    #: appended to each row (model/scoring.py's ``model_inputs``), so predict, intervals and domain need no keyword.
     reads_contact: ClassVar[bool] = False
 
     def cross_validate(self, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, cv: str,

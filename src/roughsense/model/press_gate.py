@@ -42,6 +42,8 @@ class TrialReadings:
     spectra: np.ndarray  # (n_kept_images, n_freqs)
     lines: list
     gated: bool
+    #: (n_kept_images, len(CONTACT_MEASURES)): each kept image's contact measures (sensor/contact_geometry.py).
+    contact: np.ndarray | None = None
 
 
 def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate: ContactGate | None,
@@ -69,7 +71,15 @@ def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate
     n_freqs = spectrum.freq_per_mm_.size
     spectra = np.vstack([r[0] for r in kept]) if kept else np.empty((0, n_freqs))
     return TrialReadings(withheld, reasons, p, angles, [orientation_reason(a) for a in angles], spectra,
-                         [r[1] for r in kept], gate is not None)
+                         [r[1] for r in kept], gate is not None, contact_measures([r[2] for r in kept]))
+
+
+def contact_measures(descriptors: list[dict]) -> np.ndarray:
+    """(n_images, len(CONTACT_MEASURES)) contact measures of each image's descriptors, in the measures' order."""
+    from ..sensor.contact_geometry import CONTACT_MEASURES
+
+    return np.array([[d[name] for name in CONTACT_MEASURES] for d in descriptors],
+                    dtype=np.float64).reshape(len(descriptors), len(CONTACT_MEASURES))
 
 
 def _mean_angle(readings) -> float:

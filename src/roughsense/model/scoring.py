@@ -81,7 +81,7 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
         kept_surfaces = None if surfaces is None else np.asarray(surfaces)[keep]
         if reference is not None:
             reference = (reference[0], np.asarray(reference[1])[keep])
-        X = spectra_to_features(loaded, read.spectra)
+        X = model_inputs(loaded, read.spectra, read.contact)
         roughness = loaded.predict(X, surfaces=kept_surfaces)
         reasons, scale = trial_reasons(loaded, spectrum, read.lines, X, kept_surfaces, reference,
                                        ridge_period_mm=ridge)
@@ -116,6 +116,23 @@ def spectra_to_features(loaded: FittedModel, spectra: np.ndarray) -> np.ndarray:
     k = len(loaded.conditions)
     spectra = np.asarray(spectra, dtype=np.float64)
     return combine_forces([spectra[i::k] for i in range(k)]) if k > 1 else spectra
+
+
+def reads_contact(loaded: FittedModel) -> bool:
+    """Whether the model's family reads each press's contact measures beside its spectra."""
+    from .registry import engine
+
+    return bool(engine(loaded.family).reads_contact)
+
+
+def model_inputs(loaded: FittedModel, spectra: np.ndarray, contact: np.ndarray | None) -> np.ndarray:
+    """The loaded model's X, one row per trial: its spectra side by side (:func:`spectra_to_features`), then, for a
+    family that reads the contact (:func:`reads_contact`), its images' contact measures in the same force order
+    (``contact_names`` of the model file: ``land_mm@1N, groove_mm@1N, ..., land_mm@3N, groove_mm@3N``)."""
+    X = spectra_to_features(loaded, spectra)
+    if not reads_contact(loaded):
+        return X
+    return np.hstack([X, spectra_to_features(loaded, contact)])
 
 
 def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
@@ -214,6 +231,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
     from .contact_gate import orientation_reason
     from .gate_file import model_gate
     from .outside import domain_reasons
+    from .press_gate import contact_measures
 
     spectrum = model_spectrum(loaded, override=override)
     gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
@@ -228,7 +246,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             p = float(gate.p_values(values[None, :])[0])
             if gate.withholds(values[None, :], p)[0]:
                 return math.nan, f"withheld: {gate.reason(values, p)}"
-        X = row[None, :]
+        X = model_inputs(loaded, row[None, :], contact_measures([described]))
         reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge)[0]),
                                orientation_reason(described["orientation_deg"])) if r]
         return float(loaded.predict(X)[0]), "; ".join(reasons)
@@ -259,9 +277,18 @@ def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, pr
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
     spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
-    stream = spectrum.iter_transform_lines(images)
+    contact = reads_contact(loaded)
+    stream = (spectrum.iter_readings(images, ridge_period_mm=model_ridge_period_mm(loaded)) if contact
+              else spectrum.iter_transform_lines(images))
     if progress is not None:
         stream = progress(stream, total=len(images), description="spectra")
-    pairs = list(stream)
-    spectra = np.vstack([p[0] for p in pairs]) if pairs else np.empty((0, spectrum.freq_per_mm_.size))
-    return spectra_to_features(loaded, spectra), [p[1] for p in pairs], spectrum
+    readings = list(stream)
+    refused = next((r for r in readings if isinstance(r, InputError)), None)
+    if refused is not None:
+        raise refused
+    spectra = np.vstack([r[0] for r in readings]) if readings else np.empty((0, spectrum.freq_per_mm_.size))
+    if contact:
+        from .press_gate import contact_measures
+
+        return model_inputs(loaded, spectra, contact_measures([r[2] for r in readings])), [r[1] for r in readings], spectrum
+    return spectra_to_features(loaded, spectra), [r[1] for r in readings], spectrum
