@@ -119,6 +119,32 @@ def test_combined_matrix_concatenates_one_trials_three_forces(features):
             np.testing.assert_array_equal(X[i, 45 * j : 45 * (j + 1)], by_image.loc[image].to_numpy(float))
 
 
+def test_contact_measures_line_up_with_the_rows_force_block_by_force_block(features):
+    table = features.sample(frac=1.0, random_state=3).reset_index(drop=True)  # the rows are found by image
+    rng = np.random.default_rng(0)
+    table["contact@land_mm"] = rng.uniform(0.5, 3.0, len(table))
+    table["contact@groove_mm"] = rng.uniform(0.5, 3.0, len(table))
+    by_image = table.set_index("image")
+    X, meta = dataset.condition_matrix(table, "fingerprint", "combined")
+    contact, names = dataset.condition_contact(table, meta, "combined")
+    assert names == tuple(f"{m}@{f}" for f in ("1N", "2N", "3N") for m in ("land_mm", "groove_mm"))
+    assert contact.shape == (len(meta), 6)
+    for i, trial in meta.iterrows():
+        for j, force in enumerate(("1N", "2N", "3N")):
+            row = by_image.loc[trial[f"image_{force}"]]
+            assert contact[i, 2 * j:2 * j + 2].tolist() == [row["contact@land_mm"], row["contact@groove_mm"]]
+    _, single = dataset.condition_matrix(table, "fingerprint", "2N")
+    contact, names = dataset.condition_contact(table, single, "2N")
+    assert names == ("land_mm@2N", "groove_mm@2N")
+    np.testing.assert_array_equal(contact[:, 1], by_image.loc[single["image"], "contact@groove_mm"].to_numpy())
+
+
+def test_a_table_without_contact_measures_gives_none(features):
+    plain = features[[c for c in features.columns if not str(c).startswith(dataset.CONTACT_PREFIX)]]
+    _, meta = dataset.condition_matrix(plain, "fingerprint", "1N")
+    assert dataset.condition_contact(plain, meta, "1N") == (None, ())
+
+
 def test_combined_refuses_an_incomplete_trial(tmp_path):
     root = make_study(tmp_path / "gap", repetitions=2, drop=("R4", "fingerprint", 2.0, 2))
     features = dataset.study_features(read_study(root))

@@ -47,9 +47,10 @@ class TrialReadings:
 
 
 def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate: ContactGate | None,
-                progress=None) -> TrialReadings:
+                progress=None, contact: bool = False) -> TrialReadings:
     """Read every image of ``images`` (trial order, ``k`` per trial) with the model's ``spectrum`` and gate its
-    trials with the model's ``gate`` (None: a file without one, every readable trial kept)."""
+    trials with the model's ``gate`` (None: a file without one, every readable trial kept); with ``contact``, keep
+    the kept images' contact measures too (a family that reads them)."""
     stream = spectrum.iter_readings(images, ridge_period_mm=ridge_period_mm)
     if progress is not None:
         stream = progress(stream, total=len(images), description="spectra")
@@ -71,7 +72,8 @@ def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate
     n_freqs = spectrum.freq_per_mm_.size
     spectra = np.vstack([r[0] for r in kept]) if kept else np.empty((0, n_freqs))
     return TrialReadings(withheld, reasons, p, angles, [orientation_reason(a) for a in angles], spectra,
-                         [r[1] for r in kept], gate is not None, contact_measures([r[2] for r in kept]))
+                         [r[1] for r in kept], gate is not None,
+                         contact_measures([r[2] for r in kept]) if contact else None)
 
 
 def contact_measures(descriptors: list[dict]) -> np.ndarray:

@@ -74,7 +74,8 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
     group_images(loaded, images)  # refuse a wrong count before any decoding
     ridge, spectrum = model_ridge_period_mm(loaded), model_spectrum(loaded, n_jobs=n_jobs, override=override)
     gate = model_gate(loaded)
-    read = read_trials(spectrum, images, len(loaded.conditions), ridge_period_mm=ridge, gate=gate, progress=progress)
+    read = read_trials(spectrum, images, len(loaded.conditions), ridge_period_mm=ridge, gate=gate, progress=progress,
+                       contact=reads_contact(loaded))
     keep = np.flatnonzero(~read.withheld)
     scores = None  # every trial withheld: nothing to score
     if keep.size:  # the trials the gate let through, scored as predict always scored a batch
@@ -234,7 +235,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
     from .press_gate import contact_measures
 
     spectrum = model_spectrum(loaded, override=override)
-    gate, ridge = model_gate(loaded), model_ridge_period_mm(loaded)
+    gate, ridge, contact = model_gate(loaded), model_ridge_period_mm(loaded), reads_contact(loaded)
 
     def score_frame(frame: np.ndarray) -> tuple[float, str]:
         [reading] = list(spectrum.iter_readings([frame], ridge_period_mm=ridge))
@@ -246,7 +247,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             p = float(gate.p_values(values[None, :])[0])
             if gate.withholds(values[None, :], p)[0]:
                 return math.nan, f"withheld: {gate.reason(values, p)}"
-        X = model_inputs(loaded, row[None, :], contact_measures([described]))
+        X = model_inputs(loaded, row[None, :], contact_measures([described]) if contact else None)
         reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge)[0]),
                                orientation_reason(described["orientation_deg"])) if r]
         return float(loaded.predict(X)[0]), "; ".join(reasons)
