@@ -185,7 +185,7 @@ def _combined_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, forces: li
     return combine_forces(blocks), meta
 
 
-def contact_columns(features: pd.DataFrame) -> list[str]:
+def measure_columns(features: pd.DataFrame) -> list[str]:
     """The contact-measure columns (``contact@NAME``), in order; none in a table made without them."""
     return [c for c in features.columns if isinstance(c, str) and c.startswith(CONTACT_PREFIX)]
 
@@ -196,7 +196,7 @@ def condition_contact(features: pd.DataFrame, meta: pd.DataFrame, condition: str
     its spectra (``groove_mm@1N``, ...), and their names; (None, ()) where the table holds no contact measures.
 
     The rows are found by image, so they line up with the spectra whatever order the table is in."""
-    columns = contact_columns(features)
+    columns = measure_columns(features)
     if not columns:
         return None, ()
     by_image = features.set_index(features["image"].astype(str))[columns]
