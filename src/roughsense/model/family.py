@@ -147,8 +147,8 @@ class FamilyEngine(Protocol):
     #: then also covers a press read without its surface.
     reads_surfaces: ClassVar[bool] = False
     #: Whether it reads each row's contact measures (``FoldSettings.contact``) rather than, or beside, the spectra.
-    #: Its loaded model then takes X = [spectra | contact measures]: the measures of the file's ``contact_names``
-    #: appended to each row (model/scoring.py's ``model_inputs``), so predict, intervals and domain need no keyword.
+    #: Its loaded model, and its jackknife+ folds, then take them as a keyword beside X: ``predict(X, surfaces=None,
+    #: contact=None)``, ``applicability(...)``, ``log_predict(...)`` (model/scoring.py's ``contact_inputs``).
     reads_contact: ClassVar[bool] = False
 
     def cross_validate(self, X: np.ndarray, y: np.ndarray, specimens: np.ndarray, cv: str,

@@ -20,14 +20,16 @@ if TYPE_CHECKING:
 PLAIN_METHOD = "jackknife (no coverage guarantee)"
 
 
-def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, surfaces=None, surface=None):
+def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, surfaces=None, surface=None,
+                    contact: dict | None = None):
     """Each trial's 90 % bounds and method and, given ``surfaces`` (and ``surface``, each trial's surface's mean),
     its surface's: ``((low, high, method), (s_low, s_high, s_method) or None)``, NaN and None without an interval.
 
     A press read alone is a surface of one press, so it gets the jackknife+ of one-press surfaces where the file
     keeps one; a press read with its surface's others gets the plain jackknife (the peak law reads it less surely
     alone: its own calibration). A surface gets the jackknife+ with the residuals of surfaces read from as many
-    presses as it (model/jackknife_file.py), else (an older file) the plain jackknife.
+    presses as it (model/jackknife_file.py), else (an older file) the plain jackknife. ``contact``: the keyword a
+    family that reads the contact takes (``scoring.contact_inputs``), passed to its folds.
     """
     from .jackknife_file import deployed_jackknife
 
@@ -35,7 +37,7 @@ def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, s
     jackknife = deployed_jackknife(loaded)  # a malformed entry is refused in one line naming the field
     bounded = jackknife is not None and jackknife.bounded
     if surfaces is None and bounded:
-        trial = jackknife.intervals(X)
+        trial = jackknife.intervals(X, **(contact or {}))
     elif plain is None:
         trial = (np.full(roughness.shape, np.nan), np.full(roughness.shape, np.nan), None)
     else:
@@ -43,7 +45,7 @@ def interval_bounds(loaded: FittedModel, X: np.ndarray, roughness: np.ndarray, s
     if surfaces is None:
         return trial, None
     if bounded:
-        return trial, jackknife.intervals(X, surfaces)
+        return trial, jackknife.intervals(X, surfaces, **(contact or {}))
     if plain is None or not math.isfinite(plain.surface_log_halfwidth):
         return trial, (np.full(surface.shape, np.nan), np.full(surface.shape, np.nan), None)
     return trial, (*plain.surface_bounds(surface), [PLAIN_METHOD] * surface.size)

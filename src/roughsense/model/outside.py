@@ -13,10 +13,10 @@ if TYPE_CHECKING:
 
 
 def trial_reasons(loaded: FittedModel, spectrum, lines: list, X: np.ndarray, surfaces, reference, *,
-                  ridge_period_mm: float | None):
+                  ridge_period_mm: float | None, contact: dict | None = None):
     """Each kept trial's ``outside`` words and the images' scale check: the domain's reasons (:func:`domain_reasons`),
     then ``scale: ...`` on every trial when the images' scale is off (:func:`images_scale_check`)."""
-    reasons = domain_reasons(loaded, spectrum, lines, X, surfaces, ridge_period_mm=ridge_period_mm)
+    reasons = domain_reasons(loaded, spectrum, lines, X, surfaces, ridge_period_mm=ridge_period_mm, contact=contact)
     scale = images_scale_check(spectrum, lines, len(loaded.conditions), ridge_period_mm, reference)
     if scale.off:
         reasons = [f"{r}; {scale.reason()}" if r else scale.reason() for r in reasons]
@@ -24,16 +24,18 @@ def trial_reasons(loaded: FittedModel, spectrum, lines: list, X: np.ndarray, sur
 
 
 def domain_reasons(loaded: FittedModel, spectrum, lines: list, X: np.ndarray, surfaces=None, *,
-                   ridge_period_mm: float | None) -> list[str]:
+                   ridge_period_mm: float | None, contact: dict | None = None) -> list[str]:
     """Why each trial lies outside the model's domain ('' where it lies inside): the band's reason first, then the
     family's own, named by the band when the structure outside it is at least as strong as the band's own peak.
-    Shared by predict's trials and live mode's frames, so a frame says what its image would say."""
+    Shared by predict's trials and live mode's frames, so a frame says what its image would say. ``contact``: the
+    keyword a family that reads the contact takes (``scoring.contact_inputs``)."""
     from ..sensor.band import NAMING_DOMINANCE
 
     k = len(loaded.conditions)
     band = trial_band_reasons(spectrum, lines, k, ridge_period_mm, surfaces)
     named = trial_band_reasons(spectrum, lines, k, ridge_period_mm, surfaces, dominance=NAMING_DOMINANCE)
-    return [b or (n if f else "") or f for b, n, f in zip(band, named, loaded.applicability(X, surfaces=surfaces))]
+    family = loaded.applicability(X, surfaces=surfaces, **(contact or {}))
+    return [b or (n if f else "") or f for b, n, f in zip(band, named, family)]
 
 
 def trial_band_reasons(spectrum, lines: list, k: int, ridge_period_mm: float | None, surfaces=None, *,

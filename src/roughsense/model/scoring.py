@@ -82,13 +82,13 @@ def score_trials(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, prog
         kept_surfaces = None if surfaces is None else np.asarray(surfaces)[keep]
         if reference is not None:
             reference = (reference[0], np.asarray(reference[1])[keep])
-        X = model_inputs(loaded, read.spectra, read.contact)
-        roughness = loaded.predict(X, surfaces=kept_surfaces)
+        X, contact = spectra_to_features(loaded, read.spectra), contact_inputs(loaded, read.contact)
+        roughness = loaded.predict(X, surfaces=kept_surfaces, **contact)
         reasons, scale = trial_reasons(loaded, spectrum, read.lines, X, kept_surfaces, reference,
-                                       ridge_period_mm=ridge)
+                                       ridge_period_mm=ridge, contact=contact)
         surface = None if kept_surfaces is None else (
             pd.Series(roughness).groupby(pd.Series(kept_surfaces)).transform("mean").to_numpy())
-        (low, high, method), of_surface = interval_bounds(loaded, X, roughness, kept_surfaces, surface)
+        (low, high, method), of_surface = interval_bounds(loaded, X, roughness, kept_surfaces, surface, contact)
         s_low, s_high, s_method = (None, None, None) if of_surface is None else of_surface
         scores = Scores(roughness, low, high, reasons, surface, s_low, s_high, scale=scale, method=method,
                         surface_method=s_method)
@@ -126,14 +126,13 @@ def reads_contact(loaded: FittedModel) -> bool:
     return bool(engine(loaded.family).reads_contact)
 
 
-def model_inputs(loaded: FittedModel, spectra: np.ndarray, contact: np.ndarray | None) -> np.ndarray:
-    """The loaded model's X, one row per trial: its spectra side by side (:func:`spectra_to_features`), then, for a
-    family that reads the contact (:func:`reads_contact`), its images' contact measures in the same force order
-    (``contact_names`` of the model file: ``land_mm@1N, groove_mm@1N, ..., land_mm@3N, groove_mm@3N``)."""
-    X = spectra_to_features(loaded, spectra)
-    if not reads_contact(loaded):
-        return X
-    return np.hstack([X, spectra_to_features(loaded, contact)])
+def contact_inputs(loaded: FittedModel, contact: np.ndarray | None) -> dict:
+    """The keyword a model of a family that reads the contact (:func:`reads_contact`) takes beside X: each trial's
+    images' contact measures side by side in its force order (the file's ``contact_names``:
+    ``land_mm@1N, groove_mm@1N, ..., groove_mm@3N``); nothing for the others, whose methods take no such keyword."""
+    if contact is None or not reads_contact(loaded):
+        return {}
+    return {"contact": spectra_to_features(loaded, contact)}
 
 
 def _with_withheld(scores: Scores | None, read, surfaces) -> Scores:
@@ -247,10 +246,12 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             p = float(gate.p_values(values[None, :])[0])
             if gate.withholds(values[None, :], p)[0]:
                 return math.nan, f"withheld: {gate.reason(values, p)}"
-        X = model_inputs(loaded, row[None, :], contact_measures([described]) if contact else None)
-        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge)[0]),
+        X = row[None, :]
+        measures = contact_inputs(loaded, contact_measures([described]) if contact else None)
+        reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge,
+                                                  contact=measures)[0]),
                                orientation_reason(described["orientation_deg"])) if r]
-        return float(loaded.predict(X)[0]), "; ".join(reasons)
+        return float(loaded.predict(X, **measures)[0]), "; ".join(reasons)
 
     return score_frame
 
@@ -258,23 +259,19 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
 def score_images(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                  override: SensorOverride | None = None) -> np.ndarray:
     """Predicted perceived roughness, one value per image (per trial of k images for a k-force model)."""
-    return loaded.predict(image_features(loaded, images, n_jobs=n_jobs, progress=progress, override=override))
-
-
-def image_features(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
-                   override: SensorOverride | None = None) -> np.ndarray:
-    """The model's inputs, one row per image (per trial of k images for a k-force model).
-
-    ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
-    (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
-    """
-    return image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)[0]
+    X, _, _, contact = image_readings(loaded, images, n_jobs=n_jobs, progress=progress, override=override)
+    return loaded.predict(X, **contact)
 
 
 def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, progress=None,
                    override: SensorOverride | None = None):
-    """:func:`image_features`, with each image's gray line and the SpatialSpectrum that read them (the band and
-    scale checks read the lines, at no second decoding)."""
+    """The model's inputs, one row per image (per trial of k images for a k-force model), with each image's gray
+    line, the SpatialSpectrum that read them (the band and scale checks read the lines, at no second decoding) and
+    the contact keyword of a family that reads the contact (:func:`contact_inputs`).
+
+    ``images`` are paths or arrays. ``progress(iterable, total=, description=)`` may wrap the image stream
+    (the CLI passes its progress display); ``override`` reads the line elsewhere or at another scale.
+    """
     images = list(images)
     group_images(loaded, images)  # refuse a wrong count before any decoding
     spectrum = model_spectrum(loaded, n_jobs=n_jobs, override=override)
@@ -288,8 +285,10 @@ def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, pr
     if refused is not None:
         raise refused
     spectra = np.vstack([r[0] for r in readings]) if readings else np.empty((0, spectrum.freq_per_mm_.size))
+    measures = None
     if contact:
         from .press_gate import contact_measures
 
-        return model_inputs(loaded, spectra, contact_measures([r[2] for r in readings])), [r[1] for r in readings], spectrum
-    return spectra_to_features(loaded, spectra), [r[1] for r in readings], spectrum
+        measures = contact_measures([r[2] for r in readings])
+    return (spectra_to_features(loaded, spectra), [r[1] for r in readings], spectrum,
+            contact_inputs(loaded, measures))
