@@ -17,6 +17,7 @@ from roughsense.analysis.results import Provenance
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.analysis.unseen import headline_condition
 from roughsense.errors import OutputExistsError
+from roughsense.model.registry import names as family_names
 from roughsense.report import write_report
 from roughsense.report.control_tables import control_text, permutation_p_text
 from roughsense.report.provenance import figure_stamp
@@ -128,7 +129,7 @@ def test_report_files_and_schemas(report_dir):
     for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
         results = pd.read_csv(report_dir / name)
         assert list(results.columns) == paper_columns + ["predictive_sd", "ovl_predictive", "model"]
-        assert (results["model"].value_counts() == 2 * 14 * 4).all() and set(results["model"]) == {"pls", "peak-law"}
+        assert (results["model"].value_counts() == 2 * 14 * 4).all() and set(results["model"]) == set(family_names())
     controls = pd.read_csv(report_dir / "controls.csv")
     assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
                                           "n_permutations"]
@@ -283,7 +284,7 @@ def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
         assert tables[0] == answer and answer.is_displayed()  # the first screen's table comes first
         unseen = driver.find_element(By.XPATH, "//h2[@id='unseen']/following::table[1]")
         first_rows = unseen.find_elements(By.CSS_SELECTOR, "tbody tr")
-        assert len(first_rows) == 2 * 2 * 4  # a grating left out: 2 models x 2 pads x 4 conditions
+        assert len(first_rows) == len(family_names()) * 2 * 4  # a grating left out: models x pads x conditions
         images = driver.find_elements(By.CSS_SELECTOR, "figure img")
         assert len(images) >= 6
         widths = [driver.execute_script("return arguments[0].naturalWidth", img) for img in images]
@@ -335,7 +336,7 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     assert 'data-name="unseen_surfaces.png"' in section
     assert "user data" in section and "digital twin" not in section  # a real study: no twin caveat
     rows = _rows(html, "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition")
-    assert len(rows) == 2 * 2 * 4
+    assert len(rows) == len(family_names()) * 2 * 4
     controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
     loso = pd.read_csv(report_dir / "results_loso.csv")
     names = {"PLS (the paper's model)": "pls", "peak law": "peak-law"}
@@ -531,7 +532,7 @@ def test_the_held_out_table_shows_every_scheme_with_the_csvs_numbers(report_dir)
     html = (report_dir / "index.html").read_text()
     held = pd.read_csv(report_dir / "held_out.csv")
     rows = _rows(html, "Held out of training: a grating, a period, a shape")
-    assert len(rows) == len(held) == 2 * 2 * 4 * 4  # models x pads x conditions x (grating, period, each shape)
+    assert len(rows) == len(held) == len(family_names()) * 2 * 4 * 4  # models x pads x conditions x (grating, period, each shape)
     for row, (_, expected) in zip(rows, held.iterrows()):
         assert row["Held out"][0] == SCHEME_WORDS[expected.scheme] + (
             f" ({expected.n_folds} folds)" if expected.held_out == "all" else f": {expected.held_out}")

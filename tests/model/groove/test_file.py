@@ -88,3 +88,28 @@ def test_a_law_with_no_readable_press_is_refused():
     with pytest.raises(GrooveInputError, match="no press has readable land and groove widths"):
         GrooveLaw().fit(X, y, contact=np.full_like(settings.contact, np.nan), contact_names=settings.contact_names,
                         specimens=specimens)
+
+
+def test_every_familys_training_fields_agree_where_they_share_a_name():
+    """The training record's schema merges every family's fields by name (model/training_file.py): a field two
+    families name must mean the same, or the later family's would refuse the earlier's files."""
+    from roughsense.model.registry import engines
+
+    seen: dict = {}
+    for family in engines():
+        for name, node in family.training_schema.items():
+            assert seen.setdefault(name, node) == node, f"{family.name} redefines training.{name}"
+
+
+def test_a_groove_models_training_record_is_checked_by_the_merged_schema(tmp_path):
+    from roughsense.model.family import TrainingSet
+    from roughsense.model.folds import fold_ids, training_mean_predictions
+    from roughsense.model.groove.family import GrooveFamily
+
+    X, y, specimens, settings = grating_study()
+    folds, scheme = fold_ids(y.size, None, specimens, None)
+    trained = GrooveFamily().train(TrainingSet(X, y, specimens, "loso", 0, folds, scheme,
+                                               training_mean_predictions(y, folds), settings, {}, "tiny"))
+    path = modelfile.save_model(tmp_path / "groove.json", trained.model, feature_definition=_features(),
+                                training=trained.record)
+    assert rs.load_model(path).training["terms_kept"]["log_groove_mm"] == 1.0

@@ -22,8 +22,9 @@ from .terms import TERM_NAMES, contact_terms
 #: What the CV rows are, in order (the training mean under the same folds first).
 CV_MODELS = ("training mean", NAME)
 #: The fields the groove model adds to a model file's training record (model/training_file.py), as JSON Schema.
+#: Every family's fields share one record, so none is named as another family's is unless its schema is the same
+#: (the peak law's ``model`` is ``const "peak-law"``: the groove model records no ``model``).
 TRAINING_SCHEMA = {
-    "model": {"const": NAME},
     "cv_models": {"type": "array", "items": {"type": "string"}},
     "terms_kept": {"type": "object", "propertyNames": {"enum": list(TERM_NAMES)},
                    "additionalProperties": {"type": "number", "minimum": 0, "maximum": 1}},
@@ -82,7 +83,7 @@ def train_groove(data: TrainingSet) -> Trained:
     rmse, rmse_se, _ = error_curve(predictions, y, data.folds)
     kept = term_shares(chosen, fitted.term_names_)
     result = GrooveCVResult(rmse, rmse_se, predictions, data.folds, data.fold_scheme, kept)
-    record = {"model": NAME, "cv_models": list(CV_MODELS), "cv_rmse": [float(v) for v in rmse],
+    record = {"cv_models": list(CV_MODELS), "cv_rmse": [float(v) for v in rmse],
               "cv_rmse_se": [float(v) for v in rmse_se], "terms_kept": kept}
     return Trained(fitted, result, 1, record)
 
