@@ -22,6 +22,7 @@ from ..registry import GROOVE
 from . import file
 from .cv import fold_centres, fold_ranges, nested_fit
 from .domain import axis_values, held_out_flags
+from .jackknife import FOLD_SCHEMA, groove_jackknife, load_groove_folds
 from .terms import contact_terms
 from .training import TRAINING_SCHEMA, groove_report, train_groove
 
@@ -67,6 +68,7 @@ class GrooveFamily(FamilyEngine):
     kind: ClassVar[str] = file.KIND
     section_schema: ClassVar[dict] = file.SCHEMA
     training_schema: ClassVar[dict] = TRAINING_SCHEMA
+    fold_schema: ClassVar[dict] = FOLD_SCHEMA
     reads_contact: ClassVar[bool] = True
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
@@ -109,6 +111,17 @@ class GrooveFamily(FamilyEngine):
         log_means = np.log(surface_means(predicted, codes, names.size))[pair]
         log_targets = np.log(pd.Series(y).groupby(codes).first().to_numpy())
         return nested_check(log_means, log_targets, names)
+
+    def jackknife(self, X, y, specimens, settings, fold, seed):
+        """Its leave-one-specimen-out models (each its own nested choice) and residuals, for the model file; None
+        without contact measures."""
+        settings = FoldSettings.of(settings)
+        if settings is None or settings.contact is None or not settings.contact_names:
+            return None
+        return groove_jackknife(X, y, specimens, settings.contact, settings.contact_names, seed)
+
+    def load_folds(self, stored, loaded, names, path):
+        return load_groove_folds(stored, loaded, names, path)
 
     def check_options(self, options) -> None:
         """It declares no option of its own."""
