@@ -222,7 +222,7 @@ def test_pls_numbers_do_not_change_beside_the_peak_law(analysis_and_inputs):
         pd.testing.assert_frame_equal(_without_model(analysis.results(cv)), _without_model(alone.results(cv)),
                                       check_exact=True)
     pd.testing.assert_frame_equal(_without_model(analysis.controls), _without_model(alone.controls), check_exact=True)
-    assert len(analysis.controls) == 2 * len(alone.controls) and list(analysis.controls.columns)[-1] == "model"
+    assert len(analysis.controls) == len(family_names()) * len(alone.controls) and list(analysis.controls.columns)[-1] == "model"
     pd.testing.assert_frame_equal(analysis.tests, alone.tests, check_exact=True)
 
 

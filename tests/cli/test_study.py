@@ -54,7 +54,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     html = (out / "index.html").read_text()
     assert "simulated: simulated study (digital twin), simulation seed 11" in html and "user data" not in html
     controls = pd.read_csv(out / "controls.csv")
-    assert len(controls) == 4 * 2 * 2 and (controls["n_permutations"] == 199).all()
+    assert len(controls) == 4 * 2 * len(family_names()) and (controls["n_permutations"] == 199).all()
     _check_unseen_lines(stdout, out)
     # A second run reuses the feature cache and gives the same numbers (the controls, which results.csv does not
     # hold, are left out of it).

@@ -77,7 +77,8 @@ class GrooveFamily(FamilyEngine):
         fid, _ = fold_ids(y.size, None, specimens, None) if cv == "loso" else fold_ids(y.size, "loo", None, None)
         terms, _ = settings_terms(settings, y.size)
         predicted = out_of_fold(terms, y[:, None], fid, specimens)[0]
-        null_rmse = error_curve(training_mean_predictions(y, fid)[:, None], y, fid)[0][0]
+        # As the peak law computes it (two columns: the same reduction order), bit for bit PLS's 0-component RMSE.
+        null_rmse = error_curve(np.column_stack([training_mean_predictions(y, fid), predicted]), y, fid)[0][0]
         return FoldResult(predicted, np.array([float(null_rmse), float(np.sqrt(np.mean((predicted - y) ** 2)))]))
 
     def permuted_rmse(self, X, Y, specimens, cv, settings, max_components) -> np.ndarray:
