@@ -128,3 +128,15 @@ def test_no_term_is_the_training_mean_of_log_roughness():
         np.testing.assert_allclose(predictions[:, held], np.broadcast_to(log_y[~held].mean(axis=0)[:, None], (3, held.sum())),
                                    atol=1e-12)
     assert (chosen == 0).all()
+
+
+def test_a_term_read_in_too_few_rows_is_not_offered_and_drops_no_row():
+    from roughsense.model.groove.cv import MIN_READABLE_SHARE
+
+    Z, log_y, specimens = design(7, n_specimens=10)
+    scarce = np.full(len(specimens), np.nan)
+    scarce[: int(len(specimens) * MIN_READABLE_SHARE) - 1] = 1.0  # read in just under the share
+    with_scarce, chosen = nested_log_predictions(np.column_stack([Z, scarce]), log_y, specimens, specimens)
+    without, chosen_without = nested_log_predictions(Z, log_y, specimens, specimens)
+    np.testing.assert_allclose(with_scarce, without, atol=1e-10)
+    assert not (chosen & 0b1000).any() and (chosen == chosen_without).all()

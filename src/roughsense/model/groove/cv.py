@@ -11,7 +11,8 @@ first: a term is kept only if adding it to the terms kept so far lowers the inne
 more than one standard error of the paired per-specimen difference (:data:`SELECTION_SE`). No outer held-out row
 enters its own fold's choice or fit.
 
-Rows whose terms are not all readable (NaN) are left out of every fit (weight 0) and of every inner error; a
+A term read in too few rows is not offered (:func:`offered`); rows whose offered terms are not all readable (NaN)
+are left out of every fit (weight 0) and of every inner error; a
 held-out row with an unreadable term is predicted at its fold's training mean of that term (the term then moves
 nothing) and is flagged by the domain (model/groove/domain.py).
 """
@@ -25,8 +26,19 @@ SELECTION_SE = 1.0
 #: Relative cut-off of the pseudo-inverse: an exactly collinear subset (land = groove on half-and-half gratings) is
 #: fitted as least squares' minimum-norm solution.
 PINV_RCOND = 1e-10
+#: A term is offered only where it was read in at least this share of the rows: a measure the study could rarely
+#: read (a force whose gaps never resolve) would otherwise leave every row with one unreadable term out of every fit.
+MIN_READABLE_SHARE = 0.8
 #: About this many cells (outer folds x subsets x specimens x target columns) a working array: 16 MiB of float64.
 CHUNK_CELLS = 1 << 21
+
+
+def offered(terms: np.ndarray) -> np.ndarray:
+    """The terms with each one read in too few rows (:data:`MIN_READABLE_SHARE`) set to 0 everywhere: not offered
+    (a column of zeros never lowers an error, so it is never kept), and no row left out for it."""
+    terms = np.asarray(terms, dtype=np.float64)
+    scarce = np.isfinite(terms).mean(axis=0) < MIN_READABLE_SHARE if len(terms) else np.zeros(terms.shape[1], bool)
+    return np.where(scarce[None, :], 0.0, terms)
 
 
 def subsets(n_terms: int) -> list[np.ndarray]:
@@ -168,6 +180,7 @@ def nested_log_predictions(terms: np.ndarray, log_y: np.ndarray, folds: np.ndarr
     """Out-of-fold log predictions (B, n) under the fold labels ``folds`` (each label a fold left out), the terms
     chosen anew within each training fold by inner leave-one-specimen-out, each held-out term held to its fold's
     training range (:func:`fold_ranges`); and the choices (F, B bit masks)."""
+    terms = offered(terms)
     fold_of = np.unique(np.asarray(folds), return_inverse=True)[1].ravel()
     held = fold_of[None, :] == np.arange(int(fold_of.max()) + 1)[:, None]
     chosen, beta, centre = nested_fit(terms, log_y, ~held, specimens, se)

@@ -20,7 +20,7 @@ from ..folds import error_curve, fold_ids, training_mean_predictions
 from ..jackknife_plus import nested_check, surface_means
 from ..registry import GROOVE
 from . import file
-from .cv import fold_centres, fold_ranges, nested_fit
+from .cv import fold_centres, fold_ranges, nested_fit, offered
 from .domain import axis_values, held_out_flags
 from .jackknife import FOLD_SCHEMA, groove_jackknife, load_groove_folds
 from .terms import contact_terms
@@ -38,6 +38,7 @@ def settings_terms(settings: FoldSettings | dict | None, n: int) -> tuple[np.nda
 def log_predictions_under(terms: np.ndarray, log_y: np.ndarray, train: np.ndarray, specimens: np.ndarray
                           ) -> np.ndarray:
     """(O, B, n) log prediction of every row by the model chosen and fitted on each training mask (O, n)."""
+    terms = offered(terms)
     chosen, beta, centre = nested_fit(terms, log_y, train, specimens)
     imputed = fold_centres(terms, train, centre)  # (O, T)
     low, high = fold_ranges(terms, train)

@@ -16,7 +16,7 @@ import pandas as pd
 
 from ...errors import ModelFileError
 from ..jackknife_file import KEY, deploy, fold_numbers
-from .cv import fold_centres, fold_ranges, nested_fit
+from .cv import fold_centres, fold_ranges, nested_fit, offered
 from .file import KIND, _check_finite_predictions
 from .terms import contact_terms
 
@@ -79,6 +79,7 @@ def groove_folds(terms: np.ndarray, y: np.ndarray, specimens, contact_names) -> 
                                                                                      np.ndarray]:
     """The model fitted without each specimen (order of first appearance), or None where a fold has no readable
     press (nothing to hold its terms to); and the specimens' codes."""
+    terms = offered(terms)
     codes, _ = pd.factorize(pd.Series(np.asarray(specimens).astype(str)), sort=False)
     train = codes[None, :] != np.arange(int(codes.max()) + 1)[:, None]
     _, beta, centre = nested_fit(terms, np.log(np.asarray(y, dtype=np.float64))[:, None], train, specimens)

@@ -27,8 +27,8 @@ import numpy as np
 from ...errors import InputError
 from ..loaded import FromModelFile
 from ..registry import GROOVE as NAME  # the family's name, beside its class
-from .cv import SELECTION_SE, nested_fit
-from .domain import axis_values, domain_reasons, trained_box
+from .cv import SELECTION_SE, nested_fit, offered
+from .domain import AXES, axis_values, domain_reasons, trained_box
 from .terms import TERM_WORDS, contact_terms
 
 
@@ -53,11 +53,12 @@ class GrooveLaw(FromModelFile):
 
     def fit(self, X, y, *, contact, contact_names, specimens) -> GrooveLaw:
         """Choose the terms by leave-one-specimen-out over ``specimens`` and fit them on every row."""
-        terms, names = contact_terms(contact, contact_names)
+        every_term, names = contact_terms(contact, contact_names)
+        terms = offered(every_term)
         y = np.asarray(y, dtype=np.float64)
         if y.shape != (terms.shape[0],) or not np.all(np.isfinite(y) & (y > 0)):
             raise GrooveInputError("perceived roughness must be one positive number per row of the contact measures")
-        if not np.all(np.isfinite(terms), axis=1).any():
+        if not np.isfinite(axis_values(every_term, names)).all(axis=1).any():
             raise GrooveInputError("no press has readable land and groove widths; the groove model has nothing to fit")
         every = np.ones((1, y.size), dtype=bool)
         chosen, beta, centre = nested_fit(terms, np.log(y)[:, None], every, specimens, self.selection_se)
@@ -73,7 +74,7 @@ class GrooveLaw(FromModelFile):
         self.term_max_ = terms[readable][:, used].max(axis=0) if readable.any() else np.zeros(used.size)
         codes = np.unique(np.asarray(specimens).astype(str), return_inverse=True)[1].ravel()
         self.domain_low_, self.domain_high_, self.domain_margin_ = trained_box(
-            axis_values(terms, names), codes, np.ones(y.size, dtype=bool))
+            axis_values(every_term, names), codes, np.ones(y.size, dtype=bool))
         return self
 
     def _terms(self, X, contact) -> np.ndarray:
@@ -98,8 +99,14 @@ class GrooveLaw(FromModelFile):
 
     def applicability(self, X, surfaces=None, contact=None) -> list[str]:
         """Per row, what lies outside the land and groove widths it was trained on ('' where nothing does)."""
-        values = axis_values(self._terms(X, contact), self.term_names_)
-        return domain_reasons(values, self.domain_low_, self.domain_high_, self.domain_margin_)
+        terms = self._terms(X, contact)
+        reasons = domain_reasons(axis_values(terms, self.term_names_), self.domain_low_, self.domain_high_,
+                                 self.domain_margin_)
+        other = [t for t in self.terms_ if t not in AXES]  # a chosen term beyond the axes, unread: put at its mean
+        for row, reason in enumerate(reasons):
+            unread = [TERM_WORDS[t] for t in other if not np.isfinite(terms[row, self.term_names_.index(t)])]
+            reasons[row] = "; ".join([r for r in (reason, *(f"{w} unreadable in this press" for w in unread)) if r])
+        return reasons
 
     def extrapolates(self, X, surfaces=None, contact=None) -> np.ndarray:
         return np.array([bool(r) for r in self.applicability(X, surfaces, contact)], dtype=bool)
