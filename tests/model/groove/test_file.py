@@ -113,3 +113,10 @@ def test_a_groove_models_training_record_is_checked_by_the_merged_schema(tmp_pat
     path = modelfile.save_model(tmp_path / "groove.json", trained.model, feature_definition=_features(),
                                 training=trained.record)
     assert rs.load_model(path).training["terms_kept"]["log_groove_mm"] == 1.0
+
+
+def test_a_training_record_stating_terms_the_model_does_not_offer_is_refused(tmp_path):
+    law, _, _ = _fitted()
+    with pytest.raises(ModelFileError, match="training.terms_kept: must state each offered term"):
+        modelfile.save_model(tmp_path / "groove.json", law, feature_definition=_features(),
+                             training={"terms_kept": {"log_groove_mm": 1.0}})

@@ -23,7 +23,7 @@ from . import file
 from .cv import fold_centres, fold_ranges, nested_fit, offered
 from .domain import axis_values, held_out_flags
 from .jackknife import FOLD_SCHEMA, groove_jackknife, load_groove_folds
-from .terms import contact_terms
+from .terms import contact_terms, term_names
 from .training import TRAINING_SCHEMA, groove_report, train_groove
 
 
@@ -139,6 +139,17 @@ class GrooveFamily(FamilyEngine):
 
     def check_fields(self, section, path):
         return file.check_fields(section, path)
+
+    def check_training(self, training, section, fail) -> None:
+        """The terms whose keeping the record states are the ones the section's contact columns offer."""
+        kept, names = training.get("terms_kept"), section.get("contact_names")
+        if isinstance(kept, dict) and isinstance(names, list):
+            try:
+                offered = term_names(names)
+            except ValueError:
+                return  # the section's own check names it
+            if sorted(kept) != sorted(offered):
+                fail("terms_kept", f"must state each offered term ({', '.join(offered)}), got {', '.join(kept)}")
 
     def load(self, section, features, *, training, roughsense_version, path):
         return file.loaded_groove(section, features, training=training, roughsense_version=roughsense_version,
