@@ -134,7 +134,7 @@ def test_report_files_and_schemas(report_dir):
     assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
                                           "n_permutations"]
     assert list(controls.columns[-2:]) == ["seed", "model"]
-    assert len(controls) == 2 * 4 * 2 * 2 and (controls["n_permutations"] == 9).all()
+    assert len(controls) == 2 * 4 * 2 * len(family_names()) and (controls["n_permutations"] == 9).all()
     assert (controls.groupby("model").size() == 2 * 4 * 2).all()
     assert list(pd.read_csv(report_dir / "predictions.csv").columns)[-1] == "model"
     claims = pd.read_csv(report_dir / "claims.csv")
@@ -339,7 +339,9 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     assert len(rows) == len(family_names()) * 2 * 4
     controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
     loso = pd.read_csv(report_dir / "results_loso.csv")
-    names = {"PLS (the paper's model)": "pls", "peak law": "peak-law"}
+    from roughsense.model.registry import registry
+
+    names = {family.title: family.name for family in registry()}
     for row in rows:
         model, pad, condition = names[row["Model"][0]], row["Pad"][0], row["Condition"][0]
         mine = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
@@ -611,6 +613,27 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     assert _jackknife_text(row) == "none (too few specimens)"
     assert _jackknife_text({**row, "jackknife_plus_median_factor": 1.5, "jackknife_plus_misses": "R2 0.42 below"}) \
         == "100%, x/÷ 1.50; misses R2 0.42 below"
+
+
+def test_the_first_screen_compares_the_paper_model_the_default_and_the_recommended_one():
+    """However many families are registered, the first screen's table holds the paper's model, fit's default and
+    the one recommended; a family that passes where the default fails is recommended, and shown."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_table, first_screen_models
+
+    held = pd.DataFrame({"model": ["pls", "peak-law", "groove"], "pad": ["smooth"] * 3, "condition": ["combined"] * 3,
+                         "scheme": ["specimen"] * 3, "held_out": ["all"] * 3, "rmse": [0.3, 0.2, 0.1],
+                         "null_rmse": [0.33] * 3, "passes": [False, True, False], "n_permutations": [199] * 3,
+                         "bias": [0.0] * 3, "flagged_share": [0.0] * 3})
+    unseen = pd.DataFrame({"model": ["pls", "peak-law", "groove"], "pad": ["smooth"] * 3,
+                           "condition": ["combined"] * 3, "passes": [False, True, False]})
+    analysis = SimpleNamespace(held_out=held, unseen=unseen, presses_needed={}, headline_condition="combined")
+    assert first_screen_models(unseen) == ("pls", "peak-law")
+    assert [row[0] for row in answer_table(analysis)["rows"]] == ["PLS (the paper's model)", "peak law"]
+    unseen["passes"] = held["passes"] = [False, False, True]  # only the groove model passes: it is the answer
+    assert first_screen_models(unseen) == ("pls", "peak-law", "groove")
+    assert [row[0] for row in answer_table(analysis)["rows"]][-1] == "groove model"
 
 
 def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulated_analysis, simulated_report_dir):
