@@ -94,8 +94,8 @@ def _inner_errors(outer: np.ndarray, inner: np.ndarray, inverses: list[np.ndarra
     errors = np.empty((outer.shape[0], len(columns), inner.shape[1], n_targets))
     for m, (c, inverse) in enumerate(zip(columns, inverses)):
         beta = inverse @ train_cross[..., c, :]  # (O, S, k, B)
-        fitted = np.einsum("osjb,osjk,oskb->osb", beta, i_gram[..., c[:, None], c[None, :]], beta)
-        sse = i_yy - 2 * np.einsum("osjb,osjb->osb", beta, i_cross[..., c, :]) + fitted
+        fitted = (beta * (i_gram[..., c[:, None], c[None, :]] @ beta)).sum(axis=-2)  # b' G b, by matrix products
+        sse = i_yy - 2 * (beta * i_cross[..., c, :]).sum(axis=-2) + fitted
         errors[:, m] = sse / np.maximum(i_count, 1.0)[..., None]
     return errors, i_count > 0
 
