@@ -59,3 +59,11 @@ def test_presses_of_a_trained_geometry_are_not_flagged_for_their_noise(noise):
     assert box[2] == pytest.approx(np.maximum(MIN_LOG_MARGIN, 3 * 1.4826 * np.median(
         np.abs(values - np.array([np.median(values[codes == c], axis=0) for c in codes])), axis=0)))
     assert math.isfinite(box[0][0])
+
+
+def test_a_wild_width_is_named_in_a_short_reason():
+    values, codes = _values([(1.0, 1.0), (2.0, 2.0)])
+    box = trained_box(values, codes, np.ones(len(codes), dtype=bool))
+    reason = domain_reasons(np.log([[1e300, 1e-300]]), *box)[0]
+    assert reason == ("groove width 1e+300 mm outside the trained 1.00-2.00 mm; "
+                      "land width 1e-300 mm outside the trained 1.00-2.00 mm")

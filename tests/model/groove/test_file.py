@@ -52,6 +52,11 @@ def test_predicting_without_the_models_contact_measures_is_refused_in_one_line(t
         loaded.predict(X)
     with pytest.raises(GrooveInputError, match=r"reads 6 contact measure\(s\) per row"):
         loaded.predict(X, contact=contact[:, :4])
+    with pytest.raises(GrooveInputError, match="must be numbers"):
+        loaded.predict(X[:1], contact=[["wide"] * 6])
+    odd = np.array([[np.inf, -1.0, 0.0, np.nan, 1.0, 1.0]])  # nothing a width can be, at any force: put at the mean
+    assert np.isfinite(loaded.predict(X[:1], contact=odd)).all()
+    assert loaded.applicability(X[:1], contact=odd)[0].startswith("groove width")
     with pytest.raises(ModelFileError, match="expects 135 features"):
         loaded.predict(X[:, :10], contact=contact)
 

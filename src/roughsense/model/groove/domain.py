@@ -55,10 +55,15 @@ def domain_reasons(values: np.ndarray, low: np.ndarray, high: np.ndarray, margin
             if not math.isfinite(value):
                 words.append(f"{name} unreadable in this press")
             elif not low[axis] - margin[axis] <= value <= high[axis] + margin[axis]:
-                words.append(f"{name} {math.exp(value):.2f} mm outside the trained "
+                words.append(f"{name} {_mm(math.exp(value))} mm outside the trained "
                              f"{math.exp(low[axis]):.2f}-{math.exp(high[axis]):.2f} mm")
         reasons.append("; ".join(words))
     return reasons
+
+
+def _mm(width: float) -> str:
+    """A width as a reason shows it: two decimals, or three significant digits beyond a metre or below 0.01 mm."""
+    return f"{width:.2f}" if 0.01 <= width < 1000 else f"{width:.3g}"
 
 
 def held_out_flags(values: np.ndarray, specimens: np.ndarray, folds: np.ndarray) -> np.ndarray:

@@ -83,7 +83,10 @@ class GrooveLaw(FromModelFile):
         if contact is None:
             raise GrooveInputError(f"the groove model reads contact measures ({', '.join(self.contact_names_)}); "
                                    "none were given")
-        contact = np.asarray(contact, dtype=np.float64)
+        try:
+            contact = np.asarray(contact, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise GrooveInputError("the contact measures must be numbers (NaN where a width was not read)") from None
         if contact.ndim != 2 or contact.shape != (len(X), len(self.contact_names_)):
             raise GrooveInputError(f"the groove model reads {len(self.contact_names_)} contact measure(s) per row "
                                    f"({', '.join(self.contact_names_)}) for {len(X)} row(s), got shape "
