@@ -54,7 +54,7 @@ def test_predicting_without_the_models_contact_measures_is_refused_in_one_line(t
         loaded.predict(X, contact=contact[:, :4])
     with pytest.raises(GrooveInputError, match="must be numbers"):
         loaded.predict(X[:1], contact=[["wide"] * 6])
-    odd = np.array([[np.inf, -1.0, 0.0, np.nan, 1.0, 1.0]])  # nothing a width can be, at any force: put at the mean
+    odd = np.array([[np.inf, -1.0, 0.0, np.nan, np.nan, 0.0]])  # no force gives a width: the terms put at their means
     assert np.isfinite(loaded.predict(X[:1], contact=odd)).all()
     assert loaded.applicability(X[:1], contact=odd)[0].startswith("groove width")
     with pytest.raises(ModelFileError, match="expects 135 features"):
