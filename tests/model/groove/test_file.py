@@ -100,10 +100,11 @@ def test_every_familys_training_fields_agree_where_they_share_a_name():
     families name must mean the same, or the later family's would refuse the earlier's files."""
     from roughsense.model.registry import engines
 
-    seen: dict = {}
-    for family in engines():
-        for name, node in family.training_schema.items():
-            assert seen.setdefault(name, node) == node, f"{family.name} redefines training.{name}"
+    for schema in ("training_schema", "fold_schema"):  # the jackknife+ folds' fields are merged the same way
+        seen: dict = {}
+        for family in engines():
+            for name, node in getattr(family, schema).items():
+                assert seen.setdefault(name, node) == node, f"{family.name} redefines {schema} field {name}"
 
 
 def test_a_groove_models_training_record_is_checked_by_the_merged_schema(tmp_path):
