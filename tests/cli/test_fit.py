@@ -451,7 +451,7 @@ def test_a_period_far_longer_than_trained_is_flagged(run_cli, study_dir, data, t
     [
         (("--model", "peak-law", "--max-components", "3"), "--max-components chooses PLS components"),
         (("--model", "peak-law", "--rule", "min"), "--rule chooses PLS components"),
-        (("--model", "ridge"), "--model must be one of pls, peak-law, got 'ridge'"),
+        (("--model", "ridge"), "--model must be one of pls, peak-law, groove, got 'ridge'"),
         (("--model", "peak-law", "--cv", "40"), "K-fold needs 2 <= k <= n_samples=18"),
     ],
 )

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roughsense.model.registry import names as family_names
 from roughsense.report.control_tables import permutation_p_text
 from roughsense.sim.config import SimulationConfig, with_image_size
 from roughsense.sim.simulate import simulate_study
@@ -38,9 +39,9 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     code, stdout, err = run_cli("study", "--study", small_study, "--out", out, "--max-components", "4")
     assert code == 0, err
     results = pd.read_csv(out / "results.csv")
-    assert len(results) == len(SPECIMENS) * 4 * 2 and list(results.columns)[-1] == "model"
+    assert len(results) == len(SPECIMENS) * 4 * len(family_names()) and list(results.columns)[-1] == "model"
     assert (results.groupby("model").size() == len(SPECIMENS) * 4).all()
-    assert set(results["model"]) == {"pls", "peak-law"}
+    assert set(results["model"]) == set(family_names())
     assert set(results["condition"]) == {"1N", "2N", "3N", "combined"}
     # Per-specimen RMSE is never below the spread of the predictions about their mean (RMSE^2 = bias^2 + SD^2).
     assert np.all(results["rmse"] + 1e-12 >= results["pred_sd"])
@@ -53,7 +54,7 @@ def test_study_command_writes_the_report(run_cli, small_study, tmp_path, monkeyp
     html = (out / "index.html").read_text()
     assert "simulated: simulated study (digital twin), simulation seed 11" in html and "user data" not in html
     controls = pd.read_csv(out / "controls.csv")
-    assert len(controls) == 4 * 2 * 2 and (controls["n_permutations"] == 199).all()
+    assert len(controls) == 4 * 2 * len(family_names()) and (controls["n_permutations"] == 199).all()
     _check_unseen_lines(stdout, out)
     # A second run reuses the feature cache and gives the same numbers (the controls, which results.csv does not
     # hold, are left out of it).

@@ -198,7 +198,7 @@ def test_sweep_grid_and_cell_ids(tmp_path):
     (TINY.replace(SPECIMENS, '["R2", "R3", "blob:2"]'), "unknown specimen 'blob:2'"),
     (TINY.replace("[sweep]", "[sweep]\nratings_from = \"dreams\""), "unknown value 'dreams'"),
     ("[sweep\n", "is not valid TOML"),
-    (TINY + 'model = ["pls", "ridge"]\n', "[axes] model must be one of pls, peak-law, got 'ridge'"),
+    (TINY + 'model = ["pls", "ridge"]\n', "[axes] model must be one of pls, peak-law, groove, got 'ridge'"),
     (TINY.replace("[sweep]", '[sweep]\nmodel = "lasso"'), "[sweep] model must be one of pls, peak-law"),
     (TINY + 'model = "pls"\n', "[axes] model: expected a non-empty list"),
     (TINY + 'model = ["pls", "PLS"]\n', "[axes] model: a model is listed twice"),

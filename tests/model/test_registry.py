@@ -125,29 +125,29 @@ def _register() -> registry.Family:
 
 
 def test_the_registry_lists_the_families_and_their_engines_in_one_order():
-    assert registry.MODEL_FAMILIES == registry.names() == ("pls", "peak-law")
+    assert registry.MODEL_FAMILIES == registry.names() == ("pls", "peak-law", "groove")
     assert tuple(e.name for e in registry.engines()) == registry.names()
     assert [f.name for f in registry.registry() if f.paper] == [registry.paper_family().name] == ["pls"]
     assert registry.default_family().name == registry.DEFAULT_MODEL
     assert all(registry.engine(name).name == name for name in registry.names())
     assert registry.check_model_name(" Peak-Law ") == "peak-law"
-    with pytest.raises(ConfigError, match="--model must be one of pls, peak-law, got 'ridge'"):
+    with pytest.raises(ConfigError, match="--model must be one of pls, peak-law, groove, got 'ridge'"):
         registry.check_model_name("ridge")
     kinds = registry.kinds()  # each family's model-file kind, one each, found back by the registry
-    assert len(set(kinds)) == 2 and all(registry.engine_of_kind(k).kind == k for k in kinds)
+    assert len(set(kinds)) == 3 and all(registry.engine_of_kind(k).kind == k for k in kinds)
     assert registry.engine_of_kind("no-such-kind") is None
 
 
 def test_a_family_registered_is_listed_after_the_others_and_removed_cleanly(toy):
-    assert registry.names() == ("pls", "peak-law", TOY)
+    assert registry.names() == ("pls", "peak-law", "groove", TOY)
     assert registry.check_model_name("Training-Mean") == TOY and registry.family(TOY) is toy
     assert isinstance(registry.engine(TOY), ToyEngine) and registry.engine_of_kind(TOY_KIND).name == TOY
     with pytest.raises(ConfigError, match="already registered"):
         registry.register(toy)
-    with pytest.raises(ConfigError, match=f"one of pls, peak-law, {TOY}"):
+    with pytest.raises(ConfigError, match=f"one of pls, peak-law, groove, {TOY}"):
         registry.check_model_name("ridge")
     registry.unregister(TOY)
-    assert registry.names() == ("pls", "peak-law")
+    assert registry.names() == ("pls", "peak-law", "groove")
 
 
 def test_the_registry_is_light_and_the_fingerprint_follows_its_engines():

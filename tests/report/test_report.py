@@ -17,6 +17,7 @@ from roughsense.analysis.results import Provenance
 from roughsense.analysis.study_analysis import analyse_study
 from roughsense.analysis.unseen import headline_condition
 from roughsense.errors import OutputExistsError
+from roughsense.model.registry import names as family_names
 from roughsense.report import write_report
 from roughsense.report.control_tables import control_text, permutation_p_text
 from roughsense.report.provenance import figure_stamp
@@ -128,12 +129,12 @@ def test_report_files_and_schemas(report_dir):
     for name in ("results.csv", "results_loso.csv"):  # the paper's columns, then ours (added, never renamed)
         results = pd.read_csv(report_dir / name)
         assert list(results.columns) == paper_columns + ["predictive_sd", "ovl_predictive", "model"]
-        assert (results["model"].value_counts() == 2 * 14 * 4).all() and set(results["model"]) == {"pls", "peak-law"}
+        assert (results["model"].value_counts() == 2 * 14 * 4).all() and set(results["model"]) == set(family_names())
     controls = pd.read_csv(report_dir / "controls.csv")
     assert list(controls.columns[:7]) == ["pad", "condition", "cv", "rmse", "null_rmse", "permutation_p",
                                           "n_permutations"]
     assert list(controls.columns[-2:]) == ["seed", "model"]
-    assert len(controls) == 2 * 4 * 2 * 2 and (controls["n_permutations"] == 9).all()
+    assert len(controls) == 2 * 4 * 2 * len(family_names()) and (controls["n_permutations"] == 9).all()
     assert (controls.groupby("model").size() == 2 * 4 * 2).all()
     assert list(pd.read_csv(report_dir / "predictions.csv").columns)[-1] == "model"
     claims = pd.read_csv(report_dir / "claims.csv")
@@ -283,7 +284,7 @@ def test_report_renders_in_headless_chromium(report_dir, simulated_report_dir):
         assert tables[0] == answer and answer.is_displayed()  # the first screen's table comes first
         unseen = driver.find_element(By.XPATH, "//h2[@id='unseen']/following::table[1]")
         first_rows = unseen.find_elements(By.CSS_SELECTOR, "tbody tr")
-        assert len(first_rows) == 2 * 2 * 4  # a grating left out: 2 models x 2 pads x 4 conditions
+        assert len(first_rows) == len(family_names()) * 2 * 4  # a grating left out: models x pads x conditions
         images = driver.find_elements(By.CSS_SELECTOR, "figure img")
         assert len(images) >= 6
         widths = [driver.execute_script("return arguments[0].naturalWidth", img) for img in images]
@@ -335,10 +336,12 @@ def test_report_leads_with_surfaces_never_seen(report_dir):
     assert 'data-name="unseen_surfaces.png"' in section
     assert "user data" in section and "digital twin" not in section  # a real study: no twin caveat
     rows = _rows(html, "A grating left out of training: nested leave-one-specimen-out, per model, pad and condition")
-    assert len(rows) == 2 * 2 * 4
+    assert len(rows) == len(family_names()) * 2 * 4
     controls = pd.read_csv(report_dir / "controls.csv").query("cv == 'loso'").set_index(["model", "pad", "condition"])
     loso = pd.read_csv(report_dir / "results_loso.csv")
-    names = {"PLS (the paper's model)": "pls", "peak law": "peak-law"}
+    from roughsense.model.registry import registry
+
+    names = {family.title: family.name for family in registry()}
     for row in rows:
         model, pad, condition = names[row["Model"][0]], row["Pad"][0], row["Condition"][0]
         mine = loso[(loso.model == model) & (loso.pad == pad) & (loso.condition == condition)]
@@ -531,7 +534,7 @@ def test_the_held_out_table_shows_every_scheme_with_the_csvs_numbers(report_dir)
     html = (report_dir / "index.html").read_text()
     held = pd.read_csv(report_dir / "held_out.csv")
     rows = _rows(html, "Held out of training: a grating, a period, a shape")
-    assert len(rows) == len(held) == 2 * 2 * 4 * 4  # models x pads x conditions x (grating, period, each shape)
+    assert len(rows) == len(held) == len(family_names()) * 2 * 4 * 4  # models x pads x conditions x (grating, period, each shape)
     for row, (_, expected) in zip(rows, held.iterrows()):
         assert row["Held out"][0] == SCHEME_WORDS[expected.scheme] + (
             f" ({expected.n_folds} folds)" if expected.held_out == "all" else f": {expected.held_out}")
@@ -610,6 +613,27 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     assert _jackknife_text(row) == "none (too few specimens)"
     assert _jackknife_text({**row, "jackknife_plus_median_factor": 1.5, "jackknife_plus_misses": "R2 0.42 below"}) \
         == "100%, x/÷ 1.50; misses R2 0.42 below"
+
+
+def test_the_first_screen_compares_the_paper_model_the_default_and_the_recommended_one():
+    """However many families are registered, the first screen's table holds the paper's model, fit's default and
+    the one recommended; a family that passes where the default fails is recommended, and shown."""
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_table, first_screen_models
+
+    held = pd.DataFrame({"model": ["pls", "peak-law", "groove"], "pad": ["smooth"] * 3, "condition": ["combined"] * 3,
+                         "scheme": ["specimen"] * 3, "held_out": ["all"] * 3, "rmse": [0.3, 0.2, 0.1],
+                         "null_rmse": [0.33] * 3, "passes": [False, True, False], "n_permutations": [199] * 3,
+                         "bias": [0.0] * 3, "flagged_share": [0.0] * 3})
+    unseen = pd.DataFrame({"model": ["pls", "peak-law", "groove"], "pad": ["smooth"] * 3,
+                           "condition": ["combined"] * 3, "passes": [False, True, False]})
+    analysis = SimpleNamespace(held_out=held, unseen=unseen, presses_needed={}, headline_condition="combined")
+    assert first_screen_models(unseen) == ("pls", "peak-law")
+    assert [row[0] for row in answer_table(analysis)["rows"]] == ["PLS (the paper's model)", "peak law"]
+    unseen["passes"] = held["passes"] = [False, False, True]  # only the groove model passes: it is the answer
+    assert first_screen_models(unseen) == ("pls", "peak-law", "groove")
+    assert [row[0] for row in answer_table(analysis)["rows"]][-1] == "groove model"
 
 
 def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulated_analysis, simulated_report_dir):

@@ -78,9 +78,10 @@ def analyse_study(study: Study, *, features: pd.DataFrame | None = None, max_com
     >>> analysis = rs.analyse_study(study, conditions=["2N"], max_components=3, n_permutations=19)
     >>> loso = analysis.results("loso")
     >>> list(loso.columns[:6]), sorted(set(loso["model"]))
-    (['pad', 'specimen', 'condition', 'pred_mean', 'pred_sd', 'ovl'], ['peak-law', 'pls'])
-    >>> list(analysis.controls[["cv", "model"]].itertuples(index=False, name=None))
-    [('loo', 'pls'), ('loso', 'pls'), ('loo', 'peak-law'), ('loso', 'peak-law')]
+    (['pad', 'specimen', 'condition', 'pred_mean', 'pred_sd', 'ovl'], ['groove', 'peak-law', 'pls'])
+    >>> list(analysis.controls[["cv", "model"]].itertuples(index=False, name=None))  # doctest: +NORMALIZE_WHITESPACE
+    [('loo', 'pls'), ('loso', 'pls'), ('loo', 'peak-law'), ('loso', 'peak-law'), ('loo', 'groove'),
+     ('loso', 'groove')]
     """
     _check_arguments(study, n_jobs, progress)
     models = _check_models(models)

@@ -121,14 +121,15 @@ class DeployedJackknife:
         """The method as predict's CSV names it: which presses' residuals set the width."""
         return f"{self.name}, residuals of {self.count_for(presses)}-press surfaces"
 
-    def intervals(self, X, surfaces=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    def intervals(self, X, surfaces=None, contact=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """Per row, its surface's 90 % jackknife+ bounds (low, high) and the method's label; rows of one surface
-        (``surfaces``) are read together and predicted as their mean; None: each row is a surface of one press."""
+        (``surfaces``) are read together and predicted as their mean; None: each row is a surface of one press.
+        ``contact``: each row's contact measures, for folds of a family that reads them (``reads_contact``)."""
         n = np.asarray(X).shape[0]
         labels = np.arange(n) if surfaces is None else np.asarray(surfaces)
         codes, _ = pd.factorize(pd.Series(labels), sort=False)
         presses = np.bincount(codes)
-        rows = np.exp(self.folds.log_predict(X, None if surfaces is None else labels))
+        rows = np.exp(self.folds.log_predict(X, None if surfaces is None else labels, **_contact(contact)))
         centres = np.log(surface_means(rows, codes, presses.size)).T  # (m, S)
         low, high = np.empty(presses.size), np.empty(presses.size)
         for count in np.unique(presses):
@@ -156,8 +157,15 @@ class DeployedJackknife:
                 "residuals": _RESIDUALS, "folds": self.folds.to_dict()}
 
 
-def deploy(folds: Folds, X, y, specimens, seed: int) -> DeployedJackknife:
-    """Each specimen's residual under the model that left it out, read from each kept count of presses."""
+def _contact(contact) -> dict:
+    """The keyword a contact-reading family's folds take, only where there are contact measures (the others' folds
+    take no such keyword)."""
+    return {} if contact is None else {"contact": contact}
+
+
+def deploy(folds: Folds, X, y, specimens, seed: int, contact=None) -> DeployedJackknife:
+    """Each specimen's residual under the model that left it out, read from each kept count of presses
+    (``contact``: each row's contact measures, for a family that reads them)."""
     codes, names = pd.factorize(pd.Series(np.asarray(specimens).astype(str)), sort=False)
     log_targets = np.log(pd.Series(np.asarray(y, dtype=np.float64)).groupby(codes).first().to_numpy())
     counts = press_counts(np.bincount(codes))
@@ -165,7 +173,8 @@ def deploy(folds: Folds, X, y, specimens, seed: int) -> DeployedJackknife:
     residuals = []
     for rows in press_subsets(codes, counts, seed):
         owner = codes[rows]
-        own = np.exp(folds.log_predict(X[rows], owner)[owner, np.arange(rows.size)])  # each row by its own fold
+        mine = _contact(None if contact is None else np.asarray(contact)[rows])
+        own = np.exp(folds.log_predict(X[rows], owner, **mine)[owner, np.arange(rows.size)])  # each row by its own fold
         residuals.append(log_targets - np.log(np.bincount(owner, weights=own) / np.bincount(owner)))
     return DeployedJackknife(folds, tuple(map(str, names)), counts, np.array(residuals))
 

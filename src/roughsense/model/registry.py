@@ -4,7 +4,8 @@ the one list that holds each family from ``study`` and ``fit`` to its model file
 ``pls`` is the paper's PLS1 (SIMPLS) on the spectral amplitudes: the paper's reproduction and design sweeps use it
 (:data:`PAPER_MODEL`). ``peak-law`` is the peak power law, built to predict surfaces the model never saw; it passes
 its controls for unseen surfaces where PLS fails them, so ``fit`` writes it unless told otherwise
-(:data:`DEFAULT_MODEL`).
+(:data:`DEFAULT_MODEL`). ``groove`` reads the contact's geometry (land and groove widths, per press) rather than the
+spectra: a power law of the terms that earn their place under nested leave-one-specimen-out, groove width first.
 
 A :class:`Family` is what the report, the tables and the command line know without NumPy (``--help`` lists the
 names): its name, title, colours, the ``fit`` options only it takes, and the dotted path of its numerics, a
@@ -24,6 +25,7 @@ from ..errors import ConfigError
 
 PLS = "pls"
 PEAK_LAW = "peak-law"
+GROOVE = "groove"
 #: What ``roughsense fit`` writes unless --model says otherwise: the family that answers "how rough does a surface I
 #: never trained on feel?" (the study's "surfaces never seen" section judges it).
 DEFAULT_MODEL = PEAK_LAW
@@ -71,6 +73,7 @@ _FAMILIES: list[Family] = [
            options=(FitOption("--rule", "rule", _CHOOSES), FitOption("--max-components", "max_components", _CHOOSES))),
     Family(PEAK_LAW, "peak law", "s", "#c0392b", paper=False,
            engine_path="roughsense.model.peak_law.family:PeakLawFamily"),
+    Family(GROOVE, "groove model", "D", "#2e8b57", paper=False, engine_path="roughsense.model.groove.family:GrooveFamily"),
 ]
 
 #: Every built-in family's name, the paper's first (:func:`names` follows the registry at run time).

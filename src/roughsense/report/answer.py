@@ -14,7 +14,7 @@ import pandas as pd
 
 from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
-from ..model.registry import DEFAULT_MODEL, PAPER_MODEL
+from ..model.registry import DEFAULT_MODEL, PAPER_MODEL, names
 from . import provenance as source
 from .control_tables import permutation_p_text
 from .paper_tables import is_paper_model, model_title
@@ -69,9 +69,19 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
             "a period or a shape left out.")
 
 
+def first_screen_models(unseen: pd.DataFrame) -> tuple[str, ...]:
+    """The families the first screen's table compares, in the registry's order: the paper's, fit's default and the
+    one it recommends (:func:`recommended_model`): the choice a reader makes. Every family's rows are in the
+    held-out table below, so the first screen stays one screen however many families are registered."""
+    wanted = {PAPER_MODEL, DEFAULT_MODEL, recommended_model(unseen)} if not unseen.empty else {PAPER_MODEL,
+                                                                                              DEFAULT_MODEL}
+    return tuple(name for name in names() if name in wanted)
+
+
 def answer_table(analysis) -> dict | None:
-    """The first screen's table: per model and held-out scheme (combined condition), each pad's mean per-specimen
-    RMSE beside the training mean's and its verdict, and the nested jackknife+ surface interval where there is one.
+    """The first screen's table: per model (:func:`first_screen_models`) and held-out scheme (combined condition),
+    each pad's mean per-specimen RMSE beside the training mean's and its verdict, and the nested jackknife+ surface
+    interval where there is one.
 
     A verdict rests on the mean per-specimen RMSE *and* the controls: a model whose controls pass on the pooled RMSE
     while its mean per-specimen RMSE is not below the training mean's reads "pooled RMSE only", never "passes".
@@ -84,8 +94,9 @@ def answer_table(analysis) -> dict | None:
     needed = [analysis.presses_needed.get(tuple(map(str, key))) for key in unseen.index]
     unseen["presses_needed"] = [float("nan") if n is None else float(n) for n in needed]
     pads = list(dict.fromkeys(held["pad"]))
+    shown = first_screen_models(analysis.unseen)
     rows = []
-    for (model, scheme, part), group in held[held["condition"] == condition].groupby(
+    for (model, scheme, part), group in held[held["condition"].eq(condition) & held["model"].isin(shown)].groupby(
             ["model", "scheme", "held_out"], sort=False):
         words = SCHEME_WORDS[scheme] + ("" if part == "all" else f": {part}")
         cells = [model_title(model), words]
@@ -134,8 +145,10 @@ def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
         ok = passes[rows.index]
         pooled_only = ok & ~(rows["rmse"] < rows["null_rmse"])
         where = ", ".join(f"{r.pad} {r.condition}" for r in rows[~ok].itertuples())
-        part = f"{model_title(model)} passes in {int((ok & ~pooled_only).sum())} of {len(rows)}" + (
-            f" (not {where})" if where else "")
+        # A family that passes nowhere is said so in three words, not by listing every pad x condition it fails.
+        part = (f"{model_title(model)} passes in none of {len(rows)}" if not ok.any() else
+                f"{model_title(model)} passes in {int((ok & ~pooled_only).sum())} of {len(rows)}"
+                + (f" (not {where})" if where else ""))
         if pooled_only.any():
             part += (", and in " + ", ".join(f"{r.pad} {r.condition}" for r in rows[pooled_only].itertuples())
                      + " on pooled RMSE only (its mean per-specimen RMSE is not below the training mean's)")

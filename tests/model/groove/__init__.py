@@ -1,0 +1,1 @@
+"""Tests of roughsense.model.groove, beside its modules' paths."""
