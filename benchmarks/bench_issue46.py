@@ -287,14 +287,18 @@ def single_press_figures(report: Path, families) -> list[dict]:
 # --------------------------------------------------------------------------- one seed, then the tables
 
 
-def one_seed(runner: Runner, seed: int, train: str, families) -> tuple[pd.DataFrame, dict]:
-    """Every figure of one seed: the kept-back surfaces (a) and the study's rows (b)-(d)."""
+def one_seed(runner: Runner, seed: int, train: str, families, train_seed: int | None = None
+             ) -> tuple[pd.DataFrame, dict]:
+    """Every figure of one seed: the kept-back surfaces (a) and the study's rows (b)-(d); the models of (a) are
+    fitted on ``train_seed``'s twin where given (the issue's protocol: the built-in study's model), else on
+    ``seed``'s."""
     import roughsense as rs
     from roughsense.analysis.dataset import perceived_roughness
 
     print(f"seed {seed_label(seed)}", flush=True)
     folder = runner.training_study(train, seed)
-    trained = set(pd.read_csv(folder / "specimens.csv")["specimen"].astype(str))
+    fitted_on = folder if train_seed is None else runner.training_study(train, train_seed)
+    trained = set(pd.read_csv(fitted_on / "specimens.csv")["specimen"].astype(str))
     leaked = [s for s in KEPT_BACK if spec_name(s) in trained]
     if leaked:
         raise SystemExit(f"the training set holds kept-back gratings: {', '.join(leaked)}")
@@ -306,7 +310,7 @@ def one_seed(runner: Runner, seed: int, train: str, families) -> tuple[pd.DataFr
     frames = []
     for family in families:
         for pad in pads:
-            model = runner.fit(folder, family, pad, seed)
+            model = runner.fit(fitted_on, family, pad, seed if train_seed is None else train_seed)
             if model is None:
                 continue
             start = time.perf_counter()
@@ -393,6 +397,9 @@ def main() -> None:
     parser.add_argument("--train", default=PAPER_GROOVES_NAME,
                         help="training specimens: 'paper' (the paper's 14), a set name simulate takes, or a "
                              f"comma-separated list (default {PAPER_GROOVES_NAME}, else its explicit list)")
+    parser.add_argument("--train-seed", type=int,
+                        help="fit (a)'s models on this seed's twin (the issue's protocol: 0, the built-in study) "
+                             "instead of each judged seed's")
     parser.add_argument("--models", nargs="+", help="families (default: every registered one)")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--work", type=Path, help="folder for the studies, reports and models (default: temporary)")
@@ -406,12 +413,14 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-issue46-"))
     work.mkdir(parents=True, exist_ok=True)
     print(f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
-          f"families {', '.join(families)}; training {args.train}; seeds {', '.join(map(seed_label, args.seeds))}; "
+          f"families {', '.join(families)}; training {args.train}"
+          f"{'' if args.train_seed is None else f' on seed {seed_label(args.train_seed)}'}; "
+          f"seeds {', '.join(map(seed_label, args.seeds))}; "
           f"kept back {', '.join(KEPT_BACK)}; work {work}", flush=True)
     runner = Runner(work, args.jobs)
     start = time.perf_counter()
     try:
-        results = [one_seed(runner, seed, args.train, families) for seed in args.seeds]
+        results = [one_seed(runner, seed, args.train, families, args.train_seed) for seed in args.seeds]
     finally:
         if args.work is None and not args.keep:
             shutil.rmtree(work, ignore_errors=True)
