@@ -390,7 +390,7 @@ def report_all(surfaces: pd.DataFrame, study_rows: dict, seeds) -> pd.DataFrame:
         print_table(f"{title}; seeds {names}", frame)
     long = []
     for goal, frame in tables.items():
-        keys = [c for c in ("family", "pad", "seed", "seeds", "gratings", "held_out", "source") if c in frame]
+        keys = [c for c in ("family", "pad", "seeds", "gratings", "held_out", "source") if c in frame]
         for column in (c for c in frame.columns if c not in keys):
             part = frame[keys].copy()
             part.insert(0, "goal", goal)
@@ -433,7 +433,7 @@ def main() -> None:
         if args.work is None and not args.keep:
             shutil.rmtree(work, ignore_errors=True)
     surfaces = pd.concat([r[0] for r in results], ignore_index=True)
-    study_rows = {g: [{"seed": seed_label(s), **row} for s, r in zip(args.seeds, results) for row in r[1][g]]
+    study_rows = {g: [{"seeds": seed_label(s), **row} for s, r in zip(args.seeds, results) for row in r[1][g]]
                   for g in ("b", "c", "d")}
     figures = report_all(surfaces, study_rows, args.seeds)
     print(f"\nwall {time.perf_counter() - start:.0f} s; stages: "
