@@ -145,10 +145,13 @@ class Runner:
             return folder
         return self.simulate(listed, seed, "train")
 
-    def study(self, folder: Path, seed: int) -> Path | None:
-        """The study's report folder; None, said in one line, where ``study`` fails on the set."""
+    def study(self, folder: Path, seed: int, families) -> Path | None:
+        """The study's report folder (reused where it holds every family); None, said in one line, where ``study``
+        fails on the set."""
         report = self.work / f"report-{folder.name}"
-        if not (report / "presses.csv").is_file():
+        done = (report / "presses.csv").is_file() and set(families) <= set(
+            pd.read_csv(report / "results_loso.csv")["model"])
+        if not done:
             done = self.run(f"study seed {seed}", "study", "--study", str(folder), "--out", str(report), "--seed",
                             str(seed), "--permutations", "0", "--force", check=False)
             if done.returncode != 0:
@@ -307,7 +310,7 @@ def one_seed(runner: Runner, seed: int, train: str, families, train_seed: int | 
     if leaked:
         raise SystemExit(f"the training set holds kept-back gratings: {', '.join(leaked)}")
     kept = runner.simulate(",".join(("R3", *KEPT_BACK)), seed, "kept")
-    report = runner.study(folder, seed)
+    report = runner.study(folder, seed, families)
     panel = perceived_roughness(rs.read_study(kept)).set_index("specimen")["gmean"]
     kept_names = {spec_name(s): s for s in KEPT_BACK}
     pads = list(pd.read_csv(folder / "manifest.csv")["pad"].unique())
@@ -425,6 +428,8 @@ def main() -> None:
           f"{'' if args.train_seed is None else f' on seed {seed_label(args.train_seed)}'}; "
           f"seeds {', '.join(map(seed_label, args.seeds))}; "
           f"kept back {', '.join(KEPT_BACK)}; work {work}", flush=True)
+    print(f"design seeds {', '.join(map(str, DESIGN_SEEDS))} (anything may be chosen on them); judging seeds "
+          f"{', '.join(map(str, JUDGING_SEEDS))} (never looked at while choosing)", flush=True)
     runner = Runner(work, args.jobs)
     start = time.perf_counter()
     try:
