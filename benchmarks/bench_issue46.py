@@ -37,8 +37,8 @@ Goals, one table each, PASS/FAIL per family and pad:
     Beside the training mean's. Goal: <= 0.25.
 
 Nothing is cached in the repository: studies, reports and model files go to ``--work`` (default a temporary folder,
-removed at the end unless ``--keep``), and ``ROUGHSENSE_CACHE_DIR`` is set there when unset. A folder already in
-``--work`` for the same set and seed is reused.
+removed at the end unless ``--keep``), and ``ROUGHSENSE_CACHE_DIR`` is set there when unset. What is already in
+``--work`` for the same set, seed and code (roughsense's source fingerprint names each folder) is reused.
 
 Run: .venv/bin/python benchmarks/bench_issue46.py [--seeds 7 11] [--train paper|paper+grooves|LIST] [--jobs 2]
      [--models NAME ...] [--work DIR --keep] [--out figures.csv] [--surfaces surfaces.csv]
@@ -59,6 +59,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from roughsense._util.fingerprint import code_fingerprint
 
 DESIGN_SEEDS = (0, 1, 2)
 JUDGING_SEEDS = (7, 11)
@@ -105,8 +107,11 @@ class Runner:
         self.work, self.jobs = work, jobs
         self.timings: list[tuple[str, float]] = []
         self.not_measured: list[str] = []
+        os.environ.setdefault("ROUGHSENSE_CACHE_DIR", str(work / "cache"))  # this process predicts too
         self.env = dict(os.environ)
-        self.env.setdefault("ROUGHSENSE_CACHE_DIR", str(work / "cache"))
+        #: The code's fingerprint names every folder and file made here (studies, reports and models are named after
+        #: their study), so a result of other code is never reused.
+        self.code = code_fingerprint("roughsense.cli", data_packages=("roughsense.data.paper",))[:12]
 
     def run(self, label: str, *args: str, check: bool = True) -> subprocess.CompletedProcess:
         command = [sys.executable, "-m", "roughsense.cli", *args, "--jobs", str(self.jobs)]
@@ -122,7 +127,7 @@ class Runner:
     def simulate(self, specimens: str, seed: int, tag: str) -> Path:
         """The study folder of ``specimens`` at ``seed`` (reused when a complete one is there)."""
         slug = hashlib.sha256(specimens.encode()).hexdigest()[:8]
-        folder = self.work / f"{tag}-{slug}-s{seed}"
+        folder = self.work / f"{tag}-{slug}-s{seed}-{self.code}"
         if (folder / "ratings.csv").is_file() and (folder / "manifest.csv").is_file():
             return folder
         self.run(f"simulate {tag} seed {seed}", "simulate", "--out", str(folder), "--seed", str(seed),
@@ -135,7 +140,7 @@ class Runner:
         listed = ",".join(paper_specimens()) if train == "paper" else train
         if train == PAPER_GROOVES_NAME:
             slug = hashlib.sha256(listed.encode()).hexdigest()[:8]
-            folder = self.work / f"train-{slug}-s{seed}"
+            folder = self.work / f"train-{slug}-s{seed}-{self.code}"
             if not (folder / "ratings.csv").is_file():
                 done = self.run(f"simulate train seed {seed}", "simulate", "--out", str(folder), "--seed", str(seed),
                                 "--specimens", listed, check=False)
