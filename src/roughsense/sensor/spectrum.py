@@ -181,8 +181,30 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         """
         return self._iter(images, _Plan.spectrum_and_line)
 
+    def iter_transform_contact(self, images: Iterable, ridge_period_mm: float | None = None
+                               ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """As :meth:`iter_transform`, each spectrum with the press's contact measures
+        (``sensor/contact_geometry.py``: :data:`~.contact_geometry.CONTACT_MEASURES`, NaN where one cannot be read),
+        read from the rows the spectrum's decoding already holds. An unreadable image raises as in
+        :meth:`iter_transform`.
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+        ridge_period_mm : float, optional
+            The pad's ridge period (None: a smooth pad); a ridged pad's land and groove are read on its crests.
+
+        Returns
+        -------
+        iterator of tuple
+            (spectrum (n_freqs,), contact (len(CONTACT_MEASURES),) float64) per image, in order.
+        """
+        return self._iter(images, functools.partial(_Plan.contact, ridge_period_mm=ridge_period_mm))
+
     def iter_readings(self, images: Iterable, ridge_period_mm: float | None = None) -> Iterator:
-        """As :meth:`iter_transform_lines`, with each press's descriptors (``sensor/descriptors.py``): per image
+        """As :meth:`iter_transform_lines`, with each press's descriptors (``sensor/descriptors.py``) and contact
+        measures (one key per :data:`~.contact_geometry.CONTACT_MEASURES` name): per image
         ``(spectrum, line, descriptors)``, or the :class:`InputError` that refused it (predict withholds that press
         and goes on with the others).
 
