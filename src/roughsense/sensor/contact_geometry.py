@@ -48,7 +48,7 @@ from .descriptors import _hann
 
 #: Every contact measure a press yields, in order (units in the names): the mean complete land and groove widths,
 #: land / (land + groove), and the standard error of the two means (the larger), a precision per press.
-CONTACT_MEASURES = ("land_mm", "groove_mm", "contact_fraction", "width_se_mm")
+CONTACT_MEASURES = ("land_mm", "groove_mm", "land_fraction", "width_se_mm")
 #: A point belongs to the contact pattern where the local range is at least this share of the line's typical
 #: (90th-percentile) local range ...
 MIN_RELATIVE_RANGE = 0.4
@@ -224,8 +224,8 @@ def _typical(widths: np.ndarray, period_mm: float) -> np.ndarray:
 
 def _measures(land: np.ndarray, groove: np.ndarray, period_mm: float, ridge_period_mm: float | None = None
               ) -> np.ndarray:
-    """land_mm, groove_mm, contact_fraction, width_se_mm from the complete runs' widths (mm); NaN without confidence. On a ridged
-    pad the standard error includes the hull's quantisation, uniform over a ridge period (R / sqrt 12), which every
+    """land_mm, groove_mm, land_fraction, width_se_mm from the complete runs' widths (mm); NaN without confidence.
+    On a ridged pad the standard error includes the hull's quantisation, uniform over a ridge period (R / sqrt 12), which every
     land of a press may share."""
     if land.size < MIN_RUNS or groove.size < MIN_RUNS:
         return unreadable()

@@ -25,6 +25,7 @@ from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
 from ..io.images import GRAY_WEIGHTS_RGB, as_image
 from ..io.sensor_settings import Roi
+from .contact_geometry import band_profile, read_contact
 from .line import _Plan, extract_line, resolve_roi
 
 __all__ = ["SpatialSpectrum", "combine_forces"]
@@ -246,6 +247,31 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         pixels = as_image(image, max_pixels=plan.max_pixels)
         box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
         return extract_line(pixels, box, plan.rows), box
+
+    def contact_reading(self, image, ridge_period_mm: float | None = None):
+        """The band profile (the crop's rows down to the line, averaged) and its contact reading
+        (:class:`~.contact_geometry.ContactReading`: the measures, the spans read, the threshold): what
+        ``roughsense features --plot`` draws.
+
+        Parameters
+        ----------
+        image : str, os.PathLike or numpy.ndarray
+            One image file or pixel array.
+        ridge_period_mm : float, optional
+            The pad's ridge period (None: a smooth pad).
+
+        Returns
+        -------
+        profile : numpy.ndarray
+            (w,) gray values of the band.
+        reading : ContactReading
+            Its measures and spans.
+        """
+        plan = self._plan()
+        pixels = as_image(image, max_pixels=plan.max_pixels)
+        box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
+        profile = band_profile(pixels, box, plan.rows)
+        return profile, read_contact(profile, plan.px_per_mm, ridge_period_mm=ridge_period_mm)
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float.
