@@ -15,9 +15,10 @@ are measured on the image itself:
    the contact patch are a flat, dark baseline -- and nothing there counts, least of all as groove.
 3. **Whole periods only.** Edges are found with hysteresis (the profile must move :data:`HYSTERESIS` of the local
    range past the midpoint) and placed at the midpoint crossing, interpolated between pixels. Only runs bounded by
-   edges on both sides count (the first and last of each patterned stretch are cut off by it), and of those only
-   runs of typical width (within :data:`PERIOD_TOLERANCE` of a period from their median: a land split by a smudge
-   or cut where the contact patch ends is no whole land); ``land_mm`` and ``groove_mm`` are their means.
+   edges on both sides count (the first and last of each patterned stretch are cut off by it), a land only between
+   two complete grooves (the contact patch may end inside a land, and its dark baseline reads as gap), and of those
+   only runs of typical width (within :data:`PERIOD_TOLERANCE` of a period from their median: a land split by a
+   smudge is no whole land); ``land_mm`` and ``groove_mm`` are their means.
 
 **On a fingerprint pad** the profile is dominated by the pad's ridges (1 mm^-1): each ridge crest in contact with a
 land is bright, a crest over a groove shows only as bright as the pad's own relief seen through it, and the pad's
@@ -206,7 +207,11 @@ def read_contact(profile, px_per_mm: float, *, ridge_period_mm: float | None = N
     widen = 0.0 if ridge_period_mm is None else RIDGE_HULL_SHORTFALL * ridge_period_mm * px_per_mm / 2
     starts_mm = (starts - widen * states) / px_per_mm  # a land widened, a groove narrowed, on a ridged pad
     stops_mm = (stops + widen * states) / px_per_mm
-    land, groove = states > 0, states < 0
+    # a land beside an incomplete run may be cut by the contact patch's end (whose baseline reads as gap): only lands
+    # between two complete grooves count; a groove lies between two lands, whose edges are the grating's own
+    inner = np.zeros(starts.size, dtype=bool)
+    inner[1:-1] = (starts[1:-1] == stops[:-2]) & (stops[1:-1] == starts[2:])
+    land, groove = (states > 0) & inner, states < 0
     period_read = period_px / px_per_mm
     values = (_measures(stops_mm[land] - starts_mm[land], stops_mm[groove] - starts_mm[groove], period_read,
                         ridge_period_mm) if _cycles_regular(starts, stops, period_px) else unreadable())
