@@ -86,24 +86,17 @@ def features(
 
     Each image is cropped, converted to gray (MATLAB weights) and reduced to its middle row; the amplitude
     spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. The land
-    and groove widths are read on the band's rows averaged (docs/sensor.md). Nothing is written if any image fails;
-    the error names that file.
+    and groove widths are read on the band's rows averaged (sensor/contact_geometry.py). Nothing is written if any
+    image fails; the error names that file.
     """
     import json
 
     from .._util.atomic import check_outputs, write_bytes, write_csv, write_text
-    from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
     from ..sensor.contact_geometry import CONTACT_MEASURES
 
-    if study is not None and images:
-        raise ConfigError("give either IMAGE... or --study DIR, not both")
-    if study is None and not images:
-        raise ConfigError("no images given; pass IMAGE... or --study DIR")
-    if study is not None and ridge_period_mm is not None:
-        raise ConfigError("--ridge-period-mm is for IMAGE...; with --study each pad's ridge period comes from its "
-                          "study.toml ([pads.NAME] ridge_period_mm)")
+    _check_sources(images, study, ridge_period_mm)
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
     _check_plot(plot, images)
@@ -117,12 +110,7 @@ def features(
         max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
     spectrum = _spectrum(px_per_mm=px_per_mm, roi=roi, rows=rows, f_min=f_min, f_max=f_max, n_freqs=n_freqs, jobs=jobs,
                          window=window, max_pixels=max_pixels)
-    if loaded is not None:
-        paths = loaded.image_paths
-        table = plain_names(study_features(loaded, spectrum=spectrum, progress=progress), source=loaded.root / "manifest.csv")
-    else:
-        paths = list(images)
-        table = _image_features(spectrum, paths, ridge_period_mm)
+    paths, table = _table(spectrum, loaded, images, ridge_period_mm)
     names = [str(c) for c in spectrum.get_feature_names_out()]
     # the figure is drawn before anything is written: a failure or a stop while drawing leaves no CSV behind
     drawn = (_draw(plot, spectrum, paths[0], table[names].to_numpy(float)[0], ridge_period_mm)
@@ -134,6 +122,17 @@ def features(
     if drawn is not None:
         write_bytes(plot, drawn)
         typer.echo(f"drew its line, contact band and spectrum in {plot}")
+
+
+def _check_sources(images, study, ridge_period_mm) -> None:
+    """IMAGE... or --study, one of them; a ridge period only for IMAGE... (a study's pads carry their own)."""
+    if study is not None and images:
+        raise ConfigError("give either IMAGE... or --study DIR, not both")
+    if study is None and not images:
+        raise ConfigError("no images given; pass IMAGE... or --study DIR")
+    if study is not None and ridge_period_mm is not None:
+        raise ConfigError("--ridge-period-mm is for IMAGE...; with --study each pad's ridge period comes from its "
+                          "study.toml ([pads.NAME] ridge_period_mm)")
 
 
 def _check_plot(plot: Path | None, images) -> None:
@@ -183,6 +182,17 @@ def _spectrum(*, px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_
         rows=rows, f_min_per_mm=f_min, f_max_per_mm=f_max, n_freqs=n_freqs, n_jobs=jobs, window=window,
         max_pixels=defaults.MAX_PIXELS if max_pixels is None else max_pixels,
     ).fit()
+
+
+def _table(spectrum, loaded, images, ridge_period_mm):
+    """(the images read, the table to write): the study's manifest and features (each pad's contact read with its
+    own ridges), or one row per IMAGE."""
+    from ..analysis.dataset import plain_names, study_features
+
+    if loaded is not None:
+        features = study_features(loaded, spectrum=spectrum, progress=progress)
+        return loaded.image_paths, plain_names(features, source=loaded.root / "manifest.csv")
+    return list(images), _image_features(spectrum, list(images), ridge_period_mm)
 
 
 def _image_features(spectrum, paths: list[Path], ridge_period_mm: float | None):

@@ -364,12 +364,13 @@ def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: 
 def _contact_panel(ax, profile, reading, px_per_mm: float) -> None:
     """The band profile, what the widths were read on and its threshold, each complete land (contact) and groove
     (gap) shaded, and the widths written (or why there are none)."""
-    x_mm = np.arange(len(profile)) / px_per_mm
-    ax.plot(x_mm, profile, color="0.55", lw=0.6, label="band (rows averaged)")
-    if reading.read_on is not None and reading.read_on is not profile:
-        ax.plot(x_mm, reading.read_on, color="#2f5d8a", lw=0.9, label="crest envelope")
-    if reading.threshold is not None:
-        ax.plot(x_mm, reading.threshold, color="#b8860b", lw=0.8, ls="--", label="contact / gap threshold")
+    ax.plot(np.arange(len(profile)) / px_per_mm, profile, color="0.55", lw=0.6, label="band (rows averaged)")
+    if reading.read_on is not None:
+        read_x_mm = (np.arange(len(reading.read_on)) + 0.5) * reading.step_mm - 0.5 / px_per_mm
+        ax.plot(read_x_mm, reading.read_on, color="#2f5d8a", lw=0.9, label="read on (pairs of px; crest envelope on a "
+                "ridged pad)")
+        if reading.threshold is not None:
+            ax.plot(read_x_mm, reading.threshold, color="#b8860b", lw=0.8, ls="--", label="contact / gap threshold")
     for start, stop in reading.lands_mm:
         ax.axvspan(start, stop, color="#3a9a4a", alpha=0.25, lw=0)
     for start, stop in reading.grooves_mm:
