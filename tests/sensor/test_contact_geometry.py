@@ -106,7 +106,9 @@ def test_the_no_contact_baseline_is_never_groove():
 
 def test_unreadable_profiles_are_nan_never_a_guess():
     assert contact_measures(np.full(8, 0.5), PX_PER_MM).shape == (len(CONTACT_MEASURES),)
-    for line in (np.full(8, 0.5), np.array([0.1, np.nan] * 950), np.zeros((2, 1900))):
+    inf = band_line(4.0, 2.0, rng=np.random.default_rng(0))
+    inf[700] = np.inf  # a saturated float pixel: no width is read through it
+    for line in (np.full(8, 0.5), np.array([0.1, np.nan] * 950), np.zeros((2, 1900)), inf, -inf):
         assert np.isnan(contact_measures(line, PX_PER_MM)).all()
 
 

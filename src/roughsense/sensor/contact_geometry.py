@@ -201,7 +201,8 @@ def read_contact(profile, px_per_mm: float, *, ridge_period_mm: float | None = N
     px, the rows averaged), ``px_per_mm`` the scale, ``ridge_period_mm`` the pad's ridges (None: smooth),
     ``period_mm`` the grating's period if known (else read from the profile)."""
     profile = np.asarray(profile, dtype=np.float64)
-    if profile.ndim != 1 or profile.size < 16 or not float(profile.max() - profile.min()) > 0:  # NaN, inf, flat
+    span = float(profile.max() - profile.min()) if profile.ndim == 1 and profile.size >= 16 else math.nan
+    if not (math.isfinite(span) and span > 0):  # NaN or infinite pixels, a flat band, too short a line
         return ContactReading(unreadable(), math.nan)
     origin = 0.0  # where sample 0 lies, in samples from pixel 0's centre
     if px_per_mm >= BIN_FROM_PX_PER_MM:
