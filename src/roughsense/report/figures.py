@@ -378,7 +378,7 @@ def _contact_panel(ax, profile, reading, px_per_mm: float) -> None:
     values = reading.as_dict()
     if np.isfinite(values["land_mm"]):
         text = (f"land (contact, green) {values['land_mm']:.2f} mm, groove (gap, red) {values['groove_mm']:.2f} mm "
-                f"(+-{values['width_se_mm']:.2f} mm), land fraction {100 * values['land_fraction']:.0f} %, "
+                f"(+-{values['width_se_mm']:.3f} mm), land fraction {100 * values['land_fraction']:.0f} %, "
                 f"{len(reading.lands_mm)} lands / {len(reading.grooves_mm)} grooves")
     else:
         text = "land and groove not readable with confidence (NaN): no regular contact pattern"
