@@ -203,3 +203,18 @@ def test_study_features_carry_each_contact_measure_read_with_its_pads_ridges(tmp
     manifest.to_csv(root / "manifest.csv", index=False)
     with pytest.raises(InputError, match="column 'contact@land_mm' starts with 'contact@'"):
         dataset.study_features(read_study(root))
+
+
+def test_the_feature_cache_gives_the_contact_columns_back_exactly(tmp_path, monkeypatch, features):
+    """study's feature cache (_util/cache.py) stores the table as CSV: the contact columns, NaN where a press could not
+    be read, come back as the same float64 numbers."""
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    table = features.copy()
+    table.loc[0, dataset.contact_columns()] = np.nan  # an unreadable press
+    table.loc[:, dataset.contact_columns()[-1]] = np.nan  # a measure no press could give
+    assert cache.cached_frame("k", lambda: table)[1] is False
+    again, hit = cache.cached_frame("k", lambda: table)
+    assert hit
+    pd.testing.assert_frame_equal(again[dataset.contact_columns()], table[dataset.contact_columns()])
