@@ -38,9 +38,9 @@ def test_a_signal_mid_run_commits_nothing_after_it_and_says_interrupted_once(run
     image = grating_png(tmp_path / "in.png")
     real = features._image_features
 
-    def signalled(spectrum, paths):
+    def signalled(spectrum, paths, *rest):
         os.kill(os.getpid(), number)  # arrives while the spectra are computed; the run goes on to its commit
-        return real(spectrum, paths)
+        return real(spectrum, paths, *rest)
 
     monkeypatch.setattr(features, "_image_features", signalled)
     code, out, err = run_cli("features", image, "-o", tmp_path / "x.csv")

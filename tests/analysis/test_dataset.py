@@ -1,6 +1,7 @@
 """A study as regression data: features per image, condition matrices (incl. combined) and targets."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from roughsense.errors import InputError
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.study import read_study
 from roughsense.io.writer import StudyWriter
+from roughsense.sensor.contact_geometry import CONTACT_MEASURES
 from roughsense.sensor.grid import frequency_grid
 from roughsense.sensor.spectrum import SpatialSpectrum
 
@@ -170,7 +172,9 @@ def test_a_manifest_column_named_by_a_number_is_no_spectrum_column(tmp_path, fea
     with pytest.raises(InputError, match="column '0.1' has the name of a spectrum frequency"):
         dataset.plain_names(extra)  # a file for people would hold two columns named 0.1
     plain = dataset.plain_names(features)
-    assert [float(c) for c in plain.columns[-45:]] == list(frequency_grid())
+    n_contact = len(CONTACT_MEASURES)
+    assert [float(c) for c in plain.columns[-45 - n_contact:-n_contact]] == list(frequency_grid())
+    assert list(plain.columns[-n_contact:]) == list(CONTACT_MEASURES)
     manifest["spectrum@0.3"] = "1"
     manifest.to_csv(root / "manifest.csv", index=False)
     with pytest.raises(InputError, match="column 'spectrum@0.3' starts with 'spectrum@'"):
@@ -200,3 +204,43 @@ def test_targets_are_the_geometric_means(study):
     got = perceived.set_index("specimen")["gmean"]
     assert got["R3"] == 1.0
     assert got["R5"] == pytest.approx(np.exp(np.log(r5).mean()))
+
+
+def test_study_features_carry_each_contact_measure_read_with_its_pads_ridges(tmp_path, features):
+    """Issue 46: one contact@NAME column per measure, each image read with its own pad's ridge period (the same
+    numbers iter_transform_contact gives for that pad), beside spectra unchanged; a manifest column with the mark is
+    refused before any image is read."""
+    root = make_study(tmp_path / "contact", pads=("fingerprint", "smooth"), repetitions=2)
+    study = dataclasses.replace(read_study(root), pad_ridge_period_mm={"fingerprint": 1.0})
+    columns = dataset.contact_columns()
+    assert columns == [f"contact@{name}" for name in CONTACT_MEASURES]
+    assert list(features.columns[-len(columns):]) == columns
+    features = dataset.study_features(study)
+    spectrum = dataset.spectrum_for(study)
+    for pad in ("smooth", "fingerprint"):
+        rows = np.flatnonzero(features["pad"].to_numpy() == pad)
+        ridge = study.pad_ridge_period_mm.get(pad)
+        read = list(spectrum.iter_transform_contact([study.image_paths[i] for i in rows], ridge))
+        np.testing.assert_array_equal(features[columns].to_numpy()[rows], np.vstack([c for _, c in read]))
+        np.testing.assert_array_equal(features[dataset.frequency_columns(features)].to_numpy()[rows],
+                                      np.vstack([s for s, _ in read]))
+    manifest = pd.read_csv(root / "manifest.csv", dtype=str)
+    manifest["contact@land_mm"] = "1"
+    manifest.to_csv(root / "manifest.csv", index=False)
+    with pytest.raises(InputError, match="column 'contact@land_mm' starts with 'contact@'"):
+        dataset.study_features(read_study(root))
+
+
+def test_the_feature_cache_gives_the_contact_columns_back_exactly(tmp_path, monkeypatch, features):
+    """study's feature cache (_util/cache.py) stores the table as CSV: the contact columns, NaN where a press could not
+    be read, come back as the same float64 numbers."""
+    from roughsense._util import cache
+
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    table = features.copy()
+    table.loc[0, dataset.contact_columns()] = np.nan  # an unreadable press
+    table.loc[:, dataset.contact_columns()[-1]] = np.nan  # a measure no press could give
+    assert cache.cached_frame("k", lambda: table)[1] is False
+    again, hit = cache.cached_frame("k", lambda: table)
+    assert hit
+    pd.testing.assert_frame_equal(again[dataset.contact_columns()], table[dataset.contact_columns()])

@@ -13,6 +13,7 @@ import pytest
 from roughsense.cli.features import unit_names
 from roughsense.io.sensor_settings import SensorSettings
 from roughsense.io.writer import StudyWriter
+from roughsense.sensor.contact_geometry import CONTACT_MEASURES
 from roughsense.sensor.grid import frequency_grid
 from roughsense.sensor.line import spatial_spectrum
 from roughsense.sensor.spectrum import SpatialSpectrum
@@ -42,17 +43,18 @@ def test_features_csv_has_image_column_and_round_tripping_grid(run_cli, tmp_path
     code, stdout, err = run_cli("features", *images, "--out", out, "--jobs", "2")
     assert code == 0, err
     table = pd.read_csv(out)
-    assert list(table.columns[:1]) == ["image"] and len(table.columns) == 46
+    assert list(table.columns[:1]) == ["image"] and len(table.columns) == 46 + len(CONTACT_MEASURES)
+    assert list(table.columns[46:]) == list(CONTACT_MEASURES)
     assert table.columns[1] == "f_0.1000_per_mm" and table.columns[2] == "f_0.1205_per_mm"  # the unit in the header
     definition = json.loads((tmp_path / "features.spectrum.json").read_text())  # the grid, exact, stored once
     headers = np.array(definition["freq_per_mm"])
     np.testing.assert_array_equal(headers, frequency_grid())
-    assert [f"f_{f:.4f}_per_mm" for f in headers] == list(table.columns[1:])
+    assert [f"f_{f:.4f}_per_mm" for f in headers] == list(table.columns[1:46])
     assert SpatialSpectrum.from_definition(definition).feature_definition() == definition
     assert list(table["image"]) == [str(p) for p in images]
-    for path, row in zip(images, table.iloc[:, 1:].to_numpy()):
+    for path, row in zip(images, table.iloc[:, 1:46].to_numpy()):
         np.testing.assert_allclose(row, spatial_spectrum(path), rtol=1e-12)
-    peaks = headers[table.iloc[:, 1:].to_numpy().argmax(axis=1)]
+    peaks = headers[table.iloc[:, 1:46].to_numpy().argmax(axis=1)]
     np.testing.assert_allclose(peaks, [0.5, 1 / 3, 0.2], atol=(0.9 / 44) / 2 + 1e-12)
 
 
@@ -65,11 +67,12 @@ def test_features_options_reach_the_library(run_cli, tmp_path, images):
     table = pd.read_csv(out)
     grid = json.loads((tmp_path / "f.spectrum.json").read_text())["freq_per_mm"]
     np.testing.assert_array_equal(grid, frequency_grid(0.15, 0.9, 20))
-    assert len(table.columns) == 21 and all(c.startswith("f_") and c.endswith("_per_mm") for c in table.columns[1:])
+    assert len(table.columns) == 21 + len(CONTACT_MEASURES)
+    assert all(c.startswith("f_") and c.endswith("_per_mm") for c in table.columns[1:21])
     expected = spatial_spectrum(
         images[1], px_per_mm=30, roi=(5, 400, 1800, 120), rows=7, f_min_per_mm=0.15, f_max_per_mm=0.9, n_freqs=20, window="none"
     )
-    np.testing.assert_allclose(table.iloc[0, 1:].to_numpy(float), expected, rtol=1e-12)
+    np.testing.assert_allclose(table.iloc[0, 1:21].to_numpy(float), expected, rtol=1e-12)
 
 
 def _study(root: Path, px_per_mm: float) -> Path:
@@ -172,7 +175,7 @@ def test_existing_output_needs_force(run_cli, tmp_path, images):
     assert out.read_text() == "mine\n"
     code, _, err = run_cli("features", images[0], "--out", out, "--force")
     assert code == 0, err
-    assert pd.read_csv(out).shape == (1, 46)
+    assert pd.read_csv(out).shape == (1, 46 + len(CONTACT_MEASURES))
 
 
 def test_images_and_study_are_exclusive_and_one_is_needed(run_cli, tmp_path, images):
@@ -298,3 +301,30 @@ def test_a_stop_while_features_draws_its_plot_leaves_no_csv_behind(run_cli, tmp_
         interrupt._received.clear()
     assert code == 143 and err == "roughsense: interrupted\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
+
+
+def test_features_write_the_contact_measures_and_draw_them(run_cli, tmp_path, images):
+    """Issue 46: land and groove widths (bare names, units in them) for IMAGE..., read as on a smooth pad unless
+    --ridge-period-mm names the pad's ridges; the --plot figure shows the band with the widths written; the option
+    is refused with --study (a study's pads carry their own) and outside its bounds, one line each."""
+    out = tmp_path / "f.csv"
+    code, stdout, err = run_cli("features", *images, "--out", out, "--jobs", "1")
+    assert code == 0, err
+    assert "4 contact measures" in stdout
+    table = pd.read_csv(out)
+    spectrum = SpatialSpectrum().fit()
+    expected = np.vstack([c for _, c in spectrum.iter_transform_contact(images)])
+    np.testing.assert_allclose(table[list(CONTACT_MEASURES)].to_numpy(float), expected, rtol=1e-12)
+    # the frames' lands are half of each period (tanh of a sine): land = groove = period / 2 within 0.05 mm
+    np.testing.assert_allclose(table["land_mm"], [1.0, 1.5, 2.5], atol=0.05)
+    np.testing.assert_allclose(table["groove_mm"], [1.0, 1.5, 2.5], atol=0.05)
+    code, _, err = run_cli("features", images[1], "--out", out, "--force", "--ridge-period-mm", "0.7",
+                           "--plot", tmp_path / "one.svg")
+    assert code == 0, err
+    ridged = np.vstack([c for _, c in spectrum.iter_transform_contact([images[1]], ridge_period_mm=0.7)])
+    np.testing.assert_allclose(pd.read_csv(out)[list(CONTACT_MEASURES)].to_numpy(float), ridged, rtol=1e-12)
+    assert "groove (gap, red)" in (tmp_path / "one.svg").read_text()
+    for bad, needle in ((["--study", tmp_path, "--ridge-period-mm", "1"], "--ridge-period-mm is for IMAGE"),
+                        ([images[0], "--ridge-period-mm", "0"], "--ridge-period-mm must be")):
+        code, _, err = run_cli("features", "--out", tmp_path / "g.csv", *bad)
+        assert code == 2 and needle in err and err.count("\n") == 1 and not (tmp_path / "g.csv").exists()

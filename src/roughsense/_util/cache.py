@@ -95,7 +95,7 @@ def _bypass(root: Path, reason: str) -> None:
 
 
 #: Bumped whenever what an entry holds changes: older entries are then simply not found.
-CACHE_FORMAT = 3
+CACHE_FORMAT = 4  # 4: features hold the contact measures (issue 46); a change to their reading bumps it
 _CHECKSUM_PREFIX = b"#sha256="
 
 

@@ -22,7 +22,8 @@ TRIAL_KEYS = ("specimen", "pad", "repetition")
 #: columns are found by this mark, never by parsing headers: a manifest column named ``0.1`` or ``nan`` stays a
 #: manifest column. Files written for people (``features``, the report) use the bare frequency (:func:`plain_names`).
 SPECTRUM_PREFIX = "spectrum@"
-#: The mark on a contact-measure column (``contact@groove_mm``: sensor/contact_geometry.py's measures of each image).
+#: The mark on a contact measure's column (``contact@groove_mm``: sensor/contact_geometry.py's CONTACT_MEASURES), one
+#: per measure beside the spectrum; files written for people use the bare measure's name (:func:`plain_names`).
 CONTACT_PREFIX = "contact@"
 
 
@@ -31,21 +32,30 @@ def spectrum_columns(freq_per_mm) -> list[str]:
     return [f"{SPECTRUM_PREFIX}{float(f)!r}" for f in freq_per_mm]
 
 
+def contact_columns() -> list[str]:
+    """The feature table's column of each contact measure, in CONTACT_MEASURES' order."""
+    from ..sensor.contact_geometry import CONTACT_MEASURES
+
+    return [f"{CONTACT_PREFIX}{name}" for name in CONTACT_MEASURES]
+
+
 def column_frequencies(columns: Sequence[str]) -> np.ndarray:
     """The frequency (mm^-1) of each spectrum column, read back from the names :func:`spectrum_columns` made."""
     return np.array([float(str(c)[len(SPECTRUM_PREFIX):]) for c in columns], dtype=np.float64)
 
 
 def plain_names(table: pd.DataFrame, *, source=None) -> pd.DataFrame:
-    """``table`` with each spectrum column named by its bare frequency (``0.1``), as files for people show it.
+    """``table`` with each spectrum column named by its bare frequency (``0.1``) and each contact column by its bare
+    measure (``land_mm``), as files for people show them.
 
-    A non-spectrum column already named so would make two columns of one name: refused, naming it.
+    A column already named so would make two columns of one name: refused, naming it.
     """
-    freq = frequency_columns(table)
-    plain = {c: c[len(SPECTRUM_PREFIX):] for c in freq}
+    marked = [c for c in table.columns if isinstance(c, str) and c.startswith((SPECTRUM_PREFIX, CONTACT_PREFIX))]
+    plain = {c: c.split("@", 1)[1] for c in marked}
     clash = next((str(c) for c in table.columns if c not in plain and str(c) in plain.values()), None)
     if clash is not None:
-        raise InputError(f"column {clash!r} has the name of a spectrum frequency; rename it", path=source)
+        raise InputError(f"column {clash!r} has the name of a spectrum frequency or a contact measure; rename it",
+                         path=source)
     return table.rename(columns=plain)
 
 
@@ -63,24 +73,39 @@ def spectrum_for(study: Study, *, n_jobs: int = 1):
 def study_features(
     study: Study, *, n_jobs: int = 1, progress: Callable | None = None, spectrum=None
 ) -> pd.DataFrame:
-    """Manifest columns plus one column per grid frequency (:func:`spectrum_columns`).
+    """Manifest columns, one column per grid frequency (:func:`spectrum_columns`), then one per contact measure
+    (:func:`contact_columns`: land and groove widths, NaN where a press's cannot be read).
 
+    Each image is read once for both; a pad's ridges (``study.pad_ridge_period_mm``) decide how its contact is read.
     ``progress(iterable, total=, description=)`` wraps the image stream (the CLI passes a rich bar).
     ``spectrum`` overrides the study's own sensor settings (a fitted SpatialSpectrum).
     """
-    marked = [str(c) for c in study.manifest.columns if str(c).startswith(SPECTRUM_PREFIX)]
+    marked = [str(c) for c in study.manifest.columns if str(c).startswith((SPECTRUM_PREFIX, CONTACT_PREFIX))]
     if marked:  # before any image is read
-        raise InputError(f"column {marked[0]!r} starts with {SPECTRUM_PREFIX!r}, which marks roughsense's spectrum "
-                         "columns; rename it", path=study.root / MANIFEST_CSV)
+        prefix = SPECTRUM_PREFIX if marked[0].startswith(SPECTRUM_PREFIX) else CONTACT_PREFIX
+        raise InputError(f"column {marked[0]!r} starts with {prefix!r}, which marks roughsense's "
+                         f"{prefix.rstrip('@')} columns; rename it", path=study.root / MANIFEST_CSV)
     spectrum = spectrum if spectrum is not None else spectrum_for(study, n_jobs=n_jobs)
     paths = study.image_paths
-    rows = spectrum.iter_transform(paths)
+    names, contact_names = spectrum_columns(spectrum.freq_per_mm_), contact_columns()
+    X, contact = np.empty((len(paths), len(names))), np.empty((len(paths), len(contact_names)))
+    rows = _readings_by_pad(study, spectrum, paths)
     if progress is not None:
         rows = progress(rows, total=len(paths), description="spectra")
-    X = np.vstack(list(rows)) if paths else np.empty((0, spectrum.freq_per_mm_.size))
-    names = spectrum_columns(spectrum.freq_per_mm_)
-    spectra = pd.DataFrame(X, columns=names, index=study.manifest.index)
-    return pd.concat([study.manifest.reset_index(drop=True), spectra.reset_index(drop=True)], axis=1)
+    for i, row, measures in rows:
+        X[i], contact[i] = row, measures
+    read = pd.DataFrame(np.hstack([X, contact]), columns=[*names, *contact_names])
+    return pd.concat([study.manifest.reset_index(drop=True), read], axis=1)
+
+
+def _readings_by_pad(study: Study, spectrum, paths):
+    """(row, spectrum, contact measures) of every image, pad by pad (a pad's ridge period reads its contact)."""
+    pads = study.manifest["pad"].astype(str).to_numpy() if len(paths) else np.empty(0, dtype=str)
+    for pad in dict.fromkeys(pads.tolist()):
+        rows = np.flatnonzero(pads == pad)
+        readings = spectrum.iter_transform_contact([paths[i] for i in rows], study.pad_ridge_period_mm.get(pad))
+        for i, (row, measures) in zip(rows.tolist(), readings):
+            yield i, row, measures
 
 
 def check_repetitions(features: pd.DataFrame, study: Study) -> None:
@@ -185,18 +210,13 @@ def _combined_matrix(at_pad: pd.DataFrame, freq: list[str], pad: str, forces: li
     return combine_forces(blocks), meta
 
 
-def measure_columns(features: pd.DataFrame) -> list[str]:
-    """The contact-measure columns (``contact@NAME``), in order; none in a table made without them."""
-    return [c for c in features.columns if isinstance(c, str) and c.startswith(CONTACT_PREFIX)]
-
-
 def condition_contact(features: pd.DataFrame, meta: pd.DataFrame, condition: str,
                       combined_forces: Sequence[str] | None = None) -> tuple[np.ndarray | None, tuple[str, ...]]:
     """Each row of :func:`condition_matrix`'s ``meta``: its images' contact measures, force block by force block as
     its spectra (``groove_mm@1N``, ...), and their names; (None, ()) where the table holds no contact measures.
 
     The rows are found by image, so they line up with the spectra whatever order the table is in."""
-    columns = measure_columns(features)
+    columns = [c for c in contact_columns() if c in features.columns]
     if not columns:
         return None, ()
     by_image = features.set_index(features["image"].astype(str))[columns]

@@ -1,4 +1,4 @@
-"""``roughsense features``: contact images (or a study folder) -> a CSV of spatial spectra."""
+"""``roughsense features``: contact images (or a study folder) -> a CSV of spatial spectra and contact measures."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,8 +24,10 @@ def _band(text: str) -> tuple[float, float]:
 
 FeaturesOut = Annotated[Path, typer.Option(
     "--out", "-o", help="CSV to write: an image column (or the manifest's columns), then one column per frequency, "
-    "named with its unit (f_0.1205_per_mm). Beside it, OUT.spectrum.json holds the exact grid (freq_per_mm) and "
-    "every setting that made the spectra.")]
+    "named with its unit (f_0.1205_per_mm), then the contact measures: land_mm and groove_mm (the mean land "
+    "(contact) and groove (gap) widths over the whole periods in the contact band), land_fraction and "
+    "width_se_mm (their standard error); empty where a press's cannot be read with confidence. Beside it, "
+    "OUT.spectrum.json holds the exact grid (freq_per_mm) and every setting that made the spectra.")]
 Images = Annotated[list[Path] | None, typer.Argument(
     metavar="IMAGE...", help="Contact images (PNG, JPEG, TIFF or BMP; 8 or 16 bit; gray or colour).", show_default=False)]
 StudyDir = Annotated[str | None, typer.Option(
@@ -51,6 +53,12 @@ NFreqs = Annotated[int, typer.Option(
     help=f"Number of evenly spaced frequencies in the band (2 to {MAX_N_FREQS}).")]
 Window = Annotated[str, typer.Option(
     "--window", help=f"Taper before the DFT: '{defaults.WINDOW}' (default) or 'none' (the paper's literal choice).")]
+RidgePeriod = Annotated[float | None, typer.Option(
+    "--ridge-period-mm", show_default=False,
+    parser=number_option("--ridge-period-mm", quantity="ridge_period_mm", must="a number of mm from 0.001 to 100"),
+    help="The pad's ridge period in mm, for IMAGE... pressed on a fingerprint-like pad (its lands and grooves are "
+         "then read on the ridges' crests). Default: a smooth pad. With --study each pad's comes from study.toml "
+         "([pads.NAME] ridge_period_mm).")]
 MaxPixels = Annotated[int | None, typer.Option(
     "--max-pixels", show_default=False, parser=number_option("--max-pixels", whole=True),
     help="Refuse images whose header claims more pixels (width x height) than this, before decoding. "
@@ -68,27 +76,27 @@ def features(
     force: Annotated[bool, typer.Option(
         "--force", help="Replace FEATURES.csv, its grid file and the --plot file if they exist (never an input).")] = False,
     max_pixels: MaxPixels = None,
+    ridge_period_mm: RidgePeriod = None,
     plot: Annotated[Path | None, typer.Option(
-        "--plot", show_default=False, help="Also draw the one IMAGE's contact line and spectrum, its peak marked, "
-        "into this file (.png, .svg or .pdf).")] = None,
+        "--plot", show_default=False, help="Also draw the one IMAGE's contact line, its contact band with the lands "
+        "and grooves read and their widths, and its spectrum, its peak marked, into this file (.png, .svg or "
+        ".pdf).")] = None,
 ) -> None:
     """Turn contact images into normalised spatial spectra (the paper's section 3.2).
 
     Each image is cropped, converted to gray (MATLAB weights) and reduced to its middle row; the amplitude
-    spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. Nothing is
-    written if any image fails; the error names that file.
+    spectrum of that line is sampled at N_FREQS frequencies over the band and normalised to unit area. The land
+    and groove widths are read on the band's rows averaged (sensor/contact_geometry.py). Nothing is written if any
+    image fails; the error names that file.
     """
     import json
 
     from .._util.atomic import check_outputs, write_bytes, write_csv, write_text
-    from ..analysis.dataset import plain_names, study_features
     from ..io.sensor_settings import check_max_pixels
     from ..io.study import read_study
+    from ..sensor.contact_geometry import CONTACT_MEASURES
 
-    if study is not None and images:
-        raise ConfigError("give either IMAGE... or --study DIR, not both")
-    if study is None and not images:
-        raise ConfigError("no images given; pass IMAGE... or --study DIR")
+    _check_sources(images, study, ridge_period_mm)
     if max_pixels is not None:
         check_max_pixels(max_pixels, option="--max-pixels")
     _check_plot(plot, images)
@@ -102,21 +110,29 @@ def features(
         max_pixels = loaded.sensor.max_pixels if max_pixels is None else max_pixels
     spectrum = _spectrum(px_per_mm=px_per_mm, roi=roi, rows=rows, f_min=f_min, f_max=f_max, n_freqs=n_freqs, jobs=jobs,
                          window=window, max_pixels=max_pixels)
-    if loaded is not None:
-        paths = loaded.image_paths
-        table = plain_names(study_features(loaded, spectrum=spectrum, progress=progress), source=loaded.root / "manifest.csv")
-    else:
-        paths = list(images)
-        table = _image_features(spectrum, paths)
+    paths, table = _table(spectrum, loaded, images, ridge_period_mm)
     names = [str(c) for c in spectrum.get_feature_names_out()]
     # the figure is drawn before anything is written: a failure or a stop while drawing leaves no CSV behind
-    drawn = _draw(plot, spectrum, paths[0], table[names].to_numpy(float)[0]) if plot is not None else None
+    drawn = (_draw(plot, spectrum, paths[0], table[names].to_numpy(float)[0], ridge_period_mm)
+             if plot is not None else None)
     write_csv(out, table.rename(columns=dict(zip(names, unit_names(spectrum.freq_per_mm_)))))
     write_text(definition_path(out), json.dumps(spectrum.feature_definition(), indent=2) + "\n")
-    typer.echo(f"wrote {len(paths)} x {len(names)} features to {out} (grid and settings: {definition_path(out)})")
+    typer.echo(f"wrote {len(paths)} x {len(names)} features and {len(CONTACT_MEASURES)} contact measures to {out} "
+               f"(grid and settings: {definition_path(out)})")
     if drawn is not None:
         write_bytes(plot, drawn)
-        typer.echo(f"drew its line and spectrum in {plot}")
+        typer.echo(f"drew its line, contact band and spectrum in {plot}")
+
+
+def _check_sources(images, study, ridge_period_mm) -> None:
+    """IMAGE... or --study, one of them; a ridge period only for IMAGE... (a study's pads carry their own)."""
+    if study is not None and images:
+        raise ConfigError("give either IMAGE... or --study DIR, not both")
+    if study is None and not images:
+        raise ConfigError("no images given; pass IMAGE... or --study DIR")
+    if study is not None and ridge_period_mm is not None:
+        raise ConfigError("--ridge-period-mm is for IMAGE...; with --study each pad's ridge period comes from its "
+                          "study.toml ([pads.NAME] ridge_period_mm)")
 
 
 def _check_plot(plot: Path | None, images) -> None:
@@ -129,13 +145,14 @@ def _check_plot(plot: Path | None, images) -> None:
         raise ConfigError(f"--plot: {plot.name!r} must end in .png, .svg or .pdf (the format it is written in)")
 
 
-def _draw(plot: Path, spectrum, image: Path, amplitude) -> bytes:
-    """The image's line and spectrum (report/figures.py), as the bytes of ``plot``'s format."""
+def _draw(plot: Path, spectrum, image: Path, amplitude, ridge_period_mm: float | None) -> bytes:
+    """The image's line, contact band and spectrum (report/figures.py), as the bytes of ``plot``'s format."""
     from ..report import figures
 
     line, box = spectrum.line(image)
     fig = figures.line_spectrum_figure(line, float(spectrum.px_per_mm), spectrum.freq_per_mm_, amplitude,
-                                       f"{Path(image).name}: crop x={box[0]}, y={box[1]}, {box[2]} x {box[3]} px")
+                                       f"{Path(image).name}: crop x={box[0]}, y={box[1]}, {box[2]} x {box[3]} px",
+                                       contact=spectrum.contact_reading(image, ridge_period_mm))
     return figures.figure_bytes(fig, plot.suffix.lower().lstrip("."))
 
 
@@ -167,13 +184,32 @@ def _spectrum(*, px_per_mm, roi, rows, f_min, f_max, n_freqs, jobs, window, max_
     ).fit()
 
 
-def _image_features(spectrum, paths: list[Path]):
-    """One row per image: its path, then its spectrum."""
+def _table(spectrum, loaded, images, ridge_period_mm):
+    """(the images read, the table to write): the study's manifest and features (each pad's contact read with its
+    own ridges), or one row per IMAGE."""
+    from ..analysis.dataset import plain_names, study_features
+
+    if loaded is not None:
+        features = study_features(loaded, spectrum=spectrum, progress=progress)
+        return loaded.image_paths, plain_names(features, source=loaded.root / "manifest.csv")
+    return list(images), _image_features(spectrum, list(images), ridge_period_mm)
+
+
+def _image_features(spectrum, paths: list[Path], ridge_period_mm: float | None):
+    """One row per image: its path, then its spectrum, then its contact measures (read as on a pad with ridges of
+    ``ridge_period_mm``, or a smooth one)."""
+    import numpy as np
     import pandas as pd
 
+    from ..sensor.contact_geometry import CONTACT_MEASURES
+
     names = list(spectrum.get_feature_names_out())
-    spectra = list(progress(spectrum.iter_transform(paths), total=len(paths), description="features"))
-    return pd.concat([pd.DataFrame({"image": [str(p) for p in paths]}), pd.DataFrame(spectra, columns=names)], axis=1)
+    read = list(progress(spectrum.iter_transform_contact(paths, ridge_period_mm), total=len(paths),
+                         description="features"))
+    spectra = np.vstack([s for s, _ in read]) if read else np.empty((0, len(names)))
+    contact = np.vstack([c for _, c in read]) if read else np.empty((0, len(CONTACT_MEASURES)))
+    return pd.concat([pd.DataFrame({"image": [str(p) for p in paths]}), pd.DataFrame(spectra, columns=names),
+                      pd.DataFrame(contact, columns=list(CONTACT_MEASURES))], axis=1)
 
 
 def register(app: typer.Typer) -> None:

@@ -330,17 +330,23 @@ def unseen_figure(results: pd.DataFrame, perceived: pd.DataFrame, condition: str
     return fig
 
 
-def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: str):
-    """One image: the gray level along its contact line (top) and its normalised spectrum with the peak marked.
+def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: str, contact=None):
+    """One image: the gray level along its contact line (top), its contact band with the lands and grooves read
+    (middle, with ``contact``: a ``(band profile, ContactReading)`` pair from sensor/contact_geometry.py) and its
+    normalised spectrum with the peak marked (bottom).
 
-    What ``roughsense features --plot`` draws, so a user can see where the spectrum's peak comes from.
+    What ``roughsense features --plot`` draws, so a user can see where the spectrum's peak and the widths come from.
     """
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 5.6))
+    rows = 2 if contact is None else 3
+    fig, axes = plt.subplots(rows, 1, figsize=(8.0, 2.8 * rows))
+    top, bottom = axes[0], axes[-1]
     x_mm = np.arange(len(line)) / px_per_mm
     top.plot(x_mm, line, color="0.25", lw=0.8)
     top.set_xlabel("position along the line (mm)")
     top.set_ylabel("gray level (0-1)")
     top.set_title(title, fontsize=9)
+    if contact is not None:
+        _contact_panel(axes[1], *contact, px_per_mm)
     freq, amplitude = np.asarray(freq_per_mm, float), np.asarray(amplitude, float)
     peak = int(np.argmax(amplitude))
     bottom.plot(freq, amplitude, "-o", color="#2f5d8a", ms=3, lw=1.2)
@@ -349,7 +355,34 @@ def line_spectrum_figure(line, px_per_mm: float, freq_per_mm, amplitude, title: 
                     xytext=(8, -4), textcoords="offset points", color="red", fontsize=8, va="top")
     bottom.set_xlabel("spatial frequency (mm$^{-1}$)")
     bottom.set_ylabel("normalised amplitude")
-    for ax in (top, bottom):
+    for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def _contact_panel(ax, profile, reading, px_per_mm: float) -> None:
+    """The band profile, what the widths were read on and its threshold, each complete land (contact) and groove
+    (gap) shaded, and the widths written (or why there are none)."""
+    ax.plot(np.arange(len(profile)) / px_per_mm, profile, color="0.55", lw=0.6, label="band (rows averaged)")
+    if reading.read_on is not None:
+        read_x_mm = (np.arange(len(reading.read_on)) + 0.5) * reading.step_mm - 0.5 / px_per_mm
+        ax.plot(read_x_mm, reading.read_on, color="#2f5d8a", lw=0.9, label="read on (pairs of px; crest envelope on a "
+                "ridged pad)")
+        if reading.threshold is not None:
+            ax.plot(read_x_mm, reading.threshold, color="#b8860b", lw=0.8, ls="--", label="contact / gap threshold")
+    for start, stop in reading.lands_mm:
+        ax.axvspan(start, stop, color="#3a9a4a", alpha=0.25, lw=0)
+    for start, stop in reading.grooves_mm:
+        ax.axvspan(start, stop, color="#c0504d", alpha=0.15, lw=0)
+    values = reading.as_dict()
+    if np.isfinite(values["land_mm"]):
+        text = (f"land (contact, green) {values['land_mm']:.2f} mm, groove (gap, red) {values['groove_mm']:.2f} mm "
+                f"(+-{values['width_se_mm']:.3f} mm), land fraction {100 * values['land_fraction']:.0f} %, "
+                f"{len(reading.lands_mm)} lands / {len(reading.grooves_mm)} grooves")
+    else:
+        text = "land and groove not readable with confidence (NaN): no regular contact pattern"
+    ax.set_title(text, fontsize=8)
+    ax.set_xlabel("position along the line (mm)")
+    ax.set_ylabel("gray level (0-1)")
+    ax.legend(fontsize=7, loc="lower right")

@@ -17,6 +17,7 @@ from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
 from ..io.images import as_image, check_pixels, decode, decode_png_top_rows, png_size, read_bytes, to_gray
 from ..io.sensor_settings import Roi, check_max_pixels, parse_roi, roi_misfit
+from .contact_geometry import CONTACT_MEASURES, band_profile, contact_measures
 from .descriptors import press_descriptors, press_strips
 from .grid import SETTINGS, _normalise, frequency_grid, line_amplitude
 
@@ -106,7 +107,8 @@ class _Plan:
     freq_per_mm: np.ndarray
     window: str
     max_pixels: int = MAX_PIXELS
-    #: Set on a per-image copy by :meth:`reading`: where the line's read keeps the strips the descriptors need.
+    #: Set on a per-image copy by :meth:`reading` and :meth:`contact`: where the line's read leaves the pixels it
+    #: decoded and the crop (``"decoded"``), so that the descriptors and the contact read them at no second decoding.
     describe: dict | None = None
 
     @classmethod
@@ -156,8 +158,8 @@ class _Plan:
             )
         line = extract_line(pixels, box, self.rows, name=name, where=where)
         amplitude = line_amplitude(line, px_per_mm=self.px_per_mm, freq_per_mm=self.freq_per_mm, window=self.window)
-        if self.describe is not None:  # predict's gate: from the pixels decoded for the line, no second decoding
-            self.describe["strips"] = press_strips(pixels, box, self.rows)
+        if self.describe is not None:  # predict's gate and the contact: the pixels decoded for the line, read again
+            self.describe["decoded"] = (pixels, box)
         return _normalise(amplitude, self.freq_per_mm, name, where), line
 
     def reading(self, image, index: int | None = None, ridge_period_mm: float | None = None):
@@ -168,9 +170,24 @@ class _Plan:
             spectrum, line = plan.spectrum_and_line(image, index)
         except InputError as exc:
             return exc
-        described = press_descriptors(plan.describe["strips"], line, self.px_per_mm, float(self.freq_per_mm[0]),
-                                      float(self.freq_per_mm[-1]), ridge_period_mm)
+        pixels, box = plan.describe["decoded"]
+        described = press_descriptors(press_strips(pixels, box, self.rows), line, self.px_per_mm,
+                                      float(self.freq_per_mm[0]), float(self.freq_per_mm[-1]), ridge_period_mm)
+        described.update(zip(CONTACT_MEASURES, self._contact(pixels, box, ridge_period_mm).tolist()))
         return spectrum, line, described
+
+    def contact(self, image, index: int | None = None, ridge_period_mm: float | None = None):
+        """(spectrum, contact measures (len(CONTACT_MEASURES),)) of one image; an unreadable image raises, as
+        :meth:`spectrum` does. The measures read the band of rows the line's decoding already holds."""
+        plan = dataclasses.replace(self, describe={})
+        spectrum, _ = plan.spectrum_and_line(image, index)
+        pixels, box = plan.describe["decoded"]
+        return spectrum, self._contact(pixels, box, ridge_period_mm)
+
+    def _contact(self, pixels, box, ridge_period_mm: float | None) -> np.ndarray:
+        """The contact measures (``sensor/contact_geometry.py``) of the band from the crop's top down to the line."""
+        return contact_measures(band_profile(pixels, box, self.rows), self.px_per_mm,
+                                ridge_period_mm=ridge_period_mm)
 
     def _top_rows_only(self, data: np.ndarray, name) -> tuple[np.ndarray | None, tuple | None]:
         """Decode a PNG only down to the last row the line uses (same result, about half the decoding).

@@ -25,6 +25,7 @@ from ..defaults import CENTER_CROP_PX, MAX_PIXELS, PX_PER_MM, ROI
 from ..errors import ConfigError, InputError
 from ..io.images import GRAY_WEIGHTS_RGB, as_image
 from ..io.sensor_settings import Roi
+from .contact_geometry import band_profile, read_contact
 from .line import _Plan, extract_line, resolve_roi
 
 __all__ = ["SpatialSpectrum", "combine_forces"]
@@ -181,8 +182,30 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         """
         return self._iter(images, _Plan.spectrum_and_line)
 
+    def iter_transform_contact(self, images: Iterable, ridge_period_mm: float | None = None
+                               ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """As :meth:`iter_transform`, each spectrum with the press's contact measures
+        (``sensor/contact_geometry.py``: :data:`~.contact_geometry.CONTACT_MEASURES`, NaN where one cannot be read),
+        read from the rows the spectrum's decoding already holds. An unreadable image raises as in
+        :meth:`iter_transform`.
+
+        Parameters
+        ----------
+        images : iterable of str, os.PathLike or numpy.ndarray
+            Image files or pixel arrays.
+        ridge_period_mm : float, optional
+            The pad's ridge period (None: a smooth pad); a ridged pad's land and groove are read on its crests.
+
+        Returns
+        -------
+        iterator of tuple
+            (spectrum (n_freqs,), contact (len(CONTACT_MEASURES),) float64) per image, in order.
+        """
+        return self._iter(images, functools.partial(_Plan.contact, ridge_period_mm=ridge_period_mm))
+
     def iter_readings(self, images: Iterable, ridge_period_mm: float | None = None) -> Iterator:
-        """As :meth:`iter_transform_lines`, with each press's descriptors (``sensor/descriptors.py``): per image
+        """As :meth:`iter_transform_lines`, with each press's descriptors (``sensor/descriptors.py``) and contact
+        measures (one key per :data:`~.contact_geometry.CONTACT_MEASURES` name): per image
         ``(spectrum, line, descriptors)``, or the :class:`InputError` that refused it (predict withholds that press
         and goes on with the others).
 
@@ -224,6 +247,31 @@ class SpatialSpectrum(TransformerMixin, BaseEstimator):
         pixels = as_image(image, max_pixels=plan.max_pixels)
         box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
         return extract_line(pixels, box, plan.rows), box
+
+    def contact_reading(self, image, ridge_period_mm: float | None = None):
+        """The band profile (the crop's rows down to the line, averaged) and its contact reading
+        (:class:`~.contact_geometry.ContactReading`: the measures, the spans read, the threshold): what
+        ``roughsense features --plot`` draws.
+
+        Parameters
+        ----------
+        image : str, os.PathLike or numpy.ndarray
+            One image file or pixel array.
+        ridge_period_mm : float, optional
+            The pad's ridge period (None: a smooth pad).
+
+        Returns
+        -------
+        profile : numpy.ndarray
+            (w,) gray values of the band.
+        reading : ContactReading
+            Its measures and spans.
+        """
+        plan = self._plan()
+        pixels = as_image(image, max_pixels=plan.max_pixels)
+        box = resolve_roi(plan.roi, pixels, name=image if isinstance(image, (str, os.PathLike)) else None)
+        profile = band_profile(pixels, box, plan.rows)
+        return profile, read_contact(profile, plan.px_per_mm, ridge_period_mm=ridge_period_mm)
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """Column names: each frequency in mm^-1 as the shortest decimal that round-trips to the float.
