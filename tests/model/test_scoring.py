@@ -67,3 +67,39 @@ def test_roi_auto_warns_on_the_first_readable_image_whose_field_differs(law, tmp
         change = warn_field_of_view(loaded, override, [tmp_path / "missing_2N.png", narrow])
     assert change == pytest.approx(900 / 1900 - 1)
     assert warn_field_of_view(loaded, None, [narrow]) is None  # the model's own ROI: nothing to compare
+
+
+def pulses(path, period_mm: float, land_mm: float, width_px: int = 1920):
+    """A contact image of a rectangular grating: bright lands of ``land_mm`` every ``period_mm`` on a dark gap."""
+    x_mm = np.arange(width_px) / PX_PER_MM
+    row = np.where(np.mod(x_mm, period_mm) < land_mm, 200, 50)
+    assert cv2.imwrite(str(path), np.tile(row, (160, 1)).astype(np.uint8))
+    return path
+
+
+def test_a_family_that_reads_the_contact_gets_each_trials_measures_from_predict(tmp_path):
+    """The groove family's loaded model scores as the fitted one does on the contact measures the sensor reads,
+    and a groove wider than any trained is flagged: predict passes the measures as the family's keyword."""
+    from roughsense.model.groove.law import GrooveLaw
+    from roughsense.sensor.contact_geometry import CONTACT_MEASURES
+
+    geometry = [(2, 1), (3, 1.5), (4, 2), (5, 2.5), (4, 1), (4, 3), (3, 1), (3, 2)]
+    images = [pulses(tmp_path / f"t{i}_{k}_2N.png", p, land) for i, (p, land) in enumerate(geometry) for k in (0, 1)]
+    spectrum = rs.SpatialSpectrum().fit()
+    pairs = list(spectrum.iter_transform_contact(images))
+    X, contact = np.vstack([p[0] for p in pairs]), np.vstack([p[1] for p in pairs])
+    names = tuple(f"{m}@2N" for m in CONTACT_MEASURES)
+    groove = np.repeat([p - land for p, land in geometry], 2)
+    fitted = GrooveLaw().fit(X, (groove / 1.5) ** 0.8, contact=contact, contact_names=names,
+                             specimens=np.repeat(np.arange(len(geometry)), 2).astype(str))
+    features = {"spectrum": spectrum.feature_definition(), "conditions": ["2N"]}
+    path = save_model(tmp_path / "groove.json", fitted, feature_definition=features,
+                      training={"reference_specimen": "R3"})
+    new = [pulses(tmp_path / "a_2N.png", 4.5, 2.0), pulses(tmp_path / "wide_2N.png", 5.0, 0.6)]
+    [(_, a), (_, wide)] = list(spectrum.iter_transform_contact(new))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RoughsenseWarning)  # the file has no gate: said once
+        table = rs.predict(path, new)
+    expected = fitted.predict(spectrum.transform(new), contact=np.vstack([a, wide]))
+    np.testing.assert_allclose(table["roughness_rel_R3"], expected.round(3), atol=0.006)
+    assert list(table["extrapolates"]) == [False, True] and "groove" in table["outside"][1]
