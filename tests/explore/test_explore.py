@@ -158,11 +158,27 @@ def test_a_design_in_memory_equals_its_simulated_folder_read_back(tmp_path):
     memory_study, memory = explore_cell.design_features(config, warm_start=False)
     # design_features renders only the line's rows, so it carries no contact measures (they read the band above it)
     assert not set(dataset.contact_columns()) & set(memory.columns)
-    folder = folder.drop(columns=dataset.contact_columns())
-    pd.testing.assert_frame_equal(memory, folder.assign(image=folder["image"].str.removeprefix("images/")))
+    read_back = folder.assign(image=folder["image"].str.removeprefix("images/"))
+    pd.testing.assert_frame_equal(memory, read_back.drop(columns=dataset.contact_columns()))
+    # asked for them (a family that reads the contact), it renders the band and reads each pad with its own ridges
+    _, with_contact = explore_cell.design_features(config, warm_start=False, contact=True)
+    pd.testing.assert_frame_equal(with_contact, read_back)
     pd.testing.assert_frame_equal(dataset.perceived_roughness(memory_study), dataset.perceived_roughness(study))
     assert (memory_study.pads, memory_study.pad_ridge_period_mm, memory_study.forces_n) == (
         study.pads, study.pad_ridge_period_mm, study.forces_n)
+
+
+def test_a_cell_that_fits_a_contact_family_reads_the_contact_measures(tmp_path):
+    """Without them a family that reads the contact would fit its training mean and flag every press, silently."""
+    from dataclasses import replace
+
+    cell = read_sweep(_sweep_file(tmp_path)).cells[0]
+    _, plain = explore_cell.cell_features(cell)
+    _, read = explore_cell.cell_features(replace(cell, models=("pls", "groove")))
+    assert not set(dataset.contact_columns()) & set(plain.columns)
+    assert read[dataset.contact_columns()[:2]].notna().any().all()  # land and groove widths read on the smooth pad
+    freq = dataset.frequency_columns(plain)
+    assert np.array_equal(read[freq].to_numpy(), plain[freq].to_numpy())  # the spectra are the same either way
 
 
 def test_run_cell_records_a_failure_as_one_line(tmp_path, monkeypatch):

@@ -1,6 +1,7 @@
 """One cell in memory: twin frames -> spectra -> the study's own analysis (LOO and nested LOSO) -> result rows.
 
-Nothing is written. Frames are rendered only down to the row the sensor reads (bit-identical to those rows of the
+Nothing is written. Frames are rendered only down to the row the sensor reads (the band above it too for a family that
+reads the contact measures; bit-identical to those rows of the
 whole frame) and each trial's contact levels start from the last solution of the same surfaces; the spectra come from
 the sensor's own code on a frame of the camera's full size, and the analysis is :func:`analysis.study_analysis.analyse_study`
 on an in-memory study, so a cell's numbers are the ones ``simulate`` + ``study`` give for the same design (to the
@@ -18,12 +19,13 @@ import numpy as np
 import pandas as pd
 
 from .. import defaults
-from ..analysis.dataset import spectrum_columns
+from ..analysis.dataset import contact_columns, spectrum_columns
 from ..analysis.study_analysis import analyse_study
 from ..errors import RoughsenseError
 from ..io.protocol import assign_nominal_forces, nominal_force_label
 from ..io.sensor_settings import SensorSettings
 from ..io.study import Study
+from ..model.registry import engine
 from ..paper import REFERENCE_SPECIMEN
 from ..sensor.line import resolve_roi
 from ..sensor.spectrum import SpatialSpectrum
@@ -51,11 +53,12 @@ def sensor_roi(width_px: int, height_px: int):
     return ((width_px - w) // 2, (height_px - h) // 2, w, h)
 
 
-def line_rows(spectrum: SpatialSpectrum, width_px: int, height_px: int) -> tuple[int, int]:
-    """The rows of a frame the sensor reads: the crop's central ``rows`` rows (as ``sensor.spectrum`` reads them)."""
+def line_rows(spectrum: SpatialSpectrum, width_px: int, height_px: int, *, band: bool = False) -> tuple[int, int]:
+    """The rows of a frame the sensor reads: the crop's central ``rows`` rows (as ``sensor.spectrum`` reads them);
+    with ``band``, every row from the crop's top down to them (where the contact measures are read)."""
     x, y, w, h = resolve_roi(spectrum.roi, np.empty((height_px, width_px, 0), dtype=np.uint8))
     top = y + (h - spectrum.rows) // 2
-    return top, top + spectrum.rows
+    return (y if band else top), top + spectrum.rows
 
 
 def simulation_config(cell: Cell) -> SimulationConfig:
@@ -73,16 +76,19 @@ def cell_features(cell: Cell, *, warm_start: bool = True) -> tuple[Study, pd.Dat
     config = simulation_config(cell)
     pads, _ = config.validate()
     pads = [replace(p, young_pa=cell.pad_modulus_mpa * 1e6) for p in pads]
-    return design_features(config, pads=pads, warm_start=warm_start, label=f"explore cell {cell.id}")
+    contact = any(engine(model).reads_contact for model in cell.models)
+    return design_features(config, pads=pads, warm_start=warm_start, label=f"explore cell {cell.id}", contact=contact)
 
 
 def design_features(config: SimulationConfig, *, pads=None, warm_start: bool = True,
-                    label: str = "simulated design") -> tuple[Study, pd.DataFrame]:
-    """A simulated design's study in memory (no images) and its feature table (manifest columns + spectrum): what
-    ``simulate`` + ``read_study`` + the sensor give for the same config, without writing or decoding a frame.
+                    label: str = "simulated design", contact: bool = False) -> tuple[Study, pd.DataFrame]:
+    """A simulated design's study in memory (no images) and its feature table (manifest columns + spectrum, and with
+    ``contact`` each press's contact measures): what ``simulate`` + ``read_study`` + the sensor give for the same
+    config, without writing or decoding a frame.
 
     Its manifest is the table a simulated folder's manifest.csv holds (sim.manifest), as the study reader returns it
-    (images by name). ``pads`` replaces the config's pads (a sweep's modulus axis).
+    (images by name). ``pads`` replaces the config's pads (a sweep's modulus axis). The contact measures need the
+    band above the line, so only a design that asks for them renders it (each pad's read with its own ridges).
 
     ``warm_start=False`` solves every contact from scratch, as ``simulate`` does: the features are then
     bit-identical to those of the simulated study folder (tests compare them).
@@ -94,22 +100,28 @@ def design_features(config: SimulationConfig, *, pads=None, warm_start: bool = T
     height_px = getattr(camera, "frame_height_px", camera.height_px)  # the rows a frame holds (a sensor window)
     roi = sensor_roi(camera.width_px, height_px)
     spectrum = SpatialSpectrum(px_per_mm=camera.px_per_mm, roi=roi).fit()
-    rows = line_rows(spectrum, camera.width_px, height_px)
+    rows = line_rows(spectrum, camera.width_px, height_px, band=contact)
     warm: dict | None = {} if warm_start else None
     fractions = []
 
-    def frames():
+    def frames(chosen):
         frame = np.zeros((height_px, camera.width_px), dtype=np.uint8)  # rows the sensor never reads stay 0
-        for trial in trials:
+        for trial in chosen:
             part, fraction = render_trial(trial, rows=rows, warm=warm)
             fractions.append(fraction)
             frame[rows[0]:rows[1]] = part
             yield frame
 
-    X = np.vstack(list(spectrum.iter_transform(frames())))
+    if contact:
+        X, measures, order = _contact_features(spectrum, trials, frames, ridge_periods(pads))
+        fractions = [fractions[i] for i in np.argsort(order)]
+    else:
+        X = np.vstack(list(spectrum.iter_transform(frames(trials))))
     # The folder's manifest table (images by name: there are no files), with the conditions read_study gives it.
     manifest = assign_nominal_forces(trial_manifest(trials, [t.image for t in trials], fractions), config.forces_n)
     features = pd.concat([manifest, pd.DataFrame(X, columns=spectrum_columns(spectrum.freq_per_mm_))], axis=1)
+    if contact:
+        features = pd.concat([features, pd.DataFrame(measures, columns=contact_columns())], axis=1)
     study = Study(
         root=Path(label.replace(" ", "-")), name=label, reference_specimen=REFERENCE_SPECIMEN,
         sensor=SensorSettings(px_per_mm=camera.px_per_mm, roi=roi), forces_n=tuple(sorted(config.forces_n)),
@@ -119,6 +131,21 @@ def design_features(config: SimulationConfig, *, pads=None, warm_start: bool = T
         pad_ridge_period_mm=ridge_periods(pads),
     )
     return study, features
+
+
+def _contact_features(spectrum: SpatialSpectrum, trials: list, frames, ridges: dict):
+    """(spectra, contact measures, the order the trials were rendered in) of every trial, each pad's trials read with
+    that pad's ridge period (a smooth pad's with none), in the trials' order."""
+    X = np.empty((len(trials), spectrum.freq_per_mm_.size))
+    measures = np.empty((len(trials), len(contact_columns())))
+    order = []
+    for pad in dict.fromkeys(t.pad.name for t in trials):
+        chosen = [i for i, t in enumerate(trials) if t.pad.name == pad]
+        pairs = spectrum.iter_transform_contact(frames([trials[i] for i in chosen]), ridge_period_mm=ridges.get(pad))
+        for i, (row, measured) in zip(chosen, pairs):
+            X[i], measures[i] = row, measured
+        order.extend(chosen)
+    return X, measures, np.array(order)
 
 
 def cell_conditions(cell: Cell) -> tuple[list[str], list[str]]:
