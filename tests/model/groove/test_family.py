@@ -43,7 +43,7 @@ def grating_study(seed: int = 0, reps: int = 4, exponent: float = 0.7, nan_press
 
 def test_the_registry_knows_the_family_and_it_reads_contact():
     family = engine("groove")
-    assert isinstance(family, GrooveFamily) and family.reads_contact and not family.reads_surfaces
+    assert isinstance(family, GrooveFamily) and family.reads_contact and family.reads_surfaces
     assert family.largest_count(20) == 1
 
 
@@ -52,7 +52,7 @@ def test_cross_validation_is_brute_force_beside_the_training_mean(cv):
     X, y, specimens, settings = grating_study()
     fold = GrooveFamily().cross_validate(X, y, specimens, cv, settings, 1)
     folds = specimens if cv == "loso" else np.arange(y.size)
-    terms, _ = contact_terms(settings.contact, settings.contact_names)
+    terms, _ = contact_terms(settings.contact, settings.contact_names, settings.surfaces)
     expected = np.exp(brute_out_of_fold(terms, np.log(y), folds, specimens))
     np.testing.assert_allclose(fold.out_of_fold, expected, rtol=1e-9)
     null = np.array([y[folds != f].mean() for f in folds])
@@ -80,7 +80,7 @@ def test_scheme_predictions_and_flags_under_any_folds():
     periods = np.array([s.split(":")[1] for s in specimens])  # a period left out
     family = GrooveFamily()
     predictions, flags = family.scheme_predictions(X, np.column_stack([y, y[::-1]]), specimens, periods, settings, 1)
-    terms, names = contact_terms(settings.contact, settings.contact_names)
+    terms, names = contact_terms(settings.contact, settings.contact_names, settings.surfaces)
     np.testing.assert_allclose(predictions[0], np.exp(brute_out_of_fold(terms, np.log(y), periods, specimens)),
                                rtol=1e-9)
     assert predictions.shape == (2, y.size)
@@ -97,14 +97,18 @@ def test_held_out_flags_flag_the_geometry_the_model_never_saw():
     table = pd.DataFrame({"specimen": specimens, "flag": flags}).groupby("specimen")["flag"].mean()
     assert table["rect:5:1:1.5"] == 1.0 and table["rect:2:1:0.6"] == 1.0  # widest groove; narrowest land
     assert table["rect:4:1:2"] == 0.0  # inside every other geometry's widths
-    assert flags[5]  # its groove could not be read
+    assert not flags[5]  # its groove was not read, but its surface's other presses read it
+    import dataclasses
+
+    alone = GrooveFamily().held_out_flags(X, y, specimens, dataclasses.replace(settings, surfaces=None), None)
+    assert alone[5]  # read alone, its groove is unknown: flagged
 
 
 def test_the_interval_check_reads_leave_two_out_fits():
     X, y, specimens, settings = grating_study(reps=3)
     check = GrooveFamily().interval_check(X, y, specimens, settings, 0)
     assert len(check) == 12 and {"covered", "log_halfwidth"} <= set(check.columns)
-    terms, _ = contact_terms(settings.contact, settings.contact_names)
+    terms, _ = contact_terms(settings.contact, settings.contact_names, settings.surfaces)
     pair = ~np.isin(specimens, specimens[[0, 3]])  # without the first two specimens
     log_predictions = log_predictions_under(terms, np.log(y)[:, None], pair[None], specimens)[0, 0]
     np.testing.assert_allclose(log_predictions[~pair], brute_out_of_fold(
@@ -133,7 +137,7 @@ def test_train_recovers_the_groove_law_and_reports_its_cv(scheme):
     law = trained.model
     assert law.terms_[0] == "log_groove_mm" and law.coef_[0] == pytest.approx(0.7, abs=0.05)
     folds = trained.cv.folds
-    terms, _ = contact_terms(settings.contact, settings.contact_names)
+    terms, _ = contact_terms(settings.contact, settings.contact_names, settings.surfaces)
     expected = np.exp(brute_out_of_fold(terms, np.log(y), folds, specimens))
     np.testing.assert_allclose(trained.cv.predictions[:, 1], expected, rtol=1e-9)
     assert trained.record["cv_rmse"][1] == pytest.approx(np.sqrt(np.mean((expected - y) ** 2)))

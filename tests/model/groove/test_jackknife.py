@@ -27,9 +27,9 @@ def deployed():
 
 def test_each_fold_is_the_model_chosen_and_refitted_without_its_specimen(deployed):
     jackknife, X, y, specimens, settings = deployed
-    terms, _ = contact_terms(settings.contact, settings.contact_names)
+    terms, _ = contact_terms(settings.contact, settings.contact_names, settings.surfaces)
     brute = brute_out_of_fold(terms, np.log(y), specimens, specimens)
-    every = jackknife.folds.log_predict(X, contact=settings.contact)  # (S, n)
+    every = jackknife.folds.log_predict(X, specimens, contact=settings.contact)  # (S, n), surfaces read together
     codes, names = pd.factorize(pd.Series(specimens), sort=False)
     np.testing.assert_allclose(every[codes, np.arange(y.size)], brute, rtol=1e-9)
     assert jackknife.specimens == tuple(names) and jackknife.counts == (1, 3)

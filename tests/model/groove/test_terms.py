@@ -52,3 +52,14 @@ def test_contact_columns_lacking_a_width_or_of_another_shape_are_refused_in_one_
         contact_terms(np.ones((2, 3)), NAMES[:2])
     with pytest.raises(ConfigError, match="land widths at 1N but groove widths at 2N"):
         contact_terms(np.ones((1, 2)), ("land_mm@1N", "groove_mm@2N"))
+
+
+def test_a_surfaces_presses_are_read_together_as_the_geometric_mean_of_what_was_read():
+    from roughsense.model.groove.terms import surface_contact
+
+    contact = np.array([[1.0, 4.0], [4.0, np.nan], [2.0, 1.0], [np.nan, np.nan], [3.0, 0.0]])
+    pooled = surface_contact(contact, ["a", "a", "b", "c", "c"])
+    np.testing.assert_allclose(pooled[:2], [[2.0, 4.0], [2.0, 4.0]])  # sqrt(1 * 4); the one groove read
+    np.testing.assert_array_equal(pooled[2], contact[2])  # a surface of one press keeps its own
+    assert pooled[3, 0] == pooled[4, 0] == 3.0 and np.isnan(pooled[3:, 1]).all()  # a zero width is no reading
+    assert surface_contact(contact, None) is contact  # no surfaces: each press alone

@@ -32,7 +32,7 @@ def settings_terms(settings: FoldSettings | dict | None, n: int) -> tuple[np.nda
     settings = FoldSettings.of(settings)
     if settings is None or settings.contact is None or not settings.contact_names:
         return np.zeros((n, 0)), ()
-    return contact_terms(settings.contact, settings.contact_names)
+    return contact_terms(settings.contact, settings.contact_names, settings.surfaces)
 
 
 def log_predictions_under(terms: np.ndarray, log_y: np.ndarray, train: np.ndarray, specimens: np.ndarray
@@ -71,6 +71,7 @@ class GrooveFamily(FamilyEngine):
     training_schema: ClassVar[dict] = TRAINING_SCHEMA
     fold_schema: ClassVar[dict] = FOLD_SCHEMA
     reads_contact: ClassVar[bool] = True
+    reads_surfaces: ClassVar[bool] = True
 
     def cross_validate(self, X, y, specimens, cv, settings, max_components) -> FoldResult:
         """Its nested fit on each training fold predicts the held-out trials; curve = [training mean's, its own]."""
@@ -120,7 +121,8 @@ class GrooveFamily(FamilyEngine):
         settings = FoldSettings.of(settings)
         if settings is None or settings.contact is None or not settings.contact_names:
             return None
-        return groove_jackknife(X, y, specimens, settings.contact, settings.contact_names, seed)
+        return groove_jackknife(X, y, specimens, settings.contact, settings.contact_names, seed,
+                                surfaces=settings.surfaces)
 
     def load_folds(self, stored, loaded, names, path):
         return load_groove_folds(stored, loaded, names, path)

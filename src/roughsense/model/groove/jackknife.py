@@ -41,12 +41,12 @@ class GrooveFolds:
     kind = KIND
 
     def log_predict(self, X, surfaces=None, contact=None) -> np.ndarray:
-        """(S, n) each fold's log prediction of each row (each press read alone; ``contact`` as the model reads)."""
+        """(S, n) each fold's log prediction of each row (``contact`` and ``surfaces`` as the model reads them)."""
         if contact is None:
             from .law import GrooveInputError
 
             raise GrooveInputError("the groove model's intervals read contact measures; none were given")
-        terms, _ = contact_terms(contact, self.contact_names)
+        terms, _ = contact_terms(contact, self.contact_names, surfaces)
         filled = np.where(np.isfinite(terms)[None], terms[None], self.term_mean[:, None, :])
         held = np.clip(filled, self.term_min[:, None, :], self.term_max[:, None, :])
         return self.intercept[:, None] + np.einsum("snt,st->sn", held, self.coefficients)
@@ -92,9 +92,10 @@ def groove_folds(terms: np.ndarray, y: np.ndarray, specimens, contact_names) -> 
     return GrooveFolds(intercept, slopes, means, low, high, tuple(str(n) for n in contact_names)), codes
 
 
-def groove_jackknife(X, y, specimens, contact: np.ndarray, contact_names, seed: int):
-    """The groove model's jackknife+ (each specimen's residual read from each kept count of presses), or None."""
-    terms, _ = contact_terms(contact, contact_names)
+def groove_jackknife(X, y, specimens, contact: np.ndarray, contact_names, seed: int, surfaces=None):
+    """The groove model's jackknife+ (each specimen's residual read from each kept count of presses), or None; the
+    folds fitted as the model is, rows of one of ``surfaces`` read together."""
+    terms, _ = contact_terms(contact, contact_names, surfaces)
     folds, _ = groove_folds(terms, y, specimens, contact_names)
     return None if folds is None else deploy(folds, X, y, specimens, seed, contact=contact)
 

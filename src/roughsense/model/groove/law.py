@@ -51,9 +51,10 @@ class GrooveLaw(FromModelFile):
     def __init__(self, selection_se: float = SELECTION_SE) -> None:
         self.selection_se = selection_se
 
-    def fit(self, X, y, *, contact, contact_names, specimens) -> GrooveLaw:
-        """Choose the terms by leave-one-specimen-out over ``specimens`` and fit them on every row."""
-        every_term, names = contact_terms(contact, contact_names)
+    def fit(self, X, y, *, contact, contact_names, specimens, surfaces=None) -> GrooveLaw:
+        """Choose the terms by leave-one-specimen-out over ``specimens`` and fit them on every row; rows of one of
+        ``surfaces`` are read together (model/groove/terms.py)."""
+        every_term, names = contact_terms(contact, contact_names, surfaces)
         terms = offered(every_term)
         y = np.asarray(y, dtype=np.float64)
         if y.shape != (terms.shape[0],) or not np.all(np.isfinite(y) & (y > 0)):
@@ -77,7 +78,7 @@ class GrooveLaw(FromModelFile):
             axis_values(every_term, names), codes, np.ones(y.size, dtype=bool))
         return self
 
-    def _terms(self, X, contact) -> np.ndarray:
+    def _terms(self, X, contact, surfaces=None) -> np.ndarray:
         """Every offered term of each row (n, T), after refusing contact measures that are not the model's."""
         X = self._file_inputs(X)
         if contact is None:
@@ -91,18 +92,19 @@ class GrooveLaw(FromModelFile):
             raise GrooveInputError(f"the groove model reads {len(self.contact_names_)} contact measure(s) per row "
                                    f"({', '.join(self.contact_names_)}) for {len(X)} row(s), got shape "
                                    f"{contact.shape}")
-        return contact_terms(contact, self.contact_names_)[0]
+        return contact_terms(contact, self.contact_names_, surfaces)[0]
 
     def predict(self, X, surfaces=None, contact=None) -> np.ndarray:
-        """Perceived roughness of each row (``surfaces`` is not read: each press is read alone)."""
-        terms = self._terms(X, contact)
+        """Perceived roughness of each row; rows of one of ``surfaces`` are read together (their widths' geometric
+        mean where read), a row without a surface alone."""
+        terms = self._terms(X, contact, surfaces)
         chosen = terms[:, [self.term_names_.index(t) for t in self.terms_]]
         held = np.clip(np.where(np.isfinite(chosen), chosen, self.term_mean_), self.term_min_, self.term_max_)
         return np.exp(self.intercept_ + held @ self.coef_)
 
     def applicability(self, X, surfaces=None, contact=None) -> list[str]:
         """Per row, what lies outside the land and groove widths it was trained on ('' where nothing does)."""
-        terms = self._terms(X, contact)
+        terms = self._terms(X, contact, surfaces)
         reasons = domain_reasons(axis_values(terms, self.term_names_), self.domain_low_, self.domain_high_,
                                  self.domain_margin_)
         other = [t for t in self.terms_ if t not in AXES]  # a chosen term beyond the axes, unread: put at its mean

@@ -13,12 +13,18 @@ finger's roughness is a power law of the geometry, Lederman 1974):
 
 A width that cannot be read is NaN (never made up); a force whose width is NaN or not positive is left out of a
 mean over forces, so a term is NaN only where no force of the row was read (``groove_change``: either end force).
+
+**Surfaces.** Rows labelled as presses of one surface (``surfaces``) are read together, as the peak law reads them:
+each measure is the geometric mean over the surface's presses where it was read. A fingerprint pad's widths are
+read in about half its presses, and coarsely (to about a ridge period, sensor/contact_geometry.py), so one press
+often gives no width, where ten presses of the surface give a mean; a press read alone keeps its own.
 """
 from __future__ import annotations
 
 import re
 
 import numpy as np
+import pandas as pd
 
 from ...errors import ConfigError
 
@@ -70,12 +76,33 @@ def _mean_over_forces(values: np.ndarray) -> np.ndarray:
     return np.divide(total, count, out=np.full(values.shape[0], np.nan), where=count > 0)
 
 
-def contact_terms(contact, contact_names) -> tuple[np.ndarray, tuple[str, ...]]:
-    """Each row's terms (n, T) as :func:`term_names` lists them (NaN: unreadable), and the names."""
+def surface_contact(contact: np.ndarray, surfaces=None) -> np.ndarray:
+    """Each row's measures as its surface's: the geometric mean over the surface's rows where each was read (NaN
+    where none was); ``surfaces`` None: each row its own."""
+    if surfaces is None:
+        return contact
+    codes, _ = pd.factorize(pd.Series(np.asarray(surfaces).astype(str)), sort=False)
+    if codes.size != contact.shape[0]:
+        raise ConfigError(f"{codes.size} surface labels for {contact.shape[0]} rows of contact measures")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        read = np.isfinite(contact) & (contact > 0)
+        logs = np.where(read, np.log(np.where(read, contact, 1.0)), 0.0)
+    total, count = np.zeros((codes.max() + 1, contact.shape[1])), np.zeros((codes.max() + 1, contact.shape[1]))
+    np.add.at(total, codes, logs)
+    np.add.at(count, codes, read)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pooled = np.where(count > 0, np.exp(total / np.maximum(count, 1)), np.nan)
+    return pooled[codes]
+
+
+def contact_terms(contact, contact_names, surfaces=None) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Each row's terms (n, T) as :func:`term_names` lists them (NaN: unreadable), and the names; the rows of one
+    of ``surfaces`` read together (:func:`surface_contact`)."""
     contact = np.asarray(contact, dtype=np.float64)
     if contact.ndim != 2 or contact.shape[1] != len(contact_names):
         raise ConfigError(f"the contact measures (shape {contact.shape}) must hold one column per contact name "
                           f"({len(contact_names)})")
+    contact = surface_contact(contact, surfaces)
     grooves, conditions = measure_columns(contact_names, GROOVE)
     lands, land_conditions = measure_columns(contact_names, LAND)
     if land_conditions != conditions:

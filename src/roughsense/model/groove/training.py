@@ -43,7 +43,7 @@ def groove_out_of_fold(y: np.ndarray, folds: np.ndarray, specimens: np.ndarray, 
     """Out-of-fold predictions (B, n) of each target column of ``y`` (n,) or (n, B) under fold ids ``folds``,
     and the terms chosen in each fold (F, B bit masks over the terms offered)."""
     contact, names = contact_of(settings)
-    terms, _ = contact_terms(contact, names)
+    terms, _ = contact_terms(contact, names, settings.surfaces)
     y = np.asarray(y, dtype=np.float64)
     log_y = np.log(y[:, None] if y.ndim == 1 else y)
     log_predictions, chosen = nested_log_predictions(terms, log_y, folds, specimens)
@@ -76,7 +76,8 @@ def train_groove(data: TrainingSet) -> Trained:
     y = np.asarray(data.y, dtype=np.float64)
     try:
         out_of_fold, chosen = groove_out_of_fold(y, data.folds, data.specimens, data.settings)
-        fitted = GrooveLaw().fit(data.X, y, contact=contact, contact_names=names, specimens=data.specimens)
+        fitted = GrooveLaw().fit(data.X, y, contact=contact, contact_names=names, specimens=data.specimens,
+                                 surfaces=data.settings.surfaces)
     except ValueError as exc:
         raise ConfigError(f"the groove model cannot be fitted to {data.what}: {exc}") from None
     predictions = np.column_stack([data.baseline, out_of_fold[0]])
