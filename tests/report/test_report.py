@@ -624,3 +624,17 @@ def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulat
     shown = re.findall(r'data-name="([^"]+)"', one["index.html"].decode())
     assert sorted(shown) == sorted(name for name in one if name.endswith(".png"))  # none drawn that is not shown
     assert len(shown) == len(set(shown))
+
+
+def test_the_method_section_gives_the_peak_law_its_terms_of_today(report_dir):
+    """Issue 46: the method said log(roughness) = b0 + b1 log(peak frequency) + b2 log(peak amplitude), "and how
+    high": today's law has no peak-height term. It now reads the registry's description, as fit --model's help does."""
+    import html as html_text
+
+    from roughsense.model.registry import PEAK_LAW, family
+
+    page = (report_dir / "index.html").read_text()
+    method = html_text.unescape(re.sub(r"\s+", " ", page[page.index('id="method"'):page.index('<dl class="meta">',
+                                                                                           page.index('id="method"'))]))
+    assert family(PEAK_LAW).description in method and "b3 log(A(2 f0) / A(f0))" in method
+    assert "peak amplitude)" not in method and "how high" not in method and "b2 log" not in method

@@ -47,7 +47,8 @@ class Family:
 
     ``paper``: the paper's model (its claims, signed-rank tests and published values are of it). ``engine_path``:
     ``"package.module:Class"`` of its :class:`~roughsense.model.family.FamilyEngine`. ``options``: the ``fit``
-    options it takes beyond every family's.
+    options it takes beyond every family's. ``description``: what it predicts from, in a user's words: the one text
+    ``fit --model``'s help and the report's method section give (:func:`model_help`).
     """
 
     name: str
@@ -57,6 +58,7 @@ class Family:
     paper: bool
     engine_path: str
     options: tuple[FitOption, ...] = ()
+    description: str = ""
 
     def engine(self):
         """A fresh engine (stateless), its module imported on first use."""
@@ -68,9 +70,13 @@ _CHOOSES = "chooses PLS components"
 _FAMILIES: list[Family] = [
     Family(PLS, "PLS (the paper's model)", "o", "#2f5d8a", paper=True,
            engine_path="roughsense.model.pls.family:PLSFamily",
-           options=(FitOption("--rule", "rule", _CHOOSES), FitOption("--max-components", "max_components", _CHOOSES))),
+           options=(FitOption("--rule", "rule", _CHOOSES), FitOption("--max-components", "max_components", _CHOOSES)),
+           description="the paper's PLS1 (SIMPLS) on the spectrum's amplitudes, to reproduce the paper"),
     Family(PEAK_LAW, "peak law", "s", "#c0392b", paper=False,
-           engine_path="roughsense.model.peak_law.family:PeakLawFamily"),
+           engine_path="roughsense.model.peak_law.family:PeakLawFamily",
+           description="a power law of where the contact spectrum peaks (the period), times one of the contact's "
+                       "shape (its second harmonic against the fundamental) where the training surfaces show more "
+                       "than one shape; the peak's height is no term (it only bounds the domain)"),
 ]
 
 #: Every built-in family's name, the paper's first (:func:`names` follows the registry at run time).
@@ -115,6 +121,15 @@ def paper_family() -> Family:
 def default_family() -> Family:
     """What ``roughsense fit`` writes unless told otherwise (:data:`DEFAULT_MODEL`)."""
     return family(DEFAULT_MODEL)
+
+
+def model_help() -> str:
+    """``fit --model``'s help: every family's name and :attr:`Family.description`, the default marked."""
+    def one(f: Family) -> str:
+        default = " (the default, for surfaces left out of training)" if f.name == DEFAULT_MODEL else ""
+        return f"{f.name}{default}: {f.description}" if f.description else f"{f.name}{default}"
+
+    return "Model family. " + "; ".join(one(f) for f in _FAMILIES) + "."
 
 
 def check_model_name(name: object, *, option: str = "--model") -> str:

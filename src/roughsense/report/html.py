@@ -32,7 +32,7 @@ from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
 from ..errors import PASS_FORCE, OutputExistsError
 from ..io.names import check_name
-from ..model.registry import PAPER_MODEL
+from ..model.registry import PAPER_MODEL, registry
 from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
 from .answer import answer_lines, answer_table
@@ -202,6 +202,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         sections=_sections(analysis, results, cv_schemes),
         max_components=analysis.max_components,
         reference_specimen=analysis.reference_specimen,
+        method_families=[f for f in registry() if f.name in analysis.models and not f.paper and f.description],
     )
 
 
