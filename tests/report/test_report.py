@@ -582,15 +582,17 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     presses = pd.DataFrame({"model": "peak-law", "pad": "smooth", "condition": "combined", "n_presses": [1, 3, 10],
                             "rmse": [0.30, 0.20, 0.16], "null_rmse": 0.33})
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
-                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
-                           "jackknife_plus_median_factor": [float("nan"), 1.72]})
+                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 13 / 14],
+                           "jackknife_plus_median_factor": [float("nan"), 1.72], "jackknife_plus_specimens": [0, 14],
+                           "jackknife_plus_missed": ["", "C2"]})
     needed = presses_needed_by_curve(presses)  # as analyse_study computes it once
     table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
         ["peak law", "a grating left out of training",
-         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72; needs 3 press(es) per surface"],
+         "0.16 vs 0.33, passes; 90 % surface interval held 13 of 14 specimens (one count, 93%; misses C2), x/÷ 1.72; "
+         "needs 3 presses per surface (a press is one mount read at 1, 2 and 3 N)"],
         ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"],
         ["peak law", "a shape left out (fitted on the other): circular",
          "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"],
@@ -603,7 +605,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
-                                   "press(es) per surface")
+                                   "presses per surface (a press is one mount read at 1, 2 and 3 N)")
     from roughsense.report.unseen_tables import _jackknife_text
 
     row = {"jackknife_plus_coverage": 1.0, "jackknife_plus_median_factor": float("inf"), "jackknife_plus_misses": ""}
@@ -638,3 +640,39 @@ def test_the_method_section_gives_the_peak_law_its_terms_of_today(report_dir):
                                                                                            page.index('id="method"'))]))
     assert family(PEAK_LAW).description in method and "b3 log(A(2 f0) / A(f0))" in method
     assert "peak amplitude)" not in method and "how high" not in method and "b2 log" not in method
+
+
+def test_the_first_screens_surface_interval_is_one_count_of_specimens_naming_those_it_misses(simulated_analysis):
+    """Issue 46: "90 % surface interval held 93%" was one count, 13 of 14 specimens: the first screen now says the
+    count and names the specimens missed, read from the nested jackknife+ check itself."""
+    from roughsense.report.answer import answer_table
+
+    analysis = simulated_analysis
+    table = answer_table(analysis)
+    condition = analysis.headline_condition
+    pads = [c.split(" pad:")[0] for c in table["columns"][2:]]
+    row = next(r for r in table["rows"] if r[0] == "peak law" and r[1] == "a grating left out of training")
+    for pad, cell in zip(pads, row[2:]):
+        check = analysis.condition_fit(pad, condition, "loso", "peak-law").interval_check
+        missed = list(check.loc[~check["covered"], "specimen"])
+        assert f"held {len(check) - len(missed)} of {len(check)} specimens (one count, {check['covered'].mean():.0%}" \
+            in cell, cell
+        assert (f"misses {', '.join(missed)})" in cell) if missed else "misses" not in cell
+
+
+def test_presses_needed_say_what_a_press_is_in_the_combined_condition():
+    """Issue 46: in the combined condition a press is one mount read at three forces, not three presses: the presses
+    table, its figure's caption and predict's line say so; a single force's say nothing more."""
+    from roughsense.cli.predict import few_presses_line
+    from roughsense.report.presses import presses_table
+
+    curve = pd.DataFrame({"model": "peak-law", "pad": "smooth", "n_presses": [1, 3], "rmse": [0.3, 0.2],
+                          "null_rmse": 0.33})
+    combined = presses_table(curve.assign(condition="combined"), {})
+    single = presses_table(curve.assign(condition="2N"), {})
+    assert "In the combined condition, a press is one mount read at 1, 2 and 3 N." in combined["caption"]
+    assert "mount" not in single["caption"]
+    training = {"condition": "combined", "presses": {"needed": 3, "null_rmse": 0.33, "rmse_by_presses": {"1": 0.35}}}
+    assert "press each surface 3 times (--same-surface or --study groups them; a press is one mount read at 1, 2 and " \
+           "3 N)" in few_presses_line(training, None, 2)
+    assert "mount" not in few_presses_line({**training, "condition": "2N"}, None, 2)

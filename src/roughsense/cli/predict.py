@@ -11,6 +11,7 @@ import typer
 from .. import defaults
 from .._util.text import counted
 from ..errors import ConfigError
+from ..paper import press_meaning
 from ._common import Jobs, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, resolve_study
 from .fit import _warn_failed_controls
@@ -249,9 +250,10 @@ def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
     errors = presses.get("rmse_by_presses", {})
     error = f" (held-out error {errors[str(fewest)]:.2f} vs the training mean's {presses['null_rmse']:.2f})" \
         if str(fewest) in errors and isinstance(presses.get("null_rmse"), float) else ""
+    meaning = press_meaning(str(training.get("condition", "")))
     return (f"fewer presses than this model's pad needs: a surface read from {counted(fewest, 'press', 'presses')} here; held "
             f"out of training it needed {needed} to beat the training mean clearly{error}; press each surface {needed} times "
-            "(--same-surface or --study groups them)")
+            f"(--same-surface or --study groups them{'; ' + meaning if meaning else ''})")
 
 
 def _warn_few_presses(training: dict, surfaces, n_trials: int) -> None:

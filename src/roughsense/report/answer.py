@@ -15,6 +15,7 @@ import pandas as pd
 from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
 from ..model.registry import DEFAULT_MODEL, PAPER_MODEL
+from ..paper import press_meaning
 from . import provenance as source
 from .control_tables import permutation_p_text
 from .paper_tables import is_paper_model, model_title
@@ -119,11 +120,25 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
         held = jackknife_phrase(control.get("jackknife_plus_coverage", float("nan")),
                                 control.get("jackknife_plus_median_factor", float("nan")))
         if held:
-            verdict += f"; 90 % surface interval held {held}" if held[0].isdigit() else \
+            verdict += f"; 90 % surface interval held {_held_count(control) or held}" if held[0].isdigit() else \
                 "; no 90 % surface interval (too few specimens)"
         if pd.notna(control.get("presses_needed")):
-            verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
+            meaning = press_meaning(condition)
+            verdict += (f"; needs {counted(int(control['presses_needed']), 'press', 'presses')} per surface"
+                        + (f" ({meaning})" if meaning else ""))
     return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
+
+
+def _held_count(control) -> str:
+    """'13 of 14 specimens (one count, 93%; misses C2), x/÷ 1.54': what the jackknife+ check held, as the count it
+    is over the study's specimens, the ones it missed named from the check ('' where the analysis gave no count)."""
+    checked = control.get("jackknife_plus_specimens", 0)
+    if not checked or pd.isna(checked):
+        return ""
+    missed = [name for name in str(control.get("jackknife_plus_missed", "") or "").split(", ") if name]
+    misses = f"; misses {', '.join(missed)}" if missed else ""
+    return (f"{int(checked) - len(missed)} of {counted(int(checked), 'specimen')} (one count, "
+            f"{control['jackknife_plus_coverage']:.0%}{misses}), x/÷ {control['jackknife_plus_median_factor']:.2f}")
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:

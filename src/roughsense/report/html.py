@@ -37,7 +37,7 @@ from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
 from .answer import answer_lines, answer_table
 from .paper_tables import is_paper_model
-from .presses import presses_figure, presses_table
+from .presses import combined_press_words, presses_figure, presses_table
 
 
 def template_environment() -> jinja2.Environment:
@@ -297,7 +297,8 @@ def _presses_figure(analysis) -> FigureJob | None:
         return None
     return FigureJob("presses_per_surface", presses_figure, (analysis.presses,), {},
                      "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
-                     "presses, per pad and condition; dashed: the training mean's.")
+                     "presses, per pad and condition; dashed: the training mean's."
+                     + combined_press_words(analysis.presses["condition"]))
 
 
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str]) -> list[FigureJob]:
