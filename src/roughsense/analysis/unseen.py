@@ -26,7 +26,8 @@ from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenS
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
                   "pi90_coverage_specimens", "jackknife_plus_coverage", "jackknife_plus_median_factor",
-                  "jackknife_plus_misses", "jackknife_plus_specimens", "jackknife_plus_missed", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
+                  "jackknife_plus_misses", "jackknife_plus_specimens", "jackknife_plus_missed", "flagged_share",
+                  "flagged_max_share", "flagged_max_specimen"]
 
 
 def headline_condition(conditions) -> str:
