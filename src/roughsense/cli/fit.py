@@ -55,7 +55,8 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
         roi: FitRoi = None) -> None:
     """Fit a model for one pad and force condition: the peak law (default) or the paper's PLS1 (SIMPLS, X centred).
 
-    Use the default peak law to score surfaces you never trained on; use --model pls to reproduce the paper.
+    Use the default peak law to score surfaces you never trained on, of the kinds the study's specimens cover (its
+    report names their shapes, periods and land widths); use --model pls to reproduce the paper.
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
     specimen's perceived roughness (geometric mean over participants). For PLS the number of components is
     chosen by cross-validation and the CV curve is printed; the peak law chooses nothing from the data, so its CV

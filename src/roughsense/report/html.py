@@ -131,7 +131,8 @@ def unseen_words(analysis) -> list[str]:
         return [source.NO_LOSO_SECTION]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
-             "clearly below the training mean's and it beats specimen-shuffled targets."]
+             "clearly below the training mean's and it beats specimen-shuffled targets."
+             + (f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else "")]
     return [*lines, *source.unseen_source_words(analysis.provenance)]
 
 
