@@ -80,8 +80,10 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     frames continuously. --roi and --px-per-mm read images the model's crop or scale does not fit.
 
     Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
-    (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
-    (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
+    (pi90_low, pi90_high: the jackknife+ over specimens; jackknife90_low, jackknife90_high in its place where it is
+    the plain jackknife, which has no coverage guarantee), whether it lies outside what the model was trained on
+    (extrapolates) and how (outside); with --study or --same-surface, each surface's mean roughness and interval
+    too (a press read with its surface's others gets the plain jackknife). The grating's
     orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
 
     Each image passes the model's contact-image gate (a conformal test at 1 % per press, fitted by `fit`): a press
@@ -301,8 +303,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
         key = "specimen" if "specimen" in table else None
         for name, rows in (table.groupby(key, sort=False) if key else [("surface", table)]):
             first = rows.iloc[0]
-            interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']}, "
-                        f"{first['surface_pi90_method']})" if "surface_pi90_low" in rows else "")
+            interval = _surface_interval(first)
             label = f"surface {name}" if key else "the surface (every image: --same-surface)"
             lines.append(f"{label}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
     reasons = table["outside"][table["outside"].astype(bool)]
@@ -310,6 +311,18 @@ def _terminal_table(table, *, from_study: bool) -> str:
         lines.extend(textwrap.wrap(f"outside what the model was trained on ({counted(int(count), 'trial')}): {reason}",
                                    width=width, subsequent_indent="  "))
     return "\n".join(lines)
+
+
+def _surface_interval(row) -> str:
+    """' (90 % interval a-b, method)' of a surface's row: the jackknife+ named by its residuals, the plain jackknife
+    as such ('' without an interval)."""
+    from ..model.model_intervals import PLAIN_METHOD
+
+    if "surface_pi90_low" in row:
+        return f" (90 % interval {row['surface_pi90_low']}-{row['surface_pi90_high']}, {row['surface_pi90_method']})"
+    if "surface_jackknife90_low" in row:
+        return f" (90 % interval {row['surface_jackknife90_low']}-{row['surface_jackknife90_high']}, {PLAIN_METHOD})"
+    return ""
 
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:
