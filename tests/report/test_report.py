@@ -638,7 +638,7 @@ def test_the_method_section_gives_the_peak_law_its_terms_of_today(report_dir):
     page = (report_dir / "index.html").read_text()
     method = html_text.unescape(re.sub(r"\s+", " ", page[page.index('id="method"'):page.index('<dl class="meta">',
                                                                                            page.index('id="method"'))]))
-    assert family(PEAK_LAW).description in method and "b3 log(A(2 f0) / A(f0))" in method
+    assert f"{family(PEAK_LAW).description}. In logs, log(roughness)" in method and "b3 log(A(2 f0) / A(f0))" in method
     assert "peak amplitude)" not in method and "how high" not in method and "b2 log" not in method
 
 
