@@ -79,11 +79,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     slot (e.g. _1N_ in the 2N slot) is refused. With --live --source SRC, a single-force model scores camera
     frames continuously. --roi and --px-per-mm read images the model's crop or scale does not fit.
 
-    Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
-    (pi90_low, pi90_high: the jackknife+ over specimens; jackknife90_low, jackknife90_high in its place where it is
-    the plain jackknife, which has no coverage guarantee), whether it lies outside what the model was trained on
-    (extrapolates) and how (outside); with --study or --same-surface, each surface's mean roughness and interval
-    too (a press read with its surface's others gets the plain jackknife). The grating's
+    Each row gets its roughness relative to the model's reference specimen, one 90 % interval (pi90_*: the jackknife+;
+    jackknife90_*: the plain jackknife, no coverage guarantee), whether and how it lies outside what the model was
+    trained on (extrapolates, outside); with --study or --same-surface, each surface's roughness and interval too. The grating's
     orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
 
     Each image passes the model's contact-image gate (a conformal test at 1 % per press, fitted by `fit`): a press

@@ -29,10 +29,15 @@ def answer_lines(analysis) -> list[str]:
     if unseen.empty:
         return [source.NO_LOSO_ANSWER]
     passes = unseen["passes"].fillna(False).astype(bool)
-    covers = f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else ""
     lines = [_use_line(unseen, passes, analysis.headline_condition), _passes_line(unseen, passes),
-             source.trust_line(analysis.provenance) + covers]
+             source.trust_line(analysis.provenance) + evidence_sentence(analysis)]
     return [line for line in lines if line]
+
+
+def evidence_sentence(analysis) -> str:
+    """' The evidence covers surfaces like ...' (``analysis.evidence``, from the study's rated specimens; '' where
+    there is none): one wording for the first screen, the console and the section on surfaces held out."""
+    return f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else ""
 
 
 #: What the report and the console say when no family passes its controls for surfaces left out of training.
@@ -199,8 +204,7 @@ def unseen_lines(analysis) -> list[str]:
             cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"
             parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{cover}{verdict})")
         lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
-    covers = f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else ""
-    return [*lines, which_model_line(unseen) + covers]
+    return [*lines, which_model_line(unseen) + evidence_sentence(analysis)]
 
 
 def which_model_line(unseen: pd.DataFrame) -> str:

@@ -35,7 +35,7 @@ from ..io.names import check_name
 from ..model.registry import PAPER_MODEL, registry
 from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
-from .answer import answer_lines, answer_table
+from .answer import answer_lines, answer_table, evidence_sentence
 from .paper_tables import is_paper_model
 from .presses import combined_press_words, presses_figure, presses_table
 
@@ -131,8 +131,7 @@ def unseen_words(analysis) -> list[str]:
         return [source.NO_LOSO_SECTION]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
-             "clearly below the training mean's and it beats specimen-shuffled targets."
-             + (f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else "")]
+             "clearly below the training mean's and it beats specimen-shuffled targets." + evidence_sentence(analysis)]
     return [*lines, *source.unseen_source_words(analysis.provenance)]
 
 
