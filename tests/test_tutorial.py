@@ -117,6 +117,7 @@ def test_every_sh_block_runs_and_leaves_what_it_says(tutorial_run):
     assert set(results["specimen"]) == {"R2", "R3", "R4", "R5", "C3"} and set(results["pad"]) == {"fingerprint"}
     prediction = pd.read_csv(work / "my-prediction.csv")
     assert len(prediction) == 1 and prediction.filter(like="roughness_rel_").iloc[:, 0].between(0.0, 5.0).all()
+    assert "jackknife90_low" in prediction and "pi90_low" not in prediction  # fewer than 9 specimens, as it says
 
 
 def _section(title_start: str) -> str:

@@ -32,6 +32,16 @@ PAPER_SESSIONS = 3
 FORCE_CONDITIONS = ("1N", "2N", "3N")
 COMBINED = "combined"
 PAPER_CONDITIONS = (*FORCE_CONDITIONS, COMBINED)
+#: What one press is in the combined condition, said wherever presses are counted: a trial's three images, taken
+#: with the specimen mounted once and pressed at each force in turn (not three presses).
+COMBINED_PRESS = ("a press is one mount read at " + ", ".join(c[:-1] for c in FORCE_CONDITIONS[:-1])
+                  + f" and {FORCE_CONDITIONS[-1][:-1]} N")
+
+
+def press_meaning(condition: str) -> str:
+    """What one press is in ``condition``: :data:`COMBINED_PRESS` in the combined condition, '' in a single force's
+    (a press is one image there)."""
+    return COMBINED_PRESS if str(condition).lower() == COMBINED else ""
 
 #: Number of PLS components chosen by leave-one-out CV (Section 4).
 PAPER_BEST_N_COMPONENTS = {

@@ -80,7 +80,7 @@ def test_fit_chooses_the_cv_minimum_and_stores_the_curve(run_cli, study_dir, dat
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image", "pad", "condition", "model", "passes_controls", "px_per_mm",
-                                   "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method", "orientation_deg",
+                                   "roughness_rel_R3", "jackknife90_low", "jackknife90_high", "orientation_deg",
                                    "read_as", "contact_p", "withheld", "extrapolates", "outside"] and len(table) == len(images)
     assert set(table["px_per_mm"]) == {20.0}  # the model's own scale, said as --study and --px-per-mm say theirs
     assert pred.read_text().splitlines()[1].split(",")[5] == "20.0"
@@ -118,7 +118,7 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     table = pd.read_csv(pred)
     assert list(table.columns) == ["image_1N", "image_2N", "image_3N", "pad", "condition", "model", "passes_controls",
-                                   "px_per_mm", "roughness_rel_R3", "pi90_low", "pi90_high", "pi90_method",
+                                   "px_per_mm", "roughness_rel_R3", "jackknife90_low", "jackknife90_high",
                                    "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates",
                                    "outside"] and len(table) == 2
     assert [table[f"image_{f}N"][i] for i in range(2) for f in (1, 2, 3)] == [str(p) for t in trials for p in t]
@@ -139,8 +139,8 @@ def test_combined_model_takes_trials_of_three(run_cli, study_dir, data, tmp_path
     assert code == 0, err
     grouped = pd.read_csv(by_study)
     assert list(grouped.columns) == ["specimen", "repetition", "image_1N", "image_2N", "image_3N", "pad", "condition",
-                                     "model", "passes_controls", "px_per_mm", "roughness_rel_R3", "pi90_low",
-                                     "pi90_high", "pi90_method", "surface_roughness_rel_R3", "surface_extrapolates",
+                                     "model", "passes_controls", "px_per_mm", "roughness_rel_R3", "jackknife90_low",
+                                     "jackknife90_high", "surface_roughness_rel_R3", "surface_extrapolates",
                                      "orientation_deg", "read_as", "contact_p", "withheld", "extrapolates", "outside"]
     assert set(grouped["px_per_mm"]) == {20.0} and set(grouped["read_as"]) == {"surface"}  # the study's own scale
     assert len(grouped) == len(meta) == 18
@@ -631,7 +631,9 @@ def test_predict_study_table_fits_80_columns(run_cli, study_dir, tmp_path, monke
     code, _, err = run_cli("predict", model, "--study", study_dir, "--out", tmp_path / "p.csv")
     assert code == 0, err
     table = pd.read_csv(tmp_path / "p.csv")  # every value the terminal shows, row by row
-    start = next(i for i, line in enumerate(lines) if line.split()[:2] == ["specimen", "repetition"]) + 1
+    header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["specimen", "repetition"])
+    first = [str(table["specimen"][0]), str(table["repetition"][0])]  # headers wider than their column wrap
+    start = next(i for i, line in enumerate(lines) if i > header and line.split()[:2] == first)
     rows = [line.split() for line in lines[start:start + len(table)]]
     assert [r[:2] for r in rows] == [[s, str(r)] for s, r in zip(table["specimen"], table["repetition"])]
     assert [float(r[2]) for r in rows] == pytest.approx(list(roughness(table)), rel=1e-5)
@@ -690,12 +692,13 @@ def test_fit_judges_the_model_for_unseen_surfaces_and_predict_repeats_a_failure(
         assert [line for line in predicted_err.splitlines() if "FAILS its controls" in line] == warned
         table = pd.read_csv(tmp_path / f"{model}.csv", dtype=str)
         assert set(table["model"]) == {model}
-        for column in ("roughness_rel_R3", "pi90_low", "pi90_high", "surface_roughness_rel_R3"):
+        for column in ("roughness_rel_R3", "jackknife90_low", "jackknife90_high", "surface_roughness_rel_R3"):
             if column in table:  # 3 significant digits, and positive
                 assert all(len(v.lstrip("0.").replace(".", "").split("e")[0]) <= 3 for v in table[column]), column
                 assert (table[column].astype(float) > 0).all()
-        assert (table["pi90_low"].astype(float) < table["roughness_rel_R3"].astype(float)).all() if "pi90_low" in table \
-            else training["interval"]["trial_log_halfwidth"] is None
+        assert "pi90_low" not in table  # a press read with its surface's others: the plain jackknife, named so
+        assert (table["jackknife90_low"].astype(float) < table["roughness_rel_R3"].astype(float)).all() \
+            if "jackknife90_low" in table else training["interval"]["trial_log_halfwidth"] is None
 
 
 def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_cli, study_dir, data, tmp_path):
@@ -730,9 +733,9 @@ def test_a_press_read_alone_gets_the_interval_calibrated_for_reading_alone(run_c
         assert code == 0, err
         assert [line for line in err.splitlines() if "plain jackknife" in line] == [said[path]]
         table = pd.read_csv(tmp_path / "p.csv")
-        ratio = table["pi90_high"] / roughness(table)
+        ratio = table["jackknife90_high"] / roughness(table)
         np.testing.assert_allclose(ratio, math.exp(width), rtol=0.02)  # 3 significant digits each
-        assert set(table["pi90_method"]) == {"jackknife (no coverage guarantee)"}
+        assert not [c for c in table.columns if "pi90" in c]  # the plain jackknife is never named pi90
         assert ("surface_roughness_rel_R3" in table) == bool(extra)
         assert set(table["px_per_mm"]) == {20.0}  # the scale read at, alone or as one surface
 

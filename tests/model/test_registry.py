@@ -343,3 +343,31 @@ def test_an_option_the_family_does_not_declare_is_refused_naming_one_that_does(t
                            "--rule", "1se", "--out", tmp_path / "toy.json")
     assert code == 2 and "--rule chooses PLS components; the training mean takes no --rule" in err
     assert "use --model pls" in err and not (tmp_path / "toy.json").exists()
+
+
+def test_fit_model_help_is_the_registrys_description_and_names_no_peak_height_term(run_cli):
+    """Issue 46: fit --model's help said the peak law reads "where the spectrum peaks and how high", but the law's
+    terms are the peak's frequency and the contact's shape (docs/peak_law.md: the peak amplitude earned no term).
+    The help is each registered family's description (one home), and no description gives the law a height term."""
+    import re
+
+    from roughsense.model.peak_law.law import PeakPowerLaw
+
+    law = PeakPowerLaw().fit(*_peaked_gratings())
+    assert law.coef_[1] == 0.0  # the peak amplitude is no term of today's law
+    help_text = registry.model_help()
+    for family in registry.registry():
+        assert family.description and f"{family.name}" in help_text and family.description in help_text
+    described = registry.family(registry.PEAK_LAW).description
+    assert "how high" not in help_text and "height is no term" in described and "shape" in described
+    code, out, _ = run_cli("fit", "--help")
+    text = re.sub(r"[\s│]+", " ", out)  # rich wraps help text inside a box
+    assert code == 0 and re.sub(r"\s+", " ", help_text) in text and "how high" not in text
+
+
+def _peaked_gratings():
+    """Spectra peaking at 1 / period for gratings of 2-5 mm, two presses each, rated as a power law of the period."""
+    f = rs.frequency_grid()
+    periods = np.repeat([2.0, 3.0, 4.0, 5.0], 2)
+    heights = np.tile([1.0, 3.0], 4)  # a peak height that varies and says nothing of the rating
+    return heights[:, None] * np.exp(-((f - 1 / periods[:, None]) / 0.05) ** 2) + 0.01, (periods / 3) ** 0.9

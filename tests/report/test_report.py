@@ -561,7 +561,7 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
                            "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
                            "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
     analysis = SimpleNamespace(unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance(),
-                               headline_condition=headline_condition(unseen["condition"]))
+                               headline_condition=headline_condition(unseen["condition"]), evidence="")
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
     from roughsense.report.answer import which_model_line
@@ -585,15 +585,17 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     presses = pd.DataFrame({"model": "peak-law", "pad": "smooth", "condition": "combined", "n_presses": [1, 3, 10],
                             "rmse": [0.30, 0.20, 0.16], "null_rmse": 0.33})
     unseen = pd.DataFrame({"model": ["pls", "peak-law"], "pad": ["smooth"] * 2, "condition": ["combined"] * 2,
-                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 0.929],
-                           "jackknife_plus_median_factor": [float("nan"), 1.72]})
+                           "passes": [True, True], "jackknife_plus_coverage": [float("nan"), 13 / 14],
+                           "jackknife_plus_median_factor": [float("nan"), 1.72], "jackknife_plus_specimens": [0, 14],
+                           "jackknife_plus_missed": ["", "C2"]})
     needed = presses_needed_by_curve(presses)  # as analyse_study computes it once
     table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
         ["peak law", "a grating left out of training",
-         "0.16 vs 0.33, passes; 90 % surface interval held 93%, x/÷ 1.72; needs 3 press(es) per surface"],
+         "0.16 vs 0.33, passes; 90 % surface interval held 13 of 14 specimens (misses C2), x/÷ 1.72; needs 3 presses "
+         "per surface"],
         ["peak law", "a period left out (both shapes)", "0.19 vs 0.35, passes"],
         ["peak law", "a shape left out (fitted on the other): circular",
          "0.33 vs 0.42, passes, bias -0.33, 100% of presses flagged"],
@@ -606,7 +608,7 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
-                                   "press(es) per surface")
+                                   "presses per surface")
     from roughsense.report.unseen_tables import _jackknife_text
 
     row = {"jackknife_plus_coverage": 1.0, "jackknife_plus_median_factor": float("inf"), "jackknife_plus_misses": ""}
@@ -648,3 +650,77 @@ def test_figures_drawn_in_worker_processes_give_the_same_files(tmp_path, simulat
     shown = re.findall(r'data-name="([^"]+)"', one["index.html"].decode())
     assert sorted(shown) == sorted(name for name in one if name.endswith(".png"))  # none drawn that is not shown
     assert len(shown) == len(set(shown))
+
+
+def test_the_method_section_gives_the_peak_law_its_terms_of_today(report_dir):
+    """Issue 46: the method said log(roughness) = b0 + b1 log(peak frequency) + b2 log(peak amplitude), "and how
+    high": today's law has no peak-height term. It now reads the registry's description, as fit --model's help does."""
+    import html as html_text
+
+    from roughsense.model.registry import PEAK_LAW, family
+
+    page = (report_dir / "index.html").read_text()
+    method = html_text.unescape(re.sub(r"\s+", " ", page[page.index('id="method"'):page.index('<dl class="meta">',
+                                                                                           page.index('id="method"'))]))
+    assert f"{family(PEAK_LAW).description}. In logs, log(roughness)" in method and "b3 log(A(2 f0) / A(f0))" in method
+    assert "peak amplitude)" not in method and "how high" not in method and "b2 log" not in method
+
+
+def test_the_first_screens_surface_interval_is_one_count_of_specimens_naming_those_it_misses(simulated_analysis):
+    """Issue 46: "90 % surface interval held 93%" was one count, 13 of 14 specimens: the first screen now says the
+    count and names the specimens missed, read from the nested jackknife+ check itself."""
+    from roughsense.report.answer import answer_table
+
+    analysis = simulated_analysis
+    table = answer_table(analysis)
+    condition = analysis.headline_condition
+    pads = [c.split(" pad:")[0] for c in table["columns"][2:]]
+    row = next(r for r in table["rows"] if r[0] == "peak law" and r[1] == "a grating left out of training")
+    for pad, cell in zip(pads, row[2:]):
+        check = analysis.condition_fit(pad, condition, "loso", "peak-law").interval_check
+        missed = list(check.loc[~check["covered"], "specimen"])
+        held = f"held {len(check) - len(missed)} of {len(check)} specimens"
+        assert (f"{held} (misses {', '.join(missed)}), x/÷" in cell) if missed else f"{held}, x/÷" in cell, cell
+
+
+def test_presses_needed_say_what_a_press_is_in_the_combined_condition():
+    """Issue 46: in the combined condition a press is one mount read at three forces, not three presses: the presses
+    table, its figure's caption and predict's line say so; a single force's say nothing more."""
+    from roughsense.cli.predict import few_presses_line
+    from roughsense.report.presses import presses_table
+
+    curve = pd.DataFrame({"model": "peak-law", "pad": "smooth", "n_presses": [1, 3], "rmse": [0.3, 0.2],
+                          "null_rmse": 0.33})
+    combined = presses_table(curve.assign(condition="combined"), {})
+    single = presses_table(curve.assign(condition="2N"), {})
+    assert "In the combined condition, a press is one mount read at 1, 2 and 3 N." in combined["caption"]
+    assert "mount" not in single["caption"]
+    training = {"condition": "combined", "presses": {"needed": 3, "null_rmse": 0.33, "rmse_by_presses": {"1": 0.35}}}
+    from types import SimpleNamespace
+
+    from roughsense.report.answer import answer_lines
+
+    unseen = pd.DataFrame({"model": ["peak-law"], "pad": ["smooth"], "condition": ["combined"], "rmse": [0.2],
+                           "null_rmse": [0.33], "passes": [True], "n_permutations": [199],
+                           "pi90_coverage_trials": [0.9]})
+    first = answer_lines(SimpleNamespace(unseen=unseen, provenance=Provenance(), headline_condition="combined",
+                                         evidence=""))[0]
+    assert "(combined, where a press is one mount read at 1, 2 and 3 N; mean per-specimen RMSE" in first
+    assert "press each surface 3 times (--same-surface or --study groups them; a press is one mount read at 1, 2 and " \
+           "3 N)" in few_presses_line(training, None, 2)
+    assert "mount" not in few_presses_line({**training, "condition": "2N"}, None, 2)
+
+
+def test_a_new_surface_is_one_the_studys_evidence_covers(simulated_analysis):
+    """Issue 46: the first screen, the section on surfaces held out and the console said "a new surface" as if any
+    would do; they now name the surfaces the evidence covers, from the study's own rated specimens."""
+    from roughsense.report.answer import answer_lines, console_lines
+    from roughsense.report.html import unseen_words
+
+    analysis = simulated_analysis
+    shapes = {analysis.shapes[s] for s in analysis.perceived["specimen"]}
+    assert analysis.evidence.startswith(f"the study's {len(analysis.perceived)} specimens, ")
+    assert all(shape in analysis.evidence for shape in shapes) and "gratings of 7 periods from 2 to 5 mm" in analysis.evidence
+    said = f"The evidence covers surfaces like {analysis.evidence}."
+    assert answer_lines(analysis)[-1].endswith(said) and said in " ".join(unseen_words(analysis))
+    assert any(said in line for line in console_lines(analysis))

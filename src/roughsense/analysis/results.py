@@ -21,6 +21,7 @@ import pandas as pd
 from .. import paper
 from ..model.registry import PAPER_MODEL
 from . import dataset
+from .evidence import evidence_words
 from .family_fits import FamilyFit
 from .metrics import shape_summary
 
@@ -63,8 +64,9 @@ class StudyFacts:
     """The study as the analysis reads it, before any model is fitted (the first stage).
 
     ``perceived`` (targets per specimen), ``shapes`` and ``wavelengths`` (per specimen), ``freq_per_mm`` and
-    ``mean_spectra`` (per pad x specimen x condition), ``provenance``, and whether the paper's per-specimen values
-    describe it (``paper_pads``, ``paper_note``)."""
+    ``mean_spectra`` (per pad x specimen x condition), ``provenance``, whether the paper's per-specimen values
+    describe it (``paper_pads``, ``paper_note``), and which surfaces its evidence covers (``evidence``, words from
+    its rated specimens: analysis/evidence.py)."""
 
     study_name: str
     reference_specimen: str
@@ -76,6 +78,7 @@ class StudyFacts:
     provenance: Provenance
     paper_pads: tuple[str, ...]
     paper_note: str
+    evidence: str
 
     @classmethod
     def of(cls, study, perceived: pd.DataFrame, features: pd.DataFrame, conditions: tuple[str, ...]) -> StudyFacts:
@@ -93,7 +96,8 @@ class StudyFacts:
                    shapes=dict(zip(specimens["specimen"], specimens["shape"])),
                    wavelengths=dict(zip(specimens["specimen"], wavelengths)),
                    freq_per_mm=dataset.column_frequencies(freq_columns), mean_spectra=mean_spectra,
-                   provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note)
+                   provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note,
+                   evidence=evidence_words(specimens, perceived["specimen"]))
 
 
 def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],

@@ -26,7 +26,8 @@ from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenS
 UNSEEN_COLUMNS = ["model", "pad", "condition", "rmse", "null_rmse", "cv_rmse", "null_cv_rmse", "permutation_p",
                   "n_permutations", "passes", "spearman_rho", "spearman_p", "n_rated", "pi90_coverage_trials",
                   "pi90_coverage_specimens", "jackknife_plus_coverage", "jackknife_plus_median_factor",
-                  "jackknife_plus_misses", "flagged_share", "flagged_max_share", "flagged_max_specimen"]
+                  "jackknife_plus_misses", "jackknife_plus_specimens", "jackknife_plus_missed", "flagged_share",
+                  "flagged_max_share", "flagged_max_specimen"]
 
 
 def headline_condition(conditions) -> str:
@@ -86,17 +87,19 @@ def _coverage(fit, prediction: np.ndarray, target: np.ndarray, specimens: np.nda
 
 def _jackknife_plus(fit) -> dict:
     """Coverage of the nested jackknife+ surface intervals, their median width (a factor: prediction x/÷ it) and
-    the specimens they miss, with by how much (NaN and '' where the family has no such check)."""
+    the specimens they miss, with by how much; the specimens checked and the names of those missed, so a share is
+    never quoted without its count (NaN, 0 and '' where the family has no such check)."""
     check = getattr(fit, "interval_check", None)
     if check is None or check.empty:
         return {"jackknife_plus_coverage": float("nan"), "jackknife_plus_median_factor": float("nan"),
-                "jackknife_plus_misses": ""}
+                "jackknife_plus_misses": "", "jackknife_plus_specimens": 0, "jackknife_plus_missed": ""}
     misses = "; ".join(f"{r.specimen} {r.perceived:.2f} {'below' if r.perceived < r.pi90_low else 'above'} "
                        f"{r.pi90_low:.2f}-{r.pi90_high:.2f} (x{np.exp(r.miss_log):.2f} outside)"
                        for r in check[~check["covered"]].itertuples())
     return {"jackknife_plus_coverage": float(check["covered"].mean()),
             "jackknife_plus_median_factor": float(np.exp(check["log_halfwidth"].median())),
-            "jackknife_plus_misses": misses}
+            "jackknife_plus_misses": misses, "jackknife_plus_specimens": int(len(check)),
+            "jackknife_plus_missed": ", ".join(map(str, check.loc[~check["covered"], "specimen"]))}
 
 
 def _flag_shares(fit) -> dict:

@@ -10,7 +10,7 @@ import typer
 
 from .. import defaults
 from .._util.text import counted
-from ..model.registry import DEFAULT_MODEL
+from ..model.registry import DEFAULT_MODEL, model_help
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
@@ -35,10 +35,7 @@ Rule = Annotated[str | None, typer.Option(
     "--rule", show_default=False,
     help="PLS component choice: min (lowest CV RMSE, the paper's rule; the default) or 1se (fewest within one SE "
          "of it).")]
-ModelName = Annotated[str, typer.Option(
-    "--model", help="Model family: peak-law (the default: a power law of where the spectrum peaks and how high, "
-                    "the family that passes its controls for surfaces left out of training) or pls (the paper's "
-                    "PLS1 on the spectrum, to reproduce the paper).")]
+ModelName = Annotated[str, typer.Option("--model", help=model_help())]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
     help="Seed for the K-fold shuffle (LOO and LOSO use no randomness), the presses drawn for the interval's "
@@ -58,7 +55,8 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
         roi: FitRoi = None) -> None:
     """Fit a model for one pad and force condition: the peak law (default) or the paper's PLS1 (SIMPLS, X centred).
 
-    Use the default peak law to score surfaces you never trained on; use --model pls to reproduce the paper.
+    Use the default peak law to score surfaces you never trained on, of the kinds the study's specimens cover (its
+    report names their shapes, periods and land widths); use --model pls to reproduce the paper.
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
     specimen's perceived roughness (geometric mean over participants). For PLS the number of components is
     chosen by cross-validation and the CV curve is printed; the peak law chooses nothing from the data, so its CV

@@ -11,6 +11,7 @@ import typer
 from .. import defaults
 from .._util.text import counted
 from ..errors import ConfigError
+from ..paper import press_meaning
 from ._common import Jobs, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, resolve_study
 from .fit import _warn_failed_controls
@@ -78,9 +79,9 @@ def predict(model: ModelFile, images: Images = None, study: PredictStudy = None,
     slot (e.g. _1N_ in the 2N slot) is refused. With --live --source SRC, a single-force model scores camera
     frames continuously. --roi and --px-per-mm read images the model's crop or scale does not fit.
 
-    Each row gets its roughness relative to the model's reference specimen, its 90 % prediction interval
-    (pi90_low, pi90_high), whether it lies outside what the model was trained on (extrapolates) and how
-    (outside); with --study or --same-surface, each surface's mean roughness and interval too. The grating's
+    Each row gets its roughness relative to the model's reference specimen, one 90 % interval (pi90_*: the jackknife+;
+    jackknife90_*: the plain jackknife, no coverage guarantee), whether and how it lies outside what the model was
+    trained on (extrapolates, outside); with --study or --same-surface, each surface's roughness and interval too. The grating's
     orientation is written beside each (orientation_deg; flagged beyond +-6 degrees).
 
     Each image passes the model's contact-image gate (a conformal test at 1 % per press, fitted by `fit`): a press
@@ -249,9 +250,10 @@ def few_presses_line(training: dict, surfaces, n_trials: int) -> str:
     errors = presses.get("rmse_by_presses", {})
     error = f" (held-out error {errors[str(fewest)]:.2f} vs the training mean's {presses['null_rmse']:.2f})" \
         if str(fewest) in errors and isinstance(presses.get("null_rmse"), float) else ""
+    meaning = press_meaning(str(training.get("condition", "")))
     return (f"fewer presses than this model's pad needs: a surface read from {counted(fewest, 'press', 'presses')} here; held "
             f"out of training it needed {needed} to beat the training mean clearly{error}; press each surface {needed} times "
-            "(--same-surface or --study groups them)")
+            f"(--same-surface or --study groups them{'; ' + meaning if meaning else ''})")
 
 
 def _warn_few_presses(training: dict, surfaces, n_trials: int) -> None:
@@ -299,8 +301,7 @@ def _terminal_table(table, *, from_study: bool) -> str:
         key = "specimen" if "specimen" in table else None
         for name, rows in (table.groupby(key, sort=False) if key else [("surface", table)]):
             first = rows.iloc[0]
-            interval = (f" (90 % interval {first['surface_pi90_low']}-{first['surface_pi90_high']}, "
-                        f"{first['surface_pi90_method']})" if "surface_pi90_low" in rows else "")
+            interval = _surface_interval(first)
             label = f"surface {name}" if key else "the surface (every image: --same-surface)"
             lines.append(f"{label}: {first[surface[0]]}{interval}, mean of {counted(len(rows), 'trial')}")
     reasons = table["outside"][table["outside"].astype(bool)]
@@ -308,6 +309,18 @@ def _terminal_table(table, *, from_study: bool) -> str:
         lines.extend(textwrap.wrap(f"outside what the model was trained on ({counted(int(count), 'trial')}): {reason}",
                                    width=width, subsequent_indent="  "))
     return "\n".join(lines)
+
+
+def _surface_interval(row) -> str:
+    """' (90 % interval a-b, method)' of a surface's row: the jackknife+ named by its residuals, the plain jackknife
+    as such ('' without an interval)."""
+    from ..model.model_intervals import PLAIN_METHOD
+
+    if "surface_pi90_low" in row:
+        return f" (90 % interval {row['surface_pi90_low']}-{row['surface_pi90_high']}, {row['surface_pi90_method']})"
+    if "surface_jackknife90_low" in row:
+        return f" (90 % interval {row['surface_jackknife90_low']}-{row['surface_jackknife90_high']}, {PLAIN_METHOD})"
+    return ""
 
 
 def _predict_live(loaded, source: str, max_frames: int | None, override=None) -> None:

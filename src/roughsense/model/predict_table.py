@@ -23,6 +23,8 @@ if TYPE_CHECKING:
 #: Every column the table may hold, in its order, with what it says. ``<reference>`` is the model's reference
 #: specimen and ``<condition>`` each force of a combined model; ``roi`` is there only when the ROI was overridden,
 #: the interval columns only where the model file has an interval, the ``surface_*`` ones only for grouped presses.
+#: One prediction carries one interval, named by its method: ``pi90_*`` is always the jackknife+ over specimens
+#: (the interval with a coverage guarantee), ``jackknife90_*`` the plain jackknife (none), never both for one.
 PREDICTION_COLUMNS: dict[str, str] = {
     "specimen": "with a study: the trial's specimen",
     "repetition": "with a study: the trial's repetition",
@@ -34,13 +36,18 @@ PREDICTION_COLUMNS: dict[str, str] = {
     "roi": "where the line was read, when not the model's ROI",
     "px_per_mm": "the scale the images were read at",
     "roughness_rel_<reference>": "perceived roughness relative to the reference specimen",
-    "pi90_low": "the trial's 90 % prediction interval, lower bound",
-    "pi90_high": "the trial's 90 % prediction interval, upper bound",
-    "pi90_method": "how that interval was built",
+    "pi90_low": "the trial's 90 % prediction interval, the jackknife+ over specimens (its guarantee), lower bound",
+    "pi90_high": "the trial's 90 % jackknife+ interval, upper bound",
+    "pi90_method": "which residuals set that jackknife+ interval",
+    "jackknife90_low": "in place of pi90_*: the plain jackknife's 90 % interval (no coverage guarantee; a press read "
+                       "with its surface's others, or a file without the jackknife+), lower bound",
+    "jackknife90_high": "the plain jackknife's 90 % interval, upper bound",
     "surface_roughness_rel_<reference>": "the surface's mean roughness over its trials",
-    "surface_pi90_low": "the surface's 90 % prediction interval, lower bound",
-    "surface_pi90_high": "the surface's 90 % prediction interval, upper bound",
-    "surface_pi90_method": "how the surface's interval was built",
+    "surface_pi90_low": "the surface's 90 % jackknife+ interval, lower bound",
+    "surface_pi90_high": "the surface's 90 % jackknife+ interval, upper bound",
+    "surface_pi90_method": "which residuals set the surface's interval",
+    "surface_jackknife90_low": "in place of surface_pi90_*: the plain jackknife's (no guarantee), lower bound",
+    "surface_jackknife90_high": "the surface's plain jackknife 90 % interval, upper bound",
     "surface_extrapolates": "any press of the surface lies outside the model's domain",
     "orientation_deg": "the grating lines' angle from the image columns, degrees (flagged beyond +-6)",
     "read_as": "press (read alone) or surface (read with the other presses of its surface)",
@@ -55,7 +62,8 @@ PREDICTION_COLUMNS: dict[str, str] = {
 CONSTANT_COLUMNS = ("pad", "condition", "model", "passes_controls", "roi", "px_per_mm", "read_as", "pi90_method")
 
 
-_INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "surface_pi90_low", "surface_pi90_high")
+_INTERVAL_COLUMNS = ("pi90_low", "pi90_high", "jackknife90_low", "jackknife90_high", "surface_pi90_low",
+                     "surface_pi90_high", "surface_jackknife90_low", "surface_jackknife90_high")
 _QUIET = "this press lies inside; other presses of its surface do not (their rows say why)"
 
 
@@ -105,13 +113,11 @@ def prediction_table(loaded: FittedModel, trials: Trials, scores: Scores) -> pd.
     table[name] = np.asarray(scores.roughness, dtype=float)
     withheld = np.zeros(len(groups), dtype=bool) if scores.withheld is None else scores.withheld
     if np.isfinite(scores.low[~withheld]).all() and not withheld.all():
-        table["pi90_low"], table["pi90_high"] = scores.low, scores.high
-        table["pi90_method"] = scores.method
+        _interval_columns(table, "", scores.low, scores.high, scores.method)
     if scores.surface_roughness is not None:
         table[f"surface_{name}"] = scores.surface_roughness
         if np.isfinite(scores.surface_low[~withheld]).all() and not withheld.all():
-            table["surface_pi90_low"], table["surface_pi90_high"] = scores.surface_low, scores.surface_high
-            table["surface_pi90_method"] = scores.surface_method
+            _interval_columns(table, "surface_", scores.surface_low, scores.surface_high, scores.surface_method)
     if surfaces is not None:  # a surface is flagged when any of its presses is
         flagged = pd.Series(scores.flagged).groupby(pd.Series(list(surfaces))).transform("any").to_numpy()
         table["surface_extrapolates"] = flagged.astype(bool)
@@ -126,6 +132,19 @@ def prediction_table(loaded: FittedModel, trials: Trials, scores: Scores) -> pd.
     if "surface_extrapolates" in table:  # its surface's reason is in the other rows
         table.loc[table["surface_extrapolates"].to_numpy() & ~scores.flagged, "outside"] = _QUIET
     return table
+
+
+def _interval_columns(table: pd.DataFrame, prefix: str, low, high, method) -> None:
+    """One interval's columns, named by its method: ``pi90_*`` (with ``pi90_method``, which residuals) for the
+    jackknife+ over specimens, ``jackknife90_*`` for the plain jackknife (model/model_intervals.py), so the plain
+    one is never read as the guaranteed one."""
+    from .model_intervals import PLAIN_METHOD
+
+    if PLAIN_METHOD in set(method or ()):
+        table[f"{prefix}jackknife90_low"], table[f"{prefix}jackknife90_high"] = low, high
+        return
+    table[f"{prefix}pi90_low"], table[f"{prefix}pi90_high"] = low, high
+    table[f"{prefix}pi90_method"] = method
 
 
 def _three_digits(values) -> list[str]:

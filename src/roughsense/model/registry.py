@@ -49,7 +49,8 @@ class Family:
 
     ``paper``: the paper's model (its claims, signed-rank tests and published values are of it). ``engine_path``:
     ``"package.module:Class"`` of its :class:`~roughsense.model.family.FamilyEngine`. ``options``: the ``fit``
-    options it takes beyond every family's.
+    options it takes beyond every family's. ``description``: what it predicts from, in a user's words: the one text
+    ``fit --model``'s help and the report's method section give (:func:`model_help`).
     """
 
     name: str
@@ -59,6 +60,7 @@ class Family:
     paper: bool
     engine_path: str
     options: tuple[FitOption, ...] = ()
+    description: str = ""
 
     def engine(self):
         """A fresh engine (stateless), its module imported on first use."""
@@ -70,10 +72,17 @@ _CHOOSES = "chooses PLS components"
 _FAMILIES: list[Family] = [
     Family(PLS, "PLS (the paper's model)", "o", "#2f5d8a", paper=True,
            engine_path="roughsense.model.pls.family:PLSFamily",
-           options=(FitOption("--rule", "rule", _CHOOSES), FitOption("--max-components", "max_components", _CHOOSES))),
+           options=(FitOption("--rule", "rule", _CHOOSES), FitOption("--max-components", "max_components", _CHOOSES)),
+           description="the paper's PLS1 (SIMPLS) on the spectrum's amplitudes, to reproduce the paper"),
     Family(PEAK_LAW, "peak law", "s", "#c0392b", paper=False,
-           engine_path="roughsense.model.peak_law.family:PeakLawFamily"),
-    Family(GROOVE, "groove model", "D", "#2e8b57", paper=False, engine_path="roughsense.model.groove.family:GrooveFamily"),
+           engine_path="roughsense.model.peak_law.family:PeakLawFamily",
+           description="a power law of where the contact spectrum peaks (the period), times one of the contact's "
+                       "shape (its second harmonic against the fundamental) where the training surfaces show more "
+                       "than one shape; the peak's height is no term (it only bounds the domain)"),
+    Family(GROOVE, "groove model", "D", "#2e8b57", paper=False, engine_path="roughsense.model.groove.family:GrooveFamily",
+           description="a power law of the contact's geometry read from the image: groove (gap) width first, then "
+                       "land width, the groove's change with force and the contact fraction, each term kept only "
+                       "where it lowers a nested leave-one-specimen-out error; a surface's presses read together"),
 ]
 
 #: Every built-in family's name, the paper's first (:func:`names` follows the registry at run time).
@@ -118,6 +127,15 @@ def paper_family() -> Family:
 def default_family() -> Family:
     """What ``roughsense fit`` writes unless told otherwise (:data:`DEFAULT_MODEL`)."""
     return family(DEFAULT_MODEL)
+
+
+def model_help() -> str:
+    """``fit --model``'s help: every family's name and :attr:`Family.description`, the default marked."""
+    def one(f: Family) -> str:
+        default = " (the default, for surfaces left out of training)" if f.name == DEFAULT_MODEL else ""
+        return f"{f.name}{default}: {f.description}" if f.description else f"{f.name}{default}"
+
+    return "Model family. " + "; ".join(one(f) for f in _FAMILIES) + "."
 
 
 def check_model_name(name: object, *, option: str = "--model") -> str:

@@ -15,6 +15,7 @@ import pandas as pd
 from .._util.text import counted
 from ..analysis.held_out import SCHEME_WORDS
 from ..model.registry import DEFAULT_MODEL, PAPER_MODEL, names
+from ..paper import press_meaning
 from . import provenance as source
 from .control_tables import permutation_p_text
 from .paper_tables import is_paper_model, model_title
@@ -22,14 +23,21 @@ from .unseen_tables import jackknife_phrase
 
 
 def answer_lines(analysis) -> list[str]:
-    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it."""
+    """Three or four sentences: the model to use and its error, where it passes its controls, how far to trust it
+    (and which surfaces the evidence covers: ``analysis.evidence``, from the study's specimens)."""
     unseen = analysis.unseen
     if unseen.empty:
         return [source.NO_LOSO_ANSWER]
     passes = unseen["passes"].fillna(False).astype(bool)
     lines = [_use_line(unseen, passes, analysis.headline_condition), _passes_line(unseen, passes),
-             source.trust_line(analysis.provenance)]
+             source.trust_line(analysis.provenance) + evidence_sentence(analysis)]
     return [line for line in lines if line]
+
+
+def evidence_sentence(analysis) -> str:
+    """' The evidence covers surfaces like ...' (``analysis.evidence``, from the study's rated specimens; '' where
+    there is none): one wording for the first screen, the console and the section on surfaces held out."""
+    return f" The evidence covers surfaces like {analysis.evidence}." if analysis.evidence else ""
 
 
 #: What the report and the console say when no family passes its controls for surfaces left out of training.
@@ -50,7 +58,7 @@ def recommended_model(unseen: pd.DataFrame) -> str | None:
 
 def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage, quoted
-    at the headline ``condition``."""
+    at the headline ``condition`` (what a press is there, where it is no single image)."""
     model = recommended_model(unseen)
     if model is None:
         return NO_MODEL
@@ -63,10 +71,11 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
             if pd.notna(r.pi90_coverage_trials) else "")
         for r in rows.itertuples())
     default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
+    meaning = press_meaning(condition)
     return (f"To score a new surface, use the {model_title(model)} ({model}{default}) on the pads and "
             f"conditions where it passes its controls (next line). Its error with a grating left out of training "
-            f"({condition}, mean per-specimen RMSE vs the training mean's): {per_pad}. The table says how it does with "
-            "a period or a shape left out.")
+            f"({condition}{f', where {meaning}' if meaning else ''}; mean per-specimen RMSE vs the training mean's): "
+            f"{per_pad}. The table says how it does with a period or a shape left out.")
 
 
 def first_screen_models(unseen: pd.DataFrame) -> tuple[str, ...]:
@@ -130,11 +139,23 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
         held = jackknife_phrase(control.get("jackknife_plus_coverage", float("nan")),
                                 control.get("jackknife_plus_median_factor", float("nan")))
         if held:
-            verdict += f"; 90 % surface interval held {held}" if held[0].isdigit() else \
+            verdict += f"; 90 % surface interval held {_held_count(control) or held}" if held[0].isdigit() else \
                 "; no 90 % surface interval (too few specimens)"
         if pd.notna(control.get("presses_needed")):
-            verdict += f"; needs {int(control['presses_needed'])} press(es) per surface"
+            verdict += f"; needs {counted(int(control['presses_needed']), 'press', 'presses')} per surface"
     return f"{row['rmse']:.2f} vs {row['null_rmse']:.2f}, {verdict}"
+
+
+def _held_count(control) -> str:
+    """'13 of 14 specimens (misses C2), x/÷ 1.54': what the jackknife+ check held, as the one count it is over the
+    study's specimens (never a share alone), those it missed named from the check ('' where it gave no count)."""
+    checked = control.get("jackknife_plus_specimens", 0)
+    if not checked or pd.isna(checked):
+        return ""
+    missed = [name for name in str(control.get("jackknife_plus_missed", "") or "").split(", ") if name]
+    misses = f" (misses {', '.join(missed)})" if missed else ""
+    return (f"{int(checked) - len(missed)} of {counted(int(checked), 'specimen')}{misses}, "
+            f"x/÷ {control['jackknife_plus_median_factor']:.2f}")
 
 
 def _passes_line(unseen: pd.DataFrame, passes: pd.Series) -> str:
@@ -196,7 +217,7 @@ def unseen_lines(analysis) -> list[str]:
             cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"
             parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{cover}{verdict})")
         lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
-    return [*lines, which_model_line(unseen)]
+    return [*lines, which_model_line(unseen) + evidence_sentence(analysis)]
 
 
 def which_model_line(unseen: pd.DataFrame) -> str:

@@ -32,12 +32,12 @@ from ..analysis.claims import VERDICT_RULE, VERDICTS
 from ..analysis.held_out import SCHEME_WORDS
 from ..errors import PASS_FORCE, OutputExistsError
 from ..io.names import check_name
-from ..model.registry import PAPER_MODEL
+from ..model.registry import PAPER_MODEL, registry
 from . import control_tables, figures, paper_tables, unseen_tables
 from . import provenance as source
-from .answer import answer_lines, answer_table
+from .answer import answer_lines, answer_table, evidence_sentence
 from .paper_tables import is_paper_model
-from .presses import presses_figure, presses_table
+from .presses import combined_press_words, presses_figure, presses_table
 
 
 def template_environment() -> jinja2.Environment:
@@ -131,7 +131,7 @@ def unseen_words(analysis) -> list[str]:
         return [source.NO_LOSO_SECTION]
     lines = ["Each specimen here is predicted by models fitted without any of its images: the estimate of what the "
              "sensor would say about a new surface. A model is worth using on new surfaces only where its error is "
-             "clearly below the training mean's and it beats specimen-shuffled targets."]
+             "clearly below the training mean's and it beats specimen-shuffled targets." + evidence_sentence(analysis)]
     return [*lines, *source.unseen_source_words(analysis.provenance)]
 
 
@@ -202,6 +202,7 @@ def _page_context(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFra
         sections=_sections(analysis, results, cv_schemes),
         max_components=analysis.max_components,
         reference_specimen=analysis.reference_specimen,
+        method_families=[f for f in registry() if f.name in analysis.models and not f.paper and f.description],
     )
 
 
@@ -296,7 +297,8 @@ def _presses_figure(analysis) -> FigureJob | None:
         return None
     return FigureJob("presses_per_surface", presses_figure, (analysis.presses,), {},
                      "Presses per surface: the peak law's error on a grating left out of training, read from k of its "
-                     "presses, per pad and condition; dashed: the training mean's.")
+                     "presses, per pad and condition; dashed: the training mean's."
+                     + combined_press_words(analysis.presses["condition"]))
 
 
 def _figures(analysis, results: dict[str, pd.DataFrame], chosen: pd.DataFrame, cv_schemes: list[str]) -> list[FigureJob]:

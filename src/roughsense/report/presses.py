@@ -3,7 +3,14 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ..paper import COMBINED, press_meaning
 from .figures import plt
+
+
+def combined_press_words(conditions) -> str:
+    """' In the combined condition, a press is one mount read at 1, 2 and 3 N.' where ``conditions`` hold the
+    combined one (its presses are no single images), else ''."""
+    return f" In the {COMBINED} condition, {press_meaning(COMBINED)}." if COMBINED in set(map(str, conditions)) else ""
 
 
 def presses_table(presses: pd.DataFrame, presses_needed: dict) -> dict:
@@ -23,7 +30,7 @@ def presses_table(presses: pd.DataFrame, presses_needed: dict) -> dict:
                     "seeded), by the law fitted without it on every press of the others; mean over specimens of the "
                     "RMSE over draws, beside the training mean's. Presses needed: the fewest that gain at least half of "
                     "what the most presses gain over the training mean; roughsense predict says when a surface has "
-                    "fewer."),
+                    "fewer." + combined_press_words(presses["condition"] if len(presses) else ())),
         "columns": ["Pad", "Condition", *[f"{k} press{'es' if k > 1 else ''}" for k in counts], "Training mean",
                     "Presses needed"],
         "rows": rows,

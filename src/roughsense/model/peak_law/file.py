@@ -3,7 +3,7 @@
 The section beside the document's ``features`` (whose spectrum holds the frequency grid the peak is read on)::
 
     {"kind": KIND, "n_features": p, "n_blocks": B, "pad_ridge_period_mm": 1.0 | null,
-     "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, b2, b3], "scale": s,
+     "exclusion_per_mm": e, "epsilon": h, "intercept": b0, "coefficients": [b1, 0, b3], "scale": s,
      "feature_min": [3], "feature_max": [3], "feature_names": ["log_peak_frequency_per_mm", "log_peak_amplitude",
      "log_second_harmonic_ratio"], "clarity_limit": c, "press_scatter": {"spread": [4], "trained_presses": k}}
 

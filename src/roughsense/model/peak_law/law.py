@@ -3,8 +3,8 @@
 Why a second model. PLS is linear in the 45 amplitudes, and each grating puts its fundamental into bins that no other
 training grating excites, so for a surface it never saw it has nothing to go on (under leave-one-specimen-out the
 paper's PLS sits at the training mean's error). Roughness that people perceive by spatial coding grows with the
-spacing of the contact pattern, and the spacing *moves* the spectrum's peak: a law in where the peak is (and how
-strongly the contact concentrates there) extrapolates to a period between, or just beside, the trained ones.
+spacing of the contact pattern, and the spacing *moves* the spectrum's peak: a law in where the peak is (and in the
+contact's shape) extrapolates to a period between, or just beside, the trained ones. The peak's height is no term.
 
 The law, in logs, with 2 or 3 parameters::
 
