@@ -362,7 +362,12 @@ def test_fit_model_help_is_the_registrys_description_and_names_no_peak_height_te
     assert "how high" not in help_text and "height is no term" in described and "shape" in described
     code, out, _ = run_cli("fit", "--help")
     text = re.sub(r"[\s│]+", " ", out)  # rich wraps help text inside a box
-    assert code == 0 and re.sub(r"\s+", " ", help_text) in text and "how high" not in text
+    # each built-in family's description, as the registry gives it (the help is built when fit's module is first
+    # imported, so a family a test registers for a while may or may not be listed beside them)
+    assert code == 0 and "how high" not in text
+    for family in registry.registry():
+        if family.name in registry.MODEL_FAMILIES:
+            assert re.sub(r"\s+", " ", family.description) in text, family.name
 
 
 def _peaked_gratings():

@@ -82,7 +82,7 @@ _FAMILIES: list[Family] = [
     Family(GROOVE, "groove model", "D", "#2e8b57", paper=False, engine_path="roughsense.model.groove.family:GrooveFamily",
            description="a power law of the contact's geometry read from the image: groove (gap) width first, then "
                        "land width, the groove's change with force and the contact fraction, each term kept only "
-                       "where it lowers a nested leave-one-specimen-out error; a surface's presses read together"),
+                       "where it lowers the error on specimens held out (nested); a surface's presses read together"),
 ]
 
 #: Every built-in family's name, the paper's first (:func:`names` follows the registry at run time).
