@@ -21,6 +21,7 @@ import pandas as pd
 from .. import paper
 from ..model.registry import PAPER_MODEL
 from . import dataset
+from .geometry import specimen_geometries
 from .family_fits import FamilyFit
 from .metrics import shape_summary
 
@@ -63,8 +64,9 @@ class StudyFacts:
     """The study as the analysis reads it, before any model is fitted (the first stage).
 
     ``perceived`` (targets per specimen), ``shapes`` and ``wavelengths`` (per specimen), ``freq_per_mm`` and
-    ``mean_spectra`` (per pad x specimen x condition), ``provenance``, and whether the paper's per-specimen values
-    describe it (``paper_pads``, ``paper_note``)."""
+    ``mean_spectra`` (per pad x specimen x condition), ``provenance``, whether the paper's per-specimen values
+    describe it (``paper_pads``, ``paper_note``), and each specimen's land/groove geometry (``geometries``,
+    analysis/geometry.py; empty, with ``geometry_note`` saying why, where no geometry can be held out)."""
 
     study_name: str
     reference_specimen: str
@@ -76,6 +78,8 @@ class StudyFacts:
     provenance: Provenance
     paper_pads: tuple[str, ...]
     paper_note: str
+    geometries: dict[str, str]
+    geometry_note: str
 
     @classmethod
     def of(cls, study, perceived: pd.DataFrame, features: pd.DataFrame, conditions: tuple[str, ...]) -> StudyFacts:
@@ -89,11 +93,13 @@ class StudyFacts:
         specimens = study.specimens
         wavelengths = pd.to_numeric(specimens.get("wavelength_mm", pd.Series(np.nan, index=specimens.index)),
                                     errors="coerce")
+        geometries, geometry_note = specimen_geometries(specimens)
         return cls(study_name=study.name, reference_specimen=study.reference_specimen, perceived=perceived,
                    shapes=dict(zip(specimens["specimen"], specimens["shape"])),
                    wavelengths=dict(zip(specimens["specimen"], wavelengths)),
                    freq_per_mm=dataset.column_frequencies(freq_columns), mean_spectra=mean_spectra,
-                   provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note)
+                   provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note,
+                   geometries=geometries, geometry_note=geometry_note)
 
 
 def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
