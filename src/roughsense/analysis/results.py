@@ -111,7 +111,11 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
     """
     paper_specimens = list(paper.PAPER_SPECIMENS)
     problems = []
-    if set(specimens) != set(paper_specimens):
+    added = [str(s) for s in specimens if s not in paper_specimens]
+    if set(specimens) > set(paper_specimens):  # e.g. the twin's paper+grooves: the paper's models saw only the 14
+        problems.append(f"it adds {', '.join(added)} to the paper's {len(paper_specimens)} specimens, and every model "
+                        "here is fitted on all of them")
+    elif set(specimens) != set(paper_specimens):
         problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
                         f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
     if list(conditions) != list(paper.PAPER_CONDITIONS):
