@@ -21,8 +21,8 @@ import pandas as pd
 from .. import paper
 from ..model.registry import PAPER_MODEL
 from . import dataset
-from .geometry import specimen_geometries
 from .family_fits import FamilyFit
+from .geometry import specimen_geometries
 from .metrics import shape_summary
 
 CV_SCHEMES = ("loo", "loso")

@@ -38,7 +38,7 @@ def builtin_set(value: str | os.PathLike[str] | None) -> str | None:
         return None
     from ..sim.specimens import PAPER_SET, check_specimen_set
 
-    return check_specimen_set(name, option="--study builtin:SET") if colon else PAPER_SET
+    return check_specimen_set(name, option=repr(value)) if colon else PAPER_SET
 
 
 def is_builtin(value: str | os.PathLike[str] | None) -> bool:

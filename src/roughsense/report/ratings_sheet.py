@@ -73,12 +73,12 @@ def groove_advice(specs: Sequence[str]) -> list[str]:
         f"Print these gratings too, to tell period from groove width: {', '.join(specs)} (rect:PERIOD:DEPTH:LAND in "
         "mm: at each period a land of 0.3 and of 0.7 of it, so the groove is the rest; 1 mm deep like the paper's).",
         "Why: where every rectangle of a set has one land/groove geometry (the paper's are all half land, half "
-        "groove), its period stands in for its groove width, and a model fitted on them learns the period. People feel the groove: roughness grows with groove "
-        "width and falls a little with land width (Lederman 1974, Perception & Psychophysics 16:385), and groove "
-        "width alone predicts most of it (Klatzky & Lederman 2007). Gratings whose land differs at the same period "
-        "set the two apart. Give every rectangle's ridge_width_mm and groove_width_mm in specimens.csv: the study "
-        "report holds out each land/groove geometry from them. The digital twin runs such a set: roughsense study "
-        "--study builtin:paper+grooves.",
+        "groove), its period stands in for its groove width, and a model fitted on them learns the period. People "
+        "feel the groove: roughness grows with groove width and falls a little with land width (Lederman 1974, "
+        "Perception & Psychophysics 16:385), and groove width alone predicts most of it (Klatzky & Lederman 2007). "
+        "Gratings whose land differs at the same period set the two apart. Give every rectangle's ridge_width_mm "
+        "and groove_width_mm in specimens.csv: the study report holds out each land/groove geometry from them. The "
+        "digital twin runs such a set: roughsense study --study builtin:paper+grooves.",
     ]
 
 

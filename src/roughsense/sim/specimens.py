@@ -178,7 +178,7 @@ def expand_specimen_sets(texts) -> tuple[str, ...]:
     expanded: list[str] = []
     for text in texts:
         key = text.strip().lower()
-        expanded.extend(SPECIMEN_SETS[key] if key in SPECIMEN_SETS else (text,))
+        expanded.extend(SPECIMEN_SETS.get(key, (text,)))
     return tuple(expanded)
 
 
