@@ -3,6 +3,7 @@ is reached as ``./builtin``. The cache entry is faked with a small simulated stu
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -145,3 +146,10 @@ def test_builtin_names_a_specimen_set_of_the_twin_cached_under_its_own_name(run_
     assert list(pd.read_csv(tmp_path / "f.csv")["image"]) == list(pd.read_csv(grooves / "manifest.csv")["image"])
     line = one_error(run_cli, "check", "builtin:grooves", "--seed", SEED)
     assert "'builtin:grooves': unknown specimen set 'grooves' (expected one of paper, paper+grooves" in line
+
+
+def test_a_builtin_set_is_the_caches_not_a_folder_of_inputs():
+    from roughsense.cli._common import run_inputs
+
+    assert run_inputs("a.csv", study="builtin:paper+grooves") == run_inputs("a.csv", study="builtin") == [
+        Path("a.csv")]

@@ -90,7 +90,7 @@ def test_a_sweep_names_the_twins_specimen_sets_whole_or_in_a_list(tmp_path):
     from roughsense.sim.specimens import SPECIMEN_SETS
 
     path = tmp_path / "sweep.toml"
-    path.write_text('[sweep]\nseeds = [0]\nrepetitions = 2\nspecimens = "paper+grooves"\n[axes]\npad = ["smooth"]\n')
+    path.write_text('[sweep]\nseeds = [0]\nrepetitions = 2\nspecimens = "Paper+Grooves"\n[axes]\npad = ["smooth"]\n')
     (cell,) = read_sweep(path).cells
     assert cell.specimens == SPECIMEN_SETS["paper+grooves"] and cell.specimens_label == "paper+grooves"
     path.write_text('[sweep]\nseeds = [0]\nrepetitions = 2\nspecimens = ["circular", "rect:3:1:0.9"]\n'

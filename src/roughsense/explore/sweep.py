@@ -161,6 +161,7 @@ def _specimens(path: Path, key: str, value, where: str) -> str | tuple[str, ...]
     """A named specimen set (sim.specimens.SPECIMEN_SETS), or a list of specimens and sets (at least 4 specimens
     besides the reference), each within the twin."""
     if isinstance(value, str):
+        value = value.strip().lower()  # as in a list, and as simulate --specimens reads a set's name
         if value not in SPECIMEN_SETS:
             raise _error(path, f"{where}: unknown specimen set {value!r} (expected one of "
                                f"{', '.join(SPECIMEN_SETS)}, or a list of specimens)")

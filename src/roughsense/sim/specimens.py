@@ -148,12 +148,6 @@ def _preset_table() -> dict[str, Specimen]:
 
 PRESETS: dict[str, Specimen] = _preset_table()
 
-SPEC_HELP = (
-    "A preset (R2, R2.5, ..., R5, C2, ..., C5) or a spec: rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "
-    "circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, rand:CORRELATION_LENGTH:RMS[:SEED] (all in mm)."
-)
-
-
 #: The periods and land fractions of the gratings that tell period from groove width: at each period a narrow and
 #: a wide land (groove = period - land), so the groove varies at a fixed period, which the paper's half-land
 #: rectangles never do. Depth: the paper's rectangles' (DEFAULT_GROOVE_DEPTH_MM).
@@ -171,6 +165,12 @@ SPECIMEN_SETS: dict[str, tuple[str, ...]] = {
     "circular": tuple(s for s in PAPER_SPECIMENS if s.startswith("C")),
 }
 PAPER_SET = "paper"
+
+SPEC_HELP = (
+    "A preset (R2, R2.5, ..., R5, C2, ..., C5), a set (" + ", ".join(SPECIMEN_SETS) + ") or a spec: "
+    "rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "
+    "circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, rand:CORRELATION_LENGTH:RMS[:SEED] (all in mm)."
+)
 
 
 def expand_specimen_sets(texts) -> tuple[str, ...]:
