@@ -107,9 +107,7 @@ def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_compo
             if scored is None:
                 continue
             prediction, p, n_perm, flags = scored
-            # A shape (geometry) left out is one experiment per shape (geometry): a row each, so one direction's
-            # bias cannot cancel the other's.
-            parts = [(str(f), folds == f) for f in pd.unique(folds)] if scheme in PER_GROUP_SCHEMES else [("all", None)]
+            parts = _parts(scheme, folds, set(facts.shapes.values()))
             for held, mask in parts:
                 chosen = np.ones(len(y), bool) if mask is None else mask
                 row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
@@ -120,6 +118,16 @@ def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_compo
                 row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
                 rows.append(row)
     return held_out_table(rows)
+
+
+def _parts(scheme: str, folds: np.ndarray, shapes: set) -> list[tuple[str, np.ndarray | None]]:
+    """The rows of one scheme: (held-out label, its rows' mask). A shape (geometry) left out is one experiment per
+    shape (geometry), a row each, so that one direction's bias cannot cancel another's; a geometry that is a whole
+    shape (the circles) is held out on its own but not reported twice: its row is the shape left out's."""
+    if scheme not in PER_GROUP_SCHEMES:
+        return [("all", None)]
+    groups = [f for f in pd.unique(folds) if scheme != "geometry" or f not in shapes]
+    return [(str(f), folds == f) for f in groups]
 
 
 def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law: dict, controls: pd.DataFrame,
