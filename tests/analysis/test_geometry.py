@@ -46,3 +46,12 @@ def test_one_rectangular_geometry_or_none_known_is_said_not_guessed():
     assert geometries == {} and "no land width for R2, R2.5" in note and "ridge_width_mm" in note
     circles = paper[paper["shape"] == "circular"]
     assert specimen_geometries(circles) == ({}, "the study has no rectangular gratings")
+
+
+def test_a_land_and_groove_that_do_not_make_the_period_are_refused_by_name():
+    table = _table([["a", "rectangular", 4.0, 1.2, 2.8], ["b", "rectangular", 4.0, 1.0, 1.0],
+                    ["c", "rectangular", 3.0, 0.9, 2.13]])  # c: 1 % off, a printing tolerance
+    geometries, note = specimen_geometries(table)
+    assert geometries == {} and "ridge_width_mm + groove_width_mm is not wavelength_mm for b:" in note
+    geometries, note = specimen_geometries(table[table.specimen != "b"])
+    assert geometries == {} and "one land/groove geometry (land 0.3 of the period)" in note

@@ -19,6 +19,8 @@ LAND_FRACTION_DECIMALS = 1
 #: The specimens.csv columns a rectangular grating's geometry is read from (io/study.py: optional geometry columns).
 LAND_COLUMN, GROOVE_COLUMN = "ridge_width_mm", "groove_width_mm"
 RECTANGULAR = "rectangular"
+#: Land and groove given both may miss the period by this fraction of it (printing and measuring, not a typo).
+WIDTHS_TOLERANCE = 0.02
 
 
 def land_label(fraction: float) -> str:
@@ -56,6 +58,12 @@ def specimen_geometries(specimens: pd.DataFrame) -> tuple[dict[str, str], str]:
     if len(unknown):
         return {}, (f"specimens.csv gives no land width for {', '.join(map(str, unknown))} ({LAND_COLUMN} or "
                     f"{GROOVE_COLUMN}, in mm, between 0 and the wavelength)")
+    both = land_fractions(specimens[rectangular].drop(columns=GROOVE_COLUMN, errors="ignore")) + \
+        (1.0 - land_fractions(specimens[rectangular].drop(columns=LAND_COLUMN, errors="ignore")))
+    disagree = specimens.loc[rectangular, "specimen"][(both - 1.0).abs() > WIDTHS_TOLERANCE]
+    if len(disagree):
+        return {}, (f"in specimens.csv, {LAND_COLUMN} + {GROOVE_COLUMN} is not wavelength_mm for "
+                    f"{', '.join(map(str, disagree))}: which is the land?")
     labels = shapes.copy()
     labels[rectangular] = [land_label(f) for f in fractions]
     geometries = dict(zip(specimens["specimen"].astype(str), labels))
