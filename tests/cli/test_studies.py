@@ -153,3 +153,8 @@ def test_a_builtin_set_is_the_caches_not_a_folder_of_inputs():
 
     assert run_inputs("a.csv", study="builtin:paper+grooves") == run_inputs("a.csv", study="builtin") == [
         Path("a.csv")]
+
+
+def test_a_builtin_set_without_the_reference_is_refused_before_any_simulation(run_cli):
+    line = one_error(run_cli, "check", "builtin:circular", "--seed", SEED)
+    assert "'builtin:circular': the set circular lacks the reference R3" in line and "paper+grooves" in line

@@ -36,9 +36,18 @@ def builtin_set(value: str | os.PathLike[str] | None) -> str | None:
     word, colon, name = value.partition(":")
     if word != BUILTIN:
         return None
-    from ..sim.specimens import PAPER_SET, check_specimen_set
+    from ..errors import ConfigError
+    from ..paper import REFERENCE_SPECIMEN
+    from ..sim.specimens import PAPER_SET, SPECIMEN_SETS, check_specimen_set
 
-    return check_specimen_set(name, option=repr(value)) if colon else PAPER_SET
+    if not colon:
+        return PAPER_SET
+    key = check_specimen_set(name, option=repr(value))
+    if REFERENCE_SPECIMEN not in SPECIMEN_SETS[key]:  # the paper's study is rated against R3
+        raise ConfigError(f"{value!r}: the set {key} lacks the reference {REFERENCE_SPECIMEN}, which the built-in "
+                          f"study is rated against; sets with it: "
+                          f"{', '.join(k for k, v in SPECIMEN_SETS.items() if REFERENCE_SPECIMEN in v)}")
+    return key
 
 
 def is_builtin(value: str | os.PathLike[str] | None) -> bool:
