@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-#: Land fractions are rounded to this many decimals: lands printed within a twentieth of a period of each other are
-#: one geometry (0.33 and 0.3 of the period are both "land 0.3").
+#: Land fractions are rounded to this many decimals, to a tenth of the period: 0.33 and 0.3 of the period are both
+#: "land 0.3", one geometry (a printed land is never exact).
 LAND_FRACTION_DECIMALS = 1
 #: The specimens.csv columns a rectangular grating's geometry is read from (io/study.py: optional geometry columns).
 LAND_COLUMN, GROOVE_COLUMN = "ridge_width_mm", "groove_width_mm"
