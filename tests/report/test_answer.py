@@ -31,13 +31,13 @@ def _answer(held, geometry_note=""):
 def test_a_land_groove_geometry_left_out_is_on_the_first_screen_with_its_bias_and_flags():
     held = pd.concat([_held("specimen", "all", 0.0, 0.0), _held("geometry", "land 0.7", 0.72, 0.025)])
     rows = _answer(held)["rows"]
-    assert rows[1] == ["peak law", "a land/groove geometry left out (every grating of it): land 0.7",
+    assert rows[1] == ["peak law", "a land/groove geometry left out: land 0.7",
                        "0.30 vs 0.40, passes, bias +0.72, 2% of presses flagged: biased, mostly unflagged"]
 
 
 def test_where_the_study_cannot_hold_out_a_geometry_the_first_screen_says_so():
-    note = "every rectangular grating here has one land/groove geometry (land 0.5 of the period)"
+    note = "every rectangle here is land 0.5 of its period (roughsense protocol recommends others)"
     rows = _answer(_held("specimen", "all", 0.0, 0.0), geometry_note=note)["rows"]
-    assert rows[-1] == ["every model", f"a land/groove geometry left out (every grating of it): not applicable, {note}",
-                        "not applicable"]
+    assert rows[-1] == ["every model", "a land/groove geometry left out",
+                        f"not applicable: {note}"]
     assert len(_answer(_held("specimen", "all", 0.0, 0.0))["rows"]) == 1  # nothing said where nothing is missing

@@ -45,31 +45,34 @@ def land_fractions(specimens: pd.DataFrame) -> pd.Series:
 
 
 def specimen_geometries(specimens: pd.DataFrame) -> tuple[dict[str, str], str]:
-    """(specimen -> geometry label, "") where a land/groove geometry can be held out, else ({}, the reason why not).
+    """(specimen -> geometry label, "") where a land/groove geometry can be held out, else ({}, the reason why not, in a
+    few words: the report's first screen quotes it in a table cell).
 
     Labels: ``land 0.3`` (a rectangular grating whose land is 0.3 of its period), or the shape for any other.
     """
     shapes = specimens["shape"].astype(str)
     rectangular = shapes == RECTANGULAR
     if not rectangular.any():
-        return {}, "the study has no rectangular gratings"
+        return {}, "no rectangular gratings here"
     fractions = land_fractions(specimens[rectangular]).round(LAND_FRACTION_DECIMALS)
     unknown = specimens.loc[rectangular, "specimen"][fractions.isna()]
     if len(unknown):
-        return {}, (f"specimens.csv gives no land width for {', '.join(map(str, unknown))} ({LAND_COLUMN} or "
-                    f"{GROOVE_COLUMN}, in mm, between 0 and the wavelength)")
+        return {}, f"no land width ({LAND_COLUMN}) in specimens.csv for {_named(unknown)}"
     both = land_fractions(specimens[rectangular].drop(columns=GROOVE_COLUMN, errors="ignore")) + \
         (1.0 - land_fractions(specimens[rectangular].drop(columns=LAND_COLUMN, errors="ignore")))
     disagree = specimens.loc[rectangular, "specimen"][(both - 1.0).abs() > WIDTHS_TOLERANCE]
     if len(disagree):
-        return {}, (f"in specimens.csv, {LAND_COLUMN} + {GROOVE_COLUMN} is not wavelength_mm for "
-                    f"{', '.join(map(str, disagree))}: which is the land?")
+        return {}, f"in specimens.csv, {LAND_COLUMN} + {GROOVE_COLUMN} is not wavelength_mm for {_named(disagree)}"
     labels = shapes.copy()
     labels[rectangular] = [land_label(f) for f in fractions]
     geometries = dict(zip(specimens["specimen"].astype(str), labels))
     distinct = sorted(set(labels[rectangular]))
     if len(distinct) < 2:
-        return {}, (f"every rectangular grating here has one land/groove geometry ({distinct[0]} of the period), so "
-                    "holding one out would only repeat the shape left out; it needs gratings whose land differs at "
-                    "the same period (roughsense protocol recommends some)")
+        return {}, f"every rectangle here is {distinct[0]} of its period (roughsense protocol recommends others)"
     return geometries, ""
+
+
+def _named(specimens: pd.Series, shown: int = 1) -> str:
+    """The first ``shown`` names, and how many more: a reason that fits a table cell."""
+    names = list(map(str, specimens))
+    return ", ".join(names[:shown]) + (f" and {len(names) - shown} more" if len(names) > shown else "")

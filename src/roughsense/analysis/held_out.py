@@ -37,7 +37,7 @@ from .results import Controls, RunSettings, StricterSchemes, StudyFacts
 #: The schemes, strictest last, and what each holds out in a user's words.
 SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
                 "shape": "a shape left out (fitted on the other)",
-                "geometry": "a land/groove geometry left out (every grating of it)"}
+                "geometry": "a land/groove geometry left out"}
 #: The schemes whose every held-out group is its own experiment, reported one row each (so that one group's bias
 #: cannot cancel another's).
 PER_GROUP_SCHEMES = ("shape", "geometry")

@@ -94,8 +94,8 @@ def answer_table(analysis) -> dict | None:
             cells.append(_verdict_cell(r.iloc[0], unseen, model, pad, condition, scheme) if len(r) else "—")
         rows.append(cells)
     if getattr(analysis, "geometry_note", ""):  # the scheme the study cannot form, said beside the others
-        rows.append(["every model", f"{SCHEME_WORDS['geometry']}: not applicable, {analysis.geometry_note}",
-                     *["not applicable"] * len(pads)])
+        rows.append(["every model", SCHEME_WORDS["geometry"], f"not applicable: {analysis.geometry_note}",
+                     *["not applicable"] * (len(pads) - 1)])
     return {"columns": ["Model", "Held out", *[f"{pad} pad: RMSE vs training mean" for pad in pads]],
             "rows": rows, "condition": condition}
 
