@@ -155,8 +155,9 @@ def test_builtin_study_passes_the_key_to_the_simulator(cache, monkeypatch):
 
     seen = {}
 
-    def fake(root, *, seed, jobs, force, progress, markers):
+    def fake(root, config=None, *, seed, jobs, force, progress, markers):
         seen.update(markers)
+        seen["config"] = config
         user_study(root)
         for name, text in markers.items():
             (root / name).write_text(text)
@@ -166,8 +167,13 @@ def test_builtin_study_passes_the_key_to_the_simulator(cache, monkeypatch):
     monkeypatch.setattr(_studies, "simulator_fingerprint", lambda: "v1")
     mine = user_study(cache / "simulated-study-seed3-mine")
     root = _studies.builtin_study(3)
+    assert seen.pop("config") is None  # the paper's study: the simulator's defaults
     assert root == folder_entry(STEM, "v1") and seen == key_files(root) and made_here(root, root.name)
     assert (mine / "images" / "mine.png").read_bytes() == b"mine"
+    # A set of the twin's is its own entry, simulated on that set; the paper's entry stays.
+    grooves = _studies.builtin_study(3, specimen_set="paper+grooves")
+    assert seen.pop("config").specimens == ("paper+grooves",) and seen == key_files(grooves)
+    assert grooves.name == "simulated-study-paper-grooves-seed3-v1" and made_here(root, root.name)
 
 
 def test_simulate_study_writes_its_markers_into_the_study(tmp_path):

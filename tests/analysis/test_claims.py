@@ -400,3 +400,28 @@ def test_claim_ps_print_as_bounds_never_0_and_the_training_means_rho_is_explaine
     assert claims_table(zero)["rows"][0][p_column]["ours"] == "< 0.0001"
     for detail in analysis.claims.loc[analysis.claims.key == "aligns", "detail"]:
         assert "the training mean's own rho = " in detail and ("so it" in detail or "backwards" in detail)
+
+
+def test_with_grooves_the_rating_claims_compare_the_papers_half_land_rectangles():
+    """A set with rectangles of other lands at the paper's periods (the twin's paper+grooves): the paper's claims
+    compare circles with the half-land rectangles, as the paper did (pre-46 the signed-rank test was handed 7
+    circles and 9 rectangles and the study stopped); without the lands in specimens.csv the claim says why not."""
+    from roughsense.analysis.claim_tests import _rating_claims
+    from roughsense.paper import perceived_roughness
+
+    perceived = perceived_roughness()[["specimen", "perceived_gmean", "perceived_sd"]].rename(
+        columns={"perceived_gmean": "gmean", "perceived_sd": "sd"})
+    extra = pd.DataFrame({"specimen": ["rect_3_1_0.9", "rect_4_1_2.8"], "gmean": [0.4, 3.0], "sd": [0.1, 0.3]})
+    perceived = pd.concat([perceived, extra], ignore_index=True)
+    shapes = {s: ("circular" if s.startswith("C") else "rectangular") for s in perceived["specimen"]}
+    wavelengths = {s: float(s.split("_")[1]) if s.startswith("rect") else float(s[1:]) for s in perceived["specimen"]}
+    geometries = {s: "circular" if shapes[s] == "circular" else "land 0.5" for s in shapes}
+    geometries.update({"rect_3_1_0.9": "land 0.3", "rect_4_1_2.8": "land 0.7"})
+    rows = {c.key: c for c in _rating_claims(perceived, shapes, wavelengths, geometries)}
+    people = perceived.set_index("specimen")["gmean"]
+    circular = [f"C{w:g}" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5)]
+    rectangular = [f"R{w:g}" for w in (2, 2.5, 3, 3.5, 4, 4.5, 5)]
+    diff = people.loc[circular].to_numpy() - people.loc[rectangular].to_numpy()
+    assert rows["circular_rougher"].p == pytest.approx(stats.wilcoxon(diff, method="exact").pvalue)
+    unknown = {c.key: c for c in _rating_claims(perceived, shapes, wavelengths, {})}
+    assert "one rectangular grating per period" in unknown["circular_rougher"].detail

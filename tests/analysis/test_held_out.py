@@ -2,6 +2,8 @@
 arithmetic (hand-computed values, scikit-learn's PLSRegression), and the study's table against a direct rerun."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -157,3 +159,47 @@ def test_presses_per_surface_reach_the_loso_error_with_every_press_and_predict_s
     assert line.startswith("fewer presses than this model's pad needs: a surface read from 1 press here")
     assert "needed 3 to beat the training mean clearly (held-out error 0.35 vs the training mean's 0.33)" in line
     assert few_presses_line(training, ["a"] * 3 + ["b"] * 3, 6) == ""
+
+
+def test_folds_hold_out_a_land_groove_geometry_whole_and_only_where_the_study_has_one():
+    specimens = np.array(["R2", "R2", "C2", "R3", "C3", "R4"])
+    geometries = {"R2": "land 0.3", "R3": "land 0.5", "R4": "land 0.3", "C2": "circular", "C3": "circular"}
+    folds = scheme_folds("geometry", specimens, SHAPES, WAVELENGTHS, geometries)
+    assert list(folds) == ["land 0.3", "land 0.3", "circular", "land 0.5", "circular", "land 0.3"]
+    # No geometries (the study has one rectangular geometry, or none known): None, never a silent other scheme.
+    assert scheme_folds("geometry", specimens, SHAPES, WAVELENGTHS, {}) is None
+    assert scheme_folds("geometry", specimens, SHAPES, WAVELENGTHS) is None
+
+
+def test_a_study_without_land_widths_skips_the_geometry_scheme_and_says_why(analysis):
+    result, _, _ = analysis
+    assert "geometry" not in set(result.held_out["scheme"])
+    assert result.geometry_note == "no land width (ridge_width_mm) in specimens.csv for R2 and 6 more"
+
+
+def test_a_land_groove_geometry_left_out_is_the_law_fitted_without_every_grating_of_it():
+    """Two of the synthetic rectangles declared land 0.3 of their period (specimens.csv's ridge_width_mm): the scheme
+    holds them out together, one row per geometry, each the law refitted without that geometry, rerun directly."""
+    from roughsense.analysis import dataset
+
+    study, features = synthetic_study(repetitions=3, seed=5, pads=("smooth",))
+    table = study.specimens.copy()
+    narrow = table["specimen"].isin(["R2.5", "R4.5"])
+    rectangular = table["shape"] == "rectangular"
+    table["ridge_width_mm"] = np.where(rectangular, table["wavelength_mm"] * np.where(narrow, 0.3, 0.5), np.nan)
+    study = dataclasses.replace(study, specimens=table)
+    result = analyse_study(study, features=features, max_components=3, n_permutations=0, conditions=["2N"])
+    assert result.geometry_note == ""
+    rows = result.held_out[result.held_out.scheme == "geometry"]
+    assert set(rows["held_out"]) == {"land 0.3", "land 0.5"}  # the circles held out alone are the shape scheme's row
+    law = rows[(rows.model == "peak-law") & (rows.held_out == "land 0.3")].iloc[0]
+    X, meta = dataset.condition_matrix(features, law.pad, law.condition)
+    y = dataset.targets(meta, result.perceived)
+    specimens = meta["specimen"].astype(str).to_numpy()
+    groups = np.array([result.geometries[s] for s in specimens])
+    settings = law_settings(X, result.freq_per_mm, None, specimens)
+    direct = peak_law_cv(X, y, groups=groups, **settings)[0]
+    held = groups == "land 0.3"
+    per = pd.DataFrame({"s": specimens[held], "e": (direct[held] - y[held]) ** 2}).groupby("s")["e"].mean()
+    assert law.rmse == pytest.approx(float(np.sqrt(per).mean()))
+    assert law.n_folds == 3

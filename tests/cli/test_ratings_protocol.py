@@ -220,3 +220,40 @@ def test_a_huge_rating_cell_is_one_short_line_in_bounded_memory(run_cli, tmp_pat
 def test_a_huge_option_value_is_one_short_line(run_cli, tmp_path):
     code, _, err = run_cli("ratings", tmp_path / "r.csv", "--out", tmp_path / "o.csv", "--reference", "R" * 100_000)
     assert len(refusal_line(code, err)) < 600
+
+
+def test_protocol_recommends_gratings_that_tell_period_from_groove_and_says_why(tmp_path, run_cli):
+    """Issue 46: the paper's set ties groove width to period; protocol names the rectangles to print (the twin's
+    paper+grooves: lands of 0.3 and 0.7 of the period), in the console and on the sheet, and why."""
+    from roughsense.sim.specimens import GROOVE_SPECS
+
+    code, out, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "s.csv", "--sheet", tmp_path / "s.md")
+    assert code == 0, err
+    assert f"Print these gratings too, to tell period from groove width: {', '.join(GROOVE_SPECS)}" in out
+    assert "rect:2:1:0.6" in out and "rect:5:1:3.5" in out and "Lederman 1974" in out
+    assert "Klatzky & Lederman 2007" in out and "half land, half groove" in out
+    sheet = (tmp_path / "s.md").read_text()
+    assert "rect:4:1:1.2" in sheet and "Why:" in sheet
+    # The sheet still reads back (the advice is prose, not a table).
+    fill(tmp_path / "s.csv", tmp_path / "filled.csv")
+    assert run_cli("ratings", tmp_path / "filled.csv", "--out", tmp_path / "sum.csv")[0] == 0
+
+
+def test_protocol_recommends_only_what_the_set_lacks(tmp_path, run_cli):
+    # A set with two lands at one period already tells them apart: nothing to add.
+    code, out, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "a.csv", "--specimens",
+                             "R3,R2,R4,rect_4_1_1.2,C4")
+    assert code == 0, err
+    assert "Print these gratings" not in out
+    # The twin's set names its gratings; a specimens.csv gives their lands in ridge_width_mm.
+    code, out, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "b.csv", "--specimens", "paper+grooves")
+    assert code == 0, err
+    assert "21 specimens" in out and "Print these gratings" not in out
+    assert "rect_2_1_0.6" in set(pd.read_csv(tmp_path / "b.csv").specimen)
+    table = tmp_path / "specimens.csv"
+    table.write_text("specimen,shape,wavelength_mm,ridge_width_mm\nR3,rectangular,3,1.5\nA,rectangular,2,0.6\n"
+                     "B,rectangular,4,2\nC,circular,4,\n")
+    code, out, err = run_cli("protocol", "--seed", 0, "--out", tmp_path / "c.csv", "--specimens", table,
+                             "--participants", 2, "--sessions", 1)
+    assert code == 0, err
+    assert "rect:2:1:1.4, rect:3:1:0.9" in out and "rect:2:1:0.6" not in out

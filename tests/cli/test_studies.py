@@ -3,12 +3,14 @@ is reached as ``./builtin``. The cache entry is faked with a small simulated stu
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from roughsense.cli._studies import builtin_study_path
 from roughsense.io.study import COMPLETE_MARKER
+from tests.commands import one_error
 
 SEED = 7
 
@@ -124,3 +126,35 @@ def test_check_and_calibrate_take_builtin_with_seed(run_cli, cache, tmp_path, mo
     assert "nothing written" in err
     assert (cache / "study.toml").read_bytes() == toml
     assert [p.name for p in tmp_path.iterdir()] == ["cache"]
+
+
+def test_builtin_names_a_specimen_set_of_the_twin_cached_under_its_own_name(run_cli, tiny, tmp_path, monkeypatch):
+    """``builtin:paper+grooves`` is its own cache entry (the set is in its key; ``builtin:paper`` is ``builtin``), and
+    an unknown set is one line naming the sets there are."""
+    monkeypatch.setenv("ROUGHSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.chdir(tmp_path)
+    from roughsense._util.cache import key_files
+
+    grooves = builtin_study_path(SEED, "paper+grooves")
+    assert grooves != builtin_study_path(SEED) == builtin_study_path(SEED, "paper")
+    assert grooves.name.startswith(f"simulated-study-paper-grooves-seed{SEED}-")
+    shutil.copytree(tiny, grooves)
+    for name, text in key_files(grooves).items():
+        (grooves / name).write_text(text)
+    code, _, err = run_cli("features", "--study", "builtin:paper+grooves", "--seed", SEED, "--out", "f.csv")
+    assert code == 0, err
+    assert list(pd.read_csv(tmp_path / "f.csv")["image"]) == list(pd.read_csv(grooves / "manifest.csv")["image"])
+    line = one_error(run_cli, "check", "builtin:grooves", "--seed", SEED)
+    assert "'builtin:grooves': unknown specimen set 'grooves' (expected one of paper, paper+grooves" in line
+
+
+def test_a_builtin_set_is_the_caches_not_a_folder_of_inputs():
+    from roughsense.cli._common import run_inputs
+
+    assert run_inputs("a.csv", study="builtin:paper+grooves") == run_inputs("a.csv", study="builtin") == [
+        Path("a.csv")]
+
+
+def test_a_builtin_set_without_the_reference_is_refused_before_any_simulation(run_cli):
+    line = one_error(run_cli, "check", "builtin:circular", "--seed", SEED)
+    assert "'builtin:circular': the set circular lacks the reference R3" in line and "paper+grooves" in line

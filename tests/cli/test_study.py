@@ -240,3 +240,22 @@ def test_a_camera_scale_below_nyquist_names_study_toml_and_the_key(run_cli, stud
     assert refusal_line(code, err) == (
         f"roughsense: error: {toml}: [sensor] px_per_mm 1.5 is too coarse: its Nyquist frequency 0.75 mm^-1 is not "
         "above the band's f_max 1 mm^-1 (it must be above 2 px/mm)")
+
+
+@pytest.mark.slow
+def test_study_runs_on_gratings_whose_land_is_not_half_the_period(run_cli, tmp_path, quick_figures):
+    """A study with rectangles of other lands at the paper's periods runs as the paper's does (pre-46 the paper's
+    circle-vs-rectangle claim stopped it), and holds out each land/groove geometry on the first screen."""
+    config = SimulationConfig(pads=("smooth",), specimens=("R2", "R3", "R4", "C2", "C3", "C4", "rect:2:1:0.6",
+                                                           "rect:4:1:2.8"),
+                              repetitions=2, seed=11, participants=4, sessions=2)
+    simulate_study(tmp_path / "study", with_image_size(config, 1920, 170), jobs=1)
+    code, out, err = run_cli("study", "--study", tmp_path / "study", "--out", tmp_path / "r", "--max-components", 2,
+                             "--permutations", 0)
+    assert code == 0, err
+    held = pd.read_csv(tmp_path / "r" / "held_out.csv")
+    geometry = held[held.scheme == "geometry"]
+    assert set(geometry.held_out) == {"land 0.3", "land 0.5", "land 0.7"}
+    assert "a land/groove geometry left out: land 0.7" in (tmp_path / "r" / "index.html").read_text()
+    claims = (tmp_path / "r" / "claims.csv").read_text()
+    assert "Circular gratings feel rougher" in claims and "rect_2_1_0.6" not in claims

@@ -82,3 +82,18 @@ def test_a_sweep_file_is_held_to_the_same_rule(run_cli, tmp_path):
                      .replace("[sweep]\n", "").replace("max_components = 4", "max_components = 0x4") + '# """\n')
     line = one_error(run_cli, "explore", sweep, "--out", tmp_path / "x")
     assert "'0x4' is not a number as roughsense reads one" in line
+
+
+def test_a_sweep_names_the_twins_specimen_sets_whole_or_in_a_list(tmp_path):
+    """``specimens = "paper+grooves"`` (sim/specimens.SPECIMEN_SETS, the one table) and a set inside a list."""
+    from roughsense.explore.sweep import read_sweep
+    from roughsense.sim.specimens import SPECIMEN_SETS
+
+    path = tmp_path / "sweep.toml"
+    path.write_text('[sweep]\nseeds = [0]\nrepetitions = 2\nspecimens = "Paper+Grooves"\n[axes]\npad = ["smooth"]\n')
+    (cell,) = read_sweep(path).cells
+    assert cell.specimens == SPECIMEN_SETS["paper+grooves"] and cell.specimens_label == "paper+grooves"
+    path.write_text('[sweep]\nseeds = [0]\nrepetitions = 2\nspecimens = ["circular", "rect:3:1:0.9"]\n'
+                    '[axes]\npad = ["smooth"]\n')
+    (cell,) = read_sweep(path).cells
+    assert cell.specimens == (*SPECIMEN_SETS["circular"], "rect:3:1:0.9")

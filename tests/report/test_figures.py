@@ -1,6 +1,7 @@
 """report/figures.py: every figure stays within its pixel budget, at the dpi asked where the budget allows."""
 from __future__ import annotations
 
+import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -81,3 +82,19 @@ def test_every_accepted_dpi_stays_within_a_figures_pixel_budget(width_in, height
     plt.close(fig)
     assert width_in * height_in * used**2 <= MAX_FIGURE_PIXELS * (1 + 1e-9)
     assert used == dpi or width_in * height_in * dpi**2 > MAX_FIGURE_PIXELS
+
+
+def test_specs_sort_beside_the_presets_of_their_period_and_slant_under_the_axis():
+    """A spec's numbers are its period, depth and land: rect_4_1_1.2 sorts beside R4 (pre-46 its digits ran together
+    into 4101.2, after R5), and specs' long names are slanted so that they stay apart."""
+    from roughsense.report.figures import _specimen_order, ovl_sd_figure
+
+    names = ["R5", "rect_4_1_1.2", "R4", "rect_2_1_0.6", "R2", "C2"]
+    shapes = {n: "circular" if n.startswith("C") else "rectangular" for n in names}
+    assert _specimen_order(names, shapes) == ["R2", "rect_2_1_0.6", "R4", "rect_4_1_1.2", "R5", "C2"]
+    results = pd.DataFrame({"pad": "smooth", "condition": "combined", "specimen": names, "ovl": 0.5, "pred_sd": 0.1})
+    perceived = pd.DataFrame({"specimen": names, "sd": 0.2})
+    figure = ovl_sd_figure(results, perceived, "smooth", shapes, paper=False)
+    rectangles, circles = figure.axes[0], figure.axes[1]
+    assert {t.get_rotation() for t in rectangles.get_xticklabels()} == {45.0}
+    assert {t.get_rotation() for t in circles.get_xticklabels()} == {0.0}  # the presets' names stay upright

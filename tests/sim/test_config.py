@@ -30,3 +30,11 @@ def test_a_definition_the_twin_cannot_simulate_is_refused_before_any_work(change
 def test_only_a_pad_with_ridges_has_a_ridge_period():
     pads, _ = SimulationConfig(pads=("smooth", "fingerprint"), fingerprint_period_mm=0.5).validate()
     assert ridge_periods(pads) == {"fingerprint": 0.5}
+
+
+def test_a_named_set_is_expanded_where_the_specimens_are_parsed():
+    _, specimens = SimulationConfig(pads=("smooth",), specimens=("paper+grooves",)).validate()
+    names = [s.name for s in specimens]
+    assert len(names) == 22 and names[:2] == ["R2", "R2.5"] and names[-1] == "rect_5_1_3.5"
+    with pytest.raises(ConfigError, match="'R2' is listed twice"):
+        SimulationConfig(pads=("smooth",), specimens=("paper", "R2")).validate()

@@ -163,3 +163,35 @@ def test_a_specimen_spec_reads_its_numbers_as_every_reader_does(text):
     assert got is None or got == expected, (text, got, expected)
     if expected is None:
         assert got is None
+
+
+#: The gratings issue 46 keeps back for judging: never in a set the project trains or chooses on.
+KEPT_BACK = ("rect:2.5:1:2", "rect:5:1:4", "rect:4:1:3", "rect:3:1:2", "rect:4:1:1", "rect:2.5:1:0.5", "rect:5:1:1",
+             "rect:3:1:1", "rect:3.5:1:1", "rect:4.5:1:3.5")
+
+
+def test_paper_plus_grooves_is_the_papers_14_and_8_rectangles_whose_land_is_not_half_the_period():
+    from roughsense.sim.specimens import SPECIMEN_SETS
+
+    assert SPECIMEN_SETS["paper"] == PAPER_SPECIMENS
+    specs = SPECIMEN_SETS["paper+grooves"]
+    assert specs[:14] == PAPER_SPECIMENS
+    grooves = [parse_specimen(s) for s in specs[14:]]
+    assert {(g.wavelength_mm, g.ridge_width_mm) for g in grooves} == {
+        (p, round(f * p, 6)) for p in (2.0, 3.0, 4.0, 5.0) for f in (0.3, 0.7)}
+    for g in grooves:
+        assert g.shape == "rectangular" and g.groove_depth_mm == 1.0
+        assert g.groove_width_mm == pytest.approx(g.wavelength_mm - g.ridge_width_mm) != g.ridge_width_mm
+    assert [g.name for g in grooves][:2] == ["rect_2_1_0.6", "rect_2_1_1.4"]  # as parse_specimen names the specs
+    kept = {parse_specimen(s).name for s in KEPT_BACK}
+    assert not kept & {parse_specimen(s).name for s in specs}
+
+
+def test_set_names_expand_in_place_and_an_unknown_set_is_one_line():
+    from roughsense.sim.specimens import SPECIMEN_SETS, check_specimen_set, expand_specimen_sets
+
+    assert expand_specimen_sets(["sin:3:0.5", "Paper+Grooves"]) == ("sin:3:0.5", *SPECIMEN_SETS["paper+grooves"])
+    assert expand_specimen_sets(["R3"]) == ("R3",)
+    with pytest.raises(ConfigError, match=r"--study builtin:SET: unknown specimen set 'groovy' \(expected one of "
+                                          r"paper, paper\+grooves"):
+        check_specimen_set("groovy", option="--study builtin:SET")

@@ -18,6 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from ..paper import COMBINED, FINGERPRINT_PAD, FORCE_CONDITIONS, SMOOTH_PAD
+from .geometry import PAPER_GEOMETRY
 from .metrics import ALPHA, compare_conditions, paired_tost, signed_rank, slope_tost
 
 #: Equivalence margin for a difference in mean OVL (a 0..1 scale), chosen before looking at any result: a tenth
@@ -298,15 +299,29 @@ def _ratings_rise(known: pd.DataFrame) -> ClaimTest:
                 correction=f"none (intersection-union: each of the {len(tests)} shapes must reject)")
 
 
-def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict) -> list[ClaimTest]:
+def _paper_geometry(known: pd.DataFrame, geometries: dict) -> pd.DataFrame:
+    """The specimens of the paper's design: a rectangle only if half land (where the study has several rectangular
+    geometries, analysis/geometry.py), so that the paper's claims compare what the paper compared."""
+    if not geometries:
+        return known
+    geometry = known["specimen"].map(geometries)
+    return known[(known["shape"] != "rectangular") | (geometry == PAPER_GEOMETRY)]
+
+
+def _rating_claims(perceived: pd.DataFrame, shapes: dict, wavelengths: dict,
+                   geometries: dict | None = None) -> list[ClaimTest]:
     people = perceived.assign(shape=perceived["specimen"].map(shapes),
                               wavelength_mm=perceived["specimen"].map(wavelengths))
-    known = people.dropna(subset=["wavelength_mm"])
+    known = _paper_geometry(people.dropna(subset=["wavelength_mm"]), geometries or {})
     rows = [_ratings_rise(known)]
     circ = known[known["shape"] == "circular"].set_index("wavelength_mm")["gmean"]
     rect = known[known["shape"] == "rectangular"].set_index("wavelength_mm")["gmean"]
     common = circ.index.intersection(rect.index)
-    if len(common) < 3:
+    if rect.index.duplicated().any():
+        rows.append(_untestable("circular_rougher", "", "none",
+                                "needs one rectangular grating per period (the paper's, half land: give "
+                                "ridge_width_mm in specimens.csv)"))
+    elif len(common) < 3:
         rows.append(_untestable("circular_rougher", "", "none",
                                 "needs circular and rectangular gratings of at least 3 common periods"))
     else:

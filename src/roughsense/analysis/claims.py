@@ -216,7 +216,7 @@ def evaluate_claims(facts: StudyFacts, cross_validation: CrossValidation, contro
     for cv in schemes:
         tested += _scheme_claims(facts.perceived, cross_validation, paper_fits, cv, controls)
     # The ratings' claims last here; the table's rows are ordered by claim and scheme below.
-    tested += _rating_claims(facts.perceived, facts.shapes, facts.wavelengths)
+    tested += _rating_claims(facts.perceived, facts.shapes, facts.wavelengths, facts.geometries)
     rows = [_claim_row(claim, controls, facts.provenance.settings) for claim in tested]
     order = {key: i for i, key in enumerate(CLAIMS)}
     frame = pd.DataFrame(rows)

@@ -1,4 +1,4 @@
-"""Stricter held-out schemes: a whole period, or a whole shape, left out of training, beside one grating left out.
+"""Stricter held-out schemes: a whole period, shape or land/groove geometry left out of training, beside one grating.
 
 Leave-one-specimen-out (LOSO) keeps the other shape of the held-out period in training, so a model that reads only
 the period is rewarded for it: the rectangular 3 mm grating is predicted from a fit that saw the circular 3 mm one.
@@ -7,10 +7,14 @@ Two stricter schemes say how far that carries:
 - **period**: both shapes of a period held out together (leave-one-period-out), so the period itself is new;
 - **shape**: the model fitted on one shape predicts every grating of the other (leave-one-shape-out), so the shape
   is new; a model that cannot tell shapes apart shows it as a bias of one sign per shape.
+- **geometry**: every grating of one land/groove geometry (analysis/geometry.py: a rectangle's land as a fraction of
+  its period, rounded; each other shape its own) held out together and predicted from the rest, so the groove width
+  at a known period is new; formed only where the study has two or more rectangular geometries (the paper's 14 have
+  one: every rectangle is half land), else skipped, ``StudyFacts.geometry_note`` saying why.
 
 Each row gives, per model x pad x condition x scheme, the mean per-specimen RMSE beside the training mean's under
-the same folds, the mean bias (rating units) and the mean log bias of each shape (a shape left out: one row per
-held-out shape, its specimens only), Spearman's rho over the rated
+the same folds, the mean bias (rating units) and the mean log bias of each shape (a shape or a geometry left out:
+one row per held-out group, its specimens only), Spearman's rho over the rated
 specimens, the permutation p (of a family whose batched CV refits every shuffled target at no cost, the peak law's;
 PLS's nested search would double the study's controls) and the share of presses the applicability flag fell on. The
 ``specimen`` rows are the study's own LOSO fits and controls, repeated here so the three schemes stand side by side.
@@ -32,19 +36,24 @@ from .results import Controls, RunSettings, StricterSchemes, StudyFacts
 
 #: The schemes, strictest last, and what each holds out in a user's words.
 SCHEME_WORDS = {"specimen": "a grating left out of training", "period": "a period left out (both shapes)",
-                "shape": "a shape left out (fitted on the other)"}
+                "shape": "a shape left out (fitted on the other)",
+                "geometry": "a land/groove geometry left out"}
+#: The schemes whose every held-out group is its own experiment, reported one row each (so that one group's bias
+#: cannot cancel another's).
+PER_GROUP_SCHEMES = ("shape", "geometry")
 SCHEMES = tuple(SCHEME_WORDS)
 HELD_OUT_COLUMNS = ["model", "pad", "condition", "scheme", "held_out", "n_folds", "rmse", "null_rmse", "bias", "spearman_rho",
                     "permutation_p", "n_permutations", "passes", "flagged_share"]
 
 
-def scheme_folds(scheme: str, specimens: np.ndarray, shapes: dict, wavelengths: dict) -> np.ndarray | None:
+def scheme_folds(scheme: str, specimens: np.ndarray, shapes: dict, wavelengths: dict,
+                 geometries: dict | None = None) -> np.ndarray | None:
     """Each trial's fold label under ``scheme``; None where the study cannot form it (fewer than 2 folds, or a
-    specimen without a period or shape)."""
+    specimen without a period, shape or geometry: ``geometries`` is empty where the study has none to hold out)."""
     specimens = np.asarray(specimens).astype(str)
     if scheme == "specimen":
         return specimens
-    source = wavelengths if scheme == "period" else shapes
+    source = {"period": wavelengths, "shape": shapes, "geometry": geometries or {}}[scheme]
     labels = pd.Series(specimens).map(lambda s: source.get(s, np.nan))
     if labels.isna().any() or labels.nunique() < 2:
         return None
@@ -93,14 +102,12 @@ def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_compo
             continue
         shuffled = permuted_targets(y, specimens, permutations) if len(permutations) else None
         for scheme in SCHEMES:
-            folds = scheme_folds(scheme, specimens, facts.shapes, facts.wavelengths)
+            folds = scheme_folds(scheme, specimens, facts.shapes, facts.wavelengths, facts.geometries)
             scored = _scheme_predictions(fit, scheme, folds, X, y, specimens, shuffled, law, controls, max_components)
             if scored is None:
                 continue
             prediction, p, n_perm, flags = scored
-            # A shape left out is two experiments (each shape predicted from the other): a row each, so one
-            # direction's bias cannot cancel the other's.
-            parts = [("all", None)] if scheme != "shape" else [(str(f), folds == f) for f in pd.unique(folds)]
+            parts = _parts(scheme, folds, set(facts.shapes.values()))
             for held, mask in parts:
                 chosen = np.ones(len(y), bool) if mask is None else mask
                 row = {"model": fit.model, "pad": fit.pad, "condition": fit.condition, "scheme": scheme,
@@ -111,6 +118,16 @@ def held_out_analysis(facts: StudyFacts, controls: pd.DataFrame, jobs, max_compo
                 row["passes"] = bool(row["rmse"] < row["null_rmse"] and (not n_perm or p < ALPHA))
                 rows.append(row)
     return held_out_table(rows)
+
+
+def _parts(scheme: str, folds: np.ndarray, shapes: set) -> list[tuple[str, np.ndarray | None]]:
+    """The rows of one scheme: (held-out label, its rows' mask). A shape (geometry) left out is one experiment per
+    shape (geometry), a row each, so that one direction's bias cannot cancel another's; a geometry that is a whole
+    shape (the circles) is held out on its own but not reported twice: its row is the shape left out's."""
+    if scheme not in PER_GROUP_SCHEMES:
+        return [("all", None)]
+    groups = [f for f in pd.unique(folds) if scheme != "geometry" or f not in shapes]
+    return [(str(f), folds == f) for f in groups]
 
 
 def _scheme_predictions(fit, scheme: str, folds, X, y, specimens, shuffled, law: dict, controls: pd.DataFrame,

@@ -23,6 +23,7 @@ from ..model.registry import PAPER_MODEL
 from . import dataset
 from .evidence import evidence_words
 from .family_fits import FamilyFit
+from .geometry import specimen_geometries
 from .metrics import shape_summary
 
 CV_SCHEMES = ("loo", "loso")
@@ -65,8 +66,9 @@ class StudyFacts:
 
     ``perceived`` (targets per specimen), ``shapes`` and ``wavelengths`` (per specimen), ``freq_per_mm`` and
     ``mean_spectra`` (per pad x specimen x condition), ``provenance``, whether the paper's per-specimen values
-    describe it (``paper_pads``, ``paper_note``), and which surfaces its evidence covers (``evidence``, words from
-    its rated specimens: analysis/evidence.py)."""
+    describe it (``paper_pads``, ``paper_note``), which surfaces its evidence covers (``evidence``, words from
+    its rated specimens: analysis/evidence.py) and each specimen's land/groove geometry (``geometries``,
+    analysis/geometry.py; empty, with ``geometry_note`` saying why, where no geometry can be held out)."""
 
     study_name: str
     reference_specimen: str
@@ -79,6 +81,8 @@ class StudyFacts:
     paper_pads: tuple[str, ...]
     paper_note: str
     evidence: str
+    geometries: dict[str, str]
+    geometry_note: str
 
     @classmethod
     def of(cls, study, perceived: pd.DataFrame, features: pd.DataFrame, conditions: tuple[str, ...]) -> StudyFacts:
@@ -92,12 +96,14 @@ class StudyFacts:
         specimens = study.specimens
         wavelengths = pd.to_numeric(specimens.get("wavelength_mm", pd.Series(np.nan, index=specimens.index)),
                                     errors="coerce")
+        geometries, geometry_note = specimen_geometries(specimens)
         return cls(study_name=study.name, reference_specimen=study.reference_specimen, perceived=perceived,
                    shapes=dict(zip(specimens["specimen"], specimens["shape"])),
                    wavelengths=dict(zip(specimens["specimen"], wavelengths)),
                    freq_per_mm=dataset.column_frequencies(freq_columns), mean_spectra=mean_spectra,
                    provenance=Provenance.of(study), paper_pads=paper_pads, paper_note=paper_note,
-                   evidence=evidence_words(specimens, perceived["specimen"]))
+                   evidence=evidence_words(specimens, perceived["specimen"]),
+                   geometries=geometries, geometry_note=geometry_note)
 
 
 def paper_comparability(specimens: Sequence[str], pads: Sequence[str], conditions: Sequence[str],
@@ -109,7 +115,11 @@ def paper_comparability(specimens: Sequence[str], pads: Sequence[str], condition
     """
     paper_specimens = list(paper.PAPER_SPECIMENS)
     problems = []
-    if set(specimens) != set(paper_specimens):
+    added = [str(s) for s in specimens if s not in paper_specimens]
+    if set(specimens) > set(paper_specimens):  # e.g. the twin's paper+grooves: the paper's models saw only the 14
+        problems.append(f"it adds {', '.join(added)} to the paper's {len(paper_specimens)} specimens, and every model "
+                        "here is fitted on all of them")
+    elif set(specimens) != set(paper_specimens):
         problems.append(f"its specimens ({', '.join(map(str, specimens))}) are not the paper's "
                         f"{len(paper_specimens)} ({', '.join(paper_specimens)})")
     if list(conditions) != list(paper.PAPER_CONDITIONS):

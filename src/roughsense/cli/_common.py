@@ -78,10 +78,11 @@ def check_seed(seed: int) -> int:
 def run_inputs(*files: os.PathLike[str] | str | Iterable, study: os.PathLike[str] | str | None = None) -> list[Path]:
     """Every path a run reads: ``files`` (paths or lists of them) and, for a study folder, its files and images/.
 
-    What no ``--out`` of the run may be (:func:`roughsense._util.atomic.refuse_inputs`). ``builtin`` is the cache's.
+    What no ``--out`` of the run may be (:func:`roughsense._util.atomic.refuse_inputs`). ``builtin`` (and
+    ``builtin:SET``, cli/_studies.py) is the cache's.
     """
     paths = [Path(f) for item in files for f in ([item] if isinstance(item, (str, os.PathLike)) else item)]
-    if study is None or str(study) == "builtin":
+    if study is None or str(study) == "builtin" or str(study).startswith("builtin:"):
         return paths
     root = Path(study)
     names = ("study.toml", "specimens.csv", "manifest.csv", "ratings.csv", "images")  # io.study's contract

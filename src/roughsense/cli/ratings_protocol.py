@@ -21,9 +21,11 @@ ORDER = 30
 
 
 def _specimen_names(value: str) -> list[str]:
-    """A comma list, or a study's specimens.csv (its ``specimen`` column, in file order)."""
+    """A comma list (a set of the twin's, e.g. paper+grooves, stands for its specimens' names), or a study's
+    specimens.csv (its ``specimen`` column, in file order)."""
     from ..io.names import check_name
     from ..io.study import read_specimens
+    from ..sim.specimens import SPECIMEN_SETS, expand_specimen_sets, parse_specimen
 
     path = Path(value)
     if value.lower().endswith(".csv") or path.is_file():
@@ -31,6 +33,8 @@ def _specimen_names(value: str) -> list[str]:
     names = parse_name_list(value)
     if not names:
         raise ConfigError("--specimens: no names given")
+    if any(name.lower() in SPECIMEN_SETS for name in names):
+        names = [parse_specimen(text).name for text in expand_specimen_sets(names)]
     return [check_name(name, what="--specimens: specimen") for name in names]
 
 
@@ -103,7 +107,9 @@ ScheduleOut = Annotated[Path, typer.Option(
     "--out", "-o", help="Schedule CSV: participant, session, order, specimen, and an empty rating column to fill in.")]
 ProtocolSpecimens = Annotated[str | None, typer.Option(
     "--specimens", show_default=False,
-    help="Comma list or a study's specimens.csv. Default: the paper's R2..R5, C2..C5.")]
+    help="Comma list (names, or a set of the twin's: paper, paper+grooves) or a study's specimens.csv. Default: the "
+         "paper's R2..R5, C2..C5. Unless the set already varies the land at one period, protocol also recommends "
+         "gratings to print that tell period from groove width, and says why.")]
 Sheet = Annotated[Path | None, typer.Option(
     "--sheet", show_default=False,
     help="Also write a printable sheet: .html (print from a browser) or .md (can be filled in and read back).")]
@@ -133,7 +139,7 @@ def protocol(
     from .._util.atomic import check_outputs, write_csv, write_text
     from ..analysis.magnitude_estimation import make_schedule
     from ..io.names import check_name
-    from ..report.ratings_sheet import render_sheet
+    from ..report.ratings_sheet import groove_advice, render_sheet
 
     _check_panel(participants, sessions, 1)  # the counts alone, before anything is read or drawn
     check_seed(seed)
@@ -143,7 +149,8 @@ def protocol(
     names = _specimen_names(specimens) if specimens is not None else list(PAPER_SPECIMENS)
     _check_panel(participants, sessions, len({n for n in names if n != reference}))
     schedule = make_schedule(names, participants, sessions, reference, rng=np.random.default_rng(seed))
-    text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name) if fmt else None
+    advice = groove_advice(_groove_gratings(specimens, names))
+    text = render_sheet(schedule, fmt, reference=reference, csv_name=out.name, advice=advice) if fmt else None
     write_csv(out, schedule)
     if text is not None:
         write_text(sheet, text)
@@ -153,6 +160,54 @@ def protocol(
           f"(reference {reference} excluded)")
     if sheet is not None:
         print(f"wrote {sheet}")
+    for paragraph in advice:
+        print(paragraph)
+
+
+def _groove_gratings(value: str | None, names: list[str]) -> list[str]:
+    """The twin's groove gratings (sim.specimens.GROOVE_SPECS) the set ``names`` lacks, by period and land fraction
+    (analysis/geometry.py); none where the set already has two rectangular geometries at one period.
+
+    A set's geometry is read from its specimens.csv (``value``), else from the names the twin knows (presets,
+    specs' names such as rect_3_1_1); a name it does not know adds nothing."""
+    from collections import Counter
+
+    from ..analysis.geometry import RECTANGULAR, land_fractions, land_label
+    from ..sim.specimens import GROOVE_SPECS, parse_specimen
+
+    table = _specimens_table(value, names)
+    rectangles = table[table["shape"] == RECTANGULAR]
+    have = {(float(period), land_label(fraction))
+            for period, fraction in zip(rectangles["wavelength_mm"], land_fractions(rectangles)) if fraction == fraction}
+    if any(count > 1 for count in Counter(period for period, _ in have).values()):
+        return []
+    wanted = []
+    for spec in GROOVE_SPECS:
+        grating = parse_specimen(spec)
+        if (grating.wavelength_mm, land_label(grating.ridge_width_mm / grating.wavelength_mm)) not in have:
+            wanted.append(spec)
+    return wanted
+
+
+def _specimens_table(value: str | None, names: list[str]):
+    """The set's specimens.csv (``value`` naming one), else the rows of the names the twin parses."""
+    import pandas as pd
+
+    from ..errors import ConfigError as Unknown
+    from ..io.study import read_specimens
+    from ..sim.specimens import parse_specimen
+
+    if value is not None and _specimens_file(value):
+        return read_specimens(Path(value))
+    rows = []
+    for name in names:
+        for text in (name, name.replace("_", ":")):  # a preset (R3), or a spec's name (rect_3_1_1 is rect:3:1:1)
+            try:
+                rows.append(parse_specimen(text).table_row())
+                break
+            except Unknown:
+                continue
+    return pd.DataFrame(rows, columns=["specimen", "shape", "wavelength_mm", "ridge_width_mm", "groove_width_mm"])
 
 
 def _check_panel(participants: int, sessions: int, specimens: int) -> None:

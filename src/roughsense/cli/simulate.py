@@ -25,8 +25,10 @@ Seed = Annotated[int, typer.Option("--seed", parser=_SEED,
 Pads = Annotated[str, typer.Option("--pads", help="Pads: smooth, fingerprint (comma-separated).")]
 Specimens = Annotated[str, typer.Option(
     "--specimens", metavar="LIST", show_default=False,
-    help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps) or specs of new specimens (syntax "
-         "above). Default: the paper's 14, R2..R5 and C2..C5.")]
+    help="Comma-separated presets (R2..R5, C2..C5 in 0.5 mm steps), specs of new specimens (syntax "
+         "above) or named sets: paper (the paper's 14), paper+grooves (the 14 and 8 rectangles whose land is 0.3 or "
+         "0.7 of the period 2, 3, 4 or 5 mm: groove width apart from period), rectangular, circular. Default: the "
+         "paper's 14, R2..R5 and C2..C5.")]
 ForcesN = Annotated[str, typer.Option("--forces-n", help="Nominal pressing forces in N (comma-separated).")]
 Repetitions = Annotated[int, typer.Option(
     "--repetitions", parser=number_option("--repetitions", whole=True),
@@ -70,7 +72,7 @@ def simulate(
     - sin:WAVELENGTH:AMPLITUDE: sinusoid
     - rand:CORRELATION_LENGTH:RMS[:SEED]: random rough surface
 
-    Example: --specimens R3,sin:3:0.5,rect:3.5:0.8
+    Example: --specimens R3,sin:3:0.5,rect:3.5:0.8 or --specimens paper+grooves
     """
     from .._util.lock import output_lock
     from ..sim import SimulationRun

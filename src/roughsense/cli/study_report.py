@@ -23,7 +23,9 @@ def register(app: typer.Typer) -> None:
         study: str = typer.Option(None, "--study", metavar=STUDY_METAVAR, show_default=False,
                                  help="Study folder (study.toml, specimens.csv, manifest.csv, ratings.csv, images/), "
                                  "or builtin (the default): the paper's study simulated with --seed, generated on "
-                                 "first use and cached (a folder named builtin: ./builtin)."),
+                                 "first use and cached (a folder named builtin: ./builtin); builtin:SET simulates "
+                                 "it on a specimen set of the twin, e.g. builtin:paper+grooves (the paper's 14 and "
+                                 "8 rectangles whose land is not half the period)."),
         out: Path = typer.Option(Path("report"), "--out", "-o",
                                  help="Report folder to write (index.html, CSV tables, PNG figures)."),
         seed: int = typer.Option(defaults.SEED, "--seed", parser=number_option("--seed", quantity="seed"),
@@ -66,7 +68,7 @@ def register(app: typer.Typer) -> None:
                 permutations=permutations, style=FigureStyle(check_figure_format(figure_format), dpi))
         for line in summary:  # once the report is in place: nothing is announced that was not written
             typer.echo(line)
-        where = f' (built-in, seed {seed}; "builtin" names it in --study)' if builtin else ""
+        where = f' (built-in, seed {seed}; "{study or "builtin"}" names it in --study)' if builtin else ""
         typer.echo(f"Study folder: {Path(root).resolve()}{where}")
         typer.echo(f"Report written to {index} in {time.perf_counter() - started:.1f} s")
 

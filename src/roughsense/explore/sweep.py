@@ -35,12 +35,11 @@ from ..sim.limits import pad_problem, specimen_problem
 from ..sim.optics import HEIGHT_PX, WIDTH_PX
 from ..sim.pads import PAD_NAMES, YOUNG_PA
 from ..sim.panel import RATINGS_FROM
-from ..sim.specimens import parse_specimen
+from ..sim.specimens import SPECIMEN_SETS, expand_specimen_sets, parse_specimen
 from .sweep_cells import (
     MAX_CELLS,
     MODEL_KEY,
     PAPER_ONLY,
-    SPECIMEN_SETS,
     Cell,
     _cells,
     _check_size,
@@ -159,14 +158,17 @@ def _specimen_name(path: Path, where: str, text: str) -> str:
 
 
 def _specimens(path: Path, key: str, value, where: str) -> str | tuple[str, ...]:
-    """A named specimen set, or a list of specimens (at least 4 besides the reference), each within the twin."""
+    """A named specimen set (sim.specimens.SPECIMEN_SETS), or a list of specimens and sets (at least 4 specimens
+    besides the reference), each within the twin."""
     if isinstance(value, str):
+        value = value.strip().lower()  # as in a list, and as simulate --specimens reads a set's name
         if value not in SPECIMEN_SETS:
             raise _error(path, f"{where}: unknown specimen set {value!r} (expected one of "
                                f"{', '.join(SPECIMEN_SETS)}, or a list of specimens)")
         return value
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise _error(path, f"{where}: expected a list of specimens or a set name, got {value!r}")
+    value = list(expand_specimen_sets(value))  # a set named in a list stands for its specimens
     names = [_specimen_name(path, where, text) for text in value]
     if len(set(names)) != len(names):
         raise _error(path, f"{where}: a specimen is listed twice in {value!r}")

@@ -18,8 +18,9 @@ from .. import defaults
 from ..analysis.magnitude_estimation import schedule_size_problem
 from ..errors import ConfigError
 from ..model.registry import paper_family
-from ..paper import PAPER_SPECIMENS, SMOOTH_PAD
+from ..paper import SMOOTH_PAD
 from ..sim.limits import panel_problem
+from ..sim.specimens import SPECIMEN_SETS
 
 #: Most cells (designs x seeds) in one sweep: at seconds to a minute each, 100,000 cells are days of a cluster;
 #: counted from the axes before any cell is built (a 1000 x 1000 grid is refused at once).
@@ -27,12 +28,6 @@ MAX_CELLS = 100_000
 #: Most frames one cell renders (specimens x forces x repetitions; the paper's pad: 14 x 3 x 10 = 420): 50 times the
 #: paper, tens of minutes and about 100 MB of spectra per cell.
 MAX_CELL_FRAMES = 20_000
-#: Named specimen sets usable wherever a list of specimens is expected.
-SPECIMEN_SETS = {
-    "paper": PAPER_SPECIMENS,
-    "rectangular": tuple(s for s in PAPER_SPECIMENS if s.startswith("R")),
-    "circular": tuple(s for s in PAPER_SPECIMENS if s.startswith("C")),
-}
 FINGERPRINT_ONLY = ("fingerprint_period_mm", "ridge_height_mm")  # meaningless for the smooth pad
 #: The model families a cell fits: one value in [sweep] or a list in [axes], like a design parameter, but every
 #: family of a design is fitted in the same cell (the frames do not depend on the model).

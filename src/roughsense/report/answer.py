@@ -13,7 +13,7 @@ import math
 import pandas as pd
 
 from .._util.text import counted
-from ..analysis.held_out import SCHEME_WORDS
+from ..analysis.held_out import PER_GROUP_SCHEMES, SCHEME_WORDS
 from ..model.registry import DEFAULT_MODEL, PAPER_MODEL, names
 from ..paper import press_meaning
 from . import provenance as source
@@ -113,12 +113,15 @@ def answer_table(analysis) -> dict | None:
             r = group[group["pad"] == pad]
             cells.append(_verdict_cell(r.iloc[0], unseen, model, pad, condition, scheme) if len(r) else "—")
         rows.append(cells)
+    if getattr(analysis, "geometry_note", ""):  # the scheme the study cannot form, said beside the others
+        rows.append(["every model", SCHEME_WORDS["geometry"], f"not applicable: {analysis.geometry_note}",
+                     *["not applicable"] * (len(pads) - 1)])
     return {"columns": ["Model", "Held out", *[f"{pad} pad: RMSE vs training mean" for pad in pads]],
             "rows": rows, "condition": condition}
 
 
-#: A shape left out is answered honestly when its bias stays within this (ratings) or the applicability check
-#: flags at least SHAPE_FLAGGED_ENOUGH of its presses; otherwise its "passes" needs a warning beside it.
+#: A shape (or a land/groove geometry) left out is answered honestly when its bias stays within this (ratings) or the
+#: applicability check flags at least SHAPE_FLAGGED_ENOUGH of its presses; otherwise its "passes" needs a warning.
 SHAPE_BIAS_LIMIT = 0.15
 SHAPE_FLAGGED_ENOUGH = 0.8
 
@@ -127,7 +130,7 @@ def _verdict_cell(row, unseen: pd.DataFrame, model: str, pad: str, condition: st
     below = row["rmse"] < row["null_rmse"]
     verdict = "fails" if not row["passes"] else "passes" if row["n_permutations"] else \
         "below the mean, not permutation-tested"
-    if scheme == "shape":  # one direction: its bias, and how much of it the applicability check flags
+    if scheme in PER_GROUP_SCHEMES:  # one direction: its bias, and how much of it the applicability check flags
         flagged = row.get("flagged_share")
         verdict += f", bias {row['bias']:+.2f}" + (f", {flagged:.0%} of presses flagged" if pd.notna(flagged) else "")
         unwarned = abs(row["bias"]) > SHAPE_BIAS_LIMIT and not (pd.notna(flagged) and flagged >= SHAPE_FLAGGED_ENOUGH)

@@ -5,6 +5,7 @@ Each function returns a Figure so tests and users can inspect it; ``figure_bytes
 from __future__ import annotations
 
 import io
+import re
 
 import matplotlib
 
@@ -140,16 +141,18 @@ def mark_simulated(figure, text: str):
     return figure
 
 
+#: Longest specimen name written upright under a figure's axis (the paper's presets: R2.5, C4.5).
+LONGEST_UPRIGHT_TICK = 4
+
+
 def _specimen_order(specimens, shapes: dict[str, str]) -> list[str]:
     def key(name: str):
+        # by shape, then by the name's numbers in order (a preset's period; a spec's period, depth, land): a
+        # rectangle rect_4_1_1.2 sorts beside R4, not after R5 as the digits run together (4101.2) would
         shape = shapes.get(name, "other")
         rank = SHAPE_ORDER.index(shape) if shape in SHAPE_ORDER else len(SHAPE_ORDER)
-        digits = "".join(ch for ch in name if ch.isdigit() or ch == ".")
-        try:
-            size = float(digits)
-        except ValueError:
-            size = 0.0
-        return (rank, size, name)
+        sizes = tuple(float(number) for number in re.findall(r"\d+(?:\.\d+)?", name))
+        return (rank, sizes, name)
 
     return sorted(dict.fromkeys(specimens), key=key)
 
@@ -248,7 +251,9 @@ def ovl_sd_figure(results: pd.DataFrame, perceived: pd.DataFrame, pad: str, shap
         if paper and published["ovl"].notna().any():
             axes[0, col].plot(x, published["ovl"], ":", color="0.45", marker=".", lw=1.5, label="paper, combined")
         for row, label in ((0, "OVL"), (1, "SD")):
-            axes[row, col].set_xticks(x, names)
+            # specs' names (rect_4_1_1.2) are longer than the presets' (R4): slanted so that they stay apart
+            slanted = any(len(name) > LONGEST_UPRIGHT_TICK for name in names)
+            axes[row, col].set_xticks(x, names, **({"rotation": 45, "ha": "right", "fontsize": 8} if slanted else {}))
             axes[row, col].set_ylabel(label)
             axes[row, col].grid(alpha=0.3)
             axes[row, col].set_title(f"{pad} pad, {shape}: {label}", fontsize=9)

@@ -18,7 +18,7 @@ from .limits import pad_problem, panel_problem, specimen_problem
 from .optics import Camera
 from .pads import PAD_NAMES, Pad, make_pad
 from .panel import check_ratings_from
-from .specimens import Specimen, parse_specimen
+from .specimens import Specimen, expand_specimen_sets, parse_specimen
 
 _MM = Described(POSITIVE, "a positive number of mm")
 #: What each numeric option must be (forces and repetitions are the protocol's: ``io.protocol``).
@@ -87,7 +87,7 @@ class SimulationConfig:
         check_params(asdict(self), CONSTRAINTS, names=OPTION_NAMES)
         pads = [make_pad(p, fingerprint_period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm)
                 for p in self.pads]
-        specimens = [parse_specimen(s) for s in self.specimens]
+        specimens = [parse_specimen(s) for s in expand_specimen_sets(self.specimens)]
         problem = (pad_problem(period_mm=self.fingerprint_period_mm, ridge_height_mm=self.ridge_height_mm,
                                names=("--fingerprint-period-mm", "--ridge-height-mm", "pad modulus"))
                    or next((f"--specimens: {p}" for p in map(specimen_problem, specimens) if p), None)

@@ -14,7 +14,7 @@ from .._util.checks import POSITIVE, check
 from ..errors import ConfigError
 from ..io.names import NAME_RULE, is_safe_name
 from ..io.numbers import NumberError, parse_number
-from ..paper import PAPER_WAVELENGTHS_MM
+from ..paper import PAPER_SPECIMENS, PAPER_WAVELENGTHS_MM
 
 SPECIMEN_LENGTH_MM = 50.0
 SPECIMEN_WIDTH_MM = 10.0
@@ -148,10 +148,46 @@ def _preset_table() -> dict[str, Specimen]:
 
 PRESETS: dict[str, Specimen] = _preset_table()
 
+#: The periods and land fractions of the gratings that tell period from groove width: at each period a narrow and
+#: a wide land (groove = period - land), so the groove varies at a fixed period, which the paper's half-land
+#: rectangles never do. Depth: the paper's rectangles' (DEFAULT_GROOVE_DEPTH_MM).
+GROOVE_PERIODS_MM = (2.0, 3.0, 4.0, 5.0)
+GROOVE_LAND_FRACTIONS = (0.3, 0.7)
+GROOVE_SPECS = tuple(f"rect:{period:g}:{DEFAULT_GROOVE_DEPTH_MM:g}:{round(fraction * period, 6):g}"
+                     for period in GROOVE_PERIODS_MM for fraction in GROOVE_LAND_FRACTIONS)
+#: Named specimen sets (name -> specs), accepted wherever a list of specimens is (``simulate --specimens``, a sweep
+#: file's ``specimens``, ``--study builtin:SET``): ``paper`` is the paper's 14; ``paper+grooves`` adds rectangles
+#: whose land differs from their groove at the paper's periods, so that a model can tell period from groove width.
+SPECIMEN_SETS: dict[str, tuple[str, ...]] = {
+    "paper": PAPER_SPECIMENS,
+    "paper+grooves": PAPER_SPECIMENS + GROOVE_SPECS,
+    "rectangular": tuple(s for s in PAPER_SPECIMENS if s.startswith("R")),
+    "circular": tuple(s for s in PAPER_SPECIMENS if s.startswith("C")),
+}
+PAPER_SET = "paper"
+
 SPEC_HELP = (
-    "A preset (R2, R2.5, ..., R5, C2, ..., C5) or a spec: rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "
+    "A preset (R2, R2.5, ..., R5, C2, ..., C5), a set (" + ", ".join(SPECIMEN_SETS) + ") or a spec: "
+    "rect:WAVELENGTH[:DEPTH[:RIDGE_WIDTH]], "
     "circ:DIAMETER, sin:WAVELENGTH:AMPLITUDE, rand:CORRELATION_LENGTH:RMS[:SEED] (all in mm)."
 )
+
+
+def expand_specimen_sets(texts) -> tuple[str, ...]:
+    """Specimen texts with every set name (:data:`SPECIMEN_SETS`) replaced by its specs, in order."""
+    expanded: list[str] = []
+    for text in texts:
+        key = text.strip().lower()
+        expanded.extend(SPECIMEN_SETS.get(key, (text,)))
+    return tuple(expanded)
+
+
+def check_specimen_set(name: str, *, option: str) -> str:
+    """``name`` as a set's key (lower case), or a ConfigError naming ``option`` and the sets there are."""
+    key = name.strip().lower()
+    if key not in SPECIMEN_SETS:
+        raise ConfigError(f"{option}: unknown specimen set {name!r} (expected one of {', '.join(SPECIMEN_SETS)})")
+    return key
 
 
 def parse_specimen(text: str) -> Specimen:
