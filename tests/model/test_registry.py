@@ -128,7 +128,8 @@ def test_the_registry_lists_the_families_and_their_engines_in_one_order():
     assert registry.MODEL_FAMILIES == registry.names() == ("pls", "peak-law", "groove")
     assert tuple(e.name for e in registry.engines()) == registry.names()
     assert [f.name for f in registry.registry() if f.paper] == [registry.paper_family().name] == ["pls"]
-    assert registry.default_family().name == registry.DEFAULT_MODEL
+    assert registry.default_model() == registry.DEFAULT_MODEL == "peak-law"  # one land/groove geometry (the paper)
+    assert registry.default_model(varies_geometry=True) == registry.GEOMETRY_MODEL == "groove"
     assert all(registry.engine(name).name == name for name in registry.names())
     assert registry.check_model_name(" Peak-Law ") == "peak-law"
     with pytest.raises(ConfigError, match="--model must be one of pls, peak-law, groove, got 'ridge'"):

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .. import paper
-from ..model.registry import PAPER_MODEL
+from ..model.registry import PAPER_MODEL, default_model
 from . import dataset
 from .evidence import evidence_words
 from .family_fits import FamilyFit
@@ -83,6 +83,12 @@ class StudyFacts:
     evidence: str
     geometries: dict[str, str]
     geometry_note: str
+
+    @property
+    def fit_default(self) -> str:
+        """What ``roughsense fit`` writes by default on this study: by whether its rectangles vary land against
+        groove (model/registry.py's ``default_model``)."""
+        return default_model(bool(self.geometries))
 
     @classmethod
     def of(cls, study, perceived: pd.DataFrame, features: pd.DataFrame, conditions: tuple[str, ...]) -> StudyFacts:

@@ -26,12 +26,13 @@ from ..model import gate_file
 from ..model.family import FoldSettings, TrainingSet
 from ..model.folds import fold_ids
 from ..model.modelfile import feature_definition_for
-from ..model.registry import check_model_name, default_family, engine, family, registry
+from ..model.registry import check_model_name, default_model, engine, family, registry
 from ..model.training_file import UNJUDGED
 from ..paper import PAPER_CONDITIONS as CONDITIONS
 from . import dataset
 from .assessment import UnseenAssessment, assess_unseen
 from .controls import fold_mean_predictions
+from .geometry import specimen_geometries
 from .presses import presses_curve, presses_needed
 
 
@@ -70,13 +71,14 @@ def parse_cv(text: str) -> str | int:
 
 def check_training_options(condition: str, rule: str | None, max_components: int | None,
                            model: str | None = None) -> str:
-    """Refuse options before any image is read; returns the model family's name (default: fit's default).
+    """Refuse options before any image is read; returns the model family's name (default: fit's default on a study
+    whose rectangles are one land/groove geometry; :func:`train_model` chooses it by the study's own).
 
     An option only some families take (``rule`` and ``max_components`` choose PLS's component count) is refused
     with a family that does not declare it (model/registry.py), rather than silently ignored; its value is the
     family's to check.
     """
-    name = check_model_name(model) if model is not None else default_family().name
+    name = check_model_name(model) if model is not None else default_model()
     check(condition, Options(CONDITIONS), name="--condition", must=f"one of {', '.join(CONDITIONS)}")
     options = _family_options(name, {"rule": rule, "max_components": max_components})
     engine(name).check_options(options)
@@ -154,6 +156,8 @@ def train_model(study: Study, *, pad: str, condition: str, cv: str | int = "loo"
     contact-image gate. ``roi`` reads the line there instead of at the study's [sensor] roi; the model file records
     both.
     """
+    if model is None:  # fit's default, by what the study's design can tell apart (model/registry.py)
+        model = default_model(bool(specimen_geometries(study.specimens)[0]))
     name = check_training_options(condition, rule, max_components, model)
     study_roi = study.sensor.roi
     if roi is not None:

@@ -18,7 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from ..model.interval import held_out_coverage
-from ..model.registry import DEFAULT_MODEL, PAPER_MODEL
+from ..model.registry import PAPER_MODEL
 from ..paper import COMBINED
 from .controls import fold_mean_predictions
 from .results import Controls, CrossValidation, RunSettings, StudyFacts, UnseenSurfaces
@@ -195,7 +195,7 @@ def unseen_surfaces(facts: StudyFacts, run: RunSettings, cross_validation: Cross
     """The study's stage of surfaces never seen: the summary table, the condition it quotes, and the specimens the
     default family (else the first fitted) is least sure of."""
     models = cross_validation.models
-    unsure_model = DEFAULT_MODEL if DEFAULT_MODEL in models else models[0]
+    unsure_model = facts.fit_default if facts.fit_default in models else models[0]
     return UnseenSurfaces(unseen_summary(facts, cross_validation, controls.controls),
                           headline_condition(run.conditions),
                           unsure_specimens(facts.perceived, cross_validation, unsure_model))

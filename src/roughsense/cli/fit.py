@@ -10,7 +10,7 @@ import typer
 
 from .. import defaults
 from .._util.text import counted
-from ..model.registry import DEFAULT_MODEL, model_help
+from ..model.registry import model_help
 from ._common import Jobs, check_seed, number_option, progress, run_inputs
 from ._studies import STUDY_METAVAR, checked_scale, echo_scale, resolve_study
 
@@ -35,7 +35,7 @@ Rule = Annotated[str | None, typer.Option(
     "--rule", show_default=False,
     help="PLS component choice: min (lowest CV RMSE, the paper's rule; the default) or 1se (fewest within one SE "
          "of it).")]
-ModelName = Annotated[str, typer.Option("--model", help=model_help())]
+ModelName = Annotated[str | None, typer.Option("--model", help=model_help(), show_default=False)]
 FitSeed = Annotated[int, typer.Option(
     "--seed", parser=number_option("--seed", quantity="seed"),
     help="Seed for the K-fold shuffle (LOO and LOSO use no randomness), the presses drawn for the interval's "
@@ -50,13 +50,14 @@ FitRoi = Annotated[str | None, typer.Option(
 
 def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_components: MaxComponents = None,
         cv: CV = "loo", rule: Rule = None, seed: FitSeed = defaults.SEED, jobs: Jobs = None,
-        model: ModelName = DEFAULT_MODEL,
+        model: ModelName = None,
         force: Annotated[bool, typer.Option("--force", help="Replace MODEL.json if it exists.")] = False,
         roi: FitRoi = None) -> None:
-    """Fit a model for one pad and force condition: the peak law (default) or the paper's PLS1 (SIMPLS, X centred).
+    """Fit a model for one pad and force condition: by default the peak law, or the groove model where the study's
+    rectangles vary land against groove at a period; or the paper's PLS1 (SIMPLS, X centred).
 
-    Use the default peak law to score surfaces you never trained on, of the kinds the study's specimens cover (its
-    report names their shapes, periods and land widths); use --model pls to reproduce the paper.
+    Use the default to score surfaces you never trained on, of the kinds the study's specimens cover (its report
+    names their shapes, periods and land widths); use --model pls to reproduce the paper.
     Spectra are computed from the study's images with its camera scale and ROI; the response is each
     specimen's perceived roughness (geometric mean over participants). For PLS the number of components is
     chosen by cross-validation and the CV curve is printed; the peak law chooses nothing from the data, so its CV
@@ -74,7 +75,7 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     from ..model.reading import SensorOverride
 
     condition = parse_condition(condition)
-    family = check_training_options(condition, rule, max_components, model)
+    check_training_options(condition, rule, max_components, model)
     override = SensorOverride.parse(roi=roi)
     scheme = parse_cv(cv)
     check_seed(seed)
@@ -83,11 +84,11 @@ def fit(study: StudyDir, pad: Pad, condition: Condition, out: ModelOut, max_comp
     loaded, scale = checked_scale(read_study(study, require_ratings=True), pad=pad)
     trained = train_model(loaded, pad=pad, condition=condition, cv=scheme, rule=rule, seed=seed,
                           max_components=max_components, study_path=str(study), n_jobs=jobs, progress=progress,
-                          model=family, roi=None if override is None else override.roi)
+                          model=model, roi=None if override is None else override.roi)
     save_model(out, trained.model, feature_definition=trained.feature_definition,
                training={**trained.training, "scale_check": scale}, force=force)
     typer.echo(f"{loaded.name}: pad {pad}, {condition}, {counted(trained.n_samples, 'sample')} x "
-               f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {family}")
+               f"{counted(trained.n_features, 'feature')}, {trained.cv.scheme} CV, model {trained.family}")
     if override is not None:
         typer.echo(f"line read at --roi {roi_text(override.roi)} (the study's [sensor] roi: "
                    f"{roi_text(loaded.sensor.roi)})")

@@ -26,9 +26,12 @@ from ..errors import ConfigError
 PLS = "pls"
 PEAK_LAW = "peak-law"
 GROOVE = "groove"
-#: What ``roughsense fit`` writes unless --model says otherwise: the family that answers "how rough does a surface I
-#: never trained on feel?" (the study's "surfaces never seen" section judges it).
+#: What ``roughsense fit`` writes unless --model says otherwise, by what the training design can tell apart
+#: (docs/groove.md, "The default"): where the study's rectangles are all one land/groove geometry (the paper's: half
+#: land), the period stands in for the groove and the peak law did best; where they vary land against groove at a
+#: period, the groove model passed its controls and the held-out schemes best (the twin's paper+grooves, seeds 0-2).
 DEFAULT_MODEL = PEAK_LAW
+GEOMETRY_MODEL = GROOVE
 #: The paper's model: its reproduction and the design sweeps' default family.
 PAPER_MODEL = PLS
 
@@ -124,15 +127,21 @@ def paper_family() -> Family:
     return next(f for f in _FAMILIES if f.paper)
 
 
-def default_family() -> Family:
-    """What ``roughsense fit`` writes unless told otherwise (:data:`DEFAULT_MODEL`)."""
-    return family(DEFAULT_MODEL)
+def default_model(varies_geometry: bool = False) -> str:
+    """What ``roughsense fit`` writes unless told otherwise: :data:`GEOMETRY_MODEL` where the training study's
+    rectangles vary land against groove (``varies_geometry``), else :data:`DEFAULT_MODEL`."""
+    return GEOMETRY_MODEL if varies_geometry else DEFAULT_MODEL
+
+
+#: How fit's help marks the two defaults.
+_DEFAULT_WORDS = {DEFAULT_MODEL: " (the default where every rectangle has one land/groove geometry, as the paper's)",
+                  GEOMETRY_MODEL: " (the default where the rectangles vary land against groove at a period)"}
 
 
 def model_help() -> str:
-    """``fit --model``'s help: every family's name and :attr:`Family.description`, the default marked."""
+    """``fit --model``'s help: every family's name and :attr:`Family.description`, the defaults marked."""
     def one(f: Family) -> str:
-        default = " (the default, for surfaces left out of training)" if f.name == DEFAULT_MODEL else ""
+        default = _DEFAULT_WORDS.get(f.name, "")
         return f"{f.name}{default}: {f.description}" if f.description else f"{f.name}{default}"
 
     return "Model family. " + "; ".join(one(f) for f in _FAMILIES) + "."

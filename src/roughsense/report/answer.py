@@ -29,7 +29,7 @@ def answer_lines(analysis) -> list[str]:
     if unseen.empty:
         return [source.NO_LOSO_ANSWER]
     passes = unseen["passes"].fillna(False).astype(bool)
-    lines = [_use_line(unseen, passes, analysis.headline_condition), _passes_line(unseen, passes),
+    lines = [_use_line(unseen, passes, analysis.headline_condition, analysis.fit_default), _passes_line(unseen, passes),
              source.trust_line(analysis.provenance) + evidence_sentence(analysis)]
     return [line for line in lines if line]
 
@@ -45,21 +45,21 @@ NO_MODEL = ("No model here passes its controls for surfaces left out of training
             "score for a new surface.")
 
 
-def recommended_model(unseen: pd.DataFrame) -> str | None:
-    """The family to use for surfaces left out of training: fit's default if it passes its controls in some pad x
-    condition, else the first that does, else None. The one verdict the report's first screen and the console both
-    state."""
+def recommended_model(unseen: pd.DataFrame, default: str = DEFAULT_MODEL) -> str | None:
+    """The family to use for surfaces left out of training: fit's ``default`` on this study (``fit_default``) if it
+    passes its controls in some pad x condition, else the first that does, else None. The one verdict the report's
+    first screen and the console both state."""
     passes = unseen["passes"].fillna(False).astype(bool)
     passing = list(dict.fromkeys(unseen.loc[passes, "model"]))
     if not passing:
         return None
-    return DEFAULT_MODEL if DEFAULT_MODEL in passing else passing[0]
+    return default if default in passing else passing[0]
 
 
-def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
+def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str, default: str = DEFAULT_MODEL) -> str:
     """The model to use for new surfaces and, per pad, its error beside the training mean's and its coverage, quoted
     at the headline ``condition`` (what a press is there, where it is no single image)."""
-    model = recommended_model(unseen)
+    model = recommended_model(unseen, default)
     if model is None:
         return NO_MODEL
     rows = unseen[(unseen["model"] == model) & (unseen["condition"] == condition) & passes]
@@ -70,20 +70,20 @@ def _use_line(unseen: pd.DataFrame, passes: pd.Series, condition: str) -> str:
             f", its 90 % interval held {r.pi90_coverage_trials:.0%} of held-out presses"
             if pd.notna(r.pi90_coverage_trials) else "")
         for r in rows.itertuples())
-    default = ", what roughsense fit writes by default" if model == DEFAULT_MODEL else f", roughsense fit --model {model}"
+    how = ", what roughsense fit writes by default" if model == default else f", roughsense fit --model {model}"
     meaning = press_meaning(condition)
-    return (f"To score a new surface, use the {model_title(model)} ({model}{default}) on the pads and "
+    return (f"To score a new surface, use the {model_title(model)} ({model}{how}) on the pads and "
             f"conditions where it passes its controls (next line). Its error with a grating left out of training "
             f"({condition}{f', where {meaning}' if meaning else ''}; mean per-specimen RMSE vs the training mean's): "
             f"{per_pad}. The table says how it does with a period or a shape left out.")
 
 
-def first_screen_models(unseen: pd.DataFrame) -> tuple[str, ...]:
+def first_screen_models(unseen: pd.DataFrame, default: str = DEFAULT_MODEL) -> tuple[str, ...]:
     """The families the first screen's table compares, in the registry's order: the paper's, fit's default and the
     one it recommends (:func:`recommended_model`): the choice a reader makes. Every family's rows are in the
     held-out table below, so the first screen stays one screen however many families are registered."""
-    wanted = {PAPER_MODEL, DEFAULT_MODEL, recommended_model(unseen)} if not unseen.empty else {PAPER_MODEL,
-                                                                                              DEFAULT_MODEL}
+    wanted = {PAPER_MODEL, default, recommended_model(unseen, default)} if not unseen.empty else {PAPER_MODEL,
+                                                                                                  default}
     return tuple(name for name in names() if name in wanted)
 
 
@@ -103,7 +103,7 @@ def answer_table(analysis) -> dict | None:
     needed = [analysis.presses_needed.get(tuple(map(str, key))) for key in unseen.index]
     unseen["presses_needed"] = [float("nan") if n is None else float(n) for n in needed]
     pads = list(dict.fromkeys(held["pad"]))
-    shown = first_screen_models(analysis.unseen)
+    shown = first_screen_models(analysis.unseen, analysis.fit_default)
     rows = []
     for (model, scheme, part), group in held[held["condition"].eq(condition) & held["model"].isin(shown)].groupby(
             ["model", "scheme", "held_out"], sort=False):
@@ -220,10 +220,10 @@ def unseen_lines(analysis) -> list[str]:
             cover = "" if math.isnan(r.pi90_coverage_trials) else f", 90 % interval covers {r.pi90_coverage_trials:.0%}"
             parts.append(f"{r.model} {r.rmse:.2f} ({p}, rho {r.spearman_rho:.2f}{cover}{verdict})")
         lines.append(f"  {pad} pad: {' / '.join(parts)} vs training mean {group['null_rmse'].iloc[0]:.2f}")
-    return [*lines, which_model_line(unseen) + evidence_sentence(analysis)]
+    return [*lines, which_model_line(unseen, analysis.fit_default) + evidence_sentence(analysis)]
 
 
-def which_model_line(unseen: pd.DataFrame) -> str:
+def which_model_line(unseen: pd.DataFrame, default: str = DEFAULT_MODEL) -> str:
     """Which model to use for what, in one sentence: the first screen's verdict (:func:`recommended_model`), so the
     console and the report never disagree; the paper's model reproduces the paper."""
     passes = unseen["passes"].fillna(False).astype(bool)
@@ -234,9 +234,9 @@ def which_model_line(unseen: pd.DataFrame) -> str:
         parts.append(f"{name} passes in {int((passes[rows.index] & below[rows.index]).sum())} of {len(rows)}"
                      + (f" (and in {pooled_only} on pooled RMSE only)" if pooled_only else ""))
     controls = f"Controls with a grating left out, per pad x condition: {', '.join(parts)}."
-    model = recommended_model(unseen)
+    model = recommended_model(unseen, default)
     if model is None:
         return f"Which model to use: none. {NO_MODEL} {PAPER_MODEL} reproduces the paper. {controls}"
-    default = " (roughsense fit's default)" if model == DEFAULT_MODEL else f" (roughsense fit --model {model})"
-    return (f"Which model to use: {model}{default} to score surfaces left out of training, where it passes its "
+    how = " (roughsense fit's default)" if model == default else f" (roughsense fit --model {model})"
+    return (f"Which model to use: {model}{how} to score surfaces left out of training, where it passes its "
             f"controls; {PAPER_MODEL} to reproduce the paper. {controls}")
