@@ -124,21 +124,22 @@ def test_combined_matrix_concatenates_one_trials_three_forces(features):
 def test_contact_measures_line_up_with_the_rows_force_block_by_force_block(features):
     table = features.sample(frac=1.0, random_state=3).reset_index(drop=True)  # the rows are found by image
     rng = np.random.default_rng(0)
-    table["contact@land_mm"] = rng.uniform(0.5, 3.0, len(table))
-    table["contact@groove_mm"] = rng.uniform(0.5, 3.0, len(table))
+    columns = dataset.contact_columns()
+    table[columns] = rng.uniform(0.5, 3.0, (len(table), len(columns)))
     by_image = table.set_index("image")
+    measures = [c[len(dataset.CONTACT_PREFIX):] for c in columns]
     X, meta = dataset.condition_matrix(table, "fingerprint", "combined")
     contact, names = dataset.condition_contact(table, meta, "combined")
-    assert names == tuple(f"{m}@{f}" for f in ("1N", "2N", "3N") for m in ("land_mm", "groove_mm"))
-    assert contact.shape == (len(meta), 6)
+    assert names == tuple(f"{m}@{f}" for f in ("1N", "2N", "3N") for m in measures)
+    assert contact.shape == (len(meta), 3 * len(columns))
     for i, trial in meta.iterrows():
         for j, force in enumerate(("1N", "2N", "3N")):
             row = by_image.loc[trial[f"image_{force}"]]
-            assert contact[i, 2 * j:2 * j + 2].tolist() == [row["contact@land_mm"], row["contact@groove_mm"]]
+            assert contact[i, j * len(columns):(j + 1) * len(columns)].tolist() == row[columns].tolist()
     _, single = dataset.condition_matrix(table, "fingerprint", "2N")
     contact, names = dataset.condition_contact(table, single, "2N")
-    assert names == ("land_mm@2N", "groove_mm@2N")
-    np.testing.assert_array_equal(contact[:, 1], by_image.loc[single["image"], "contact@groove_mm"].to_numpy())
+    assert names == tuple(f"{m}@2N" for m in measures)
+    np.testing.assert_array_equal(contact, by_image.loc[single["image"], columns].to_numpy())
 
 
 def test_a_table_without_contact_measures_gives_none(features):

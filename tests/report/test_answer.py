@@ -24,7 +24,8 @@ def _answer(held, geometry_note=""):
     from roughsense.report.answer import answer_table
 
     unseen = pd.DataFrame({"model": ["peak-law"], "pad": ["smooth"], "condition": ["combined"], "passes": [True]})
-    return answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=pd.DataFrame(), presses_needed={},
+    return answer_table(SimpleNamespace(
+        fit_default="peak-law", held_out=held, unseen=unseen, presses=pd.DataFrame(), presses_needed={},
                                         headline_condition="combined", geometry_note=geometry_note))
 
 

@@ -560,7 +560,7 @@ def test_a_pass_on_pooled_rmse_alone_is_not_counted_as_a_pass():
     unseen = pd.DataFrame({"model": ["pls", "pls"], "pad": ["smooth", "fingerprint"], "condition": ["combined"] * 2,
                            "rmse": [0.357, 0.30], "null_rmse": [0.333, 0.333], "passes": [True, True],
                            "n_permutations": [199, 199], "pi90_coverage_trials": [0.9, 0.9]})
-    analysis = SimpleNamespace(unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance(),
+    analysis = SimpleNamespace(fit_default="peak-law", unseen=unseen, held_out=pd.DataFrame(), provenance=Provenance(),
                                headline_condition=headline_condition(unseen["condition"]), evidence="")
     text = " ".join(answer_lines(analysis))
     assert "passes in 1 of 2, and in smooth combined on pooled RMSE only" in text
@@ -589,7 +589,8 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
                            "jackknife_plus_median_factor": [float("nan"), 1.72], "jackknife_plus_specimens": [0, 14],
                            "jackknife_plus_missed": ["", "C2"]})
     needed = presses_needed_by_curve(presses)  # as analyse_study computes it once
-    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
+    table = answer_table(SimpleNamespace(
+        fit_default="peak-law", held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"] == [
         ["PLS (the paper's model)", "a grating left out of training", "0.36 vs 0.33, pooled RMSE only"],
@@ -605,7 +606,8 @@ def test_the_first_screen_table_says_what_was_held_out_and_counts_no_pooled_only
     # too few specimens: the jackknife+ has no finite width, and an infinite interval "held 100%" says nothing
     unseen["jackknife_plus_coverage"] = [float("nan"), 1.0]
     unseen["jackknife_plus_median_factor"] = [float("nan"), float("inf")]
-    table = answer_table(SimpleNamespace(held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
+    table = answer_table(SimpleNamespace(
+        fit_default="peak-law", held_out=held, unseen=unseen, presses=presses, presses_needed=needed,
                                          headline_condition="combined"))
     assert table["rows"][1][2] == ("0.16 vs 0.33, passes; no 90 % surface interval (too few specimens); needs 3 "
                                    "presses per surface")
@@ -630,7 +632,8 @@ def test_the_first_screen_compares_the_paper_model_the_default_and_the_recommend
                          "bias": [0.0] * 3, "flagged_share": [0.0] * 3})
     unseen = pd.DataFrame({"model": ["pls", "peak-law", "groove"], "pad": ["smooth"] * 3,
                            "condition": ["combined"] * 3, "passes": [False, True, False]})
-    analysis = SimpleNamespace(held_out=held, unseen=unseen, presses_needed={}, headline_condition="combined")
+    analysis = SimpleNamespace(fit_default="peak-law", held_out=held, unseen=unseen, presses_needed={},
+                               headline_condition="combined")
     assert first_screen_models(unseen) == ("pls", "peak-law")
     assert [row[0] for row in answer_table(analysis)["rows"]] == ["PLS (the paper's model)", "peak law"]
     unseen["passes"] = held["passes"] = [False, False, True]  # only the groove model passes: it is the answer
@@ -703,8 +706,8 @@ def test_presses_needed_say_what_a_press_is_in_the_combined_condition():
     unseen = pd.DataFrame({"model": ["peak-law"], "pad": ["smooth"], "condition": ["combined"], "rmse": [0.2],
                            "null_rmse": [0.33], "passes": [True], "n_permutations": [199],
                            "pi90_coverage_trials": [0.9]})
-    first = answer_lines(SimpleNamespace(unseen=unseen, provenance=Provenance(), headline_condition="combined",
-                                         evidence=""))[0]
+    first = answer_lines(SimpleNamespace(fit_default="peak-law", unseen=unseen, provenance=Provenance(),
+                                         headline_condition="combined", evidence=""))[0]
     assert "(combined, where a press is one mount read at 1, 2 and 3 N; mean per-specimen RMSE" in first
     assert "press each surface 3 times (--same-surface or --study groups them; a press is one mount read at 1, 2 and " \
            "3 N)" in few_presses_line(training, None, 2)
