@@ -56,6 +56,11 @@ class FoldSettings:
             return settings
         return cls(**{key: settings[key] for key in (*SETTING_KEYS, *CONTACT_KEYS) if key in settings})
 
+    @property
+    def has_contact(self) -> bool:
+        """Whether the rows carry contact measures (a study read before they existed carries none)."""
+        return self.contact is not None and bool(self.contact_names)
+
     def keywords(self) -> dict:
         """Every setting as the keyword dict the analysis passes around (:meth:`of` reads it back): the peak law's,
         then the contact measures where the rows have them."""

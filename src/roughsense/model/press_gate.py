@@ -73,10 +73,10 @@ def read_trials(spectrum, images, k: int, *, ridge_period_mm: float | None, gate
     spectra = np.vstack([r[0] for r in kept]) if kept else np.empty((0, n_freqs))
     return TrialReadings(withheld, reasons, p, angles, [orientation_reason(a) for a in angles], spectra,
                          [r[1] for r in kept], gate is not None,
-                         contact_measures([r[2] for r in kept]) if contact else None)
+                         described_contact([r[2] for r in kept]) if contact else None)
 
 
-def contact_measures(descriptors: list[dict]) -> np.ndarray:
+def described_contact(descriptors: list[dict]) -> np.ndarray:
     """(n_images, len(CONTACT_MEASURES)) contact measures of each image's descriptors, in the measures' order."""
     from ..sensor.contact_geometry import CONTACT_MEASURES
 

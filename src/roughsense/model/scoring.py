@@ -231,7 +231,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
     from .contact_gate import orientation_reason
     from .gate_file import model_gate
     from .outside import domain_reasons
-    from .press_gate import contact_measures
+    from .press_gate import described_contact
 
     spectrum = model_spectrum(loaded, override=override)
     gate, ridge, contact = model_gate(loaded), model_ridge_period_mm(loaded), reads_contact(loaded)
@@ -247,7 +247,7 @@ def frame_scorer(loaded: FittedModel, override: SensorOverride | None = None
             if gate.withholds(values[None, :], p)[0]:
                 return math.nan, f"withheld: {gate.reason(values, p)}"
         X = row[None, :]
-        measures = contact_inputs(loaded, contact_measures([described]) if contact else None)
+        measures = contact_inputs(loaded, described_contact([described]) if contact else None)
         reasons = [r for r in (str(domain_reasons(loaded, spectrum, [line], X, ridge_period_mm=ridge,
                                                   contact=measures)[0]),
                                orientation_reason(described["orientation_deg"])) if r]
@@ -287,8 +287,8 @@ def image_readings(loaded: FittedModel, images: Sequence, *, n_jobs: int = 1, pr
     spectra = np.vstack([r[0] for r in readings]) if readings else np.empty((0, spectrum.freq_per_mm_.size))
     measures = None
     if contact:
-        from .press_gate import contact_measures
+        from .press_gate import described_contact
 
-        measures = contact_measures([r[2] for r in readings])
+        measures = described_contact([r[2] for r in readings])
     return (spectra_to_features(loaded, spectra), [r[1] for r in readings], spectrum,
             contact_inputs(loaded, measures))

@@ -30,7 +30,7 @@ from .training import TRAINING_SCHEMA, groove_report, train_groove
 def settings_terms(settings: FoldSettings | dict | None, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
     """Each row's terms (n, T) from the settings' contact measures; (n, 0) where there are none."""
     settings = FoldSettings.of(settings)
-    if settings is None or settings.contact is None or not settings.contact_names:
+    if settings is None or not settings.has_contact:
         return np.zeros((n, 0)), ()
     return contact_terms(settings.contact, settings.contact_names, settings.surfaces)
 
@@ -119,7 +119,7 @@ class GrooveFamily(FamilyEngine):
         """Its leave-one-specimen-out models (each its own nested choice) and residuals, for the model file; None
         without contact measures."""
         settings = FoldSettings.of(settings)
-        if settings is None or settings.contact is None or not settings.contact_names:
+        if settings is None or not settings.has_contact:
             return None
         return groove_jackknife(X, y, specimens, settings.contact, settings.contact_names, seed,
                                 surfaces=settings.surfaces)

@@ -33,7 +33,7 @@ TRAINING_SCHEMA = {
 
 def contact_of(settings: FoldSettings | None, what: str = "the rows") -> tuple[np.ndarray, tuple[str, ...]]:
     """The contact measures and their names from the settings, or a refusal naming ``what`` lacks them."""
-    if settings is None or settings.contact is None or not settings.contact_names:
+    if settings is None or not settings.has_contact:
         raise ConfigError(f"the groove model reads contact measures (land and groove widths), and {what} carry none")
     return np.asarray(settings.contact, dtype=np.float64), tuple(settings.contact_names)
 
